@@ -1,0 +1,269 @@
+"""The wire format between the FieldRx server and the edge agent: the one definition.
+
+Two messages cross the network:
+
+* ``JobPackage`` (server -> tractor): a prescription bound to a machine. Cells
+  are stored column-wise in path order (seed 001 sec. 1.2, Table 1: cell id,
+  four corner coordinates, rate), with UTM corners for the agent's metric
+  work and WGS84 corners for display and cross-checks. A SHA-256 checksum over
+  the canonical JSON lets the agent verify what it cached.
+* ``TelemetryRecord`` (tractor -> server): one record per GNSS fix, numbered
+  per machine (``seq``) so the server can deduplicate and acknowledge the
+  highest contiguous number it stored.
+
+Only the standard library is used here, so the server and the agent share it
+without pulling each other's dependencies.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from dataclasses import asdict, dataclass, field, fields
+from typing import Any
+
+FORMAT_VERSION = 1
+
+
+class ProtocolError(ValueError):
+    """A message does not follow the wire format; the text says which field and why."""
+
+
+def _canonical(obj: Any) -> bytes:
+    return json.dumps(obj, sort_keys=True, separators=(",", ":"), allow_nan=False).encode()
+
+
+@dataclass
+class ControllerSettings:
+    """Which motor controller the agent runs and with what parameters."""
+
+    name: str = "ladrc"  # pid | incremental_pid | ladrc | fuzzy_pid
+    params: dict[str, float] = field(default_factory=dict)
+    period_s: float = 0.01  # motor loop period (100 Hz)
+
+
+@dataclass
+class JobPackage:
+    """A job as the tractor downloads and caches it.
+
+    ``corners_utm`` and ``corners_wgs84`` are flat lists of 8 numbers per cell
+    (x0 y0 x1 y1 x2 y2 x3 y3, counter-clockwise, seed 001 Table 1), in the same
+    path order as ``seq``. ``boundary_utm`` is the field boundary as GeoJSON
+    Polygon/MultiPolygon coordinates in the field's UTM zone (holes included):
+    the agent never applies outside it.
+    """
+
+    job_id: int
+    machine_id: int
+    prescription_id: int
+    prescription_version: int
+    field_name: str
+    utm_epsg: int
+    implement_width_m: float
+    lag_s: float
+    calibration: dict[str, Any]
+    controller: ControllerSettings
+    boundary_utm: dict[str, Any]
+    seq: list[int]
+    swath: list[int]
+    rate_kg_ha: list[float]
+    corners_utm: list[float]
+    corners_wgs84: list[float]
+    antenna_forward_m: float = 0.0  # outlet position relative to the GNSS antenna
+    antenna_lateral_m: float = 0.0
+    speed_min_m_s: float = 0.8
+    speed_max_m_s: float = 2.5
+    fix_loss_hold_s: float = 2.0  # hold the last rate this long after losing fix, then stop
+    overlap_control: bool = True
+    product: str = ""
+    format_version: int = FORMAT_VERSION
+    checksum: str = ""
+
+    @property
+    def n_cells(self) -> int:
+        return len(self.seq)
+
+    def _body(self) -> dict[str, Any]:
+        body = asdict(self)
+        body.pop("checksum")
+        return body
+
+    def compute_checksum(self) -> str:
+        return hashlib.sha256(_canonical(self._body())).hexdigest()
+
+    def seal(self) -> JobPackage:
+        """Validate and set the checksum; returns self for chaining."""
+        self.validate()
+        self.checksum = self.compute_checksum()
+        return self
+
+    def validate(self) -> None:
+        n = len(self.seq)
+        for name, got, want in (
+            ("swath", len(self.swath), n),
+            ("rate_kg_ha", len(self.rate_kg_ha), n),
+            ("corners_utm", len(self.corners_utm), 8 * n),
+            ("corners_wgs84", len(self.corners_wgs84), 8 * n),
+        ):
+            if got != want:
+                raise ProtocolError(f"job package: {name} has {got} values, expected {want}")
+        if self.implement_width_m <= 0:
+            raise ProtocolError("job package: implement_width_m must be positive")
+        if self.lag_s < 0:
+            raise ProtocolError("job package: lag_s must not be negative")
+        for i, r in enumerate(self.rate_kg_ha):
+            if not math.isfinite(r) or r < 0:
+                raise ProtocolError(f"job package: cell {self.seq[i]} has invalid rate {r!r}")
+
+    def to_json(self) -> bytes:
+        if not self.checksum:
+            self.seal()
+        return _canonical(asdict(self))
+
+    @classmethod
+    def from_json(cls, data: bytes | str | dict[str, Any], verify: bool = True) -> JobPackage:
+        """Parse a package; with ``verify`` the checksum must match the content."""
+        obj = json.loads(data) if isinstance(data, bytes | str) else dict(data)
+        version = obj.get("format_version")
+        if version != FORMAT_VERSION:
+            raise ProtocolError(
+                f"job package: format_version {version!r} not supported (expected {FORMAT_VERSION})"
+            )
+        known = {f.name for f in fields(cls)}
+        unknown = set(obj) - known
+        if unknown:
+            raise ProtocolError(f"job package: unknown fields {sorted(unknown)}")
+        obj["controller"] = ControllerSettings(**obj.get("controller", {}))
+        try:
+            pkg = cls(**obj)
+        except TypeError as exc:
+            raise ProtocolError(f"job package: {exc}") from exc
+        pkg.validate()
+        if verify and pkg.checksum != pkg.compute_checksum():
+            raise ProtocolError("job package: checksum does not match its content")
+        return pkg
+
+
+# Telemetry -----------------------------------------------------------------
+
+ALARMS = (
+    "fix_lost",  # no usable GNSS fix
+    "shaft_below_range",  # target shaft speed below the calibrated range
+    "shaft_above_range",  # target shaft speed above the calibrated range (saturation)
+    "speed_out_of_range",  # ground speed outside the job's planned range
+    "rate_error",  # applied rate off target beyond tolerance
+    "outside_field",  # machine outside the boundary: metering stopped
+    "motor_saturated",  # controller output at its limit
+)
+
+
+@dataclass(slots=True)
+class TelemetryRecord:
+    """One record per GNSS fix (or per NDVI/depth sample), as stored on the server.
+
+    (machine_id, seq) is the deduplication key; seq starts at 1 and increases
+    by one per record, so the server can acknowledge the highest contiguous seq.
+    """
+
+    machine_id: int
+    seq: int
+    t: float  # unix time, s
+    lon: float | None = None
+    lat: float | None = None
+    fix_quality: int = 0  # GGA quality: 0 none, 1 GPS, 2 DGPS, 4 RTK fixed, 5 RTK float
+    hdop: float | None = None
+    speed_raw_m_s: float | None = None
+    speed_filtered_m_s: float | None = None
+    heading_deg: float | None = None
+    job_id: int | None = None
+    cell_seq: int | None = None
+    target_rate_kg_ha: float | None = None
+    applied_rate_kg_ha: float | None = None
+    target_shaft_rpm: float | None = None
+    actual_shaft_rpm: float | None = None
+    duty: float | None = None
+    ndvi: float | None = None
+    depth_mm: float | None = None
+    implement_down: bool = False
+    alarms: list[str] = field(default_factory=list)
+    queue_backlog: int = 0
+
+    def to_dict(self) -> dict[str, Any]:
+        return {f: getattr(self, f) for f in TELEMETRY_FIELDS}
+
+    @classmethod
+    def from_dict(cls, obj: dict[str, Any]) -> TelemetryRecord:
+        """Parse and validate one record; ``ProtocolError`` names the offending field."""
+        if not isinstance(obj, dict):
+            raise ProtocolError("record is not a JSON object")
+        unknown = set(obj) - _FIELD_SET
+        if unknown:
+            raise ProtocolError(f"unknown fields {sorted(unknown)}")
+        for name in ("machine_id", "seq", "t"):
+            if name not in obj:
+                raise ProtocolError(f"missing required field '{name}'")
+        rec = cls(**obj)
+        rec.validate()
+        return rec
+
+    def validate(self) -> None:
+        if not isinstance(self.machine_id, int) or self.machine_id <= 0:
+            raise ProtocolError("machine_id must be a positive integer")
+        if not isinstance(self.seq, int) or isinstance(self.seq, bool) or self.seq < 1:
+            raise ProtocolError("seq must be an integer >= 1")
+        if not isinstance(self.t, int | float) or not math.isfinite(self.t) or self.t <= 0:
+            raise ProtocolError("t must be a positive unix time in seconds")
+        if (self.lon is None) != (self.lat is None):
+            raise ProtocolError("lon and lat must both be given or both be null")
+        if self.lon is not None:
+            if not isinstance(self.lon, int | float) or not -180.0 <= self.lon <= 180.0:
+                raise ProtocolError(f"lon {self.lon!r} out of range [-180, 180]")
+            if not isinstance(self.lat, int | float) or not -90.0 <= self.lat <= 90.0:
+                raise ProtocolError(f"lat {self.lat!r} out of range [-90, 90]")
+        for name in _FLOAT_FIELDS:
+            v = getattr(self, name)
+            if v is not None and (
+                not isinstance(v, int | float) or isinstance(v, bool) or not math.isfinite(v)
+            ):
+                raise ProtocolError(f"{name} must be a finite number or null, got {v!r}")
+        if not isinstance(self.alarms, list) or any(a not in ALARMS for a in self.alarms):
+            raise ProtocolError(f"alarms must be a list of {list(ALARMS)}, got {self.alarms!r}")
+
+
+TELEMETRY_FIELDS: tuple[str, ...] = tuple(f.name for f in fields(TelemetryRecord))
+_FIELD_SET = frozenset(TELEMETRY_FIELDS)
+_FLOAT_FIELDS = (
+    "hdop",
+    "speed_raw_m_s",
+    "speed_filtered_m_s",
+    "heading_deg",
+    "target_rate_kg_ha",
+    "applied_rate_kg_ha",
+    "target_shaft_rpm",
+    "actual_shaft_rpm",
+    "duty",
+    "ndvi",
+    "depth_mm",
+)
+
+
+@dataclass
+class TelemetryAck:
+    """Server -> agent: everything up to ``acked_seq`` is stored; rejected records with reasons."""
+
+    machine_id: int
+    acked_seq: int
+    stored: int = 0
+    duplicates: int = 0
+    rejected: list[dict[str, Any]] = field(default_factory=list)  # {"seq": n, "reason": "..."}
+
+
+def telemetry_topic(machine_id: int) -> str:
+    """MQTT topic a machine publishes its telemetry batches on."""
+    return f"fieldrx/machines/{machine_id}/telemetry"
+
+
+def ack_topic(machine_id: int) -> str:
+    """MQTT topic the server publishes ``TelemetryAck`` on for one machine."""
+    return f"fieldrx/machines/{machine_id}/ack"
