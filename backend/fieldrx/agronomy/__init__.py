@@ -1,0 +1,1 @@
+"""Agronomy: soil samples, interpolation onto cells, rate models, prescriptions (pure, no DB)."""
