@@ -1,0 +1,3 @@
+"""FieldRx server."""
+
+__version__ = "0.1.0"

@@ -1,0 +1,196 @@
+"""Sign-in, organisation switching and API tokens for farm software."""
+
+from __future__ import annotations
+
+import datetime as dt
+
+from fastapi import APIRouter, HTTPException, status
+from pydantic import BaseModel, Field
+from sqlalchemy import select
+
+from fieldrx.auth.deps import SessionDep, UserDep
+from fieldrx.auth.security import verify_password
+from fieldrx.auth.service import issue_user_token
+from fieldrx.db.models import ROLES, ApiToken, Membership, Organisation, User
+
+router = APIRouter(prefix="/auth", tags=["auth"])
+
+
+class LoginIn(BaseModel):
+    email: str
+    password: str
+    organisation_id: int | None = Field(
+        default=None, description="organisation to sign in to (default: the first one)"
+    )
+
+
+class OrgOut(BaseModel):
+    id: int
+    name: str
+    role: str
+
+
+class UserOut(BaseModel):
+    id: int
+    email: str
+    full_name: str
+
+
+class LoginOut(BaseModel):
+    access_token: str
+    token_type: str = "bearer"
+    expires_at: dt.datetime | None
+    user: UserOut
+    organisation: OrgOut
+    organisations: list[OrgOut]
+
+
+def _orgs(session: SessionDep, user_id: int) -> list[OrgOut]:
+    rows = session.execute(
+        select(Organisation.id, Organisation.name, Membership.role)
+        .join(Membership, Membership.organisation_id == Organisation.id)
+        .where(Membership.user_id == user_id)
+        .order_by(Organisation.id)
+    ).all()
+    return [OrgOut(id=r[0], name=r[1], role=r[2]) for r in rows]
+
+
+def _login(session: SessionDep, user: User, organisation_id: int | None) -> LoginOut:
+    orgs = _orgs(session, user.id)
+    if not orgs:
+        raise HTTPException(status.HTTP_403_FORBIDDEN, "user belongs to no organisation")
+    org = (
+        orgs[0]
+        if organisation_id is None
+        else next((o for o in orgs if o.id == organisation_id), None)
+    )
+    if org is None:
+        raise HTTPException(status.HTTP_404_NOT_FOUND, f"organisation {organisation_id} not found")
+    token, row = issue_user_token(session, user.id, org.id, org.role)
+    expires = row.expires_at
+    session.commit()
+    return LoginOut(
+        access_token=token,
+        expires_at=expires,
+        user=UserOut(id=user.id, email=user.email, full_name=user.full_name),
+        organisation=org,
+        organisations=orgs,
+    )
+
+
+@router.post("/login", response_model=LoginOut)
+def login(body: LoginIn, session: SessionDep) -> LoginOut:
+    """Exchange e-mail and password for a bearer token scoped to one organisation."""
+    user = session.scalar(select(User).where(User.email == body.email.lower()))
+    if user is None or not user.is_active or not verify_password(body.password, user.password_hash):
+        raise HTTPException(status.HTTP_401_UNAUTHORIZED, "wrong e-mail or password")
+    return _login(session, user, body.organisation_id)
+
+
+class SwitchIn(BaseModel):
+    organisation_id: int
+
+
+@router.post("/switch", response_model=LoginOut)
+def switch_organisation(body: SwitchIn, principal: UserDep, session: SessionDep) -> LoginOut:
+    """New token for another organisation the user belongs to (the organisation switcher)."""
+    user = session.get(User, principal.user_id)
+    assert user is not None
+    return _login(session, user, body.organisation_id)
+
+
+class MeOut(BaseModel):
+    user: UserOut
+    organisation: OrgOut
+    organisations: list[OrgOut]
+
+
+@router.get("/me", response_model=MeOut)
+def me(principal: UserDep, session: SessionDep) -> MeOut:
+    user = session.get(User, principal.user_id)
+    assert user is not None
+    orgs = _orgs(session, user.id)
+    current = next(o for o in orgs if o.id == principal.organisation_id)
+    return MeOut(
+        user=UserOut(id=user.id, email=user.email, full_name=user.full_name),
+        organisation=current,
+        organisations=orgs,
+    )
+
+
+@router.post("/logout", status_code=204)
+def logout(principal: UserDep, session: SessionDep) -> None:
+    """Revoke the token used for this request."""
+    tok = session.get(ApiToken, principal.token_id)
+    assert tok is not None
+    tok.revoked_at = dt.datetime.now(dt.UTC)
+    session.commit()
+
+
+class TokenIn(BaseModel):
+    name: str = Field(min_length=1, max_length=200)
+    role: str = Field(default="viewer", description="admin | agronomist | viewer, at most your own")
+    expires_in_days: float = Field(default=90, gt=0, le=3650)
+
+
+class TokenOut(BaseModel):
+    id: int
+    name: str
+    role: str | None
+    prefix: str
+    created_at: dt.datetime
+    expires_at: dt.datetime | None
+    revoked_at: dt.datetime | None
+
+
+class NewTokenOut(TokenOut):
+    token: str
+
+
+@router.get("/tokens", response_model=list[TokenOut])
+def list_tokens(principal: UserDep, session: SessionDep) -> list[TokenOut]:
+    rows = session.scalars(
+        select(ApiToken)
+        .where(
+            ApiToken.organisation_id == principal.organisation_id,
+            ApiToken.user_id == principal.user_id,
+        )
+        .order_by(ApiToken.id)
+    )
+    return [TokenOut.model_validate(r, from_attributes=True) for r in rows]
+
+
+@router.post("/tokens", response_model=NewTokenOut, status_code=201)
+def create_token(body: TokenIn, principal: UserDep, session: SessionDep) -> NewTokenOut:
+    """A named, expiring API token for farm software; the token is shown only once."""
+    if body.role not in ROLES:
+        raise HTTPException(422, f"role must be one of {list(ROLES)}")
+    if ROLES.index(body.role) < ROLES.index(principal.role or "viewer"):
+        raise HTTPException(
+            403, f"cannot create a '{body.role}' token with role '{principal.role}'"
+        )
+    token, row = issue_user_token(
+        session,
+        principal.user_id or 0,
+        principal.organisation_id,
+        body.role,
+        name=body.name,
+        ttl=dt.timedelta(days=body.expires_in_days),
+    )
+    session.commit()
+    return NewTokenOut(
+        token=token, **TokenOut.model_validate(row, from_attributes=True).model_dump()
+    )
+
+
+@router.delete("/tokens/{token_id}", status_code=204)
+def revoke_token(token_id: int, principal: UserDep, session: SessionDep) -> None:
+    row = session.get(ApiToken, token_id)
+    if (
+        row is None
+        or row.organisation_id != principal.organisation_id
+        or (row.user_id != principal.user_id and principal.role != "admin")
+    ):
+        raise HTTPException(404, f"token {token_id} not found")
+    row.revoked_at = dt.datetime.now(dt.UTC)
+    session.commit()

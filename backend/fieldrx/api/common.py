@@ -1,0 +1,44 @@
+"""Helpers shared by the routers: scoped lookups and GeoJSON conversion."""
+
+from __future__ import annotations
+
+from typing import Any, TypeVar
+
+from fastapi import HTTPException, status
+from geoalchemy2.shape import from_shape, to_shape
+from shapely.geometry import mapping
+from shapely.geometry.base import BaseGeometry
+from sqlalchemy.orm import Session
+
+from fieldrx.auth.deps import Principal
+
+T = TypeVar("T")
+
+
+def get_scoped(session: Session, model: type[T], obj_id: int, principal: Principal) -> T:
+    """Fetch a row of the caller's organisation; anything else is a 404 (ids do not leak)."""
+    obj = session.get(model, obj_id)
+    if obj is None or obj.organisation_id != principal.organisation_id:  # type: ignore[attr-defined]
+        raise HTTPException(
+            status.HTTP_404_NOT_FOUND, f"{model.__name__.lower()} {obj_id} not found"
+        )
+    return obj
+
+
+def geom_to_geojson(geom: Any) -> dict[str, Any]:
+    """WKB element or shapely geometry -> GeoJSON geometry dict."""
+    shp = geom if isinstance(geom, BaseGeometry) else to_shape(geom)
+    return mapping(shp)
+
+
+def shape_to_db(geom: BaseGeometry, srid: int = 4326) -> Any:
+    return from_shape(geom, srid=srid)
+
+
+class ApiError(Exception):
+    """An error answered as a flat JSON body: {"detail": message, **extra} (where, location)."""
+
+    def __init__(self, status_code: int, message: str, **extra: Any) -> None:
+        super().__init__(message)
+        self.status_code = status_code
+        self.body: dict[str, Any] = {"detail": message, **extra}

@@ -1,0 +1,157 @@
+"""Machines: implement geometry, metering calibration, lag time, controller; device tokens."""
+
+from __future__ import annotations
+
+import datetime as dt
+from typing import Any, Literal
+
+from fastapi import APIRouter, Query
+from fieldrx_edge.metering import SEED001_CALIBRATION, calibration_from_dict
+from pydantic import BaseModel, Field, field_validator
+from sqlalchemy import func, select
+
+from fieldrx.api.common import ApiError, get_scoped
+from fieldrx.auth.deps import AnyPrincipal, SessionDep, UserDep, WriterDep
+from fieldrx.auth.service import issue_device_token
+from fieldrx.db.models import Machine
+
+router = APIRouter(prefix="/machines", tags=["machines"])
+
+CONTROLLERS = ("pid", "incremental_pid", "ladrc", "fuzzy_pid")
+
+
+class ControllerIn(BaseModel):
+    name: Literal["pid", "incremental_pid", "ladrc", "fuzzy_pid"] = "ladrc"
+    params: dict[str, float] = Field(default_factory=dict)
+    period_s: float = Field(default=0.01, gt=0, le=1)
+
+
+class MachineIn(BaseModel):
+    name: str = Field(min_length=1, max_length=200)
+    implement_type: str = Field(default="spreader", max_length=50)
+    width_m: float = Field(gt=0, le=60, description="working width, m")
+    lag_s: float = Field(default=1.52, ge=0, le=30, description="application lag T_lag, s")
+    calibration: dict[str, Any] = Field(default_factory=SEED001_CALIBRATION.to_dict)
+    controller: ControllerIn = Field(default_factory=ControllerIn)
+    antenna_forward_m: float = 0.0
+    antenna_lateral_m: float = 0.0
+    speed_min_m_s: float = Field(default=0.8, gt=0)
+    speed_max_m_s: float = Field(default=2.5, gt=0)
+
+    @field_validator("calibration")
+    @classmethod
+    def _calibration(cls, value: dict[str, Any]) -> dict[str, Any]:
+        try:
+            return calibration_from_dict(value).to_dict()
+        except (KeyError, TypeError, ValueError) as exc:
+            raise ValueError(f"invalid metering calibration: {exc}") from exc
+
+
+class MachinePatch(BaseModel):
+    name: str | None = Field(default=None, min_length=1, max_length=200)
+    implement_type: str | None = None
+    width_m: float | None = Field(default=None, gt=0, le=60)
+    lag_s: float | None = Field(default=None, ge=0, le=30)
+    calibration: dict[str, Any] | None = None
+    controller: ControllerIn | None = None
+    antenna_forward_m: float | None = None
+    antenna_lateral_m: float | None = None
+    speed_min_m_s: float | None = Field(default=None, gt=0)
+    speed_max_m_s: float | None = Field(default=None, gt=0)
+
+    @field_validator("calibration")
+    @classmethod
+    def _calibration(cls, value: dict[str, Any] | None) -> dict[str, Any] | None:
+        return None if value is None else MachineIn._calibration(value)
+
+
+class MachineOut(BaseModel):
+    id: int
+    name: str
+    implement_type: str
+    width_m: float
+    lag_s: float
+    calibration: dict[str, Any]
+    controller: dict[str, Any]
+    antenna_forward_m: float
+    antenna_lateral_m: float
+    speed_min_m_s: float
+    speed_max_m_s: float
+    created_at: dt.datetime
+
+
+class MachineList(BaseModel):
+    items: list[MachineOut]
+    total: int
+
+
+class DeviceTokenOut(BaseModel):
+    machine_id: int
+    token: str
+
+
+def _out(m: Machine) -> MachineOut:
+    return MachineOut.model_validate(m, from_attributes=True)
+
+
+def _check_speeds(m: Machine) -> None:
+    if m.speed_min_m_s > m.speed_max_m_s:
+        raise ApiError(422, "speed_min_m_s is greater than speed_max_m_s", where="speed_min_m_s")
+
+
+@router.get("", response_model=MachineList)
+def list_machines(
+    principal: UserDep,
+    session: SessionDep,
+    limit: int = Query(default=100, ge=1, le=1000),
+    offset: int = Query(default=0, ge=0),
+) -> MachineList:
+    stmt = select(Machine).where(Machine.organisation_id == principal.organisation_id)
+    total = session.scalar(select(func.count()).select_from(stmt.subquery())) or 0
+    rows = session.scalars(stmt.order_by(Machine.id).limit(limit).offset(offset))
+    return MachineList(items=[_out(r) for r in rows], total=total)
+
+
+@router.post("", response_model=MachineOut, status_code=201)
+def create_machine(body: MachineIn, principal: WriterDep, session: SessionDep) -> MachineOut:
+    m = Machine(organisation_id=principal.organisation_id, **body.model_dump())
+    _check_speeds(m)
+    session.add(m)
+    session.commit()
+    return _out(m)
+
+
+@router.get("/{machine_id}", response_model=MachineOut)
+def get_machine(machine_id: int, principal: AnyPrincipal, session: SessionDep) -> MachineOut:
+    """Users see their organisation's machines; a device token sees only its own machine."""
+    if principal.is_device and principal.machine_id != machine_id:
+        raise ApiError(404, f"machine {machine_id} not found")
+    return _out(get_scoped(session, Machine, machine_id, principal))
+
+
+@router.patch("/{machine_id}", response_model=MachineOut)
+def update_machine(
+    machine_id: int, body: MachinePatch, principal: WriterDep, session: SessionDep
+) -> MachineOut:
+    m = get_scoped(session, Machine, machine_id, principal)
+    for key, value in body.model_dump(exclude_unset=True).items():
+        if value is not None:
+            setattr(m, key, value)
+    _check_speeds(m)
+    session.commit()
+    return _out(m)
+
+
+@router.delete("/{machine_id}", status_code=204)
+def delete_machine(machine_id: int, principal: WriterDep, session: SessionDep) -> None:
+    session.delete(get_scoped(session, Machine, machine_id, principal))
+    session.commit()
+
+
+@router.post("/{machine_id}/device-token", response_model=DeviceTokenOut, status_code=201)
+def new_device_token(machine_id: int, principal: WriterDep, session: SessionDep) -> DeviceTokenOut:
+    """Issue the machine's device token (shown once); earlier tokens of the machine are revoked."""
+    m = get_scoped(session, Machine, machine_id, principal)
+    token = issue_device_token(session, m.id, m.organisation_id)
+    session.commit()
+    return DeviceTokenOut(machine_id=m.id, token=token)

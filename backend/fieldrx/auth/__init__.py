@@ -1,0 +1,1 @@
+"""Users, organisations, API tokens, device tokens and roles."""

@@ -1,0 +1,53 @@
+"""Database bootstrap: create the database and PostGIS if missing, then migrate.
+
+PostGIS is not a trusted extension, so it is created by a superuser
+connection (shared/STACK.md); migrations then run as the application user.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import psycopg
+from alembic.config import Config
+from psycopg import sql
+from sqlalchemy.engine import make_url
+
+from fieldrx.settings import get_settings
+
+ROOT = Path(__file__).resolve().parents[3]
+
+
+def alembic_config(url: str | None = None) -> Config:
+    cfg = Config(str(ROOT / "alembic.ini"))
+    cfg.set_main_option("script_location", str(ROOT / "migrations"))
+    cfg.set_main_option("sqlalchemy.url", (url or get_settings().database_url).replace("%", "%%"))
+    return cfg
+
+
+def ensure_database(url: str | None = None, superuser_dsn: str | None = None) -> None:
+    """Create the database named in ``url`` and the postgis extension in it when missing."""
+    u = make_url(url or get_settings().database_url)
+    admin = superuser_dsn or (
+        f"postgresql://{u.username or 'postgres'}@{u.host or '127.0.0.1'}:{u.port or 5432}/postgres"
+    )
+    with psycopg.connect(admin, autocommit=True) as conn:
+        exists = conn.execute(
+            "SELECT 1 FROM pg_database WHERE datname = %s", (u.database,)
+        ).fetchone()
+        if not exists:
+            conn.execute(sql.SQL("CREATE DATABASE {}").format(sql.Identifier(u.database)))
+    target = admin.rsplit("/", 1)[0] + f"/{u.database}"
+    with psycopg.connect(target, autocommit=True) as conn:
+        conn.execute("CREATE EXTENSION IF NOT EXISTS postgis")
+
+
+def drop_database(url: str, superuser_dsn: str | None = None) -> None:
+    u = make_url(url)
+    admin = superuser_dsn or (
+        f"postgresql://{u.username or 'postgres'}@{u.host or '127.0.0.1'}:{u.port or 5432}/postgres"
+    )
+    with psycopg.connect(admin, autocommit=True) as conn:
+        conn.execute(
+            sql.SQL("DROP DATABASE IF EXISTS {} WITH (FORCE)").format(sql.Identifier(u.database))
+        )

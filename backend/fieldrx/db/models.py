@@ -1,0 +1,375 @@
+"""ORM models: the whole FieldRx schema.
+
+The schema itself changes only through Alembic revisions in ``migrations/``;
+these classes describe it for queries. Geometries are stored in WGS84
+(SRID 4326) with GiST indexes; metric work happens in the field's UTM zone,
+whose EPSG code is stored beside the geometry.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+from typing import Any
+
+from geoalchemy2 import Geometry
+from sqlalchemy import (
+    ARRAY,
+    BigInteger,
+    Boolean,
+    CheckConstraint,
+    DateTime,
+    Double,
+    ForeignKey,
+    Index,
+    Integer,
+    SmallInteger,
+    String,
+    Text,
+    UniqueConstraint,
+    func,
+)
+from sqlalchemy.dialects.postgresql import JSONB
+from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
+
+ROLES = ("admin", "agronomist", "viewer")
+JOB_STATES = ("planned", "sent", "downloaded", "running", "paused", "completed", "aborted")
+
+
+def _now() -> Any:
+    return mapped_column(DateTime(timezone=True), server_default=func.now(), nullable=False)
+
+
+class Base(DeclarativeBase):
+    pass
+
+
+class Organisation(Base):
+    __tablename__ = "organisations"
+    id: Mapped[int] = mapped_column(primary_key=True)
+    name: Mapped[str] = mapped_column(String(200), unique=True)
+    created_at: Mapped[dt.datetime] = _now()
+
+
+class User(Base):
+    __tablename__ = "users"
+    id: Mapped[int] = mapped_column(primary_key=True)
+    email: Mapped[str] = mapped_column(String(320), unique=True)
+    full_name: Mapped[str] = mapped_column(String(200), default="")
+    password_hash: Mapped[str] = mapped_column(String(200))
+    is_active: Mapped[bool] = mapped_column(Boolean, default=True, server_default="true")
+    created_at: Mapped[dt.datetime] = _now()
+    memberships: Mapped[list[Membership]] = relationship(back_populates="user")
+
+
+class Membership(Base):
+    """A user's role in one organisation (a user may belong to several)."""
+
+    __tablename__ = "memberships"
+    __table_args__ = (CheckConstraint(f"role IN {ROLES}", name="ck_membership_role"),)
+    user_id: Mapped[int] = mapped_column(
+        ForeignKey("users.id", ondelete="CASCADE"), primary_key=True
+    )
+    organisation_id: Mapped[int] = mapped_column(
+        ForeignKey("organisations.id", ondelete="CASCADE"), primary_key=True
+    )
+    role: Mapped[str] = mapped_column(String(20))
+    user: Mapped[User] = relationship(back_populates="memberships")
+    organisation: Mapped[Organisation] = relationship()
+
+
+class ApiToken(Base):
+    """Token kept as an HMAC-SHA256 digest; a user token has a role, a device one a machine"""
+
+    __tablename__ = "api_tokens"
+    __table_args__ = (
+        CheckConstraint("kind IN ('user', 'device')", name="ck_token_kind"),
+        CheckConstraint(
+            "(kind = 'user' AND user_id IS NOT NULL AND role IS NOT NULL)"
+            " OR (kind = 'device' AND machine_id IS NOT NULL)",
+            name="ck_token_owner",
+        ),
+    )
+    id: Mapped[int] = mapped_column(primary_key=True)
+    organisation_id: Mapped[int] = mapped_column(
+        ForeignKey("organisations.id", ondelete="CASCADE"), index=True
+    )
+    kind: Mapped[str] = mapped_column(String(10))
+    user_id: Mapped[int | None] = mapped_column(ForeignKey("users.id", ondelete="CASCADE"))
+    machine_id: Mapped[int | None] = mapped_column(ForeignKey("machines.id", ondelete="CASCADE"))
+    role: Mapped[str | None] = mapped_column(String(20))
+    name: Mapped[str] = mapped_column(String(200), default="")
+    token_hash: Mapped[str] = mapped_column(String(64), unique=True)
+    prefix: Mapped[str] = mapped_column(String(16))
+    created_at: Mapped[dt.datetime] = _now()
+    expires_at: Mapped[dt.datetime | None] = mapped_column(DateTime(timezone=True))
+    revoked_at: Mapped[dt.datetime | None] = mapped_column(DateTime(timezone=True))
+    last_used_at: Mapped[dt.datetime | None] = mapped_column(DateTime(timezone=True))
+
+
+class Farm(Base):
+    __tablename__ = "farms"
+    id: Mapped[int] = mapped_column(primary_key=True)
+    organisation_id: Mapped[int] = mapped_column(
+        ForeignKey("organisations.id", ondelete="CASCADE"), index=True
+    )
+    name: Mapped[str] = mapped_column(String(200))
+    notes: Mapped[str] = mapped_column(Text, default="")
+    created_at: Mapped[dt.datetime] = _now()
+
+
+class Field(Base):
+    __tablename__ = "fields"
+    id: Mapped[int] = mapped_column(primary_key=True)
+    organisation_id: Mapped[int] = mapped_column(
+        ForeignKey("organisations.id", ondelete="CASCADE"), index=True
+    )
+    farm_id: Mapped[int | None] = mapped_column(ForeignKey("farms.id", ondelete="SET NULL"))
+    name: Mapped[str] = mapped_column(String(200))
+    crop: Mapped[str] = mapped_column(String(100), default="")
+    notes: Mapped[str] = mapped_column(Text, default="")
+    boundary: Mapped[Any] = mapped_column(Geometry("MULTIPOLYGON", srid=4326, spatial_index=True))
+    utm_epsg: Mapped[int] = mapped_column(Integer)
+    area_m2: Mapped[float] = mapped_column(Double)
+    created_at: Mapped[dt.datetime] = _now()
+    updated_at: Mapped[dt.datetime] = _now()
+
+
+class Machine(Base):
+    __tablename__ = "machines"
+    id: Mapped[int] = mapped_column(primary_key=True)
+    organisation_id: Mapped[int] = mapped_column(
+        ForeignKey("organisations.id", ondelete="CASCADE"), index=True
+    )
+    name: Mapped[str] = mapped_column(String(200))
+    implement_type: Mapped[str] = mapped_column(String(50), default="spreader")
+    width_m: Mapped[float] = mapped_column(Double)
+    lag_s: Mapped[float] = mapped_column(Double, default=1.52)
+    calibration: Mapped[dict[str, Any]] = mapped_column(JSONB)
+    controller: Mapped[dict[str, Any]] = mapped_column(JSONB, default=dict)
+    antenna_forward_m: Mapped[float] = mapped_column(Double, default=0.0)
+    antenna_lateral_m: Mapped[float] = mapped_column(Double, default=0.0)
+    speed_min_m_s: Mapped[float] = mapped_column(Double, default=0.8)
+    speed_max_m_s: Mapped[float] = mapped_column(Double, default=2.5)
+    created_at: Mapped[dt.datetime] = _now()
+
+
+class Plan(Base):
+    """A coverage plan: parameters, metrics and the route; its cells are in ``plan_cells``."""
+
+    __tablename__ = "plans"
+    id: Mapped[int] = mapped_column(primary_key=True)
+    organisation_id: Mapped[int] = mapped_column(
+        ForeignKey("organisations.id", ondelete="CASCADE"), index=True
+    )
+    field_id: Mapped[int] = mapped_column(ForeignKey("fields.id", ondelete="CASCADE"), index=True)
+    params: Mapped[dict[str, Any]] = mapped_column(JSONB)
+    metrics: Mapped[dict[str, Any]] = mapped_column(JSONB, default=dict)
+    heading_deg: Mapped[float] = mapped_column(Double)
+    n_cells: Mapped[int] = mapped_column(Integer)
+    route: Mapped[Any] = mapped_column(Geometry("LINESTRING", srid=4326, spatial_index=False))
+    created_at: Mapped[dt.datetime] = _now()
+
+
+class PlanCell(Base):
+    """One grid cell in path order (seed 001 Table 1): clipped polygon + the 4 UTM corners."""
+
+    __tablename__ = "plan_cells"
+    plan_id: Mapped[int] = mapped_column(
+        ForeignKey("plans.id", ondelete="CASCADE"), primary_key=True
+    )
+    seq: Mapped[int] = mapped_column(Integer, primary_key=True)
+    swath: Mapped[int] = mapped_column(Integer)
+    index_in_swath: Mapped[int] = mapped_column(Integer)
+    area_m2: Mapped[float] = mapped_column(Double)
+    corners_utm: Mapped[list[float]] = mapped_column(ARRAY(Double))
+    geom: Mapped[Any] = mapped_column(Geometry("POLYGON", srid=4326, spatial_index=True))
+
+
+class SoilSample(Base):
+    __tablename__ = "soil_samples"
+    id: Mapped[int] = mapped_column(primary_key=True)
+    organisation_id: Mapped[int] = mapped_column(
+        ForeignKey("organisations.id", ondelete="CASCADE"), index=True
+    )
+    field_id: Mapped[int] = mapped_column(ForeignKey("fields.id", ondelete="CASCADE"), index=True)
+    sample_id: Mapped[str] = mapped_column(String(100))
+    depth_cm: Mapped[float | None] = mapped_column(Double)
+    n_mg_kg: Mapped[float | None] = mapped_column(Double)
+    p_mg_kg: Mapped[float | None] = mapped_column(Double)
+    k_mg_kg: Mapped[float | None] = mapped_column(Double)
+    om_pct: Mapped[float | None] = mapped_column(Double)
+    ph: Mapped[float | None] = mapped_column(Double)
+    ndvi: Mapped[float | None] = mapped_column(Double)
+    geom: Mapped[Any] = mapped_column(Geometry("POINT", srid=4326, spatial_index=True))
+    import_batch: Mapped[str] = mapped_column(String(64), default="")
+    created_at: Mapped[dt.datetime] = _now()
+
+
+class Prescription(Base):
+    __tablename__ = "prescriptions"
+    id: Mapped[int] = mapped_column(primary_key=True)
+    organisation_id: Mapped[int] = mapped_column(
+        ForeignKey("organisations.id", ondelete="CASCADE"), index=True
+    )
+    plan_id: Mapped[int] = mapped_column(ForeignKey("plans.id", ondelete="CASCADE"), index=True)
+    machine_id: Mapped[int | None] = mapped_column(ForeignKey("machines.id", ondelete="SET NULL"))
+    name: Mapped[str] = mapped_column(String(200), default="")
+    product: Mapped[str] = mapped_column(String(200), default="")
+    model: Mapped[str] = mapped_column(String(50))
+    params: Mapped[dict[str, Any]] = mapped_column(JSONB, default=dict)
+    current_version: Mapped[int] = mapped_column(Integer, default=1)
+    created_at: Mapped[dt.datetime] = _now()
+
+
+class PrescriptionVersion(Base):
+    """An immutable version; an edit creates version n+1 and leaves n as it was."""
+
+    __tablename__ = "prescription_versions"
+    __table_args__ = (UniqueConstraint("prescription_id", "version"),)
+    id: Mapped[int] = mapped_column(primary_key=True)
+    prescription_id: Mapped[int] = mapped_column(
+        ForeignKey("prescriptions.id", ondelete="CASCADE"), index=True
+    )
+    version: Mapped[int] = mapped_column(Integer)
+    note: Mapped[str] = mapped_column(Text, default="")
+    summary: Mapped[dict[str, Any]] = mapped_column(JSONB, default=dict)
+    created_by: Mapped[int | None] = mapped_column(ForeignKey("users.id", ondelete="SET NULL"))
+    created_at: Mapped[dt.datetime] = _now()
+
+
+class PrescriptionRate(Base):
+    __tablename__ = "prescription_rates"
+    version_id: Mapped[int] = mapped_column(
+        ForeignKey("prescription_versions.id", ondelete="CASCADE"), primary_key=True
+    )
+    seq: Mapped[int] = mapped_column(Integer, primary_key=True)
+    rate_kg_ha: Mapped[float] = mapped_column(Double)
+    source_value: Mapped[float | None] = mapped_column(Double)  # interpolated N mg/kg or NDVI
+    flags: Mapped[list[str]] = mapped_column(ARRAY(String(32)), default=list)
+
+
+class Job(Base):
+    __tablename__ = "jobs"
+    __table_args__ = (CheckConstraint(f"state IN {JOB_STATES}", name="ck_job_state"),)
+    id: Mapped[int] = mapped_column(primary_key=True)
+    organisation_id: Mapped[int] = mapped_column(
+        ForeignKey("organisations.id", ondelete="CASCADE"), index=True
+    )
+    prescription_id: Mapped[int] = mapped_column(ForeignKey("prescriptions.id", ondelete="CASCADE"))
+    prescription_version: Mapped[int] = mapped_column(Integer)
+    machine_id: Mapped[int] = mapped_column(
+        ForeignKey("machines.id", ondelete="CASCADE"), index=True
+    )
+    name: Mapped[str] = mapped_column(String(200), default="")
+    state: Mapped[str] = mapped_column(String(20), default="planned")
+    n_cells: Mapped[int] = mapped_column(Integer, default=0)
+    cells_applied: Mapped[int] = mapped_column(Integer, default=0)
+    package_checksum: Mapped[str] = mapped_column(String(64), default="")
+    created_by: Mapped[int | None] = mapped_column(ForeignKey("users.id", ondelete="SET NULL"))
+    created_at: Mapped[dt.datetime] = _now()
+    updated_at: Mapped[dt.datetime] = _now()
+
+
+class JobEvent(Base):
+    """Who moved a job to which state, and when."""
+
+    __tablename__ = "job_events"
+    id: Mapped[int] = mapped_column(primary_key=True)
+    job_id: Mapped[int] = mapped_column(ForeignKey("jobs.id", ondelete="CASCADE"), index=True)
+    state: Mapped[str] = mapped_column(String(20))
+    by_user_id: Mapped[int | None] = mapped_column(ForeignKey("users.id", ondelete="SET NULL"))
+    by_machine_id: Mapped[int | None] = mapped_column(
+        ForeignKey("machines.id", ondelete="SET NULL")
+    )
+    note: Mapped[str] = mapped_column(Text, default="")
+    at: Mapped[dt.datetime] = _now()
+
+
+class JobCellApplied(Base):
+    """Per-cell as-applied aggregate of a job, kept up to date by telemetry ingest."""
+
+    __tablename__ = "job_cells_applied"
+    job_id: Mapped[int] = mapped_column(ForeignKey("jobs.id", ondelete="CASCADE"), primary_key=True)
+    seq: Mapped[int] = mapped_column(Integer, primary_key=True)
+    n_records: Mapped[int] = mapped_column(Integer, default=0)
+    target_rate_sum: Mapped[float] = mapped_column(Double, default=0.0)
+    applied_rate_sum: Mapped[float] = mapped_column(Double, default=0.0)
+    first_t: Mapped[dt.datetime | None] = mapped_column(DateTime(timezone=True))
+    last_t: Mapped[dt.datetime | None] = mapped_column(DateTime(timezone=True))
+
+
+class Telemetry(Base):
+    """One record per fix. (machine_id, seq) is the deduplication key; rows arrive by COPY."""
+
+    __tablename__ = "telemetry"
+    __table_args__ = (
+        Index("ix_telemetry_machine_t", "machine_id", "t"),
+        Index("ix_telemetry_job_cell", "job_id", "cell_seq"),
+    )
+    machine_id: Mapped[int] = mapped_column(
+        ForeignKey("machines.id", ondelete="CASCADE"), primary_key=True
+    )
+    seq: Mapped[int] = mapped_column(BigInteger, primary_key=True)
+    t: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True))
+    received_at: Mapped[dt.datetime] = mapped_column(
+        DateTime(timezone=True), server_default=func.now()
+    )
+    job_id: Mapped[int | None] = mapped_column(Integer)
+    geom: Mapped[Any] = mapped_column(Geometry("POINT", srid=4326, spatial_index=True))
+    fix_quality: Mapped[int] = mapped_column(SmallInteger, default=0)
+    hdop: Mapped[float | None] = mapped_column(Double)
+    speed_raw_m_s: Mapped[float | None] = mapped_column(Double)
+    speed_filtered_m_s: Mapped[float | None] = mapped_column(Double)
+    heading_deg: Mapped[float | None] = mapped_column(Double)
+    cell_seq: Mapped[int | None] = mapped_column(Integer)
+    target_rate_kg_ha: Mapped[float | None] = mapped_column(Double)
+    applied_rate_kg_ha: Mapped[float | None] = mapped_column(Double)
+    target_shaft_rpm: Mapped[float | None] = mapped_column(Double)
+    actual_shaft_rpm: Mapped[float | None] = mapped_column(Double)
+    duty: Mapped[float | None] = mapped_column(Double)
+    ndvi: Mapped[float | None] = mapped_column(Double)
+    depth_mm: Mapped[float | None] = mapped_column(Double)
+    implement_down: Mapped[bool] = mapped_column(Boolean, default=False)
+    alarms: Mapped[list[str]] = mapped_column(ARRAY(String(32)), default=list)
+    queue_backlog: Mapped[int] = mapped_column(Integer, default=0)
+
+
+class MachineStatus(Base):
+    """Latest state of a machine, upserted by ingest; online = seen within the heartbeat timeout."""
+
+    __tablename__ = "machine_status"
+    machine_id: Mapped[int] = mapped_column(
+        ForeignKey("machines.id", ondelete="CASCADE"), primary_key=True
+    )
+    last_seen_at: Mapped[dt.datetime | None] = mapped_column(DateTime(timezone=True))
+    last_t: Mapped[dt.datetime | None] = mapped_column(DateTime(timezone=True))
+    acked_seq: Mapped[int] = mapped_column(BigInteger, default=0)
+    lon: Mapped[float | None] = mapped_column(Double)
+    lat: Mapped[float | None] = mapped_column(Double)
+    speed_m_s: Mapped[float | None] = mapped_column(Double)
+    heading_deg: Mapped[float | None] = mapped_column(Double)
+    job_id: Mapped[int | None] = mapped_column(Integer)
+    cell_seq: Mapped[int | None] = mapped_column(Integer)
+    target_rate_kg_ha: Mapped[float | None] = mapped_column(Double)
+    applied_rate_kg_ha: Mapped[float | None] = mapped_column(Double)
+    queue_backlog: Mapped[int] = mapped_column(Integer, default=0)
+    alarms: Mapped[list[str]] = mapped_column(ARRAY(String(32)), default=list)
+
+
+class Alert(Base):
+    __tablename__ = "alerts"
+    id: Mapped[int] = mapped_column(primary_key=True)
+    organisation_id: Mapped[int] = mapped_column(
+        ForeignKey("organisations.id", ondelete="CASCADE"), index=True
+    )
+    machine_id: Mapped[int] = mapped_column(
+        ForeignKey("machines.id", ondelete="CASCADE"), index=True
+    )
+    job_id: Mapped[int | None] = mapped_column(Integer)
+    kind: Mapped[str] = mapped_column(String(32))
+    message: Mapped[str] = mapped_column(Text)
+    value: Mapped[float | None] = mapped_column(Double)
+    started_at: Mapped[dt.datetime] = _now()
+    ended_at: Mapped[dt.datetime | None] = mapped_column(DateTime(timezone=True))
+    acknowledged_at: Mapped[dt.datetime | None] = mapped_column(DateTime(timezone=True))
+    acknowledged_by: Mapped[int | None] = mapped_column(ForeignKey("users.id", ondelete="SET NULL"))

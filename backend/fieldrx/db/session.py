@@ -1,0 +1,50 @@
+"""Engine and session factory.
+
+JIT is switched off on every application connection: on this class of machine
+it made spatial aggregations 4-5x slower (shared/STACK.md).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from functools import lru_cache
+
+from sqlalchemy import Engine, create_engine
+from sqlalchemy.orm import Session, sessionmaker
+
+from fieldrx.settings import get_settings
+
+
+def make_engine(url: str) -> Engine:
+    return create_engine(
+        url,
+        pool_pre_ping=True,
+        pool_size=10,
+        max_overflow=20,
+        connect_args={"options": "-c jit=off"},
+    )
+
+
+@lru_cache
+def get_engine() -> Engine:
+    return make_engine(get_settings().database_url)
+
+
+@lru_cache
+def get_sessionmaker() -> sessionmaker[Session]:
+    return sessionmaker(bind=get_engine(), expire_on_commit=False)
+
+
+def get_session() -> Iterator[Session]:
+    """FastAPI dependency: one session (and one transaction per write) per request."""
+    session = get_sessionmaker()()
+    try:
+        yield session
+    finally:
+        session.close()
+
+
+def raw_dsn(url: str | None = None) -> str:
+    """libpq DSN (for psycopg COPY and LISTEN) from the SQLAlchemy URL."""
+    url = url or get_settings().database_url
+    return url.replace("postgresql+psycopg://", "postgresql://", 1)
