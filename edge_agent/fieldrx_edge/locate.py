@@ -1,0 +1,234 @@
+"""Which cell is under a point: path-ordered search with a grid-hash fallback.
+
+Seed 001 sec. 2.3: the terminal finds its cell following the path order and
+drops finished cells from later checks. A machine driving the path is almost
+always in the current cell or one of the next few, so the search starts there
+(O(1) per fix). When it leaves the path (turns, a detour, driving back), a
+uniform grid hash over the cells' bounding boxes answers in O(1) as well.
+
+``FieldBoundary`` answers "inside the field?" with even-odd ray casting over
+all rings (outer rings and holes), restricted to the edges that span the
+point's horizontal band, so a 1000-vertex boundary costs a handful of edge
+tests per fix. The agent must never apply outside the field or in a hole.
+"""
+
+from __future__ import annotations
+
+import math
+from enum import IntEnum
+
+import numpy as np
+
+from fieldrx_edge.protocol import JobPackage
+
+
+class Where(IntEnum):
+    INSIDE = 0
+    OUTSIDE = 1
+    HOLE = 2
+
+
+def _rings(boundary: dict) -> list[tuple[list[list[float]], bool]]:
+    """(ring, is_hole) for a GeoJSON Polygon/MultiPolygon (or bare coordinates)."""
+    if "coordinates" in boundary:
+        coords = boundary["coordinates"]
+        gtype = boundary.get("type", "Polygon")
+    else:
+        raise ValueError("boundary_utm must have 'coordinates'")
+    polys = coords if gtype == "MultiPolygon" else [coords]
+    out = []
+    for poly in polys:
+        for i, ring in enumerate(poly):
+            out.append((ring, i > 0))
+    return out
+
+
+class FieldBoundary:
+    """Point-in-field test (even-odd over rings, holes excluded) with a y-band edge index."""
+
+    def __init__(self, boundary_utm: dict, band_m: float | None = None) -> None:
+        edges = []
+        for ring, hole in _rings(boundary_utm):
+            pts = [(float(p[0]), float(p[1])) for p in ring]
+            if len(pts) > 1 and pts[0] == pts[-1]:
+                pts = pts[:-1]
+            for i in range(len(pts)):
+                x0, y0 = pts[i]
+                x1, y1 = pts[(i + 1) % len(pts)]
+                if y0 != y1:
+                    edges.append((x0, y0, x1, y1, hole))
+        if not edges:
+            raise ValueError("field boundary has no edges")
+        e = np.array([[a, b, c, d] for a, b, c, d, _ in edges])
+        self.ymin = float(min(e[:, 1].min(), e[:, 3].min()))
+        self.ymax = float(max(e[:, 1].max(), e[:, 3].max()))
+        self.xmin = float(min(e[:, 0].min(), e[:, 2].min()))
+        self.xmax = float(max(e[:, 0].max(), e[:, 2].max()))
+        n_bands = max(1, min(4096, len(edges)))
+        self.band = band_m or max((self.ymax - self.ymin) / n_bands, 1e-6)
+        nb = int(math.floor((self.ymax - self.ymin) / self.band)) + 1
+        self._bands: list[list[tuple[float, float, float, float, bool]]] = [[] for _ in range(nb)]
+        for x0, y0, x1, y1, hole in edges:
+            lo = int((min(y0, y1) - self.ymin) / self.band)
+            hi = int((max(y0, y1) - self.ymin) / self.band)
+            for b in range(lo, min(hi, nb - 1) + 1):
+                self._bands[b].append((x0, y0, x1, y1, hole))
+        self._edges = np.array([[a, b, c, d, h] for a, b, c, d, h in edges], dtype=float)
+
+    def where(self, x: float, y: float) -> Where:
+        if not (self.ymin <= y <= self.ymax and self.xmin <= x <= self.xmax):
+            return Where.OUTSIDE
+        b = int((y - self.ymin) / self.band)
+        if b >= len(self._bands):
+            b = len(self._bands) - 1
+        outer = hole = False
+        for x0, y0, x1, y1, is_hole in self._bands[b]:
+            if (y0 > y) != (y1 > y) and x < x0 + (y - y0) * (x1 - x0) / (y1 - y0):
+                if is_hole:
+                    hole = not hole
+                else:
+                    outer = not outer
+        if not outer:
+            return Where.OUTSIDE
+        return Where.HOLE if hole else Where.INSIDE
+
+    def contains(self, x: float, y: float) -> bool:
+        return self.where(x, y) == Where.INSIDE
+
+    def contains_many(self, xy: np.ndarray, chunk: int = 200_000) -> np.ndarray:
+        """Vectorised even-odd test for many points (simulator bookkeeping)."""
+        e = self._edges
+        out = np.zeros(len(xy), dtype=bool)
+        for s in range(0, len(xy), chunk):
+            px = xy[s : s + chunk, 0:1]
+            py = xy[s : s + chunk, 1:2]
+            x0, y0, x1, y1 = e[:, 0], e[:, 1], e[:, 2], e[:, 3]
+            cond = (y0 > py) != (y1 > py)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                xint = x0 + (py - y0) * (x1 - x0) / (y1 - y0)
+            cross = cond & (px < xint)
+            out[s : s + chunk] = (cross.sum(axis=1) % 2) == 1
+        return out
+
+
+def _in_quad(q: tuple[float, ...], x: float, y: float) -> bool:
+    """Point in a quadrilateral (any vertex order, convex or not): even-odd ray casting."""
+    inside = False
+    x0, y0 = q[6], q[7]
+    for i in range(0, 8, 2):
+        x1, y1 = q[i], q[i + 1]
+        if (y0 > y) != (y1 > y) and x < x0 + (y - y0) * (x1 - x0) / (y1 - y0):
+            inside = not inside
+        x0, y0 = x1, y1
+    return inside
+
+
+class CellLocator:
+    """Path-ordered cell search with finished-cell dropping and a grid-hash fallback.
+
+    ``locate(x, y)`` returns the cell index (0-based position in path order) or
+    -1. ``finished`` marks cells already applied; the forward search skips
+    them, while the fallback still reports them (so overlap control can tell a
+    point is in an already-applied cell).
+    """
+
+    def __init__(
+        self, corners_utm: np.ndarray | list[float], window: int = 6, bucket_m: float | None = None
+    ) -> None:
+        c = np.asarray(corners_utm, dtype=float).reshape(-1, 8)
+        self.n = len(c)
+        self.corners = c
+        self._quads: list[tuple[float, ...]] = [tuple(row) for row in c.tolist()]
+        self.finished = np.zeros(self.n, dtype=bool)
+        self._fin = self.finished  # same buffer; numpy bool indexing is fast enough
+        self.window = window
+        self.current = 0
+        self.fallbacks = 0
+        xs, ys = c[:, 0::2], c[:, 1::2]
+        bx0, bx1, by0, by1 = xs.min(1), xs.max(1), ys.min(1), ys.max(1)
+        if self.n == 0:
+            self.x0 = self.y0 = 0.0
+            self.b = 1.0
+            self.nx = self.ny = 1
+            self._keys = np.zeros(0, dtype=np.int64)
+            self._start = np.zeros(1, dtype=np.int64)
+            self._items = np.zeros(0, dtype=np.int64)
+            return
+        size = bucket_m or float(np.median(np.maximum(bx1 - bx0, by1 - by0)))
+        self.b = max(size, 1e-3)
+        self.x0, self.y0 = float(bx0.min()), float(by0.min())
+        self.nx = int((bx1.max() - self.x0) / self.b) + 1
+        self.ny = int((by1.max() - self.y0) / self.b) + 1
+        i0 = ((bx0 - self.x0) / self.b).astype(np.int64)
+        i1 = ((bx1 - self.x0) / self.b).astype(np.int64)
+        j0 = ((by0 - self.y0) / self.b).astype(np.int64)
+        j1 = ((by1 - self.y0) / self.b).astype(np.int64)
+        # every (bucket, cell) pair over each cell's bbox, built without a Python loop
+        ni, nj = i1 - i0 + 1, j1 - j0 + 1
+        cnt = ni * nj
+        cell = np.repeat(np.arange(self.n), cnt)
+        k = np.arange(cnt.sum()) - np.repeat(np.cumsum(cnt) - cnt, cnt)
+        ii = np.repeat(i0, cnt) + k % np.repeat(ni, cnt)
+        jj = np.repeat(j0, cnt) + k // np.repeat(ni, cnt)
+        key = jj * self.nx + ii
+        order = np.lexsort((cell, key))
+        key, cell = key[order], cell[order]
+        self._items = cell
+        self._start = np.searchsorted(key, np.arange(self.nx * self.ny + 1))
+        self._itemlist: list[int] = cell.tolist()
+        self._startlist: list[int] = self._start.tolist()
+
+    def reset(self, current: int = 0) -> None:
+        self.current = max(0, min(current, self.n - 1)) if self.n else 0
+
+    def candidates(self, x: float, y: float) -> list[int]:
+        i = int((x - self.x0) / self.b)
+        j = int((y - self.y0) / self.b)
+        if not (0 <= i < self.nx and 0 <= j < self.ny):
+            return []
+        k = j * self.nx + i
+        return self._itemlist[self._startlist[k] : self._startlist[k + 1]]
+
+    def locate(self, x: float, y: float) -> int:
+        """Cell under (x, y), searching forward in path order first."""
+        quads, fin = self._quads, self.finished
+        cur = self.current
+        n = self.n
+        if n == 0:
+            return -1
+        if not fin[cur] and _in_quad(quads[cur], x, y):
+            return cur
+        end = min(n, cur + 1 + self.window)
+        for k in range(cur + 1, end):
+            if not fin[k] and _in_quad(quads[k], x, y):
+                self.current = k
+                return k
+        # off the path: spatial fallback; prefer an unfinished cell, lowest path index
+        self.fallbacks += 1
+        best = -1
+        for k in self.candidates(x, y):
+            if _in_quad(quads[k], x, y):
+                if not fin[k]:
+                    self.current = k
+                    return k
+                if best < 0:
+                    best = k
+        return best
+
+    def locate_naive(self, x: float, y: float) -> int:
+        """Baseline: test every cell (vectorised numpy). For benchmarks and tests only."""
+        c = self.corners
+        inside = np.zeros(self.n, dtype=bool)
+        for a in range(0, 8, 2):
+            b = (a + 2) % 8
+            x0, y0, x1, y1 = c[:, a], c[:, a + 1], c[:, b], c[:, b + 1]
+            cond = (y0 > y) != (y1 > y)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                xi = x0 + (y - y0) * (x1 - x0) / (y1 - y0)
+            inside ^= cond & (x < xi)
+        hits = np.flatnonzero(inside)
+        return int(hits[0]) if len(hits) else -1
+
+
+def locator_for_job(job: JobPackage) -> tuple[CellLocator, FieldBoundary]:
+    return CellLocator(job.corners_utm), FieldBoundary(job.boundary_utm)

@@ -1,0 +1,387 @@
+"""The agent's loops wired together.
+
+At the GNSS rate (``Pipeline.on_fix``): fix -> UTM -> Kalman speed (seed 001
+eq. 14-15) -> lag look-ahead (eq. 16: the outlet point shifted forward by
+v * T_lag, so the rate changes where the fertilizer lands) -> boundary check
+-> cell lookup (path order, finished cells dropped) -> target rate -> target
+shaft speed (``metering``, eq. 1-3). The motor loop (``motor.MotorLoop``)
+runs at a fixed rate on its own. Every fix becomes a telemetry record that
+goes into the local queue before anything else sees it.
+
+Metering stops when the implement is raised, outside the field, in a hole,
+in an already-applied cell (overlap control), and after ``fix_loss_hold_s``
+without a usable fix (the last rate is held until then).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import threading
+import time
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+from typing import Any
+
+from fieldrx_edge.gnss.parser import Fix, NmeaParser
+from fieldrx_edge.gnss.utm import UtmProjection
+from fieldrx_edge.locate import CellLocator, FieldBoundary, Where
+from fieldrx_edge.metering import (
+    calibration_from_dict,
+    rate_for_shaft_rpm,
+    shaft_rpm_for_rate,
+)
+from fieldrx_edge.protocol import JobPackage, TelemetryRecord
+
+log = logging.getLogger(__name__)
+
+
+class _Kalman:
+    """Scalar Kalman speed filter, seed 001 eq. 14-15 (A = H = 1, Q 0.01, R 0.2).
+
+    Initialised from the first measurement (SCIENCE.md: x0 = 0 gives -100 %).
+    Used when ``fieldrx_edge.estimate`` is not available.
+    """
+
+    def __init__(self, q: float = 0.01, r: float = 0.2, p0: float = 1.0) -> None:
+        self.q, self.r, self.p0 = q, r, p0
+        self.x: float | None = None
+        self.p = p0
+
+    def update(self, z: float) -> float:
+        if self.x is None:
+            self.x = z
+            return z
+        p = self.p + self.q
+        k = p / (p + self.r)
+        self.x += k * (z - self.x)
+        self.p = (1 - k) * p
+        return self.x
+
+    def reset(self) -> None:
+        self.x, self.p = None, self.p0
+
+
+def make_speed_filter() -> Any:
+    """The estimate package's Kalman filter when present, else the local one (same equations)."""
+    try:
+        from fieldrx_edge.estimate import KalmanSpeedFilter  # type: ignore[attr-defined]
+    except ImportError:
+        return _Kalman()
+    kf = KalmanSpeedFilter()
+    if hasattr(kf, "update"):
+        return kf
+    return _Kalman()
+
+
+@dataclass
+class RuntimeConfig:
+    lag_compensation: bool = True
+    response_s: float = 0.05  # motor loop's effective delay, added to the look-ahead
+    gnss_period_s: float = 0.1  # half a fix period is added: the target holds until the next fix
+    fix_timeout_s: float = 1.0  # no fix for this long counts as a loss of fix
+    min_fix_quality: int = 1
+    max_hdop: float | None = 5.0
+    min_course_speed_m_s: float = 0.3  # below this the GNSS course is noise: keep the last heading
+
+
+@dataclass(slots=True)
+class Decision:
+    t: float
+    metering: bool = False
+    target_rate_kg_ha: float = 0.0
+    target_rpm: float = 0.0
+    cell: int = -1
+    cell_seq: int | None = None
+    x: float | None = None
+    y: float | None = None
+    lx: float | None = None  # look-ahead (landing) point
+    ly: float | None = None
+    speed_raw_m_s: float | None = None
+    speed_m_s: float | None = None
+    heading_deg: float | None = None
+    reason: str = ""
+    alarms: list[str] = field(default_factory=list)
+
+
+class Pipeline:
+    """Per-fix decisions for one job; pure computation, no I/O (the simulator reuses it)."""
+
+    def __init__(
+        self,
+        job: JobPackage,
+        cfg: RuntimeConfig | None = None,
+        finished: Iterable[int] = (),
+        on_cell_finished: Callable[[int], None] | None = None,
+    ) -> None:
+        self.job = job
+        self.cfg = cfg or RuntimeConfig()
+        self.proj = UtmProjection(job.utm_epsg)
+        self.locator = CellLocator(job.corners_utm)
+        self.boundary = FieldBoundary(job.boundary_utm)
+        for i in finished:
+            self.locator.finished[i] = True
+        self.cal = calibration_from_dict(job.calibration)
+        self.kf = make_speed_filter()
+        self.rates = list(job.rate_kg_ha)
+        self.seqs = list(job.seq)
+        self.on_cell_finished = on_cell_finished
+        self.heading_rad = 0.0
+        self._sin = 0.0
+        self._cos = 1.0
+        self.last_good_t: float | None = None
+        self.last: Decision | None = None
+        self._applying = -1  # cell being applied (landing point inside, metering on)
+
+    # -- helpers ---------------------------------------------------------
+
+    def look_ahead_time_s(self) -> float:
+        c = self.cfg
+        if not c.lag_compensation:
+            return 0.0
+        return self.job.lag_s + c.response_s + 0.5 * c.gnss_period_s
+
+    def _finish_current(self) -> None:
+        if self._applying >= 0:
+            self.locator.finished[self._applying] = True
+            if self.on_cell_finished is not None:
+                self.on_cell_finished(self._applying)
+            self._applying = -1
+
+    def _stop(self, d: Decision, reason: str) -> Decision:
+        d.metering = False
+        d.target_rate_kg_ha = 0.0
+        d.target_rpm = 0.0
+        d.reason = reason
+        self._finish_current()
+        self.last = d
+        return d
+
+    # -- entry points ----------------------------------------------------
+
+    def on_fix(self, fix: Fix, now: float, implement_down: bool = True) -> Decision:
+        cfg = self.cfg
+        usable = fix.valid and fix.fix_quality >= cfg.min_fix_quality
+        if usable and cfg.max_hdop is not None and fix.hdop is not None:
+            usable = fix.hdop <= cfg.max_hdop
+        if not usable:
+            return self.on_no_fix(now)
+        if fix.x is None:
+            assert fix.lon is not None and fix.lat is not None
+            fix.x, fix.y = self.proj.forward(fix.lon, fix.lat)
+        return self.on_position(now, fix.x, fix.y, fix.speed_m_s, fix.course_deg, implement_down)
+
+    def on_position(
+        self,
+        now: float,
+        x: float,
+        y: float,
+        speed_raw: float | None,
+        course_deg: float | None,
+        implement_down: bool = True,
+    ) -> Decision:
+        """The pipeline for one usable fix already in UTM."""
+        job, cfg = self.job, self.cfg
+        self.last_good_t = now
+        if speed_raw is None:
+            speed_raw = self.last.speed_m_s if self.last and self.last.speed_m_s else 0.0
+        v = self.kf.update(speed_raw)
+        if v < 0:
+            v = 0.0
+        if course_deg is not None and speed_raw >= cfg.min_course_speed_m_s:
+            self.heading_rad = math.radians(course_deg)
+            self._sin = math.sin(self.heading_rad)  # course is clockwise from grid north
+            self._cos = math.cos(self.heading_rad)
+        s, c = self._sin, self._cos
+        # outlet position: antenna + forward/lateral offsets (lateral positive to the right)
+        fwd = job.antenna_forward_m + v * self.look_ahead_time_s()
+        lat = job.antenna_lateral_m
+        lx = x + fwd * s + lat * c
+        ly = y + fwd * c - lat * s
+        d = Decision(
+            t=now,
+            x=x,
+            y=y,
+            lx=lx,
+            ly=ly,
+            speed_raw_m_s=speed_raw,
+            speed_m_s=v,
+            heading_deg=math.degrees(self.heading_rad) % 360.0,
+        )
+        if not (job.speed_min_m_s <= v <= job.speed_max_m_s):
+            d.alarms.append("speed_out_of_range")
+        where = self.boundary.where(lx, ly)
+        if where != Where.INSIDE:
+            d.alarms.append("outside_field")
+            return self._stop(d, "outside_field" if where == Where.OUTSIDE else "hole")
+        idx = self.locator.locate(lx, ly)
+        d.cell = idx
+        if idx < 0:
+            return self._stop(d, "no_cell")
+        d.cell_seq = self.seqs[idx]
+        if idx != self._applying:
+            self._finish_current()
+        if not implement_down:
+            return self._stop(d, "implement_raised")
+        if job.overlap_control and self.locator.finished[idx]:
+            return self._stop(d, "already_applied")
+        rate = self.rates[idx]
+        if rate <= 0.0:
+            return self._stop(d, "zero_rate")
+        rpm = shaft_rpm_for_rate(self.cal, rate, job.implement_width_m, v)
+        if rpm < self.cal.min_rpm:
+            d.alarms.append("shaft_below_range")
+            rpm = self.cal.min_rpm
+        elif rpm > self.cal.max_rpm:
+            d.alarms.append("shaft_above_range")
+            rpm = self.cal.max_rpm
+        d.metering = True
+        d.target_rate_kg_ha = rate
+        d.target_rpm = rpm
+        d.reason = "metering"
+        self._applying = idx
+        self.last = d
+        return d
+
+    def on_no_fix(self, now: float) -> Decision:
+        """Fix-loss policy: hold the last rate for ``fix_loss_hold_s``, then stop."""
+        last = self.last
+        d = Decision(t=now, alarms=["fix_lost"])
+        if (
+            last is not None
+            and last.metering
+            and self.last_good_t is not None
+            and now - self.last_good_t <= self.job.fix_loss_hold_s
+        ):
+            d.metering = True
+            d.target_rate_kg_ha = last.target_rate_kg_ha
+            d.target_rpm = last.target_rpm
+            d.cell, d.cell_seq = last.cell, last.cell_seq
+            d.speed_m_s = last.speed_m_s
+            d.heading_deg = last.heading_deg
+            d.reason = "fix_lost_hold"
+            return d  # self.last stays the last good decision
+        d.reason = "fix_lost"
+        self._finish_current()
+        if last is not None:
+            last.metering = False
+        return d
+
+    def applied_rate(self, d: Decision, actual_rpm: float) -> float:
+        if not d.metering or not d.speed_m_s:
+            return 0.0
+        return rate_for_shaft_rpm(self.cal, actual_rpm, self.job.implement_width_m, d.speed_m_s)
+
+
+def make_record(
+    pipe: Pipeline,
+    d: Decision,
+    fix: Fix | None,
+    actual_rpm: float,
+    duty: float,
+    implement_down: bool,
+    t: float,
+    backlog: int = 0,
+    ndvi: float | None = None,
+) -> dict[str, Any]:
+    """Telemetry record body (seq and machine_id are set by the queue)."""
+    lon = lat = None
+    if fix is not None and fix.lon is not None and fix.lat is not None:
+        lon, lat = fix.lon, fix.lat
+    elif d.x is not None and d.y is not None:
+        lon, lat = pipe.proj.inverse(d.x, d.y)
+    rec = TelemetryRecord(
+        machine_id=pipe.job.machine_id,
+        seq=1,
+        t=t,
+        lon=lon,
+        lat=lat,
+        fix_quality=fix.fix_quality if fix is not None else (1 if d.x is not None else 0),
+        hdop=fix.hdop if fix is not None else None,
+        speed_raw_m_s=d.speed_raw_m_s,
+        speed_filtered_m_s=d.speed_m_s,
+        heading_deg=d.heading_deg,
+        job_id=pipe.job.job_id,
+        cell_seq=d.cell_seq,
+        target_rate_kg_ha=d.target_rate_kg_ha,
+        applied_rate_kg_ha=pipe.applied_rate(d, actual_rpm),
+        target_shaft_rpm=d.target_rpm,
+        actual_shaft_rpm=actual_rpm,
+        duty=duty,
+        ndvi=ndvi,
+        implement_down=implement_down,
+        alarms=list(d.alarms),
+        queue_backlog=backlog,
+    )
+    return rec.to_dict()
+
+
+class Agent:
+    """A job running live: NMEA lines in, motor commands and queued telemetry out."""
+
+    def __init__(
+        self,
+        job: JobPackage,
+        queue: Any,
+        motor: Any,
+        cfg: RuntimeConfig | None = None,
+        finished: Iterable[int] = (),
+        on_progress: Callable[[list[int]], None] | None = None,
+        implement_down: Callable[[], bool] | None = None,
+    ) -> None:
+        self.job = job
+        self.queue = queue
+        self.motor = motor
+        self._finished: list[int] = sorted(set(finished))
+        self.on_progress = on_progress
+        self.pipe = Pipeline(job, cfg, self._finished, self._cell_done)
+        self.parser = NmeaParser(max_hdop=None)
+        self.implement_down = implement_down or (lambda: True)
+        self.records = 0
+        self.lines = 0
+        self._last_fix_wall = time.monotonic()
+
+    def _cell_done(self, idx: int) -> None:
+        self._finished.append(idx)
+        if self.on_progress is not None:
+            self.on_progress(self._finished)
+
+    def handle_line(self, line: str) -> int:
+        """Parse one line; run the pipeline for each completed fix. Returns records queued."""
+        self.lines += 1
+        n = 0
+        now_wall = time.monotonic()
+        fixes = self.parser.feed(line) if line else []
+        for fix in fixes:
+            self._last_fix_wall = now_wall
+            t = fix.t if fix.t is not None else time.time()
+            down = self.implement_down()
+            d = self.pipe.on_fix(fix, now_wall, down)
+            self._emit(d, fix, down, t)
+            n += 1
+        if not fixes and now_wall - self._last_fix_wall > self.pipe.cfg.fix_timeout_s:
+            self._last_fix_wall = now_wall  # one no-fix record per timeout period
+            d = self.pipe.on_no_fix(now_wall)
+            self._emit(d, None, self.implement_down(), time.time())
+            n += 1
+        return n
+
+    def _emit(self, d: Decision, fix: Fix | None, down: bool, t: float) -> None:
+        self.motor.setpoint_rpm = d.target_rpm if d.metering else 0.0
+        rec = make_record(self.pipe, d, fix, self.motor.rpm, self.motor.duty, down, t)
+        self.queue.put(rec)
+        self.records += 1
+
+    def run(self, lines: Iterable[str], stop: threading.Event | None = None) -> None:
+        stop = stop or threading.Event()
+        motor_stop = threading.Event()
+        th = threading.Thread(target=self.motor.run, args=(motor_stop,), daemon=True)
+        th.start()
+        try:
+            for line in lines:
+                if stop.is_set():
+                    break
+                self.handle_line(line)
+        finally:
+            motor_stop.set()
+            th.join(timeout=2.0)

@@ -1,0 +1,86 @@
+"""HTTP batch sender: POST /api/v1/telemetry with the device token, trim on ack."""
+
+from __future__ import annotations
+
+import logging
+import threading
+
+import httpx
+
+from fieldrx_edge.protocol import TelemetryAck
+from fieldrx_edge.uplink.backoff import Backoff
+from fieldrx_edge.uplink.queue import TelemetryQueue
+
+log = logging.getLogger(__name__)
+
+
+class HttpSender:
+    """Sends the queue's oldest records in batches; the server's ack decides what is trimmed."""
+
+    def __init__(
+        self,
+        queue: TelemetryQueue,
+        base_url: str,
+        token: str,
+        batch_size: int = 500,
+        timeout_s: float = 10.0,
+        backoff: Backoff | None = None,
+    ) -> None:
+        self.queue = queue
+        self.url = base_url.rstrip("/") + "/api/v1/telemetry"
+        self.batch_size = batch_size
+        self.backoff = backoff or Backoff()
+        self._client = httpx.Client(timeout=timeout_s, headers={"Authorization": f"Bearer {token}"})
+        self.sent_batches = 0
+        self.failures = 0
+        self.last_error: str | None = None
+
+    def close(self) -> None:
+        self._client.close()
+
+    def send_once(self) -> int | None:
+        """One batch. Returns records trimmed, 0 if nothing pending, None on failure."""
+        batch = self.queue.pending(self.batch_size)
+        if not batch:
+            return 0
+        try:
+            resp = self._client.post(self.url, json={"records": batch})
+            if resp.status_code >= 400:
+                raise httpx.HTTPStatusError(
+                    f"HTTP {resp.status_code}: {resp.text[:200]}",
+                    request=resp.request,
+                    response=resp,
+                )
+            ack = TelemetryAck(**resp.json())
+        except (httpx.HTTPError, ValueError, TypeError) as exc:
+            self.failures += 1
+            self.last_error = str(exc)
+            log.info("telemetry upload failed: %s", exc)
+            return None
+        self.sent_batches += 1
+        if ack.rejected:
+            log.warning("server rejected %d records: %s", len(ack.rejected), ack.rejected[:3])
+        return self.queue.ack(ack.acked_seq, rejected=len(ack.rejected))
+
+    def run(self, stop: threading.Event, idle_s: float = 0.2) -> None:
+        """Drain forever until ``stop``; exponential backoff while the server is unreachable."""
+        while not stop.is_set():
+            n = self.send_once()
+            if n is None:
+                stop.wait(self.backoff.next_delay())
+                continue
+            self.backoff.reset()
+            if n == 0 or self.queue.backlog() == 0:
+                stop.wait(idle_s)
+
+    def drain(self, timeout_s: float = 30.0) -> bool:
+        """Send until the queue is empty or ``timeout_s`` passes (end of a simulation)."""
+        import time
+
+        deadline = time.monotonic() + timeout_s
+        while self.queue.backlog() > 0 and time.monotonic() < deadline:
+            if self.send_once() is None:
+                time.sleep(min(self.backoff.next_delay(), max(0.0, deadline - time.monotonic())))
+            else:
+                self.backoff.reset()
+        return self.queue.backlog() == 0

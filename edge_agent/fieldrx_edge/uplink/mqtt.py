@@ -1,0 +1,154 @@
+"""MQTT sender: QoS 1 batches on fieldrx/machines/{id}/telemetry, acks on .../ack.
+
+The broker's PUBACK only says the broker has the message; the queue is trimmed
+only when the FieldRx server publishes its ``TelemetryAck`` (acked_seq). The
+number of unacknowledged batches is capped well below paho's 65535 message
+ids (STACK.md: publish fails with ERR_QUEUE_SIZE otherwise). If no ack arrives
+for ``ack_timeout_s``, everything after acked_seq is sent again: the server
+deduplicates by (machine, seq).
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import threading
+import time
+
+import paho.mqtt.client as mqtt
+
+from fieldrx_edge.protocol import ack_topic, telemetry_topic
+from fieldrx_edge.uplink.backoff import Backoff
+from fieldrx_edge.uplink.queue import TelemetryQueue
+
+log = logging.getLogger(__name__)
+
+
+class MqttSender:
+    def __init__(
+        self,
+        queue: TelemetryQueue,
+        host: str = "127.0.0.1",
+        port: int = 1883,
+        batch_size: int = 200,
+        max_inflight_batches: int = 20,
+        ack_timeout_s: float = 10.0,
+        topic_prefix: str = "",
+        client_id: str | None = None,
+    ) -> None:
+        self.queue = queue
+        self.batch_size = batch_size
+        self.max_inflight = max_inflight_batches
+        self.ack_timeout_s = ack_timeout_s
+        self.topic = topic_prefix + telemetry_topic(queue.machine_id)
+        self.ack_topic = topic_prefix + ack_topic(queue.machine_id)
+        self.backoff = Backoff(cap_s=10.0)
+        self._cv = threading.Condition()
+        self._acked = queue.acked_seq
+        self._sent_up_to = self._acked
+        self._inflight: list[tuple[int, float]] = []  # (last seq of batch, sent at)
+        self._connected = False
+        cid = client_id or f"fieldrx-edge-{queue.machine_id}"
+        self.client = mqtt.Client(
+            mqtt.CallbackAPIVersion.VERSION2, client_id=cid, clean_session=False
+        )
+        self.client.max_inflight_messages_set(max_inflight_batches)
+        self.client.max_queued_messages_set(max_inflight_batches * 2)
+        self.client.on_connect = self._on_connect
+        self.client.on_disconnect = self._on_disconnect
+        self.client.on_message = self._on_message
+        self.client.reconnect_delay_set(0.5, 10)
+        self.client.connect_async(host, port, keepalive=30)
+        self.client.loop_start()
+
+    def close(self) -> None:
+        self.client.loop_stop()
+        self.client.disconnect()
+
+    # callbacks (paho network thread)
+    def _on_connect(self, client, userdata, flags, reason_code, properties) -> None:  # noqa: ANN001
+        if reason_code.is_failure:
+            return
+        client.subscribe(self.ack_topic, qos=1)
+        with self._cv:
+            self._connected = True
+            # after a reconnect, resend everything not acked by the server
+            self._sent_up_to = self._acked
+            self._inflight.clear()
+            self._cv.notify_all()
+
+    def _on_disconnect(self, client, userdata, flags, reason_code, properties) -> None:  # noqa: ANN001
+        with self._cv:
+            self._connected = False
+
+    def _on_message(self, client, userdata, msg) -> None:  # noqa: ANN001
+        try:
+            ack = json.loads(msg.payload)
+            acked = int(ack["acked_seq"])
+        except (ValueError, KeyError, TypeError):
+            log.warning("bad ack payload on %s", msg.topic)
+            return
+        rejected = len(ack.get("rejected") or [])
+        with self._cv:
+            if acked > self._acked:
+                self._acked = acked
+                self._inflight = [b for b in self._inflight if b[0] > acked]
+            self._cv.notify_all()
+        self._pending_ack = (acked, rejected)
+
+    _pending_ack: tuple[int, int] | None = None
+
+    def _apply_ack(self) -> None:
+        pa = self._pending_ack
+        if pa is not None:
+            self._pending_ack = None
+            self.queue.ack(pa[0], rejected=pa[1])
+
+    def send_some(self) -> int:
+        """Publish batches while the in-flight cap allows; returns records published."""
+        self._apply_ack()
+        with self._cv:
+            if not self._connected:
+                return 0
+            now = time.monotonic()
+            if self._inflight and now - self._inflight[0][1] > self.ack_timeout_s:
+                log.info("no telemetry ack for %.0f s: resending", self.ack_timeout_s)
+                self._sent_up_to = self._acked
+                self._inflight.clear()
+            room = self.max_inflight - len(self._inflight)
+            after = max(self._sent_up_to, self._acked)
+        published = 0
+        while room > 0:
+            batch = self.queue.pending(self.batch_size, after=after)
+            if not batch:
+                break
+            payload = json.dumps({"records": batch}, separators=(",", ":"))
+            info = self.client.publish(self.topic, payload, qos=1)
+            if info.rc != mqtt.MQTT_ERR_SUCCESS:
+                break
+            after = batch[-1]["seq"]
+            with self._cv:
+                self._sent_up_to = after
+                self._inflight.append((after, time.monotonic()))
+            published += len(batch)
+            room -= 1
+        return published
+
+    def run(self, stop: threading.Event) -> None:
+        while not stop.is_set():
+            n = self.send_some()
+            with self._cv:
+                if n == 0:
+                    self._cv.wait(0.2)
+        self._apply_ack()
+
+    def drain(self, timeout_s: float = 30.0) -> bool:
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            self.send_some()
+            self._apply_ack()
+            if self.queue.backlog() == 0:
+                return True
+            with self._cv:
+                self._cv.wait(0.05)
+        return self.queue.backlog() == 0
