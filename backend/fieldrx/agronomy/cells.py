@@ -27,7 +27,6 @@ FLAG_BITS: dict[str, int] = {
     "above_meter_range": 4,  # rate lowered to the highest meterable rate
     "manual": 8,  # rate set by a per-cell edit
     "zone": 16,  # rate set by zone painting
-    "model_negative": 32,  # the model asked for less than 0: set to 0 (no fertilizer needed)
 }
 
 

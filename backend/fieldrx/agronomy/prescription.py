@@ -1,0 +1,272 @@
+"""Pure prescription building: cells + data + model -> rates, flags, summary.
+
+No database: the API layer stores what these functions return as a new
+prescription version. Every function returns new arrays and never mutates its
+inputs, so version n stays unchanged when version n+1 is made from it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import shapely
+
+from fieldrx.agronomy.cells import FLAG_BITS, CellTable
+from fieldrx.agronomy.interpolate import InterpolationResult, interpolate_to_cells
+from fieldrx.agronomy.rates import MeterCheck, check_meter_range, model_rates
+
+# Which sample column feeds which model.
+MODEL_INPUT = {"nutrient_balance": "n_mg_kg", "ndvi": "ndvi", "uniform": None}
+
+
+class PrescriptionError(ValueError):
+    """Bad edit, zone or input; the message names the cell or parameter."""
+
+
+@dataclass
+class Prescription:
+    """Rates in path order with per-cell flag bits (see ``cells.FLAG_BITS``)."""
+
+    rate_kg_ha: np.ndarray
+    flags: np.ndarray
+    model: str
+    params: dict[str, Any]
+    meter_range_kg_ha: tuple[float, float] | None = None
+    fallback_rate_kg_ha: float | None = None
+    info: dict[str, Any] = field(default_factory=dict)
+
+    def summary(
+        self, area_m2: np.ndarray, bins: int = 10, seq: np.ndarray | None = None
+    ) -> dict[str, Any]:
+        out = summarize(self.rate_kg_ha, self.flags, area_m2, bins=bins, seq=seq)
+        out["model"] = self.model
+        out["params"] = self.params
+        out["meter_range_kg_ha"] = (
+            None if self.meter_range_kg_ha is None else list(self.meter_range_kg_ha)
+        )
+        out["fallback_rate_kg_ha"] = self.fallback_rate_kg_ha
+        out.update({k: v for k, v in self.info.items() if k not in out})
+        return out
+
+
+def _finalise(
+    rates: np.ndarray, base_flags: np.ndarray, meter: MeterCheck | None
+) -> tuple[np.ndarray, np.ndarray, tuple[float, float] | None]:
+    clamped, meter_flags, rng = check_meter_range(rates, meter)
+    return clamped, (base_flags | meter_flags).astype(np.uint16), rng
+
+
+def build_prescription(
+    model: str,
+    params: Mapping[str, Any],
+    n_cells: int,
+    values: np.ndarray | None = None,
+    no_data: np.ndarray | None = None,
+    meter: MeterCheck | None = None,
+    fallback_rate_kg_ha: float | None = None,
+    area_m2: np.ndarray | None = None,
+) -> Prescription:
+    """Rates from per-cell values (NaN / ``no_data`` = no data).
+
+    Cells without data get ``fallback_rate_kg_ha``, or when None the model's
+    rate at the area-weighted mean of the cells that have data; they are
+    flagged ``no_data``. Then every rate is checked against the meter range
+    (clamped and flagged, see ``rates.check_meter_range``).
+    """
+    params = dict(params)
+    if model == "uniform":
+        raw = model_rates(model, None, params, n_cells)
+        flags = np.zeros(n_cells, dtype=np.uint16)
+        fb = None
+    else:
+        if values is None:
+            raise PrescriptionError(f"model {model!r} needs per-cell values (soil samples or NDVI)")
+        v = np.asarray(values, dtype=float)
+        if len(v) != n_cells:
+            raise PrescriptionError(f"{len(v)} values for {n_cells} cells")
+        nd = np.isnan(v) if no_data is None else (np.asarray(no_data, dtype=bool) | np.isnan(v))
+        raw = model_rates(model, v, params, n_cells)
+        fb = fallback_rate_kg_ha
+        if fb is None:
+            have = ~nd
+            if not have.any():
+                raise PrescriptionError("no cell has data and no fallback_rate_kg_ha was given")
+            w = np.ones(n_cells) if area_m2 is None else np.asarray(area_m2, dtype=float)
+            mean_v = float(np.average(v[have], weights=w[have]))
+            fb = float(model_rates(model, np.array([mean_v]), params, 1)[0])
+        elif not (np.isfinite(fb) and fb >= 0):
+            raise PrescriptionError(f"fallback_rate_kg_ha must be >= 0, got {fb!r}")
+        raw = np.where(nd, fb, raw)
+        flags = np.where(nd, FLAG_BITS["no_data"], 0).astype(np.uint16)
+    rates, flags, rng = _finalise(raw, flags, meter)
+    return Prescription(rates, flags, model, params, rng, fb)
+
+
+def prescribe(
+    cells: CellTable,
+    model: str,
+    params: Mapping[str, Any],
+    sample_xy_utm: np.ndarray | None = None,
+    sample_values: np.ndarray | None = None,
+    interpolation: str = "cell_mean",
+    interpolation_params: Mapping[str, Any] | None = None,
+    meter: MeterCheck | None = None,
+    fallback_rate_kg_ha: float | None = None,
+) -> Prescription:
+    """Interpolate samples onto the cells, then ``build_prescription``.
+
+    ``sample_xy_utm`` must be in ``cells.epsg``. ``info`` of the result carries
+    the interpolation report (method, LOO-CV RMSE for kriging, no-data count).
+    """
+    interp: InterpolationResult | None = None
+    if model != "uniform":
+        if sample_xy_utm is None or sample_values is None or len(sample_values) == 0:
+            raise PrescriptionError(f"model {model!r} needs samples")
+        interp = interpolate_to_cells(
+            interpolation,
+            cells.polygons_utm,
+            cells.centroids_utm,
+            sample_xy_utm,
+            sample_values,
+            **dict(interpolation_params or {}),
+        )
+    p = build_prescription(
+        model,
+        params,
+        len(cells),
+        None if interp is None else interp.values,
+        None if interp is None else interp.no_data,
+        meter,
+        fallback_rate_kg_ha,
+        cells.area_m2,
+    )
+    if interp is not None:
+        p.info["interpolation"] = {"method": interp.method, **interp.info}
+    return p
+
+
+def apply_cell_edits(
+    seq: np.ndarray,
+    rate_kg_ha: np.ndarray,
+    flags: np.ndarray,
+    edits: Mapping[int, float],
+    meter: MeterCheck | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Manual per-cell rates by cell ``seq``; returns new (rates, flags).
+
+    Edited cells are flagged ``manual`` (their old flags are replaced, they
+    no longer carry a fallback) and meter-checked like any other rate.
+    """
+    seq = np.asarray(seq)
+    pos = {int(s): i for i, s in enumerate(seq.tolist())}
+    rates = np.array(rate_kg_ha, dtype=float)
+    fl = np.array(flags, dtype=np.uint16)
+    idx: list[int] = []
+    vals: list[float] = []
+    for s, r in edits.items():
+        if int(s) not in pos:
+            raise PrescriptionError(f"cell {s} does not exist in this plan")
+        r = float(r)
+        if not np.isfinite(r) or r < 0:
+            raise PrescriptionError(f"cell {s}: rate must be >= 0, got {r!r}")
+        idx.append(pos[int(s)])
+        vals.append(r)
+    ii = np.array(idx, dtype=np.int64)
+    new, meter_flags, _ = check_meter_range(np.array(vals), meter)
+    rates[ii] = new
+    fl[ii] = FLAG_BITS["manual"] | meter_flags
+    return rates, fl
+
+
+def cells_in_zone(centroids_utm: np.ndarray, zone_utm: Any) -> np.ndarray:
+    """Cells whose centroid lies in the zone polygon (border included): a bool mask."""
+    if (
+        zone_utm is None
+        or zone_utm.is_empty
+        or zone_utm.geom_type
+        not in (
+            "Polygon",
+            "MultiPolygon",
+        )
+    ):
+        raise PrescriptionError("zone must be a non-empty Polygon or MultiPolygon")
+    if not zone_utm.is_valid:
+        raise PrescriptionError(f"zone polygon is invalid: {shapely.is_valid_reason(zone_utm)}")
+    c = np.asarray(centroids_utm, dtype=float)
+    return shapely.intersects_xy(zone_utm, c[:, 0], c[:, 1])
+
+
+def paint_zone(
+    centroids_utm: np.ndarray,
+    rate_kg_ha: np.ndarray,
+    flags: np.ndarray,
+    zone_utm: Any,
+    zone_rate_kg_ha: float,
+    meter: MeterCheck | None = None,
+) -> tuple[np.ndarray, np.ndarray, int]:
+    """Zone painting: every cell covered by the polygon (centroid inside) gets the rate.
+
+    Returns new (rates, flags, number of cells painted); painted cells are
+    flagged ``zone`` and meter-checked. The zone is in the cells' UTM zone.
+    """
+    r = float(zone_rate_kg_ha)
+    if not np.isfinite(r) or r < 0:
+        raise PrescriptionError(f"zone rate must be >= 0, got {zone_rate_kg_ha!r}")
+    mask = cells_in_zone(centroids_utm, zone_utm)
+    rates = np.array(rate_kg_ha, dtype=float)
+    fl = np.array(flags, dtype=np.uint16)
+    new, meter_flags, _ = check_meter_range(np.array([r]), meter)
+    rates[mask] = new[0]
+    fl[mask] = FLAG_BITS["zone"] | meter_flags[0]
+    return rates, fl, int(mask.sum())
+
+
+def summarize(
+    rate_kg_ha: np.ndarray,
+    flags: np.ndarray,
+    area_m2: np.ndarray,
+    bins: int = 10,
+    seq: np.ndarray | None = None,
+    max_listed: int = 1000,
+) -> dict[str, Any]:
+    """Area, product mass, area-weighted mean / min / max, histogram, flagged cells.
+
+    Product mass = sum(rate_kg_ha * area_m2) / 10 000 (1 ha = 10 000 m^2).
+    The histogram has ``bins`` equal-width classes over [min, max], each with
+    its cell count and area. With ``seq``, the first ``max_listed`` flagged
+    cells are listed by seq.
+    """
+    r = np.asarray(rate_kg_ha, dtype=float)
+    a = np.asarray(area_m2, dtype=float)
+    fl = np.asarray(flags, dtype=np.int64)
+    total_area = float(a.sum())
+    if len(r) == 0:
+        return {"n_cells": 0, "area_m2": 0.0, "area_ha": 0.0, "product_kg": 0.0}
+    lo, hi = float(r.min()), float(r.max())
+    edges = np.linspace(lo, hi if hi > lo else lo + 1.0, bins + 1)
+    counts, _ = np.histogram(r, bins=edges)
+    areas, _ = np.histogram(r, bins=edges, weights=a)
+    flagged = {name: int(((fl & bit) != 0).sum()) for name, bit in FLAG_BITS.items()}
+    flagged_seq_mask = fl != 0
+    return {
+        "n_cells": int(len(r)),
+        "area_m2": total_area,
+        "area_ha": total_area / 1e4,
+        "product_kg": float((r * a).sum() / 1e4),
+        "rate_mean_kg_ha": float(np.average(r, weights=a)) if total_area > 0 else float(r.mean()),
+        "rate_min_kg_ha": lo,
+        "rate_max_kg_ha": hi,
+        "histogram": {
+            "edges_kg_ha": [float(e) for e in edges],
+            "counts": [int(c) for c in counts],
+            "area_m2": [float(x) for x in areas],
+        },
+        "flagged": flagged,
+        "n_flagged": int(flagged_seq_mask.sum()),
+        "flagged_seq": None
+        if seq is None
+        else [int(x) for x in np.asarray(seq)[flagged_seq_mask][:max_listed]],
+    }
