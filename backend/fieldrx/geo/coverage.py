@@ -1,0 +1,803 @@
+"""Coverage path planning: headland passes, boustrophedon swaths, block order, connections.
+
+Seed 001 sec. 1.2 plans parallel swaths (spacing = implement width, base line = the
+boundary's longest edge) with a scan line. FieldRx generalises that (issue 3):
+
+* Everything is computed in the field's UTM metres, in a *frame* rotated so that the
+  swaths run along +x. Strip ``i`` is the band ``y0 + i*w .. y0 + (i+1)*w`` of the
+  (headland-reduced) region R; the swath is its centre line, so the first swath lies w/2
+  inside R and ``n = ceil(H / w)`` strips leave no uncovered strip at the far edge.
+* A strip may cross R several times: each connected piece of ``strip & R`` is its own
+  swath, stretched over the piece's whole x-extent so the implement (w wide) covers it
+  completely. Where the centre line itself crosses a hole or notch inside one piece the
+  swath is split there, so swaths never run through a hole.
+* Boustrophedon decomposition is done on the swaths themselves: swaths of consecutive
+  strips that touch are linked when the link is unique (one swath above, one below);
+  maximal chains are the monotone blocks (cells) of Choset's decomposition, split at the
+  critical points where a scan line gains or loses a crossing.
+* Blocks are driven back and forth; the next block is the one whose entry is nearest
+  (routed distance inside the field) to the current position.
+* Every connection is the shortest path inside the field (visibility graph,
+  :mod:`fieldrx.geo.route`), so it never crosses a hole or leaves the boundary.
+
+Headings: ``heading_deg`` is the azimuth of the driving line, degrees clockwise from UTM
+grid north in [0, 180) (0 = north-south lines, 90 = east-west lines); ``angle_deg``
+uses the same convention.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+import shapely
+from shapely.geometry import LineString, MultiPolygon, Point, Polygon
+from shapely.geometry.base import BaseGeometry
+from shapely.geometry.polygon import orient
+from shapely.ops import substring
+
+from . import PlanningError
+from .route import FieldRouter
+
+Heading = Literal["longest_edge", "angle", "optimal"]
+Corner = Literal["sw", "se", "nw", "ne"]
+HEADINGS = ("longest_edge", "angle", "optimal")
+CORNERS = ("sw", "se", "nw", "ne")
+_N_EPS = 1e-9  # tolerance on H / w when counting strips
+_MAX_SWATHS = 200_000
+_ROUTED_ORDER_MAX_BLOCKS = 40
+
+
+# --------------------------------------------------------------------------- frame
+
+
+@dataclass(frozen=True)
+class Frame:
+    """Rotation about (ox, oy) that maps the swath direction (math angle phi) onto +x."""
+
+    ox: float
+    oy: float
+    phi: float
+
+    def fwd(self, c: np.ndarray) -> np.ndarray:
+        """UTM -> frame coordinates, (..., 2) arrays."""
+        cs, sn = math.cos(self.phi), math.sin(self.phi)
+        dx = c[..., 0] - self.ox
+        dy = c[..., 1] - self.oy
+        return np.stack([dx * cs + dy * sn, -dx * sn + dy * cs], axis=-1)
+
+    def inv(self, c: np.ndarray) -> np.ndarray:
+        """Frame -> UTM coordinates, (..., 2) arrays."""
+        cs, sn = math.cos(self.phi), math.sin(self.phi)
+        x = c[..., 0]
+        y = c[..., 1]
+        return np.stack([x * cs - y * sn + self.ox, x * sn + y * cs + self.oy], axis=-1)
+
+    def fwd_geom(self, g: BaseGeometry) -> BaseGeometry:
+        return shapely.transform(g, self.fwd)
+
+    def inv_geom(self, g: BaseGeometry) -> BaseGeometry:
+        return shapely.transform(g, self.inv)
+
+
+def azimuth_to_phi(azimuth_deg: float) -> float:
+    """Azimuth (deg clockwise from north) -> math angle of the line (rad from +x)."""
+    return math.radians((90.0 - azimuth_deg) % 180.0)
+
+
+def phi_to_azimuth(phi: float) -> float:
+    az = round((90.0 - math.degrees(phi)) % 180.0, 9)
+    return 0.0 if az >= 180.0 else az
+
+
+# --------------------------------------------------------------------------- data
+
+
+@dataclass
+class Swath:
+    """One working pass, ``line`` in driving direction (UTM)."""
+
+    index: int
+    line: LineString
+    kind: Literal["headland", "inner"]
+    block: int
+    direction: int
+    # frame data of inner swaths (used by the grid): strip centre y, x-range, the
+    # piece of strip & R the swath covers, and x-intervals where the whole strip
+    # column is inside R (cells there need no clipping).
+    y: float = math.nan
+    x0: float = math.nan
+    x1: float = math.nan
+    clip: Polygon | None = None
+    full: np.ndarray | None = None
+    # headland data: the band of this pass (UTM) the ring's cells are clipped to
+    band: BaseGeometry | None = None
+    ring_pass: int = -1
+
+
+@dataclass
+class CoveragePlan:
+    heading_deg: float
+    swath_width_m: float
+    swaths: list[Swath]
+    connections: list[LineString]
+    field: Polygon | MultiPolygon
+    region: Polygon | MultiPolygon
+    frame: Frame
+    headland_passes: int
+    n_blocks: int
+    n_swaths: int = 0
+    n_turns: int = 0
+    working_length_m: float = 0.0
+    nonworking_length_m: float = 0.0
+    coverage_pct: float = 0.0
+    overlap_pct: float = 0.0
+    outside_pct: float = 0.0
+    route_outside_m: float = 0.0
+    route_in_holes_m: float = 0.0
+    timings_s: dict[str, float] = field(default_factory=dict)
+
+    def route(self) -> LineString:
+        """The whole route: swath, connection, swath, ... as one LineString."""
+        parts: list[np.ndarray] = []
+        for i, s in enumerate(self.swaths):
+            parts.append(np.asarray(s.line.coords))
+            if i < len(self.connections):
+                parts.append(np.asarray(self.connections[i].coords))
+        coords = np.concatenate(parts)
+        keep = np.ones(len(coords), bool)
+        keep[1:] = np.any(np.abs(np.diff(coords, axis=0)) > 1e-9, axis=1)
+        coords = coords[keep]
+        if len(coords) < 2:
+            coords = np.vstack([coords, coords])
+        return LineString(coords)
+
+    def metrics(self) -> dict[str, float | int]:
+        return {
+            "n_swaths": self.n_swaths,
+            "n_turns": self.n_turns,
+            "heading_deg": round(self.heading_deg, 4),
+            "working_length_m": round(self.working_length_m, 2),
+            "nonworking_length_m": round(self.nonworking_length_m, 2),
+            "coverage_pct": round(self.coverage_pct, 4),
+            "overlap_pct": round(self.overlap_pct, 4),
+            "outside_pct": round(self.outside_pct, 4),
+            "route_outside_m": round(self.route_outside_m, 3),
+            "route_in_holes_m": round(self.route_in_holes_m, 3),
+        }
+
+
+# --------------------------------------------------------------------------- validation
+
+
+def _polygonal(geom: BaseGeometry) -> Polygon | MultiPolygon:
+    if geom is None or geom.is_empty:
+        raise PlanningError("the field boundary is empty")
+    if not isinstance(geom, Polygon | MultiPolygon):
+        raise PlanningError(f"the field must be a Polygon or MultiPolygon, got {geom.geom_type}")
+    if not geom.is_valid:
+        fixed = shapely.make_valid(geom)
+        polys = [g for g in shapely.get_parts(fixed) if isinstance(g, Polygon) and g.area > 0]
+        if not polys:
+            raise PlanningError(
+                f"the field boundary is degenerate ({shapely.is_valid_reason(geom)})"
+            )
+        fixed = shapely.union_all(polys)
+        if abs(fixed.area - abs(geom.area)) > 0.01 * max(fixed.area, 1e-9):
+            raise PlanningError(f"the field boundary is invalid: {shapely.is_valid_reason(geom)}")
+        geom = fixed
+    geom = shapely.normalize(geom)
+    if geom.area <= 0:
+        raise PlanningError("the field has no area (degenerate boundary)")
+    return geom
+
+
+def _parts(g: BaseGeometry) -> list[Polygon]:
+    return [p for p in shapely.get_parts(g) if isinstance(p, Polygon) and p.area > 0]
+
+
+def _min_width(geom: BaseGeometry) -> float:
+    """Narrowest width of the convex hull (rotating calipers: one side lies on a hull edge)."""
+    hull = np.asarray(geom.convex_hull.exterior.coords) if geom.convex_hull.area > 0 else None
+    if hull is None:
+        return 0.0
+    e = np.diff(hull, axis=0)
+    lengths = np.hypot(e[:, 0], e[:, 1])
+    e = e[lengths > 0] / lengths[lengths > 0, None]
+    normal = np.stack([-e[:, 1], e[:, 0]], axis=1)
+    proj = hull @ normal.T
+    return float(np.min(proj.max(axis=0) - proj.min(axis=0)))
+
+
+# --------------------------------------------------------------------------- layout
+
+
+@dataclass
+class _Sub:
+    part: int
+    strip: int
+    y: float
+    x0: float
+    x1: float
+    comp: Polygon
+    full: np.ndarray | None
+
+
+def _cut_at_holes(
+    a: float, b: float, y: float, core: tuple[float, float] | None, holes: BaseGeometry | None
+) -> tuple[float, float]:
+    """Shorten a swath stretched over its strip piece so its line never enters a hole.
+
+    Stretching a swath to the x-extent of its strip piece covers the wedges along slanted
+    edges; along the outer boundary that is what a tractor does (h = 0: turn outside),
+    but nobody drives into a pond, so at holes the wedge is left uncovered instead.
+    """
+    if holes is None:
+        return a, b
+    seg = LineString([(a, y), (b, y)])
+    if not holes.intersects(seg):
+        return a, b
+    rest = [g for g in shapely.get_parts(seg.difference(holes)) if g.length > 1e-9]
+    if not rest:
+        return a, a
+    if core is not None:
+        m = 0.5 * (core[0] + core[1])
+        for g in rest:
+            if g.bounds[0] - 1e-9 <= m <= g.bounds[2] + 1e-9:
+                return g.bounds[0], g.bounds[2]
+    g = max(rest, key=lambda g: g.length)
+    return g.bounds[0], g.bounds[2]
+
+
+def _strip_layout(
+    q: Polygon, w: float, part: int, with_full: bool, holes: BaseGeometry | None = None
+) -> list[_Sub]:
+    """Swaths of one polygon in the rotated frame (see module docstring)."""
+    xmin, ymin, xmax, ymax = q.bounds
+    n = max(1, math.ceil((ymax - ymin) / w - _N_EPS))
+    if n > _MAX_SWATHS:
+        raise PlanningError(f"swath width {w} m gives more than {_MAX_SWATHS} swaths")
+    edges = ymin + np.arange(n + 1) * w
+    ys = edges[:-1] + 0.5 * w
+    bx0, bx1 = xmin - 1.0, xmax + 1.0
+    strips = shapely.box(bx0, edges[:-1], bx1, edges[1:])
+    shapely.prepare(q)
+    inter = shapely.intersection(strips, q)
+    cl = shapely.linestrings(
+        np.stack([np.stack([np.full(n, bx0), ys], 1), np.stack([np.full(n, bx1), ys], 1)], 1)
+    )
+    cli = shapely.intersection(cl, q)
+
+    comps, cidx = shapely.get_parts(inter, return_index=True)
+    ok = (shapely.get_type_id(comps) == 3) & (shapely.area(comps) > 1e-12)
+    comps, cidx = comps[ok], cidx[ok]
+    cb = shapely.bounds(comps)
+    segs, sidx = shapely.get_parts(cli, return_index=True)
+    ok = shapely.get_type_id(segs) == 1
+    segs, sidx = segs[ok], sidx[ok]
+    sb = shapely.bounds(segs)
+    ok = sb[:, 2] - sb[:, 0] > 1e-9
+    segs, sidx, sb = segs[ok], sidx[ok], sb[ok]
+
+    full_by_strip: dict[int, np.ndarray] = {}
+    if with_full:
+        diff = shapely.difference(strips, q)
+        dparts, didx = shapely.get_parts(diff, return_index=True)
+        ok = shapely.get_type_id(dparts) == 3
+        dparts, didx = dparts[ok], didx[ok]
+        db = shapely.bounds(dparts)
+        order = np.lexsort((db[:, 0], didx))
+        didx, db = didx[order], db[order]
+        starts = np.searchsorted(didx, np.arange(n))
+        ends = np.searchsorted(didx, np.arange(n), side="right")
+        for i in range(n):
+            bad = db[starts[i] : ends[i]][:, [0, 2]]
+            # complement of the bad x-intervals inside [bx0, bx1]
+            good: list[tuple[float, float]] = []
+            cur = bx0
+            for a, b in bad:
+                if a > cur:
+                    good.append((cur, a))
+                cur = max(cur, b)
+            if cur < bx1:
+                good.append((cur, bx1))
+            full_by_strip[i] = np.asarray(good, float).reshape(-1, 2)
+
+    c_start = np.searchsorted(cidx, np.arange(n))
+    c_end = np.searchsorted(cidx, np.arange(n), side="right")
+    s_start = np.searchsorted(sidx, np.arange(n))
+    s_end = np.searchsorted(sidx, np.arange(n), side="right")
+    subs: list[_Sub] = []
+    for i in range(n):
+        ci = range(c_start[i], c_end[i])
+        si = list(range(s_start[i], s_end[i]))
+        if not ci:
+            continue
+        if len(ci) == 1:
+            owner = {k: ci[0] for k in si}
+        else:
+            owner = {}
+            for k in si:
+                mid = Point(0.5 * (sb[k, 0] + sb[k, 2]), ys[i])
+                for c in ci:
+                    if cb[c, 0] - 1e-9 <= mid.x <= cb[c, 2] + 1e-9 and comps[c].intersects(
+                        mid.buffer(1e-7)
+                    ):
+                        owner[k] = c
+                        break
+        per_comp: dict[int, list[tuple[float, float]]] = {c: [] for c in ci}
+        for k, c in owner.items():
+            per_comp[c].append((sb[k, 0], sb[k, 2]))
+        for c in sorted(ci, key=lambda c: cb[c, 0]):
+            lo, hi = cb[c, 0], cb[c, 2]
+            ivs = sorted(per_comp[c])
+            # merge centre-line intervals that touch (vertex on the line)
+            merged: list[list[float]] = []
+            for a, b in ivs:
+                if merged and a <= merged[-1][1] + 1e-7:
+                    merged[-1][1] = max(merged[-1][1], b)
+                else:
+                    merged.append([a, b])
+            if len(merged) <= 1:
+                ranges = [(lo, hi, tuple(merged[0]) if merged else None)]
+            else:
+                ranges = []
+                for j, (a, b) in enumerate(merged):
+                    ranges.append((lo if j == 0 else a, hi if j == len(merged) - 1 else b, (a, b)))
+            for a, b, core in ranges:
+                a, b = _cut_at_holes(a, b, float(ys[i]), core, holes)
+                if b - a > 1e-9:
+                    subs.append(
+                        _Sub(
+                            part,
+                            i,
+                            float(ys[i]),
+                            float(a),
+                            float(b),
+                            comps[c],
+                            full_by_strip.get(i),
+                        )
+                    )
+    return subs
+
+
+def _blocks(subs: list[_Sub]) -> list[list[int]]:
+    """Boustrophedon blocks: maximal chains of uniquely linked swaths of consecutive strips."""
+    by_strip: dict[tuple[int, int], list[int]] = {}
+    for k, s in enumerate(subs):
+        by_strip.setdefault((s.part, s.strip), []).append(k)
+    up: dict[int, list[int]] = {k: [] for k in range(len(subs))}
+    down: dict[int, list[int]] = {k: [] for k in range(len(subs))}
+    for (part, i), lower in by_strip.items():
+        upper = by_strip.get((part, i + 1))
+        if not upper:
+            continue
+        simple = len(lower) == 1 and len(upper) == 1
+        for a in lower:
+            sa = subs[a]
+            for b in upper:
+                sb = subs[b]
+                lo, hi = max(sa.x0, sb.x0), min(sa.x1, sb.x1)
+                if hi - lo <= 1e-9:
+                    continue
+                if not simple:
+                    shared = shapely.intersection(sa.comp, sb.comp)
+                    lines = [
+                        g for g in shapely.get_parts(shared) if shapely.get_type_id(g) in (1, 2)
+                    ]
+                    if not any(min(hi, g.bounds[2]) - max(lo, g.bounds[0]) > 1e-9 for g in lines):
+                        continue
+                up[a].append(b)
+                down[b].append(a)
+    nxt = {a: up[a][0] for a in up if len(up[a]) == 1 and len(down[up[a][0]]) == 1}
+    has_prev = set(nxt.values())
+    blocks: list[list[int]] = []
+    for k in range(len(subs)):
+        if k in has_prev:
+            continue
+        chain = [k]
+        while chain[-1] in nxt:
+            chain.append(nxt[chain[-1]])
+        blocks.append(chain)
+    return blocks
+
+
+def _layout(
+    parts_rot: list[Polygon], w: float, with_full: bool, holes_rot: BaseGeometry | None = None
+) -> tuple[list[_Sub], list[list[int]]]:
+    subs: list[_Sub] = []
+    if holes_rot is not None and holes_rot.is_empty:
+        holes_rot = None
+    if holes_rot is not None:
+        shapely.prepare(holes_rot)
+    for p, q in enumerate(parts_rot):
+        subs += _strip_layout(q, w, p, with_full, holes_rot)
+    return subs, _blocks(subs)
+
+
+def _holes(fld: BaseGeometry) -> BaseGeometry:
+    """Union of the field's holes (ponds, islands of trees)."""
+    return shapely.union_all([Polygon(r) for p in _parts(fld) for r in p.interiors])
+
+
+def _block_configs(subs: list[_Sub], block: list[int]) -> list[tuple[list[int], int]]:
+    """The 4 ways to drive a block: bottom-up or top-down, first pass +x or -x."""
+    return [(order, d) for order in (block, block[::-1]) for d in (1, -1)]
+
+
+def _endpoints(subs: list[_Sub], order: list[int], first_dir: int) -> tuple[tuple, tuple]:
+    s0, s1 = subs[order[0]], subs[order[-1]]
+    last_dir = first_dir if len(order) % 2 == 1 else -first_dir
+    start = (s0.x0 if first_dir > 0 else s0.x1, s0.y)
+    end = (s1.x1 if last_dir > 0 else s1.x0, s1.y)
+    return start, end
+
+
+def _estimate_nonworking(subs: list[_Sub], blocks: list[list[int]]) -> float:
+    """Euclidean turn lengths inside blocks + greedy block-to-block hops (heading tie-break)."""
+    total = 0.0
+    ends = []
+    for b in blocks:
+        for j in range(len(b) - 1):
+            s, t = subs[b[j]], subs[b[j + 1]]
+            x_s, x_t = (s.x1, t.x1) if j % 2 == 0 else (s.x0, t.x0)
+            total += math.hypot(x_s - x_t, t.y - s.y)
+        ends.append(_endpoints(subs, b, 1))
+    if len(ends) > 1:
+        left = set(range(1, len(ends)))
+        cur = ends[0][1]
+        while left:
+            k = min(left, key=lambda k: math.dist(cur, ends[k][0]))
+            total += math.dist(cur, ends[k][0])
+            cur = ends[k][1]
+            left.remove(k)
+    return total
+
+
+# --------------------------------------------------------------------------- headings
+
+
+def _edge_angles(geom: BaseGeometry) -> np.ndarray:
+    """Directions (math angle mod pi) of every ring edge of geom and of its convex hull."""
+    angs = []
+    for g in [*_parts(geom), geom.convex_hull]:
+        if not isinstance(g, Polygon) or g.is_empty:
+            continue
+        for ring in [g.exterior, *g.interiors]:
+            c = np.asarray(ring.coords)
+            e = np.diff(c, axis=0)
+            keep = np.hypot(e[:, 0], e[:, 1]) > 1e-6
+            angs.append(np.arctan2(e[keep, 1], e[keep, 0]) % math.pi)
+    a = np.concatenate(angs) if angs else np.zeros(0)
+    a = np.round(a, 9) % math.pi
+    return np.unique(a)
+
+
+def _longest_edge_phi(field_geom: Polygon | MultiPolygon) -> float:
+    """Seed 001 sec. 1.2: base line = longest edge of the (largest part's) outer boundary."""
+    big = max(_parts(field_geom), key=lambda p: p.area)
+    c = np.asarray(big.exterior.coords)
+    e = np.diff(c, axis=0)
+    k = int(np.argmax(np.hypot(e[:, 0], e[:, 1])))
+    return float(math.atan2(e[k, 1], e[k, 0]) % math.pi)
+
+
+def _lower_bounds(parts: list[Polygon], w: float, phis: np.ndarray) -> np.ndarray:
+    """Swath count lower bound per angle: each part needs ceil(extent / w) strips."""
+    lb = np.zeros(len(phis), dtype=np.int64)
+    normal = np.stack([-np.sin(phis), np.cos(phis)], axis=0)
+    for p in parts:
+        h = np.asarray(p.convex_hull.exterior.coords)
+        proj = h @ normal
+        ext = proj.max(axis=0) - proj.min(axis=0)
+        lb += np.maximum(1, np.ceil(ext / w - _N_EPS)).astype(np.int64)
+    return lb
+
+
+def _frame_for(region: BaseGeometry, phi: float) -> Frame:
+    c = region.centroid
+    return Frame(float(c.x), float(c.y), float(phi))
+
+
+def swath_count(
+    region: Polygon | MultiPolygon,
+    swath_width_m: float,
+    phi: float,
+    field_geom: BaseGeometry | None = None,
+) -> int:
+    """Number of inner swaths FieldRx generates for region at math angle phi (the objective)."""
+    return _evaluate(region, swath_width_m, phi, field_geom)[0]
+
+
+def _evaluate(
+    region: BaseGeometry, w: float, phi: float, field_geom: BaseGeometry | None = None
+) -> tuple[int, float]:
+    fr = _frame_for(region, phi)
+    parts_rot = [fr.fwd_geom(p) for p in _parts(region)]
+    holes = fr.fwd_geom(_holes(field_geom if field_geom is not None else region))
+    subs, blocks = _layout(parts_rot, w, with_full=False, holes_rot=holes)
+    return len(subs), _estimate_nonworking(subs, blocks)
+
+
+def optimal_phi(
+    region: Polygon | MultiPolygon,
+    field_geom: Polygon | MultiPolygon,
+    w: float,
+    check_integer_degrees: bool = True,
+) -> tuple[float, dict[str, int]]:
+    """Heading that minimises swaths, then turns, then (estimated) non-working distance.
+
+    Candidates come from the geometry: every edge direction of the headland-reduced
+    region and of its convex hull (the rotating-calipers minimum-width direction is one
+    of them) plus the field's longest edge. They are evaluated in order of a cheap lower
+    bound (sum of ceil(extent / w)) and pruned by branch and bound. With
+    ``check_integer_degrees`` every whole degree whose lower bound could still beat the
+    best count is evaluated too, which guarantees never needing more swaths than a 1-degree
+    brute-force scan (Fields2Cover's BruteForce with the swath-count objective).
+    """
+    parts = _parts(region)
+    cands = np.unique(np.append(_edge_angles(region), round(_longest_edge_phi(field_geom), 9)))
+    lbs = _lower_bounds(parts, w, cands)
+    order = np.lexsort((cands, lbs))
+    best_n = math.inf
+    results: dict[float, tuple[int, float]] = {}
+    for k in order:
+        if lbs[k] > best_n:
+            break
+        res = _evaluate(region, w, float(cands[k]), field_geom)
+        results[float(cands[k])] = res
+        best_n = min(best_n, res[0])
+    extra = 0
+    if check_integer_degrees:
+        ints = np.radians(np.arange(180.0))
+        lbi = _lower_bounds(parts, w, ints)
+        for k in np.flatnonzero(lbi < best_n):
+            phi = float(ints[k])
+            if phi in results:
+                continue
+            res = _evaluate(region, w, phi, field_geom)
+            results[phi] = res
+            extra += 1
+            best_n = min(best_n, res[0])
+    best = min(results.items(), key=lambda kv: (kv[1][0], round(kv[1][1], 6), kv[0]))
+    return best[0], {
+        "evaluated": len(results),
+        "integer_degree_checks": extra,
+        "candidates": len(cands),
+    }
+
+
+# --------------------------------------------------------------------------- headland
+
+
+def _headland_rings(
+    field_geom: Polygon | MultiPolygon, w: float, h: int
+) -> list[tuple[int, LineString, BaseGeometry]]:
+    """Rings (pass k, centre line, band) of the h headland passes around boundary and holes."""
+    out = []
+    for k in range(h):
+        centre = field_geom.buffer(-(k + 0.5) * w, join_style="mitre", mitre_limit=5.0)
+        outer = field_geom.buffer(-k * w, join_style="mitre", mitre_limit=5.0) if k else field_geom
+        inner = field_geom.buffer(-(k + 1) * w, join_style="mitre", mitre_limit=5.0)
+        band = outer.difference(inner)
+        for poly in _parts(centre):
+            poly = orient(poly, 1.0)
+            for ring in [poly.exterior, *poly.interiors]:
+                if ring.length > w:
+                    out.append((k, LineString(ring.coords), band))
+    return out
+
+
+def _rotate_ring(ring: LineString, pt: np.ndarray) -> LineString:
+    """Closed ring re-started at the ring point nearest to pt."""
+    d = ring.project(Point(pt))
+    if d <= 1e-9 or d >= ring.length - 1e-9:
+        return ring
+    a = substring(ring, d, ring.length)
+    b = substring(ring, 0.0, d)
+    return LineString(np.concatenate([np.asarray(a.coords), np.asarray(b.coords)[1:]]))
+
+
+# --------------------------------------------------------------------------- planner
+
+
+def _corner_point(geom: BaseGeometry, corner: str) -> np.ndarray:
+    x0, y0, x1, y1 = geom.bounds
+    return np.array([x0 if corner[1] == "w" else x1, y0 if corner[0] == "s" else y1])
+
+
+def plan_coverage(
+    boundary_utm: Polygon | MultiPolygon,
+    swath_width_m: float = 2.3,
+    heading: Heading = "longest_edge",
+    angle_deg: float | None = None,
+    headland_passes: int = 0,
+    start_corner: Corner = "sw",
+    headland_order: Literal["first", "last"] = "first",
+) -> CoveragePlan:
+    """Plan the coverage path of a field given in UTM metres (see module docstring)."""
+    import time
+
+    t0 = time.perf_counter()
+    w = float(swath_width_m)
+    if not math.isfinite(w) or w <= 0:
+        raise PlanningError(f"swath_width_m must be > 0, got {swath_width_m}")
+    if heading not in HEADINGS:
+        raise PlanningError(f"heading must be one of {HEADINGS}, got {heading!r}")
+    if start_corner not in CORNERS:
+        raise PlanningError(f"start_corner must be one of {CORNERS}, got {start_corner!r}")
+    if headland_order not in ("first", "last"):
+        raise PlanningError(f"headland_order must be 'first' or 'last', got {headland_order!r}")
+    if int(headland_passes) != headland_passes or headland_passes < 0:
+        raise PlanningError(f"headland_passes must be an integer >= 0, got {headland_passes}")
+    h = int(headland_passes)
+    if heading == "angle":
+        if angle_deg is None or not math.isfinite(float(angle_deg)):
+            raise PlanningError("heading 'angle' needs angle_deg (degrees clockwise from north)")
+    fld = _polygonal(boundary_utm)
+    narrow = _min_width(fld)
+    if narrow < w:
+        raise PlanningError(
+            f"swath width {w} m is wider than the field (narrowest width {narrow:.2f} m)"
+        )
+    if h:
+        region = fld.buffer(-h * w, join_style="mitre", mitre_limit=5.0)
+        if region.is_empty or region.area < 1e-6:
+            raise PlanningError(f"{h} headland passes of {w} m leave no inner area in this field")
+        region = shapely.union_all(_parts(region))
+    else:
+        region = fld
+    timings: dict[str, float] = {"validate": time.perf_counter() - t0}
+
+    t = time.perf_counter()
+    if heading == "angle":
+        phi = azimuth_to_phi(float(angle_deg))  # type: ignore[arg-type]
+    elif heading == "longest_edge":
+        phi = _longest_edge_phi(fld)
+    else:
+        phi, _ = optimal_phi(region, fld, w)
+    timings["heading"] = time.perf_counter() - t
+
+    t = time.perf_counter()
+    frame = _frame_for(region, phi)
+    parts_rot = [frame.fwd_geom(p) for p in _parts(region)]
+    subs, blocks = _layout(parts_rot, w, with_full=True, holes_rot=frame.fwd_geom(_holes(fld)))
+    rings = _headland_rings(fld, w, h)
+    timings["swaths"] = time.perf_counter() - t
+
+    t = time.perf_counter()
+    router = FieldRouter(fld)
+    dist_fn = (
+        router.distance
+        if len(blocks) <= _ROUTED_ORDER_MAX_BLOCKS
+        else (lambda a, b: float(math.dist(a, b)))
+    )
+    pos = _corner_point(fld, start_corner)
+    swaths: list[Swath] = []
+
+    def add_rings() -> None:
+        nonlocal pos
+        left = list(range(len(rings)))
+        while left:
+            pt = Point(pos)
+            k = min(left, key=lambda k: (rings[k][1].distance(pt), rings[k][0]))
+            left.remove(k)
+            k_pass, ring, band = rings[k]
+            ring = _rotate_ring(ring, pos)
+            swaths.append(
+                Swath(len(swaths), ring, "headland", -1 - k, 1, band=band, ring_pass=k_pass)
+            )
+            pos = np.asarray(ring.coords[-1])
+
+    def add_blocks() -> None:
+        nonlocal pos
+        left = list(range(len(blocks)))
+        first = True
+        while left:
+            best = None
+            for b in left:
+                for order, d in _block_configs(subs, blocks[b]):
+                    start, _ = _endpoints(subs, order, d)
+                    s_utm = frame.inv(np.asarray(start))
+                    cost = float(math.dist(pos, s_utm)) if first else dist_fn(pos, s_utm)
+                    if best is None or cost < best[0] - 1e-9:
+                        best = (cost, b, order, d)
+            assert best is not None
+            _, b, order, d = best
+            left.remove(b)
+            first = False
+            for j, k in enumerate(order):
+                s = subs[k]
+                dj = d if j % 2 == 0 else -d
+                xa, xb = (s.x0, s.x1) if dj > 0 else (s.x1, s.x0)
+                line = LineString(frame.inv(np.array([[xa, s.y], [xb, s.y]])))
+                swaths.append(
+                    Swath(
+                        len(swaths),
+                        line,
+                        "inner",
+                        b,
+                        dj,
+                        y=s.y,
+                        x0=s.x0,
+                        x1=s.x1,
+                        clip=s.comp,
+                        full=s.full,
+                    )
+                )
+            pos = np.asarray(swaths[-1].line.coords[-1])
+
+    if headland_order == "first":
+        add_rings()
+        add_blocks()
+    else:
+        add_blocks()
+        add_rings()
+    connections = [
+        router.path(np.asarray(a.line.coords[-1]), np.asarray(b.line.coords[0]))
+        for a, b in zip(swaths[:-1], swaths[1:], strict=True)
+    ]
+    timings["order_route"] = time.perf_counter() - t
+
+    plan = CoveragePlan(
+        heading_deg=phi_to_azimuth(phi),
+        swath_width_m=w,
+        swaths=swaths,
+        connections=connections,
+        field=fld,
+        region=region,
+        frame=frame,
+        headland_passes=h,
+        n_blocks=len(blocks),
+    )
+    t = time.perf_counter()
+    _fill_metrics(plan)
+    timings["metrics"] = time.perf_counter() - t
+    plan.timings_s = timings
+    return plan
+
+
+def swath_footprints(plan: CoveragePlan) -> np.ndarray:
+    """Area each swath's implement sweeps (w wide), UTM, as a shapely array."""
+    w = plan.swath_width_m
+    out = []
+    inner = [s for s in plan.swaths if s.kind == "inner"]
+    if inner:
+        c = np.array(
+            [
+                [[s.x0, s.y - w / 2], [s.x1, s.y - w / 2], [s.x1, s.y + w / 2], [s.x0, s.y + w / 2]]
+                for s in inner
+            ]
+        )
+        out.append(shapely.polygons(plan.frame.inv(c)))
+    for s in plan.swaths:
+        if s.kind == "headland":
+            out.append(
+                np.array(
+                    [s.line.buffer(w / 2, cap_style="flat", join_style="mitre", mitre_limit=5.0)]
+                )
+            )
+    return np.concatenate(out) if out else np.zeros(0, dtype=object)
+
+
+def _fill_metrics(plan: CoveragePlan) -> None:
+    fld = plan.field
+    area = fld.area
+    fp = swath_footprints(plan)
+    union = shapely.union_all(fp)
+    shapely.prepare(fld)
+    inside = shapely.intersection(union, fld).area
+    plan.n_swaths = len(plan.swaths)
+    plan.n_turns = len(plan.connections)
+    plan.working_length_m = float(sum(s.line.length for s in plan.swaths))
+    plan.nonworking_length_m = float(sum(c.length for c in plan.connections))
+    plan.coverage_pct = 100.0 * inside / area
+    clipped = shapely.area(shapely.intersection(fp, fld)).sum()
+    plan.overlap_pct = 100.0 * max(0.0, clipped - inside) / area
+    plan.outside_pct = 100.0 * max(0.0, union.area - inside) / area
+    route = plan.route()
+    plan.route_outside_m = float(route.difference(fld).length)
+    holes = [Polygon(r) for p in _parts(fld) for r in p.interiors]
+    plan.route_in_holes_m = float(sum(route.intersection(hp).length for hp in holes))

@@ -1,0 +1,85 @@
+"""WGS84 <-> UTM conversion: all FieldRx geometry work happens in metres (DESIGN.md)."""
+
+from __future__ import annotations
+
+import math
+from functools import lru_cache
+from typing import TypeVar
+
+import numpy as np
+import shapely
+from pyproj import Transformer
+from shapely.geometry.base import BaseGeometry
+
+G = TypeVar("G", bound=BaseGeometry)
+
+
+def utm_epsg_for(lon: float, lat: float) -> int:
+    """EPSG code of the WGS84 / UTM zone containing (lon, lat).
+
+    Includes the Norway (32V) and Svalbard (31X-37X) exceptions so the zone matches
+    what GIS tools pick.
+    """
+    if not (-180.0 <= lon <= 180.0 and -90.0 <= lat <= 90.0):
+        raise ValueError(f"not a lon/lat position: ({lon}, {lat})")
+    zone = int(math.floor((lon + 180.0) / 6.0)) + 1
+    zone = min(max(zone, 1), 60)
+    if 56.0 <= lat < 64.0 and 3.0 <= lon < 12.0:
+        zone = 32
+    if 72.0 <= lat < 84.0 and 0.0 <= lon < 42.0:
+        if lon < 9.0:
+            zone = 31
+        elif lon < 21.0:
+            zone = 33
+        elif lon < 33.0:
+            zone = 35
+        else:
+            zone = 37
+    return (32600 if lat >= 0 else 32700) + zone
+
+
+@lru_cache(maxsize=64)
+def _transformer(src: int, dst: int) -> Transformer:
+    return Transformer.from_crs(src, dst, always_xy=True)
+
+
+def lonlat_to_utm_xy(lon: np.ndarray, lat: np.ndarray, epsg: int) -> tuple[np.ndarray, np.ndarray]:
+    """Vectorised lon/lat -> UTM easting/northing (metres)."""
+    x, y = _transformer(4326, epsg).transform(np.asarray(lon, float), np.asarray(lat, float))
+    return np.asarray(x, float), np.asarray(y, float)
+
+
+def utm_xy_to_lonlat(x: np.ndarray, y: np.ndarray, epsg: int) -> tuple[np.ndarray, np.ndarray]:
+    """Vectorised UTM easting/northing -> lon/lat (degrees)."""
+    lon, lat = _transformer(epsg, 4326).transform(np.asarray(x, float), np.asarray(y, float))
+    return np.asarray(lon, float), np.asarray(lat, float)
+
+
+def lonlat_to_utm_coords(coords: np.ndarray, epsg: int) -> np.ndarray:
+    """(..., 2) lon/lat array -> same-shaped UTM array."""
+    c = np.asarray(coords, float)
+    x, y = lonlat_to_utm_xy(c[..., 0], c[..., 1], epsg)
+    return np.stack([x, y], axis=-1)
+
+
+def utm_coords_to_lonlat(coords: np.ndarray, epsg: int) -> np.ndarray:
+    """(..., 2) UTM array -> same-shaped lon/lat array."""
+    c = np.asarray(coords, float)
+    lon, lat = utm_xy_to_lonlat(c[..., 0], c[..., 1], epsg)
+    return np.stack([lon, lat], axis=-1)
+
+
+def to_utm(geom_wgs84: G, epsg: int) -> G:
+    """Shapely geometry (or array of them) in lon/lat -> UTM metres."""
+    return shapely.transform(geom_wgs84, lambda c: lonlat_to_utm_coords(c, epsg))
+
+
+def to_wgs84(geom_utm: G, epsg: int) -> G:
+    """Shapely geometry (or array of them) in UTM metres -> lon/lat."""
+    return shapely.transform(geom_utm, lambda c: utm_coords_to_lonlat(c, epsg))
+
+
+def epsg_for_geometry(geom_wgs84: BaseGeometry) -> int:
+    """UTM zone of a lon/lat geometry, chosen from its centroid."""
+    c = geom_wgs84.centroid
+    return utm_epsg_for(c.x, c.y)
