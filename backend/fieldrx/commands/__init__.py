@@ -1,0 +1,1 @@
+"""Command-line subcommands of `fieldrx` (each module: register(subparsers) and run(args))."""
