@@ -6,6 +6,7 @@ connection (shared/STACK.md); migrations then run as the application user.
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import psycopg
@@ -15,12 +16,23 @@ from sqlalchemy.engine import make_url
 
 from fieldrx.settings import get_settings
 
-ROOT = Path(__file__).resolve().parents[3]
+
+def _root() -> Path:
+    """Folder holding alembic.ini: the checkout in development, FIELDRX_ROOT or cwd in an image."""
+    for candidate in (
+        os.environ.get("FIELDRX_ROOT"),
+        Path(__file__).resolve().parents[3],
+        Path.cwd(),
+    ):
+        if candidate and (Path(candidate) / "alembic.ini").is_file():
+            return Path(candidate)
+    raise FileNotFoundError("alembic.ini not found: set FIELDRX_ROOT to the folder that holds it")
 
 
 def alembic_config(url: str | None = None) -> Config:
-    cfg = Config(str(ROOT / "alembic.ini"))
-    cfg.set_main_option("script_location", str(ROOT / "migrations"))
+    root = _root()
+    cfg = Config(str(root / "alembic.ini"))
+    cfg.set_main_option("script_location", str(root / "migrations"))
     cfg.set_main_option("sqlalchemy.url", (url or get_settings().database_url).replace("%", "%%"))
     return cfg
 

@@ -1,0 +1,25 @@
+#!/usr/bin/env bash
+# Set up (if needed) and run the FieldRx platform with demo data on http://127.0.0.1:8000.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+scripts/setup.sh
+.venv/bin/fieldrx demo >/dev/null
+HOST=${FIELDRX_HOST:-127.0.0.1}
+PORT=${FIELDRX_PORT:-8000}
+mkdir -p .run
+WORKER_PID=""
+if .venv/bin/fieldrx worker --help >/dev/null 2>&1; then
+  .venv/bin/fieldrx worker >.run/worker.log 2>&1 &
+  WORKER_PID=$!
+fi
+cleanup() { [[ -n "$WORKER_PID" ]] && kill "$WORKER_PID" 2>/dev/null || true; }
+trap cleanup EXIT INT TERM
+cat <<MSG
+
+  FieldRx is starting on  http://$HOST:$PORT
+  API docs:               http://$HOST:$PORT/docs
+  Demo sign-in:           agronomist@demo.fieldrx.org / fieldrx-demo
+                          (also admin@demo.fieldrx.org and viewer@demo.fieldrx.org, same password)
+
+MSG
+.venv/bin/fieldrx serve --host "$HOST" --port "$PORT"

@@ -1,0 +1,105 @@
+#!/usr/bin/env bash
+# Idempotent set-up of everything FieldRx needs on a Debian 12 machine:
+# PostgreSQL 15 + PostGIS (started if not running), an MQTT broker, the Python
+# virtual environment, the frontend build, the database and its migrations.
+# Usage: scripts/setup.sh [--test]   (--test also installs Chromium for browser tests)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+ROOT=$(pwd)
+WITH_TEST=0
+[[ "${1:-}" == "--test" ]] && WITH_TEST=1
+
+log() { printf '\033[1;34m[setup]\033[0m %s\n' "$*"; }
+SUDO=""
+[[ $(id -u) -ne 0 ]] && SUDO="sudo"
+
+APT_UPDATED=0
+apt_install() {
+  if [[ $APT_UPDATED -eq 0 ]]; then
+    log "apt-get update"
+    $SUDO apt-get update -qq
+    APT_UPDATED=1
+  fi
+  log "apt-get install $*"
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "$@" >/dev/null
+}
+have_pkg() { dpkg-query -W -f='${Status}' "$1" 2>/dev/null | grep -q "install ok installed"; }
+
+# --- PostgreSQL + PostGIS -------------------------------------------------
+PG_HOST=127.0.0.1
+PG_PORT=5432
+if ! have_pkg postgresql-15; then
+  apt_install postgresql-15 postgresql-15-postgis-3
+elif ! have_pkg postgresql-15-postgis-3; then
+  # Never name postgresql-15 here: apt would upgrade the running server.
+  apt_install postgresql-15-postgis-3
+fi
+if ! pg_isready -q -h $PG_HOST -p $PG_PORT; then
+  if [[ ! -d /etc/postgresql/15/main ]]; then
+    log "creating PostgreSQL cluster 15/main"
+    $SUDO pg_createcluster 15 main >/dev/null
+  fi
+  # Local development trusts loopback connections (as the CI machines do).
+  HBA=/etc/postgresql/15/main/pg_hba.conf
+  if ! grep -q "fieldrx-dev" "$HBA"; then
+    $SUDO sed -i '1i host all all 127.0.0.1/32 trust # fieldrx-dev\nhost all all ::1/128 trust # fieldrx-dev' "$HBA"
+  fi
+  log "starting PostgreSQL"
+  $SUDO pg_ctlcluster --skip-systemctl-redirect 15 main start
+  for _ in $(seq 1 30); do pg_isready -q -h $PG_HOST -p $PG_PORT && break; sleep 1; done
+fi
+pg_isready -h $PG_HOST -p $PG_PORT >/dev/null || { echo "PostgreSQL does not answer on $PG_HOST:$PG_PORT" >&2; exit 1; }
+# PostGIS is not a trusted extension: create it as the superuser, also in template1
+# so throw-away test databases get it.
+runuser -u postgres -- psql -q -d template1 -c "CREATE EXTENSION IF NOT EXISTS postgis" >/dev/null
+
+# --- MQTT broker ------------------------------------------------------------
+if ! command -v mosquitto >/dev/null; then
+  apt_install mosquitto
+fi
+if ! (exec 3<>/dev/tcp/127.0.0.1/1883) 2>/dev/null; then
+  log "starting Mosquitto with deploy/mosquitto.conf"
+  mkdir -p /var/lib/mosquitto && chown mosquitto: /var/lib/mosquitto 2>/dev/null || true
+  mosquitto -d -c "$ROOT/deploy/mosquitto.conf"
+  sleep 1
+fi
+
+# --- Python -----------------------------------------------------------------
+PY=${PYTHON:-python3}
+if [[ ! -x .venv/bin/python ]]; then
+  log "creating .venv"
+  $PY -m venv .venv
+fi
+STAMP=.venv/.fieldrx-installed
+if [[ ! -f $STAMP || requirements.lock -nt $STAMP || backend/pyproject.toml -nt $STAMP \
+      || edge_agent/pyproject.toml -nt $STAMP || requirements-dev.txt -nt $STAMP ]]; then
+  log "installing Python packages (pinned by requirements.lock)"
+  .venv/bin/pip install -q --disable-pip-version-check --upgrade pip
+  .venv/bin/pip install -q --disable-pip-version-check -c requirements.lock \
+    -e ./edge_agent -e ./backend -r requirements-dev.txt
+  touch $STAMP
+fi
+
+# --- Browser for UI tests ---------------------------------------------------
+if [[ $WITH_TEST -eq 1 ]] && [[ ! -x /usr/bin/chromium ]]; then
+  apt_install chromium
+fi
+
+# --- Frontend ---------------------------------------------------------------
+if [[ -f frontend/package.json ]]; then
+  if [[ ! -d frontend/node_modules || frontend/package-lock.json -nt frontend/node_modules ]]; then
+    log "npm ci (frontend)"
+    (cd frontend && npm ci --no-audit --no-fund --loglevel=error)
+  fi
+  log "building the frontend"
+  (cd frontend && npm run build --silent >/dev/null)
+fi
+
+# --- Database -----------------------------------------------------------------
+log "database and migrations"
+.venv/bin/python - <<'PY'
+from fieldrx.db.bootstrap import ensure_database
+ensure_database()
+PY
+.venv/bin/fieldrx migrate >/dev/null
+log "done"

@@ -1,0 +1,32 @@
+#!/usr/bin/env bash
+# Set up (if needed) and run every FieldRx test: lint, Python tests against the real
+# PostGIS and Mosquitto, frontend unit tests, and browser end-to-end tests in Chromium.
+set -uo pipefail
+cd "$(dirname "$0")/.."
+ROOT=$(pwd)
+scripts/setup.sh --test || exit 1
+export PATH="$ROOT/.venv/bin:$PATH"
+FAILED=()
+step() { printf '\n\033[1;34m== %s ==\033[0m\n' "$1"; }
+
+step "ruff"
+ruff check backend edge_agent tests bench || FAILED+=(ruff)
+
+step "pytest"
+pytest -q -p no:cacheprovider || FAILED+=(pytest)
+
+if [[ -f frontend/package.json ]]; then
+  step "frontend unit tests (vitest)"
+  (cd frontend && npm test --silent) || FAILED+=(vitest)
+fi
+
+if compgen -G "tests/e2e/*.test.mjs" >/dev/null; then
+  step "browser end-to-end tests (playwright-core + chromium)"
+  scripts/e2e.sh || FAILED+=(e2e)
+fi
+
+if [[ ${#FAILED[@]} -gt 0 ]]; then
+  echo "FAILED: ${FAILED[*]}"
+  exit 1
+fi
+echo "all test suites passed"

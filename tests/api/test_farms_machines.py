@@ -1,0 +1,61 @@
+"""Farms and machines CRUD, device tokens."""
+
+from __future__ import annotations
+
+
+def test_farm_crud(client, org) -> None:
+    h = org.headers()
+    r = client.post("/api/v1/farms", headers=h, json={"name": "Home farm", "notes": "n"})
+    assert r.status_code == 201
+    fid = r.json()["id"]
+    assert client.get("/api/v1/farms", headers=h).json()["total"] == 1
+    assert (
+        client.patch(f"/api/v1/farms/{fid}", headers=h, json={"name": "Renamed"}).json()["name"]
+        == "Renamed"
+    )
+    assert client.post("/api/v1/farms", headers=h, json={"name": ""}).status_code == 422
+    assert client.delete(f"/api/v1/farms/{fid}", headers=h).status_code == 204
+    assert client.get(f"/api/v1/farms/{fid}", headers=h).status_code == 404
+
+
+MACHINE = {"name": "T1", "width_m": 2.3, "lag_s": 1.52}
+
+
+def test_machine_crud_and_validation(client, org) -> None:
+    h = org.headers()
+    r = client.post("/api/v1/machines", headers=h, json=MACHINE)
+    assert r.status_code == 201, r.text
+    m = r.json()
+    assert m["calibration"]["kind"] == "linear" and m["calibration"]["slope_g_min_per_rpm"] == 237.2
+    assert m["controller"]["name"] == "ladrc"
+    r = client.patch(f"/api/v1/machines/{m['id']}", headers=h, json={"lag_s": 1.0})
+    assert r.json()["lag_s"] == 1.0
+    bad = client.post("/api/v1/machines", headers=h, json={**MACHINE, "width_m": -1})
+    assert bad.status_code == 422 and "width_m" in bad.json()["detail"]
+    bad = client.post(
+        "/api/v1/machines",
+        headers=h,
+        json={**MACHINE, "calibration": {"kind": "table", "rpm": [1]}},
+    )
+    assert bad.status_code == 422 and "calibration" in bad.json()["detail"]
+    bad = client.post(
+        "/api/v1/machines", headers=h, json={**MACHINE, "speed_min_m_s": 3, "speed_max_m_s": 2}
+    )
+    assert bad.status_code == 422
+    assert client.get("/api/v1/machines", headers=h).json()["total"] == 1
+
+
+def test_device_token_reads_only_own_machine(client, org) -> None:
+    h = org.headers()
+    m1 = client.post("/api/v1/machines", headers=h, json=MACHINE).json()
+    m2 = client.post("/api/v1/machines", headers=h, json={**MACHINE, "name": "T2"}).json()
+    tok = client.post(f"/api/v1/machines/{m1['id']}/device-token", headers=h).json()["token"]
+    dh = {"Authorization": f"Bearer {tok}"}
+    assert client.get(f"/api/v1/machines/{m1['id']}", headers=dh).status_code == 200
+    assert client.get(f"/api/v1/machines/{m2['id']}", headers=dh).status_code == 404
+    assert client.get("/api/v1/machines", headers=dh).status_code == 403
+    assert client.get("/api/v1/fields", headers=dh).status_code == 403
+    assert client.post("/api/v1/farms", headers=dh, json={"name": "x"}).status_code == 403
+    # a new token revokes the old one
+    client.post(f"/api/v1/machines/{m1['id']}/device-token", headers=h)
+    assert client.get(f"/api/v1/machines/{m1['id']}", headers=dh).status_code == 401

@@ -1,0 +1,50 @@
+"""Alembic: upgrade to head and back down to base on an empty database; models match the schema."""
+
+from __future__ import annotations
+
+import uuid
+
+import psycopg
+from alembic import command
+from alembic.autogenerate import compare_metadata
+from alembic.migration import MigrationContext
+from fieldrx.db.bootstrap import alembic_config, drop_database, ensure_database
+from fieldrx.db.models import Base
+from geoalchemy2 import alembic_helpers
+from sqlalchemy import create_engine
+
+from tests.conftest import PG
+
+
+def _tables(dsn: str) -> set[str]:
+    with psycopg.connect(dsn) as conn:
+        rows = conn.execute(
+            "SELECT tablename FROM pg_tables WHERE schemaname = 'public'"
+        ).fetchall()
+    return {r[0] for r in rows}
+
+
+def test_upgrade_downgrade_roundtrip() -> None:
+    name = f"fieldrx_mig_{uuid.uuid4().hex[:8]}"
+    url = PG.replace("postgresql://", "postgresql+psycopg://", 1) + f"/{name}"
+    dsn = f"{PG}/{name}"
+    ensure_database(url)
+    try:
+        cfg = alembic_config(url)
+        command.upgrade(cfg, "head")
+        tables = _tables(dsn)
+        assert {"fields", "plan_cells", "telemetry", "prescription_rates", "api_tokens"} <= tables
+        engine = create_engine(url)
+        with engine.connect() as conn:
+            ctx = MigrationContext.configure(
+                conn, opts={"include_object": alembic_helpers.include_object}
+            )
+            diff = compare_metadata(ctx, Base.metadata)
+        engine.dispose()
+        assert diff == [], f"models and migrations disagree: {diff}"
+        command.downgrade(cfg, "base")
+        assert _tables(dsn) <= {"alembic_version", "spatial_ref_sys"}
+        command.upgrade(cfg, "head")
+        assert "fields" in _tables(dsn)
+    finally:
+        drop_database(url)
