@@ -73,7 +73,7 @@ def test_edits_make_new_arrays_and_flag_manual():
     cells = _cells()
     p = prescribe(cells, "uniform", {"rate_kg_ha": 700})
     old_rates, old_flags = p.rate_kg_ha.copy(), p.flags.copy()
-    r2, f2 = apply_cell_edits(cells.seq, p.rate_kg_ha, p.flags, {3: 650.0, 5: 2000.0}, _meter())
+    r2, f2 = apply_cell_edits(cells.seq, p.rate_kg_ha, p.flags, {2: 650.0, 4: 2000.0}, _meter())
     np.testing.assert_array_equal(p.rate_kg_ha, old_rates)  # version n unchanged
     np.testing.assert_array_equal(p.flags, old_flags)
     assert r2[2] == 650.0 and flag_names(f2[2]) == ["manual"]
@@ -82,8 +82,8 @@ def test_edits_make_new_arrays_and_flag_manual():
     assert flag_strings(f2)[4] == "above_meter_range,manual"
     with pytest.raises(PrescriptionError, match="cell 999"):
         apply_cell_edits(cells.seq, p.rate_kg_ha, p.flags, {999: 1.0})
-    with pytest.raises(PrescriptionError, match="cell 1: rate"):
-        apply_cell_edits(cells.seq, p.rate_kg_ha, p.flags, {1: -5.0})
+    with pytest.raises(PrescriptionError, match="cell 0: rate"):
+        apply_cell_edits(cells.seq, p.rate_kg_ha, p.flags, {0: -5.0})
 
 
 def test_zone_painting_by_polygon():
@@ -95,7 +95,7 @@ def test_zone_painting_by_polygon():
     r2, f2, n = paint_zone(cells.centroids_utm, rates, flags, zone, 600.0)
     assert n == 2
     painted = np.flatnonzero(r2 == 600.0)
-    assert sorted(cells.seq[painted].tolist()) == [1, 2]  # swath 0 runs north from y0
+    assert sorted(cells.seq[painted].tolist()) == [0, 1]  # swath 0 runs north from y0
     assert (f2[painted] == FLAG_BITS["zone"]).all() and (rates == 700.0).all()
     with pytest.raises(PrescriptionError, match="invalid"):
         bowtie = shapely.Polygon([(0, 0), (1, 1), (1, 0), (0, 1)])

@@ -271,5 +271,5 @@ class CellTable:
             keep = shapely.area(polys) > 1e-6
         polys, corners, s = polys[keep], corners[keep], s[keep]
         n = int(keep.sum())
-        table = cls.from_polygons_utm(epsg, np.arange(1, n + 1), s, polys, corners)
+        table = cls.from_polygons_utm(epsg, np.arange(n), s, polys, corners)
         return table

@@ -1,0 +1,75 @@
+"""Zipped Shapefile for farm software (Climate FieldView, Raven, Ag Leader, JD Ops Center).
+
+A flat zip (no folder) of ``<name>.shp/.shx/.dbf/.prj/.cpg``: WGS84 polygons
+(exterior rings clockwise as the Shapefile spec wants), a numeric ``RATE``
+column and its unit in ``UNIT`` ("kg/ha"), plus ``SEQ``, ``SWATH``, ``FLAG``
+and ``AREA_M2``. Written with pyshp.
+"""
+
+from __future__ import annotations
+
+import io
+import zipfile
+
+import numpy as np
+import shapefile as pyshp
+import shapely
+
+from fieldrx.agronomy.cells import CellTable, flag_strings
+from fieldrx.formats import FormatError
+
+WGS84_PRJ = (
+    'GEOGCS["GCS_WGS_1984",DATUM["D_WGS_1984",SPHEROID["WGS_1984",6378137.0,298.257223563]],'
+    'PRIMEM["Greenwich",0.0],UNIT["Degree",0.0174532925199433]]'
+)
+
+
+def _parts(geom: shapely.Geometry) -> list[list[list[float]]]:
+    """Rings of a (Multi)Polygon, exterior clockwise and holes counter-clockwise."""
+    g = shapely.orient_polygons(geom, exterior_cw=True)
+    polys = list(g.geoms) if g.geom_type == "MultiPolygon" else [g]
+    rings: list[list[list[float]]] = []
+    for p in polys:
+        if p.geom_type != "Polygon" or p.is_empty:
+            continue
+        rings.append(np.asarray(p.exterior.coords).tolist())
+        rings.extend(np.asarray(h.coords).tolist() for h in p.interiors)
+    return rings
+
+
+def write_shapefile_zip(cells: CellTable, name: str = "prescription") -> bytes:
+    """Flat zip bytes of the prescription Shapefile (see module docstring)."""
+    if not name or any(c in name for c in "/\\") or len(name) > 64:
+        raise FormatError(f"bad shapefile base name {name!r}")
+    shp, shx, dbf = io.BytesIO(), io.BytesIO(), io.BytesIO()
+    w = pyshp.Writer(shp=shp, shx=shx, dbf=dbf, shapeType=pyshp.POLYGON, encoding="utf-8")
+    w.field("SEQ", "N", 10, 0)
+    w.field("SWATH", "N", 6, 0)
+    w.field("RATE", "N", 12, 2)
+    w.field("UNIT", "C", 8)
+    w.field("FLAG", "C", 80)
+    w.field("AREA_M2", "N", 14, 2)
+    polys = shapely.set_precision(cells.polygons_wgs84(), 1e-9)
+    flags = flag_strings(cells.flags)
+    for i in range(len(cells)):
+        rings = _parts(polys[i])
+        if not rings:
+            raise FormatError(f"cell {int(cells.seq[i])} has an empty polygon")
+        w.poly(rings)
+        w.record(
+            int(cells.seq[i]),
+            int(cells.swath[i]),
+            round(float(cells.rate_kg_ha[i]), 2),
+            "kg/ha",
+            flags[i],
+            round(float(cells.area_m2[i]), 2),
+        )
+    w.close()
+    out = io.BytesIO()
+    with zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED) as z:
+        z.writestr(f"{name}.shp", shp.getvalue())
+        z.writestr(f"{name}.shx", shx.getvalue())
+        z.writestr(f"{name}.dbf", dbf.getvalue())
+        z.writestr(f"{name}.prj", WGS84_PRJ)
+        z.writestr(f"{name}.cpg", "UTF-8")
+    return out.getvalue()
