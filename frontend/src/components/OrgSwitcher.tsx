@@ -1,0 +1,36 @@
+import { api, errorText, getToken, setSession, type SessionInfo } from '../api';
+
+/**
+ * Organisation name, or a switcher when the user belongs to several. Switching
+ * asks the server for a token scoped to the chosen organisation.
+ */
+export function OrgSwitcher({ session, onChange }: { session: SessionInfo; onChange: (s: SessionInfo) => void }) {
+  const orgs = session.organisations ?? [];
+  if (orgs.length < 2) return <span data-testid="org-name">{session.organisation?.name ?? ''}</span>;
+  return (
+    <select
+      data-testid="org-switcher"
+      value={session.organisation?.id ?? ''}
+      onChange={async (e) => {
+        const id = Number(e.target.value);
+        try {
+          const r = await api.post<{ access_token?: string } & SessionInfo>('/auth/switch-organisation', {
+            organisation_id: id,
+          });
+          const info = { ...session, organisation: r.organisation ?? orgs.find((o) => o.id === id) };
+          setSession(r.access_token ?? getToken(), info);
+          onChange(info);
+          location.reload();
+        } catch (err) {
+          alert(errorText(err));
+        }
+      }}
+    >
+      {orgs.map((o) => (
+        <option key={o.id} value={o.id}>
+          {o.name}
+        </option>
+      ))}
+    </select>
+  );
+}

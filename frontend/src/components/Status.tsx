@@ -1,0 +1,37 @@
+/** Small shared bits: error banner, busy text, "not available yet" notice. */
+import { ApiError, errorText } from '../api';
+
+export function ErrorBox({ error, testid = 'error' }: { error: unknown; testid?: string }) {
+  if (!error) return null;
+  const items = error instanceof ApiError ? error.parsed.items : [];
+  return (
+    <div className="error" data-testid={testid} role="alert">
+      <div>{error instanceof ApiError ? error.message : errorText(error)}</div>
+      {items.length > 0 && (
+        <ul data-testid={`${testid}-items`}>
+          {items.map((it, i) => (
+            <li key={i}>{it.message}</li>
+          ))}
+        </ul>
+      )}
+    </div>
+  );
+}
+
+/** A 404/405 from an endpoint that other work has not shipped yet. */
+export function isMissingEndpoint(e: unknown): boolean {
+  return e instanceof ApiError && (e.status === 404 || e.status === 405 || e.status === 501);
+}
+
+export function Kv({ items }: { items: [string, React.ReactNode, string?][] }) {
+  return (
+    <dl className="kv">
+      {items.map(([k, v, tid]) => (
+        <div key={k}>
+          <dt>{k}</dt>
+          <dd data-testid={tid}>{v}</dd>
+        </div>
+      ))}
+    </dl>
+  );
+}

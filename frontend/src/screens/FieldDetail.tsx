@@ -1,0 +1,228 @@
+import { useCallback, useEffect, useRef, useState } from 'react';
+import * as maplibregl from 'maplibre-gl';
+import { api } from '../api';
+import { ErrorBox, isMissingEndpoint, Kv } from '../components/Status';
+import { bboxOf } from '../lib/geo';
+import { formatArea } from '../lib/units';
+import { MapView } from '../map/MapView';
+import { fitTo, setGeoJSON } from '../map/setup';
+import { navigate } from '../router';
+import type { FieldFeature, Plan } from '../types';
+import { listOf } from '../types';
+import { PlanForm } from './PlanForm';
+
+type SoilFC = GeoJSON.FeatureCollection<GeoJSON.Point, Record<string, unknown>>;
+
+const SKIP_KEYS = new Set(['id', 'field_id', 'geometry', 'lon', 'lat', 'created_at', 'organisation_id']);
+
+/** One field: boundary, soil samples, plans; soil CSV upload with per-row errors. */
+export function FieldDetail({ fieldId }: { fieldId: number }) {
+  const [field, setField] = useState<FieldFeature | null>(null);
+  const [plans, setPlans] = useState<Plan[]>([]);
+  const [plansMissing, setPlansMissing] = useState(false);
+  const [soil, setSoil] = useState<SoilFC | null>(null);
+  const [error, setError] = useState<unknown>(null);
+  const [soilError, setSoilError] = useState<unknown>(null);
+  const [soilMsg, setSoilMsg] = useState('');
+  const [skipBad, setSkipBad] = useState(false);
+  const mapRef = useRef<maplibregl.Map | null>(null);
+
+  const loadSoil = useCallback(async () => {
+    try {
+      const fc = await api.get<SoilFC>(`/fields/${fieldId}/soil-samples`);
+      setSoil(fc?.features ? fc : null);
+    } catch (e) {
+      if (!isMissingEndpoint(e)) setSoilError(e);
+    }
+  }, [fieldId]);
+
+  useEffect(() => {
+    api.get<FieldFeature>(`/fields/${fieldId}`).then(setField).catch(setError);
+    api
+      .get(`/fields/${fieldId}/plans`)
+      .then((r) => setPlans(listOf<Plan>(r)))
+      .catch((e) => (isMissingEndpoint(e) ? setPlansMissing(true) : setError(e)));
+    void loadSoil();
+  }, [fieldId, loadSoil]);
+
+  useEffect(() => {
+    const map = mapRef.current;
+    if (!map || !field) return;
+    setGeoJSON(map, 'field', field as GeoJSON.Feature);
+    fitTo(map, bboxOf(field));
+  }, [field]);
+  useEffect(() => {
+    const map = mapRef.current;
+    if (!map) return;
+    setGeoJSON(map, 'soil', soil ?? { type: 'FeatureCollection', features: [] });
+  }, [soil]);
+
+  const onReady = (map: maplibregl.Map) => {
+    mapRef.current = map;
+    setGeoJSON(map, 'field', (field as GeoJSON.Feature) ?? { type: 'FeatureCollection', features: [] });
+    map.addLayer({ id: 'field-fill', type: 'fill', source: 'field', paint: { 'fill-color': '#4c9a2a', 'fill-opacity': 0.25 } });
+    map.addLayer({ id: 'field-line', type: 'line', source: 'field', paint: { 'line-color': '#2d5e16', 'line-width': 2 } });
+    setGeoJSON(map, 'soil', soil ?? { type: 'FeatureCollection', features: [] });
+    map.addLayer({
+      id: 'soil',
+      type: 'circle',
+      source: 'soil',
+      paint: { 'circle-radius': 6, 'circle-color': '#8b4513', 'circle-stroke-color': '#fff', 'circle-stroke-width': 1.5 },
+    });
+    map.on('click', 'soil', (e) => {
+      const f = e.features?.[0];
+      if (!f) return;
+      const rows = Object.entries(f.properties ?? {})
+        .filter(([k]) => !SKIP_KEYS.has(k))
+        .map(([k, v]) => `<tr><th>${k}</th><td>${String(v)}</td></tr>`)
+        .join('');
+      new maplibregl.Popup().setLngLat(e.lngLat).setHTML(`<table class="popup">${rows}</table>`).addTo(map);
+    });
+    if (field) fitTo(map, bboxOf(field));
+  };
+
+  const uploadSoil = async (file: File) => {
+    setSoilError(null);
+    setSoilMsg('');
+    const fd = new FormData();
+    fd.append('file', file);
+    try {
+      const r = await api.post<Record<string, unknown>>(
+        `/fields/${fieldId}/soil-samples${skipBad ? '?skip_bad_rows=true' : ''}`,
+        fd,
+      );
+      const n = (r?.stored ?? r?.imported ?? r?.count ?? listOf(r).length) as number;
+      const skipped = Array.isArray(r?.skipped) ? (r.skipped as unknown[]).length : r?.skipped;
+      setSoilMsg(`Uploaded ${file.name}: ${n ?? '?'} samples${skipped ? `, ${String(skipped)} rows skipped` : ''}`);
+      await loadSoil();
+    } catch (e) {
+      setSoilError(e);
+    }
+  };
+
+  const sampleKeys = soil?.features[0]
+    ? Object.keys(soil.features[0].properties ?? {}).filter((k) => !SKIP_KEYS.has(k))
+    : [];
+
+  return (
+    <div className="split">
+      <aside className="panel">
+        <p>
+          <a href="#/fields">← Fields</a>
+        </p>
+        <h2 data-testid="field-title">{field?.properties.name ?? '…'}</h2>
+        <ErrorBox error={error} />
+        {field && (
+          <Kv
+            items={[
+              ['Area', formatArea(field.properties.area_m2 ?? (field.properties.area_ha ?? NaN) * 10_000), 'field-area'],
+              ['Crop', field.properties.crop ?? '–'],
+              ['UTM', field.properties.utm_epsg ? `EPSG:${field.properties.utm_epsg}` : '–'],
+            ]}
+          />
+        )}
+        <div className="row">
+          <button data-testid="edit-field" onClick={() => navigate(`/fields/${fieldId}/edit`)}>
+            Edit boundary
+          </button>
+          <button
+            className="danger"
+            data-testid="delete-field"
+            onClick={async () => {
+              if (!confirm('Delete this field?')) return;
+              try {
+                await api.del(`/fields/${fieldId}`);
+                navigate('/fields');
+              } catch (e) {
+                setError(e);
+              }
+            }}
+          >
+            Delete
+          </button>
+        </div>
+
+        <h3>Soil samples</h3>
+        <div className="row">
+          <label className="button">
+            Upload CSV…
+            <input
+              data-testid="soil-file"
+              type="file"
+              accept=".csv,.geojson,.json"
+              hidden
+              onChange={(e) => {
+                const f = e.target.files?.[0];
+                if (f) void uploadSoil(f);
+                e.target.value = '';
+              }}
+            />
+          </label>
+          <label className="inline">
+            <input type="checkbox" checked={skipBad} onChange={(e) => setSkipBad(e.target.checked)} /> skip bad rows
+          </label>
+        </div>
+        {soilMsg && (
+          <p className="ok" data-testid="soil-result">
+            {soilMsg}
+          </p>
+        )}
+        <ErrorBox error={soilError} testid="soil-error" />
+        <p className="muted" data-testid="soil-count">
+          {soil?.features.length ?? 0} samples
+        </p>
+        {soil && soil.features.length > 0 && (
+          <div className="scroll">
+            <table className="table" data-testid="soil-table">
+              <thead>
+                <tr>
+                  {sampleKeys.map((k) => (
+                    <th key={k}>{k}</th>
+                  ))}
+                </tr>
+              </thead>
+              <tbody>
+                {soil.features.slice(0, 200).map((f, i) => (
+                  <tr key={i}>
+                    {sampleKeys.map((k) => (
+                      <td key={k}>{fmtCell(f.properties?.[k])}</td>
+                    ))}
+                  </tr>
+                ))}
+              </tbody>
+            </table>
+          </div>
+        )}
+
+        <h3>Plans</h3>
+        {plansMissing ? (
+          <p className="muted" data-testid="plans-unavailable">
+            Planning is not available on this server yet.
+          </p>
+        ) : (
+          <>
+            <ul className="list" data-testid="plan-list">
+              {plans.map((p) => (
+                <li key={p.id}>
+                  <a href={`#/plans/${p.id}`} data-testid={`plan-item-${p.id}`}>
+                    Plan #{p.id}
+                  </a>{' '}
+                  <span className="muted">
+                    {p.swath_width_m ?? '?'} m swath · {p.cell_length_m ?? '?'} m cells
+                  </span>
+                </li>
+              ))}
+            </ul>
+            <PlanForm fieldId={fieldId} onCreated={(p) => navigate(`/plans/${p.id}`)} />
+          </>
+        )}
+      </aside>
+      <MapView name="field" onReady={onReady} />
+    </div>
+  );
+}
+
+function fmtCell(v: unknown): string {
+  if (typeof v === 'number') return Number.isInteger(v) ? String(v) : v.toFixed(2);
+  return v == null ? '' : String(v);
+}

@@ -1,0 +1,203 @@
+import { useCallback, useEffect, useRef, useState } from 'react';
+import type * as maplibregl from 'maplibre-gl';
+import { api } from '../api';
+import { ErrorBox } from '../components/Status';
+import { bboxOf } from '../lib/geo';
+import { formatArea } from '../lib/units';
+import { MapView } from '../map/MapView';
+import { fitTo, setGeoJSON } from '../map/setup';
+import { navigate } from '../router';
+import type { Farm, FieldCollection } from '../types';
+import { listOf } from '../types';
+
+const EMPTY: FieldCollection = { type: 'FeatureCollection', features: [] };
+
+export function FieldsScreen() {
+  const [farms, setFarms] = useState<Farm[]>([]);
+  const [farmId, setFarmId] = useState<string>('');
+  const [q, setQ] = useState('');
+  const [fields, setFields] = useState<FieldCollection>(EMPTY);
+  const [error, setError] = useState<unknown>(null);
+  const [importMsg, setImportMsg] = useState('');
+  const [newFarm, setNewFarm] = useState('');
+  const mapRef = useRef<maplibregl.Map | null>(null);
+  const fitted = useRef(false);
+
+  const loadFarms = useCallback(async () => {
+    try {
+      setFarms(listOf<Farm>(await api.get('/farms')));
+    } catch (e) {
+      setError(e);
+    }
+  }, []);
+
+  const loadFields = useCallback(async () => {
+    const p = new URLSearchParams({ limit: '500' });
+    if (q) p.set('q', q);
+    if (farmId) p.set('farm_id', farmId);
+    try {
+      const fc = await api.get<FieldCollection>(`/fields?${p}`);
+      setFields(fc?.features ? fc : EMPTY);
+      setError(null);
+    } catch (e) {
+      setError(e);
+    }
+  }, [q, farmId]);
+
+  useEffect(() => {
+    void loadFarms();
+  }, [loadFarms]);
+  useEffect(() => {
+    const t = setTimeout(() => void loadFields(), 200);
+    return () => clearTimeout(t);
+  }, [loadFields]);
+
+  useEffect(() => {
+    const map = mapRef.current;
+    if (!map) return;
+    setGeoJSON(map, 'fields', fields as GeoJSON.FeatureCollection);
+    if (!fitted.current || q || farmId) {
+      fitTo(map, bboxOf(fields));
+      if (fields.features.length) fitted.current = true;
+    }
+  }, [fields, q, farmId]);
+
+  const onReady = (map: maplibregl.Map) => {
+    mapRef.current = map;
+    setGeoJSON(map, 'fields', fields as GeoJSON.FeatureCollection);
+    map.addLayer({
+      id: 'fields-fill',
+      type: 'fill',
+      source: 'fields',
+      paint: { 'fill-color': '#4c9a2a', 'fill-opacity': 0.35 },
+    });
+    map.addLayer({
+      id: 'fields-line',
+      type: 'line',
+      source: 'fields',
+      paint: { 'line-color': '#2d5e16', 'line-width': 2 },
+    });
+    map.on('click', 'fields-fill', (e) => {
+      const f = e.features?.[0];
+      const id = f?.properties?.id ?? f?.id;
+      if (id != null) navigate(`/fields/${id}`);
+    });
+    map.on('mouseenter', 'fields-fill', () => (map.getCanvas().style.cursor = 'pointer'));
+    map.on('mouseleave', 'fields-fill', () => (map.getCanvas().style.cursor = ''));
+    fitTo(map, bboxOf(fields));
+  };
+
+  const onImport = async (file: File) => {
+    setImportMsg('');
+    setError(null);
+    const fd = new FormData();
+    fd.append('file', file);
+    const fid = farmId || (farms[0] ? String(farms[0].id) : '');
+    try {
+      const r = await api.post<unknown>(`/fields/import${fid ? `?farm_id=${fid}` : ''}`, fd);
+      const n = listOf(r).length || (r as { features?: unknown[] })?.features?.length || 0;
+      setImportMsg(`Imported ${n || 'the'} field${n === 1 ? '' : 's'} from ${file.name}`);
+      await loadFields();
+    } catch (e) {
+      setError(e);
+    }
+  };
+
+  const total = fields.total ?? fields.features.length;
+  return (
+    <div className="split">
+      <aside className="panel">
+        <h2>Fields</h2>
+        <div className="row">
+          <input
+            data-testid="field-search"
+            placeholder="Search fields…"
+            value={q}
+            onChange={(e) => setQ(e.target.value)}
+          />
+          <select data-testid="farm-filter" value={farmId} onChange={(e) => setFarmId(e.target.value)}>
+            <option value="">All farms</option>
+            {farms.map((f) => (
+              <option key={f.id} value={f.id}>
+                {f.name}
+              </option>
+            ))}
+          </select>
+        </div>
+        <div className="row">
+          <button data-testid="new-field" onClick={() => navigate('/fields/new')}>
+            Draw new field
+          </button>
+          <label className="button">
+            Import…
+            <input
+              data-testid="import-file"
+              type="file"
+              accept=".geojson,.json,.kml,.zip"
+              hidden
+              onChange={(e) => {
+                const f = e.target.files?.[0];
+                if (f) void onImport(f);
+                e.target.value = '';
+              }}
+            />
+          </label>
+        </div>
+        {importMsg && (
+          <p className="ok" data-testid="import-result">
+            {importMsg}
+          </p>
+        )}
+        <ErrorBox error={error} testid="fields-error" />
+        <p className="muted" data-testid="field-count">
+          {total} field{total === 1 ? '' : 's'}
+        </p>
+        <ul className="list" data-testid="field-list">
+          {fields.features.map((f) => (
+            <li key={f.properties.id}>
+              <a href={`#/fields/${f.properties.id}`} data-testid={`field-item-${f.properties.id}`}>
+                <strong>{f.properties.name}</strong>
+              </a>
+              <span className="muted">
+                {' '}
+                {formatArea(f.properties.area_m2 ?? (f.properties.area_ha ?? NaN) * 10_000)}
+                {f.properties.crop ? ` · ${f.properties.crop}` : ''}
+              </span>
+            </li>
+          ))}
+        </ul>
+        <details>
+          <summary>Farms</summary>
+          <form
+            className="row"
+            onSubmit={async (e) => {
+              e.preventDefault();
+              try {
+                await api.post('/farms', { name: newFarm });
+                setNewFarm('');
+                await loadFarms();
+              } catch (err) {
+                setError(err);
+              }
+            }}
+          >
+            <input
+              data-testid="new-farm-name"
+              placeholder="New farm name"
+              value={newFarm}
+              onChange={(e) => setNewFarm(e.target.value)}
+              required
+            />
+            <button data-testid="new-farm-submit">Add farm</button>
+          </form>
+          <ul className="list">
+            {farms.map((f) => (
+              <li key={f.id}>{f.name}</li>
+            ))}
+          </ul>
+        </details>
+      </aside>
+      <MapView name="fields" onReady={onReady} />
+    </div>
+  );
+}

@@ -1,0 +1,148 @@
+import { useCallback, useEffect, useState } from 'react';
+import { api } from '../api';
+import { ErrorBox, isMissingEndpoint } from '../components/Status';
+import { formatPercent } from '../lib/units';
+import { hashQuery } from '../router';
+import type { Job, Machine } from '../types';
+import { listOf } from '../types';
+
+const NEXT_STATES: Record<string, string[]> = {
+  created: ['cancelled'],
+  queued: ['cancelled'],
+  sent: ['cancelled'],
+  downloaded: ['cancelled'],
+  running: ['paused', 'cancelled'],
+  paused: ['running', 'cancelled'],
+};
+
+/** Jobs with their states; send a prescription version to a machine. */
+export function JobsScreen() {
+  const [jobs, setJobs] = useState<Job[]>([]);
+  const [machines, setMachines] = useState<Machine[]>([]);
+  const [rxId, setRxId] = useState('');
+  const [version, setVersion] = useState('');
+  const [machineId, setMachineId] = useState('');
+  const [error, setError] = useState<unknown>(null);
+  const [missing, setMissing] = useState(false);
+  const created = hashQuery().get('created');
+
+  const load = useCallback(async () => {
+    try {
+      setJobs(listOf<Job>(await api.get('/jobs')));
+    } catch (e) {
+      if (isMissingEndpoint(e)) setMissing(true);
+      else setError(e);
+    }
+  }, []);
+
+  useEffect(() => {
+    void load();
+    api
+      .get('/machines')
+      .then((r) => {
+        const ms = listOf<Machine>(r);
+        setMachines(ms);
+        if (ms[0]) setMachineId(String(ms[0].id));
+      })
+      .catch(() => undefined);
+    const t = setInterval(() => void load(), 5000);
+    return () => clearInterval(t);
+  }, [load]);
+
+  const mName = (id: number) => machines.find((m) => m.id === id)?.name ?? `#${id}`;
+  return (
+    <div className="page">
+      <h2>Jobs</h2>
+      {missing && <p className="muted">Jobs are not available on this server yet.</p>}
+      {created && (
+        <p className="ok" data-testid="job-created">
+          Job #{created} sent.
+        </p>
+      )}
+      <ErrorBox error={error} testid="jobs-error" />
+      <form
+        className="row"
+        data-testid="job-form"
+        onSubmit={async (e) => {
+          e.preventDefault();
+          setError(null);
+          try {
+            await api.post('/jobs', {
+              prescription_id: Number(rxId),
+              version: version ? Number(version) : undefined,
+              machine_id: Number(machineId),
+            });
+            await load();
+          } catch (err) {
+            setError(err);
+          }
+        }}
+      >
+        <input data-testid="job-rx" placeholder="Prescription #" value={rxId} onChange={(e) => setRxId(e.target.value)} required />
+        <input data-testid="job-version" placeholder="version (latest)" value={version} onChange={(e) => setVersion(e.target.value)} />
+        <select data-testid="job-form-machine" value={machineId} onChange={(e) => setMachineId(e.target.value)}>
+          {machines.map((m) => (
+            <option key={m.id} value={m.id}>
+              {m.name}
+            </option>
+          ))}
+        </select>
+        <button data-testid="job-form-submit">Send</button>
+      </form>
+      <table className="table" data-testid="job-table">
+        <thead>
+          <tr>
+            <th>Job</th>
+            <th>Prescription</th>
+            <th>Machine</th>
+            <th>State</th>
+            <th>Progress</th>
+            <th />
+          </tr>
+        </thead>
+        <tbody>
+          {jobs.map((j) => (
+            <tr key={j.id} data-testid={`job-row-${j.id}`}>
+              <td>
+                <a href={`#/jobs/${j.id}`}>#{j.id}</a>
+              </td>
+              <td>
+                <a href={`#/prescriptions/${j.prescription_id}`}>
+                  #{j.prescription_id} v{j.version ?? j.prescription_version ?? '?'}
+                </a>
+              </td>
+              <td>
+                <a href={`#/machines/${j.machine_id}`}>{mName(j.machine_id)}</a>
+              </td>
+              <td>
+                <span className={`state state-${j.state}`} data-testid={`job-state-${j.id}`}>
+                  {j.state}
+                </span>
+              </td>
+              <td>{j.progress != null ? formatPercent(j.progress > 1 ? j.progress / 100 : j.progress) : '–'}</td>
+              <td>
+                {(NEXT_STATES[j.state] ?? []).map((s) => (
+                  <button
+                    key={s}
+                    className="link"
+                    onClick={async () => {
+                      try {
+                        await api.post(`/jobs/${j.id}/state`, { state: s });
+                        await load();
+                      } catch (e) {
+                        setError(e);
+                      }
+                    }}
+                  >
+                    {s === 'running' ? 'resume' : s === 'paused' ? 'pause' : 'cancel'}
+                  </button>
+                ))}{' '}
+                <a href={`#/jobs/${j.id}`}>report</a>
+              </td>
+            </tr>
+          ))}
+        </tbody>
+      </table>
+    </div>
+  );
+}

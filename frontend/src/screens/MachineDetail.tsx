@@ -1,0 +1,105 @@
+import { useCallback, useEffect, useMemo, useState } from 'react';
+import { api } from '../api';
+import { ErrorBox, isMissingEndpoint, Kv } from '../components/Status';
+import { TimeChart } from '../components/TimeChart';
+import { decimate, normaliseTrack, type TrackPoint } from '../lib/track';
+import { formatSpeed, msToKmh } from '../lib/units';
+import { useLive } from '../live';
+import type { Machine } from '../types';
+
+const MAX_POINTS = 3000;
+
+/** One machine: settings, device token, raw vs filtered speed and target vs actual shaft speed. */
+export function MachineDetail({ machineId }: { machineId: number }) {
+  const [machine, setMachine] = useState<Machine | null>(null);
+  const [track, setTrack] = useState<TrackPoint[]>([]);
+  const [error, setError] = useState<unknown>(null);
+  const [token, setToken] = useState('');
+  const [missing, setMissing] = useState(false);
+
+  const loadTrack = useCallback(async () => {
+    try {
+      const from = new Date(Date.now() - 6 * 3600_000).toISOString();
+      setTrack(normaliseTrack(await api.get(`/machines/${machineId}/track?from=${encodeURIComponent(from)}&limit=20000`)));
+    } catch (e) {
+      if (isMissingEndpoint(e)) setMissing(true);
+      else setError(e);
+    }
+  }, [machineId]);
+
+  useEffect(() => {
+    api.get<Machine>(`/machines/${machineId}`).then(setMachine).catch(setError);
+    void loadTrack();
+  }, [machineId, loadTrack]);
+
+  useLive((m) => {
+    if (Number(m.machine_id) !== machineId || m.type !== 'position') return;
+    const p = normaliseTrack([m]);
+    if (p.length) setTrack((cur) => [...cur, ...p].slice(-20000));
+  });
+
+  const d = useMemo(() => decimate(track, MAX_POINTS), [track]);
+  const t = useMemo(() => d.map((p) => p.t), [d]);
+  const speed = useMemo(
+    () => [
+      { label: 'raw (km/h)', values: d.map((p) => (p.speed_raw_m_s == null ? null : msToKmh(p.speed_raw_m_s))), color: '#bbbbbb' },
+      {
+        label: 'filtered (km/h)',
+        values: d.map((p) => (p.speed_filtered_m_s == null ? null : msToKmh(p.speed_filtered_m_s))),
+        color: '#1e3a8a',
+      },
+    ],
+    [d],
+  );
+  const shaft = useMemo(
+    () => [
+      { label: 'target (r/min)', values: d.map((p) => p.target_shaft_rpm), color: '#d7263d', dash: [6, 4] },
+      { label: 'actual (r/min)', values: d.map((p) => p.actual_shaft_rpm), color: '#2e9e44' },
+    ],
+    [d],
+  );
+  const last = track[track.length - 1];
+
+  return (
+    <div className="page">
+      <p>
+        <a href="#/fleet">← Fleet</a>
+      </p>
+      <h2 data-testid="machine-title">{machine?.name ?? `Machine #${machineId}`}</h2>
+      <ErrorBox error={error} />
+      <Kv
+        items={[
+          ['Implement', String(machine?.implement_type ?? '–')],
+          ['Width', machine?.width_m != null ? `${machine.width_m} m` : '–'],
+          ['Lag', machine?.lag_s != null ? `${machine.lag_s} s` : '–'],
+          ['Last speed', formatSpeed(last?.speed_filtered_m_s), 'machine-last-speed'],
+          ['Track points', String(track.length), 'machine-track-count'],
+        ]}
+      />
+      <div className="row">
+        <button
+          data-testid="device-token"
+          onClick={async () => {
+            try {
+              const r = await api.post<{ token: string }>(`/machines/${machineId}/device-token`);
+              setToken(r.token);
+            } catch (e) {
+              setError(e);
+            }
+          }}
+        >
+          New device token
+        </button>
+        {token && (
+          <code className="token" data-testid="device-token-value">
+            {token}
+          </code>
+        )}
+      </div>
+      {token && <p className="muted small">Shown once: copy it into the edge agent's configuration now.</p>}
+      {missing && <p className="muted">Track history is not available on this server yet.</p>}
+      <TimeChart t={t} series={speed} title="Ground speed: raw vs Kalman-filtered" unit="km/h" testid="chart-speed" />
+      <TimeChart t={t} series={shaft} title="Metering shaft: target vs actual" unit="r/min" testid="chart-shaft" />
+    </div>
+  );
+}

@@ -1,0 +1,79 @@
+import { useState } from 'react';
+import { api } from '../api';
+import { ErrorBox } from '../components/Status';
+import type { Plan } from '../types';
+
+/** Planning parameters (metres, degrees); the server validates and returns 422 with the field name. */
+export function PlanForm({ fieldId, onCreated }: { fieldId: number; onCreated: (p: Plan) => void }) {
+  const [swath, setSwath] = useState('12');
+  const [cell, setCell] = useState('10');
+  const [rule, setRule] = useState('longest_edge');
+  const [heading, setHeading] = useState('0');
+  const [headland, setHeadland] = useState('1');
+  const [error, setError] = useState<unknown>(null);
+  const [busy, setBusy] = useState(false);
+  return (
+    <form
+      className="form"
+      data-testid="plan-form"
+      onSubmit={async (e) => {
+        e.preventDefault();
+        setBusy(true);
+        setError(null);
+        const body: Record<string, unknown> = {
+          swath_width_m: Number(swath),
+          cell_length_m: Number(cell),
+          heading_rule: rule,
+          headland_passes: Number(headland),
+        };
+        if (rule === 'fixed') body.heading_deg = Number(heading);
+        try {
+          onCreated(await api.post<Plan>(`/fields/${fieldId}/plans`, body));
+        } catch (err) {
+          setError(err);
+        } finally {
+          setBusy(false);
+        }
+      }}
+    >
+      <h4>New plan</h4>
+      <label>
+        Swath width (m)
+        <input data-testid="plan-swath" type="number" step="0.1" min="0" value={swath} onChange={(e) => setSwath(e.target.value)} />
+      </label>
+      <label>
+        Cell length (m)
+        <input data-testid="plan-cell" type="number" step="0.1" min="0" value={cell} onChange={(e) => setCell(e.target.value)} />
+      </label>
+      <label>
+        Heading rule
+        <select data-testid="plan-heading-rule" value={rule} onChange={(e) => setRule(e.target.value)}>
+          <option value="longest_edge">Parallel to the longest edge</option>
+          <option value="min_turns">Fewest turns</option>
+          <option value="fixed">Fixed heading</option>
+        </select>
+      </label>
+      {rule === 'fixed' && (
+        <label>
+          Heading (° from north)
+          <input data-testid="plan-heading" type="number" value={heading} onChange={(e) => setHeading(e.target.value)} />
+        </label>
+      )}
+      <label>
+        Headland passes
+        <input
+          data-testid="plan-headland"
+          type="number"
+          min="0"
+          step="1"
+          value={headland}
+          onChange={(e) => setHeadland(e.target.value)}
+        />
+      </label>
+      <button data-testid="plan-submit" disabled={busy}>
+        {busy ? 'Planning…' : 'Plan coverage'}
+      </button>
+      <ErrorBox error={error} testid="plan-error" />
+    </form>
+  );
+}

@@ -1,0 +1,337 @@
+import { useCallback, useEffect, useMemo, useRef, useState } from 'react';
+import type * as maplibregl from 'maplibre-gl';
+import { TerraDraw, TerraDrawPolygonMode } from 'terra-draw';
+import { TerraDrawMapLibreGLAdapter } from 'terra-draw-maplibre-gl-adapter';
+import { api, download, errorText } from '../api';
+import { Histogram, Legend } from '../components/Legend';
+import { ErrorBox, Kv } from '../components/Status';
+import { classColors, histogram, legendEntries, niceBreaks, stepExpression } from '../lib/colors';
+import { bboxOf, type PolygonGeom } from '../lib/geo';
+import { formatRate } from '../lib/units';
+import { MapView } from '../map/MapView';
+import { loadedCells, replaceVectorSource, rxGridLayers, rxTilesUrl } from '../map/grid';
+import { fitTo, setGeoJSON } from '../map/setup';
+import { navigate } from '../router';
+import type { FieldFeature, Machine, Plan, Prescription } from '../types';
+import { listOf, pick } from '../types';
+
+const CLASSES = 6;
+const EXPORTS: [string, string, string][] = [
+  ['geojson', 'GeoJSON', 'geojson'],
+  ['csv', 'CSV', 'csv'],
+  ['shapefile', 'Shapefile', 'zip'],
+  ['isoxml', 'ISOXML', 'zip'],
+];
+
+interface CellInfo {
+  seq: number;
+  rate: number;
+  flag?: string;
+}
+
+/** Versioned rate map: colour grid + legend + histogram, cell and zone edits, exports, send to a machine. */
+export function PrescriptionScreen({ rxId }: { rxId: number }) {
+  const [rx, setRx] = useState<Prescription | null>(null);
+  const [version, setVersion] = useState<number | null>(null);
+  const [field, setField] = useState<FieldFeature | null>(null);
+  const [rates, setRates] = useState<number[]>([]);
+  const [clamped, setClamped] = useState(0);
+  const [cell, setCell] = useState<CellInfo | null>(null);
+  const [newRate, setNewRate] = useState('');
+  const [zone, setZone] = useState<PolygonGeom | null>(null);
+  const [zoneRate, setZoneRate] = useState('');
+  const [painting, setPainting] = useState(false);
+  const [machines, setMachines] = useState<Machine[]>([]);
+  const [machineId, setMachineId] = useState('');
+  const [msg, setMsg] = useState('');
+  const [error, setError] = useState<unknown>(null);
+  const mapRef = useRef<maplibregl.Map | null>(null);
+  const drawRef = useRef<TerraDraw | null>(null);
+  const [mapReady, setMapReady] = useState(false);
+
+  const load = useCallback(
+    async (pickVersion?: number) => {
+      try {
+        const r = await api.get<Prescription>(`/prescriptions/${rxId}`);
+        setRx(r);
+        const latest = r.latest_version ?? r.version ?? Math.max(1, ...listOf<{ version: number }>(r.versions).map((v) => v.version));
+        setVersion(pickVersion ?? latest);
+        if (!field) {
+          const plan = await api.get<Plan>(`/plans/${r.plan_id}`);
+          setField(await api.get<FieldFeature>(`/fields/${plan.field_id}`));
+        }
+      } catch (e) {
+        setError(e);
+      }
+    },
+    [rxId, field],
+  );
+
+  useEffect(() => {
+    void load();
+    api
+      .get('/machines')
+      .then((m) => {
+        const ms = listOf<Machine>(m);
+        setMachines(ms);
+        if (ms[0]) setMachineId(String(ms[0].id));
+      })
+      .catch(() => undefined);
+    // eslint-disable-next-line react-hooks/exhaustive-deps
+  }, [rxId]);
+
+  const stats = { ...(rx ?? {}), ...((rx?.stats as Record<string, unknown>) ?? {}) } as Record<string, unknown>;
+  const lo = rates.length ? Math.min(...rates) : pick(stats, 'rate_min_kg_ha', 'min_rate_kg_ha', 'min_kg_ha');
+  const hi = rates.length ? Math.max(...rates) : pick(stats, 'rate_max_kg_ha', 'max_rate_kg_ha', 'max_kg_ha');
+  const breaks = useMemo(() => niceBreaks(lo ?? 0, hi ?? 1000, CLASSES), [lo, hi]);
+  const colors = useMemo(() => classColors(breaks.length - 1), [breaks]);
+  const legend = legendEntries(breaks, colors, (v) => v.toFixed(0));
+  const colorExpr = useMemo(() => stepExpression('rate_kg_ha', breaks, colors), [breaks, colors]);
+
+  // (Re)load the tile source for the chosen version.
+  useEffect(() => {
+    const map = mapRef.current;
+    if (!map || !mapReady || version == null) return;
+    replaceVectorSource(map, 'rx', rxTilesUrl(rxId, version), rxGridLayers('rx', colorExpr));
+    setRates([]);
+    const onIdle = () => {
+      const cells = loadedCells(map, 'rx');
+      if (!cells.size) return;
+      const vals: number[] = [];
+      let nClamped = 0;
+      for (const p of cells.values()) {
+        vals.push(Number(p.rate_kg_ha));
+        const f = p.flag == null ? '' : String(p.flag);
+        if (f && f !== 'ok') nClamped++;
+      }
+      setRates(vals);
+      setClamped(nClamped);
+      map.off('idle', onIdle);
+    };
+    map.on('idle', onIdle);
+    return () => {
+      map.off('idle', onIdle);
+    };
+  }, [mapReady, version, rxId]); // eslint-disable-line react-hooks/exhaustive-deps
+
+  useEffect(() => {
+    const map = mapRef.current;
+    if (map?.getLayer('rx-fill')) map.setPaintProperty('rx-fill', 'fill-color', colorExpr as never);
+  }, [colorExpr]);
+
+  useEffect(() => {
+    const map = mapRef.current;
+    if (map?.getLayer('rx-selected')) map.setFilter('rx-selected', ['==', ['get', 'seq'], cell?.seq ?? -1]);
+  }, [cell]);
+
+  useEffect(() => {
+    const map = mapRef.current;
+    if (!map || !field) return;
+    setGeoJSON(map, 'field', field as GeoJSON.Feature);
+    fitTo(map, bboxOf(field));
+  }, [field, mapReady]);
+
+  const onReady = (map: maplibregl.Map) => {
+    mapRef.current = map;
+    setGeoJSON(map, 'field', { type: 'FeatureCollection', features: [] });
+    map.addLayer({ id: 'field-line', type: 'line', source: 'field', paint: { 'line-color': '#222', 'line-width': 2 } });
+    map.on('click', (e) => {
+      if (drawRef.current?.getMode() === 'polygon') return;
+      if (!map.getLayer('rx-fill')) return;
+      const f = map.queryRenderedFeatures(e.point, { layers: ['rx-fill'] })[0];
+      if (!f) return setCell(null);
+      const c = { seq: Number(f.properties.seq), rate: Number(f.properties.rate_kg_ha), flag: f.properties.flag as string };
+      setCell(c);
+      setNewRate(String(Math.round(c.rate * 10) / 10));
+    });
+    const draw = new TerraDraw({ adapter: new TerraDrawMapLibreGLAdapter({ map }), modes: [new TerraDrawPolygonMode()] });
+    draw.start();
+    draw.setMode('static');
+    draw.on('finish', (id) => {
+      const f = draw.getSnapshotFeature(id);
+      if (f?.geometry.type === 'Polygon') setZone(f.geometry as PolygonGeom);
+      draw.setMode('static');
+      setPainting(false);
+    });
+    drawRef.current = draw;
+    setMapReady(true);
+    return () => {
+      try {
+        draw.stop();
+      } catch {
+        /* map gone */
+      }
+    };
+  };
+
+  const applyEdit = async (body: unknown) => {
+    setError(null);
+    try {
+      const r = await api.post<Record<string, unknown>>(`/prescriptions/${rxId}/edits`, body);
+      const v = pick(r, 'version', 'latest_version');
+      setCell(null);
+      setZone(null);
+      drawRef.current?.clear();
+      await load(v);
+      setMsg(`Saved as version ${v ?? '(new)'}`);
+    } catch (e) {
+      setError(e);
+    }
+  };
+
+  const versions = listOf<{ version: number; created_at?: string; note?: string }>(rx?.versions);
+  const versionNums = versions.length
+    ? versions.map((v) => v.version)
+    : Array.from({ length: version ?? 1 }, (_, i) => i + 1);
+
+  return (
+    <div className="split">
+      <aside className="panel">
+        <p>{rx && <a href={`#/plans/${rx.plan_id}`}>← Plan #{rx.plan_id}</a>}</p>
+        <h2>Prescription #{rxId}</h2>
+        <ErrorBox error={error} testid="rx-screen-error" />
+        {msg && (
+          <p className="ok" data-testid="rx-msg">
+            {msg}
+          </p>
+        )}
+        <Kv
+          items={[
+            ['Model', String(rx?.model ?? '–'), 'rx-model-name'],
+            ['Cells', String(rates.length || pick(stats, 'cell_count', 'cells') || '–'), 'rx-cell-count'],
+            ['Rate range', lo != null && hi != null ? `${formatRate(lo)} – ${formatRate(hi)}` : '–', 'rx-range'],
+            ['Clamped cells', String(rates.length ? clamped : (pick(stats, 'clamped_count', 'clamped') ?? '–')), 'rx-clamped'],
+          ]}
+        />
+        <label>
+          Version
+          <select
+            data-testid="rx-version"
+            value={version ?? ''}
+            onChange={(e) => setVersion(Number(e.target.value))}
+          >
+            {versionNums.map((v) => (
+              <option key={v} value={v}>
+                v{v}
+              </option>
+            ))}
+          </select>
+        </label>
+        <Legend entries={legend} title="Rate (kg/ha)" testid="rx-legend" />
+        <Histogram counts={histogram(rates, breaks)} colors={colors} testid="rx-histogram" />
+
+        <h3>Edit</h3>
+        {cell ? (
+          <div className="card" data-testid="cell-panel">
+            <div>
+              Cell <strong data-testid="cell-seq">{cell.seq}</strong>: <span data-testid="cell-rate">{formatRate(cell.rate)}</span>
+              {cell.flag && cell.flag !== 'ok' ? <span className="warn"> ({cell.flag})</span> : null}
+            </div>
+            <form
+              className="row"
+              onSubmit={(e) => {
+                e.preventDefault();
+                void applyEdit({ cells: [{ seq: cell.seq, rate_kg_ha: Number(newRate) }] });
+              }}
+            >
+              <input data-testid="cell-new-rate" type="number" step="any" value={newRate} onChange={(e) => setNewRate(e.target.value)} />
+              <button data-testid="cell-save">Set rate</button>
+            </form>
+          </div>
+        ) : (
+          <p className="muted">Click a cell to see and edit its rate.</p>
+        )}
+        <div className="row">
+          <button
+            data-testid="paint-zone"
+            className={painting ? 'on' : ''}
+            onClick={() => {
+              setPainting(true);
+              setZone(null);
+              drawRef.current?.clear();
+              drawRef.current?.setMode('polygon');
+            }}
+          >
+            Paint a zone
+          </button>
+        </div>
+        {zone && (
+          <form
+            className="row"
+            data-testid="zone-panel"
+            onSubmit={(e) => {
+              e.preventDefault();
+              void applyEdit({ zone, rate_kg_ha: Number(zoneRate) });
+            }}
+          >
+            <input
+              data-testid="zone-rate"
+              type="number"
+              step="any"
+              placeholder="kg/ha"
+              value={zoneRate}
+              onChange={(e) => setZoneRate(e.target.value)}
+              required
+            />
+            <button data-testid="zone-save">Apply to zone</button>
+          </form>
+        )}
+
+        <h3>Export</h3>
+        <div className="row wrap">
+          {EXPORTS.map(([fmt, label, ext]) => (
+            <button
+              key={fmt}
+              data-testid={`export-${fmt}`}
+              onClick={async () => {
+                try {
+                  const name = await download(
+                    `/prescriptions/${rxId}/export?format=${fmt}${version ? `&version=${version}` : ''}`,
+                    `prescription-${rxId}-v${version ?? 1}.${ext}`,
+                  );
+                  setMsg(`Downloaded ${name}`);
+                } catch (e) {
+                  setError(e);
+                }
+              }}
+            >
+              {label}
+            </button>
+          ))}
+        </div>
+
+        <h3>Send to machine</h3>
+        <div className="row">
+          <select data-testid="job-machine" value={machineId} onChange={(e) => setMachineId(e.target.value)}>
+            {machines.map((m) => (
+              <option key={m.id} value={m.id}>
+                {m.name}
+              </option>
+            ))}
+          </select>
+          <button
+            data-testid="send-job"
+            disabled={!machineId}
+            onClick={async () => {
+              try {
+                const j = await api.post<{ id: number }>('/jobs', {
+                  prescription_id: rxId,
+                  version: version ?? 1,
+                  machine_id: Number(machineId),
+                });
+                setMsg(`Job #${j.id} created`);
+                navigate(`/jobs?created=${j.id}`);
+              } catch (e) {
+                setError(e);
+                setMsg(errorText(e));
+              }
+            }}
+          >
+            Send job
+          </button>
+        </div>
+      </aside>
+      <MapView name="rx" onReady={onReady} />
+    </div>
+  );
+}
