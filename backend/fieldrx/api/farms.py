@@ -63,14 +63,14 @@ def create_farm(body: FarmIn, principal: WriterDep, session: SessionDep) -> Farm
     return FarmOut.model_validate(farm, from_attributes=True)
 
 
-@router.get("/{farm_id}", response_model=FarmOut)
+@router.get("/{farm_id:int}", response_model=FarmOut)
 def get_farm(farm_id: int, principal: UserDep, session: SessionDep) -> FarmOut:
     return FarmOut.model_validate(
         get_scoped(session, Farm, farm_id, principal), from_attributes=True
     )
 
 
-@router.patch("/{farm_id}", response_model=FarmOut)
+@router.patch("/{farm_id:int}", response_model=FarmOut)
 def update_farm(
     farm_id: int, body: FarmPatch, principal: WriterDep, session: SessionDep
 ) -> FarmOut:
@@ -82,7 +82,7 @@ def update_farm(
     return FarmOut.model_validate(farm, from_attributes=True)
 
 
-@router.delete("/{farm_id}", status_code=204)
+@router.delete("/{farm_id:int}", status_code=204)
 def delete_farm(farm_id: int, principal: WriterDep, session: SessionDep) -> None:
     """Delete a farm; its fields stay, without a farm."""
     session.delete(get_scoped(session, Farm, farm_id, principal))

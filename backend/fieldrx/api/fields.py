@@ -187,12 +187,12 @@ async def import_fields(
     )
 
 
-@router.get("/{field_id}")
+@router.get("/{field_id:int}")
 def get_field(field_id: int, principal: UserDep, session: SessionDep) -> dict[str, Any]:
     return field_feature(get_scoped(session, FieldRow, field_id, principal))
 
 
-@router.patch("/{field_id}")
+@router.patch("/{field_id:int}")
 def update_field(
     field_id: int, body: FieldPatch, principal: WriterDep, session: SessionDep
 ) -> dict[str, Any]:
@@ -217,7 +217,7 @@ def update_field(
     return field_feature(row)
 
 
-@router.delete("/{field_id}", status_code=204)
+@router.delete("/{field_id:int}", status_code=204)
 def delete_field(field_id: int, principal: WriterDep, session: SessionDep) -> None:
     session.delete(get_scoped(session, FieldRow, field_id, principal))
     session.commit()

@@ -121,7 +121,7 @@ def create_machine(body: MachineIn, principal: WriterDep, session: SessionDep) -
     return _out(m)
 
 
-@router.get("/{machine_id}", response_model=MachineOut)
+@router.get("/{machine_id:int}", response_model=MachineOut)
 def get_machine(machine_id: int, principal: AnyPrincipal, session: SessionDep) -> MachineOut:
     """Users see their organisation's machines; a device token sees only its own machine."""
     if principal.is_device and principal.machine_id != machine_id:
@@ -129,7 +129,7 @@ def get_machine(machine_id: int, principal: AnyPrincipal, session: SessionDep) -
     return _out(get_scoped(session, Machine, machine_id, principal))
 
 
-@router.patch("/{machine_id}", response_model=MachineOut)
+@router.patch("/{machine_id:int}", response_model=MachineOut)
 def update_machine(
     machine_id: int, body: MachinePatch, principal: WriterDep, session: SessionDep
 ) -> MachineOut:
@@ -142,13 +142,13 @@ def update_machine(
     return _out(m)
 
 
-@router.delete("/{machine_id}", status_code=204)
+@router.delete("/{machine_id:int}", status_code=204)
 def delete_machine(machine_id: int, principal: WriterDep, session: SessionDep) -> None:
     session.delete(get_scoped(session, Machine, machine_id, principal))
     session.commit()
 
 
-@router.post("/{machine_id}/device-token", response_model=DeviceTokenOut, status_code=201)
+@router.post("/{machine_id:int}/device-token", response_model=DeviceTokenOut, status_code=201)
 def new_device_token(machine_id: int, principal: WriterDep, session: SessionDep) -> DeviceTokenOut:
     """Issue the machine's device token (shown once); earlier tokens of the machine are revoked."""
     m = get_scoped(session, Machine, machine_id, principal)
