@@ -1,0 +1,312 @@
+"""ISO 11783-10 task data (TASKDATA.zip) that ISOBUS terminals load.
+
+Two variants, both a zip holding ``TASKDATA/TASKDATA.XML`` (version 4.3):
+
+* ``write_isoxml_grid``: a type-2 grid (``GRD`` + binary ``GRD00001.BIN``).
+  Each grid cell holds one little-endian int32: DDI 0006 "Setpoint Mass Per
+  Area Application Rate" in mg/m^2 (1 kg/ha = 10^6 mg / 10^4 m^2 = 100 mg/m^2).
+  The grid origin (GRD A/B) is its south-west corner, row 0 is the southern
+  row and each row runs west to east. The cell size in degrees comes from a
+  size in metres at the field's latitude; each grid cell takes the rate of the
+  prescription cell covering its centre, 0 outside the field.
+* ``write_isoxml_zones``: treatment zones (``TZN``) with ``PLN`` polygons, one
+  zone per distinct rate (or per rate class when there are more than fit in
+  the 1..254 zone codes).
+
+Coordinates carry at most 9 fraction digits (the XSD's limit; some commercial
+exports fail validation with more). The XML is written with ElementTree and
+checked against the ISO 11783-10 XSD in the tests (xmlschema) and read back
+with the ``isoxml`` package.
+"""
+
+from __future__ import annotations
+
+import io
+import math
+import xml.etree.ElementTree as ET
+import zipfile
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import shapely
+from pyproj import Geod
+
+from fieldrx.agronomy.cells import CellTable, transform_geoms, transform_xy
+from fieldrx.formats import FormatError
+
+DDI_SETPOINT_MASS_PER_AREA = 0x0006  # mg/m^2
+MG_M2_PER_KG_HA = 100.0
+MAX_GRID_CELLS = 25_000_000
+MAX_ZONE_CODE = 254
+SOFTWARE = ("FieldRx", "0.1.0")
+_GEOD = Geod(ellps="WGS84")
+
+
+def rate_to_mg_m2(rate_kg_ha: np.ndarray) -> np.ndarray:
+    """kg/ha -> integer mg/m^2 (DDI 0006 resolution 1 mg/m^2 = 0.01 kg/ha)."""
+    return np.rint(np.asarray(rate_kg_ha, dtype=float) * MG_M2_PER_KG_HA).astype(np.int64)
+
+
+def _deg(v: float) -> str:
+    """Decimal degrees with 9 fraction digits (XSD fractionDigits 9)."""
+    s = f"{v:.9f}"
+    return "0.000000000" if s == "-0.000000000" else s
+
+
+def _root() -> ET.Element:
+    return ET.Element(
+        "ISO11783_TaskData",
+        {
+            "VersionMajor": "4",
+            "VersionMinor": "3",
+            "ManagementSoftwareManufacturer": SOFTWARE[0],
+            "ManagementSoftwareVersion": SOFTWARE[1],
+            "DataTransferOrigin": "1",  # FMIS
+        },
+    )
+
+
+def _lsg(parent: ET.Element, ring: Any, kind: str) -> None:
+    lsg = ET.SubElement(parent, "LSG", {"A": kind})
+    coords = np.asarray(ring.coords)
+    for lon, lat in coords[:, :2]:
+        ET.SubElement(lsg, "PNT", {"A": "2", "C": _deg(lat), "D": _deg(lon)})
+
+
+def _pln(parent: ET.Element, poly: Any, pln_type: str, designator: str | None = None) -> None:
+    attrs = {"A": pln_type}
+    if designator:
+        attrs["B"] = designator[:32]
+    pln = ET.SubElement(parent, "PLN", attrs)
+    p = shapely.orient_polygons(poly, exterior_cw=False)
+    _lsg(pln, p.exterior, "1")
+    for h in p.interiors:
+        _lsg(pln, h, "2")
+
+
+def _polygon_parts(geom: Any) -> list[Any]:
+    if geom is None or geom.is_empty:
+        return []
+    if geom.geom_type == "Polygon":
+        return [geom]
+    return [g for g in getattr(geom, "geoms", []) if g.geom_type == "Polygon" and not g.is_empty]
+
+
+def _common(
+    field_name: str, field_area_m2: float, boundary_wgs84: Any, product_name: str
+) -> tuple[ET.Element, ET.Element]:
+    root = _root()
+    pfd = ET.SubElement(
+        root,
+        "PFD",
+        {"A": "PFD1", "C": (field_name or "field")[:32], "D": str(int(round(field_area_m2)))},
+    )
+    for part in _polygon_parts(boundary_wgs84):
+        _pln(pfd, shapely.set_precision(part, 1e-9), "1", field_name)
+    ET.SubElement(root, "PDT", {"A": "PDT1", "B": (product_name or "fertilizer")[:32]})
+    tsk = ET.SubElement(
+        root,
+        "TSK",
+        {
+            "A": "TSK1",
+            "B": (f"Rx {field_name}" if field_name else "FieldRx prescription")[:32],
+            "E": "PFD1",
+            "G": "1",  # planned
+            "H": "0",  # default zone: no rate
+            "I": "0",  # position lost: no rate
+            "J": "0",  # out of field: no rate
+        },
+    )
+    return root, tsk
+
+
+def _tzn(parent: ET.Element, code: int, designator: str) -> ET.Element:
+    return ET.SubElement(parent, "TZN", {"A": str(code), "B": designator[:32]})
+
+
+def _pdv(tzn: ET.Element, value_mg_m2: int) -> None:
+    ET.SubElement(
+        tzn,
+        "PDV",
+        {"A": f"{DDI_SETPOINT_MASS_PER_AREA:04X}", "B": str(int(value_mg_m2)), "C": "PDT1"},
+    )
+
+
+def _xml_bytes(root: ET.Element) -> bytes:
+    ET.indent(root, space=" ")
+    return b'<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="utf-8")
+
+
+def _zip(files: dict[str, bytes]) -> bytes:
+    out = io.BytesIO()
+    with zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED) as z:
+        for name, data in files.items():
+            z.writestr(f"TASKDATA/{name}", data)
+    return out.getvalue()
+
+
+@dataclass
+class GridSpec:
+    """The ISO grid geometry: south-west origin, cell size in degrees, rows x columns."""
+
+    south: float
+    west: float
+    cell_north_deg: float
+    cell_east_deg: float
+    rows: int
+    cols: int
+
+    def centres(self) -> tuple[np.ndarray, np.ndarray]:
+        """Lon/lat of every cell centre, shape (rows, cols); row 0 south."""
+        lat = self.south + (np.arange(self.rows) + 0.5) * self.cell_north_deg
+        lon = self.west + (np.arange(self.cols) + 0.5) * self.cell_east_deg
+        lon2, lat2 = np.meshgrid(lon, lat)
+        return lon2, lat2
+
+
+def grid_spec(bounds_wgs84: tuple[float, float, float, float], cell_m: float) -> GridSpec:
+    """Cells of about ``cell_m`` x ``cell_m`` metres at the centre latitude, covering the bounds."""
+    if not (math.isfinite(cell_m) and cell_m > 0):
+        raise FormatError(f"ISO grid cell size must be > 0 m, got {cell_m}")
+    w, s, e, n = bounds_wgs84
+    lat_c, lon_c = 0.5 * (s + n), 0.5 * (w + e)
+    # metres per degree of latitude / longitude at the field (ellipsoidal)
+    _, _, m_lat = _GEOD.inv(lon_c, lat_c - 0.005, lon_c, lat_c + 0.005)
+    _, _, m_lon = _GEOD.inv(lon_c - 0.005, lat_c, lon_c + 0.005, lat_c)
+    dlat = float(f"{cell_m / (m_lat / 0.01):.12g}")
+    dlon = float(f"{cell_m / (m_lon / 0.01):.12g}")
+    if dlat > 1.0 or dlon > 1.0:
+        raise FormatError("ISO grid cells may not exceed 1 degree")
+    south = math.floor(s * 1e9) / 1e9
+    west = math.floor(w * 1e9) / 1e9
+    rows = max(1, math.ceil((n - south) / dlat))
+    cols = max(1, math.ceil((e - west) / dlon))
+    if rows * cols > MAX_GRID_CELLS:
+        raise FormatError(
+            f"ISO grid would have {rows * cols} cells (> {MAX_GRID_CELLS}): use a larger cell size"
+        )
+    return GridSpec(south, west, dlat, dlon, rows, cols)
+
+
+def default_grid_cell_m(cells: CellTable) -> float:
+    """Half the typical cell side (sqrt of the median area), within 0.5..10 m."""
+    if len(cells) == 0:
+        return 1.0
+    return float(min(10.0, max(0.5, math.sqrt(float(np.median(cells.area_m2))) / 2.0)))
+
+
+def rasterise_rates(cells: CellTable, spec: GridSpec) -> np.ndarray:
+    """Rate of the prescription cell covering each grid-cell centre (rows x cols), 0 outside.
+
+    Centres are placed in the cells' UTM zone and located with an STRtree; a
+    centre on a shared edge takes the cell earliest in path order.
+    """
+    lon, lat = spec.centres()
+    x, y = transform_xy(lon.ravel(), lat.ravel(), 4326, cells.epsg)
+    out = np.zeros(lon.size)
+    if len(cells):
+        tree = shapely.STRtree(cells.polygons_utm)
+        pi, ci = tree.query(shapely.points(x, y), predicate="intersects")
+        if len(pi):
+            order = np.lexsort((ci, pi))  # per point, smallest cell index first
+            pi, ci = pi[order], ci[order]
+            first = np.ones(len(pi), dtype=bool)
+            first[1:] = pi[1:] != pi[:-1]
+            out[pi[first]] = cells.rate_kg_ha[ci[first]]
+    return out.reshape(spec.rows, spec.cols)
+
+
+def write_isoxml_grid(
+    cells: CellTable,
+    field_name: str = "",
+    boundary_wgs84: Any = None,
+    product_name: str = "fertilizer",
+    grid_cell_m: float | None = None,
+) -> bytes:
+    """TASKDATA.zip with a type-2 grid of DDI 0006 setpoints (see module docstring)."""
+    if len(cells) == 0:
+        raise FormatError("prescription has no cells")
+    cell_m = default_grid_cell_m(cells) if grid_cell_m is None else float(grid_cell_m)
+    bounds = (
+        tuple(shapely.total_bounds(cells.polygons_wgs84()))
+        if boundary_wgs84 is None
+        else tuple(boundary_wgs84.bounds)
+    )
+    spec = grid_spec(bounds, cell_m)  # type: ignore[arg-type]
+    values = rate_to_mg_m2(rasterise_rates(cells, spec))
+    if values.max(initial=0) > np.iinfo(np.int32).max:
+        raise FormatError("a rate is too large for an ISO 11783 setpoint")
+    binary = values.astype("<i4").tobytes(order="C")
+    root, tsk = _common(field_name, cells.total_area_m2, boundary_wgs84, product_name)
+    _pdv(_tzn(tsk, 0, "no rate"), 0)
+    _pdv(_tzn(tsk, 1, "prescription grid"), 0)
+    ET.SubElement(
+        tsk,
+        "GRD",
+        {
+            "A": _deg(spec.south),
+            "B": _deg(spec.west),
+            "C": np.format_float_positional(spec.cell_north_deg),
+            "D": np.format_float_positional(spec.cell_east_deg),
+            "E": str(spec.cols),
+            "F": str(spec.rows),
+            "G": "GRD00001",
+            "H": str(len(binary)),
+            "I": "2",
+            "J": "1",
+        },
+    )
+    return _zip({"TASKDATA.XML": _xml_bytes(root), "GRD00001.BIN": binary})
+
+
+def zone_classes(
+    rate_kg_ha: np.ndarray, area_m2: np.ndarray, max_zones: int = MAX_ZONE_CODE
+) -> tuple[np.ndarray, np.ndarray]:
+    """Zone index per cell (0..k-1) and each zone's setpoint in mg/m^2.
+
+    One zone per distinct setpoint when they fit; otherwise ``max_zones``
+    equal-width rate classes, each at the area-weighted mean of its cells.
+    """
+    if not 1 <= max_zones <= MAX_ZONE_CODE:
+        raise FormatError(f"max_zones must be in 1..{MAX_ZONE_CODE}, got {max_zones}")
+    mg = rate_to_mg_m2(rate_kg_ha)
+    uniq, inv = np.unique(mg, return_inverse=True)
+    if len(uniq) <= max_zones:
+        return inv.ravel(), uniq
+    lo, hi = float(mg.min()), float(mg.max())
+    k = np.minimum(((mg - lo) / (hi - lo) * max_zones).astype(np.int64), max_zones - 1)
+    used, kk = np.unique(k, return_inverse=True)
+    kk = kk.ravel()
+    w = np.asarray(area_m2, dtype=float) + 1e-12
+    sums = np.bincount(kk, weights=w * mg, minlength=len(used))
+    wsum = np.bincount(kk, weights=w, minlength=len(used))
+    return kk, np.rint(sums / wsum).astype(np.int64)
+
+
+def write_isoxml_zones(
+    cells: CellTable,
+    field_name: str = "",
+    boundary_wgs84: Any = None,
+    product_name: str = "fertilizer",
+    max_zones: int = MAX_ZONE_CODE,
+) -> bytes:
+    """TASKDATA.zip with one treatment zone (TZN + PLN polygons) per rate (class).
+
+    Zone 0 is "no rate" (default, position lost and out of field); zones
+    1..k carry the union of their cells' polygons and a DDI 0006 setpoint.
+    """
+    if len(cells) == 0:
+        raise FormatError("prescription has no cells")
+    zone, setpoints = zone_classes(cells.rate_kg_ha, cells.area_m2, max_zones)
+    root, tsk = _common(field_name, cells.total_area_m2, boundary_wgs84, product_name)
+    _pdv(_tzn(tsk, 0, "no rate"), 0)
+    for z, value in enumerate(setpoints.tolist()):
+        members = cells.polygons_utm[zone == z]
+        merged = shapely.union_all(members, grid_size=1e-4)
+        merged_wgs = shapely.set_precision(transform_geoms(merged, cells.epsg, 4326), 1e-9)
+        tzn = _tzn(tsk, z + 1, f"{value / MG_M2_PER_KG_HA:.2f} kg/ha")
+        for part in _polygon_parts(merged_wgs):
+            _pln(tzn, part, "2")
+        _pdv(tzn, value)
+    return _zip({"TASKDATA.XML": _xml_bytes(root)})
