@@ -1,0 +1,116 @@
+"""Build the edge agent's ``JobPackage`` from prescription cells (seed 001 sec. 1.2, Table 1).
+
+Cells go in path order with UTM corners (for the agent's metric cell lookup)
+and WGS84 corners (display, cross-checks), rounded to what matters in the
+field: 1 mm in UTM, 1e-8 degrees (about 1 mm) in WGS84, 0.01 kg/ha in rates.
+"""
+
+from __future__ import annotations
+
+import gzip
+import json
+from dataclasses import asdict
+from typing import Any
+
+import numpy as np
+import shapely
+from fieldrx_edge.metering import Calibration
+from fieldrx_edge.protocol import ControllerSettings, JobPackage
+
+from fieldrx.agronomy.cells import CellTable
+from fieldrx.formats import FormatError
+
+
+def _round_list(a: np.ndarray, decimals: int) -> list[float]:
+    return [float(v) for v in np.round(np.asarray(a, dtype=float).ravel(), decimals).tolist()]
+
+
+def _geojson_coords(geom: Any, decimals: int = 3) -> dict[str, Any]:
+    if geom is None or geom.is_empty or geom.geom_type not in ("Polygon", "MultiPolygon"):
+        raise FormatError("job package: boundary_utm must be a non-empty Polygon or MultiPolygon")
+    g = shapely.set_precision(geom, 10.0**-decimals)
+    return json.loads(shapely.to_geojson(g))
+
+
+def build_job_package(
+    cells: CellTable,
+    boundary_utm: Any,
+    *,
+    job_id: int,
+    machine_id: int,
+    prescription_id: int,
+    prescription_version: int,
+    field_name: str,
+    implement_width_m: float,
+    lag_s: float,
+    calibration: Calibration | dict[str, Any],
+    controller: ControllerSettings | dict[str, Any] | None = None,
+    antenna_forward_m: float = 0.0,
+    antenna_lateral_m: float = 0.0,
+    speed_min_m_s: float = 0.8,
+    speed_max_m_s: float = 2.5,
+    product: str = "",
+    utm_decimals: int = 3,
+    wgs84_decimals: int = 8,
+) -> JobPackage:
+    """A sealed (validated, checksummed) JobPackage; ``ProtocolError`` names a bad field.
+
+    ``boundary_utm`` is a shapely (Multi)Polygon in ``cells.epsg``;
+    ``calibration`` a ``fieldrx_edge.metering`` calibration or its dict form.
+    """
+    cal = calibration if isinstance(calibration, dict) else calibration.to_dict()  # type: ignore[attr-defined]
+    if controller is None:
+        ctl = ControllerSettings()
+    elif isinstance(controller, dict):
+        ctl = ControllerSettings(**controller)
+    else:
+        ctl = controller
+    pkg = JobPackage(
+        job_id=int(job_id),
+        machine_id=int(machine_id),
+        prescription_id=int(prescription_id),
+        prescription_version=int(prescription_version),
+        field_name=str(field_name),
+        utm_epsg=int(cells.epsg),
+        implement_width_m=float(implement_width_m),
+        lag_s=float(lag_s),
+        calibration=dict(cal),
+        controller=ctl,
+        boundary_utm=_geojson_coords(boundary_utm, utm_decimals),
+        seq=[int(s) for s in cells.seq.tolist()],
+        swath=[int(s) for s in cells.swath.tolist()],
+        rate_kg_ha=_round_list(cells.rate_kg_ha, 2),
+        corners_utm=_round_list(cells.corners_utm, utm_decimals),
+        corners_wgs84=_round_list(cells.corners_wgs84, wgs84_decimals),
+        antenna_forward_m=float(antenna_forward_m),
+        antenna_lateral_m=float(antenna_lateral_m),
+        speed_min_m_s=float(speed_min_m_s),
+        speed_max_m_s=float(speed_max_m_s),
+        product=str(product),
+    )
+    return pkg.seal()
+
+
+def package_size(pkg: JobPackage) -> dict[str, float]:
+    """Bytes of the package JSON as served, raw and gzipped, total and per cell."""
+    raw = pkg.to_json()
+    gz = gzip.compress(raw, compresslevel=6, mtime=0)
+    n = max(1, pkg.n_cells)
+    return {
+        "n_cells": pkg.n_cells,
+        "bytes_raw": len(raw),
+        "bytes_gzip": len(gz),
+        "bytes_per_cell_raw": len(raw) / n,
+        "bytes_per_cell_gzip": len(gz) / n,
+    }
+
+
+def package_etag(pkg: JobPackage) -> str:
+    """Strong ETag: the package checksum (SHA-256 of its canonical JSON)."""
+    if not pkg.checksum:
+        pkg.seal()
+    return f'"{pkg.checksum}"'
+
+
+def package_dict(pkg: JobPackage) -> dict[str, Any]:
+    return asdict(pkg)
