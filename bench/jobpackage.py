@@ -43,9 +43,8 @@ def main():
     n = len(cells)
     base = {"csv_bytes_per_cell_raw": len(csv_raw) / n, "csv_bytes_per_cell_gzip": len(csv_gz) / n}
     print(f"cells: {n}")
-    print(
-        f"job package: {s['bytes_per_cell_raw']:.1f} B/cell raw, {s['bytes_per_cell_gzip']:.1f} B/cell gzip"
-    )
+    raw, gz = s["bytes_per_cell_raw"], s["bytes_per_cell_gzip"]
+    print(f"job package: {raw:.1f} B/cell raw, {gz:.1f} B/cell gzip")
     print(
         f"Table 1 CSV baseline: {base['csv_bytes_per_cell_raw']:.1f} B/cell raw, "
         f"{base['csv_bytes_per_cell_gzip']:.1f} B/cell gzip"
