@@ -217,7 +217,8 @@ class LADRC(Controller):
             self._design(dt)
         if not self._started:
             self._z = [measurement] + [0.0] * self.order
-            self._v1, self._v2 = setpoint, 0.0
+            # The shaped reference starts where the plant is, so a start from rest is smooth.
+            self._v1, self._v2 = measurement, 0.0
             self._started = True
         self._r = setpoint
         self._y = measurement

@@ -40,6 +40,15 @@ SEED000_KM = 0.06
 SEED000_J_KGM2 = 6.88e-4 + 0.001
 
 
+# Loop set-up for seed 000's controller (not stated in the paper, chosen and documented):
+# the incremental PID's gains (Kp 0.15, Ki 0.32, Kd 0.07, per sample as in eq. 11) act on
+# encoder volts, i.e. speed / 8.0 (eq. 10: 40 r/min <-> 5 V), at a 0.1 s loop period
+# (CAN-bus rate). In r/min the loop gain would be 8x larger and Ki = 0.32 per sample
+# unstable at any period; at 1-20 ms periods the loop is too fast for the printed gains.
+SEED000_LOOP_PERIOD_S = 0.1
+SEED000_FEEDBACK_SCALE = 1.0 / SEED000_FEEDBACK
+
+
 def seed000_motor_den(time_constant: str = "printed") -> tuple[float, float, float]:
     """Motor denominator T_d T_m s^2 + T_m' s + 1 of seed 000 eq. 7-8.
 
