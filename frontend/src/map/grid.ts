@@ -28,6 +28,20 @@ export function replaceVectorSource(map: maplibregl.Map, id: string, tilesUrl: s
     promoteId: { cells: 'seq' },
   });
   for (const l of layers) map.addLayer(l);
+  // Time from adding the source to the first idle frame (all visible tiles drawn),
+  // read by tests/e2e/perf_grid.mjs.
+  const t0 = performance.now();
+  const perf = (window.__fieldrxPerf ??= {});
+  perf[id] = { addedAt: t0, idleMs: null };
+  map.once('idle', () => {
+    if (perf[id]?.addedAt === t0) perf[id].idleMs = performance.now() - t0;
+  });
+}
+
+declare global {
+  interface Window {
+    __fieldrxPerf?: Record<string, { addedAt: number; idleMs: number | null }>;
+  }
 }
 
 /** Plan grid: cells shaded by swath parity so the back-and-forth order is visible. */

@@ -48,6 +48,8 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
   const mapRef = useRef<maplibregl.Map | null>(null);
   const drawRef = useRef<TerraDraw | null>(null);
   const [mapReady, setMapReady] = useState(false);
+  // Tiles are requested only once the map is fitted to the field (no wasted low-zoom requests).
+  const [fitted, setFitted] = useState(false);
 
   const load = useCallback(
     async (pickVersion?: number) => {
@@ -57,8 +59,12 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
         const latest = r.latest_version ?? r.version ?? Math.max(1, ...listOf<{ version: number }>(r.versions).map((v) => v.version));
         setVersion(pickVersion ?? latest);
         if (!field) {
-          const plan = await api.get<Plan>(`/plans/${r.plan_id}`);
-          setField(await api.get<FieldFeature>(`/fields/${plan.field_id}`));
+          try {
+            const plan = await api.get<Plan>(`/plans/${r.plan_id}`);
+            setField(await api.get<FieldFeature>(`/fields/${plan.field_id}`));
+          } catch {
+            setFitted(true); // no boundary to fit to: show the grid wherever the map is
+          }
         }
       } catch (e) {
         setError(e);
@@ -91,7 +97,7 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
   // (Re)load the tile source for the chosen version.
   useEffect(() => {
     const map = mapRef.current;
-    if (!map || !mapReady || version == null) return;
+    if (!map || !mapReady || !fitted || version == null) return;
     replaceVectorSource(map, 'rx', rxTilesUrl(rxId, version), rxGridLayers('rx', colorExpr));
     setRates([]);
     const onIdle = () => {
@@ -112,7 +118,7 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
     return () => {
       map.off('idle', onIdle);
     };
-  }, [mapReady, version, rxId]); // eslint-disable-line react-hooks/exhaustive-deps
+  }, [mapReady, fitted, version, rxId]); // eslint-disable-line react-hooks/exhaustive-deps
 
   useEffect(() => {
     const map = mapRef.current;
@@ -129,6 +135,7 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
     if (!map || !field) return;
     setGeoJSON(map, 'field', field as GeoJSON.Feature);
     fitTo(map, bboxOf(field));
+    setFitted(true);
   }, [field, mapReady]);
 
   const onReady = (map: maplibregl.Map) => {

@@ -1,0 +1,146 @@
+// Shared helpers for the browser tests: playwright-core from frontend/node_modules
+// (one `npm ci` installs everything), Debian's chromium, screenshots, API calls.
+import { createRequire } from 'node:module';
+import { mkdirSync, mkdtempSync, rmSync } from 'node:fs';
+import { tmpdir } from 'node:os';
+import { dirname, join } from 'node:path';
+import { fileURLToPath } from 'node:url';
+
+const here = dirname(fileURLToPath(import.meta.url));
+export const ROOT = join(here, '..', '..');
+export const ARTIFACTS = join(here, 'artifacts');
+const require = createRequire(join(ROOT, 'frontend', 'package.json'));
+export const { chromium } = require('playwright-core');
+
+export const BASE_URL = (process.env.FIELDRX_URL ?? 'http://127.0.0.1:8000').replace(/\/$/, '');
+export const EMAIL = process.env.FIELDRX_EMAIL ?? 'agronomist@demo.fieldrx.org';
+export const PASSWORD = process.env.FIELDRX_PASSWORD ?? 'fieldrx-demo';
+export const CHROMIUM = process.env.CHROMIUM_PATH ?? '/usr/bin/chromium';
+
+export const CHROME_FLAGS = [
+  '--headless',
+  '--no-sandbox',
+  '--disable-gpu',
+  '--disable-quic',
+  '--no-first-run',
+  '--disable-background-networking',
+  '--disable-component-update',
+  '--disable-sync',
+];
+
+/** Fresh profile each run; returns {context, page, close}. */
+export async function launch({ width = 1280, height = 800 } = {}) {
+  mkdirSync(ARTIFACTS, { recursive: true });
+  const profile = mkdtempSync(join(tmpdir(), 'fieldrx-chromium-'));
+  const context = await chromium.launchPersistentContext(profile, {
+    executablePath: CHROMIUM,
+    headless: true,
+    args: CHROME_FLAGS,
+    viewport: { width, height },
+    acceptDownloads: true,
+  });
+  const page = context.pages()[0] ?? (await context.newPage());
+  const logs = [];
+  page.on('console', (m) => logs.push(`[${m.type()}] ${m.text()}`));
+  page.on('pageerror', (e) => logs.push(`[pageerror] ${e.message}`));
+  return {
+    context,
+    page,
+    logs,
+    async close() {
+      await context.close().catch(() => {});
+      rmSync(profile, { recursive: true, force: true });
+    },
+  };
+}
+
+let shotNo = 0;
+export async function shot(page, name) {
+  shotNo += 1;
+  const file = join(ARTIFACTS, `${String(shotNo).padStart(2, '0')}-${name}.png`);
+  await page.screenshot({ path: file });
+  return file;
+}
+
+/** Resolves when the named map has loaded and is idle (all tiles and sources drawn). */
+export async function mapIdle(page, name, timeout = 20_000) {
+  await page.waitForFunction((n) => Boolean(window.__fieldrxMaps?.[n]), name, { timeout });
+  await page.evaluate(
+    (n) =>
+      new Promise((resolve) => {
+        const map = window.__fieldrxMaps[n];
+        if (map.loaded() && !map.isMoving() && map.areTilesLoaded()) return resolve(true);
+        map.once('idle', () => resolve(true));
+        map.triggerRepaint();
+      }),
+    name,
+  );
+}
+
+/** Tiny API client for set-up steps (the UI is what is under test, not these calls). */
+export async function apiLogin(email = EMAIL, password = PASSWORD) {
+  const r = await fetch(`${BASE_URL}/api/v1/auth/login`, {
+    method: 'POST',
+    headers: { 'Content-Type': 'application/json' },
+    body: JSON.stringify({ email, password }),
+  });
+  if (!r.ok) throw new Error(`login ${r.status}: ${await r.text()}`);
+  return (await r.json()).access_token;
+}
+
+export async function api(token, method, path, body) {
+  const headers = { Authorization: `Bearer ${token}` };
+  let payload;
+  if (body instanceof FormData) payload = body;
+  else if (body !== undefined) {
+    headers['Content-Type'] = 'application/json';
+    payload = JSON.stringify(body);
+  }
+  const r = await fetch(`${BASE_URL}/api/v1${path}`, { method, headers, body: payload });
+  const text = await r.text();
+  let data = null;
+  try {
+    data = text ? JSON.parse(text) : null;
+  } catch {
+    data = text;
+  }
+  return { status: r.status, ok: r.ok, data };
+}
+
+/** True when the endpoint answers with anything but 404/405 (exists on this server). */
+export async function endpointExists(token, method, path) {
+  const r = await fetch(`${BASE_URL}/api/v1${path}`, {
+    method,
+    headers: { Authorization: `Bearer ${token}`, 'Content-Type': 'application/json' },
+    body: method === 'GET' ? undefined : '{}',
+  });
+  return r.status !== 404 && r.status !== 405;
+}
+
+export async function serverUp() {
+  try {
+    const r = await fetch(`${BASE_URL}/api/v1/health`, { signal: AbortSignal.timeout(3000) });
+    return r.ok;
+  } catch {
+    return false;
+  }
+}
+
+/** Does the server serve the built UI at / ? */
+export async function uiServed() {
+  try {
+    const r = await fetch(`${BASE_URL}/`, { signal: AbortSignal.timeout(3000) });
+    return r.ok && (await r.text()).includes('<div id="root">');
+  } catch {
+    return false;
+  }
+}
+
+export function listOf(r) {
+  if (Array.isArray(r)) return r;
+  for (const k of ['items', 'results', 'features', 'jobs', 'machines', 'alerts', 'plans'])
+    if (r && Array.isArray(r[k])) return r[k];
+  return [];
+}
+
+export const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
