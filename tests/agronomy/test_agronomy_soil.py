@@ -123,3 +123,14 @@ def test_geojson_samples_and_feature_errors():
     assert ok.ok and ok.samples[0].sample_id == "G1" and ok.samples[0].lon == 112.3235
     with pytest.raises(SoilFormatError):
         read_soil_samples("s.xlsx", b"")
+
+
+def test_ndvi_points_use_the_same_parser():
+    text = "id,lon,lat,ndvi\nP1,112.3235,32.1345,0.41\nP2,112.3236,32.1346,1.7\n"
+    res = parse_soil_csv(text, value_column="ndvi")
+    assert res.rejected and [(e.row, e.column) for e in res.errors] == [(3, "ndvi")]
+    ok = parse_soil_csv(text.splitlines(True)[0] + text.splitlines(True)[1], value_column="ndvi")
+    assert ok.ok and ok.samples[0].ndvi == 0.41 and ok.samples[0].n_mg_kg is None
+    assert ok.values("ndvi").tolist() == [0.41]
+    missing = parse_soil_csv("id,lon,lat,n\nA,1,2,3\n", value_column="ndvi")
+    assert [(e.row, e.column) for e in missing.errors] == [(1, "ndvi")]

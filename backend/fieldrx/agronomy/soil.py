@@ -44,6 +44,7 @@ COLUMN_ALIASES: dict[str, tuple[str, ...]] = {
     "k_mg_kg": ("k_mg_kg", "k"),
     "om_g_kg": ("om_g_kg", "om", "organic_matter"),
     "ph": ("ph",),
+    "ndvi": ("ndvi",),
 }
 # (lowest, highest) accepted value of each numeric column
 RANGES: dict[str, tuple[float, float]] = {
@@ -55,8 +56,10 @@ RANGES: dict[str, tuple[float, float]] = {
     "k_mg_kg": (0.0, 100000.0),
     "om_g_kg": (0.0, 1000.0),
     "ph": (0.0, 14.0),
+    "ndvi": (-1.0, 1.0),
 }
-OPTIONAL = ("p_mg_kg", "k_mg_kg", "om_g_kg", "ph")
+OPTIONAL = ("p_mg_kg", "k_mg_kg", "om_g_kg", "ph", "ndvi")
+VALUE_COLUMNS = ("n_mg_kg", "ndvi")  # what a rate model can be fed with
 DEFAULT_DEPTH_CM = 20.0  # seed 001 samples 0-20 cm
 
 
@@ -69,11 +72,12 @@ class SoilSample:
     lon: float
     lat: float
     depth_cm: float
-    n_mg_kg: float
+    n_mg_kg: float | None
     p_mg_kg: float | None = None
     k_mg_kg: float | None = None
     om_g_kg: float | None = None
     ph: float | None = None
+    ndvi: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -160,6 +164,7 @@ def _rows_to_samples(
     epsg: int | None,
     kind: str,
     geometry_xy: dict[int, tuple[float, float]] | None = None,
+    value_column: str = "n_mg_kg",
 ) -> tuple[list[SoilSample], list[RowError]]:
     """Validate normalised records; ``geometry_xy`` (GeoJSON) overrides columns."""
     samples: list[SoilSample] = []
@@ -195,10 +200,11 @@ def _rows_to_samples(
                 if v is None and not any(e.column == c for e in errs):
                     errs.append(RowError(row, c, "missing value", kind))
         n = _number(rec.get("n_mg_kg"), "n_mg_kg", row, errs, kind)
-        if n is None and not any(e.column == "n_mg_kg" for e in errs):
-            errs.append(RowError(row, "n_mg_kg", "missing value", kind))
         depth = _number(rec.get("depth_cm"), "depth_cm", row, errs, kind)
         opt = {c: _number(rec.get(c), c, row, errs, kind) for c in OPTIONAL}
+        required = n if value_column == "n_mg_kg" else opt.get(value_column)
+        if required is None and not any(e.column == value_column for e in errs):
+            errs.append(RowError(row, value_column, "missing value", kind))
         if errs:
             errors.extend(errs)
             continue
@@ -210,7 +216,7 @@ def _rows_to_samples(
                 lon=float(x),  # replaced below when projected
                 lat=float(y),
                 depth_cm=DEFAULT_DEPTH_CM if depth is None else depth,
-                n_mg_kg=float(n),
+                n_mg_kg=n,
                 **opt,
             )
         )
@@ -269,18 +275,28 @@ def _resolve_header(header: list[str]) -> tuple[dict[str, int], list[RowError]]:
     return colmap, []
 
 
+def _check_value_column(value_column: str) -> None:
+    if value_column not in VALUE_COLUMNS:
+        raise SoilFormatError(f"value_column must be one of {list(VALUE_COLUMNS)}")
+
+
 def parse_soil_csv(
     data: bytes | str,
     epsg: int | None = None,
     skip_bad_rows: bool = False,
     boundary_wgs84: Any = None,
+    value_column: str = "n_mg_kg",
 ) -> SoilImport:
     """Parse a CSV of samples. With ``epsg`` (not 4326) the x/y columns are used.
+
+    ``value_column`` is the column every row must have (``n_mg_kg`` for soil
+    samples, ``ndvi`` for crop-sensing points).
 
     Delimiter (comma, semicolon, tab) is sniffed. Errors name the row (header
     = row 1) and column; see the module docstring for the reject rule.
     """
     _check_epsg(epsg)
+    _check_value_column(value_column)
     if isinstance(data, bytes):
         try:
             text = data.decode("utf-8-sig")
@@ -297,7 +313,7 @@ def parse_soil_csv(
     colmap, errors = _resolve_header(header)
     projected = epsg is not None and epsg != 4326
     need = ["x", "y"] if projected else ["lon", "lat"]
-    need.append("n_mg_kg")
+    need.append(value_column)
     for c in need:
         if c not in colmap:
             hint = ""
@@ -323,7 +339,7 @@ def parse_soil_csv(
             )
             continue
         records.append((i, rec))
-    samples, errs = _rows_to_samples(records, epsg, "row")
+    samples, errs = _rows_to_samples(records, epsg, "row", value_column=value_column)
     errors.extend(errs)
     errors.sort(key=lambda e: e.row)
     return _finish(samples, errors, skip_bad_rows, boundary_wgs84)
@@ -334,6 +350,7 @@ def parse_soil_geojson(
     epsg: int | None = None,
     skip_bad_rows: bool = False,
     boundary_wgs84: Any = None,
+    value_column: str = "n_mg_kg",
 ) -> SoilImport:
     """Parse a GeoJSON FeatureCollection of Point features (properties as CSV columns).
 
@@ -341,6 +358,7 @@ def parse_soil_geojson(
     name the feature index (0-based) and the property.
     """
     _check_epsg(epsg)
+    _check_value_column(value_column)
     try:
         obj = json.loads(data) if isinstance(data, bytes | str) else data
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
@@ -386,7 +404,7 @@ def parse_soil_geojson(
             errors.append(RowError(i, "geometry", f"bad coordinates {coords!r}", "feature"))
             continue
         records.append((i, rec))
-    samples, errs = _rows_to_samples(records, epsg, "feature", geom_xy)
+    samples, errs = _rows_to_samples(records, epsg, "feature", geom_xy, value_column)
     errors.extend(errs)
     errors.sort(key=lambda e: e.row)
     return _finish(samples, errors, skip_bad_rows, boundary_wgs84)
@@ -398,11 +416,12 @@ def read_soil_samples(
     epsg: int | None = None,
     skip_bad_rows: bool = False,
     boundary_wgs84: Any = None,
+    value_column: str = "n_mg_kg",
 ) -> SoilImport:
     """Pick the parser from the file name (.csv/.txt or .geojson/.json)."""
     name = filename.lower()
     if name.endswith((".geojson", ".json")):
-        return parse_soil_geojson(data, epsg, skip_bad_rows, boundary_wgs84)
+        return parse_soil_geojson(data, epsg, skip_bad_rows, boundary_wgs84, value_column)
     if name.endswith((".csv", ".txt", ".tsv")):
-        return parse_soil_csv(data, epsg, skip_bad_rows, boundary_wgs84)
+        return parse_soil_csv(data, epsg, skip_bad_rows, boundary_wgs84, value_column)
     raise SoilFormatError(f"unsupported soil file {filename!r} (expected .csv or .geojson)")
