@@ -1,0 +1,117 @@
+"""Coverage plans of a field: create (plan + grid + store), summary, cells, route, delete."""
+
+from __future__ import annotations
+
+import json
+from typing import Any, Literal
+
+from fastapi import APIRouter, Query
+from pydantic import BaseModel, Field
+from sqlalchemy import func, select
+
+from fieldrx.api.common import ApiError, get_scoped
+from fieldrx.auth.deps import SessionDep, UserDep, WriterDep
+from fieldrx.db.models import Field as FieldRow
+from fieldrx.db.models import Plan, Prescription
+from fieldrx.geo import PlanningError
+from fieldrx.services.plans import PlanParams, cells_page, create_plan, plan_summary
+
+router = APIRouter(tags=["plans"])
+
+MAX_PAGE = 50_000
+
+
+class PlanIn(BaseModel):
+    swath_width_m: float = Field(default=2.3, description="implement working width w, m")
+    cell_length_m: float = Field(default=5.0, description="cell length L along the path, m")
+    heading: Literal["longest_edge", "angle", "optimal"] = "longest_edge"
+    angle_deg: float | None = Field(
+        default=None, description="swath azimuth, degrees clockwise from north (heading=angle)"
+    )
+    headland_passes: int = Field(default=0, ge=0, le=20)
+    start_corner: Literal["sw", "se", "nw", "ne"] = "sw"
+    headland_order: Literal["first", "last"] = "first"
+    min_cell_fraction: float = Field(default=0.1, ge=0, lt=1)
+
+
+@router.post("/fields/{field_id:int}/plans", status_code=201)
+def create(field_id: int, body: PlanIn, principal: WriterDep, session: SessionDep) -> dict:
+    """Plan the coverage path, cut the grid and store both (one transaction).
+
+    Bad parameters (w <= 0, w wider than the field, L < 0.5 m, > 5 million
+    cells, degenerate field) answer 422 with the planner's reason.
+    """
+    field = get_scoped(session, FieldRow, field_id, principal)
+    try:
+        plan = create_plan(session, field, PlanParams(**body.model_dump()), field.organisation_id)
+    except PlanningError as exc:
+        session.rollback()
+        raise ApiError(422, str(exc)) from exc
+    session.commit()
+    return plan_summary(plan)
+
+
+@router.get("/fields/{field_id:int}/plans")
+def list_plans(field_id: int, principal: UserDep, session: SessionDep) -> dict[str, Any]:
+    field = get_scoped(session, FieldRow, field_id, principal)
+    rows = session.scalars(
+        select(Plan).where(Plan.field_id == field.id).order_by(Plan.id.desc())
+    ).all()
+    return {"items": [plan_summary(p) for p in rows], "total": len(rows)}
+
+
+@router.get("/plans/{plan_id:int}")
+def get_plan(plan_id: int, principal: UserDep, session: SessionDep) -> dict[str, Any]:
+    return plan_summary(get_scoped(session, Plan, plan_id, principal))
+
+
+@router.get("/plans/{plan_id:int}/cells")
+def get_cells(
+    plan_id: int,
+    principal: UserDep,
+    session: SessionDep,
+    limit: int = Query(default=1000, ge=1, le=MAX_PAGE),
+    offset: int = Query(default=0, ge=0),
+) -> dict[str, Any]:
+    """Cells in path order as a GeoJSON FeatureCollection (paged by seq)."""
+    plan = get_scoped(session, Plan, plan_id, principal)
+    return {
+        "type": "FeatureCollection",
+        "features": cells_page(session, plan.id, limit, offset),
+        "total": plan.n_cells,
+        "limit": limit,
+        "offset": offset,
+    }
+
+
+@router.get("/plans/{plan_id:int}/route")
+def get_route(plan_id: int, principal: UserDep, session: SessionDep) -> dict[str, Any]:
+    """The whole route (swaths and connections in driving order) as a LineString Feature."""
+    plan = get_scoped(session, Plan, plan_id, principal)
+    gj = session.scalar(select(func.ST_AsGeoJSON(Plan.route, 9)).where(Plan.id == plan.id))
+    m = plan.metrics or {}
+    keys = ("n_swaths", "n_turns", "heading_deg", "working_length_m", "nonworking_length_m")
+    return {
+        "type": "Feature",
+        "id": plan.id,
+        "geometry": json.loads(gj),
+        "properties": {"plan_id": plan.id, **{k: m.get(k) for k in keys}},
+    }
+
+
+@router.get("/plans/{plan_id:int}/prescriptions")
+def list_plan_prescriptions(plan_id: int, principal: UserDep, session: SessionDep) -> dict:
+    from fieldrx.services.prescriptions import prescription_summary
+
+    plan = get_scoped(session, Plan, plan_id, principal)
+    rows = session.scalars(
+        select(Prescription).where(Prescription.plan_id == plan.id).order_by(Prescription.id)
+    ).all()
+    return {"items": [prescription_summary(session, r) for r in rows], "total": len(rows)}
+
+
+@router.delete("/plans/{plan_id:int}", status_code=204)
+def delete_plan(plan_id: int, principal: WriterDep, session: SessionDep) -> None:
+    """Delete the plan, its cells and the prescriptions made on it."""
+    session.delete(get_scoped(session, Plan, plan_id, principal))
+    session.commit()
