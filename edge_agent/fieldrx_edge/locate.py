@@ -215,6 +215,22 @@ class CellLocator:
                     best = k
         return best
 
+    def distance_to_cell(self, idx: int, x: float, y: float) -> float:
+        """Distance from a point to a cell (0 inside): border hysteresis against GNSS jitter."""
+        q = self._quads[idx]
+        if _in_quad(q, x, y):
+            return 0.0
+        best = math.inf
+        x0, y0 = q[6], q[7]
+        for i in range(0, 8, 2):
+            x1, y1 = q[i], q[i + 1]
+            dx, dy = x1 - x0, y1 - y0
+            L2 = dx * dx + dy * dy
+            t = 0.0 if L2 == 0 else max(0.0, min(1.0, ((x - x0) * dx + (y - y0) * dy) / L2))
+            best = min(best, math.hypot(x - x0 - t * dx, y - y0 - t * dy))
+            x0, y0 = x1, y1
+        return best
+
     def locate_naive(self, x: float, y: float) -> int:
         """Baseline: test every cell (vectorised numpy). For benchmarks and tests only."""
         c = self.corners

@@ -1,10 +1,9 @@
 """Motor loop: the named controller drives the metering motor at a fixed rate.
 
-The driver interface (``MotorDriver``) is PWM duty out (0..100 %), encoder
-shaft speed in (r/min). ``SimulatedMotorDriver`` runs a plant model (seed 001
-eq. 4 by default) one period per write; ``SerialMotorDriver`` talks a simple
-line protocol to a motor board. The controller keeps running with setpoint 0
-when metering stops, so restarts are bumpless.
+The driver interface (``plants.motor.MotorDriver``) is PWM duty out (%),
+encoder shaft speed in (r/min): ``SimulatedMotor`` (a plant model, seed 001
+eq. 4 by default) or ``SerialMotorDriver`` (a motor board). The controller
+keeps running with setpoint 0 when metering stops, so restarts are bumpless.
 """
 
 from __future__ import annotations
@@ -13,10 +12,22 @@ import logging
 import math
 import threading
 import time
-from typing import Any, Protocol
+from typing import Any
 
 from fieldrx_edge.control import make_controller
+from fieldrx_edge.plants.motor import MotorDriver, SerialMotorDriver, SimulatedMotor
+from fieldrx_edge.plants.seeds import seed001_motor
 from fieldrx_edge.protocol import ControllerSettings
+
+__all__ = [
+    "MotorDriver",
+    "MotorLoop",
+    "SerialMotorDriver",
+    "SimulatedMotor",
+    "build_controller",
+    "closed_loop_t50_s",
+    "simulated_motor",
+]
 
 log = logging.getLogger(__name__)
 
@@ -32,60 +43,9 @@ DEFAULT_PARAMS: dict[str, dict[str, Any]] = {
 }
 
 
-class MotorDriver(Protocol):
-    """Hardware boundary: PWM duty out, encoder speed in."""
-
-    def write_duty(self, duty_pct: float) -> None: ...
-
-    def read_rpm(self) -> float: ...
-
-
-class SimulatedMotorDriver:
-    """A plant model behind the driver interface; each ``write_duty`` advances one period."""
-
-    def __init__(self, dt: float, plant: Any | None = None) -> None:
-        if plant is None:
-            from fieldrx_edge.plants.seeds import seed001_motor
-
-            plant = seed001_motor(dt, u_min=0.0, u_max=100.0)
-        self.plant = plant
-        self._rpm = 0.0
-        self.duty = 0.0
-
-    def write_duty(self, duty_pct: float) -> None:
-        self.duty = duty_pct
-        self._rpm = float(self.plant.step(duty_pct))
-
-    def read_rpm(self) -> float:
-        return self._rpm
-
-
-class SerialMotorDriver:
-    """Motor board on a serial line: writes ``D <duty>\\n``, reads ``S <rpm>\\n`` replies.
-
-    The board answers every duty command with its latest encoder speed; a board
-    that stays silent for ``timeout_s`` reads as 0 r/min and logs a warning.
-    """
-
-    def __init__(self, port: str, baudrate: int = 115200, timeout_s: float = 0.05) -> None:
-        import serial
-
-        self._ser = serial.Serial(port, baudrate=baudrate, timeout=timeout_s)
-        self._rpm = 0.0
-
-    def write_duty(self, duty_pct: float) -> None:
-        self._ser.write(f"D {duty_pct:.2f}\n".encode())
-        line = self._ser.readline().decode("ascii", "replace").strip()
-        if line.startswith("S "):
-            try:
-                self._rpm = float(line[2:])
-            except ValueError:
-                log.warning("motor board sent %r", line)
-        elif not line:
-            log.warning("motor board silent")
-
-    def read_rpm(self) -> float:
-        return self._rpm
+def simulated_motor(dt: float) -> SimulatedMotor:
+    """The seed 001 motor (eq. 4) behind the driver interface, duty 0..100 %."""
+    return SimulatedMotor(seed001_motor(dt, u_min=0.0, u_max=100.0))
 
 
 def build_controller(settings: ControllerSettings) -> Any:
@@ -134,3 +94,29 @@ class MotorLoop:
                 nxt = time.monotonic()
         self.setpoint_rpm = 0.0
         self.driver.write_duty(0.0)
+
+
+def closed_loop_t50_s(
+    settings: ControllerSettings, dt: float = 0.01, r0: float = 90.0, r1: float = 100.0
+) -> float:
+    """Time for the controlled seed 001 motor to cover half of a small setpoint step.
+
+    Added to the look-ahead so the shaft speed is half-way through a change
+    when the landing point crosses a cell border (residual lag ~0). Measured on
+    the plant model with the job's controller; the same model the simulator uses.
+    """
+    ctrl = build_controller(settings)
+    plant = seed001_motor(dt, u_min=0.0, u_max=100.0)
+    y = 0.0
+    for _ in range(int(3.0 / dt)):  # settle at r0
+        y = plant.step(ctrl.step(r0, y, dt))
+    k = 0
+    prev = y
+    while k < int(2.0 / dt):
+        y = plant.step(ctrl.step(r1, y, dt))
+        k += 1
+        if y >= 0.5 * (r0 + r1):
+            frac = (0.5 * (r0 + r1) - prev) / (y - prev) if y != prev else 1.0
+            return (k - 1 + frac) * dt
+        prev = y
+    return 2.0

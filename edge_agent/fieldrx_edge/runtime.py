@@ -23,6 +23,7 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from typing import Any
 
+from fieldrx_edge.estimate import KalmanSpeedFilter, look_ahead
 from fieldrx_edge.gnss.parser import Fix, NmeaParser
 from fieldrx_edge.gnss.utm import UtmProjection
 from fieldrx_edge.locate import CellLocator, FieldBoundary, Where
@@ -36,44 +37,6 @@ from fieldrx_edge.protocol import JobPackage, TelemetryRecord
 log = logging.getLogger(__name__)
 
 
-class _Kalman:
-    """Scalar Kalman speed filter, seed 001 eq. 14-15 (A = H = 1, Q 0.01, R 0.2).
-
-    Initialised from the first measurement (SCIENCE.md: x0 = 0 gives -100 %).
-    Used when ``fieldrx_edge.estimate`` is not available.
-    """
-
-    def __init__(self, q: float = 0.01, r: float = 0.2, p0: float = 1.0) -> None:
-        self.q, self.r, self.p0 = q, r, p0
-        self.x: float | None = None
-        self.p = p0
-
-    def update(self, z: float) -> float:
-        if self.x is None:
-            self.x = z
-            return z
-        p = self.p + self.q
-        k = p / (p + self.r)
-        self.x += k * (z - self.x)
-        self.p = (1 - k) * p
-        return self.x
-
-    def reset(self) -> None:
-        self.x, self.p = None, self.p0
-
-
-def make_speed_filter() -> Any:
-    """The estimate package's Kalman filter when present, else the local one (same equations)."""
-    try:
-        from fieldrx_edge.estimate import KalmanSpeedFilter  # type: ignore[attr-defined]
-    except ImportError:
-        return _Kalman()
-    kf = KalmanSpeedFilter()
-    if hasattr(kf, "update"):
-        return kf
-    return _Kalman()
-
-
 @dataclass
 class RuntimeConfig:
     lag_compensation: bool = True
@@ -83,6 +46,7 @@ class RuntimeConfig:
     min_fix_quality: int = 1
     max_hdop: float | None = 5.0
     min_course_speed_m_s: float = 0.3  # below this the GNSS course is noise: keep the last heading
+    border_tolerance_m: float = 0.3  # jitter back over a border within this stays in the cell
 
 
 @dataclass(slots=True)
@@ -122,13 +86,11 @@ class Pipeline:
         for i in finished:
             self.locator.finished[i] = True
         self.cal = calibration_from_dict(job.calibration)
-        self.kf = make_speed_filter()
+        self.kf = KalmanSpeedFilter()
         self.rates = list(job.rate_kg_ha)
         self.seqs = list(job.seq)
         self.on_cell_finished = on_cell_finished
         self.heading_rad = 0.0
-        self._sin = 0.0
-        self._cos = 1.0
         self.last_good_t: float | None = None
         self.last: Decision | None = None
         self._applying = -1  # cell being applied (landing point inside, metering on)
@@ -189,15 +151,17 @@ class Pipeline:
         if v < 0:
             v = 0.0
         if course_deg is not None and speed_raw >= cfg.min_course_speed_m_s:
-            self.heading_rad = math.radians(course_deg)
-            self._sin = math.sin(self.heading_rad)  # course is clockwise from grid north
-            self._cos = math.cos(self.heading_rad)
-        s, c = self._sin, self._cos
-        # outlet position: antenna + forward/lateral offsets (lateral positive to the right)
-        fwd = job.antenna_forward_m + v * self.look_ahead_time_s()
-        lat = job.antenna_lateral_m
-        lx = x + fwd * s + lat * c
-        ly = y + fwd * c - lat * s
+            self.heading_rad = math.radians(course_deg)  # clockwise from grid north
+        # landing point: outlet (antenna + offsets) + v * T ahead (seed 001 eq. 16)
+        lx, ly = look_ahead(
+            x,
+            y,
+            self.heading_rad,
+            v,
+            self.look_ahead_time_s(),
+            job.antenna_forward_m,
+            job.antenna_lateral_m,
+        )
         d = Decision(
             t=now,
             x=x,
@@ -218,6 +182,16 @@ class Pipeline:
         d.cell = idx
         if idx < 0:
             return self._stop(d, "no_cell")
+        if (
+            idx != self._applying
+            and self._applying >= 0
+            and self.locator.finished[idx]
+            and self.locator.distance_to_cell(self._applying, lx, ly) <= cfg.border_tolerance_m
+        ):
+            # GNSS noise pushed the point back over the border into the cell just
+            # finished: keep applying the current cell rather than finishing it early
+            idx = self._applying
+        d.cell = idx
         d.cell_seq = self.seqs[idx]
         if idx != self._applying:
             self._finish_current()
