@@ -1,0 +1,1 @@
+"""Fleet: telemetry ingest (HTTP and MQTT), live fan-out, alerts and as-applied reports."""
