@@ -223,6 +223,7 @@ class _Sub:
     x1: float
     comp: Polygon
     full: np.ndarray | None
+    links_up: list[int] = field(default_factory=list)
 
 
 def _cut_at_holes(
@@ -310,6 +311,7 @@ def _strip_layout(
     s_start = np.searchsorted(sidx, np.arange(n))
     s_end = np.searchsorted(sidx, np.arange(n), side="right")
     subs: list[_Sub] = []
+    subs_of_comp: dict[int, list[int]] = {}
     for i in range(n):
         ci = range(c_start[i], c_end[i])
         si = list(range(s_start[i], s_end[i]))
@@ -320,10 +322,10 @@ def _strip_layout(
         else:
             owner = {}
             for k in si:
-                mid = Point(0.5 * (sb[k, 0] + sb[k, 2]), ys[i])
+                mx = 0.5 * (sb[k, 0] + sb[k, 2])
                 for c in ci:
-                    if cb[c, 0] - 1e-9 <= mid.x <= cb[c, 2] + 1e-9 and comps[c].intersects(
-                        mid.buffer(1e-7)
+                    if cb[c, 0] - 1e-9 <= mx <= cb[c, 2] + 1e-9 and shapely.intersects_xy(
+                        comps[c], mx, ys[i]
                     ):
                         owner[k] = c
                         break
@@ -349,6 +351,7 @@ def _strip_layout(
             for a, b, core in ranges:
                 a, b = _cut_at_holes(a, b, float(ys[i]), core, holes)
                 if b - a > 1e-9:
+                    subs_of_comp.setdefault(c, []).append(len(subs))
                     subs.append(
                         _Sub(
                             part,
@@ -360,38 +363,66 @@ def _strip_layout(
                             full_by_strip.get(i),
                         )
                     )
+
+    # Links between swaths of consecutive strips: through the pieces J of the strip edge
+    # line inside q. Each J belongs to one strip piece below and one above; two swaths
+    # are linked when both cover a common part of some J (they touch through the field).
+    links: list[tuple[int, int]] = []
+    if n > 1:
+        ye = edges[1:-1]
+        el = shapely.linestrings(
+            np.stack(
+                [np.stack([np.full(n - 1, bx0), ye], 1), np.stack([np.full(n - 1, bx1), ye], 1)], 1
+            )
+        )
+        eli = shapely.intersection(el, q)
+        jparts, jidx = shapely.get_parts(eli, return_index=True)
+        ok = shapely.get_type_id(jparts) == 1
+        jb = shapely.bounds(jparts[ok])
+        jidx = jidx[ok]
+
+        def owner_of(strip: int, x: float, y: float) -> int | None:
+            ci = range(c_start[strip], c_end[strip])
+            if len(ci) == 1:
+                return ci[0]
+            for c in ci:
+                if cb[c, 0] - 1e-9 <= x <= cb[c, 2] + 1e-9 and shapely.intersects_xy(
+                    comps[c], x, y
+                ):
+                    return c
+            return None
+
+        for (ja, _, jz, _), k in zip(jb, jidx, strict=True):
+            if jz - ja <= 1e-9:
+                continue
+            mx = 0.5 * (ja + jz)
+            c_lo = owner_of(k, mx, ye[k])
+            c_hi = owner_of(k + 1, mx, ye[k])
+            if c_lo is None or c_hi is None:
+                continue
+            for a in subs_of_comp.get(c_lo, []):
+                for b in subs_of_comp.get(c_hi, []):
+                    sa, sb_ = subs[a], subs[b]
+                    if min(sa.x1, sb_.x1, jz) - max(sa.x0, sb_.x0, ja) > 1e-9:
+                        links.append((a, b))
+    for s in subs:
+        s.links_up = []
+    for a, b in set(links):
+        subs[a].links_up.append(b)
     return subs
 
 
 def _blocks(subs: list[_Sub]) -> list[list[int]]:
     """Boustrophedon blocks: maximal chains of uniquely linked swaths of consecutive strips."""
-    by_strip: dict[tuple[int, int], list[int]] = {}
-    for k, s in enumerate(subs):
-        by_strip.setdefault((s.part, s.strip), []).append(k)
-    up: dict[int, list[int]] = {k: [] for k in range(len(subs))}
-    down: dict[int, list[int]] = {k: [] for k in range(len(subs))}
-    for (part, i), lower in by_strip.items():
-        upper = by_strip.get((part, i + 1))
-        if not upper:
-            continue
-        simple = len(lower) == 1 and len(upper) == 1
-        for a in lower:
-            sa = subs[a]
-            for b in upper:
-                sb = subs[b]
-                lo, hi = max(sa.x0, sb.x0), min(sa.x1, sb.x1)
-                if hi - lo <= 1e-9:
-                    continue
-                if not simple:
-                    shared = shapely.intersection(sa.comp, sb.comp)
-                    lines = [
-                        g for g in shapely.get_parts(shared) if shapely.get_type_id(g) in (1, 2)
-                    ]
-                    if not any(min(hi, g.bounds[2]) - max(lo, g.bounds[0]) > 1e-9 for g in lines):
-                        continue
-                up[a].append(b)
-                down[b].append(a)
-    nxt = {a: up[a][0] for a in up if len(up[a]) == 1 and len(down[up[a][0]]) == 1}
+    down: dict[int, int] = {}
+    for s in subs:
+        for b in s.links_up:
+            down[b] = down.get(b, 0) + 1
+    nxt = {
+        a: s.links_up[0]
+        for a, s in enumerate(subs)
+        if len(s.links_up) == 1 and down.get(s.links_up[0], 0) == 1
+    }
     has_prev = set(nxt.values())
     blocks: list[list[int]] = []
     for k in range(len(subs)):
@@ -413,7 +444,11 @@ def _layout(
     if holes_rot is not None:
         shapely.prepare(holes_rot)
     for p, q in enumerate(parts_rot):
-        subs += _strip_layout(q, w, p, with_full, holes_rot)
+        part_subs = _strip_layout(q, w, p, with_full, holes_rot)
+        off = len(subs)
+        for s in part_subs:
+            s.links_up = [b + off for b in s.links_up]
+        subs += part_subs
     return subs, _blocks(subs)
 
 
@@ -485,14 +520,34 @@ def _longest_edge_phi(field_geom: Polygon | MultiPolygon) -> float:
 
 
 def _lower_bounds(parts: list[Polygon], w: float, phis: np.ndarray) -> np.ndarray:
-    """Swath count lower bound per angle: each part needs ceil(extent / w) strips."""
+    """Swath-count lower bound per angle, from scan-line crossings (pure numpy).
+
+    Every strip of a part holds at least one swath, and at least one per interval its
+    centre line cuts out of the part (the planner splits a strip piece wherever its centre
+    line leaves the region), so sum_i max(1, crossings_i / 2) <= swath count.
+    """
     lb = np.zeros(len(phis), dtype=np.int64)
-    normal = np.stack([-np.sin(phis), np.cos(phis)], axis=0)
     for p in parts:
-        h = np.asarray(p.convex_hull.exterior.coords)
-        proj = h @ normal
-        ext = proj.max(axis=0) - proj.min(axis=0)
-        lb += np.maximum(1, np.ceil(ext / w - _N_EPS)).astype(np.int64)
+        c0 = np.asarray(p.centroid.coords[0])
+        ext = np.asarray(p.exterior.coords) - c0
+        rings = [ext] + [np.asarray(r.coords) - c0 for r in p.interiors]
+        a = np.concatenate([r[:-1] for r in rings])
+        b = np.concatenate([r[1:] for r in rings])
+        for k, phi in enumerate(phis):
+            sn, cs = math.sin(phi), math.cos(phi)
+            ya = -a[:, 0] * sn + a[:, 1] * cs
+            yb = -b[:, 0] * sn + b[:, 1] * cs
+            ye = -ext[:, 0] * sn + ext[:, 1] * cs
+            y0 = ye.min()
+            n = max(1, math.ceil((ye.max() - y0) / w - _N_EPS))
+            ys = y0 + (np.arange(n) + 0.5) * w
+            lo = np.searchsorted(ys, np.minimum(ya, yb), side="left")
+            hi = np.searchsorted(ys, np.maximum(ya, yb), side="left")
+            diff = np.zeros(n + 1, dtype=np.int64)
+            np.add.at(diff, lo, 1)
+            np.add.at(diff, hi, -1)
+            cross = np.cumsum(diff)[:n]
+            lb[k] += int(np.maximum(1, cross // 2).sum())
     return lb
 
 
@@ -696,14 +751,22 @@ def plan_coverage(
         left = list(range(len(blocks)))
         first = True
         while left:
-            best = None
+            # candidates by straight-line distance; the routed distance is never shorter,
+            # so stop once the straight distance exceeds the best routed one
+            cands = []
             for b in left:
                 for order, d in _block_configs(subs, blocks[b]):
                     start, _ = _endpoints(subs, order, d)
                     s_utm = frame.inv(np.asarray(start))
-                    cost = float(math.dist(pos, s_utm)) if first else dist_fn(pos, s_utm)
-                    if best is None or cost < best[0] - 1e-9:
-                        best = (cost, b, order, d)
+                    cands.append((float(math.dist(pos, s_utm)), b, order, d, s_utm))
+            cands.sort(key=lambda c: c[0])
+            best = None
+            for eu, b, order, d, s_utm in cands:
+                if best is not None and eu >= best[0] - 1e-9:
+                    break
+                cost = eu if first else dist_fn(pos, s_utm)
+                if best is None or cost < best[0] - 1e-9:
+                    best = (cost, b, order, d)
             assert best is not None
             _, b, order, d = best
             left.remove(b)

@@ -221,11 +221,21 @@ def _inner_cells(plan: CoveragePlan, inner: list[Swath], cell: float) -> _Cells:
         clips = np.array([inner[m].clip for m in rep[part]], dtype=object)
         raw = shapely.polygons(cf[part])
         cut = shapely.intersection(raw, clips)
-        cut = shapely.transform(cut, fr.inv)
+        cut = shapely.transform(_only_polygons(cut), fr.inv)
         polys[part] = cut
         area[part] = shapely.area(cut)
         cent[part] = _inside_centres(cut)
     return _Cells(sidx[rep], j, corners, polys, area, cent, False)
+
+
+def _only_polygons(geoms: np.ndarray) -> np.ndarray:
+    """Drop the lines/points an overlay leaves where a cell touches the boundary."""
+    geoms = np.asarray(geoms, dtype=object)
+    mixed = np.flatnonzero(shapely.get_type_id(geoms) == 7)
+    for k in mixed:
+        polys = [g for g in shapely.get_parts(geoms[k]) if shapely.get_type_id(g) in (3, 6)]
+        geoms[k] = shapely.union_all(polys) if polys else Polygon()
+    return geoms
 
 
 def _inside_centres(polys: np.ndarray) -> np.ndarray:
@@ -284,7 +294,7 @@ def _ring_cells(s: Swath, w: float, cell: float) -> _Cells:
         left = [p + a * n for p, n in zip(pts, ns, strict=True)]
         polys.append(Polygon(right + left[::-1]).buffer(0))
         corners[i] = [p0 - (w / 2) * n0, p1 - (w / 2) * n1, p1 + (w / 2) * n1, p0 + (w / 2) * n0]
-    cells = shapely.intersection(np.array(polys, dtype=object), s.band)
+    cells = _only_polygons(shapely.intersection(np.array(polys, dtype=object), s.band))
     return _Cells(
         np.full(k, s.index, np.int64),
         np.arange(k),
@@ -308,7 +318,9 @@ def _resolve_overlaps(rings: list[_Cells]) -> list[_Cells]:
         sel = ov > 1e-9
         for a in np.unique(a_idx[sel]):
             earlier = b_idx[sel & (a_idx == a)]
-            allp[a] = shapely.difference(allp[a], shapely.union_all(allp[earlier]))
+            allp[a] = _only_polygons(
+                np.array([shapely.difference(allp[a], shapely.union_all(allp[earlier]))])
+            )[0]
     area = shapely.area(allp)
     cent = _inside_centres(allp)
     out = []
@@ -345,7 +357,7 @@ def _merge_slivers(cat: dict[str, np.ndarray], min_area: float) -> np.ndarray:
         keep[i] = False
         if target < 0:
             continue  # a lone sliver swath: dropped
-        merged = shapely.union(cat["polys"][target], cat["polys"][i])
+        merged = _only_polygons(np.array([shapely.union(cat["polys"][target], cat["polys"][i])]))[0]
         cat["polys"][target] = merged
         cat["area"][target] = shapely.area(merged)
         cat["cent"][target] = _inside_centres(np.array([merged], dtype=object))[0]

@@ -1,0 +1,122 @@
+"""Fixed test fields (UTM metres) and the invariants every plan + grid must satisfy."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import shapely
+from fieldrx.geo.coverage import CoveragePlan
+from fieldrx.geo.grid import Grid
+from shapely.geometry import Polygon, box
+
+X0, Y0 = 500_000.0, 5_300_000.0
+
+
+def rect(wd: float = 400.0, ht: float = 250.0) -> Polygon:
+    return box(X0, Y0, X0 + wd, Y0 + ht)
+
+
+def l_shape() -> Polygon:
+    return Polygon(
+        [
+            (X0, Y0),
+            (X0 + 300, Y0),
+            (X0 + 300, Y0 + 100),
+            (X0 + 100, Y0 + 100),
+            (X0 + 100, Y0 + 300),
+            (X0, Y0 + 300),
+        ]
+    )
+
+
+def u_shape() -> Polygon:
+    return Polygon(
+        [
+            (X0, Y0),
+            (X0 + 300, Y0),
+            (X0 + 300, Y0 + 300),
+            (X0 + 200, Y0 + 300),
+            (X0 + 200, Y0 + 100),
+            (X0 + 100, Y0 + 100),
+            (X0 + 100, Y0 + 300),
+            (X0, Y0 + 300),
+        ]
+    )
+
+
+def pond_field() -> Polygon:
+    return Polygon(
+        [(X0, Y0), (X0 + 400, Y0), (X0 + 420, Y0 + 300), (X0 - 10, Y0 + 280)],
+        [[(X0 + 150, Y0 + 100), (X0 + 250, Y0 + 120), (X0 + 230, Y0 + 200), (X0 + 160, Y0 + 190)]],
+    )
+
+
+def plot_35x23() -> Polygon:
+    return box(X0, Y0, X0 + 35, Y0 + 23)
+
+
+def irregular(n: int = 40, seed: int = 7, radius: float = 300.0) -> Polygon:
+    """Star-shaped (so simple) irregular field with n vertices."""
+    rng = np.random.default_rng(seed)
+    ang = np.sort(rng.uniform(0, 2 * math.pi, n))
+    r = radius * rng.uniform(0.55, 1.0, n)
+    return Polygon(np.stack([X0 + r * np.cos(ang), Y0 + r * np.sin(ang)], 1))
+
+
+def check_plan(plan: CoveragePlan, field: Polygon) -> None:
+    """Route invariants: directions alternate in a block, connections avoid holes."""
+    w = plan.swath_width_m
+    inner = [s for s in plan.swaths if s.kind == "inner"]
+    for a, b in zip(inner[:-1], inner[1:], strict=True):
+        if a.block == b.block:
+            assert a.direction == -b.direction, "directions must alternate within a block"
+    assert [s.index for s in plan.swaths] == list(range(len(plan.swaths)))
+    assert len(plan.connections) == len(plan.swaths) - 1
+    for a, b, c in zip(plan.swaths[:-1], plan.swaths[1:], plan.connections, strict=True):
+        assert np.allclose(c.coords[0], a.line.coords[-1])
+        assert np.allclose(c.coords[-1], b.line.coords[0])
+    holes = [Polygon(r) for p in shapely.get_parts(field) for r in p.interiors]
+    for hole in holes:
+        core = hole.buffer(-(w / 2 + 1e-6))
+        for c in plan.connections:
+            assert c.intersection(core).length < 1e-9, "a connection crosses a hole"
+    if plan.headland_passes >= 1:
+        route = plan.route()
+        assert route.difference(field.buffer(1e-6)).length < 1e-6, "route leaves the field"
+        assert plan.route_outside_m < 1e-3 and plan.route_in_holes_m < 1e-3
+
+
+def check_grid(grid: Grid, field: Polygon, min_cover: float = 0.995) -> None:
+    """Cells: no overlap, cover the field, centres inside, one walk, CCW corners."""
+    n = len(grid)
+    assert n > 0
+    assert np.array_equal(grid.seq, np.arange(n))
+    polys = grid.polygons
+    assert not shapely.is_empty(polys).any()
+    assert np.allclose(shapely.area(polys), grid.area_m2)
+    tree = shapely.STRtree(polys)
+    a, b = tree.query(polys, predicate="intersects")
+    m = a < b
+    if m.any():
+        inter = shapely.area(shapely.intersection(polys[a[m]], polys[b[m]]))
+        ref = np.minimum(grid.area_m2[a[m]], grid.area_m2[b[m]])
+        assert (inter <= 1e-6 * ref + 1e-9).all(), f"cells overlap: max {inter.max()} m2"
+    covered = shapely.union_all(polys).intersection(field).area
+    assert covered >= min_cover * field.area, f"cells cover {covered / field.area:.5f}"
+    assert shapely.contains_xy(field, grid.centroids_utm[:, 0], grid.centroids_utm[:, 1]).all()
+    # consecutive cells of one swath share an edge
+    same = grid.swath[1:] == grid.swath[:-1]
+    i = np.flatnonzero(same)
+    # length of a's boundary within 1 micrometre of b (clipping leaves 1e-10 m noise)
+    shared = shapely.length(
+        shapely.intersection(shapely.boundary(polys[i]), shapely.buffer(polys[i + 1], 1e-6))
+    )
+    assert (shared > 1e-6).all(), f"{(shared <= 1e-6).sum()} consecutive cells share no edge"
+    assert (grid.index_in_swath[i + 1] == grid.index_in_swath[i] + 1).all()
+    assert (np.diff(grid.swath) >= 0).all()
+    # nominal corners counter-clockwise (seed 001 Table 1)
+    c = grid.corners_utm
+    x, y = c[..., 0], c[..., 1]
+    signed = 0.5 * (x * np.roll(y, -1, 1) - np.roll(x, -1, 1) * y).sum(1)
+    assert (signed > 0).all()

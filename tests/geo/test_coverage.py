@@ -1,0 +1,173 @@
+import math
+
+import numpy as np
+import pytest
+from fieldrx.geo import PlanningError
+from fieldrx.geo.coverage import optimal_phi, plan_coverage, swath_count
+from shapely.geometry import Polygon, box
+
+from tests.geo.cases import (
+    X0,
+    Y0,
+    check_plan,
+    irregular,
+    l_shape,
+    plot_35x23,
+    pond_field,
+    rect,
+    u_shape,
+)
+
+
+def test_rectangle_spacing_first_half_width_far_edge_covered():
+    f = rect(400, 250)
+    p = plan_coverage(f, 2.3, "longest_edge")
+    assert p.heading_deg == pytest.approx(90.0)  # longest edge runs east-west
+    assert p.n_swaths == math.ceil(250 / 2.3) == 109
+    ys = [s.line.coords[0][1] - Y0 for s in p.swaths]
+    assert ys[0] == pytest.approx(1.15)
+    assert np.allclose(np.diff(ys), 2.3)
+    assert ys[-1] + 1.15 >= 250.0  # far edge covered, no uncovered strip
+    assert p.coverage_pct == pytest.approx(100.0)
+    assert p.overlap_pct == pytest.approx(0.0, abs=1e-9)
+    assert [s.direction for s in p.swaths[:4]] == [1, -1, 1, -1]
+    assert p.swaths[0].line.coords[0] == pytest.approx((X0, Y0 + 1.15))  # sw start
+    check_plan(p, f)
+
+
+@pytest.mark.parametrize("corner", ["sw", "se", "nw", "ne"])
+def test_start_corner(corner):
+    f = rect(100, 60)
+    p = plan_coverage(f, 2.3, "longest_edge", start_corner=corner)
+    x, y = p.swaths[0].line.coords[0]
+    assert (x - X0 < 50) == (corner[1] == "w")
+    assert (y - Y0 < 30) == (corner[0] == "s")
+
+
+def test_angle_heading_convention():
+    f = rect(200, 200)
+    p = plan_coverage(f, 2.3, "angle", angle_deg=0.0)  # north-south lines
+    (xa, ya), (xb, yb) = p.swaths[0].line.coords
+    assert xa == pytest.approx(xb) and abs(yb - ya) == pytest.approx(200.0)
+    p45 = plan_coverage(f, 2.3, "angle", angle_deg=45.0)
+    (xa, ya), (xb, yb) = p45.swaths[0].line.coords
+    assert math.degrees(math.atan2(xb - xa, yb - ya)) % 180 == pytest.approx(45.0)
+
+
+def test_u_shape_decomposes_into_blocks_and_routes_inside():
+    f = u_shape()
+    p = plan_coverage(f, 2.3, "angle", angle_deg=90.0, headland_passes=1)
+    assert p.n_blocks == 3  # base + two arms: the scan line crosses the arms twice
+    check_plan(p, f)
+    # with two blocks side by side a scan line gives two swaths: count > strips
+    assert p.n_swaths - 1 > math.ceil((300 - 2 * 2.3) / 2.3)
+
+
+def test_pond_route_never_crosses_the_pond():
+    f = pond_field()
+    for h in (0, 1, 2):
+        p = plan_coverage(f, 2.3, "optimal", headland_passes=h)
+        check_plan(p, f)
+        if h:
+            assert p.route_in_holes_m == 0.0
+    p0 = plan_coverage(f, 2.3, "longest_edge")
+    hole = Polygon(f.interiors[0])
+    for s in p0.swaths:  # swaths stop at the pond; they never run through it
+        assert s.line.intersection(hole).length < 1e-6
+
+
+def test_small_plot_route_stays_inside_with_headland():
+    # Fields2Cover's boustrophedon + Dubins route leaves this plot by over 100 m
+    f = plot_35x23()
+    p = plan_coverage(f, 2.3, "optimal", headland_passes=1)
+    assert p.route_outside_m == 0.0
+    assert p.route().difference(f.buffer(1e-6)).length < 1e-9
+    check_plan(p, f)
+
+
+def test_headland_first_and_last():
+    f = l_shape()
+    first = plan_coverage(f, 2.3, "optimal", headland_passes=2, headland_order="first")
+    last = plan_coverage(f, 2.3, "optimal", headland_passes=2, headland_order="last")
+    kinds_first = [s.kind for s in first.swaths]
+    kinds_last = [s.kind for s in last.swaths]
+    assert kinds_first[:2] == ["headland", "headland"] and kinds_first[-1] == "inner"
+    assert kinds_last[-2:] == ["headland", "headland"] and kinds_last[0] == "inner"
+    # the headland rings are offset w/2 and 3w/2 from the boundary
+    ring0 = first.swaths[0].line
+    assert ring0.distance(f.exterior) == pytest.approx(1.15, abs=1e-6)
+    assert first.swaths[1].line.distance(f.exterior) == pytest.approx(3.45, abs=1e-6)
+    for p in (first, last):
+        check_plan(p, f)
+        assert p.coverage_pct > 99.9
+
+
+def test_headland_around_holes():
+    f = pond_field()
+    p = plan_coverage(f, 2.3, "optimal", headland_passes=1)
+    rings = [s for s in p.swaths if s.kind == "headland"]
+    assert len(rings) == 2  # outer boundary + pond
+    hole = Polygon(f.interiors[0])
+    assert min(r.line.distance(hole) for r in rings) == pytest.approx(1.15, abs=1e-6)
+
+
+@pytest.mark.parametrize(
+    "field", [rect(), l_shape(), u_shape(), pond_field(), irregular(40), plot_35x23()]
+)
+def test_optimal_not_worse_than_longest_edge(field):
+    for h in (0, 1):
+        le = plan_coverage(field, 2.3, "longest_edge", headland_passes=h)
+        op = plan_coverage(field, 2.3, "optimal", headland_passes=h)
+        assert op.n_swaths <= le.n_swaths
+        assert op.n_turns <= le.n_turns
+
+
+@pytest.mark.parametrize("field", [irregular(40, seed=3), l_shape(), pond_field()])
+def test_optimal_not_worse_than_brute_force_one_degree(field):
+    w = 6.0
+    best_brute = min(swath_count(field, w, math.radians(a), field) for a in range(180))
+    phi, info = optimal_phi(field, field, w)
+    assert swath_count(field, w, phi, field) <= best_brute
+    assert info["evaluated"] < 180  # geometry candidates + pruning, not a blind scan
+
+
+def test_rotated_field_optimal_aligns_with_edges():
+    import shapely.affinity
+
+    f = shapely.affinity.rotate(rect(300, 120), 23.0, origin=(X0, Y0))
+    p = plan_coverage(f, 2.3, "optimal")
+    assert p.n_swaths == math.ceil(120 / 2.3)
+    d = (p.heading_deg - (90 - 23)) % 180
+    assert min(d, 180 - d) == pytest.approx(0.0, abs=1e-6)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "reason"),
+    [
+        ({"swath_width_m": 0}, "swath_width_m must be > 0"),
+        ({"swath_width_m": -2}, "swath_width_m must be > 0"),
+        ({"swath_width_m": float("nan")}, "swath_width_m must be > 0"),
+        ({"swath_width_m": 30}, "wider than the field"),
+        ({"heading": "diagonal"}, "heading must be one of"),
+        ({"heading": "angle"}, "needs angle_deg"),
+        ({"headland_passes": -1}, "headland_passes"),
+        ({"headland_passes": 6}, "leave no inner area"),
+        ({"start_corner": "middle"}, "start_corner"),
+        ({"headland_order": "sometimes"}, "headland_order"),
+    ],
+)
+def test_bad_parameters(kwargs, reason):
+    with pytest.raises(PlanningError, match=reason):
+        plan_coverage(plot_35x23(), **kwargs)
+
+
+def test_degenerate_fields():
+    with pytest.raises(PlanningError, match="empty"):
+        plan_coverage(Polygon(), 2.3)
+    with pytest.raises(PlanningError):
+        plan_coverage(Polygon([(X0, Y0), (X0 + 100, Y0), (X0 + 200, Y0)]), 2.3)
+    bowtie = Polygon([(X0, Y0), (X0 + 100, Y0 + 100), (X0 + 100, Y0), (X0, Y0 + 100)])
+    with pytest.raises(PlanningError, match="invalid"):
+        plan_coverage(bowtie, 2.3)
+    with pytest.raises(PlanningError, match="Polygon"):
+        plan_coverage(box(X0, Y0, X0 + 1, Y0 + 1).exterior, 2.3)
