@@ -235,6 +235,7 @@ def summarize(
     """Area, product mass, area-weighted mean / min / max, histogram, flagged cells.
 
     Product mass = sum(rate_kg_ha * area_m2) / 10 000 (1 ha = 10 000 m^2).
+    Figures are rounded to 0.001 (kg/ha, kg, m^2) for display.
     The histogram has ``bins`` equal-width classes over [min, max], each with
     its cell count and area. With ``seq``, the first ``max_listed`` flagged
     cells are listed by seq.
@@ -253,16 +254,18 @@ def summarize(
     flagged_seq_mask = fl != 0
     return {
         "n_cells": int(len(r)),
-        "area_m2": total_area,
-        "area_ha": total_area / 1e4,
-        "product_kg": float((r * a).sum() / 1e4),
-        "rate_mean_kg_ha": float(np.average(r, weights=a)) if total_area > 0 else float(r.mean()),
-        "rate_min_kg_ha": lo,
-        "rate_max_kg_ha": hi,
+        "area_m2": round(total_area, 3),
+        "area_ha": round(total_area / 1e4, 7),
+        "product_kg": round(float((r * a).sum() / 1e4), 3),
+        "rate_mean_kg_ha": round(
+            float(np.average(r, weights=a)) if total_area > 0 else float(r.mean()), 3
+        ),
+        "rate_min_kg_ha": round(lo, 3),
+        "rate_max_kg_ha": round(hi, 3),
         "histogram": {
-            "edges_kg_ha": [float(e) for e in edges],
+            "edges_kg_ha": [round(float(e), 3) for e in edges],
             "counts": [int(c) for c in counts],
-            "area_m2": [float(x) for x in areas],
+            "area_m2": [round(float(x), 3) for x in areas],
         },
         "flagged": flagged,
         "n_flagged": int(flagged_seq_mask.sum()),
