@@ -1,0 +1,436 @@
+"""``fieldrx-edge``: pull jobs, run one, simulate one, replay a receiver log, NDVI mode."""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import dataclasses
+import json
+import logging
+import math
+import sys
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+from fieldrx_edge.jobs import JobStore, pull
+from fieldrx_edge.protocol import JobPackage
+
+
+def _on_off(v: str) -> bool:
+    if v.lower() in ("on", "true", "1", "yes"):
+        return True
+    if v.lower() in ("off", "false", "0", "no"):
+        return False
+    raise argparse.ArgumentTypeError("expected on or off")
+
+
+def _speed_range(v: str) -> tuple[float, float]:
+    """'3-9km/h', '3-9', '6km/h' -> (lo, hi) km/h."""
+    s = v.lower().replace("km/h", "").replace("kmh", "").strip()
+    lo, _, hi = s.partition("-")
+    a = float(lo)
+    b = float(hi) if hi else a
+    if not 0 < a <= b:
+        raise argparse.ArgumentTypeError(f"bad speed range {v!r}")
+    return a, b
+
+
+def _load_job(spec: str, store: JobStore | None = None) -> JobPackage:
+    """A job from a file path, ``demo:35x23`` / ``demo:20ha``, or a cached job id."""
+    if spec.startswith("demo:"):
+        from fieldrx_edge.sim.fields import field_20ha, rect_job
+
+        what = spec[5:]
+        if what == "20ha":
+            return field_20ha()
+        length, _, width = what.partition("x")
+        return rect_job(length_m=float(length), width_m=float(width))
+    p = Path(spec)
+    if p.exists():
+        return JobPackage.from_json(p.read_bytes(), verify=True)
+    if spec.isdigit() and store is not None:
+        return store.load(int(spec))
+    raise SystemExit(f"job {spec!r}: no such file or cached job id")
+
+
+# -- pull -----------------------------------------------------------------
+
+
+def cmd_pull(a: argparse.Namespace) -> int:
+    store = JobStore(a.state_dir)
+    cfg = store.config()
+    server = a.server or cfg.get("server")
+    token = a.token or cfg.get("token")
+    if not server or not token:
+        raise SystemExit("pull needs --server and --token (saved for later runs)")
+    out = pull(store, server, token)
+    print(json.dumps(out))
+    return 1 if out["failed"] else 0
+
+
+# -- run ------------------------------------------------------------------
+
+
+def _make_sender(a: argparse.Namespace, store: JobStore, queue: Any) -> Any:
+    cfg = store.config()
+    if a.mqtt:
+        from fieldrx_edge.uplink import MqttSender
+
+        host, _, port = a.mqtt.partition(":")
+        return MqttSender(queue, host or "127.0.0.1", int(port or 1883))
+    server = a.server or cfg.get("server")
+    token = a.token or cfg.get("token")
+    if server and token and not a.offline:
+        from fieldrx_edge.uplink import HttpSender
+
+        return HttpSender(queue, server, token)
+    return None
+
+
+def cmd_run(a: argparse.Namespace) -> int:
+    from fieldrx_edge.gnss.sources import open_source
+    from fieldrx_edge.motor import MotorLoop, SerialMotorDriver, build_controller, simulated_motor
+    from fieldrx_edge.runtime import Agent, RuntimeConfig
+    from fieldrx_edge.uplink import TelemetryQueue
+
+    store = JobStore(a.state_dir)
+    job = _load_job(a.job, store)
+    if not (store.root / "jobs" / f"{job.job_id}.json").exists():
+        store.save_package(job.to_json())
+    progress = store.load_progress(job.job_id)
+    queue = TelemetryQueue(store.queue_path(), job.machine_id)
+    settings = job.controller
+    if a.controller:
+        settings = dataclasses.replace(settings, name=a.controller, params={})
+    period = settings.period_s or 0.01
+    if a.motor == "sim":
+        driver: Any = simulated_motor(period)
+    else:
+        driver = SerialMotorDriver(a.motor.removeprefix("serial:"))
+    motor = MotorLoop(build_controller(settings), driver, period)
+    lines_done = int(progress.get("source_lines", 0)) if a.source.startswith("file:") else 0
+    state = {"lines": lines_done}
+
+    def save_progress(finished: list[int] | None = None) -> None:
+        if finished is not None:
+            progress["finished"] = sorted(set(finished))
+        progress["source_lines"] = state["lines"]
+        progress["state"] = "running"
+        store.save_progress(job.job_id, progress)
+
+    rcfg = RuntimeConfig(lag_compensation=a.lag_compensation, response_s=a.response_s)
+    agent = Agent(job, queue, motor, rcfg, progress.get("finished", []), save_progress)
+    sender = _make_sender(a, store, queue)
+    stop = threading.Event()
+    th = None
+    if sender is not None:
+        th = threading.Thread(target=sender.run, args=(stop,), daemon=True)
+        th.start()
+    motor_stop = threading.Event()
+    mth = threading.Thread(target=motor.run, args=(motor_stop,), daemon=True)
+    mth.start()
+    speed = a.replay_speed if a.replay_speed > 0 else None
+    t0 = time.monotonic()
+    try:
+        for i, line in enumerate(open_source(a.source, speed)):
+            if i < lines_done:
+                continue  # a replayed file resumes where the killed run stopped
+            agent.handle_line(line)
+            state["lines"] = i + 1
+            if state["lines"] % 50 == 0:
+                save_progress()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        motor_stop.set()
+        mth.join(timeout=2.0)
+    save_progress()
+    drained = True
+    if sender is not None:
+        stop.set()
+        if th is not None:
+            th.join(timeout=5.0)
+        drained = sender.drain(a.drain_timeout)
+        sender.close()
+    out = {
+        "job_id": job.job_id,
+        "records": agent.records,
+        "finished_cells": len(progress.get("finished", [])),
+        "queue": queue.stats(),
+        "drained": drained,
+        "parse": agent.parser.stats.to_dict(),
+        "wall_s": round(time.monotonic() - t0, 2),
+    }
+    print(json.dumps(out))
+    return 0
+
+
+# -- simulate ---------------------------------------------------------------
+
+
+def cmd_simulate(a: argparse.Namespace) -> int:
+    import numpy as np
+
+    from fieldrx_edge.sim.simulator import SimConfig, simulate, summary
+
+    job = _load_job(a.job)
+    lo, hi = a.speed
+    cfg = SimConfig(
+        speed_min_kmh=lo,
+        speed_max_kmh=hi,
+        gnss_noise_m=a.gnss_noise,
+        speed_noise_m_s=a.speed_noise,
+        controller=a.controller,
+        lag_compensation=a.lag_compensation,
+        seed=a.seed,
+        gnss_hz=a.gnss_hz,
+    )
+    sink = None
+    sender = queue = None
+    if a.server:
+        import tempfile
+
+        from fieldrx_edge.uplink import HttpSender, TelemetryQueue
+
+        if not a.token:
+            raise SystemExit("--server needs --token")
+        qdir = Path(a.state_dir) if a.state_dir else Path(tempfile.mkdtemp(prefix="fieldrx-sim-"))
+        queue = TelemetryQueue(qdir / "queue.sqlite", job.machine_id)
+        sender = HttpSender(queue, a.server, a.token)
+        sink = queue.put_many
+    res = simulate(job, cfg, sink=sink)
+    res_u = None
+    if a.lag_compensation:
+        res_u = simulate(
+            job, dataclasses.replace(cfg, lag_compensation=False), max_runs=a.compare_runs
+        )
+    out = summary(res, res_u if res_u is not None else res, cfg, job)
+    if res_u is None:
+        out["uncompensated_borders"] = out["lag_borders"]
+    if sender is not None and queue is not None:
+        out["telemetry_drained"] = sender.drain(a.drain_timeout)
+        out["telemetry"] = queue.stats()
+        sender.close()
+    seqs = res.extra["seq"]
+    if a.cells_out:
+        with open(a.cells_out, "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(["seq", "rate_kg_ha", "m1_g", "m2_g", "accuracy_pct"])
+            for s, r, m1, m2, acc in zip(
+                seqs,
+                res.extra["rate"],
+                res.cell_m1_g,
+                res.cell_m2_g,
+                res.cell_accuracy_pct,
+                strict=True,
+            ):
+                w.writerow(
+                    [
+                        int(s),
+                        float(r),
+                        round(float(m1), 2),
+                        round(float(m2), 2),
+                        round(float(acc), 3),
+                    ]
+                )
+    if not a.json or a.verbose:
+        acc = res.cell_accuracy_pct
+        limit = len(acc) if a.verbose else min(len(acc), 100)
+        print("cell  rate_kg_ha  M1_g     M2_g     accuracy_%")
+        for i in range(limit):
+            print(
+                f"{int(seqs[i]):5d} {res.extra['rate'][i]:8.1f} {res.cell_m1_g[i]:9.1f}"
+                f" {res.cell_m2_g[i]:9.1f}   {acc[i]:6.2f}"
+            )
+        if limit < len(acc):
+            print(f"... {len(acc) - limit} more cells (--cells-out FILE for all)")
+        print(
+            f"mean accuracy {out['mean_accuracy_pct']} %, min {out['min_accuracy_pct']} %;"
+            f" mean lag at borders {out['mean_lag_m']} m (uncompensated"
+            f" {out.get('mean_lag_uncompensated_m')} m); outside the field"
+            f" {out['applied_outside_kg']} kg; {np.round(res.wall_s, 1)} s"
+        )
+    if a.json:
+        print(json.dumps(out))
+    return 0
+
+
+# -- replay-nmea ------------------------------------------------------------
+
+
+def replay_stats(lines: Any) -> dict[str, Any]:
+    """Parse a log through the GNSS front end; counts plus raw vs Kalman speed spread."""
+    from fieldrx_edge.estimate import KalmanSpeedFilter
+    from fieldrx_edge.gnss.parser import NmeaParser
+
+    parser = NmeaParser()
+    kf = KalmanSpeedFilter()
+    raw: list[float] = []
+    filt: list[float] = []
+    t_first = t_last = None
+
+    def take(fx: Any) -> None:
+        nonlocal t_first, t_last
+        if fx.valid and fx.speed_m_s is not None:
+            raw.append(fx.speed_m_s)
+            filt.append(kf.update(fx.speed_m_s))
+        if fx.t is not None:
+            t_first = fx.t if t_first is None else t_first
+            t_last = fx.t
+
+    for line in lines:
+        for fx in parser.feed(line):
+            take(fx)
+    for fx in parser.flush():
+        take(fx)
+
+    def std(v: list[float]) -> float | None:
+        if len(v) < 2:
+            return None
+        m = sum(v) / len(v)
+        return math.sqrt(sum((x - m) ** 2 for x in v) / (len(v) - 1))
+
+    out = parser.stats.to_dict()
+    out.update(
+        {
+            "speed_raw_mean": (sum(raw) / len(raw)) if raw else None,
+            "speed_raw_std": std(raw),
+            "speed_filtered_mean": (sum(filt) / len(filt)) if filt else None,
+            "speed_filtered_std": std(filt),
+            "duration_s": (t_last - t_first) if t_first is not None and t_last else None,
+        }
+    )
+    return out
+
+
+def cmd_replay(a: argparse.Namespace) -> int:
+    from fieldrx_edge.gnss.sources import file_lines
+
+    speed = a.speed if a.speed > 0 else None
+    out = replay_stats(file_lines(a.log, speed))
+    if not a.json:
+        print(f"lines {out['lines']}, fixes {out['fixes']} (no fix {out['no_fix']})")
+        print(f"sentences {out['sentences']}, other {out['other_sentences']}")
+        print(f"bad checksum {out['bad_checksum']}, malformed {out['malformed']}")
+        print(f"fix quality {out['fix_quality']}")
+        print(f"speed std raw {out['speed_raw_std']} m/s, filtered {out['speed_filtered_std']} m/s")
+    else:
+        print(json.dumps(out))
+    return 0
+
+
+# -- ndvi -----------------------------------------------------------------
+
+
+def cmd_ndvi(a: argparse.Namespace) -> int:
+    from fieldrx_edge.gnss.sources import open_source
+    from fieldrx_edge.ndvi import NdviMode
+
+    mode = NdviMode(width_m=a.width)
+    speed = a.speed_kmh / 3.6
+    n = 0
+    rates = []
+    for s in mode.samples(open_source(a.source)):
+        d = mode.on_sample(s, speed)
+        rates.append(d.rate_kg_ha)
+        n += 1
+        if not a.json:
+            print(
+                f"ndvi {d.ndvi_raw:.3f} -> {d.ndvi:.3f}  rate {d.rate_kg_ha:6.1f} kg/ha"
+                f"  shaft {d.target_rpm:5.2f} r/min {' '.join(d.alarms)}"
+            )
+    if a.json:
+        print(
+            json.dumps(
+                {
+                    "samples": n,
+                    "bad_lines": mode.bad_lines,
+                    "mean_rate_kg_ha": sum(rates) / n if n else None,
+                }
+            )
+        )
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="fieldrx-edge", description=__doc__)
+    p.add_argument("-v", "--log-level", default="WARNING")
+    sub = p.add_subparsers(dest="cmd", required=True)
+
+    sp = sub.add_parser("pull", help="download this machine's jobs (device token)")
+    sp.add_argument("--server")
+    sp.add_argument("--token")
+    sp.add_argument("--state-dir")
+    sp.set_defaults(func=cmd_pull)
+
+    sp = sub.add_parser("run", help="run a cached job from a GNSS source")
+    sp.add_argument("job", help="cached job id, package file, or demo:35x23")
+    sp.add_argument("--state-dir")
+    sp.add_argument(
+        "--source",
+        default="serial:/dev/ttyACM0",
+        help="file:LOG, serial:DEV[@baud], tcp:HOST:PORT, udp:PORT",
+    )
+    sp.add_argument(
+        "--replay-speed",
+        type=float,
+        default=1.0,
+        help="file sources: 1 = recorded pace, 0 = as fast as possible",
+    )
+    sp.add_argument("--server")
+    sp.add_argument("--token")
+    sp.add_argument("--mqtt", help="HOST:PORT: send telemetry over MQTT instead of HTTP")
+    sp.add_argument("--offline", action="store_true", help="queue telemetry only")
+    sp.add_argument("--motor", default="sim", help="sim or serial:DEV")
+    sp.add_argument("--controller")
+    sp.add_argument("--lag-compensation", type=_on_off, default=True)
+    sp.add_argument("--response-s", type=float, default=0.035)
+    sp.add_argument("--drain-timeout", type=float, default=30.0)
+    sp.set_defaults(func=cmd_run)
+
+    sp = sub.add_parser("simulate", help="drive a job in simulation")
+    sp.add_argument("job", help="package file, or demo:35x23 / demo:20ha")
+    sp.add_argument("--speed", type=_speed_range, default=(3.0, 9.0))
+    sp.add_argument("--gnss-noise", type=float, default=0.02, help="position noise, m (1 sigma)")
+    sp.add_argument("--speed-noise", type=float, default=0.064, help="speed noise, m/s (1 sigma)")
+    sp.add_argument("--gnss-hz", type=float, default=10.0)
+    sp.add_argument("--controller")
+    sp.add_argument("--lag-compensation", type=_on_off, default=True)
+    sp.add_argument("--seed", type=int, default=0)
+    sp.add_argument(
+        "--compare-runs", type=int, default=20, help="swaths re-driven without compensation"
+    )
+    sp.add_argument("--server")
+    sp.add_argument("--token")
+    sp.add_argument("--state-dir")
+    sp.add_argument("--drain-timeout", type=float, default=60.0)
+    sp.add_argument("--cells-out")
+    sp.add_argument("--json", action="store_true")
+    sp.add_argument("--verbose", action="store_true")
+    sp.set_defaults(func=cmd_simulate)
+
+    sp = sub.add_parser("replay-nmea", help="parse a receiver log and report")
+    sp.add_argument("log")
+    sp.add_argument("--speed", type=float, default=0.0, help="0 = as fast as possible")
+    sp.add_argument("--json", action="store_true")
+    sp.set_defaults(func=cmd_replay)
+
+    sp = sub.add_parser("ndvi", help="seed 000 NDVI mode on a sensor log or serial port")
+    sp.add_argument("source")
+    sp.add_argument("--speed-kmh", type=float, default=6.0)
+    sp.add_argument("--width", type=float, default=3.6)
+    sp.add_argument("--json", action="store_true")
+    sp.set_defaults(func=cmd_ndvi)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    logging.basicConfig(level=getattr(logging, str(args.log_level).upper(), logging.WARNING))
+    return int(args.func(args) or 0)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
