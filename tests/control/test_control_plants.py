@@ -56,8 +56,9 @@ def test_plant_step_response_matches_scipy_dlsim() -> None:
     dt = 2e-3
     plant = seed001_motor(dt)
     y = [plant.output] + [plant.step(1.0) for _ in range(500)]
-    sysd = scipy.signal.cont2discrete((SEED001_NUM, SEED001_DEN), dt, method="zoh")
-    _, yref = scipy.signal.dstep((sysd[0], sysd[1], dt), n=501)
+    ss = scipy.signal.tf2ss(SEED001_NUM, SEED001_DEN)
+    a, b, c, d, _ = scipy.signal.cont2discrete(ss, dt, method="zoh")
+    _, yref = scipy.signal.dstep((a, b, c, d, dt), n=501)
     assert np.allclose(y, np.squeeze(yref[0]), atol=1e-12)
 
 
