@@ -88,7 +88,10 @@ def test_device_cannot_write_other_machines_records(client, db, org) -> None:  #
     assert all("not this device's machine" in r["reason"] for r in ack["rejected"])
     assert _count(db, b.machine_id) == 0
     # a user token cannot post telemetry at all
-    assert client.post("/api/v1/telemetry", json={"records": []}, headers=org.headers()).status_code == 403
+    assert (
+        client.post("/api/v1/telemetry", json={"records": []}, headers=org.headers()).status_code
+        == 403
+    )
     assert client.post("/api/v1/telemetry", json={"records": []}).status_code == 401
 
 
@@ -115,7 +118,9 @@ def test_status_cells_and_progress(client, db, job) -> None:  # noqa: ANN001
     _post(client, job, [record(job, 21, cell=3)])
     db.expire_all()
     assert (
-        db.execute(text("SELECT cells_applied FROM jobs WHERE id = :j"), {"j": job.job_id}).scalar_one()
+        db.execute(
+            text("SELECT cells_applied FROM jobs WHERE id = :j"), {"j": job.job_id}
+        ).scalar_one()
         == 4
     )
     st = db.execute(

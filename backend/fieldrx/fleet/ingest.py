@@ -382,8 +382,8 @@ def _status(
     """Upsert the machine's latest state; position fields only move forward in record time."""
     if not new:
         cur.execute(
-            "INSERT INTO machine_status (machine_id, last_seen_at, acked_seq, queue_backlog, alarms)"
-            " VALUES (%s, now(), %s, 0, '{}') ON CONFLICT (machine_id) DO UPDATE"
+            "INSERT INTO machine_status (machine_id, last_seen_at, acked_seq, queue_backlog,"
+            " alarms) VALUES (%s, now(), %s, 0, '{}') ON CONFLICT (machine_id) DO UPDATE"
             " SET last_seen_at = now(), acked_seq = excluded.acked_seq",
             (machine_id, acked),
         )

@@ -1,0 +1,106 @@
+"""The machine's side of jobs (device token only): list, download the package, report state.
+
+The package is served with its checksum as a strong ETag; ``If-None-Match``
+with the same checksum answers 304, so an agent polls cheaply. Downloading a
+job that was ``sent`` moves it to ``downloaded``.
+"""
+
+from __future__ import annotations
+
+import gzip
+from typing import Literal
+
+from fastapi import APIRouter, Request
+from fastapi.responses import Response
+from pydantic import BaseModel, Field
+from sqlalchemy import select
+
+from fieldrx.api.common import ApiError
+from fieldrx.api.jobs import JobOut, job_out
+from fieldrx.auth.deps import DeviceDep, Principal, SessionDep
+from fieldrx.db.models import Job
+from fieldrx.fleet.jobstate import change_state
+from fieldrx.fleet.package import load_package
+
+router = APIRouter(prefix="/device", tags=["device"])
+
+ACTIVE = ("sent", "downloaded", "running", "paused")
+
+
+class DeviceStateIn(BaseModel):
+    state: Literal["downloaded", "running", "paused", "completed"]
+    note: str = Field(default="", max_length=2000)
+
+
+class DeviceJobList(BaseModel):
+    items: list[JobOut]
+    total: int
+
+
+def _my_job(session: SessionDep, job_id: int, principal: Principal) -> Job:
+    job = session.get(Job, job_id)
+    if (
+        job is None
+        or job.organisation_id != principal.organisation_id
+        or job.machine_id != principal.machine_id
+    ):
+        raise ApiError(404, f"job {job_id} not found")
+    return job
+
+
+@router.get("/jobs", response_model=DeviceJobList)
+def device_jobs(principal: DeviceDep, session: SessionDep) -> DeviceJobList:
+    rows = list(
+        session.scalars(
+            select(Job)
+            .where(
+                Job.machine_id == principal.machine_id,
+                Job.organisation_id == principal.organisation_id,
+                Job.state.in_(ACTIVE),
+            )
+            .order_by(Job.id)
+        )
+    )
+    return DeviceJobList(items=[job_out(j) for j in rows], total=len(rows))
+
+
+@router.get(
+    "/jobs/{job_id:int}/package",
+    responses={200: {"description": "JobPackage JSON"}, 304: {"description": "not modified"}},
+)
+def job_package(
+    job_id: int, request: Request, principal: DeviceDep, session: SessionDep
+) -> Response:
+    job = _my_job(session, job_id, principal)
+    if job.state in ("planned", "completed", "aborted"):
+        raise ApiError(409, f"job {job_id} is '{job.state}': only sent or active jobs download")
+    pkg = load_package(session, job)
+    body = pkg.to_json()
+    etag = f'"{pkg.checksum}"'
+    changed = False
+    if job.package_checksum != pkg.checksum:
+        job.package_checksum = pkg.checksum
+        changed = True
+    if job.state == "sent":
+        changed |= change_state(session, job, "downloaded", machine_id=principal.machine_id)
+    if changed:
+        session.commit()
+    inm = request.headers.get("if-none-match", "")
+    if etag in [t.strip() for t in inm.split(",")] or inm.strip() == "*":
+        return Response(status_code=304, headers={"ETag": etag})
+    headers = {"ETag": etag, "Cache-Control": "no-cache", "Vary": "Accept-Encoding"}
+    if "gzip" in request.headers.get("accept-encoding", ""):
+        body = gzip.compress(body, compresslevel=6, mtime=0)
+        headers["Content-Encoding"] = "gzip"
+    return Response(content=body, media_type="application/json", headers=headers)
+
+
+@router.post("/jobs/{job_id:int}/state", response_model=JobOut)
+def device_state(
+    job_id: int, body: DeviceStateIn, principal: DeviceDep, session: SessionDep
+) -> JobOut:
+    job = _my_job(session, job_id, principal)
+    session.refresh(job, with_for_update=True)
+    change_state(session, job, body.state, machine_id=principal.machine_id, note=body.note)
+    session.commit()
+    return job_out(job)

@@ -1,0 +1,181 @@
+"""Jobs: a prescription version bound to a machine, and its life from planned to completed."""
+
+from __future__ import annotations
+
+import datetime as dt
+from typing import Literal
+
+from fastapi import APIRouter, Query
+from pydantic import BaseModel, Field
+from sqlalchemy import func, select
+
+from fieldrx.api.common import ApiError, get_scoped
+from fieldrx.auth.deps import SessionDep, UserDep, WriterDep
+from fieldrx.db.models import (
+    JOB_STATES,
+    Job,
+    JobEvent,
+    Machine,
+    Prescription,
+    PrescriptionRate,
+    PrescriptionVersion,
+)
+from fieldrx.fleet.jobstate import change_state, notify_job
+
+router = APIRouter(prefix="/jobs", tags=["jobs"])
+
+State = Literal["planned", "sent", "downloaded", "running", "paused", "completed", "aborted"]
+
+
+class JobIn(BaseModel):
+    prescription_id: int
+    version: int | None = Field(default=None, description="prescription version; default current")
+    machine_id: int
+    name: str = Field(default="", max_length=200)
+
+
+class StateIn(BaseModel):
+    state: State
+    note: str = Field(default="", max_length=2000)
+
+
+class EventOut(BaseModel):
+    state: str
+    at: dt.datetime
+    by_user_id: int | None
+    by_machine_id: int | None
+    note: str
+
+
+class JobOut(BaseModel):
+    id: int
+    name: str
+    state: str
+    prescription_id: int
+    prescription_version: int
+    machine_id: int
+    n_cells: int
+    cells_applied: int
+    progress: float
+    package_checksum: str
+    created_by: int | None
+    created_at: dt.datetime
+    updated_at: dt.datetime
+    events: list[EventOut] | None = None
+
+
+class JobList(BaseModel):
+    items: list[JobOut]
+    total: int
+
+
+def job_out(job: Job, events: list[JobEvent] | None = None) -> JobOut:
+    return JobOut(
+        id=job.id,
+        name=job.name,
+        state=job.state,
+        prescription_id=job.prescription_id,
+        prescription_version=job.prescription_version,
+        machine_id=job.machine_id,
+        n_cells=job.n_cells,
+        cells_applied=job.cells_applied,
+        progress=(job.cells_applied / job.n_cells) if job.n_cells else 0.0,
+        package_checksum=job.package_checksum,
+        created_by=job.created_by,
+        created_at=job.created_at,
+        updated_at=job.updated_at,
+        events=None
+        if events is None
+        else [EventOut.model_validate(e, from_attributes=True) for e in events],
+    )
+
+
+def _events(session: SessionDep, job_id: int) -> list[JobEvent]:
+    return list(
+        session.scalars(select(JobEvent).where(JobEvent.job_id == job_id).order_by(JobEvent.id))
+    )
+
+
+@router.post("", response_model=JobOut, status_code=201)
+def create_job(body: JobIn, principal: WriterDep, session: SessionDep) -> JobOut:
+    rx = session.get(Prescription, body.prescription_id)
+    if rx is None or rx.organisation_id != principal.organisation_id:
+        raise ApiError(
+            404, f"prescription {body.prescription_id} not found", where="prescription_id"
+        )
+    machine = session.get(Machine, body.machine_id)
+    if machine is None or machine.organisation_id != principal.organisation_id:
+        raise ApiError(404, f"machine {body.machine_id} not found", where="machine_id")
+    version = body.version if body.version is not None else rx.current_version
+    v = session.scalar(
+        select(PrescriptionVersion).where(
+            PrescriptionVersion.prescription_id == rx.id, PrescriptionVersion.version == version
+        )
+    )
+    if v is None:
+        raise ApiError(404, f"prescription {rx.id} has no version {version}", where="version")
+    n_cells = session.scalar(
+        select(func.count())
+        .select_from(PrescriptionRate)
+        .where(PrescriptionRate.version_id == v.id)
+    )
+    job = Job(
+        organisation_id=principal.organisation_id,
+        prescription_id=rx.id,
+        prescription_version=version,
+        machine_id=machine.id,
+        name=body.name or f"{rx.name or 'prescription ' + str(rx.id)} v{version} on {machine.name}",
+        state="planned",
+        n_cells=n_cells or 0,
+        cells_applied=0,
+        package_checksum="",
+        created_by=principal.user_id,
+    )
+    session.add(job)
+    session.flush()
+    session.add(JobEvent(job_id=job.id, state="planned", by_user_id=principal.user_id, note=""))
+    session.flush()
+    session.refresh(job)
+    notify_job(session, job)
+    session.commit()
+    return job_out(job, _events(session, job.id))
+
+
+@router.get("", response_model=JobList)
+def list_jobs(
+    principal: UserDep,
+    session: SessionDep,
+    state: list[State] | None = Query(default=None, description="filter; repeat for several"),
+    machine_id: int | None = None,
+    prescription_id: int | None = None,
+    limit: int = Query(default=100, ge=1, le=1000),
+    offset: int = Query(default=0, ge=0),
+) -> JobList:
+    stmt = select(Job).where(Job.organisation_id == principal.organisation_id)
+    if state:
+        stmt = stmt.where(Job.state.in_(state))
+    if machine_id is not None:
+        stmt = stmt.where(Job.machine_id == machine_id)
+    if prescription_id is not None:
+        stmt = stmt.where(Job.prescription_id == prescription_id)
+    total = session.scalar(select(func.count()).select_from(stmt.subquery())) or 0
+    rows = session.scalars(stmt.order_by(Job.id.desc()).limit(limit).offset(offset))
+    return JobList(items=[job_out(j) for j in rows], total=total)
+
+
+@router.get("/{job_id:int}", response_model=JobOut)
+def get_job(job_id: int, principal: UserDep, session: SessionDep) -> JobOut:
+    job = get_scoped(session, Job, job_id, principal)
+    return job_out(job, _events(session, job.id))
+
+
+@router.post("/{job_id:int}/state", response_model=JobOut)
+def set_state(job_id: int, body: StateIn, principal: WriterDep, session: SessionDep) -> JobOut:
+    job = get_scoped(session, Job, job_id, principal)
+    session.refresh(job, with_for_update=True)
+    change_state(session, job, body.state, user_id=principal.user_id, note=body.note)
+    session.commit()
+    return job_out(job, _events(session, job.id))
+
+
+assert set(JOB_STATES) == set(State.__args__)  # type: ignore[attr-defined]

@@ -1,0 +1,79 @@
+"""Job state machine: planned -> sent -> downloaded -> running <-> paused -> completed | aborted.
+
+Every change is a ``job_events`` row (when, and who: a user or a machine) and a
+live message. Asking for the state a job is already in is a no-op (a device
+that restarts may repeat "running"); anything else not in the table is a 409.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import json
+from typing import Any
+
+from sqlalchemy import text
+from sqlalchemy.orm import Session
+
+from fieldrx.api.common import ApiError
+from fieldrx.db.models import Job, JobEvent
+from fieldrx.fleet.alerts import LIVE_CHANNEL
+
+FINAL = ("completed", "aborted")
+TRANSITIONS: dict[str, tuple[str, ...]] = {
+    "planned": ("sent", "aborted"),
+    "sent": ("downloaded", "aborted"),
+    "downloaded": ("running", "aborted"),
+    "running": ("paused", "completed", "aborted"),
+    "paused": ("running", "completed", "aborted"),
+    "completed": (),
+    "aborted": (),
+}
+DEVICE_STATES = ("downloaded", "running", "paused", "completed")
+
+
+def change_state(
+    session: Session,
+    job: Job,
+    state: str,
+    *,
+    user_id: int | None = None,
+    machine_id: int | None = None,
+    note: str = "",
+) -> bool:
+    """Apply a transition (not committed); False when the job already is in ``state``."""
+    if state not in TRANSITIONS:
+        raise ApiError(422, f"unknown state '{state}'", where="state", allowed=list(TRANSITIONS))
+    if job.state == state:
+        return False
+    allowed = TRANSITIONS[job.state]
+    if state not in allowed:
+        hint = f"allowed: {', '.join(allowed)}" if allowed else f"'{job.state}' is final"
+        raise ApiError(
+            409,
+            f"job {job.id} cannot go from '{job.state}' to '{state}' ({hint})",
+            state=job.state,
+            allowed=list(allowed),
+        )
+    job.state = state
+    job.updated_at = dt.datetime.now(dt.UTC)
+    session.add(
+        JobEvent(
+            job_id=job.id, state=state, by_user_id=user_id, by_machine_id=machine_id, note=note
+        )
+    )
+    notify_job(session, job)
+    return True
+
+
+def notify_job(session: Session, job: Job) -> None:
+    msg: dict[str, Any] = {
+        "type": "job",
+        "org": job.organisation_id,
+        "job_id": job.id,
+        "machine_id": job.machine_id,
+        "state": job.state,
+        "cells_applied": job.cells_applied,
+        "n_cells": job.n_cells,
+        "progress": job.cells_applied / job.n_cells if job.n_cells else 0.0,
+    }
+    session.execute(text("SELECT pg_notify(:c, :p)"), {"c": LIVE_CHANNEL, "p": json.dumps(msg)})
