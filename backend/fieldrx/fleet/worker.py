@@ -1,0 +1,210 @@
+"""MQTT ingest worker: an MQTT 5 shared subscription, batched into ingest transactions.
+
+Several workers subscribe to ``$share/<group>/fieldrx/machines/+/telemetry``;
+the broker gives each message to one of them, so they split the load. A
+message is acknowledged to the broker (manual PUBACK) only after its records
+are committed, so a worker that dies loses nothing: the broker redelivers, and
+ingest deduplicates by (machine, seq). Messages that arrive within
+``batch_ms`` are grouped per machine into one transaction, and the
+``TelemetryAck`` goes back on ``ack_topic(machine_id)``.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import queue
+import socket
+import threading
+import time
+from dataclasses import dataclass, field
+from typing import Any
+from urllib.parse import urlparse
+
+import paho.mqtt.client as mqtt
+import psycopg
+from fieldrx_edge.protocol import ack_topic
+from paho.mqtt.packettypes import PacketTypes
+from paho.mqtt.properties import Properties
+
+from fieldrx.db.session import raw_dsn
+from fieldrx.fleet.alerts import check_no_data
+from fieldrx.fleet.ingest import IngestError, ingest
+
+log = logging.getLogger(__name__)
+
+TOPIC = "fieldrx/machines/+/telemetry"
+
+
+@dataclass
+class WorkerStats:
+    messages: int = 0
+    records: int = 0
+    stored: int = 0
+    duplicates: int = 0
+    rejected: int = 0
+    batches: int = 0
+    errors: int = 0
+    started: float = field(default_factory=time.monotonic)
+
+
+def _machine_of(topic: str) -> int | None:
+    parts = topic.split("/")
+    if len(parts) == 4 and parts[0] == "fieldrx" and parts[1] == "machines":
+        try:
+            return int(parts[2])
+        except ValueError:
+            return None
+    return None
+
+
+class IngestWorker:
+    """One worker process's MQTT client and its batching loop."""
+
+    def __init__(
+        self,
+        mqtt_url: str,
+        dsn: str | None = None,
+        group: str = "fieldrx",
+        batch_ms: float = 100.0,
+        client_id: str | None = None,
+        heartbeat_timeout_s: float = 30.0,
+        no_data_every_s: float = 5.0,
+    ) -> None:
+        u = urlparse(mqtt_url)
+        self.host = u.hostname or "127.0.0.1"
+        self.port = u.port or 1883
+        self.dsn = dsn or raw_dsn()
+        self.group = group
+        self.batch_s = batch_ms / 1000.0
+        self.heartbeat_timeout_s = heartbeat_timeout_s
+        self.no_data_every_s = no_data_every_s
+        self.stats = WorkerStats()
+        self.inbox: queue.Queue[mqtt.MQTTMessage] = queue.Queue()
+        self.subscribed = threading.Event()
+        self.persistent = client_id is not None
+        cid = client_id or f"fieldrx-worker-{socket.gethostname()}-{os.getpid()}"
+        self.client = mqtt.Client(
+            mqtt.CallbackAPIVersion.VERSION2,
+            client_id=cid,
+            protocol=mqtt.MQTTv5,
+            manual_ack=True,
+        )
+        self.client.on_connect = self._on_connect
+        self.client.on_message = self._on_message
+        self.client.on_subscribe = self._on_subscribe
+        self.client.reconnect_delay_set(0.5, 10)
+
+    # paho network thread ------------------------------------------------------------
+    def _on_connect(self, client, userdata, flags, reason_code, properties) -> None:  # noqa: ANN001
+        if reason_code.is_failure:
+            log.warning("MQTT connect failed: %s", reason_code)
+            return
+        client.subscribe(f"$share/{self.group}/{TOPIC}", qos=1)
+
+    def _on_subscribe(self, client, userdata, mid, reason_codes, properties) -> None:  # noqa: ANN001
+        log.warning("subscribed to $share/%s/%s", self.group, TOPIC)
+        self.subscribed.set()
+
+    def _on_message(self, client, userdata, msg: mqtt.MQTTMessage) -> None:  # noqa: ANN001
+        self.inbox.put(msg)
+
+    # processing thread -------------------------------------------------------------
+    def run(self, stop: threading.Event) -> WorkerStats:
+        # a stable client id keeps its session (and unacked messages) across restarts;
+        # a per-process id starts clean so no orphaned session holds messages
+        props = Properties(PacketTypes.CONNECT)
+        props.SessionExpiryInterval = 300 if self.persistent else 0
+        self.client.connect(
+            self.host, self.port, keepalive=30, clean_start=not self.persistent, properties=props
+        )
+        self.client.loop_start()
+        conn = psycopg.connect(self.dsn, options="-c jit=off")
+        last_check = 0.0
+        try:
+            while not stop.is_set():
+                try:
+                    first = self.inbox.get(timeout=0.2)
+                except queue.Empty:
+                    first = None
+                if first is not None:
+                    msgs = [first]
+                    deadline = time.monotonic() + self.batch_s
+                    while True:
+                        left = deadline - time.monotonic()
+                        if left <= 0:
+                            break
+                        try:
+                            msgs.append(self.inbox.get(timeout=left))
+                        except queue.Empty:
+                            break
+                    while True:  # whatever else is already waiting
+                        try:
+                            msgs.append(self.inbox.get_nowait())
+                        except queue.Empty:
+                            break
+                    conn = self._process(conn, msgs)
+                now = time.monotonic()
+                if now - last_check >= self.no_data_every_s:
+                    last_check = now
+                    try:
+                        check_no_data(conn, self.heartbeat_timeout_s)
+                    except psycopg.Error as exc:
+                        log.warning("no-data check failed: %s", exc)
+                        conn = self._reconnect(conn)
+        finally:
+            self.client.loop_stop()
+            self.client.disconnect()
+            conn.close()
+        return self.stats
+
+    def _reconnect(self, conn: psycopg.Connection[Any]) -> psycopg.Connection[Any]:
+        try:
+            conn.close()
+        finally:
+            time.sleep(0.5)
+        return psycopg.connect(self.dsn, options="-c jit=off")
+
+    def _process(
+        self, conn: psycopg.Connection[Any], msgs: list[mqtt.MQTTMessage]
+    ) -> psycopg.Connection[Any]:
+        by_machine: dict[int, tuple[list[Any], list[mqtt.MQTTMessage]]] = {}
+        for m in msgs:
+            self.stats.messages += 1
+            mid = _machine_of(m.topic)
+            try:
+                obj = json.loads(m.payload)
+                records = obj["records"] if isinstance(obj, dict) else None
+                if mid is None or not isinstance(records, list):
+                    raise ValueError("not a telemetry batch")
+            except (ValueError, KeyError) as exc:
+                log.warning("dropping bad message on %s: %s", m.topic, exc)
+                self.client.ack(m.mid, m.qos)
+                continue
+            entry = by_machine.setdefault(mid, ([], []))
+            entry[0].extend(records)
+            entry[1].append(m)
+        for machine_id, (records, ms) in by_machine.items():
+            while True:
+                try:
+                    result = ingest(conn, machine_id, records)
+                    break
+                except IngestError as exc:
+                    log.warning("dropping batch of machine %s: %s", machine_id, exc)
+                    result = None
+                    break
+                except psycopg.Error as exc:
+                    self.stats.errors += 1
+                    log.warning("ingest failed (%s); retrying", exc)
+                    conn = self._reconnect(conn)
+            if result is not None:
+                self.stats.batches += 1
+                self.stats.records += len(records)
+                self.stats.stored += result.stored
+                self.stats.duplicates += result.duplicates
+                self.stats.rejected += len(result.rejected)
+                self.client.publish(ack_topic(machine_id), result.to_json(), qos=1)
+            for m in ms:
+                self.client.ack(m.mid, m.qos)
+        return conn
