@@ -75,8 +75,11 @@ def test_reset_gives_identical_replay() -> None:
     assert seed001_run(pid, 2e-3, 1.0).u == first
 
 
-@pytest.mark.parametrize("change", [{"kp": 2.0}, {"kd": 0.2, "n": 50.0}, {"ki": 5.0}])
-def test_parameter_change_is_bumpless(change: dict[str, float]) -> None:
+@pytest.mark.parametrize(
+    "change",
+    [{"kp": 2.0}, {"kd": 0.2, "n": 50.0}, {"ki": 5.0}, {"derivative_on": "measurement"}],
+)
+def test_parameter_change_is_bumpless(change: dict[str, object]) -> None:
     dt = 1e-3
     pid = PID(**PAPER)
     plant = seed001_motor(dt)

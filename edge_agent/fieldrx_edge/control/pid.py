@@ -58,6 +58,7 @@ class PID(Controller):
         self._sig = 0.0  # last derivative signal
         self._e = 0.0
         self._started = False
+        self._reseed = False  # derivative signal switched: restart the filter without a kick
         self._u = 0.0
 
     @property
@@ -76,8 +77,8 @@ class PID(Controller):
 
     def _next_pd(self) -> float:
         """P + D the next step would add if the inputs did not change."""
-        if self.n is None:
-            d = 0.0  # backward difference of an unchanged signal
+        if self.n is None or self._reseed:
+            d = 0.0  # backward difference of an unchanged signal, or a re-seeded filter
         else:
             d = self.kd * self.n * (self._sig - self._filt)
         return self.kp * self._e + d
@@ -100,7 +101,7 @@ class PID(Controller):
             self._alpha_dt = -1.0
         if "derivative_on" in kw and kw["derivative_on"] != self.derivative_on:
             self.derivative_on = kw["derivative_on"]
-            self._started = False  # re-seed the filter on the new signal without a kick
+            self._reseed = self._started
         if self._started:
             self._integ += before - self._next_pd()
 
@@ -112,6 +113,9 @@ class PID(Controller):
             # a measurement history is the first measurement (no kick).
             self._filt = self._sig = 0.0 if self.derivative_on == "error" else sig
             self._started = True
+        elif self._reseed:
+            self._filt = self._sig = sig
+            self._reseed = False
         n = self.n
         if n is None:
             d = self.kd * (sig - self._sig) / dt
