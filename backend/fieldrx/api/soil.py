@@ -1,0 +1,79 @@
+"""Soil samples of a field: import CSV / GeoJSON (all or nothing), list as GeoJSON, delete."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from fastapi import APIRouter, HTTPException, Query, UploadFile
+from fastapi.responses import JSONResponse
+
+from fieldrx.agronomy.soil import SoilFormatError
+from fieldrx.api.common import ApiError, get_scoped
+from fieldrx.auth.deps import SessionDep, UserDep, WriterDep
+from fieldrx.db.models import Field
+from fieldrx.services import soil as svc
+
+router = APIRouter(prefix="/fields", tags=["soil"])
+
+MAX_BYTES = 20 * 1024 * 1024
+
+
+@router.post("/{field_id:int}/soil-samples", status_code=201)
+async def import_samples(
+    field_id: int,
+    file: UploadFile,
+    principal: WriterDep,
+    session: SessionDep,
+    skip_bad_rows: bool = Query(default=False, description="store the good rows, report the bad"),
+    epsg: int | None = Query(default=None, description="EPSG code of x/y columns (else lon/lat)"),
+) -> JSONResponse:
+    """Import samples. Any bad row rejects the whole file (422 listing row + column of every
+    error) unless ``skip_bad_rows``; samples outside the field are stored and reported."""
+    field = get_scoped(session, Field, field_id, principal)
+    data = await file.read(MAX_BYTES + 1)
+    if len(data) > MAX_BYTES:
+        raise HTTPException(413, f"file larger than {MAX_BYTES // 1024 // 1024} MB")
+    name = file.filename or "upload.csv"
+    try:
+        result = svc.parse_for_field(field, name, data, epsg, skip_bad_rows)
+    except SoilFormatError as exc:
+        raise ApiError(422, str(exc), where=name) from exc
+    report = result.summary()
+    if result.rejected:
+        n = len(result.errors)
+        first = "; ".join(str(e) for e in result.errors[:3])
+        more = f" (and {n - 3} more)" if n > 3 else ""
+        raise ApiError(
+            422,
+            f"{n} error(s), nothing imported: {first}{more}",
+            errors=report["errors"],
+            outside=report["outside"],
+            imported=0,
+        )
+    batch = svc.store_import(session, field, result, svc.ndvi_by_row(name, data))
+    session.commit()
+    return JSONResponse(
+        status_code=201,
+        content={
+            "imported": len(result.samples),
+            "import_batch": batch,
+            "skipped": len(result.errors),
+            "errors": report["errors"],
+            "outside": report["outside"],
+            "n_outside": len(result.outside),
+        },
+    )
+
+
+@router.get("/{field_id:int}/soil-samples")
+def list_samples(field_id: int, principal: UserDep, session: SessionDep) -> dict[str, Any]:
+    field = get_scoped(session, Field, field_id, principal)
+    return svc.samples_geojson(svc.sample_rows(session, field.id))
+
+
+@router.delete("/{field_id:int}/soil-samples")
+def delete_samples(field_id: int, principal: WriterDep, session: SessionDep) -> dict[str, int]:
+    field = get_scoped(session, Field, field_id, principal)
+    n = svc.delete_samples(session, field.id)
+    session.commit()
+    return {"deleted": n}
