@@ -110,12 +110,14 @@ class Pipeline:
                 self.on_cell_finished(self._applying)
             self._applying = -1
 
-    def _stop(self, d: Decision, reason: str) -> Decision:
+    def _stop(self, d: Decision, reason: str, finish: bool = True) -> Decision:
+        """Metering off. ``finish``: the landing point has left the cell being applied."""
         d.metering = False
         d.target_rate_kg_ha = 0.0
         d.target_rpm = 0.0
         d.reason = reason
-        self._finish_current()
+        if finish:
+            self._finish_current()
         self.last = d
         return d
 
@@ -196,7 +198,7 @@ class Pipeline:
         if idx != self._applying:
             self._finish_current()
         if not implement_down:
-            return self._stop(d, "implement_raised")
+            return self._stop(d, "implement_raised", finish=False)  # lowered again: resume
         if job.overlap_control and self.locator.finished[idx]:
             return self._stop(d, "already_applied")
         rate = self.rates[idx]
@@ -235,8 +237,7 @@ class Pipeline:
             d.heading_deg = last.heading_deg
             d.reason = "fix_lost_hold"
             return d  # self.last stays the last good decision
-        d.reason = "fix_lost"
-        self._finish_current()
+        d.reason = "fix_lost"  # the cell is not finished: resume in it when the fix returns
         if last is not None:
             last.metering = False
         return d

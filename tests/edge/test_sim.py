@@ -1,0 +1,103 @@
+"""Simulator acceptance (issue 6): LADRC + lag compensation at 3-9 km/h."""
+
+import dataclasses
+import json
+import subprocess
+import sys
+
+import numpy as np
+from fieldrx_edge.sim.simulator import SimConfig, simulate, summary
+
+from .jobfactory import field_20ha, holed_field, trial_plot
+
+
+def run(job, cfg, compare_runs=20):
+    res = simulate(job, cfg)
+    ru = simulate(job, dataclasses.replace(cfg, lag_compensation=False), max_runs=compare_runs)
+    return summary(res, ru, cfg, job), res
+
+
+def test_trial_plot_35x23_meets_accuracy_and_lag():
+    job = trial_plot()
+    for seed in (0, 1, 2):
+        out, res = run(job, SimConfig(seed=seed, controller="ladrc"))
+        assert out["cells"] == 70
+        assert out["mean_accuracy_pct"] >= 98.0, out
+        assert out["mean_lag_m"] <= 0.28, out
+        assert out["mean_lag_uncompensated_m"] > 1.0, out  # ~ v * T_lag without compensation
+        assert out["uncompensated_mean_accuracy_pct"] < out["mean_accuracy_pct"]
+        assert out["lag_borders"] >= 10
+
+
+def test_20ha_field_meets_accuracy_and_lag():
+    job = field_20ha()
+    cfg = SimConfig(seed=0, controller="ladrc")
+    out, res = run(job, cfg, compare_runs=10)
+    assert out["cells"] == 17_400
+    assert out["mean_accuracy_pct"] >= 98.0, out
+    assert out["mean_lag_m"] <= 0.28, out
+    assert out["mean_lag_uncompensated_m"] > 1.0, out
+    # mass balance: what landed in cells + outside + wasted in headland turns <= metered
+    assert res.cell_m2_g.sum() / 1000 <= res.applied_total_kg + 1e-6
+    assert out["applied_outside_kg"] < 0.001 * out["applied_total_kg"]
+
+
+def test_accuracy_definition_eq_17_18():
+    job = trial_plot()
+    out, res = run(job, SimConfig(seed=3))
+    m1, m2 = res.cell_m1_g, res.cell_m2_g
+    # M1 = M v t l / 36 g for a full 5 m x 2.3 m cell = rate * 11.5 m^2 / 10
+    assert np.allclose(m1, np.asarray(job.rate_kg_ha) * 11.5 / 10.0)
+    assert np.allclose(res.cell_accuracy_pct, (1 - np.abs(m1 - m2) / m1) * 100)
+
+
+def test_hole_gets_nothing_and_pid_is_worse_than_ladrc():
+    job = holed_field()
+    out_l, res = run(job, SimConfig(seed=0, controller="ladrc"))
+    assert out_l["mean_accuracy_pct"] >= 98.0
+    assert out_l["applied_outside_kg"] < 0.01 * out_l["applied_total_kg"]
+    slow = SimConfig(seed=0, controller="pid", lag_compensation=False)
+    out_p = summary(simulate(job, slow), None, slow, job)
+    assert out_p["mean_accuracy_pct"] < out_l["mean_accuracy_pct"]
+    assert out_p["mean_lag_m"] > 1.0
+
+
+def test_simulate_cli_json(tmp_path):
+    job = trial_plot()
+    jp = tmp_path / "job.json"
+    jp.write_bytes(job.to_json())
+    cells = tmp_path / "cells.csv"
+    out = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "fieldrx_edge.cli",
+            "simulate",
+            str(jp),
+            "--speed",
+            "3-9km/h",
+            "--gnss-noise",
+            "0.02",
+            "--controller",
+            "ladrc",
+            "--lag-compensation",
+            "on",
+            "--json",
+            "--cells-out",
+            str(cells),
+        ],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    res = json.loads(out.stdout.strip().splitlines()[-1])
+    for k in (
+        "mean_accuracy_pct",
+        "min_accuracy_pct",
+        "mean_lag_m",
+        "mean_lag_uncompensated_m",
+        "applied_outside_kg",
+    ):
+        assert k in res
+    assert res["mean_accuracy_pct"] >= 98.0
+    assert len(cells.read_text().splitlines()) == 71
