@@ -14,7 +14,7 @@ export function OrgSwitcher({ session, onChange }: { session: SessionInfo; onCha
       onChange={async (e) => {
         const id = Number(e.target.value);
         try {
-          const r = await api.post<{ access_token?: string } & SessionInfo>('/auth/switch-organisation', {
+          const r = await api.post<{ access_token?: string } & SessionInfo>('/auth/switch', {
             organisation_id: id,
           });
           const info = { ...session, organisation: r.organisation ?? orgs.find((o) => o.id === id) };

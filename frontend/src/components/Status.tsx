@@ -3,7 +3,8 @@ import { ApiError, errorText } from '../api';
 
 export function ErrorBox({ error, testid = 'error' }: { error: unknown; testid?: string }) {
   if (!error) return null;
-  const items = error instanceof ApiError ? error.parsed.items : [];
+  const all = error instanceof ApiError ? error.parsed.items : [];
+  const items = all.length === 1 && all[0].message === (error as ApiError).message ? [] : all;
   return (
     <div className="error" data-testid={testid} role="alert">
       <div>{error instanceof ApiError ? error.message : errorText(error)}</div>

@@ -76,6 +76,7 @@ export function FieldEditor({ fieldId }: { fieldId?: number }) {
     if (crossing)
       pts.push({ type: 'Feature', properties: { kind: 'local' }, geometry: { type: 'Point', coordinates: crossing } });
     setGeoJSON(map, 'problems', { type: 'FeatureCollection', features: pts });
+    if (map.getLayer('problems')) map.moveLayer('problems'); // above terra-draw's layers
     setGeoJSON(map, 'holes', {
       type: 'FeatureCollection',
       features: holes.map((h) => ({
@@ -86,12 +87,17 @@ export function FieldEditor({ fieldId }: { fieldId?: number }) {
     });
   }, [serverLoc?.[0], serverLoc?.[1], crossing?.[0], crossing?.[1], holes]);
 
+  // The finished outer ring's terra-draw id; hole sketches never count as the boundary.
+  const outerIdRef = useRef<string | number | null>(null);
   const syncOuter = () => {
     const draw = drawRef.current;
     if (!draw) return;
-    const polys = draw.getSnapshot().filter((f) => f.geometry.type === 'Polygon' && !f.properties?.hole);
-    const last = polys[polys.length - 1];
-    setOuter(last ? ({ type: 'Polygon', coordinates: last.geometry.coordinates } as PolygonGeom) : null);
+    const snap = draw.getSnapshot().filter((f) => f.geometry.type === 'Polygon');
+    let f = outerIdRef.current != null ? snap.find((x) => x.id === outerIdRef.current) : undefined;
+    // While the first boundary is being drawn, show its area live.
+    if (!f && outerIdRef.current == null && modeRef.current !== 'hole') f = snap[snap.length - 1];
+    if (modeRef.current === 'hole' && !f) return;
+    setOuter(f ? ({ type: 'Polygon', coordinates: f.geometry.coordinates } as PolygonGeom) : null);
   };
 
   const onReady = (map: maplibregl.Map) => {
@@ -109,7 +115,12 @@ export function FieldEditor({ fieldId }: { fieldId?: number }) {
       id: 'problems',
       type: 'circle',
       source: 'problems',
-      paint: { 'circle-radius': 9, 'circle-color': '#d7263d', 'circle-stroke-color': '#fff', 'circle-stroke-width': 2 },
+      paint: {
+        'circle-radius': 14,
+        'circle-color': 'rgba(215, 38, 61, 0.35)',
+        'circle-stroke-color': '#d7263d',
+        'circle-stroke-width': 3,
+      },
     });
     const draw = new TerraDraw({
       adapter: new TerraDrawMapLibreGLAdapter({ map }),
@@ -142,6 +153,8 @@ export function FieldEditor({ fieldId }: { fieldId?: number }) {
         return;
       }
       // One outer ring at a time: a new polygon replaces the previous one.
+      outerIdRef.current = id;
+      setError(null); // a new boundary: the old server verdict no longer applies
       const others = draw
         .getSnapshot()
         .filter((x) => x.id !== id)
@@ -165,13 +178,14 @@ export function FieldEditor({ fieldId }: { fieldId?: number }) {
           const [first, ...rest] = parts;
           setExtraParts(rest);
           setHoles(first.slice(1));
-          draw.addFeatures([
+          const [added] = draw.addFeatures([
             {
               type: 'Feature',
               geometry: { type: 'Polygon', coordinates: [first[0]] },
               properties: { mode: 'polygon' },
             },
           ]);
+          if (added?.valid) outerIdRef.current = added.id ?? null;
           syncOuter();
           draw.setMode('select');
           setMode('select');
@@ -207,7 +221,7 @@ export function FieldEditor({ fieldId }: { fieldId?: number }) {
     const feature = {
       type: 'Feature',
       geometry,
-      properties: { name, farm_id: farmId ? Number(farmId) : null, crop: crop || null },
+      properties: { name, farm_id: farmId ? Number(farmId) : null, ...(crop ? { crop } : {}) },
     };
     try {
       const r = fieldId
@@ -299,8 +313,11 @@ export function FieldEditor({ fieldId }: { fieldId?: number }) {
           </button>
           <button
             className="secondary"
+            data-testid="draw-clear"
             onClick={() => {
               drawRef.current?.clear();
+              outerIdRef.current = null;
+              setError(null);
               setHoles([]);
               setOuter(null);
               switchMode('polygon');

@@ -34,7 +34,7 @@ export function MachinesScreen() {
               width_m: Number(width),
               lag_s: Number(lag),
               // seed 001 eq. 1 calibration (SCIENCE.md)
-              calibration: { kind: 'linear', slope_g_min_per_rpm: 237.2, offset_g_min: -404.4, rpm_min: 30, rpm_max: 130 },
+              calibration: { kind: 'linear', slope_g_min_per_rpm: 237.2, intercept_g_min: -404.4, min_rpm: 30, max_rpm: 130 },
             });
             setName('');
             await load();

@@ -56,7 +56,11 @@ export function PlanScreen({ planId }: { planId: number }) {
     if (field) fitTo(map, bboxOf(field));
   };
 
-  const s = { ...(plan ?? {}), ...((plan?.stats as Record<string, unknown>) ?? {}) } as Record<string, unknown>;
+  const s = {
+    ...(plan ?? {}),
+    ...((plan?.metrics as Record<string, unknown>) ?? {}),
+    ...((plan?.stats as Record<string, unknown>) ?? {}),
+  } as Record<string, unknown>;
   const coverage = pick(s, 'coverage', 'coverage_fraction', 'coverage_ratio');
   const coveragePct = pick(s, 'coverage_pct', 'coverage_percent');
   return (
@@ -70,7 +74,7 @@ export function PlanScreen({ planId }: { planId: number }) {
             items={[
               ['Swath width', `${plan.swath_width_m ?? '–'} m`],
               ['Cell length', `${plan.cell_length_m ?? '–'} m`],
-              ['Heading rule', `${plan.heading_rule ?? '–'}${plan.heading_deg != null ? ` (${plan.heading_deg}°)` : ''}`],
+              ['Heading rule', `${plan.heading_rule ?? '–'}${plan.heading_deg != null ? ` (${Number(plan.heading_deg).toFixed(1)}°)` : ''}`],
               ['Headland passes', String(plan.headland_passes ?? '–')],
               ['Swaths', String(pick(s, 'swath_count', 'swaths', 'n_swaths') ?? '–'), 'plan-swaths'],
               ['Turns', String(pick(s, 'turn_count', 'turns', 'n_turns') ?? '–'), 'plan-turns'],
@@ -80,7 +84,9 @@ export function PlanScreen({ planId }: { planId: number }) {
                 'plan-coverage',
               ],
               ['Cells', String(pick(s, 'cell_count', 'cells', 'n_cells') ?? '–'), 'plan-cells'],
-              ['Path length', formatDistance(pick(s, 'path_length_m', 'length_m')), 'plan-length'],
+              ['Working length', formatDistance(pick(s, 'working_length_m', 'path_length_m')), 'plan-length'],
+              ['Turns / transit', formatDistance(pick(s, 'nonworking_length_m'))],
+              ['Overlap', pick(s, 'overlap_pct') != null ? formatPercent(pick(s, 'overlap_pct')! / 100) : '–'],
             ]}
           />
         )}

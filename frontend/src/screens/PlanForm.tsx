@@ -23,10 +23,10 @@ export function PlanForm({ fieldId, onCreated }: { fieldId: number; onCreated: (
         const body: Record<string, unknown> = {
           swath_width_m: Number(swath),
           cell_length_m: Number(cell),
-          heading_rule: rule,
+          heading: rule,
           headland_passes: Number(headland),
         };
-        if (rule === 'fixed') body.heading_deg = Number(heading);
+        if (rule === 'angle') body.angle_deg = Number(heading);
         try {
           onCreated(await api.post<Plan>(`/fields/${fieldId}/plans`, body));
         } catch (err) {
@@ -49,11 +49,11 @@ export function PlanForm({ fieldId, onCreated }: { fieldId: number; onCreated: (
         Heading rule
         <select data-testid="plan-heading-rule" value={rule} onChange={(e) => setRule(e.target.value)}>
           <option value="longest_edge">Parallel to the longest edge</option>
-          <option value="min_turns">Fewest turns</option>
-          <option value="fixed">Fixed heading</option>
+          <option value="optimal">Optimal (fewest turns)</option>
+          <option value="angle">Fixed heading</option>
         </select>
       </label>
-      {rule === 'fixed' && (
+      {rule === 'angle' && (
         <label>
           Heading (° from north)
           <input data-testid="plan-heading" type="number" value={heading} onChange={(e) => setHeading(e.target.value)} />

@@ -1,0 +1,364 @@
+// End-to-end: the agronomist's and fleet manager's path through the real UI,
+// against the real server and database (FIELDRX_URL, demo credentials).
+// Steps whose endpoints the server does not have yet are skipped with a reason.
+import { after, before, describe, it } from 'node:test';
+import assert from 'node:assert/strict';
+import { spawn } from 'node:child_process';
+import { existsSync, readFileSync, writeFileSync } from 'node:fs';
+import { join } from 'node:path';
+import {
+  ARTIFACTS,
+  BASE_URL,
+  EMAIL,
+  PASSWORD,
+  ROOT,
+  api,
+  apiLogin,
+  endpointExists,
+  launch,
+  listOf,
+  mapIdle,
+  serverUp,
+  shot,
+  sleep,
+  uiServed,
+} from './lib.mjs';
+
+const up = await serverUp();
+const ui = up && (await uiServed());
+const SKIP_ALL = !up
+  ? `no FieldRx server answers at ${BASE_URL} (set FIELDRX_URL)`
+  : !ui
+    ? `server at ${BASE_URL} does not serve the UI (build frontend/ first)`
+    : false;
+
+/** Shared state between steps (each step needs the previous one's result). */
+const S = {};
+let B;
+let page;
+let token;
+
+function need(t, ...keys) {
+  const missing = keys.filter((k) => S[k] == null);
+  if (missing.length) {
+    t.skip(`needs ${missing.join(', ')} from an earlier step`);
+    return false;
+  }
+  return true;
+}
+
+async function needEndpoint(t, method, path, what) {
+  if (await endpointExists(token, method, path)) return true;
+  t.skip(`${what}: ${method} /api/v1${path} not on this server yet`);
+  return false;
+}
+
+async function canvasBox(name) {
+  const box = await page.locator(`[data-testid=map-${name}] canvas`).first().boundingBox();
+  assert.ok(box, `map ${name} has a canvas`);
+  return box;
+}
+
+/** Click the given pixel offsets (relative to the map's centre) in order. */
+async function clickPath(name, pts) {
+  const box = await canvasBox(name);
+  const cx = box.x + box.width / 2;
+  const cy = box.y + box.height / 2;
+  for (const [dx, dy] of pts) {
+    await page.mouse.move(cx + dx, cy + dy, { steps: 3 });
+    await page.mouse.click(cx + dx, cy + dy);
+    await sleep(120);
+  }
+}
+
+describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
+  before(async () => {
+    token = await apiLogin();
+    B = await launch();
+    page = B.page;
+  });
+  after(async () => {
+    if (B) {
+      writeFileSync(join(ARTIFACTS, 'browser-console.log'), B.logs.join('\n'));
+      await B.close();
+    }
+  });
+
+  it('signs in', async () => {
+    await page.goto(`${BASE_URL}/#/login`);
+    await page.fill('[data-testid=login-email]', EMAIL);
+    await page.fill('[data-testid=login-password]', 'wrong password');
+    await page.click('[data-testid=login-submit]');
+    await page.waitForSelector('[data-testid=login-error]');
+    await shot(page, 'login-error');
+    await page.fill('[data-testid=login-password]', PASSWORD);
+    await page.click('[data-testid=login-submit]');
+    await page.waitForSelector('[data-testid=field-list]');
+    assert.equal(await page.textContent('[data-testid=current-user]'), EMAIL);
+    await mapIdle(page, 'fields');
+    await shot(page, 'fields');
+  });
+
+  it('draws a field by clicking, sees the validation error on the map, then saves a good one', async () => {
+    await page.click('[data-testid=new-field]');
+    await mapIdle(page, 'draw');
+    // Park the view east of the demo fields at a known zoom so clicks map to metres.
+    const fc = (await api(token, 'GET', '/fields?limit=500')).data;
+    const bb = fc.features.length ? fc.features.map((f) => f.bbox).filter(Boolean) : [];
+    const east = bb.length ? Math.max(...bb.map((b) => b[2])) + 0.01 : 112.33;
+    const lat = bb.length ? (Math.min(...bb.map((b) => b[1])) + Math.max(...bb.map((b) => b[3]))) / 2 : 32.13;
+    await page.evaluate(([lon, la]) => window.__fieldrxMaps.draw.jumpTo({ center: [lon, la], zoom: 16 }), [east, lat]);
+    await mapIdle(page, 'draw');
+
+    // A bow-tie: the UI marks the crossing, the server refuses it with a location.
+    await clickPath('draw', [[-120, -80], [120, 80], [120, -80], [-120, 80], [-120, -80]]);
+    await page.fill('[data-testid=field-name]', `E2E bow-tie ${Date.now()}`);
+    const bowtieClosed = await page.locator('[data-testid=draw-warning]').count();
+    if (bowtieClosed) {
+      await page.click('[data-testid=field-save]');
+      await page.waitForSelector('[data-testid=field-error]');
+      await shot(page, 'draw-invalid');
+      const msg = await page.textContent('[data-testid=field-error]');
+      assert.match(msg, /intersect|invalid/i, `server's reason shown: ${msg}`);
+      await mapIdle(page, 'draw');
+      const problems = await page.evaluate(
+        () => window.__fieldrxMaps.draw.queryRenderedFeatures({ layers: ['problems'] }).length,
+      );
+      assert.ok(problems > 0, 'problem location drawn on the map');
+    } else {
+      await shot(page, 'draw-invalid-refused');
+    }
+    await page.click('[data-testid=draw-clear]');
+
+    // A good field: ~350 m x ~220 m at zoom 16.
+    await clickPath('draw', [[-120, -75], [120, -80], [130, 70], [-110, 80], [-120, -75]]);
+    const area = await page.textContent('[data-testid=draw-area]');
+    assert.match(area, /ha/, `live area shown (${area})`);
+    // Cut a hole: the live area drops.
+    await page.click('[data-testid=mode-hole]');
+    await clickPath('draw', [[-60, -40], [60, -40], [60, 40], [-60, 40], [-60, -40]]);
+    await page.waitForSelector('[data-testid=hole-count]');
+    const areaHoled = await page.textContent('[data-testid=draw-area]');
+    const [a0, a1] = [parseFloat(area), parseFloat(areaHoled)];
+    assert.ok(a1 < a0 && a1 > 0.5 * a0, `hole reduces area: ${area} -> ${areaHoled}`);
+    S.fieldName = `E2E field ${Date.now()}`;
+    await page.fill('[data-testid=field-name]', S.fieldName);
+    await page.fill('[data-testid=field-crop]', 'winter oilseed rape');
+    await shot(page, 'draw-field');
+    await page.click('[data-testid=field-save]');
+    await page.waitForURL(/#\/fields\/\d+$/);
+    S.fieldId = Number(page.url().match(/#\/fields\/(\d+)/)[1]);
+    await page.waitForSelector(`[data-testid=field-title]:has-text("${S.fieldName}")`);
+    await mapIdle(page, 'field');
+    await shot(page, 'field-saved');
+    const f = (await api(token, 'GET', `/fields/${S.fieldId}`)).data;
+    assert.ok(f.properties.area_m2 > 10_000, `stored area ${f.properties.area_m2} m²`);
+  });
+
+  it('plans coverage and shows path, grid and stats', async (t) => {
+    if (!need(t, 'fieldId')) return;
+    if (!(await needEndpoint(t, 'GET', `/fields/${S.fieldId}/plans`, 'planning'))) return;
+    await page.fill('[data-testid=plan-swath]', '12');
+    await page.fill('[data-testid=plan-cell]', '5');
+    await page.selectOption('[data-testid=plan-heading-rule]', 'longest_edge');
+    await page.fill('[data-testid=plan-headland]', '1');
+    await page.click('[data-testid=plan-submit]');
+    await page.waitForURL(/#\/plans\/\d+$/, { timeout: 60_000 });
+    S.planId = Number(page.url().match(/#\/plans\/(\d+)/)[1]);
+    await page.waitForFunction(() => /\d/.test(document.querySelector('[data-testid=plan-cells]')?.textContent ?? ''));
+    await mapIdle(page, 'plan');
+    const cells = Number((await page.textContent('[data-testid=plan-cells]')).replace(/\D/g, ''));
+    assert.ok(cells > 100, `cells ${cells}`);
+    const rendered = await page.evaluate(() => window.__fieldrxMaps.plan.queryRenderedFeatures({ layers: ['grid-fill'] }).length);
+    await shot(page, 'plan');
+    assert.ok(rendered > 0, 'grid cells rendered from vector tiles');
+  });
+
+  it('uploads a soil CSV with an error, then a good one', async (t) => {
+    if (!need(t, 'fieldId')) return;
+    if (!(await needEndpoint(t, 'GET', `/fields/${S.fieldId}/soil-samples`, 'soil samples'))) return;
+    const f = (await api(token, 'GET', `/fields/${S.fieldId}`)).data;
+    const ring = f.geometry.coordinates[0][0];
+    const lons = ring.map((p) => p[0]);
+    const lats = ring.map((p) => p[1]);
+    const [w, e, s, n] = [Math.min(...lons), Math.max(...lons), Math.min(...lats), Math.max(...lats)];
+    const rows = [];
+    let k = 0;
+    for (let i = 1; i <= 3; i++)
+      for (let j = 1; j <= 3; j++) {
+        k++;
+        const lon = w + ((e - w) * i) / 4;
+        const la = s + ((n - s) * j) / 4;
+        rows.push(`S${k},${lon.toFixed(7)},${la.toFixed(7)},${(80 + 9 * k).toFixed(1)}`);
+      }
+    const header = 'sample_id,lon,lat,n_mg_kg';
+    const bad = [header, ...rows.slice(0, 4), 'S99,not-a-number,32.1,90', ...rows.slice(4)].join('\n');
+    const good = [header, ...rows].join('\n');
+    const badFile = join(ARTIFACTS, 'soil-bad.csv');
+    const goodFile = join(ARTIFACTS, 'soil-good.csv');
+    writeFileSync(badFile, `${bad}\n`);
+    writeFileSync(goodFile, `${good}\n`);
+    await page.goto(`${BASE_URL}/#/fields/${S.fieldId}`);
+    await page.setInputFiles('[data-testid=soil-file]', badFile);
+    await page.waitForSelector('[data-testid=soil-error]');
+    const errText = await page.textContent('[data-testid=soil-error]');
+    assert.match(errText, /row|line/i, `row error listed: ${errText}`);
+    await shot(page, 'soil-error');
+    await page.setInputFiles('[data-testid=soil-file]', goodFile);
+    await page.waitForSelector('[data-testid=soil-result]');
+    await page.waitForFunction(() => /^[1-9]/.test(document.querySelector('[data-testid=soil-count]')?.textContent ?? ''));
+    await mapIdle(page, 'field');
+    await shot(page, 'soil-ok');
+    S.soil = true;
+  });
+
+  it('builds a nutrient-balance prescription', async (t) => {
+    if (!need(t, 'planId', 'soil')) return;
+    if (!(await needEndpoint(t, 'GET', `/plans/${S.planId}/prescriptions`, 'prescriptions'))) return;
+    if (!(await needEndpoint(t, 'GET', `/prescriptions/0`, 'prescriptions'))) return;
+    await page.goto(`${BASE_URL}/#/plans/${S.planId}`);
+    await page.waitForSelector('[data-testid=rx-form]');
+    await page.selectOption('[data-testid=rx-model]', 'nutrient_balance');
+    await page.click('[data-testid=rx-submit]');
+    await page.waitForURL(/#\/prescriptions\/\d+$/, { timeout: 60_000 });
+    S.rxId = Number(page.url().match(/#\/prescriptions\/(\d+)/)[1]);
+    await page.waitForFunction(() => window.__fieldrxPerf?.rx?.idleMs != null, null, { timeout: 30_000 });
+    await mapIdle(page, 'rx');
+    await page.waitForFunction(() => /\d/.test(document.querySelector('[data-testid=rx-cell-count]')?.textContent ?? ''));
+    await shot(page, 'prescription');
+    const legend = await page.locator('[data-testid=rx-legend] .legend-row').count();
+    assert.ok(legend >= 1, 'legend drawn');
+  });
+
+  it('edits a cell rate (new version)', async (t) => {
+    if (!need(t, 'rxId')) return;
+    const box = await canvasBox('rx');
+    // Click the first rendered cell's centre.
+    const pt = await page.evaluate(() => {
+      const map = window.__fieldrxMaps.rx;
+      const f = map.queryRenderedFeatures({ layers: ['rx-fill'] })[0];
+      if (!f) return null;
+      const ring = f.geometry.type === 'Polygon' ? f.geometry.coordinates[0] : f.geometry.coordinates[0][0];
+      const c = ring.slice(0, -1).reduce((a, p) => [a[0] + p[0] / (ring.length - 1), a[1] + p[1] / (ring.length - 1)], [0, 0]);
+      return map.project(c);
+    });
+    assert.ok(pt, 'a rendered cell to click');
+    await page.mouse.click(box.x + pt.x, box.y + pt.y);
+    await page.waitForSelector('[data-testid=cell-panel]');
+    const before = await page.inputValue('[data-testid=rx-version]');
+    await page.fill('[data-testid=cell-new-rate]', '123.4');
+    await page.click('[data-testid=cell-save]');
+    await page.waitForSelector('[data-testid=rx-msg]:has-text("version")');
+    const afterV = await page.inputValue('[data-testid=rx-version]');
+    assert.notEqual(afterV, before, 'version changed after the edit');
+    S.rxVersion = Number(afterV);
+    await mapIdle(page, 'rx');
+    await shot(page, 'prescription-edited');
+  });
+
+  it('exports ISOXML as a download', async (t) => {
+    if (!need(t, 'rxId')) return;
+    const [dl] = await Promise.all([page.waitForEvent('download', { timeout: 30_000 }), page.click('[data-testid=export-isoxml]')]);
+    const file = join(ARTIFACTS, dl.suggestedFilename() || 'taskdata.zip');
+    await dl.saveAs(file);
+    const head = readFileSync(file).subarray(0, 5).toString('latin1');
+    assert.ok(head.startsWith('PK') || head.startsWith('<?xml') || head.startsWith('<ISO'), `ISOXML download (${head})`);
+    await shot(page, 'export-isoxml');
+  });
+
+  it('sends the job to a machine', async (t) => {
+    if (!need(t, 'rxId')) return;
+    if (!(await needEndpoint(t, 'GET', '/jobs', 'jobs'))) return;
+    const machines = listOf((await api(token, 'GET', '/machines')).data);
+    assert.ok(machines.length > 0, 'a machine exists (demo data)');
+    S.machineId = machines[0].id;
+    await page.selectOption('[data-testid=job-machine]', String(S.machineId));
+    await page.click('[data-testid=send-job]');
+    await page.waitForURL(/#\/jobs\?created=\d+/);
+    S.jobId = Number(page.url().match(/created=(\d+)/)[1]);
+    await page.waitForSelector(`[data-testid=job-row-${S.jobId}]`);
+    await shot(page, 'job-sent');
+  });
+
+  it('runs fieldrx-edge simulate and watches the machine on the fleet map', async (t) => {
+    if (!need(t, 'jobId', 'machineId')) return;
+    const edge = join(ROOT, '.venv', 'bin', 'fieldrx-edge');
+    if (!existsSync(edge)) return t.skip('fieldrx-edge is not installed in .venv');
+    const help = await run(edge, ['simulate', '--help'], 20_000);
+    if (help.code !== 0) return t.skip(`fieldrx-edge simulate is not available yet: ${help.err.trim().split('\n').pop()}`);
+    const dt = await api(token, 'POST', `/machines/${S.machineId}/device-token`);
+    assert.ok(dt.ok, `device token (${dt.status})`);
+    await page.goto(`${BASE_URL}/#/fleet`);
+    await mapIdle(page, 'fleet');
+    const args = ['simulate', '--server', BASE_URL, '--token', dt.data.token];
+    if (help.out.includes('--job')) args.push('--job', String(S.jobId));
+    if (help.out.includes('--speedup')) args.push('--speedup', process.env.FIELDRX_SIM_SPEEDUP ?? '20');
+    const sim = spawn(edge, args, { stdio: ['ignore', 'pipe', 'pipe'] });
+    let simOut = '';
+    sim.stdout.on('data', (d) => (simOut += d));
+    sim.stderr.on('data', (d) => (simOut += d));
+    try {
+      const pos = `[data-testid=machine-pos-${S.machineId}]`;
+      await page.waitForFunction((sel) => /\d+\.\d+, \d+\.\d+/.test(document.querySelector(sel)?.textContent ?? ''), pos, { timeout: 60_000 });
+      const p1 = await page.textContent(pos);
+      await shot(page, 'fleet-moving-1');
+      await page.waitForFunction(([sel, old]) => (document.querySelector(sel)?.textContent ?? old) !== old, [pos, p1], { timeout: 60_000 });
+      await shot(page, 'fleet-moving-2');
+      S.moved = true;
+      const ended = await waitExit(sim, Number(process.env.FIELDRX_SIM_TIMEOUT_MS ?? 120_000));
+      if (!ended) sim.kill('SIGTERM');
+    } finally {
+      if (sim.exitCode == null) sim.kill('SIGTERM');
+      writeFileSync(join(ARTIFACTS, 'edge-simulate.log'), simOut);
+    }
+  });
+
+  it('shows the job report filling', async (t) => {
+    if (!need(t, 'jobId', 'moved')) return;
+    if (!(await needEndpoint(t, 'GET', `/jobs/${S.jobId}/report`, 'job report'))) return;
+    await page.goto(`${BASE_URL}/#/jobs/${S.jobId}`);
+    await page.waitForFunction(
+      () => Number(document.querySelector('[data-testid=report-records]')?.textContent ?? 0) > 0 ||
+        /^[1-9]/.test(document.querySelector('[data-testid=report-features]')?.textContent ?? ''),
+      null,
+      { timeout: 30_000 },
+    );
+    await mapIdle(page, 'report');
+    await shot(page, 'report-applied');
+    await page.click('[data-testid=view-accuracy]');
+    await mapIdle(page, 'report');
+    await shot(page, 'report-accuracy');
+    const n = await page.evaluate(() => Number(document.querySelector('[data-testid=replay-slider]').max));
+    if (n > 2) {
+      await page.fill('[data-testid=replay-slider]', String(Math.floor(n / 2)));
+      await mapIdle(page, 'report');
+      await shot(page, 'report-replay');
+    }
+  });
+});
+
+function run(cmd, args, timeout) {
+  return new Promise((resolve) => {
+    const p = spawn(cmd, args, { stdio: ['ignore', 'pipe', 'pipe'] });
+    let out = '';
+    let err = '';
+    p.stdout.on('data', (d) => (out += d));
+    p.stderr.on('data', (d) => (err += d));
+    const timer = setTimeout(() => p.kill('SIGTERM'), timeout);
+    p.on('close', (code) => {
+      clearTimeout(timer);
+      resolve({ code, out, err });
+    });
+  });
+}
+
+function waitExit(p, ms) {
+  return new Promise((resolve) => {
+    if (p.exitCode != null) return resolve(true);
+    const timer = setTimeout(() => resolve(false), ms);
+    p.on('exit', () => {
+      clearTimeout(timer);
+      resolve(true);
+    });
+  });
+}
