@@ -62,6 +62,15 @@ def transform_geoms(geoms: Any, src_epsg: int, dst_epsg: int) -> Any:
     return shapely.transform(geoms, fn)
 
 
+def round_coords(geoms: Any, decimals: int) -> Any:
+    """Round every coordinate (fast, unlike GEOS ``set_precision``'s snapping overlay).
+
+    At 9 decimals of a degree (0.1 mm) or 3 of a metre this cannot make a
+    cell-sized polygon invalid.
+    """
+    return shapely.transform(geoms, lambda c: np.round(c, decimals))
+
+
 def transform_xy(
     x: np.ndarray, y: np.ndarray, src_epsg: int, dst_epsg: int
 ) -> tuple[np.ndarray, np.ndarray]:

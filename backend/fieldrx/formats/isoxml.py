@@ -32,7 +32,7 @@ import numpy as np
 import shapely
 from pyproj import Geod
 
-from fieldrx.agronomy.cells import CellTable, transform_geoms, transform_xy
+from fieldrx.agronomy.cells import CellTable, round_coords, transform_geoms, transform_xy
 from fieldrx.formats import FormatError
 
 DDI_SETPOINT_MASS_PER_AREA = 0x0006  # mg/m^2
@@ -103,7 +103,7 @@ def _common(
         {"A": "PFD1", "C": (field_name or "field")[:32], "D": str(int(round(field_area_m2)))},
     )
     for part in _polygon_parts(boundary_wgs84):
-        _pln(pfd, shapely.set_precision(part, 1e-9), "1", field_name)
+        _pln(pfd, round_coords(part, 9), "1", field_name)
     ET.SubElement(root, "PDT", {"A": "PDT1", "B": (product_name or "fertilizer")[:32]})
     tsk = ET.SubElement(
         root,
@@ -303,8 +303,8 @@ def write_isoxml_zones(
     _pdv(_tzn(tsk, 0, "no rate"), 0)
     for z, value in enumerate(setpoints.tolist()):
         members = cells.polygons_utm[zone == z]
-        merged = shapely.union_all(members, grid_size=1e-4)
-        merged_wgs = shapely.set_precision(transform_geoms(merged, cells.epsg, 4326), 1e-9)
+        merged = shapely.union_all(members)
+        merged_wgs = round_coords(transform_geoms(merged, cells.epsg, 4326), 9)
         tzn = _tzn(tsk, z + 1, f"{value / MG_M2_PER_KG_HA:.2f} kg/ha")
         for part in _polygon_parts(merged_wgs):
             _pln(tzn, part, "2")

@@ -17,7 +17,7 @@ import shapely
 from fieldrx_edge.metering import Calibration
 from fieldrx_edge.protocol import ControllerSettings, JobPackage
 
-from fieldrx.agronomy.cells import CellTable
+from fieldrx.agronomy.cells import CellTable, round_coords
 from fieldrx.formats import FormatError
 
 
@@ -28,7 +28,7 @@ def _round_list(a: np.ndarray, decimals: int) -> list[float]:
 def _geojson_coords(geom: Any, decimals: int = 3) -> dict[str, Any]:
     if geom is None or geom.is_empty or geom.geom_type not in ("Polygon", "MultiPolygon"):
         raise FormatError("job package: boundary_utm must be a non-empty Polygon or MultiPolygon")
-    g = shapely.set_precision(geom, 10.0**-decimals)
+    g = round_coords(geom, decimals)
     return json.loads(shapely.to_geojson(g))
 
 

@@ -15,7 +15,7 @@ import numpy as np
 import shapefile as pyshp
 import shapely
 
-from fieldrx.agronomy.cells import CellTable, flag_strings
+from fieldrx.agronomy.cells import CellTable, flag_strings, round_coords
 from fieldrx.formats import FormatError
 
 WGS84_PRJ = (
@@ -24,9 +24,8 @@ WGS84_PRJ = (
 )
 
 
-def _parts(geom: shapely.Geometry) -> list[list[list[float]]]:
-    """Rings of a (Multi)Polygon, exterior clockwise and holes counter-clockwise."""
-    g = shapely.orient_polygons(geom, exterior_cw=True)
+def _parts(g: shapely.Geometry) -> list[list[list[float]]]:
+    """Rings of an already oriented (Multi)Polygon."""
     polys = list(g.geoms) if g.geom_type == "MultiPolygon" else [g]
     rings: list[list[list[float]]] = []
     for p in polys:
@@ -49,7 +48,8 @@ def write_shapefile_zip(cells: CellTable, name: str = "prescription") -> bytes:
     w.field("UNIT", "C", 8)
     w.field("FLAG", "C", 80)
     w.field("AREA_M2", "N", 14, 2)
-    polys = shapely.set_precision(cells.polygons_wgs84(), 1e-9)
+    # exterior rings clockwise, holes counter-clockwise (Shapefile spec)
+    polys = shapely.orient_polygons(round_coords(cells.polygons_wgs84(), 9), exterior_cw=True)
     flags = flag_strings(cells.flags)
     for i in range(len(cells)):
         rings = _parts(polys[i])
