@@ -1,0 +1,252 @@
+"""Prescriptions: build from a plan + soil data, versions, cells, edits, exports."""
+
+from __future__ import annotations
+
+from typing import Any, Literal
+
+from fastapi import APIRouter, Query
+from fastapi.responses import Response
+from pydantic import BaseModel, Field, model_validator
+from sqlalchemy import select
+
+from fieldrx.agronomy.interpolate import InterpolationError
+from fieldrx.agronomy.prescription import PrescriptionError
+from fieldrx.agronomy.rates import MeterRangeError, RateModelError
+from fieldrx.api.common import ApiError, get_scoped
+from fieldrx.auth.deps import SessionDep, UserDep, WriterDep
+from fieldrx.db.models import Field as FieldRow
+from fieldrx.db.models import Machine, Plan, Prescription, PrescriptionVersion
+from fieldrx.formats import FormatError
+from fieldrx.services import exports
+from fieldrx.services import prescriptions as svc
+
+router = APIRouter(tags=["prescriptions"])
+
+MAX_PAGE = 50_000
+BAD_INPUT = (
+    FormatError,
+    svc.RxError,
+    PrescriptionError,
+    RateModelError,
+    MeterRangeError,
+    InterpolationError,
+)
+
+
+class PrescriptionIn(BaseModel):
+    name: str = Field(default="", max_length=200)
+    product: str = Field(default="", max_length=200)
+    model: str = Field(
+        default="nutrient_balance",
+        description="nutrient_balance | ndvi | uniform (aliases: ndvi_linear, constant)",
+    )
+    params: dict[str, Any] = Field(
+        default_factory=dict,
+        description="nutrient_balance: target_yield_kg_ha, n_fraction, e_kg_per_100kg, "
+        "k_utilisation; ndvi: ndvi_low, rate_at_low_kg_ha, ndvi_high, rate_at_high_kg_ha; "
+        "uniform: rate_kg_ha",
+    )
+    interpolation: Literal["cell_mean", "idw", "kriging"] = "cell_mean"
+    interpolation_params: dict[str, Any] = Field(
+        default_factory=dict,
+        description="idw: power, radius_m, k; kriging: variogram_model, nlags, max_distance_m",
+    )
+    fallback_rate_kg_ha: float | None = Field(default=None, ge=0)
+    machine_id: int | None = None
+    speed_min_kmh: float | None = Field(default=None, gt=0)
+    speed_max_kmh: float | None = Field(default=None, gt=0)
+    width_m: float | None = Field(default=None, gt=0)
+    calibration: dict[str, Any] | None = None
+
+
+class CellEdit(BaseModel):
+    seq: int = Field(ge=0)
+    rate_kg_ha: float = Field(ge=0)
+
+
+class EditIn(BaseModel):
+    cells: list[CellEdit] | None = None
+    zone: dict[str, Any] | None = Field(default=None, description="GeoJSON Polygon (lon/lat)")
+    rate_kg_ha: float | None = Field(default=None, ge=0, description="rate of the zone")
+    note: str = ""
+
+    @model_validator(mode="after")
+    def _one_kind(self) -> EditIn:
+        if (self.cells is None) == (self.zone is None):
+            raise ValueError("give either cells [{seq, rate_kg_ha}] or zone + rate_kg_ha")
+        if self.zone is not None and self.rate_kg_ha is None:
+            raise ValueError("a zone edit needs rate_kg_ha")
+        return self
+
+
+def _plan_field(session: SessionDep, plan: Plan) -> FieldRow:
+    field = session.get(FieldRow, plan.field_id)
+    assert field is not None
+    return field
+
+
+@router.post("/plans/{plan_id:int}/prescriptions", status_code=201)
+def create(plan_id: int, body: PrescriptionIn, principal: WriterDep, session: SessionDep) -> dict:
+    """Interpolate the field's samples onto the plan's cells, apply the rate model, clamp to
+    the metering range (flagged), and store version 1."""
+    plan = get_scoped(session, Plan, plan_id, principal)
+    field = _plan_field(session, plan)
+    machine = None
+    if body.machine_id is not None:
+        machine = session.get(Machine, body.machine_id)
+        if machine is None or machine.organisation_id != principal.organisation_id:
+            raise ApiError(422, f"machine {body.machine_id} not found", where="machine_id")
+    try:
+        meter = svc.meter_spec(
+            machine, plan, body.speed_min_kmh, body.speed_max_kmh, body.width_m, body.calibration
+        )
+        rx = svc.create_prescription(
+            session,
+            plan,
+            field,
+            name=body.name,
+            product=body.product,
+            model=body.model,
+            params=body.params,
+            interpolation=body.interpolation,
+            interpolation_params=body.interpolation_params,
+            fallback_rate_kg_ha=body.fallback_rate_kg_ha,
+            meter=meter,
+            machine_id=body.machine_id,
+            user_id=principal.user_id,
+            organisation_id=principal.organisation_id,
+        )
+    except BAD_INPUT as exc:
+        session.rollback()
+        raise ApiError(422, str(exc)) from exc
+    session.commit()
+    return svc.prescription_summary(session, rx)
+
+
+@router.get("/prescriptions")
+def list_prescriptions(
+    principal: UserDep, session: SessionDep, plan_id: int | None = None
+) -> dict[str, Any]:
+    stmt = select(Prescription).where(Prescription.organisation_id == principal.organisation_id)
+    if plan_id is not None:
+        stmt = stmt.where(Prescription.plan_id == plan_id)
+    rows = session.scalars(stmt.order_by(Prescription.id)).all()
+    return {"items": [svc.prescription_summary(session, r) for r in rows], "total": len(rows)}
+
+
+@router.get("/prescriptions/{rx_id:int}")
+def get_prescription(rx_id: int, principal: UserDep, session: SessionDep) -> dict[str, Any]:
+    """Current version's summary: area, product mass, mean/min/max, histogram, flags, CV RMSE."""
+    return svc.prescription_summary(session, get_scoped(session, Prescription, rx_id, principal))
+
+
+def _version(session: SessionDep, rx: Prescription, version: int | None) -> PrescriptionVersion:
+    try:
+        return svc.get_version(session, rx, version)
+    except LookupError as exc:
+        raise ApiError(404, str(exc)) from exc
+
+
+@router.get("/prescriptions/{rx_id:int}/versions")
+def list_versions(rx_id: int, principal: UserDep, session: SessionDep) -> dict[str, Any]:
+    rx = get_scoped(session, Prescription, rx_id, principal)
+    rows = session.scalars(
+        select(PrescriptionVersion)
+        .where(PrescriptionVersion.prescription_id == rx.id)
+        .order_by(PrescriptionVersion.version)
+    ).all()
+    return {
+        "items": [svc.version_summary(v) for v in rows],
+        "total": len(rows),
+        "current_version": rx.current_version,
+    }
+
+
+@router.get("/prescriptions/{rx_id:int}/versions/{version:int}")
+def get_version(rx_id: int, version: int, principal: UserDep, session: SessionDep) -> dict:
+    rx = get_scoped(session, Prescription, rx_id, principal)
+    return {"prescription_id": rx.id, **svc.version_summary(_version(session, rx, version))}
+
+
+@router.get("/prescriptions/{rx_id:int}/cells")
+def get_cells(
+    rx_id: int,
+    principal: UserDep,
+    session: SessionDep,
+    version: int | None = None,
+    limit: int = Query(default=1000, ge=1, le=MAX_PAGE),
+    offset: int = Query(default=0, ge=0),
+) -> dict[str, Any]:
+    """Cells of a version (default: current) with rate_kg_ha, flags, source_value; paged."""
+    rx = get_scoped(session, Prescription, rx_id, principal)
+    ver = _version(session, rx, version)
+    plan = session.get(Plan, rx.plan_id)
+    assert plan is not None
+    return {
+        "type": "FeatureCollection",
+        "features": svc.rates_page(session, plan.id, ver.id, limit, offset),
+        "total": plan.n_cells,
+        "version": ver.version,
+        "limit": limit,
+        "offset": offset,
+    }
+
+
+@router.post("/prescriptions/{rx_id:int}/edits", status_code=201)
+def edit(rx_id: int, body: EditIn, principal: WriterDep, session: SessionDep) -> dict[str, Any]:
+    """Per-cell rates or a painted zone -> version n+1 (n unchanged). Edited rates are
+    meter-checked; cells are flagged manual (cells) or zone (zone)."""
+    rx = get_scoped(session, Prescription, rx_id, principal)
+    plan = session.get(Plan, rx.plan_id)
+    assert plan is not None
+    try:
+        ver, changed = svc.edit_prescription(
+            session,
+            rx,
+            plan,
+            _plan_field(session, plan),
+            cells=None if body.cells is None else [(c.seq, c.rate_kg_ha) for c in body.cells],
+            zone=body.zone,
+            zone_rate_kg_ha=body.rate_kg_ha,
+            note=body.note,
+            user_id=principal.user_id,
+        )
+    except BAD_INPUT as exc:
+        session.rollback()
+        raise ApiError(422, str(exc)) from exc
+    session.commit()
+    out = svc.prescription_summary(session, rx)
+    out["edited_cells"] = changed
+    out["new_version"] = ver.version
+    return out
+
+
+@router.get("/prescriptions/{rx_id:int}/export")
+def export(
+    rx_id: int,
+    principal: UserDep,
+    session: SessionDep,
+    format: Literal["geojson", "csv", "shapefile", "isoxml", "isoxml-zones"] = "geojson",
+    version: int | None = None,
+) -> Response:
+    """One version as a file download (GeoJSON, Table 1 CSV, zipped Shapefile, TASKDATA.zip)."""
+    rx = get_scoped(session, Prescription, rx_id, principal)
+    ver = _version(session, rx, version)
+    try:
+        data, media, filename = exports.export_version(session, rx, ver, format)
+    except BAD_INPUT as exc:
+        raise ApiError(422, str(exc)) from exc
+    return Response(
+        content=data,
+        media_type=media,
+        headers={
+            "Content-Disposition": f'attachment; filename="{filename}"',
+            "ETag": f'"rx-{ver.id}-{format}"',
+        },
+    )
+
+
+@router.delete("/prescriptions/{rx_id:int}", status_code=204)
+def delete(rx_id: int, principal: WriterDep, session: SessionDep) -> None:
+    session.delete(get_scoped(session, Prescription, rx_id, principal))
+    session.commit()

@@ -1,0 +1,577 @@
+"""Prescriptions in PostGIS: build (pure agronomy) -> versions + per-cell rates (COPY).
+
+A prescription has immutable versions; version n's rates live in
+``prescription_rates`` under that version's id, so an edit writes a whole new
+rate set (n+1) and never touches n. The metering range used for clamping is
+kept in ``prescriptions.params["meter"]`` so edits are clamped the same way.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from fieldrx_edge.metering import SEED001_CALIBRATION, calibration_from_dict
+from geoalchemy2.shape import to_shape
+from sqlalchemy import func, select, text
+from sqlalchemy.orm import Session
+
+from fieldrx.agronomy.cells import FLAG_BITS, CellTable, flag_names
+from fieldrx.agronomy.interpolate import interpolate_to_cells
+from fieldrx.agronomy.prescription import (
+    MODEL_INPUT,
+    PrescriptionError,
+    apply_cell_edits,
+    build_prescription,
+    paint_zone,
+    summarize,
+)
+from fieldrx.agronomy.rates import MeterCheck
+from fieldrx.db.models import (
+    Field,
+    Machine,
+    Plan,
+    Prescription,
+    PrescriptionRate,
+    PrescriptionVersion,
+    SoilSample,
+)
+from fieldrx.geo.crs import lonlat_to_utm_coords, lonlat_to_utm_xy, to_utm
+from fieldrx.services.plans import driver_connection, load_cell_table
+
+MODEL_ALIASES = {"constant": "uniform", "ndvi_linear": "ndvi"}
+PARAM_ALIASES = {
+    "M": "target_yield_kg_ha",
+    "target_yield": "target_yield_kg_ha",
+    "x": "n_fraction",
+    "nutrient_fraction": "n_fraction",
+    "e": "e_kg_per_100kg",
+    "uptake_kg_per_100kg": "e_kg_per_100kg",
+    "k": "k_utilisation",
+    "utilisation": "k_utilisation",
+    "rate": "rate_kg_ha",
+}
+IGNORED_PARAMS = {"nutrient"}
+
+
+class RxError(ValueError):
+    """Bad prescription request; answered as 422 with this message."""
+
+
+def canonical_model(model: str, params: dict[str, Any]) -> tuple[str, dict[str, Any]]:
+    """Model name and parameters under the names agronomy.rates uses (aliases accepted)."""
+    m = MODEL_ALIASES.get(model, model)
+    out: dict[str, Any] = {}
+    for k, v in params.items():
+        if k in IGNORED_PARAMS:
+            continue
+        out[PARAM_ALIASES.get(k, k)] = v
+    return m, out
+
+
+@dataclass
+class MeterSpec:
+    calibration: dict[str, Any]
+    width_m: float
+    speed_min_m_s: float
+    speed_max_m_s: float
+
+    def check(self) -> MeterCheck:
+        return MeterCheck(
+            calibration_from_dict(self.calibration),
+            self.width_m,
+            self.speed_min_m_s,
+            self.speed_max_m_s,
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        return dict(self.__dict__)
+
+
+def meter_spec(
+    machine: Machine | None,
+    plan: Plan,
+    speed_min_kmh: float | None,
+    speed_max_kmh: float | None,
+    width_m: float | None,
+    calibration: dict[str, Any] | None,
+) -> MeterSpec | None:
+    """What the implement can meter: the machine's, overridden by explicit values.
+
+    None (no clamping) when neither a machine nor a speed range is given.
+    """
+    if machine is None and speed_min_kmh is None and speed_max_kmh is None:
+        return None
+    if machine is not None:
+        spec = MeterSpec(
+            dict(machine.calibration),
+            machine.width_m,
+            machine.speed_min_m_s,
+            machine.speed_max_m_s,
+        )
+    else:
+        spec = MeterSpec(
+            SEED001_CALIBRATION.to_dict(),
+            float((plan.params or {}).get("swath_width_m", 2.3)),
+            0.8,
+            2.5,
+        )
+    if speed_min_kmh is not None:
+        spec.speed_min_m_s = speed_min_kmh / 3.6
+    if speed_max_kmh is not None:
+        spec.speed_max_m_s = speed_max_kmh / 3.6
+    if width_m is not None:
+        spec.width_m = width_m
+    if calibration is not None:
+        spec.calibration = calibration
+    if not 0 < spec.speed_min_m_s <= spec.speed_max_m_s:
+        raise RxError(
+            f"speed range must satisfy 0 < min <= max, got {spec.speed_min_m_s * 3.6:g}.."
+            f"{spec.speed_max_m_s * 3.6:g} km/h"
+        )
+    try:
+        spec.check()
+    except (KeyError, TypeError, ValueError) as exc:
+        raise RxError(f"invalid metering calibration: {exc}") from exc
+    return spec
+
+
+def field_samples(
+    session: Session, field_id: int, column: str, epsg: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """UTM xy and values of the field's samples that have ``column``."""
+    col = getattr(SoilSample, column)
+    rows = session.execute(
+        select(func.ST_X(SoilSample.geom), func.ST_Y(SoilSample.geom), col)
+        .where(SoilSample.field_id == field_id, col.is_not(None))
+        .order_by(SoilSample.id)
+    ).all()
+    if not rows:
+        return np.zeros((0, 2)), np.zeros(0)
+    a = np.asarray(rows, dtype=float)
+    x, y = lonlat_to_utm_xy(a[:, 0], a[:, 1], epsg)
+    return np.column_stack([x, y]), a[:, 2]
+
+
+# --------------------------------------------------------------------------- rates COPY
+
+
+def _flags_literal(mask: int, cache: dict[int, str]) -> str:
+    s = cache.get(mask)
+    if s is None:
+        s = cache[mask] = "{" + ",".join(flag_names(mask)) + "}"
+    return s
+
+
+def copy_rates(
+    session: Session,
+    version_id: int,
+    seq: np.ndarray,
+    rate_kg_ha: np.ndarray,
+    flags: np.ndarray,
+    source_value: np.ndarray | None,
+) -> None:
+    """All rates of one version with one text COPY (in the session's transaction)."""
+    n = len(seq)
+    src = np.full(n, np.nan) if source_value is None else np.asarray(source_value, float)
+    cache: dict[int, str] = {}
+    seq_l = np.asarray(seq).tolist()
+    rate_l = np.asarray(rate_kg_ha, float).tolist()
+    src_l = [("\\N" if math.isnan(v) else repr(v)) for v in src.tolist()]
+    fl_l = [_flags_literal(m, cache) for m in np.asarray(flags, np.int64).tolist()]
+    conn = driver_connection(session)
+    step = 200_000
+    with (
+        conn.cursor() as cur,
+        cur.copy(
+            "COPY prescription_rates (version_id, seq, rate_kg_ha, source_value, flags) FROM STDIN"
+        ) as cp,
+    ):
+        for a in range(0, n, step):
+            b = min(n, a + step)
+            cp.write(
+                "".join(
+                    f"{version_id}\t{seq_l[i]}\t{rate_l[i]!r}\t{src_l[i]}\t{fl_l[i]}\n"
+                    for i in range(a, b)
+                )
+            )
+
+
+def load_rates(
+    session: Session, version_id: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(seq, rate_kg_ha, flag bits, source_value) of one version in path order."""
+    conn = driver_connection(session)
+    with conn.cursor() as cur:
+        cur.execute(
+            "SELECT seq, rate_kg_ha, coalesce(source_value, 'NaN'::float8), "
+            "array_to_string(flags, ',') FROM prescription_rates "
+            "WHERE version_id = %s ORDER BY seq",
+            (version_id,),
+        )
+        rows = cur.fetchall()
+    if not rows:
+        return np.zeros(0, np.int64), np.zeros(0), np.zeros(0, np.uint16), np.zeros(0)
+    seq, rate, src, fl = zip(*rows, strict=True)
+    cache: dict[str, int] = {}
+    masks = np.empty(len(fl), np.uint16)
+    for i, s in enumerate(fl):
+        m = cache.get(s)
+        if m is None:
+            m = cache[s] = sum(FLAG_BITS.get(name, 0) for name in s.split(",") if name)
+        masks[i] = m
+    return np.asarray(seq), np.asarray(rate, float), masks, np.asarray(src, float)
+
+
+# --------------------------------------------------------------------------- versions
+
+
+def get_version(session: Session, rx: Prescription, version: int | None) -> PrescriptionVersion:
+    n = rx.current_version if version is None else version
+    ver = session.scalar(
+        select(PrescriptionVersion).where(
+            PrescriptionVersion.prescription_id == rx.id, PrescriptionVersion.version == n
+        )
+    )
+    if ver is None:
+        raise LookupError(f"prescription {rx.id} has no version {n}")
+    return ver
+
+
+def version_summary(ver: PrescriptionVersion) -> dict[str, Any]:
+    return {
+        "version": ver.version,
+        "note": ver.note,
+        "created_at": ver.created_at.isoformat() if ver.created_at else None,
+        "created_by": ver.created_by,
+        "summary": ver.summary,
+    }
+
+
+def _stats(summary: dict[str, Any]) -> dict[str, Any]:
+    out = {k: v for k, v in summary.items() if isinstance(v, int | float) and v is not None}
+    fl = summary.get("flagged") or {}
+    out["cell_count"] = summary.get("n_cells", 0)
+    out["clamped_count"] = int(fl.get("below_meter_range", 0)) + int(fl.get("above_meter_range", 0))
+    out["no_data_count"] = int(fl.get("no_data", 0))
+    interp = summary.get("interpolation") or {}
+    if isinstance(interp, dict) and interp.get("loo_rmse") is not None:
+        out["kriging_cv_rmse"] = interp["loo_rmse"]
+    return out
+
+
+def prescription_summary(session: Session, rx: Prescription) -> dict[str, Any]:
+    vers = session.scalars(
+        select(PrescriptionVersion)
+        .where(PrescriptionVersion.prescription_id == rx.id)
+        .order_by(PrescriptionVersion.version)
+    ).all()
+    current = next((v for v in vers if v.version == rx.current_version), None)
+    summary = current.summary if current is not None else {}
+    p = rx.params or {}
+    return {
+        "id": rx.id,
+        "plan_id": rx.plan_id,
+        "machine_id": rx.machine_id,
+        "name": rx.name,
+        "product": rx.product,
+        "model": rx.model,
+        "params": p.get("model_params", {}),
+        "interpolation": p.get("interpolation"),
+        "interpolation_params": p.get("interpolation_params", {}),
+        "fallback_rate_kg_ha": p.get("fallback_rate_kg_ha"),
+        "meter": p.get("meter"),
+        "version": rx.current_version,
+        "current_version": rx.current_version,
+        "latest_version": rx.current_version,
+        "versions": [
+            {
+                "version": v.version,
+                "note": v.note,
+                "created_at": v.created_at.isoformat() if v.created_at else None,
+            }
+            for v in vers
+        ],
+        "summary": summary,
+        "stats": _stats(summary),
+        "created_at": rx.created_at.isoformat() if rx.created_at else None,
+    }
+
+
+def _new_version(
+    session: Session,
+    rx: Prescription,
+    version: int,
+    note: str,
+    user_id: int | None,
+    seq: np.ndarray,
+    rates: np.ndarray,
+    flags: np.ndarray,
+    source: np.ndarray | None,
+    summary: dict[str, Any],
+) -> PrescriptionVersion:
+    ver = PrescriptionVersion(
+        prescription_id=rx.id, version=version, note=note, summary=summary, created_by=user_id
+    )
+    session.add(ver)
+    session.flush()
+    copy_rates(session, ver.id, seq, rates, flags, source)
+    rx.current_version = version
+    session.flush()
+    return ver
+
+
+def _json_safe(obj: Any) -> Any:
+    """Summaries go into JSONB: no NaN / inf, numpy scalars as Python numbers."""
+    return json.loads(
+        json.dumps(obj, default=lambda o: o.item() if hasattr(o, "item") else str(o)).replace(
+            "NaN", "null"
+        )
+    )
+
+
+def create_prescription(
+    session: Session,
+    plan: Plan,
+    field: Field,
+    *,
+    name: str,
+    product: str,
+    model: str,
+    params: dict[str, Any],
+    interpolation: str,
+    interpolation_params: dict[str, Any],
+    fallback_rate_kg_ha: float | None,
+    meter: MeterSpec | None,
+    machine_id: int | None,
+    user_id: int | None,
+    organisation_id: int,
+) -> Prescription:
+    """Interpolate, rate, clamp and store version 1 (flush only). Raises ValueError subclasses."""
+    model, params = canonical_model(model, params)
+    if model not in MODEL_INPUT:
+        raise RxError(f"unknown model {model!r} (expected one of {sorted(MODEL_INPUT)})")
+    cells = load_cell_table(session, plan, field.utm_epsg)
+    if len(cells) == 0:
+        raise RxError(f"plan {plan.id} has no cells")
+    check = None if meter is None else meter.check()
+    column = MODEL_INPUT[model]
+    values = no_data = None
+    interp_info: dict[str, Any] | None = None
+    if column is not None:
+        xy, z = field_samples(session, field.id, column, field.utm_epsg)
+        if len(z) == 0:
+            what = "soil samples with n_mg_kg" if column == "n_mg_kg" else "samples with ndvi"
+            raise RxError(
+                f"model {model!r} needs {what} on field {field.id}: import them first "
+                f"(POST /api/v1/fields/{field.id}/soil-samples)"
+            )
+        res = interpolate_to_cells(
+            interpolation, cells.polygons_utm, cells.centroids_utm, xy, z, **interpolation_params
+        )
+        values, no_data = res.values, res.no_data
+        interp_info = {"method": res.method, "n_samples": int(len(z)), **res.info}
+    p = build_prescription(
+        model,
+        params,
+        len(cells),
+        values,
+        no_data,
+        check,
+        fallback_rate_kg_ha,
+        cells.area_m2,
+    )
+    summary = p.summary(cells.area_m2, seq=cells.seq)
+    if interp_info is not None:
+        summary["interpolation"] = interp_info
+    summary = _json_safe(summary)
+    rx = Prescription(
+        organisation_id=organisation_id,
+        plan_id=plan.id,
+        machine_id=machine_id,
+        name=name or f"{model} on plan {plan.id}",
+        product=product,
+        model=model,
+        params={
+            "model_params": params,
+            "interpolation": None if column is None else interpolation,
+            "interpolation_params": interpolation_params,
+            "fallback_rate_kg_ha": fallback_rate_kg_ha,
+            "meter": None if meter is None else meter.to_dict(),
+        },
+        current_version=1,
+    )
+    session.add(rx)
+    session.flush()
+    _new_version(
+        session, rx, 1, "created", user_id, cells.seq, p.rate_kg_ha, p.flags, values, summary
+    )
+    return rx
+
+
+def _meter_of(rx: Prescription) -> MeterCheck | None:
+    m = (rx.params or {}).get("meter")
+    return None if not m else MeterSpec(**m).check()
+
+
+def cell_centroids_utm(session: Session, plan_id: int, epsg: int) -> tuple[np.ndarray, np.ndarray]:
+    """(seq, UTM centroid) of every cell: what zone painting needs, without the polygons."""
+    rows = session.execute(
+        text(
+            "SELECT seq, ST_X(p), ST_Y(p) FROM (SELECT seq, CASE WHEN ST_Within(ST_Centroid(geom),"
+            " geom) THEN ST_Centroid(geom) ELSE ST_PointOnSurface(geom) END AS p "
+            "FROM plan_cells WHERE plan_id = :p) s ORDER BY seq"
+        ),
+        {"p": plan_id},
+    ).all()
+    a = np.asarray(rows, dtype=float).reshape(-1, 3)
+    return a[:, 0].astype(np.int64), lonlat_to_utm_coords(a[:, 1:], epsg)
+
+
+def edit_prescription(
+    session: Session,
+    rx: Prescription,
+    plan: Plan,
+    field: Field,
+    *,
+    cells: list[tuple[int, float]] | None,
+    zone: dict[str, Any] | None,
+    zone_rate_kg_ha: float | None,
+    note: str,
+    user_id: int | None,
+) -> tuple[PrescriptionVersion, int]:
+    """Make version n+1 from the current version n (n is left as it is)."""
+    from shapely.geometry import shape
+
+    base = get_version(session, rx, None)
+    seq, rates, flags, src = load_rates(session, base.id)
+    meter = _meter_of(rx)
+    if cells is not None:
+        if not cells:
+            raise RxError("cells: give at least one {seq, rate_kg_ha}")
+        edits: dict[int, float] = {}
+        for s, r in cells:
+            edits[int(s)] = float(r)
+        new_rates, new_flags = apply_cell_edits(seq, rates, flags, edits, meter)
+        changed = len(edits)
+    else:
+        if zone is None or zone_rate_kg_ha is None:
+            raise RxError("give either cells [{seq, rate_kg_ha}] or zone (Polygon) + rate_kg_ha")
+        try:
+            geom = shape(zone.get("geometry", zone) if zone.get("type") == "Feature" else zone)
+        except (ValueError, TypeError, AttributeError, KeyError, IndexError) as exc:
+            raise RxError(f"zone is not a GeoJSON Polygon: {exc}") from exc
+        zone_utm = to_utm(geom, field.utm_epsg)
+        cseq, cent = cell_centroids_utm(session, plan.id, field.utm_epsg)
+        if not np.array_equal(cseq, seq):
+            raise RxError("the plan's cells do not match the prescription's rates")
+        new_rates, new_flags, changed = paint_zone(
+            cent, rates, flags, zone_utm, zone_rate_kg_ha, meter
+        )
+        if changed == 0:
+            raise RxError("the zone covers no cell centre of this plan")
+    area = np.asarray(
+        session.execute(
+            text("SELECT area_m2 FROM plan_cells WHERE plan_id = :p ORDER BY seq"), {"p": plan.id}
+        )
+        .scalars()
+        .all(),
+        dtype=float,
+    )
+    summary = summarize(new_rates, new_flags, area, seq=seq)
+    old = base.summary or {}
+    for key in ("model", "params", "meter_range_kg_ha", "fallback_rate_kg_ha", "interpolation"):
+        if key in old:
+            summary[key] = old[key]
+    summary["edited_cells"] = int(changed)
+    summary["based_on_version"] = base.version
+    ver = _new_version(
+        session,
+        rx,
+        _max_version(session, rx) + 1,
+        note,
+        user_id,
+        seq,
+        new_rates,
+        new_flags,
+        src,
+        _json_safe(summary),
+    )
+    return ver, int(changed)
+
+
+def _max_version(session: Session, rx: Prescription) -> int:
+    return int(
+        session.scalar(
+            select(func.max(PrescriptionVersion.version)).where(
+                PrescriptionVersion.prescription_id == rx.id
+            )
+        )
+        or 0
+    )
+
+
+def rates_page(
+    session: Session, plan_id: int, version_id: int, limit: int, offset: int
+) -> list[dict[str, Any]]:
+    rows = session.execute(
+        text(
+            "SELECT c.seq, c.swath, c.area_m2, r.rate_kg_ha, r.flags, r.source_value, "
+            "ST_AsGeoJSON(c.geom, 9) FROM plan_cells c JOIN prescription_rates r "
+            "ON r.version_id = :v AND r.seq = c.seq "
+            "WHERE c.plan_id = :p AND c.seq >= :a AND c.seq < :b ORDER BY c.seq"
+        ),
+        {"p": plan_id, "v": version_id, "a": offset, "b": offset + limit},
+    )
+    out = []
+    for seq, swath, area, rate, flags, src, gj in rows:
+        fl = list(flags or [])
+        out.append(
+            {
+                "type": "Feature",
+                "id": seq,
+                "geometry": json.loads(gj),
+                "properties": {
+                    "seq": seq,
+                    "swath": swath,
+                    "area_m2": round(area, 3),
+                    "rate_kg_ha": rate,
+                    "flags": fl,
+                    "flag": ",".join(fl),
+                    "clamped": "below_meter_range" in fl or "above_meter_range" in fl,
+                    "source_value": src,
+                },
+            }
+        )
+    return out
+
+
+def version_cells(session: Session, rx: Prescription, ver: PrescriptionVersion) -> CellTable:
+    """The plan's cells with this version's rates and flags (for exports / job packages)."""
+    plan = session.get(Plan, rx.plan_id)
+    field = session.get(Field, plan.field_id) if plan is not None else None
+    if plan is None or field is None:
+        raise LookupError(f"prescription {rx.id}: plan or field is gone")
+    cells = load_cell_table(session, plan, field.utm_epsg)
+    seq, rates, flags, _ = load_rates(session, ver.id)
+    if not np.array_equal(seq, cells.seq):
+        raise RxError("the plan's cells do not match the prescription's rates")
+    return cells.with_rates(rates, flags)
+
+
+def field_boundary_wgs84(session: Session, rx: Prescription) -> Any:
+    plan = session.get(Plan, rx.plan_id)
+    field = session.get(Field, plan.field_id) if plan is not None else None
+    return None if field is None else (field, to_shape(field.boundary))
+
+
+__all__ = [
+    "PrescriptionError",
+    "RxError",
+    "PrescriptionRate",
+    "create_prescription",
+    "edit_prescription",
+]
