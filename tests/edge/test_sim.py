@@ -101,3 +101,42 @@ def test_simulate_cli_json(tmp_path):
         assert k in res
     assert res["mean_accuracy_pct"] >= 98.0
     assert len(cells.read_text().splitlines()) == 71
+
+
+def test_simulate_sends_telemetry_like_an_agent(tmp_path):
+    from .peer import Peer
+
+    peer = Peer().start()
+    try:
+        job = trial_plot(machine_id=9)
+        jp = tmp_path / "job.json"
+        jp.write_bytes(job.to_json())
+        out = subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "fieldrx_edge.cli",
+                "simulate",
+                str(jp),
+                "--json",
+                "--server",
+                peer.url,
+                "--token",
+                "dev-token",
+                "--state-dir",
+                str(tmp_path / "st"),
+            ],
+            capture_output=True,
+            text=True,
+            check=True,
+        )
+        res = json.loads(out.stdout.strip().splitlines()[-1])
+        assert res["telemetry_drained"] is True
+        n = res["fixes"]
+        assert sorted(s for (m, s) in peer.records if m == 9) == list(range(1, n + 1))
+        rec = peer.records[(9, n // 2)]
+        assert rec["job_id"] == job.job_id and rec["lon"] is not None
+        metering = [r for r in peer.records.values() if r["target_rate_kg_ha"]]
+        assert len(metering) > n // 3  # the rest is headland turns on a small plot
+    finally:
+        peer.stop()
