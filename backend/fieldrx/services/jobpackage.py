@@ -1,0 +1,71 @@
+"""Job package from the database: a prescription version bound to a machine (DESIGN.md step 5).
+
+For the fleet helper's ``/api/v1/device/jobs/{id}/package``: call
+
+    build_job_package(session, job) -> fieldrx_edge.protocol.JobPackage   (sealed)
+
+or, without a job row, ``build_package(session, prescription_id, version, machine, job_id=0)``.
+Cells come from ``plan_cells`` in path order (UTM corners straight from
+``plan_cells.corners_utm``, WGS84 corners through fieldrx.geo.crs), rates from
+``prescription_rates`` of that version, the boundary in the field's UTM zone.
+The serialising (rounding, checksum) is fieldrx.formats.jobpackage's.
+Raises ``LookupError`` when the prescription, version, plan or field is missing.
+"""
+
+from __future__ import annotations
+
+from fieldrx_edge.protocol import JobPackage
+from sqlalchemy.orm import Session
+
+from fieldrx.db.models import Field, Job, Machine, Plan, Prescription
+from fieldrx.services.plans import field_utm
+from fieldrx.services.prescriptions import get_version, version_cells
+
+
+def build_package(
+    session: Session,
+    prescription_id: int,
+    version: int | None,
+    machine: Machine,
+    job_id: int = 0,
+) -> JobPackage:
+    """Sealed JobPackage of one prescription version for one machine (version None = current)."""
+    from fieldrx.formats.jobpackage import build_job_package as build
+
+    rx = session.get(Prescription, prescription_id)
+    if rx is None:
+        raise LookupError(f"prescription {prescription_id} not found")
+    ver = get_version(session, rx, version)
+    plan = session.get(Plan, rx.plan_id)
+    field = session.get(Field, plan.field_id) if plan is not None else None
+    if plan is None or field is None:
+        raise LookupError(f"prescription {prescription_id}: plan or field is gone")
+    cells = version_cells(session, rx, ver)
+    return build(
+        cells,
+        field_utm(field),
+        job_id=job_id,
+        machine_id=machine.id,
+        prescription_id=rx.id,
+        prescription_version=ver.version,
+        field_name=field.name,
+        implement_width_m=machine.width_m,
+        lag_s=machine.lag_s,
+        calibration=dict(machine.calibration),
+        controller=dict(machine.controller or {}) or None,
+        antenna_forward_m=machine.antenna_forward_m,
+        antenna_lateral_m=machine.antenna_lateral_m,
+        speed_min_m_s=machine.speed_min_m_s,
+        speed_max_m_s=machine.speed_max_m_s,
+        product=rx.product,
+    )
+
+
+def build_job_package(session: Session, job: Job) -> JobPackage:
+    """Sealed JobPackage of a job row (its prescription version and machine)."""
+    machine = session.get(Machine, job.machine_id)
+    if machine is None:
+        raise LookupError(f"job {job.id}: machine {job.machine_id} not found")
+    return build_package(
+        session, job.prescription_id, job.prescription_version, machine, job_id=job.id
+    )

@@ -1,0 +1,69 @@
+"""services.jobpackage: a prescription version + machine -> a sealed JobPackage from PostGIS."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import shapely
+from fieldrx_edge.protocol import JobPackage
+
+from tests.plans.helpers import API
+from tests.prescriptions.helpers import all_cells, make_rx, setup_plan
+
+
+def test_job_package_from_database(client, org, db) -> None:
+    from fieldrx.db.models import Job, Machine
+    from fieldrx.services.jobpackage import build_job_package, build_package
+
+    h = org.headers()
+    plan = setup_plan(client, h)
+    m = client.post(
+        f"{API}/machines",
+        headers=h,
+        json={
+            "name": "S",
+            "width_m": 2.3,
+            "lag_s": 1.2,
+            "speed_min_m_s": 1.0,
+            "speed_max_m_s": 2.0,
+            "controller": {"name": "pid", "params": {"kp": 1.5}},
+        },
+    ).json()
+    rx = make_rx(client, h, plan["id"], model="uniform", params={"rate_kg_ha": 700})
+    r = client.post(
+        f"{API}/prescriptions/{rx['id']}/edits",
+        headers=h,
+        json={"cells": [{"seq": 2, "rate_kg_ha": 650.25}]},
+    )
+    assert r.status_code == 201
+    job = Job(
+        organisation_id=org.id,
+        prescription_id=rx["id"],
+        prescription_version=2,
+        machine_id=m["id"],
+        n_cells=plan["n_cells"],
+    )
+    db.add(job)
+    db.commit()
+    pkg = build_job_package(db, job)
+    assert isinstance(pkg, JobPackage) and pkg.checksum
+    again = JobPackage.from_json(pkg.to_json())  # checksum verified
+    assert again.n_cells == plan["n_cells"] and again.job_id == job.id
+    assert pkg.seq == list(range(plan["n_cells"]))
+    assert pkg.rate_kg_ha[2] == 650.25 and pkg.rate_kg_ha[0] == 700
+    assert pkg.implement_width_m == 2.3 and pkg.lag_s == 1.2 and pkg.speed_max_m_s == 2.0
+    assert pkg.controller.name == "pid" and pkg.utm_epsg == 32649
+    # WGS84 corners enclose the stored cell polygon
+    cells = all_cells(client, h, rx["id"], 2)
+    c = np.asarray(pkg.corners_wgs84).reshape(-1, 4, 2)
+    for i in range(0, len(cells), 7):
+        quad = shapely.Polygon(c[i])
+        cell = shapely.geometry.shape(cells[i]["geometry"])
+        assert cell.difference(quad.buffer(1e-7)).area < 1e-12
+    u = np.asarray(pkg.corners_utm).reshape(-1, 4, 2)
+    assert shapely.Polygon(u[0]).area == pytest.approx(2.3 * 5.0, rel=0.11)
+    # version 1 through the other entry point: the uniform rate everywhere
+    v1 = build_package(db, rx["id"], 1, db.get(Machine, m["id"]))
+    assert set(v1.rate_kg_ha) == {700.0}
+    with pytest.raises(LookupError):
+        build_package(db, rx["id"], 5, db.get(Machine, m["id"]))
