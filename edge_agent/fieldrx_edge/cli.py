@@ -14,7 +14,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from fieldrx_edge.jobs import JobStore, pull
+from fieldrx_edge.jobs import JobStore, pull, report_state
 from fieldrx_edge.protocol import JobPackage
 
 
@@ -117,7 +117,8 @@ def cmd_run(a: argparse.Namespace) -> int:
         if finished is not None:
             progress["finished"] = sorted(set(finished))
         progress["source_lines"] = state["lines"]
-        progress["state"] = "running"
+        if progress.get("state") != "completed":
+            progress["state"] = "running"
         store.save_progress(job.job_id, progress)
 
     rcfg = RuntimeConfig(lag_compensation=a.lag_compensation, response_s=a.response_s)
@@ -132,6 +133,10 @@ def cmd_run(a: argparse.Namespace) -> int:
     mth = threading.Thread(target=motor.run, args=(motor_stop,), daemon=True)
     mth.start()
     speed = a.replay_speed if a.replay_speed > 0 else None
+    if not a.offline:
+        threading.Thread(
+            target=report_state, args=(store, job.job_id, "running"), daemon=True
+        ).start()
     t0 = time.monotonic()
     try:
         for i, line in enumerate(open_source(a.source, speed)):
@@ -146,7 +151,12 @@ def cmd_run(a: argparse.Namespace) -> int:
     finally:
         motor_stop.set()
         mth.join(timeout=2.0)
+    done = len(set(progress.get("finished", []))) >= job.n_cells
+    if done:
+        progress["state"] = "completed"
     save_progress()
+    if done and not a.offline:
+        report_state(store, job.job_id, "completed")
     drained = True
     if sender is not None:
         stop.set()
@@ -326,31 +336,62 @@ def cmd_replay(a: argparse.Namespace) -> int:
 
 def cmd_ndvi(a: argparse.Namespace) -> int:
     from fieldrx_edge.gnss.sources import open_source
-    from fieldrx_edge.ndvi import NdviMode
+    from fieldrx_edge.motor import MotorLoop, build_controller, simulated_motor
+    from fieldrx_edge.ndvi import GnssSpeed, NdviMode, run_ndvi
+    from fieldrx_edge.protocol import ControllerSettings
 
     mode = NdviMode(width_m=a.width)
-    speed = a.speed_kmh / 3.6
-    n = 0
-    rates = []
-    for s in mode.samples(open_source(a.source)):
-        d = mode.on_sample(s, speed)
+    speed: Any = (
+        GnssSpeed(open_source(a.gnss, a.replay_speed or None)) if a.gnss else a.speed_kmh / 3.6
+    )
+    queue = sender = None
+    stop = threading.Event()
+    if a.machine_id:
+        from fieldrx_edge.uplink import TelemetryQueue
+
+        store = JobStore(a.state_dir)
+        queue = TelemetryQueue(store.queue_path(), a.machine_id)
+        sender = _make_sender(a, store, queue)
+        if sender is not None:
+            threading.Thread(target=sender.run, args=(stop,), daemon=True).start()
+    # the job-less NDVI mode drives the simulated motor (or --controller isp, seed 000)
+    settings = ControllerSettings(name=a.controller)
+    motor = MotorLoop(build_controller(settings), simulated_motor(0.01), 0.01)
+    mstop = threading.Event()
+    threading.Thread(target=motor.run, args=(mstop,), daemon=True).start()
+    rates: list[float] = []
+
+    def show(d: Any) -> None:
         rates.append(d.rate_kg_ha)
-        n += 1
         if not a.json:
             print(
                 f"ndvi {d.ndvi_raw:.3f} -> {d.ndvi:.3f}  rate {d.rate_kg_ha:6.1f} kg/ha"
                 f"  shaft {d.target_rpm:5.2f} r/min {' '.join(d.alarms)}"
             )
+
+    n = run_ndvi(
+        open_source(a.source, a.replay_speed or None),
+        mode,
+        speed,
+        motor,
+        queue,
+        a.machine_id or 1,
+        show,
+    )
+    mstop.set()
+    out: dict[str, Any] = {
+        "samples": n,
+        "bad_lines": mode.bad_lines,
+        "mean_rate_kg_ha": sum(rates) / n if n else None,
+    }
+    if queue is not None:
+        if sender is not None:
+            stop.set()
+            out["drained"] = sender.drain(a.drain_timeout)
+            sender.close()
+        out["queue"] = queue.stats()
     if a.json:
-        print(
-            json.dumps(
-                {
-                    "samples": n,
-                    "bad_lines": mode.bad_lines,
-                    "mean_rate_kg_ha": sum(rates) / n if n else None,
-                }
-            )
-        )
+        print(json.dumps(out))
     return 0
 
 
@@ -421,6 +462,16 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("source")
     sp.add_argument("--speed-kmh", type=float, default=6.0)
     sp.add_argument("--width", type=float, default=3.6)
+    sp.add_argument("--gnss", help="GNSS source for the speed (else --speed-kmh)")
+    sp.add_argument("--replay-speed", type=float, default=0.0, help="file sources: 0 = fast")
+    sp.add_argument("--controller", default="ladrc")
+    sp.add_argument("--machine-id", type=int, help="queue telemetry as this machine")
+    sp.add_argument("--state-dir")
+    sp.add_argument("--server")
+    sp.add_argument("--token")
+    sp.add_argument("--mqtt")
+    sp.add_argument("--offline", action="store_true")
+    sp.add_argument("--drain-timeout", type=float, default=30.0)
     sp.add_argument("--json", action="store_true")
     sp.set_defaults(func=cmd_ndvi)
     return p

@@ -167,3 +167,21 @@ def pull(
             c.close()
     store.save_config(server, token)
     return out
+
+
+def report_state(store: JobStore, job_id: int, state: str, timeout_s: float = 2.0) -> bool:
+    """Best effort POST /device/jobs/{id}/state; offline is normal, so failures are only logged."""
+    cfg = store.config()
+    if not cfg.get("server") or not cfg.get("token"):
+        return False
+    try:
+        r = httpx.post(
+            f"{cfg['server'].rstrip('/')}/api/v1/device/jobs/{job_id}/state",
+            headers={"Authorization": f"Bearer {cfg['token']}"},
+            json={"state": state},
+            timeout=timeout_s,
+        )
+        return r.status_code < 400
+    except httpx.HTTPError as exc:
+        log.info("job %s state %s not reported: %s", job_id, state, exc)
+        return False

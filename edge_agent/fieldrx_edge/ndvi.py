@@ -14,8 +14,11 @@ with ``#`` and lines that do not parse are counted and skipped.
 from __future__ import annotations
 
 import math
+import threading
+import time
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
+from typing import Any
 
 from fieldrx_edge.estimate import SlidingWindowMean
 from fieldrx_edge.metering import TableCalibration, shaft_rpm_for_rate
@@ -120,3 +123,81 @@ class NdviMode:
                     self.bad_lines += 1
                 continue
             yield s
+
+
+class GnssSpeed:
+    """Latest Kalman-filtered speed and position from a GNSS source, read in a thread."""
+
+    def __init__(self, lines: Iterable[str]) -> None:
+        from fieldrx_edge.estimate import KalmanSpeedFilter
+        from fieldrx_edge.gnss.parser import NmeaParser
+
+        self.parser = NmeaParser()
+        self.kf = KalmanSpeedFilter()
+        self.speed_m_s: float | None = None
+        self.lon: float | None = None
+        self.lat: float | None = None
+        self.fix_quality = 0
+        self._lines = lines
+        self._th = threading.Thread(target=self._run, daemon=True)
+        self._th.start()
+
+    def _run(self) -> None:
+        for ln in self._lines:
+            for fx in self.parser.feed(ln):
+                if fx.valid and fx.speed_m_s is not None:
+                    self.speed_m_s = self.kf.update(fx.speed_m_s)
+                    self.lon, self.lat, self.fix_quality = fx.lon, fx.lat, fx.fix_quality
+                else:
+                    self.fix_quality = 0
+
+
+def run_ndvi(
+    samples_lines: Iterable[str],
+    mode: NdviMode,
+    speed: GnssSpeed | float,
+    motor: Any | None = None,
+    queue: Any | None = None,
+    machine_id: int = 1,
+    on_decision: Any | None = None,
+) -> int:
+    """NDVI mode loop: each sensor sample sets the motor target and queues a record."""
+    from fieldrx_edge.metering import rate_for_shaft_rpm
+    from fieldrx_edge.protocol import TelemetryRecord
+
+    n = 0
+    for s in mode.samples(samples_lines):
+        v = speed if isinstance(speed, float) else speed.speed_m_s
+        if v is None:
+            v = 0.0
+        d = mode.on_sample(s, v)
+        if motor is not None:
+            motor.setpoint_rpm = d.target_rpm if v > 0 else 0.0
+        if on_decision is not None:
+            on_decision(d)
+        if queue is not None:
+            actual = motor.rpm if motor is not None else d.target_rpm
+            lon = lat = None
+            fq = 0
+            if isinstance(speed, GnssSpeed):
+                lon, lat, fq = speed.lon, speed.lat, speed.fix_quality
+            rec = TelemetryRecord(
+                machine_id=machine_id,
+                seq=1,
+                t=time.time(),
+                lon=lon,
+                lat=lat,
+                fix_quality=fq,
+                speed_filtered_m_s=v,
+                target_rate_kg_ha=d.rate_kg_ha,
+                applied_rate_kg_ha=rate_for_shaft_rpm(mode.cal, actual, mode.width_m, v),
+                target_shaft_rpm=d.target_rpm,
+                actual_shaft_rpm=actual,
+                duty=motor.duty if motor is not None else None,
+                ndvi=d.ndvi,
+                implement_down=True,
+                alarms=list(d.alarms),
+            )
+            queue.put(rec.to_dict())
+        n += 1
+    return n

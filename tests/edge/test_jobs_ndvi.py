@@ -122,3 +122,45 @@ def test_ndvi_parse_and_cli(tmp_path):
     out = json.loads(r.stdout)
     assert out["samples"] == 20 and out["bad_lines"] == 1
     assert out["mean_rate_kg_ha"] == pytest.approx(NdviRateMap().rate(0.3))
+
+
+def test_ndvi_mode_queues_records_with_gnss_speed(tmp_path):
+    import sqlite3
+    import time as _time
+
+    from fieldrx_edge.sim.drive import write_nmea_log
+    from fieldrx_edge.sim.simulator import SimConfig
+
+    gnss = tmp_path / "rx.nmea"
+    write_nmea_log(trial_plot(), gnss, SimConfig(seed=1), max_s=30.0)
+    f = tmp_path / "ndvi.csv"
+    f.write_text("\n".join(f"{i * 0.1},0.5,0.52,0.48,0.5" for i in range(40)))
+    _time.sleep(0.01)
+    r = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "fieldrx_edge.cli",
+            "ndvi",
+            f"file:{f}",
+            "--gnss",
+            f"file:{gnss}",
+            "--replay-speed",
+            "0",
+            "--machine-id",
+            "4",
+            "--state-dir",
+            str(tmp_path / "st"),
+            "--offline",
+            "--json",
+        ],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    out = json.loads(r.stdout.strip().splitlines()[-1])
+    assert out["samples"] == 40 and out["queue"]["last_seq"] == 40
+    con = sqlite3.connect(tmp_path / "st" / "queue.sqlite")
+    bodies = [json.loads(b) for (b,) in con.execute("SELECT body FROM records ORDER BY seq")]
+    assert all(b["ndvi"] == pytest.approx(0.5) and b["machine_id"] == 4 for b in bodies)
+    assert all(b["target_rate_kg_ha"] == pytest.approx(NdviRateMap().rate(0.5)) for b in bodies)

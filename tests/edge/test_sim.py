@@ -51,7 +51,7 @@ def test_accuracy_definition_eq_17_18():
     assert np.allclose(res.cell_accuracy_pct, (1 - np.abs(m1 - m2) / m1) * 100)
 
 
-def test_hole_gets_nothing_and_pid_is_worse_than_ladrc():
+def test_hole_gets_nothing_and_uncompensated_pid_is_worse():
     job = holed_field()
     out_l, res = run(job, SimConfig(seed=0, controller="ladrc"))
     assert out_l["mean_accuracy_pct"] >= 98.0
