@@ -24,16 +24,17 @@ WGS84_PRJ = (
 )
 
 
-def _parts(g: shapely.Geometry) -> list[list[list[float]]]:
-    """Rings of an already oriented (Multi)Polygon."""
-    polys = list(g.geoms) if g.geom_type == "MultiPolygon" else [g]
-    rings: list[list[list[float]]] = []
-    for p in polys:
-        if p.geom_type != "Polygon" or p.is_empty:
-            continue
-        rings.append(np.asarray(p.exterior.coords).tolist())
-        rings.extend(np.asarray(h.coords).tolist() for h in p.interiors)
-    return rings
+def _rings_per_cell(polys: np.ndarray) -> list[list[list[list[float]]]]:
+    """Rings of every (already oriented) cell, vectorised: parts -> rings -> coordinates."""
+    parts, cell_of_part = shapely.get_parts(polys, return_index=True)
+    rings, part_of_ring = shapely.get_rings(parts, return_index=True)
+    coords, ring_of_coord = shapely.get_coordinates(rings, return_index=True)
+    bounds = np.searchsorted(ring_of_coord, np.arange(len(rings) + 1)).tolist()
+    flat = coords.tolist()
+    out: list[list[list[list[float]]]] = [[] for _ in range(len(polys))]
+    for k, cell in enumerate(cell_of_part[part_of_ring].tolist()):
+        out[cell].append(flat[bounds[k] : bounds[k + 1]])
+    return out
 
 
 def write_shapefile_zip(cells: CellTable, name: str = "prescription") -> bytes:
@@ -51,8 +52,9 @@ def write_shapefile_zip(cells: CellTable, name: str = "prescription") -> bytes:
     # exterior rings clockwise, holes counter-clockwise (Shapefile spec)
     polys = shapely.orient_polygons(round_coords(cells.polygons_wgs84(), 9), exterior_cw=True)
     flags = flag_strings(cells.flags)
+    all_rings = _rings_per_cell(polys)
     for i in range(len(cells)):
-        rings = _parts(polys[i])
+        rings = all_rings[i]
         if not rings:
             raise FormatError(f"cell {int(cells.seq[i])} has an empty polygon")
         w.poly(rings)
