@@ -107,14 +107,29 @@ export async function api(token, method, path, body) {
   return { status: r.status, ok: r.ok, data };
 }
 
-/** True when the endpoint answers with anything but 404/405 (exists on this server). */
-export async function endpointExists(token, method, path) {
-  const r = await fetch(`${BASE_URL}/api/v1${path}`, {
-    method,
-    headers: { Authorization: `Bearer ${token}`, 'Content-Type': 'application/json' },
-    body: method === 'GET' ? undefined : '{}',
-  });
-  return r.status !== 404 && r.status !== 405;
+let routes = null;
+/**
+ * True when the server's OpenAPI lists `method path` (path written with {} for
+ * parameters, e.g. "/prescriptions/{}"): tells "endpoint not built yet" apart
+ * from "resource not found".
+ */
+export async function hasRoute(method, path) {
+  if (!routes) {
+    routes = [];
+    for (const u of [`${BASE_URL}/api/v1/openapi.json`, `${BASE_URL}/openapi.json`]) {
+      try {
+        const r = await fetch(u);
+        if (!r.ok) continue;
+        const spec = await r.json();
+        for (const [p, ops] of Object.entries(spec.paths ?? {}))
+          for (const m of Object.keys(ops)) routes.push(`${m.toUpperCase()} ${p.replace(/\{[^}]+\}/g, '{}').replace(/^\/api\/v1/, '')}`);
+        break;
+      } catch {
+        /* try the next location */
+      }
+    }
+  }
+  return routes.includes(`${method.toUpperCase()} ${path}`);
 }
 
 export async function serverUp() {

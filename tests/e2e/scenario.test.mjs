@@ -14,7 +14,7 @@ import {
   ROOT,
   api,
   apiLogin,
-  endpointExists,
+  hasRoute,
   launch,
   listOf,
   mapIdle,
@@ -48,7 +48,7 @@ function need(t, ...keys) {
 }
 
 async function needEndpoint(t, method, path, what) {
-  if (await endpointExists(token, method, path)) return true;
+  if (await hasRoute(method, path)) return true;
   t.skip(`${what}: ${method} /api/v1${path} not on this server yet`);
   return false;
 }
@@ -157,7 +157,7 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
 
   it('plans coverage and shows path, grid and stats', async (t) => {
     if (!need(t, 'fieldId')) return;
-    if (!(await needEndpoint(t, 'GET', `/fields/${S.fieldId}/plans`, 'planning'))) return;
+    if (!(await needEndpoint(t, 'POST', '/fields/{}/plans', 'planning'))) return;
     await page.fill('[data-testid=plan-swath]', '12');
     await page.fill('[data-testid=plan-cell]', '5');
     await page.selectOption('[data-testid=plan-heading-rule]', 'longest_edge');
@@ -176,7 +176,7 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
 
   it('uploads a soil CSV with an error, then a good one', async (t) => {
     if (!need(t, 'fieldId')) return;
-    if (!(await needEndpoint(t, 'GET', `/fields/${S.fieldId}/soil-samples`, 'soil samples'))) return;
+    if (!(await needEndpoint(t, 'POST', '/fields/{}/soil-samples', 'soil samples'))) return;
     const f = (await api(token, 'GET', `/fields/${S.fieldId}`)).data;
     const ring = f.geometry.coordinates[0][0];
     const lons = ring.map((p) => p[0]);
@@ -214,8 +214,8 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
 
   it('builds a nutrient-balance prescription', async (t) => {
     if (!need(t, 'planId', 'soil')) return;
-    if (!(await needEndpoint(t, 'GET', `/plans/${S.planId}/prescriptions`, 'prescriptions'))) return;
-    if (!(await needEndpoint(t, 'GET', `/prescriptions/0`, 'prescriptions'))) return;
+    if (!(await needEndpoint(t, 'POST', '/plans/{}/prescriptions', 'prescriptions'))) return;
+    if (!(await needEndpoint(t, 'GET', '/prescriptions/{}', 'prescriptions'))) return;
     await page.goto(`${BASE_URL}/#/plans/${S.planId}`);
     await page.waitForSelector('[data-testid=rx-form]');
     await page.selectOption('[data-testid=rx-model]', 'nutrient_balance');
@@ -232,6 +232,7 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
 
   it('edits a cell rate (new version)', async (t) => {
     if (!need(t, 'rxId')) return;
+    if (!(await needEndpoint(t, 'POST', '/prescriptions/{}/edits', 'prescription edits'))) return;
     const box = await canvasBox('rx');
     // Click the first rendered cell's centre.
     const pt = await page.evaluate(() => {
@@ -258,6 +259,7 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
 
   it('exports ISOXML as a download', async (t) => {
     if (!need(t, 'rxId')) return;
+    if (!(await needEndpoint(t, 'GET', '/prescriptions/{}/export', 'exports'))) return;
     const [dl] = await Promise.all([page.waitForEvent('download', { timeout: 30_000 }), page.click('[data-testid=export-isoxml]')]);
     const file = join(ARTIFACTS, dl.suggestedFilename() || 'taskdata.zip');
     await dl.saveAs(file);
@@ -268,7 +270,7 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
 
   it('sends the job to a machine', async (t) => {
     if (!need(t, 'rxId')) return;
-    if (!(await needEndpoint(t, 'GET', '/jobs', 'jobs'))) return;
+    if (!(await needEndpoint(t, 'POST', '/jobs', 'jobs'))) return;
     const machines = listOf((await api(token, 'GET', '/machines')).data);
     assert.ok(machines.length > 0, 'a machine exists (demo data)');
     S.machineId = machines[0].id;
@@ -282,6 +284,7 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
 
   it('runs fieldrx-edge simulate and watches the machine on the fleet map', async (t) => {
     if (!need(t, 'jobId', 'machineId')) return;
+    if (!(await needEndpoint(t, 'GET', '/machines/status', 'fleet status'))) return;
     const edge = join(ROOT, '.venv', 'bin', 'fieldrx-edge');
     if (!existsSync(edge)) return t.skip('fieldrx-edge is not installed in .venv');
     const help = await run(edge, ['simulate', '--help'], 20_000);
@@ -315,7 +318,7 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
 
   it('shows the job report filling', async (t) => {
     if (!need(t, 'jobId', 'moved')) return;
-    if (!(await needEndpoint(t, 'GET', `/jobs/${S.jobId}/report`, 'job report'))) return;
+    if (!(await needEndpoint(t, 'GET', '/jobs/{}/report', 'job report'))) return;
     await page.goto(`${BASE_URL}/#/jobs/${S.jobId}`);
     await page.waitForFunction(
       () => Number(document.querySelector('[data-testid=report-records]')?.textContent ?? 0) > 0 ||

@@ -84,7 +84,7 @@ export function rxGridLayers(source: string, colorExpr: unknown[]): maplibregl.L
       type: 'line',
       source,
       'source-layer': 'cells',
-      filter: ['all', ['has', 'flag'], ['!=', ['to-string', ['get', 'flag']], ''], ['!=', ['to-string', ['get', 'flag']], 'ok']],
+      filter: ['==', ['get', 'clamped'], true],
       paint: { 'line-color': '#d7263d', 'line-width': 2 },
     },
     {

@@ -86,12 +86,17 @@ export function JobReport({ jobId }: { jobId: number }) {
 
   const appliedVals = applied.features.map((f) => Number(f.properties?.applied_rate_kg_ha)).filter(Number.isFinite);
   const errVals = applied.features.map((f) => Number(f.properties?.error_pct)).filter(Number.isFinite);
-  const aBreaks = useMemo(
-    () => niceBreaks(appliedVals.length ? Math.min(...appliedVals) : 0, appliedVals.length ? Math.max(...appliedVals) : 1000, 6),
-    [appliedVals.length, Math.min(...appliedVals, Infinity), Math.max(...appliedVals, -Infinity)], // eslint-disable-line react-hooks/exhaustive-deps
-  );
+  let aLo = Infinity;
+  let aHi = -Infinity;
+  for (const v of appliedVals) {
+    if (v < aLo) aLo = v;
+    if (v > aHi) aHi = v;
+  }
+  const aBreaks = useMemo(() => niceBreaks(aLo <= aHi ? aLo : 0, aLo <= aHi ? aHi : 1000, 6), [aLo, aHi]);
+  let eMax = 10;
+  for (const v of errVals) if (Math.abs(v) > eMax) eMax = Math.abs(v);
   const aColors = classColors(aBreaks.length - 1);
-  const eBreaks = symmetricBreaks(Math.min(50, Math.max(10, ...errVals.map(Math.abs))), 6);
+  const eBreaks = symmetricBreaks(Math.min(50, eMax), 6);
   const eColors = classColors(6, DIVERGING);
   const prop = view === 'applied' ? 'applied_rate_kg_ha' : 'error_pct';
   const expr = view === 'applied' ? stepExpression(prop, aBreaks, aColors) : stepExpression(prop, eBreaks, eColors);

@@ -6,13 +6,20 @@ import { hashQuery } from '../router';
 import type { Job, Machine } from '../types';
 import { listOf } from '../types';
 
+/** What a user may do from each state (server: fleet/jobstate.TRANSITIONS). */
 const NEXT_STATES: Record<string, string[]> = {
-  created: ['cancelled'],
-  queued: ['cancelled'],
-  sent: ['cancelled'],
-  downloaded: ['cancelled'],
-  running: ['paused', 'cancelled'],
-  paused: ['running', 'cancelled'],
+  planned: ['sent', 'aborted'],
+  sent: ['aborted'],
+  downloaded: ['aborted'],
+  running: ['paused', 'completed', 'aborted'],
+  paused: ['running', 'completed', 'aborted'],
+};
+const ACTION: Record<string, string> = {
+  sent: 'send',
+  running: 'resume',
+  paused: 'pause',
+  completed: 'complete',
+  aborted: 'abort',
 };
 
 /** Jobs with their states; send a prescription version to a machine. */
@@ -125,6 +132,7 @@ export function JobsScreen() {
                   <button
                     key={s}
                     className="link"
+                    data-testid={`job-${j.id}-${s}`}
                     onClick={async () => {
                       try {
                         await api.post(`/jobs/${j.id}/state`, { state: s });
@@ -134,7 +142,7 @@ export function JobsScreen() {
                       }
                     }}
                   >
-                    {s === 'running' ? 'resume' : s === 'paused' ? 'pause' : 'cancel'}
+                    {ACTION[s] ?? s}
                   </button>
                 ))}{' '}
                 <a href={`#/jobs/${j.id}`}>report</a>

@@ -2,7 +2,7 @@ import { useCallback, useEffect, useMemo, useRef, useState } from 'react';
 import type * as maplibregl from 'maplibre-gl';
 import { TerraDraw, TerraDrawPolygonMode } from 'terra-draw';
 import { TerraDrawMapLibreGLAdapter } from 'terra-draw-maplibre-gl-adapter';
-import { api, download, errorText } from '../api';
+import { api, download } from '../api';
 import { Histogram, Legend } from '../components/Legend';
 import { ErrorBox, Kv } from '../components/Status';
 import { classColors, histogram, legendEntries, niceBreaks, stepExpression } from '../lib/colors';
@@ -26,7 +26,10 @@ const EXPORTS: [string, string, string][] = [
 interface CellInfo {
   seq: number;
   rate: number;
-  flag?: string;
+  flags?: string;
+  clamped?: boolean;
+  /** >1 on overview tiles (cells binned when narrower than ~2 px). */
+  nCells: number;
 }
 
 /** Versioned rate map: colour grid + legend + histogram, cell and zone edits, exports, send to a machine. */
@@ -87,8 +90,9 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
   }, [rxId]);
 
   const stats = { ...(rx ?? {}), ...((rx?.stats as Record<string, unknown>) ?? {}) } as Record<string, unknown>;
-  const lo = rates.length ? Math.min(...rates) : pick(stats, 'rate_min_kg_ha', 'min_rate_kg_ha', 'min_kg_ha');
-  const hi = rates.length ? Math.max(...rates) : pick(stats, 'rate_max_kg_ha', 'max_rate_kg_ha', 'max_kg_ha');
+  // The server's summary covers every cell; loaded tiles are the fallback.
+  const lo = pick(stats, 'rate_min_kg_ha', 'min_rate_kg_ha') ?? (rates.length ? minOf(rates) : undefined);
+  const hi = pick(stats, 'rate_max_kg_ha', 'max_rate_kg_ha') ?? (rates.length ? maxOf(rates) : undefined);
   const breaks = useMemo(() => niceBreaks(lo ?? 0, hi ?? 1000, CLASSES), [lo, hi]);
   const colors = useMemo(() => classColors(breaks.length - 1), [breaks]);
   const legend = legendEntries(breaks, colors, (v) => v.toFixed(0));
@@ -106,9 +110,11 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
       const vals: number[] = [];
       let nClamped = 0;
       for (const p of cells.values()) {
-        vals.push(Number(p.rate_kg_ha));
-        const f = p.flag == null ? '' : String(p.flag);
-        if (f && f !== 'ok') nClamped++;
+        // Overview tiles bin many cells into one feature: weight by n_cells.
+        const n = Math.max(1, Number(p.n_cells ?? 1) || 1);
+        const r = Number(p.rate_kg_ha);
+        for (let i = 0; i < n; i++) vals.push(r);
+        if (p.clamped === true || p.clamped === 'true') nClamped += n;
       }
       setRates(vals);
       setClamped(nClamped);
@@ -147,7 +153,13 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
       if (!map.getLayer('rx-fill')) return;
       const f = map.queryRenderedFeatures(e.point, { layers: ['rx-fill'] })[0];
       if (!f) return setCell(null);
-      const c = { seq: Number(f.properties.seq), rate: Number(f.properties.rate_kg_ha), flag: f.properties.flag as string };
+      const c: CellInfo = {
+        seq: Number(f.properties.seq),
+        rate: Number(f.properties.rate_kg_ha),
+        flags: (f.properties.flags as string) || '',
+        clamped: f.properties.clamped === true,
+        nCells: Number(f.properties.n_cells ?? 1) || 1,
+      };
       setCell(c);
       setNewRate(String(Math.round(c.rate * 10) / 10));
     });
@@ -175,7 +187,7 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
     setError(null);
     try {
       const r = await api.post<Record<string, unknown>>(`/prescriptions/${rxId}/edits`, body);
-      const v = pick(r, 'version', 'latest_version');
+      const v = pick(r, 'new_version', 'version', 'latest_version');
       setCell(null);
       setZone(null);
       drawRef.current?.clear();
@@ -205,9 +217,10 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
         <Kv
           items={[
             ['Model', String(rx?.model ?? '–'), 'rx-model-name'],
-            ['Cells', String(rates.length || pick(stats, 'cell_count', 'cells') || '–'), 'rx-cell-count'],
+            ['Cells', String(pick(stats, 'cell_count', 'n_cells') ?? (rates.length || '–')), 'rx-cell-count'],
             ['Rate range', lo != null && hi != null ? `${formatRate(lo)} – ${formatRate(hi)}` : '–', 'rx-range'],
-            ['Clamped cells', String(rates.length ? clamped : (pick(stats, 'clamped_count', 'clamped') ?? '–')), 'rx-clamped'],
+            ['Clamped cells', String(pick(stats, 'clamped_count') ?? (rates.length ? clamped : '–')), 'rx-clamped'],
+            ['No soil data', String(pick(stats, 'no_data_count') ?? '–')],
           ]}
         />
         <label>
@@ -232,8 +245,14 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
           <div className="card" data-testid="cell-panel">
             <div>
               Cell <strong data-testid="cell-seq">{cell.seq}</strong>: <span data-testid="cell-rate">{formatRate(cell.rate)}</span>
-              {cell.flag && cell.flag !== 'ok' ? <span className="warn"> ({cell.flag})</span> : null}
+              {cell.flags ? <span className={cell.clamped ? 'warn' : 'muted'}> ({cell.flags.replace(/,/g, ', ')})</span> : null}
             </div>
+            {cell.nCells > 1 ? (
+              <p className="muted">
+                {cell.nCells} cells are drawn together at this zoom (mean rate shown); zoom in to edit one cell, or paint a
+                zone.
+              </p>
+            ) : (
             <form
               className="row"
               onSubmit={(e) => {
@@ -244,6 +263,7 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
               <input data-testid="cell-new-rate" type="number" step="any" value={newRate} onChange={(e) => setNewRate(e.target.value)} />
               <button data-testid="cell-save">Set rate</button>
             </form>
+            )}
           </div>
         ) : (
           <p className="muted">Click a cell to see and edit its rate.</p>
@@ -330,7 +350,6 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
                 navigate(`/jobs?created=${j.id}`);
               } catch (e) {
                 setError(e);
-                setMsg(errorText(e));
               }
             }}
           >
@@ -341,4 +360,16 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
       <MapView name="rx" onReady={onReady} />
     </div>
   );
+}
+
+function minOf(xs: number[]): number {
+  let m = Infinity;
+  for (const x of xs) if (x < m) m = x;
+  return m;
+}
+
+function maxOf(xs: number[]): number {
+  let m = -Infinity;
+  for (const x of xs) if (x > m) m = x;
+  return m;
 }

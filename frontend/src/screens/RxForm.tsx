@@ -1,25 +1,37 @@
-import { useState } from 'react';
+import { useEffect, useState } from 'react';
 import { api } from '../api';
 import { ErrorBox } from '../components/Status';
-import type { Prescription } from '../types';
+import type { Machine, Prescription } from '../types';
+import { listOf } from '../types';
 
 /** Defaults from seed 002 eq. 19-21 (winter rape worked example, SCIENCE.md). */
 export const MODEL_DEFAULTS: Record<string, Record<string, unknown>> = {
   nutrient_balance: {
     target_yield_kg_ha: 2500,
-    uptake_kg_per_100kg: 5.8,
-    utilisation: 0.342,
-    nutrient_fraction: 0.25,
-    nutrient: 'n_mg_kg',
+    e_kg_per_100kg: 5.8,
+    k_utilisation: 0.342,
+    n_fraction: 0.25,
   },
-  constant: { rate_kg_ha: 300 },
-  ndvi_linear: { rate_at_ndvi0_kg_ha: 400, rate_at_ndvi1_kg_ha: 150 },
+  uniform: { rate_kg_ha: 300 },
+  ndvi: { ndvi_low: 0.2, rate_at_low_kg_ha: 400, ndvi_high: 0.8, rate_at_high_kg_ha: 150 },
 };
 
 export function RxForm({ planId, onCreated }: { planId: number; onCreated: (r: Prescription) => void }) {
   const [model, setModel] = useState('nutrient_balance');
   const [params, setParams] = useState(JSON.stringify(MODEL_DEFAULTS.nutrient_balance, null, 2));
   const [interp, setInterp] = useState('idw');
+  const [machines, setMachines] = useState<Machine[]>([]);
+  const [machineId, setMachineId] = useState('');
+  useEffect(() => {
+    api
+      .get('/machines')
+      .then((r) => {
+        const ms = listOf<Machine>(r);
+        setMachines(ms);
+        if (ms[0]) setMachineId(String(ms[0].id));
+      })
+      .catch(() => undefined);
+  }, []);
   const [error, setError] = useState<unknown>(null);
   const [busy, setBusy] = useState(false);
   return (
@@ -38,7 +50,14 @@ export function RxForm({ planId, onCreated }: { planId: number; onCreated: (r: P
         }
         setBusy(true);
         try {
-          onCreated(await api.post<Prescription>(`/plans/${planId}/prescriptions`, { model, params: p, interpolation: interp }));
+          onCreated(
+            await api.post<Prescription>(`/plans/${planId}/prescriptions`, {
+              model,
+              params: p,
+              interpolation: interp,
+              ...(machineId ? { machine_id: Number(machineId) } : {}),
+            }),
+          );
         } catch (err) {
           setError(err);
         } finally {
@@ -58,8 +77,8 @@ export function RxForm({ planId, onCreated }: { planId: number; onCreated: (r: P
           }}
         >
           <option value="nutrient_balance">Nutrient balance (soil N)</option>
-          <option value="constant">Constant rate</option>
-          <option value="ndvi_linear">NDVI linear</option>
+          <option value="uniform">Uniform rate</option>
+          <option value="ndvi">NDVI (linear)</option>
         </select>
       </label>
       <label>
@@ -67,7 +86,18 @@ export function RxForm({ planId, onCreated }: { planId: number; onCreated: (r: P
         <select data-testid="rx-interp" value={interp} onChange={(e) => setInterp(e.target.value)}>
           <option value="idw">Inverse distance</option>
           <option value="kriging">Kriging</option>
-          <option value="nearest">Nearest sample</option>
+          <option value="cell_mean">Mean of samples in the cell</option>
+        </select>
+      </label>
+      <label>
+        Meter limits from
+        <select data-testid="rx-machine" value={machineId} onChange={(e) => setMachineId(e.target.value)}>
+          <option value="">— (no clamping)</option>
+          {machines.map((m) => (
+            <option key={m.id} value={m.id}>
+              {m.name}
+            </option>
+          ))}
         </select>
       </label>
       <label>
