@@ -121,7 +121,17 @@ def cmd_run(a: argparse.Namespace) -> int:
             progress["state"] = "running"
         store.save_progress(job.job_id, progress)
 
-    rcfg = RuntimeConfig(lag_compensation=a.lag_compensation, response_s=a.response_s)
+    from fieldrx_edge.motor import closed_loop_t50_s
+
+    # motor response added to the look-ahead: measured on the seed 001 motor model
+    # with the job's controller unless given (real hardware: measure and pass it)
+    t50 = a.response_s if a.response_s is not None else closed_loop_t50_s(settings, period)
+    t50_stop = closed_loop_t50_s(settings, period, 100.0, 0.0)
+    rcfg = RuntimeConfig(
+        lag_compensation=a.lag_compensation,
+        response_s=t50,
+        stop_extra_s=max(0.0, t50_stop - t50),
+    )
     agent = Agent(job, queue, motor, rcfg, progress.get("finished", []), save_progress)
     sender = _make_sender(a, store, queue)
     stop = threading.Event()
@@ -427,7 +437,7 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--motor", default="sim", help="sim or serial:DEV")
     sp.add_argument("--controller")
     sp.add_argument("--lag-compensation", type=_on_off, default=True)
-    sp.add_argument("--response-s", type=float, default=0.035)
+    sp.add_argument("--response-s", type=float, help="motor response added to the look-ahead")
     sp.add_argument("--drain-timeout", type=float, default=30.0)
     sp.set_defaults(func=cmd_run)
 

@@ -99,7 +99,7 @@ class MotorLoop:
 def closed_loop_t50_s(
     settings: ControllerSettings, dt: float = 0.01, r0: float = 90.0, r1: float = 100.0
 ) -> float:
-    """Time for the controlled seed 001 motor to cover half of a small setpoint step.
+    """Time for the controlled seed 001 motor to cover half of a setpoint step r0 -> r1.
 
     Added to the look-ahead so the shaft speed is half-way through a change
     when the landing point crosses a cell border (residual lag ~0). Measured on
@@ -115,7 +115,7 @@ def closed_loop_t50_s(
     while k < int(2.0 / dt):
         y = plant.step(ctrl.step(r1, y, dt))
         k += 1
-        if y >= 0.5 * (r0 + r1):
+        if (y - 0.5 * (r0 + r1)) * (r1 - r0) >= 0:
             frac = (0.5 * (r0 + r1) - prev) / (y - prev) if y != prev else 1.0
             return (k - 1 + frac) * dt
         prev = y

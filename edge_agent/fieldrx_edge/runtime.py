@@ -46,6 +46,7 @@ class RuntimeConfig:
     min_fix_quality: int = 1
     max_hdop: float | None = 5.0
     min_course_speed_m_s: float = 0.3  # below this the GNSS course is noise: keep the last heading
+    stop_extra_s: float = 0.0  # extra look-ahead for stops at the field edge (coast-down)
     border_tolerance_m: float = 0.3  # jitter back over a border within this stays in the cell
 
 
@@ -197,6 +198,20 @@ class Pipeline:
         d.cell_seq = self.seqs[idx]
         if idx != self._applying:
             self._finish_current()
+        if cfg.lag_compensation and cfg.stop_extra_s > 0:
+            # the shaft coasts down slower than it follows a small step: stop a little
+            # earlier before the field edge or a hole so the tail does not land outside
+            sx, sy = look_ahead(
+                x,
+                y,
+                self.heading_rad,
+                v,
+                self.look_ahead_time_s() + cfg.stop_extra_s,
+                job.antenna_forward_m,
+                job.antenna_lateral_m,
+            )
+            if self.boundary.where(sx, sy) != Where.INSIDE:
+                return self._stop(d, "edge_ahead", finish=False)
         if not implement_down:
             return self._stop(d, "implement_raised", finish=False)  # lowered again: resume
         if job.overlap_control and self.locator.finished[idx]:

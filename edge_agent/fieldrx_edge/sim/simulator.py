@@ -42,6 +42,7 @@ class SimConfig:
     speed_wobble: float = 0.05  # slow speed variation along a swath (fraction)
     run_in_m: float | None = None
     compare_runs: int = 20  # swath runs simulated without compensation for the comparison
+    edge_stop: bool = True  # anticipate the coast-down at field edges (RuntimeConfig.stop_extra_s)
     border_min_step: float = 0.08  # rate steps smaller than this fraction are not lag borders
 
 
@@ -249,9 +250,11 @@ def simulate(
     if cfg.controller:
         settings = ControllerSettings(name=cfg.controller, params={}, period_s=dt)
     t50 = closed_loop_t50_s(settings, dt)
+    t50_stop = closed_loop_t50_s(settings, dt, 100.0, 0.0)
     rcfg = RuntimeConfig(
         lag_compensation=cfg.lag_compensation,
         response_s=t50,
+        stop_extra_s=max(0.0, t50_stop - t50) if cfg.edge_stop else 0.0,
         gnss_period_s=1.0 / cfg.gnss_hz,
     )
     pipe = Pipeline(job, rcfg)
