@@ -23,6 +23,7 @@ import shapely
 from scipy.spatial import cKDTree
 
 METHODS = ("cell_mean", "idw", "kriging")
+MAX_KRIGING_SAMPLES = 3000
 VARIOGRAM_MODELS = ("linear", "power", "gaussian", "spherical", "exponential", "hole-effect")
 
 
@@ -147,7 +148,7 @@ def kriging(
     variogram_model: str = "spherical",
     nlags: int = 6,
     max_distance_m: float | None = None,
-    chunk: int = 20000,
+    chunk: int | None = None,
 ) -> InterpolationResult:
     """Ordinary kriging (pykrige) at the targets; info carries the LOO-CV RMSE.
 
@@ -163,6 +164,11 @@ def kriging(
             f"(expected one of {list(VARIOGRAM_MODELS)})"
         )
     xy, z = _check_samples(sample_xy, values, need=3)
+    if len(z) > MAX_KRIGING_SAMPLES:
+        raise InterpolationError(
+            f"kriging solves one {len(z)} x {len(z)} system: more than {MAX_KRIGING_SAMPLES} "
+            "samples, use idw"
+        )
     # duplicate positions make the kriging matrix singular: average them
     uniq, inv = np.unique(np.round(xy, 3), axis=0, return_inverse=True)
     if len(uniq) < len(xy):
@@ -183,6 +189,8 @@ def kriging(
             sxy[:, 0], sxy[:, 1], z, variogram_model=variogram_model, nlags=nlags, verbose=False
         )
         out = np.empty(len(t))
+        # pykrige's vectorised backend holds (targets x samples) matrices: bound them
+        chunk = chunk or max(500, int(4e6 // (len(z) + 1)))
         for s in range(0, len(t), chunk):
             zz, _ss = ok.execute("points", t[s : s + chunk, 0], t[s : s + chunk, 1])
             out[s : s + chunk] = np.asarray(zz)

@@ -219,26 +219,18 @@ def build(args: argparse.Namespace) -> tuple[bytes, dict[str, Any]]:
 
     t = time.perf_counter()
     fmt = args.format
-    if fmt == "geojson":
-        from fieldrx.formats.geojson import write_geojson
+    if fmt != "job":
+        from fieldrx.formats.export import export_prescription
 
-        out = write_geojson(cells, {"field": field_name, "model": args.model})
-    elif fmt == "csv":
-        from fieldrx.formats.csv_table import write_table1_csv
-
-        out = write_table1_csv(cells)
-    elif fmt == "shapefile":
-        from fieldrx.formats.shapefile import write_shapefile_zip
-
-        out = write_shapefile_zip(cells, "prescription")
-    elif fmt == "isoxml":
-        from fieldrx.formats.isoxml import write_isoxml_grid
-
-        out = write_isoxml_grid(cells, field_name, field_ll, args.product, args.grid_cell_m)
-    elif fmt == "isoxml-zones":
-        from fieldrx.formats.isoxml import write_isoxml_zones
-
-        out = write_isoxml_zones(cells, field_name, field_ll, args.product)
+        out, _media, _name = export_prescription(
+            cells,
+            fmt,
+            field_name=field_name,
+            boundary_wgs84=field_ll,
+            product_name=args.product,
+            grid_cell_m=args.grid_cell_m,
+            properties={"field": field_name, "model": args.model},
+        )
     else:
         from fieldrx.formats.jobpackage import build_job_package, package_size
 
