@@ -53,3 +53,13 @@ def test_job_package_size_and_errors(cells, field_utm):
         _pkg(cells, field_utm, lag_s=-1.0)
     with pytest.raises(FormatError, match="boundary_utm"):
         _pkg(cells, None)
+
+
+def test_job_package_bad_machine_settings(cells, field_utm):
+    with pytest.raises(FormatError, match="calibration"):
+        _pkg(cells, field_utm, calibration={"kind": "table", "rpm": [1.0]})
+    with pytest.raises(FormatError, match="controller"):
+        _pkg(cells, field_utm, controller={"name": "pid", "gain": 3})
+    table = {"kind": "table", "rpm": [6.0, 40.0], "g_per_rev": [10.0, 12.0]}
+    pkg = _pkg(cells, field_utm, calibration=table)
+    assert pkg.calibration["kind"] == "table" and pkg.calibration["max_rpm"] == 40.0

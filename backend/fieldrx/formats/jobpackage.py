@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 import shapely
-from fieldrx_edge.metering import Calibration
+from fieldrx_edge.metering import Calibration, calibration_from_dict
 from fieldrx_edge.protocol import ControllerSettings, JobPackage
 
 from fieldrx.agronomy.cells import CellTable, round_coords
@@ -59,10 +59,17 @@ def build_job_package(
     ``calibration`` a ``fieldrx_edge.metering`` calibration or its dict form.
     """
     cal = calibration if isinstance(calibration, dict) else calibration.to_dict()  # type: ignore[attr-defined]
+    try:
+        cal = calibration_from_dict(dict(cal)).to_dict()  # validated, complete
+    except (KeyError, TypeError, ValueError) as exc:
+        raise FormatError(f"job package: bad calibration ({exc})") from exc
     if controller is None:
         ctl = ControllerSettings()
     elif isinstance(controller, dict):
-        ctl = ControllerSettings(**controller)
+        try:
+            ctl = ControllerSettings(**controller)
+        except TypeError as exc:
+            raise FormatError(f"job package: bad controller settings ({exc})") from exc
     else:
         ctl = controller
     pkg = JobPackage(
