@@ -33,9 +33,10 @@ log = logging.getLogger(__name__)
 
 # Tuning for the seed 001 motor (first order, b = 8.892, a = 6.694) when the job
 # names a controller without parameters. LADRC order 1 is the principled design
-# for a first-order plant (SCIENCE.md); wc sets a ~0.05 s closed-loop time constant.
+# for a first-order plant (SCIENCE.md); the values are bench/control.py's
+# LADRC_DESIGN (wc 20 rad/s: ~0.05 s closed-loop time constant, wo = 5 wc).
 DEFAULT_PARAMS: dict[str, dict[str, Any]] = {
-    "ladrc": {"wc": 20.0, "wo": 80.0, "b0": 8.892, "order": 1},
+    "ladrc": {"wc": 20.0, "wo": 100.0, "b0": 8.892, "order": 1},
     "pid": {"kp": 1.15, "ki": 15.16, "kd": 0.01},
     "incremental_pid": {"kp": 0.15, "ki": 0.32, "kd": 0.07},
     "isp": {"kp": 0.15, "ki": 0.32, "kd": 0.07},

@@ -328,6 +328,7 @@ class Agent:
         self.parser = NmeaParser(max_hdop=None)
         self.implement_down = implement_down or (lambda: True)
         self.records = 0
+        self._backlog = 0
         self.lines = 0
         self._last_fix_wall = time.monotonic()
 
@@ -358,9 +359,14 @@ class Agent:
 
     def _emit(self, d: Decision, fix: Fix | None, down: bool, t: float) -> None:
         self.motor.setpoint_rpm = d.target_rpm if d.metering else 0.0
-        rec = make_record(self.pipe, d, fix, self.motor.rpm, self.motor.duty, down, t)
+        if self.records % 20 == 0:
+            self._backlog = self.queue.backlog()  # one query per 20 records is plenty
+        rec = make_record(
+            self.pipe, d, fix, self.motor.rpm, self.motor.duty, down, t, self._backlog
+        )
         self.queue.put(rec)
         self.records += 1
+        self._backlog += 1
 
     def run(self, lines: Iterable[str], stop: threading.Event | None = None) -> None:
         stop = stop or threading.Event()

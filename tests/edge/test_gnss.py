@@ -1,4 +1,5 @@
 import json
+import math
 import socket
 import subprocess
 import sys
@@ -239,3 +240,10 @@ def test_udp_source_reads_datagrams():
         if ln:
             got.append(ln)
     assert got == lines
+
+
+def test_meridian_convergence_matches_pyproj():
+    p = UtmProjection(32633)
+    for lon, lat in ((17.9, 52.0), (12.1, 48.0), (15.0, 60.0)):
+        ref = pyproj.Proj("EPSG:32633").get_factors(lon, lat).meridian_convergence
+        assert abs(math.degrees(p.convergence_rad(lon, lat)) - ref) < 1e-4

@@ -103,3 +103,9 @@ class UtmProjection:
             if abs(d) < 1e-14:
                 break
         return math.degrees(lam + self.lon0), math.degrees(math.atan(tau))
+
+    def convergence_rad(self, lon_deg: float, lat_deg: float) -> float:
+        """Meridian convergence: grid north minus true north, positive east of the
+        central meridian (north hemisphere). Grid course = true course - convergence."""
+        dl = math.radians(lon_deg) - self.lon0
+        return math.atan(math.tan(dl) * math.sin(math.radians(lat_deg)))

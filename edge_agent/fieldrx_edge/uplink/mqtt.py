@@ -48,6 +48,7 @@ class MqttSender:
         self._sent_up_to = self._acked
         self._inflight: list[tuple[int, float]] = []  # (last seq of batch, sent at)
         self._connected = False
+        self._pending_ack: tuple[int, int] | None = None  # set by the network thread
         cid = client_id or f"fieldrx-edge-{queue.machine_id}"
         self.client = mqtt.Client(
             mqtt.CallbackAPIVersion.VERSION2, client_id=cid, clean_session=False
@@ -94,9 +95,9 @@ class MqttSender:
                 self._acked = acked
                 self._inflight = [b for b in self._inflight if b[0] > acked]
             self._cv.notify_all()
-        self._pending_ack = (acked, rejected)
-
-    _pending_ack: tuple[int, int] | None = None
+        pa = self._pending_ack
+        if pa is None or acked >= pa[0]:
+            self._pending_ack = (acked, rejected + (pa[1] if pa else 0))
 
     def _apply_ack(self) -> None:
         pa = self._pending_ack
