@@ -176,15 +176,18 @@ class CellTable:
         polys = np.asarray(polygons_utm, dtype=object)
         n = len(polys)
         if corners_utm is None:
-            corners_utm = np.zeros((n, 4, 2))
-            rects = shapely.oriented_envelope(polys)
-            rects = shapely.orient_polygons(rects, exterior_cw=False)
-            for i, r in enumerate(rects):
-                xy = np.asarray(r.exterior.coords)[:4] if r.geom_type == "Polygon" else None
-                if xy is None or len(xy) < 4:  # degenerate sliver: repeat its points
-                    b = np.asarray(r.coords if r.geom_type != "Polygon" else r.exterior.coords)
-                    xy = np.resize(b, (4, 2))
-                corners_utm[i] = xy
+            rects = shapely.orient_polygons(shapely.oriented_envelope(polys), exterior_cw=False)
+            rings = shapely.get_exterior_ring(rects)
+            if n and (shapely.get_num_coordinates(rings) == 5).all():  # the usual case
+                corners_utm = shapely.get_coordinates(rings).reshape(n, 5, 2)[:, :4]
+            else:
+                corners_utm = np.zeros((n, 4, 2))
+                for i, r in enumerate(rects):
+                    if r.geom_type == "Polygon":
+                        b = np.asarray(r.exterior.coords)
+                    else:  # degenerate sliver: a line or point, repeat its points
+                        b = np.asarray(r.coords)
+                    corners_utm[i] = np.resize(b[:4] if len(b) >= 4 else b, (4, 2))
         corners_utm = np.asarray(corners_utm, dtype=float).reshape(n, 4, 2)
         cx, cy = transform_xy(corners_utm[..., 0].ravel(), corners_utm[..., 1].ravel(), epsg, 4326)
         cent = shapely.get_coordinates(shapely.centroid(polys)) if n else np.zeros((0, 2))
@@ -233,7 +236,8 @@ class CellTable:
 
         For tests and benchmarks until (and besides) ``fieldrx.geo.grid``:
         swath s runs north when s is even and south when odd; cells are numbered
-        along the path. ``clip`` (UTM polygon) clips cells and drops empty ones.
+        0.. along the path (like ``geo.grid``). ``clip`` (UTM polygon) clips cells
+        and drops empty ones.
         """
         s = np.repeat(np.arange(n_swaths), n_per_swath)
         k = np.tile(np.arange(n_per_swath), n_swaths)
@@ -242,7 +246,7 @@ class CellTable:
         ymin = y0 + k_geo * length_m
         xmax, ymax = xmin + width_m, ymin + length_m
         north = (s % 2 == 0)[:, None]
-        # CCW, starting at the rear-left corner in the driving direction
+        # CCW like geo.grid: rear-right, front-right, front-left, rear-left
         c_north = np.stack(
             [
                 np.column_stack([xmax, ymin]),

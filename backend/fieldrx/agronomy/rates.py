@@ -42,7 +42,7 @@ def soil_correction_coefficient(n_mg_kg: np.ndarray | float) -> np.ndarray:
     d = 1 (the limit), never a division error.
     """
     n = np.asarray(n_mg_kg, dtype=float)
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         d = (5.57 + 3226.05 / n) / 100.0
     return np.where(n > 0, np.minimum(1.0, d), 1.0)
 
