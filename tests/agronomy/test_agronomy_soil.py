@@ -53,6 +53,13 @@ def test_skip_bad_rows_keeps_good_ones():
     assert [(e.row, e.column) for e in res.errors] == [(5, "lat")]
 
 
+def test_all_rows_bad_or_empty_file_is_rejected_even_with_skip():
+    res = parse_soil_csv("id,lon,lat,n\nA,1,x,3\n", skip_bad_rows=True)
+    assert res.rejected and res.samples == [] and res.errors[0].row == 2
+    empty = parse_soil_csv("id,lon,lat,n\n")
+    assert empty.rejected and empty.errors[0].message == "no samples in the file"
+
+
 def test_missing_column_is_fatal_even_with_skip():
     res = parse_soil_csv("id,lon,lat\nA,1,2\n", skip_bad_rows=True)
     assert res.rejected and [(e.row, e.column) for e in res.errors] == [(1, "n_mg_kg")]

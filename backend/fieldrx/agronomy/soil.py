@@ -258,9 +258,10 @@ def _finish(
         xy = np.array([[s.lon, s.lat] for s in samples])
         inside = shapely.intersects_xy(boundary_wgs84, xy[:, 0], xy[:, 1])
         outside = [s for s, ok in zip(samples, inside, strict=True) if not ok]
-    if not samples and not errors:
-        errors = [RowError(1, None, "no samples in the file")]
-        return SoilImport([], errors, [], rejected=True)
+    if not samples:
+        if not errors:
+            errors = [RowError(1, None, "no samples in the file")]
+        return SoilImport([], errors, [], rejected=True)  # nothing usable to store
     return SoilImport(samples, errors, outside, rejected=False)
 
 
