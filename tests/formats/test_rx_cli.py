@@ -52,9 +52,11 @@ def _write_inputs(d: Path, n_const: float | None = None) -> tuple[Path, Path]:
     return field, samples
 
 
-def _rx(*args: str) -> tuple[int, dict]:
+def _rx(*args: str, standalone: bool = False) -> tuple[int, dict]:
+    """Run `fieldrx rx ...` (through fieldrx.cli) or the module's standalone parser."""
+    cmd = ["-m", "fieldrx.commands.rx"] if standalone else ["-m", "fieldrx.cli", "rx"]
     proc = subprocess.run(
-        [sys.executable, "-m", "fieldrx.commands.rx", *args],
+        [sys.executable, *cmd, *args],
         capture_output=True,
         text=True,
         timeout=120,
@@ -192,5 +194,9 @@ def test_rx_rejects_bad_samples_and_writes_nothing(inputs, tmp_path):
     assert not out.exists()
     rc, s = _rx(str(field), "--samples", str(bad), "--skip-bad-rows", "-o", str(out))
     assert rc == 0 and out.exists() and s["samples"]["n_errors"] == 1
-    rc, s = _rx(str(field), "--model", "uniform", "-o", str(out))
+    rc, s = _rx(str(field), "--model", "uniform", "-o", str(out), standalone=True)
     assert rc == 2 and "--uniform-rate" in s["error"]
+    rc, s = _rx(
+        str(field), "--model", "uniform", "--uniform-rate", "700", "-o", str(out), standalone=True
+    )
+    assert rc == 0 and s["prescription"]["rate_min_kg_ha"] == 700.0
