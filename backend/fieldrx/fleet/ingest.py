@@ -23,18 +23,20 @@ token's, or the MQTT topic's) is rejected on its own and does not advance
 from __future__ import annotations
 
 import datetime as dt
-import json
+import operator
 import struct
 import time
 from collections.abc import Iterable
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
+import orjson
 import psycopg
 from fieldrx_edge.protocol import (
     _FIELD_SET,
+    _FLOAT_FIELDS,
     ALARMS,
-    ProtocolError,
+    TELEMETRY_FIELDS,
     TelemetryAck,
     TelemetryRecord,
 )
@@ -95,8 +97,7 @@ PG_EPOCH = 946684800.0  # 2000-01-01T00:00:00Z
 T_MAX = 4102444800.0  # 2100-01-01: anything later is a clock error
 INT4_MAX = 2**31 - 1
 INT8_MAX = 2**63 - 1
-_EWKB_POINT = struct.Struct("<BIIdd")
-_EWKB_HEAD = (1, 0x20000001, 4326)  # little endian, Point with SRID flag, SRID
+_EWKB_POINT = struct.Struct("<BIIdd")  # little endian, Point with SRID flag, SRID, x, y
 _ALARM_SET = frozenset(ALARMS)
 _LOCK_NS = 7001  # advisory lock namespace for per-machine ingest
 
@@ -123,109 +124,125 @@ class IngestResult:
         )
 
     def to_json(self) -> bytes:
-        return json.dumps(asdict(self.ack()), separators=(",", ":")).encode()
+        return orjson.dumps(asdict(self.ack()))
 
 
 def parse_body(body: bytes | str) -> list[Any]:
     """``{"records": [...]}`` -> the list; anything else is an ``IngestError``."""
     try:
-        obj = json.loads(body)
-    except ValueError as exc:
+        obj = orjson.loads(body)
+    except orjson.JSONDecodeError as exc:
         raise IngestError(f"body is not valid JSON: {exc}") from exc
     if not isinstance(obj, dict) or not isinstance(obj.get("records"), list):
         raise IngestError('body must be a JSON object {"records": [TelemetryRecord, ...]}')
     return obj["records"]
 
 
-def _num(v: Any) -> bool:
-    t = type(v)
-    return (t is float and v - v == 0.0) or t is int
+_GET_ALL = operator.itemgetter(*TELEMETRY_FIELDS)
+_N_FIELDS = len(TELEMETRY_FIELDS)
+_FLOAT_TYPES = frozenset({float, type(None)})
+assert TELEMETRY_FIELDS == (
+    "machine_id", "seq", "t", "lon", "lat", "fix_quality", "hdop", "speed_raw_m_s",
+    "speed_filtered_m_s", "heading_deg", "job_id", "cell_seq", "target_rate_kg_ha",
+    "applied_rate_kg_ha", "target_shaft_rpm", "actual_shaft_rpm", "duty", "ndvi", "depth_mm",
+    "implement_down", "alarms", "queue_backlog",
+)  # fmt: skip
 
 
-def _row(d: Any, machine_id: int) -> tuple[Any, ...] | str | None:
-    """Fast path: a COPY row, or a reason string, or None (let the protocol explain)."""
-    if type(d) is not dict or not (d.keys() <= _FIELD_SET):
+def _fast_row(d: Any, machine_id: int) -> tuple[Any, ...] | None:
+    """A complete, plainly typed record (what agents send) -> COPY row; else None.
+
+    None means "not sure": the general path decides. Floats must be floats here
+    and their sum finite (NaN and inf propagate through a sum).
+    """
+    if type(d) is not dict or len(d) != _N_FIELDS or not (d.keys() <= _FIELD_SET):
         return None
-    m = d.get("machine_id")
-    s = d.get("seq")
-    t = d.get("t")
-    if type(m) is not int or m <= 0 or type(s) is not int or s < 1 or not _num(t) or t <= 0:
+    (m, s, t, lon, lat, fq, hdop, sraw, sfil, head, job, cell, trate, arate, trpm, arpm, duty,
+     ndvi, depth, down, alarms, backlog) = _GET_ALL(d)  # fmt: skip
+    if (
+        m != machine_id
+        or type(s) is not int
+        or not 1 <= s <= INT8_MAX
+        or type(t) is not float
+        or not 0.0 < t < T_MAX
+        or type(fq) is not int
+        or not 0 <= fq <= 32767
+        or type(down) is not bool
+        or type(backlog) is not int
+        or not 0 <= backlog <= INT4_MAX
+        or type(alarms) is not list
+        or (alarms and not _ALARM_SET.issuperset(alarms))
+        or (job is not None and (type(job) is not int or not 0 < job <= INT4_MAX))
+        or (cell is not None and (type(cell) is not int or not -INT4_MAX <= cell <= INT4_MAX))
+    ):
         return None
-    if m != machine_id:
-        return f"machine_id {m} is not this device's machine ({machine_id})"
-    if s > INT8_MAX:
-        return f"seq {s} out of range"
-    if t >= T_MAX:
-        return f"t {t!r} is after 2100: clock error"
-    lon = d.get("lon")
-    lat = d.get("lat")
+    floats = (hdop, sraw, sfil, head, trate, arate, trpm, arpm, duty, ndvi, depth)
+    if not _FLOAT_TYPES.issuperset(map(type, floats)):
+        return None
+    total = sum(filter(None, floats))
+    if total - total != 0.0:
+        return None
     if lon is None:
         if lat is not None:
             return None
         geom = None
     else:
-        if not _num(lon) or not _num(lat) or not -180.0 <= lon <= 180.0 or not -90.0 <= lat <= 90.0:
+        if type(lon) is not float or type(lat) is not float:
             return None
-        geom = _EWKB_POINT.pack(*_EWKB_HEAD, lon, lat)
-    fq = d.get("fix_quality", 0)
+        if not (-180.0 <= lon <= 180.0 and -90.0 <= lat <= 90.0):
+            return None
+        geom = _EWKB_POINT.pack(1, 0x20000001, 4326, lon, lat)
+    return (
+        m, s, int((t - PG_EPOCH) * 1e6), job, geom, fq, hdop, sraw, sfil, head, cell, trate,
+        arate, trpm, arpm, duty, ndvi, depth, down, alarms, backlog,
+    )  # fmt: skip
+
+
+def _slow_row(d: Any, machine_id: int) -> tuple[Any, ...] | str:
+    """Any record: the protocol's own validation, then the column ranges. Row or reason."""
+    try:
+        rec = TelemetryRecord.from_dict(d)
+    except Exception as exc:  # ProtocolError, or TypeError/OverflowError from odd values
+        return str(exc) or type(exc).__name__
+    if rec.machine_id != machine_id:
+        return f"machine_id {rec.machine_id} is not this device's machine ({machine_id})"
+    if rec.seq > INT8_MAX:
+        return f"seq {rec.seq} out of range"
+    if rec.t >= T_MAX:
+        return f"t {rec.t!r} is after 2100: clock error"
+    fq = rec.fix_quality
     if type(fq) is not int or not 0 <= fq <= 32767:
         return f"fix_quality must be an integer 0..32767, got {fq!r}"
-    job = d.get("job_id")
+    job = rec.job_id
     if job is not None and (type(job) is not int or not 0 < job <= INT4_MAX):
         return f"job_id must be a positive integer or null, got {job!r}"
-    cell = d.get("cell_seq")
+    cell = rec.cell_seq
     if cell is not None and (type(cell) is not int or not -INT4_MAX <= cell <= INT4_MAX):
         return f"cell_seq must be an integer or null, got {cell!r}"
-    down = d.get("implement_down", False)
-    if type(down) is not bool:
-        return f"implement_down must be true or false, got {down!r}"
-    backlog = d.get("queue_backlog", 0)
+    if type(rec.implement_down) is not bool:
+        return f"implement_down must be true or false, got {rec.implement_down!r}"
+    backlog = rec.queue_backlog
     if type(backlog) is not int or not 0 <= backlog <= INT4_MAX:
         return f"queue_backlog must be a non-negative integer, got {backlog!r}"
-    alarms = d.get("alarms", ())
-    if alarms:
-        if type(alarms) is not list or not _ALARM_SET.issuperset(alarms):
-            return None
-    elif type(alarms) is not list and alarms != ():
-        return None
-    g = d.get
-    hdop, sraw, sfil, head = (
-        g("hdop"),
-        g("speed_raw_m_s"),
-        g("speed_filtered_m_s"),
-        g("heading_deg"),
-    )
-    trate, arate, trpm, arpm = (
-        g("target_rate_kg_ha"),
-        g("applied_rate_kg_ha"),
-        g("target_shaft_rpm"),
-        g("actual_shaft_rpm"),
-    )
-    duty, ndvi, depth = g("duty"), g("ndvi"), g("depth_mm")
-    for v in (hdop, sraw, sfil, head, trate, arate, trpm, arpm, duty, ndvi, depth):
-        if v is not None and not _num(v):
-            return None
+    try:
+        f = [None if v is None else float(v) for v in (getattr(rec, n) for n in _FLOAT_FIELDS)]
+    except OverflowError:
+        return "a number is too large"
+    geom = None
+    if rec.lon is not None and rec.lat is not None:
+        geom = _EWKB_POINT.pack(1, 0x20000001, 4326, float(rec.lon), float(rec.lat))
     return (
-        m,
-        s,
-        int((t - PG_EPOCH) * 1e6),
+        rec.machine_id,
+        rec.seq,
+        int((rec.t - PG_EPOCH) * 1e6),
         job,
         geom,
         fq,
-        hdop,
-        sraw,
-        sfil,
-        head,
+        *f[:4],
         cell,
-        trate,
-        arate,
-        trpm,
-        arpm,
-        duty,
-        ndvi,
-        depth,
-        down,
-        list(alarms),
+        *f[4:],
+        rec.implement_down,
+        list(rec.alarms),
         backlog,
     )
 
@@ -235,37 +252,31 @@ def validate(
 ) -> tuple[dict[int, tuple[Any, ...]], list[dict[str, Any]], set[int], int]:
     """Split records into valid rows by seq, rejects, rejected-for-good seqs and in-batch repeats.
 
-    The fast path accepts exactly what ``TelemetryRecord.from_dict`` accepts
-    (plus the column ranges); when it declines, ``from_dict`` gives the reason.
+    The fast path takes complete, plainly typed records; everything else goes
+    through ``TelemetryRecord.from_dict`` (same rules, same messages) and the
+    column ranges.
     """
     rows: dict[int, tuple[Any, ...]] = {}
     rejected: list[dict[str, Any]] = []
     dead: set[int] = set()
     repeats = 0
     for d in raw:
-        r = _row(d, machine_id)
-        if type(r) is tuple:
-            if r[1] in rows:
-                repeats += 1
-            else:
-                rows[r[1]] = r
-            continue
-        reason = r
-        if reason is None:
-            try:
-                rec = TelemetryRecord.from_dict(d)
-                reason = "invalid record"
-                if not isinstance(rec.implement_down, bool):
-                    reason = "implement_down must be true or false"
-            except (ProtocolError, TypeError) as exc:
-                reason = str(exc)
-        seq = d.get("seq") if isinstance(d, dict) else None
-        if type(seq) is not int or seq < 1:
-            seq = None
-        rejected.append({"seq": seq, "reason": reason})
-        mid = d.get("machine_id") if isinstance(d, dict) else None
-        if seq is not None and (mid is None or mid == machine_id):
-            dead.add(seq)
+        r = _fast_row(d, machine_id)
+        if r is None:
+            r = _slow_row(d, machine_id)
+            if type(r) is str:
+                seq = d.get("seq") if isinstance(d, dict) else None
+                if type(seq) is not int or seq < 1:
+                    seq = None
+                rejected.append({"seq": seq, "reason": r})
+                mid = d.get("machine_id") if isinstance(d, dict) else None
+                if seq is not None and (mid is None or mid == machine_id):
+                    dead.add(seq)
+                continue
+        if r[1] in rows:
+            repeats += 1
+        else:
+            rows[r[1]] = r
     return rows, rejected, dead, repeats
 
 

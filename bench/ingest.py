@@ -1,0 +1,632 @@
+"""Telemetry ingest benchmark: N simulated machines through HTTP or MQTT into PostGIS.
+
+Everything runs against a throw-away database: this script starts its own API
+server (uvicorn, ``--workers`` processes on a free port) or, for MQTT, its own
+Mosquitto (the project's deploy/mosquitto.conf on a free port, no persistence)
+and two ``fieldrx worker`` processes sharing the subscription.
+
+Each machine has ``hz * seconds`` records (default 200 machines x 10 Hz x 60 s
+= 120,000). They are replayed as fast as the server accepts them (a fleet
+catching up after being offline): each machine sends its records in order in
+batches (``--batch``, the edge agent's default), waiting for the ack before
+the next batch like the real agent; records are stamped when their batch is
+built, so latency = ack received - record time. With ``--realtime`` machines
+produce at ``hz`` and send every ``--send-every`` seconds instead.
+
+Baseline, same run: a raw COPY BINARY of the same rows (prepared tuples,
+10,000 rows per COPY) into a copy of the telemetry table with the same
+indexes. Ratio = our records/s / raw COPY records/s.
+
+Last line: one JSON object (records_per_s, raw_copy_records_per_s,
+ratio_to_copy, p50_latency_s, p99_latency_s, lost, duplicated, ...).
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import json
+import os
+import shutil
+import socket
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+import uuid
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+BIN = Path(sys.executable).parent
+PG = os.environ.get("FIELDRX_TEST_PG", "postgresql://postgres@127.0.0.1:5432")
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+# database ----------------------------------------------------------------------------
+def make_db() -> str:
+    from alembic import command
+    from fieldrx.db.bootstrap import alembic_config, ensure_database
+
+    url = (
+        PG.replace("postgresql://", "postgresql+psycopg://", 1)
+        + f"/fieldrx_bench_{uuid.uuid4().hex[:8]}"
+    )
+    ensure_database(url)
+    command.upgrade(alembic_config(url), "head")
+    return url
+
+
+def seed(url: str, n_machines: int) -> list[tuple[int, int, str]]:
+    """An organisation, one field/plan/prescription, and per machine a running job + token."""
+    from fieldrx.auth.service import create_organisation, issue_device_token
+    from fieldrx.db.models import Field, Job, Machine, Plan, Prescription, PrescriptionVersion
+    from fieldrx.db.session import make_engine
+    from geoalchemy2.shape import from_shape
+    from shapely.geometry import LineString, MultiPolygon, Polygon
+    from sqlalchemy.orm import Session
+
+    eng = make_engine(url)
+    out = []
+    with Session(eng) as s:
+        org = create_organisation(s, f"bench-{uuid.uuid4().hex[:6]}")
+        f = Field(
+            organisation_id=org.id,
+            name="bench",
+            boundary=from_shape(
+                MultiPolygon([Polygon.from_bounds(112.3, 32.1, 112.33, 32.14)]), 4326
+            ),
+            utm_epsg=32649,
+            area_m2=1e6,
+        )
+        s.add(f)
+        s.flush()
+        p = Plan(
+            organisation_id=org.id,
+            field_id=f.id,
+            params={},
+            metrics={},
+            heading_deg=0.0,
+            n_cells=1000,
+            route=from_shape(LineString([(112.3, 32.1), (112.31, 32.11)]), 4326),
+        )
+        s.add(p)
+        s.flush()
+        rx = Prescription(organisation_id=org.id, plan_id=p.id, model="uniform")
+        s.add(rx)
+        s.flush()
+        s.add(PrescriptionVersion(prescription_id=rx.id, version=1))
+        for i in range(n_machines):
+            m = Machine(
+                organisation_id=org.id,
+                name=f"m{i}",
+                width_m=6.0,
+                lag_s=1.5,
+                calibration={"kind": "linear", "a": 1.0, "b": 0.0},
+                controller={},
+                speed_min_m_s=0.5,
+                speed_max_m_s=3.0,
+            )
+            s.add(m)
+            s.flush()
+            j = Job(
+                organisation_id=org.id,
+                prescription_id=rx.id,
+                prescription_version=1,
+                machine_id=m.id,
+                state="running",
+                n_cells=1000,
+            )
+            s.add(j)
+            s.flush()
+            out.append((m.id, j.id, issue_device_token(s, m.id, org.id)))
+        s.commit()
+    eng.dispose()
+    return out
+
+
+# records -----------------------------------------------------------------------------
+class Fleet:
+    """Per machine: a straight track at ~1.7 m/s, on target, one cell per 3 s."""
+
+    def __init__(self, machines: list[tuple[int, int, str]], hz: float, seconds: float) -> None:
+        self.machines = machines
+        self.hz = hz
+        self.n = int(round(hz * seconds))
+        self._parts: list[list[tuple[str, str]]] = []
+
+    def prepare(self) -> None:
+        """Pre-render every record's JSON around its time stamp, so the simulated fleet costs
+        the shared 2 cores little while it runs (real agents run elsewhere)."""
+        for k in range(len(self.machines)):
+            parts = [("", "")]  # seq 0 unused
+            for rec in self.records(k, 1, self.n, 0.0):
+                rec["t"] = 0.0
+                text = json.dumps(rec, separators=(",", ":"))
+                head, tail = text.split('"t":0.0', 1)
+                parts.append((head + '"t":', tail))
+            self._parts.append(parts)
+
+    def body(self, k: int, seq: int, times: list[float]) -> str:
+        parts = self._parts[k]
+        return (
+            '{"records":['
+            + ",".join(f"{parts[seq + i][0]}{t!r}{parts[seq + i][1]}" for i, t in enumerate(times))
+            + "]}"
+        )
+
+    def records(self, k: int, seq0: int, count: int, t_now: float) -> list[dict[str, Any]]:
+        mid, jid, _ = self.machines[k]
+        out = []
+        dt = 1.0 / self.hz
+        for i in range(count):
+            seq = seq0 + i
+            s = seq * dt * 1.7
+            out.append(
+                {
+                    "machine_id": mid,
+                    "seq": seq,
+                    "t": t_now - (count - 1 - i) * 1e-6,
+                    "lon": 112.3 + k * 1e-4,
+                    "lat": 32.1 + s * 9e-6,
+                    "fix_quality": 4,
+                    "hdop": 0.7,
+                    "speed_raw_m_s": 1.7 + (seq % 7) * 0.01,
+                    "speed_filtered_m_s": 1.7,
+                    "heading_deg": 0.0,
+                    "job_id": jid,
+                    "cell_seq": int(seq * dt / 3.0) % 1000,
+                    "target_rate_kg_ha": 300.0,
+                    "applied_rate_kg_ha": 299.0 + (seq % 3),
+                    "target_shaft_rpm": 30.0,
+                    "actual_shaft_rpm": 29.9,
+                    "duty": 41.5,
+                    "ndvi": None,
+                    "depth_mm": None,
+                    "implement_down": True,
+                    "alarms": [],
+                    "queue_backlog": self.n - seq,
+                }
+            )
+        return out
+
+
+def raw_copy_baseline(url: str, fleet: Fleet) -> float:
+    """records/s of a plain COPY BINARY of the same rows into an identical table."""
+    import psycopg
+    from fieldrx.db.session import raw_dsn
+    from fieldrx.fleet.ingest import COPY_TYPES, validate
+
+    rows: list[tuple[Any, ...]] = []
+    t_now = time.time()
+    for k in range(len(fleet.machines)):
+        valid, *_ = validate(fleet.records(k, 1, fleet.n, t_now), fleet.machines[k][0])
+        rows.extend(valid.values())
+    cols = (
+        "machine_id, seq, t, job_id, geom, fix_quality, hdop, speed_raw_m_s, speed_filtered_m_s,"
+        " heading_deg, cell_seq, target_rate_kg_ha, applied_rate_kg_ha, target_shaft_rpm,"
+        " actual_shaft_rpm, duty, ndvi, depth_mm, implement_down, alarms, queue_backlog"
+    )
+    with psycopg.connect(raw_dsn(url), options="-c jit=off", autocommit=True) as conn:
+        conn.execute("CREATE TABLE telemetry_baseline (LIKE telemetry INCLUDING ALL)")
+        conn.execute("CREATE INDEX ON telemetry_baseline USING gist (geom)")
+        t0 = time.perf_counter()
+        for i in range(0, len(rows), 10_000):
+            with conn.transaction(), conn.cursor() as cur:
+                with cur.copy(f"COPY telemetry_baseline ({cols}) FROM STDIN (FORMAT BINARY)") as cp:
+                    cp.set_types(COPY_TYPES)
+                    for r in rows[i : i + 10_000]:
+                        cp.write_row(r)
+        elapsed = time.perf_counter() - t0
+        n = conn.execute("SELECT count(*) FROM telemetry_baseline").fetchone()[0]
+        assert n == len(rows), (n, len(rows))
+        conn.execute("DROP TABLE telemetry_baseline")
+        conn.execute("CHECKPOINT")
+    return len(rows) / elapsed
+
+
+# processes ---------------------------------------------------------------------------
+def start(args: list[str], env: dict[str, str]) -> subprocess.Popen[bytes]:
+    return subprocess.Popen(
+        args, cwd=ROOT, env={**os.environ, **env}, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE
+    )
+
+
+def stop(p: subprocess.Popen[bytes]) -> str:
+    if p.poll() is None:
+        p.terminate()
+        try:
+            p.wait(15)
+        except subprocess.TimeoutExpired:
+            p.kill()
+            p.wait()
+    return (p.stderr.read() if p.stderr else b"").decode(errors="replace")
+
+
+def wait_http(url: str, proc: subprocess.Popen[bytes], timeout: float = 40.0) -> None:
+    import httpx
+
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        try:
+            if httpx.get(url + "/api/v1/health", timeout=1).status_code == 200:
+                return
+        except httpx.HTTPError:
+            pass
+        if proc.poll() is not None:
+            raise SystemExit(f"API exited: {stop(proc)}")
+        time.sleep(0.2)
+    raise SystemExit("API did not start")
+
+
+# HTTP --------------------------------------------------------------------------------
+async def drive_http(
+    base: str, fleet: Fleet, batch: int, concurrency: int, realtime: bool, send_every: float
+) -> tuple[float, list[float], int]:
+    import httpx
+
+    latencies: list[float] = []
+    stored = 0
+    sem = asyncio.Semaphore(concurrency)
+    limits = httpx.Limits(max_connections=concurrency, max_keepalive_connections=concurrency)
+    async with httpx.AsyncClient(base_url=base, timeout=120, limits=limits) as client:
+        start = time.time()
+
+        async def machine(k: int) -> None:
+            nonlocal stored
+            token = fleet.machines[k][2]
+            headers = {"Authorization": f"Bearer {token}", "Content-Type": "application/json"}
+            seq = 1
+            while seq <= fleet.n:
+                if realtime:
+                    due = start + (seq - 1 + batch) / fleet.hz
+                    await asyncio.sleep(
+                        max(0.0, min(due, start + seq / fleet.hz + send_every) - time.time())
+                    )
+                    produced = int((time.time() - start) * fleet.hz)
+                    count = max(1, min(batch, produced - seq + 1, fleet.n - seq + 1))
+                else:
+                    count = min(batch, fleet.n - seq + 1)
+                async with sem:
+                    t_now = time.time()
+                    if realtime:
+                        times = [start + (seq + i) / fleet.hz for i in range(count)]
+                    else:
+                        times = [t_now - (count - 1 - i) * 1e-6 for i in range(count)]
+                    body = fleet.body(k, seq, times)
+                    while True:
+                        r = await client.post("/api/v1/telemetry", content=body, headers=headers)
+                        if r.status_code == 200:
+                            break
+                        print(f"HTTP {r.status_code}: {r.text[:200]}", file=sys.stderr)
+                        await asyncio.sleep(0.5)
+                    ack = r.json()
+                    t_ack = time.time()
+                assert ack["acked_seq"] == seq + count - 1, ack
+                stored += ack["stored"]
+                latencies.extend(t_ack - tt for tt in times)
+                seq += count
+
+        await asyncio.gather(*(machine(k) for k in range(len(fleet.machines))))
+        elapsed = time.time() - start
+    return elapsed, latencies, stored
+
+
+# MQTT --------------------------------------------------------------------------------
+def drive_mqtt(
+    port: int, fleet: Fleet, batch: int, max_inflight: int, realtime: bool
+) -> tuple[float, list[float], int]:
+    import paho.mqtt.client as mqtt
+    from fieldrx_edge.protocol import telemetry_topic
+
+    n_m = len(fleet.machines)
+    acked = {m[0]: 0 for m in fleet.machines}
+    index = {m[0]: k for k, m in enumerate(fleet.machines)}
+    # per machine: record times by seq, to turn ack arrival into per-record latency
+    tstamps = [np.zeros(fleet.n + 1) for _ in range(n_m)]
+    latencies: list[float] = []
+    stored = 0
+    cv = threading.Condition()
+
+    def on_message(client, userdata, msg) -> None:  # noqa: ANN001
+        nonlocal stored
+        ack = json.loads(msg.payload)
+        t_ack = time.time()
+        mid = ack["machine_id"]
+        with cv:
+            stored += ack["stored"]
+            a = ack["acked_seq"]
+            old = acked[mid]
+            if a > old:
+                ts = tstamps[index[mid]][old + 1 : a + 1]
+                latencies.extend((t_ack - ts).tolist())
+                acked[mid] = a
+            cv.notify_all()
+
+    sub = mqtt.Client(mqtt.CallbackAPIVersion.VERSION2, protocol=mqtt.MQTTv5)
+    sub.on_message = on_message
+    sub.connect("127.0.0.1", port)
+    sub.subscribe("fieldrx/machines/+/ack", qos=1)
+    sub.loop_start()
+    pub = mqtt.Client(mqtt.CallbackAPIVersion.VERSION2, protocol=mqtt.MQTTv5)
+    pub.max_inflight_messages_set(max_inflight)
+    pub.max_queued_messages_set(0)
+    pub.connect("127.0.0.1", port)
+    pub.loop_start()
+    time.sleep(0.5)
+    sent = [1] * n_m
+    start = time.time()
+    # each machine keeps at most `window` unacked batches (the agent's in-flight cap)
+    window = 4
+    while True:
+        progressed = False
+        all_done = True
+        for k, (mid, _, _) in enumerate(fleet.machines):
+            seq = sent[k]
+            if seq > fleet.n:
+                continue
+            all_done = False
+            with cv:
+                if seq - 1 - acked[mid] >= window * batch:
+                    continue
+            count = min(batch, fleet.n - seq + 1)
+            if realtime:
+                produced = int((time.time() - start) * fleet.hz)
+                count = min(count, produced - seq + 1)
+                if count <= 0:
+                    continue
+            t_now = time.time()
+            recs = fleet.records(k, seq, count, t_now)
+            if realtime:
+                for i, r in enumerate(recs):
+                    r["t"] = start + (seq + i) / fleet.hz
+            tstamps[k][seq : seq + count] = [r["t"] for r in recs]
+            info = pub.publish(
+                telemetry_topic(mid), json.dumps({"records": recs}, separators=(",", ":")), qos=1
+            )
+            if info.rc != mqtt.MQTT_ERR_SUCCESS:
+                raise SystemExit(f"publish failed rc={info.rc}")
+            sent[k] = seq + count
+            progressed = True
+        if all_done:
+            break
+        if not progressed:
+            with cv:
+                cv.wait(0.01)
+    with cv:
+        ok = cv.wait_for(lambda: all(v == fleet.n for v in acked.values()), timeout=300)
+    elapsed = time.time() - start
+    pub.loop_stop()
+    sub.loop_stop()
+    if not ok:
+        print(
+            f"timed out waiting for acks: {sum(acked.values())} / {fleet.n * n_m}", file=sys.stderr
+        )
+    return elapsed, latencies, stored
+
+
+def start_broker(tmp: Path) -> tuple[subprocess.Popen[bytes], int]:
+    port = free_port()
+    conf = (ROOT / "deploy" / "mosquitto.conf").read_text().splitlines()
+    lines = []
+    for line in conf:
+        key = line.split(" ", 1)[0]
+        if key == "listener":
+            line = f"listener {port} 127.0.0.1"
+        elif key == "persistence":
+            line = "persistence false"
+        elif key in ("persistence_location", "autosave_interval"):
+            continue
+        lines.append(line)
+    path = tmp / "mosquitto.conf"
+    path.write_text("\n".join(lines) + "\n")
+    proc = subprocess.Popen(
+        [shutil.which("mosquitto") or "/usr/sbin/mosquitto", "-c", str(path)],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+    )
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline:
+        with socket.socket() as s:
+            if s.connect_ex(("127.0.0.1", port)) == 0:
+                return proc, port
+        time.sleep(0.05)
+    raise SystemExit(f"mosquitto did not start: {stop(proc)}")
+
+
+def cpu_seconds() -> dict[str, float]:
+    """CPU time (user+sys) so far of postgres, our server processes and this client."""
+    tick = os.sysconf("SC_CLK_TCK")
+    out = {"postgres": 0.0, "server": 0.0, "client": 0.0}
+    me = os.getpid()
+    for d in Path("/proc").iterdir():
+        if not d.name.isdigit():
+            continue
+        try:
+            stat = (d / "stat").read_text()
+            cmd = (d / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
+        except OSError:
+            continue
+        fields = stat[stat.rindex(")") + 2 :].split()
+        cpu = (int(fields[11]) + int(fields[12])) / tick
+        if int(d.name) == me:
+            out["client"] += cpu
+        elif stat.split(" (", 1)[1].startswith("postgres"):
+            out["postgres"] += cpu
+        elif "fieldrx.app:create_app" in cmd or "fieldrx worker" in cmd or "multiprocessing" in cmd:
+            out["server"] += cpu
+    return out
+
+
+# main --------------------------------------------------------------------------------
+def main() -> int:
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    ap.add_argument("--machines", type=int, default=200)
+    ap.add_argument("--hz", type=float, default=10.0)
+    ap.add_argument("--seconds", type=float, default=60.0)
+    ap.add_argument("--transport", choices=("http", "mqtt"), default="http")
+    ap.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        help="uvicorn workers (http, default 2) or ingest workers (mqtt, default 2)",
+    )
+    ap.add_argument(
+        "--batch",
+        type=int,
+        default=None,
+        help="records per batch (default: http 500, mqtt 200, as the edge agent)",
+    )
+    ap.add_argument("--concurrency", type=int, default=8, help="HTTP requests in flight")
+    ap.add_argument("--batch-ms", type=int, default=100, help="MQTT worker batching window")
+    ap.add_argument(
+        "--realtime", action="store_true", help="produce at --hz instead of replaying a backlog"
+    )
+    ap.add_argument(
+        "--send-every", type=float, default=1.0, help="realtime: seconds between uploads"
+    )
+    ap.add_argument("--keep-db", action="store_true")
+    args = ap.parse_args()
+    workers = args.workers or 2
+    batch = args.batch or (500 if args.transport == "http" else 200)
+
+    from fieldrx.db.bootstrap import drop_database
+
+    url = make_db()
+    tmp = Path(tempfile.mkdtemp(prefix="fieldrx-bench-"))
+    procs: list[subprocess.Popen[bytes]] = []
+    try:
+        machines = seed(url, args.machines)
+        fleet = Fleet(machines, args.hz, args.seconds)
+        total = fleet.n * len(machines)
+        print(
+            f"{len(machines)} machines x {fleet.n} records = {total} records,"
+            f" transport {args.transport}, batch {batch}"
+        )
+        raw = raw_copy_baseline(url, fleet)
+        fleet.prepare()
+        print(f"raw COPY BINARY baseline: {raw:,.0f} records/s")
+        env = {"DATABASE_URL": url, "FIELDRX_HEARTBEAT_TIMEOUT_S": "3600"}
+        if args.transport == "http":
+            port = free_port()
+            api = start(
+                [
+                    str(BIN / "uvicorn"),
+                    "fieldrx.app:create_app",
+                    "--factory",
+                    "--host",
+                    "127.0.0.1",
+                    "--port",
+                    str(port),
+                    "--workers",
+                    str(workers),
+                    "--log-level",
+                    "warning",
+                    "--no-access-log",
+                    "--loop",
+                    "uvloop",
+                    "--http",
+                    "httptools",
+                ],
+                env,
+            )
+            procs.append(api)
+            base = f"http://127.0.0.1:{port}"
+            wait_http(base, api)
+            cpu0 = cpu_seconds()
+            elapsed, lat, stored = asyncio.run(
+                drive_http(base, fleet, batch, args.concurrency, args.realtime, args.send_every)
+            )
+        else:
+            broker, port = start_broker(tmp)
+            procs.append(broker)
+            group = "bench"
+            for _ in range(workers):
+                w = start(
+                    [
+                        str(BIN / "fieldrx"),
+                        "worker",
+                        "--group",
+                        group,
+                        "--batch-ms",
+                        str(args.batch_ms),
+                        "--mqtt-url",
+                        f"mqtt://127.0.0.1:{port}",
+                    ],
+                    env,
+                )
+                procs.append(w)
+            time.sleep(3.0)  # workers import, connect and subscribe
+            cpu0 = cpu_seconds()
+            elapsed, lat, stored = drive_mqtt(port, fleet, batch, 1000, args.realtime)
+        cpu1 = cpu_seconds()
+        cpu_us = {k: round((cpu1[k] - cpu0[k]) / total * 1e6, 1) for k in cpu0}
+        print(f"CPU per record (us): {cpu_us}")
+        import psycopg
+        from fieldrx.db.session import raw_dsn
+
+        with psycopg.connect(raw_dsn(url)) as conn:
+            rows, distinct = conn.execute(
+                "SELECT count(*), count(DISTINCT (machine_id, seq)) FROM telemetry"
+            ).fetchone()
+            acked = conn.execute(
+                "SELECT coalesce(sum(acked_seq), 0) FROM machine_status"
+            ).fetchone()[0]
+            cells = conn.execute(
+                "SELECT coalesce(sum(n_records), 0) FROM job_cells_applied"
+            ).fetchone()[0]
+        lost = total - distinct
+        duplicated = (rows - distinct) + max(0, stored - distinct)
+        rps = total / elapsed
+        lat_a = np.asarray(lat) if lat else np.asarray([float("nan")])
+        out = {
+            "transport": args.transport,
+            "machines": len(machines),
+            "hz": args.hz,
+            "seconds": args.seconds,
+            "batch": batch,
+            "workers": workers,
+            "realtime": args.realtime,
+            "records": total,
+            "elapsed_s": round(elapsed, 3),
+            "records_per_s": round(rps, 1),
+            "raw_copy_records_per_s": round(raw, 1),
+            "ratio_to_copy": round(rps / raw, 3),
+            "p50_latency_s": round(float(np.percentile(lat_a, 50)), 4),
+            "p99_latency_s": round(float(np.percentile(lat_a, 99)), 4),
+            "lost": int(lost),
+            "duplicated": int(duplicated),
+            "acked_total": int(acked),
+            "cell_records": int(cells),
+            "cpu_us_per_record": cpu_us,
+        }
+        print(
+            f"{args.transport}: {rps:,.0f} records/s sustained ({total} in {elapsed:.2f} s), "
+            f"{rps / raw:.2f} x raw COPY; latency p50 {out['p50_latency_s']} s"
+            f" p99 {out['p99_latency_s']} s; "
+            f"lost {lost}, duplicated {duplicated}"
+        )
+        print(json.dumps(out))
+        return 0 if lost == 0 and duplicated == 0 else 1
+    finally:
+        for p in reversed(procs):
+            err = stop(p)
+            if "Traceback" in err:
+                print(err[-3000:], file=sys.stderr)
+        shutil.rmtree(tmp, ignore_errors=True)
+        if not args.keep_db:
+            drop_database(url)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
