@@ -21,11 +21,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import shapely
-from shapely.geometry import Polygon
+from shapely.geometry import LineString, Polygon
 from shapely.geometry.base import BaseGeometry
+from shapely.ops import substring
 
 from . import PlanningError
-from .coverage import CoveragePlan, Swath, _polygonal
+from .coverage import CoveragePlan, Frame, Swath, _polygonal
 from .crs import utm_coords_to_lonlat
 
 MAX_CELLS = 5_000_000
@@ -119,10 +120,19 @@ def build_grid(
     inner = [s for s in plan.swaths if s.kind == "inner"]
     t = time.perf_counter()
     inner_cells = _inner_cells(plan, inner, cell) if inner else None
+    if inner_cells is not None:
+        _absorb_inner_leftovers(plan.frame, inner, inner_cells)
     timings["inner_cells"] = time.perf_counter() - t
     t = time.perf_counter()
     head = [_ring_cells(s, w, cell) for s in plan.swaths if s.kind == "headland"]
     head_cells = _resolve_overlaps(head) if head else []
+    if head_cells:
+        bands: dict[int, list[int]] = {}
+        hs = [sw for sw in plan.swaths if sw.kind == "headland"]
+        for k, sw in enumerate(hs):
+            bands.setdefault(id(sw.band), []).append(k)
+        for ks in bands.values():
+            _absorb_leftovers(hs[ks[0]].band, [head_cells[k] for k in ks])
     timings["headland_cells"] = time.perf_counter() - t
 
     # put the pieces back into path order
@@ -228,13 +238,30 @@ def _inner_cells(plan: CoveragePlan, inner: list[Swath], cell: float) -> _Cells:
     return _Cells(sidx[rep], j, corners, polys, area, cent, False)
 
 
-def _only_polygons(geoms: np.ndarray) -> np.ndarray:
-    """Drop the lines/points an overlay leaves where a cell touches the boundary."""
-    geoms = np.asarray(geoms, dtype=object)
-    mixed = np.flatnonzero(shapely.get_type_id(geoms) == 7)
-    for k in mixed:
-        polys = [g for g in shapely.get_parts(geoms[k]) if shapely.get_type_id(g) in (3, 6)]
-        geoms[k] = shapely.union_all(polys) if polys else Polygon()
+def _only_polygons(geoms: np.ndarray, min_part_m2: float = 1e-4) -> np.ndarray:
+    """Keep the polygonal parts of overlay results, without needle slivers.
+
+    Overlays leave lines/points where a cell touches the boundary, and near-collinear
+    sliver triangles at acute corners; both are dropped (they carry no area but make
+    later overlays numerically fragile).
+    """
+    # snap-round to a 0.1 micrometre grid: collapses zero-width spikes that make later
+    # overlays (and the checks on them) numerically fragile
+    geoms = shapely.set_precision(np.asarray(geoms, dtype=object), 1e-7)
+    tid = shapely.get_type_id(geoms)
+    odd = np.flatnonzero((tid == 7) | (tid == 6))
+    for k in odd:
+        polys = [
+            g
+            for g in shapely.get_parts(geoms[k])
+            if shapely.get_type_id(g) == 3 and g.area >= min_part_m2
+        ]
+        if not polys:
+            geoms[k] = Polygon()
+        elif len(polys) == 1:
+            geoms[k] = polys[0]
+        else:
+            geoms[k] = shapely.multipolygons(polys)
     return geoms
 
 
@@ -262,10 +289,15 @@ def _ring_cells(s: Swath, w: float, cell: float) -> _Cells:
     t = seg / seg_len[:, None]
     nrm = np.stack([-t[:, 1], t[:, 0]], axis=1)  # left normals
     # mitre vectors at vertices (ring is closed: vertex 0 joins the last and first edge)
+    # |m| = 1 / cos(half the turn); capped so acute corners give long but finite spikes
+    # on the boundary side (the band clip trims them) and short ones on the inner side
     prev = np.roll(nrm, 1, axis=0)
-    mit = prev + nrm
-    denom = 1.0 + np.einsum("ij,ij->i", prev, nrm)
-    mit = mit / np.maximum(denom, 0.125)[:, None]
+    bis = prev + nrm
+    blen = np.hypot(bis[:, 0], bis[:, 1])
+    u = np.where(blen[:, None] > 1e-12, bis / np.maximum(blen, 1e-12)[:, None], prev)
+    cos_half = np.clip(np.einsum("ij,ij->i", u, nrm), 1e-6, 1.0)
+    mit_r = u * np.minimum(1.0 / cos_half, 12.0)[:, None]
+    mit_l = u * np.minimum(1.0 / cos_half, 4.0)[:, None]
     cum = np.r_[0.0, np.cumsum(seg_len)]
     total = cum[-1]
     k = _n_cells(total, cell)
@@ -273,27 +305,38 @@ def _ring_cells(s: Swath, w: float, cell: float) -> _Cells:
     cuts[-1] = total
     a = 0.75 * w  # reach beyond the band; the band clip trims it
 
-    def at(sv: float) -> tuple[np.ndarray, np.ndarray]:
+    nv = len(mit_r)
+
+    def at(sv: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         e = int(np.clip(np.searchsorted(cum, sv, side="right") - 1, 0, len(seg_len) - 1))
-        u = sv - cum[e]
-        if u <= 1e-9:
-            return c[e], mit[e]
-        if seg_len[e] - u <= 1e-9:
-            return c[e + 1], mit[(e + 1) % len(mit)]
-        return c[e] + t[e] * u, nrm[e]
+        d = sv - cum[e]
+        if d <= 1e-9:
+            return c[e], mit_r[e], mit_l[e]
+        if seg_len[e] - d <= 1e-9:
+            return c[e + 1], mit_r[(e + 1) % nv], mit_l[(e + 1) % nv]
+        return c[e] + t[e] * d, nrm[e], nrm[e]
 
     polys = []
     corners = np.empty((k, 4, 2))
     for i in range(k):
-        p0, n0 = at(cuts[i])
-        p1, n1 = at(cuts[i + 1])
+        p0, r0, l0 = at(cuts[i])
+        p1, r1, l1 = at(cuts[i + 1])
         inner_v = np.flatnonzero((cum > cuts[i] + 1e-9) & (cum < cuts[i + 1] - 1e-9))
         pts = [p0] + [c[v] for v in inner_v] + [p1]
-        ns = [n0] + [mit[v % len(mit)] for v in inner_v] + [n1]
-        right = [p - a * n for p, n in zip(pts, ns, strict=True)]
-        left = [p + a * n for p, n in zip(pts, ns, strict=True)]
-        polys.append(Polygon(right + left[::-1]).buffer(0))
+        rs = [r0] + [mit_r[v % nv] for v in inner_v] + [r1]
+        ls = [l0] + [mit_l[v % nv] for v in inner_v] + [l1]
+        right = [p - a * n for p, n in zip(pts, rs, strict=True)]
+        left = [p + a * n for p, n in zip(pts, ls, strict=True)]
+        polys.append(shapely.make_valid(Polygon(right + left[::-1])))
+        # nominal corners: a w-wide rectangle on the chunk's chord (CCW by construction)
+        chord = p1 - p0
+        clen = math.hypot(chord[0], chord[1])
+        cn = np.array([-chord[1], chord[0]]) / clen if clen > 1e-9 else nrm[0]
+        n0 = n1 = cn
         corners[i] = [p0 - (w / 2) * n0, p1 - (w / 2) * n1, p1 + (w / 2) * n1, p0 + (w / 2) * n0]
+    better = _offset_curve_cells(s.line, np.array([at(v)[0] for v in cuts]), w)
+    if better is not None:
+        polys = better
     cells = _only_polygons(shapely.intersection(np.array(polys, dtype=object), s.band))
     return _Cells(
         np.full(k, s.index, np.int64),
@@ -304,6 +347,139 @@ def _ring_cells(s: Swath, w: float, cell: float) -> _Cells:
         np.zeros((k, 2)),
         True,
     )
+
+
+def _curve_params(curve: LineString, pts: np.ndarray) -> np.ndarray | None:
+    """Unwrapped positions along a closed curve of the points nearest to pts (None if the
+    sequence does not run once around the curve in order)."""
+    total = curve.length
+    t = shapely.line_locate_point(curve, shapely.points(pts))
+    d = np.diff(t)
+    d = np.where(d < -0.5 * total, d + total, d)
+    d = np.where(d > 0.5 * total, d - total, d)
+    out = np.r_[t[0], t[0] + np.cumsum(d)]
+    # small backward steps (narrow places): clamp, the cut lines then share a point
+    if (np.maximum.accumulate(out) - out).max() > 0.25 * total:
+        return None
+    out = np.maximum.accumulate(out)
+    if abs((out[-1] - out[0]) - total) > 0.02 * total:
+        return None
+    return out
+
+
+def _curve_piece(curve: LineString, ta: float, tb: float) -> np.ndarray:
+    total = curve.length
+    if tb <= total + 1e-9:
+        return np.asarray(substring(curve, ta, min(tb, total)).coords)
+    a = np.asarray(substring(curve, ta, total).coords)
+    b = np.asarray(substring(curve, 0.0, tb - total).coords)
+    return np.vstack([a, b[1:]])
+
+
+def _offset_curve_cells(ring: LineString, cut_pts: np.ndarray, w: float) -> list | None:
+    """Cells bounded by the ring's offset curves on both sides (nearest-point mapping).
+
+    Cut lines run from each cut point to its nearest points on the two offset curves, so
+    at a concave corner they fan into the corner point instead of crossing, and
+    consecutive cells always share their cut line. None when the offset curves are not
+    single closed curves (narrow places); the caller then keeps the mitred quads.
+    """
+    a = 0.55 * w
+    ring_poly = Polygon(ring.coords)
+    if not ring_poly.is_valid:
+        return None
+    ccw = ring_poly.exterior.is_ccw
+    curves = []
+    # right of a CCW ring is outside its polygon; right of a CW (hole) ring is inside
+    for dist in (a, -a) if ccw else (-a, a):
+        grown = ring_poly.buffer(dist, join_style="mitre", mitre_limit=10.0)
+        if not isinstance(grown, Polygon) or grown.is_empty:
+            return None
+        curves.append(LineString(grown.exterior.coords))
+    params = []
+    for cv in curves:
+        t = _curve_params(cv, cut_pts)
+        if t is None:
+            cv = LineString(np.asarray(cv.coords)[::-1])
+            t = _curve_params(cv, cut_pts)
+        if t is None:
+            return None
+        params.append((cv, t))
+    (rc, tr), (lc, tl) = params
+    polys = []
+    for i in range(len(cut_pts) - 1):
+        right = _curve_piece(rc, tr[i] % rc.length, tr[i] % rc.length + tr[i + 1] - tr[i])
+        left = _curve_piece(lc, tl[i] % lc.length, tl[i] % lc.length + tl[i + 1] - tl[i])
+        ring_pts = np.vstack([right, left[::-1]])
+        if len(np.unique(np.round(ring_pts, 9), axis=0)) < 3:
+            return None
+        poly = Polygon(ring_pts)
+        polys.append(poly if poly.is_valid else shapely.make_valid(poly))
+    return polys
+
+
+def _absorb_leftovers(area: BaseGeometry, groups: list[_Cells]) -> None:
+    """Give every bit of ``area`` no cell covers to the nearest cell (in place).
+
+    Headland offsets cannot reach into thin peninsulas and the swath split at a notch
+    leaves small wedges; their fertiliser still has to be planned, so they join the
+    nearest cell instead of falling out of the grid.
+    """
+    polys = np.concatenate([g.polys for g in groups])
+    left = shapely.difference(area, shapely.union_all(polys))
+    pieces = [q for q in shapely.get_parts(left) if shapely.get_type_id(q) == 3 and q.area > 1e-6]
+    if not pieces:
+        return
+    tree = shapely.STRtree(polys)
+    targets = tree.query_nearest(np.array(pieces, dtype=object), return_distance=False)[1]
+    grown: dict[int, list] = {}
+    for piece, t in zip(pieces, targets, strict=False):
+        grown.setdefault(int(t), []).append(piece)
+    offs = np.cumsum([0] + [len(g.polys) for g in groups])
+    for t, add in grown.items():
+        gi = int(np.searchsorted(offs, t, side="right") - 1)
+        g, k = groups[gi], t - offs[gi]
+        merged = _only_polygons(np.array([shapely.union_all([g.polys[k], *add])]))[0]
+        g.polys[k] = merged
+        g.area[k] = shapely.area(merged)
+        g.cent[k] = _inside_centres(np.array([merged], dtype=object))[0]
+
+
+def _absorb_inner_leftovers(frame: Frame, inner: list[Swath], cells: _Cells) -> None:
+    """Strip pieces whose swaths do not span them (split at a notch or hole) join cells."""
+    by_comp: dict[int, list[int]] = {}
+    for m, sw in enumerate(inner):
+        by_comp.setdefault(id(sw.clip), []).append(m)
+    swath_rows: dict[int, np.ndarray] = {}
+    for ms in by_comp.values():
+        comp = inner[ms[0]].clip
+        if comp is None:
+            continue
+        span = sum(inner[m].x1 - inner[m].x0 for m in ms)
+        x0, _, x1, _ = comp.bounds
+        if span >= (x1 - x0) - 1e-9:
+            continue
+        if not swath_rows:
+            order = np.argsort(cells.swath, kind="stable")
+            sw_sorted = cells.swath[order]
+            for m, sw in enumerate(inner):
+                lo = np.searchsorted(sw_sorted, sw.index)
+                hi = np.searchsorted(sw_sorted, sw.index, side="right")
+                swath_rows[m] = order[lo:hi]
+        rows = np.concatenate([swath_rows[m] for m in ms])
+        sub = _Cells(
+            cells.swath[rows],
+            cells.idx[rows],
+            cells.corners[rows],
+            cells.polys[rows].copy(),
+            cells.area[rows].copy(),
+            cells.cent[rows].copy(),
+            False,
+        )
+        _absorb_leftovers(frame.inv_geom(comp), [sub])  # comp is in the planning frame
+        cells.polys[rows] = sub.polys
+        cells.area[rows] = sub.area
+        cells.cent[rows] = sub.cent
 
 
 def _resolve_overlaps(rings: list[_Cells]) -> list[_Cells]:
@@ -354,9 +530,9 @@ def _merge_slivers(cat: dict[str, np.ndarray], min_area: float) -> np.ndarray:
             if 0 <= jj < n and sw[jj] == sw[i] and keep[jj]:
                 target = jj
                 break
-        keep[i] = False
         if target < 0:
-            continue  # a lone sliver swath: dropped
+            continue  # a swath that is one small cell: kept, its area still needs a rate
+        keep[i] = False
         merged = _only_polygons(np.array([shapely.union(cat["polys"][target], cat["polys"][i])]))[0]
         cat["polys"][target] = merged
         cat["area"][target] = shapely.area(merged)
