@@ -78,8 +78,73 @@ def _unit(v: np.ndarray) -> np.ndarray:
     return v / n if n > 0 else np.array([1.0, 0.0])
 
 
+def _normal_toward(p: np.ndarray, q: np.ndarray, toward: np.ndarray) -> np.ndarray:
+    e = q - p
+    n = _unit(np.array([e[1], -e[0]]))
+    return n if float(np.dot(n, toward)) >= 0 else -n
+
+
+def _shared_edge(a: np.ndarray, b: np.ndarray, tol: float = 0.05) -> tuple | None:
+    """The two corners cells a and b (4x2 each) have in common, if any."""
+    d = np.hypot(a[:, None, 0] - b[None, :, 0], a[:, None, 1] - b[None, :, 1])
+    ia = np.unique(np.argwhere(d < tol)[:, 0])
+    if len(ia) < 2:
+        return None
+    return a[ia[0]], a[ia[1]]
+
+
+def _run_waypoints(
+    c: np.ndarray, cent: np.ndarray, prev_u: np.ndarray | None
+) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """Entry and exit point of every cell of one run (consecutive cells of a swath).
+
+    Consecutive cells share a cut edge across the swath; its midpoint is on the
+    driving line and its normal is the direction of travel there. This follows
+    straight swaths and curved headland rings alike. A cell without a shared
+    edge (a swath interrupted by a hole, a one-cell run) is crossed along the
+    run direction through its centroid.
+    """
+    k = len(c)
+    mids: list[tuple | None] = []
+    for j in range(k - 1):
+        e = _shared_edge(c[j], c[j + 1])
+        if e is None:
+            mids.append(None)
+        else:
+            p, q = e
+            mids.append(((p + q) / 2, _normal_toward(p, q, cent[j + 1] - cent[j])))
+    entry: list[np.ndarray | None] = [None] * k
+    exit_: list[np.ndarray | None] = [None] * k
+    for j in range(k):
+        if j > 0 and mids[j - 1] is not None:
+            entry[j] = mids[j - 1][0]
+        if j < k - 1 and mids[j] is not None:
+            exit_[j] = mids[j][0]
+    if k >= 2:
+        run_u = _unit(cent[-1] - cent[0])
+    else:
+        e0, e1 = c[0, 1] - c[0, 0], c[0, 2] - c[0, 1]
+        run_u = _unit(e0 if np.hypot(*e0) >= np.hypot(*e1) else e1)
+        if prev_u is not None and float(np.dot(run_u, prev_u)) > 0:
+            run_u = -run_u  # boustrophedon: the next swath goes back
+    for j in range(k):
+        if entry[j] is not None and exit_[j] is None:
+            u = mids[j - 1][1]
+            ext = float(((c[j] - entry[j]) @ u).max())
+            exit_[j] = entry[j] + ext * u
+        elif exit_[j] is not None and entry[j] is None:
+            u = mids[j][1]
+            ext = float(((exit_[j] - c[j]) @ u).max())
+            entry[j] = exit_[j] - ext * u
+        elif entry[j] is None:
+            proj = (c[j] - cent[j]) @ run_u
+            entry[j] = cent[j] + float(proj.min()) * run_u
+            exit_[j] = cent[j] + float(proj.max()) * run_u
+    return entry, exit_  # type: ignore[return-value]
+
+
 def build_path(job: JobPackage, cfg: SimConfig, rng: np.random.Generator) -> SimPath:
-    """Straight runs through consecutive same-swath cells, Bezier turns between runs."""
+    """Runs through consecutive same-swath cells (cut-edge midpoints), Bezier turns between."""
     c = np.asarray(job.corners_utm, dtype=float).reshape(-1, 4, 2)
     cent = c.mean(axis=1)
     sw = np.asarray(job.swath)
@@ -106,25 +171,16 @@ def build_path(job: JobPackage, cfg: SimConfig, rng: np.random.Generator) -> Sim
     prev_end: np.ndarray | None = None
     prev_u: np.ndarray | None = None
     for r, (i0, i1) in enumerate(zip(starts, ends, strict=True)):
-        if i1 - i0 >= 2:
-            u = _unit(cent[i1 - 1] - cent[i0])
-        else:
-            e = c[i0, 1] - c[i0, 0]
-            f = c[i0, 2] - c[i0, 1]
-            u = _unit(e if np.hypot(*e) >= np.hypot(*f) else f)
-            if prev_u is not None and np.dot(u, prev_u) > 0:
-                u = -u
-        o = cent[i0:i1].mean(axis=0)
-        proj = (c[i0:i1] - o) @ u  # (k, 4)
-        a = proj.min(axis=1)
-        b = proj.max(axis=1)
-        p0 = o + (a[0] - run_in) * u
-        p1 = o + (b[-1] + run_in) * u
+        entry, exit_ = _run_waypoints(c[i0:i1], cent[i0:i1], prev_u)
+        u0 = _unit(exit_[0] - entry[0])
+        u1 = _unit(exit_[-1] - entry[-1])
+        p0 = entry[0] - run_in * u0
+        p1 = exit_[-1] + run_in * u1
         if prev_end is not None and prev_u is not None:
             d = float(np.hypot(*(p0 - prev_end)))
-            k = max(d * 0.6, 3.0)
+            kk = max(d * 0.6, 3.0)
             tt = np.linspace(0, 1, 25)[1:-1, None]
-            q0, q1, q2, q3 = prev_end, prev_end + k * prev_u, p0 - k * u, p0
+            q0, q1, q2, q3 = prev_end, prev_end + kk * prev_u, p0 - kk * u0, p0
             bez = (
                 (1 - tt) ** 3 * q0
                 + 3 * (1 - tt) ** 2 * tt * q1
@@ -136,19 +192,33 @@ def build_path(job: JobPackage, cfg: SimConfig, rng: np.random.Generator) -> Sim
             ys.append(seg[:, 1])
             rid.append(np.full(len(seg), -1))
             s_total += float(np.hypot(*np.diff(np.vstack([seg, p0]), axis=0).T).sum())
-        # the run itself: start, end (fine resampling happens below)
-        xs.append(np.array([p0[0], p1[0]]))
-        ys.append(np.array([p0[1], p1[1]]))
-        rid.append(np.array([r, r]))
-        cell_a[i0:i1] = s_total + (a - (a[0] - run_in))
-        cell_b[i0:i1] = s_total + (b - (a[0] - run_in))
+        pts = [p0]
+        ia = np.zeros(i1 - i0, dtype=int)
+        ib = np.zeros(i1 - i0, dtype=int)
+        for j in range(i1 - i0):
+            if float(np.hypot(*(entry[j] - pts[-1]))) > 1e-6:
+                pts.append(entry[j])
+            ia[j] = len(pts) - 1
+            pts.append(exit_[j])
+            ib[j] = len(pts) - 1
+        pts.append(p1)
+        arr = np.array(pts)
+        cum = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(arr, axis=0).T))])
+        xs.append(arr[:, 0])
+        ys.append(arr[:, 1])
+        rid.append(np.full(len(arr), r))
+        cell_a[i0:i1] = s_total + cum[ia]
+        cell_b[i0:i1] = s_total + cum[ib]
         run_of_cell[i0:i1] = r
-        s_total += float(np.hypot(*(p1 - p0)))
-        prev_end, prev_u = p1, u
+        s_total += float(cum[-1])
+        prev_end, prev_u = p1, u1
     vx = np.concatenate(xs)
     vy = np.concatenate(ys)
     vr = np.concatenate(rid)
     vs = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(vx), np.diff(vy)))])
+    # drop zero-length segments (duplicate vertices) so interpolation stays monotonic
+    keep = np.concatenate([np.diff(vs) > 1e-9, [True]])
+    vx, vy, vr, vs = vx[keep], vy[keep], vr[keep], vs[keep]
     # segment heading: the heading of the segment leaving each vertex
     hd = np.arctan2(np.diff(vx), np.diff(vy))
     hd = np.concatenate([hd, hd[-1:]])
@@ -202,11 +272,6 @@ def _flow_g_min(cal: Any, rpm: np.ndarray) -> np.ndarray:
     return np.maximum(cal.slope_g_min_per_rpm * rpm + cal.intercept_g_min, 0.0)
 
 
-def _quad_area(c: np.ndarray) -> np.ndarray:
-    x, y = c[:, 0::2], c[:, 1::2]
-    return 0.5 * np.abs((x * np.roll(y, -1, axis=1) - np.roll(x, -1, axis=1) * y).sum(axis=1))
-
-
 def simulate(
     job: JobPackage,
     cfg: SimConfig,
@@ -240,6 +305,18 @@ def simulate(
     t_fix = fk * dt
     s_fix = np.interp(t_fix, tg, sg)
     fx, fy, fh = _interp_path(path, s_fix)
+    # the implement is lowered shortly before a run's first cell (so the look-ahead
+    # can start metering) and raised after its last; turns and run-ins are driven raised
+    fseg = np.clip(np.searchsorted(path.s, s_fix, side="right") - 1, 0, len(path.s) - 1)
+    frun = path.run_id[fseg]
+    n_runs = int(path.run_of_cell.max()) + 1 if job.n_cells else 0
+    first = np.searchsorted(path.run_of_cell, np.arange(n_runs), side="left")
+    last = np.searchsorted(path.run_of_cell, np.arange(n_runs), side="right") - 1
+    pre = cfg.speed_max_kmh / 3.6 * (job.lag_s + 0.5) + max(0.0, job.antenna_forward_m) + 1.0
+    lo_s = path.cell_a[first] - pre
+    hi_s = path.cell_b[last] + 0.3
+    rr = np.maximum(frun, 0)
+    fdown = ((frun >= 0) & (s_fix >= lo_s[rr]) & (s_fix <= hi_s[rr])).tolist()
     nf = len(fk)
     fx = fx + rng.normal(0, cfg.gnss_noise_m, nf)
     fy = fy + rng.normal(0, cfg.gnss_noise_m, nf)
@@ -271,10 +348,11 @@ def simulate(
     tbase = t0 if t0 is not None else time.time()
     j = 0
     for k0 in range(0, n_steps, ratio):
-        d = pos(k0 * dt, fxl[j], fyl[j], fvl[j], fcl[j], True)
+        down = fdown[j]
+        d = pos(k0 * dt, fxl[j], fyl[j], fvl[j], fcl[j], down)
         sp = d.target_rpm if d.metering else 0.0
         if sink is not None:
-            batch.append(make_record(pipe, d, None, y, ctrl.output, True, tbase + k0 * dt))
+            batch.append(make_record(pipe, d, None, y, ctrl.output, down, tbase + k0 * dt))
             if len(batch) >= 200:
                 sink(batch)
                 batch = []
@@ -299,25 +377,40 @@ def simulate(
     ok = (ci >= 0) & (s_land < b[np.maximum(ci, 0)])
     seg = np.clip(np.searchsorted(path.s, s_land, side="right") - 1, 0, len(path.s) - 1)
     ok &= path.run_id[seg] >= 0
-    m2 = np.bincount(ci[ok], weights=mass_g[ok], minlength=n)
     corners = np.asarray(job.corners_utm, dtype=float).reshape(-1, 8)
-    area = _quad_area(corners)
     rates = np.asarray(job.rate_kg_ha)
-    m1 = rates * area / 10.0  # seed 001 eq. 17: M v t l / 36 g == rate * area / 10
-    used = np.zeros(n, dtype=bool)
-    used[:n_cells_used] = True
-    used &= m1 > 0
-    acc = (1.0 - np.abs(m1 - m2) / np.where(m1 > 0, m1, 1.0)) * 100.0  # eq. 18
     # outside the field: test landing points not inside a cell that lies fully inside
     boundary = FieldBoundary(job.boundary_utm)
     cxy = corners.reshape(-1, 4, 2)
     shrink = cxy + 0.01 * (cxy.mean(axis=1, keepdims=True) - cxy)
     cell_in = boundary.contains_many(shrink.reshape(-1, 2)).reshape(-1, 4).all(axis=1)
+    # seed 001 eq. 17: M1 = M v t l / 36 g, v t the distance driven in the cell: the
+    # driving line's length inside the cell and inside the field (the agent never
+    # applies outside it); for a whole 5 m x 2.3 m cell this is rate * area / 10
+    drive_len = b - a
+    part = np.flatnonzero(~cell_in)
+    if len(part):
+        step = 0.05
+        ss = np.concatenate([np.arange(a[i] + step / 2, b[i], step) for i in part])
+        own = np.concatenate(
+            [np.full(len(np.arange(a[i] + step / 2, b[i], step)), i) for i in part]
+        )
+        px, py, _ = _interp_path(path, ss)
+        ins = boundary.contains_many(np.column_stack([px, py]))
+        drive_len[part] = np.bincount(own, weights=ins * step, minlength=n)[part]
+    m1 = rates * job.implement_width_m * drive_len / 10.0
+    used = np.zeros(n, dtype=bool)
+    used[:n_cells_used] = True
+    used &= m1 > 0
     has_mass = mass_g > 0
     check = has_mass & ~(ok & cell_in[np.maximum(ci, 0)])
     lx, ly, _ = _interp_path(path, s_land[check])
     inside = boundary.contains_many(np.column_stack([lx, ly]))
     outside_g = float(mass_g[check][~inside].sum())
+    landed_in = ok.copy()
+    landed_in[np.flatnonzero(check)[~inside]] = False  # in a cell's quad but off the field
+    m2 = np.bincount(ci[landed_in], weights=mass_g[landed_in], minlength=n)
+    acc = (1.0 - np.abs(m1 - m2) / np.where(m1 > 0, m1, 1.0)) * 100.0  # eq. 18
     # lag distance at cell borders with a real rate step, inside one run
     rate_land = np.where(
         v_land > 0.05, _flow_g_min(cal, rpm) / (6.0 * job.implement_width_m * v_land), 0
