@@ -1,0 +1,204 @@
+"""Fleet view: machine status, alerts (list, acknowledge), track replay and telemetry charts.
+
+Mounted after the machines router; ``/machines/status`` is not shadowed because
+the machine item routes use an ``int`` path converter.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+from typing import Any
+
+from fastapi import APIRouter, Query
+from sqlalchemy import func, select, text
+
+from fieldrx.api.common import ApiError, get_scoped
+from fieldrx.auth.deps import SessionDep, UserDep, WriterDep
+from fieldrx.db.models import Alert, Machine
+from fieldrx.fleet.alerts import ALERT_KINDS, check_no_data
+from fieldrx.fleet.db import raw_connection
+from fieldrx.fleet.status import machine_status
+from fieldrx.settings import get_settings
+
+router = APIRouter(tags=["fleet"])
+
+
+@router.get("/machines/status")
+def fleet_status(principal: UserDep, session: SessionDep) -> dict[str, Any]:
+    """Every machine of the organisation: online (heartbeat), position, job, rates, backlog."""
+    timeout = get_settings().heartbeat_timeout_s
+    with raw_connection() as conn:
+        check_no_data(conn, timeout)
+    return {
+        "heartbeat_timeout_s": timeout,
+        "server_time": dt.datetime.now(dt.UTC),
+        "items": machine_status(session, principal.organisation_id, timeout),
+    }
+
+
+def _alert_out(a: Alert) -> dict[str, Any]:
+    return {
+        "id": a.id,
+        "machine_id": a.machine_id,
+        "job_id": a.job_id,
+        "kind": a.kind,
+        "message": a.message,
+        "value": a.value,
+        "started_at": a.started_at,
+        "ended_at": a.ended_at,
+        "active": a.ended_at is None,
+        "acknowledged_at": a.acknowledged_at,
+        "acknowledged_by": a.acknowledged_by,
+    }
+
+
+@router.get("/alerts")
+def list_alerts(
+    principal: UserDep,
+    session: SessionDep,
+    active: bool | None = Query(default=None, description="true: not ended; false: ended"),
+    acknowledged: bool | None = None,
+    machine_id: int | None = None,
+    job_id: int | None = None,
+    kind: str | None = Query(default=None, description=" | ".join(ALERT_KINDS)),
+    limit: int = Query(default=100, ge=1, le=1000),
+    offset: int = Query(default=0, ge=0),
+) -> dict[str, Any]:
+    with raw_connection() as conn:
+        check_no_data(conn, get_settings().heartbeat_timeout_s)
+    stmt = select(Alert).where(Alert.organisation_id == principal.organisation_id)
+    if active is not None:
+        stmt = stmt.where(Alert.ended_at.is_(None) if active else Alert.ended_at.is_not(None))
+    if acknowledged is not None:
+        stmt = stmt.where(
+            Alert.acknowledged_at.is_not(None) if acknowledged else Alert.acknowledged_at.is_(None)
+        )
+    if machine_id is not None:
+        stmt = stmt.where(Alert.machine_id == machine_id)
+    if job_id is not None:
+        stmt = stmt.where(Alert.job_id == job_id)
+    if kind is not None:
+        if kind not in ALERT_KINDS:
+            raise ApiError(422, f"unknown alert kind '{kind}'", where="kind", allowed=ALERT_KINDS)
+        stmt = stmt.where(Alert.kind == kind)
+    total = session.scalar(select(func.count()).select_from(stmt.subquery())) or 0
+    rows = session.scalars(
+        stmt.order_by(Alert.started_at.desc(), Alert.id.desc()).limit(limit).offset(offset)
+    )
+    return {"items": [_alert_out(a) for a in rows], "total": total}
+
+
+@router.post("/alerts/{alert_id:int}/ack")
+def ack_alert(alert_id: int, principal: WriterDep, session: SessionDep) -> dict[str, Any]:
+    """Acknowledge: someone has seen it. An active alert stays active until its cause ends."""
+    a = get_scoped(session, Alert, alert_id, principal)
+    if a.acknowledged_at is None:
+        a.acknowledged_at = dt.datetime.now(dt.UTC)
+        a.acknowledged_by = principal.user_id
+        session.commit()
+    return _alert_out(a)
+
+
+def _range(
+    frm: dt.datetime | None, to: dt.datetime | None
+) -> tuple[dt.datetime | None, dt.datetime | None]:
+    if frm is not None and to is not None and to < frm:
+        raise ApiError(422, "'to' is before 'from'", where="to")
+    return frm, to
+
+
+@router.get("/machines/{machine_id:int}/track")
+def machine_track(
+    machine_id: int,
+    principal: UserDep,
+    session: SessionDep,
+    frm: dt.datetime | None = Query(default=None, alias="from"),
+    to: dt.datetime | None = None,
+    limit: int = Query(default=1000, ge=1, le=10000),
+    offset: int = Query(default=0, ge=0),
+) -> dict[str, Any]:
+    """History replay: the machine's positions in time order, one page at a time (GeoJSON)."""
+    get_scoped(session, Machine, machine_id, principal)
+    frm, to = _range(frm, to)
+    params = {"m": machine_id, "f": frm, "t": to, "lim": limit, "off": offset}
+    where = (
+        "machine_id = :m AND geom IS NOT NULL"
+        " AND (CAST(:f AS timestamptz) IS NULL OR t >= :f)"
+        " AND (CAST(:t AS timestamptz) IS NULL OR t <= :t)"
+    )
+    total = session.execute(
+        text(f"SELECT count(*) FROM telemetry WHERE {where}"), params
+    ).scalar_one()
+    rows = session.execute(
+        text(
+            f"SELECT seq, t, ST_X(geom) AS lon, ST_Y(geom) AS lat, fix_quality,"
+            f" speed_filtered_m_s, heading_deg, job_id, cell_seq, applied_rate_kg_ha,"
+            f" implement_down FROM telemetry WHERE {where}"
+            f" ORDER BY t, seq LIMIT :lim OFFSET :off"
+        ),
+        params,
+    ).mappings()
+    feats = [
+        {
+            "type": "Feature",
+            "geometry": {"type": "Point", "coordinates": [r["lon"], r["lat"]]},
+            "properties": {k: r[k] for k in r.keys() if k not in ("lon", "lat")},
+        }
+        for r in rows
+    ]
+    nxt = offset + len(feats)
+    return {
+        "type": "FeatureCollection",
+        "features": feats,
+        "machine_id": machine_id,
+        "total": total,
+        "limit": limit,
+        "offset": offset,
+        "next_offset": nxt if nxt < total else None,
+    }
+
+
+CHART_COLUMNS = (
+    "speed_raw_m_s",
+    "speed_filtered_m_s",
+    "target_shaft_rpm",
+    "actual_shaft_rpm",
+    "target_rate_kg_ha",
+    "applied_rate_kg_ha",
+    "duty",
+    "fix_quality",
+    "cell_seq",
+)
+
+
+@router.get("/machines/{machine_id:int}/telemetry")
+def machine_telemetry(
+    machine_id: int,
+    principal: UserDep,
+    session: SessionDep,
+    frm: dt.datetime | None = Query(default=None, alias="from"),
+    to: dt.datetime | None = None,
+    limit: int = Query(default=5000, ge=1, le=50000),
+) -> dict[str, Any]:
+    """Column arrays for charts (raw vs filtered speed, target vs actual shaft speed, rates).
+
+    Without a range: the latest ``limit`` records; with one: the first ``limit`` in it.
+    """
+    get_scoped(session, Machine, machine_id, principal)
+    frm, to = _range(frm, to)
+    cols = ", ".join(CHART_COLUMNS)
+    latest = frm is None and to is None
+    sql = (
+        f"SELECT seq, extract(epoch FROM t)::float8 AS t, {cols} FROM telemetry"
+        " WHERE machine_id = :m AND (CAST(:f AS timestamptz) IS NULL OR t >= :f)"
+        " AND (CAST(:t AS timestamptz) IS NULL OR t <= :t)"
+        f" ORDER BY t {'DESC' if latest else 'ASC'}, seq LIMIT :lim"
+    )
+    rows = session.execute(text(sql), {"m": machine_id, "f": frm, "t": to, "lim": limit}).all()
+    if latest:
+        rows = rows[::-1]
+    keys = ("seq", "t", *CHART_COLUMNS)
+    out: dict[str, Any] = {"machine_id": machine_id, "n": len(rows)}
+    for i, k in enumerate(keys):
+        out[k] = [r[i] for r in rows]
+    return out
