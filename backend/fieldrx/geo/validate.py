@@ -61,15 +61,15 @@ def geodesic_area_m2(geom: Polygon | MultiPolygon) -> float:
 def _rings(coords: Any, gtype: str) -> list[tuple[str, list]]:
     """(json path, ring) for every ring, checking the nesting shape as we go."""
     polys = [coords] if gtype == "Polygon" else coords
-    if not isinstance(polys, list) or not polys:
+    if not isinstance(polys, list | tuple) or not polys:
         raise BoundaryError(f"{gtype} has no coordinates", "geometry.coordinates")
     out = []
     for pi, poly in enumerate(polys):
         base = "geometry.coordinates" + ("" if gtype == "Polygon" else f"[{pi}]")
-        if not isinstance(poly, list) or not poly:
+        if not isinstance(poly, list | tuple) or not poly:
             raise BoundaryError("polygon has no rings", base)
         for ri, ring in enumerate(poly):
-            if not isinstance(ring, list):
+            if not isinstance(ring, list | tuple):
                 raise BoundaryError("ring is not a list of positions", f"{base}[{ri}]")
             out.append((f"{base}[{ri}]", ring))
     return out
