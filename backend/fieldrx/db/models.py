@@ -315,7 +315,10 @@ class Telemetry(Base):
         DateTime(timezone=True), server_default=func.now()
     )
     job_id: Mapped[int | None] = mapped_column(Integer)
-    geom: Mapped[Any] = mapped_column(Geometry("POINT", srid=4326, spatial_index=True))
+    # null when the record has no position (fix lost): the protocol allows lon/lat null
+    geom: Mapped[Any | None] = mapped_column(
+        Geometry("POINT", srid=4326, spatial_index=True), nullable=True
+    )
     fix_quality: Mapped[int] = mapped_column(SmallInteger, default=0)
     hdop: Mapped[float | None] = mapped_column(Double)
     speed_raw_m_s: Mapped[float | None] = mapped_column(Double)
