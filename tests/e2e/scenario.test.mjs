@@ -288,32 +288,65 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
     const edge = join(ROOT, '.venv', 'bin', 'fieldrx-edge');
     if (!existsSync(edge)) return t.skip('fieldrx-edge is not installed in .venv');
     const help = await run(edge, ['simulate', '--help'], 20_000);
-    if (help.code !== 0) return t.skip(`fieldrx-edge simulate is not available yet: ${help.err.trim().split('\n').pop()}`);
+    if (help.code !== 0) return t.skip(`fieldrx-edge simulate is not available: ${help.err.trim().split('\n').pop()}`);
     const dt = await api(token, 'POST', `/machines/${S.machineId}/device-token`);
     assert.ok(dt.ok, `device token (${dt.status})`);
+    // The machine's side: download the job package with the device token.
+    const pkgRes = await fetch(`${BASE_URL}/api/v1/device/jobs/${S.jobId}/package`, {
+      headers: { Authorization: `Bearer ${dt.data.token}` },
+    });
+    assert.ok(pkgRes.ok, `job package (${pkgRes.status})`);
+    const pkgFile = join(ARTIFACTS, `job-${S.jobId}-package.json`);
+    writeFileSync(pkgFile, Buffer.from(await pkgRes.arrayBuffer()));
     await page.goto(`${BASE_URL}/#/fleet`);
     await mapIdle(page, 'fleet');
-    const args = ['simulate', '--server', BASE_URL, '--token', dt.data.token];
-    if (help.out.includes('--job')) args.push('--job', String(S.jobId));
-    if (help.out.includes('--speedup')) args.push('--speedup', process.env.FIELDRX_SIM_SPEEDUP ?? '20');
+    await page.waitForSelector('[data-testid=live-state]:has-text("open")', { timeout: 15_000 }).catch(() => {});
+    await shot(page, 'fleet-before');
+    const pos = `[data-testid=machine-pos-${S.machineId}]`;
+    const before = (await page.locator(pos).textContent().catch(() => null)) ?? '';
+    const args = [
+      'simulate', pkgFile, '--server', BASE_URL, '--token', dt.data.token, '--json',
+      '--drain-timeout', process.env.FIELDRX_SIM_DRAIN_S ?? '120',
+    ];
     const sim = spawn(edge, args, { stdio: ['ignore', 'pipe', 'pipe'] });
     let simOut = '';
     sim.stdout.on('data', (d) => (simOut += d));
     sim.stderr.on('data', (d) => (simOut += d));
     try {
-      const pos = `[data-testid=machine-pos-${S.machineId}]`;
-      await page.waitForFunction((sel) => /\d+\.\d+, \d+\.\d+/.test(document.querySelector(sel)?.textContent ?? ''), pos, { timeout: 60_000 });
+      // First position (or a new one), then a different one: the marker moves.
+      const isPos = (txt) => /-?\d+\.\d+, -?\d+\.\d+/.test(txt ?? '');
+      await page.waitForFunction(
+        ([sel, old]) => {
+          const t = document.querySelector(sel)?.textContent ?? '';
+          return /\d+\.\d+, /.test(t) && t !== old;
+        },
+        [pos, before],
+        { timeout: 90_000 },
+      );
       const p1 = await page.textContent(pos);
+      assert.ok(isPos(p1), p1);
       await shot(page, 'fleet-moving-1');
-      await page.waitForFunction(([sel, old]) => (document.querySelector(sel)?.textContent ?? old) !== old, [pos, p1], { timeout: 60_000 });
+      await page.waitForFunction(([sel, old]) => (document.querySelector(sel)?.textContent ?? old) !== old, [pos, p1], {
+        timeout: 90_000,
+      });
+      await mapIdle(page, 'fleet');
       await shot(page, 'fleet-moving-2');
+      const onMap = await page.evaluate(() => window.__fieldrxMaps.fleet.queryRenderedFeatures({ layers: ['machines-dot'] }).length);
+      assert.ok(onMap > 0, 'machine drawn on the fleet map');
       S.moved = true;
-      const ended = await waitExit(sim, Number(process.env.FIELDRX_SIM_TIMEOUT_MS ?? 120_000));
-      if (!ended) sim.kill('SIGTERM');
+      const ended = await waitExit(sim, Number(process.env.FIELDRX_SIM_TIMEOUT_MS ?? 150_000));
+      assert.ok(ended, 'simulator finished');
+      assert.equal(sim.exitCode, 0, `simulator exit code (see artifacts/edge-simulate.log)`);
     } finally {
       if (sim.exitCode == null) sim.kill('SIGTERM');
       writeFileSync(join(ARTIFACTS, 'edge-simulate.log'), simOut);
     }
+    // Machine detail: raw vs filtered speed and target vs actual shaft speed.
+    await page.goto(`${BASE_URL}/#/machines/${S.machineId}`);
+    await page.waitForFunction(() => Number(document.querySelector('[data-testid=machine-track-count]')?.textContent ?? 0) > 0, null, {
+      timeout: 30_000,
+    }).catch(() => {});
+    await shot(page, 'machine-charts');
   });
 
   it('shows the job report filling', async (t) => {

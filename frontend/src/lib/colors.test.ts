@@ -110,6 +110,9 @@ describe('classify / histogram / legend / expression agree', () => {
       '#c',
     ]);
   });
+  it('a single class (uniform rate) is a constant colour, not a step without stops', () => {
+    expect(stepExpression('rate_kg_ha', [299.5, 300.5], ['#abc'])).toBe('#abc');
+  });
   it('class colours run from the low to the high end of the ramp', () => {
     const c = classColors(5);
     expect(c[0]).toBe('#440154');

@@ -143,9 +143,11 @@ export function legendEntries(
  * MapLibre `step` expression over a numeric feature property, matching classify():
  * value < breaks[1] -> colors[0], ..., >= breaks[n-1] -> colors[n-1].
  */
-export function stepExpression(prop: string, breaks: number[], colors: string[]): unknown[] {
+export function stepExpression(prop: string, breaks: number[], colors: string[]): unknown[] | string {
   const n = breaks.length - 1;
   if (colors.length !== n) throw new RangeError(`need ${n} colours, got ${colors.length}`);
+  // One class (e.g. a uniform rate): MapLibre's step needs at least one stop, so a constant.
+  if (n === 1) return colors[0];
   const expr: unknown[] = ['step', ['to-number', ['get', prop], 0], colors[0]];
   for (let i = 1; i < n; i++) expr.push(breaks[i], colors[i]);
   return expr;

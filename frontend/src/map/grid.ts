@@ -69,7 +69,7 @@ export function planGridLayers(source: string): maplibregl.LayerSpecification[] 
 }
 
 /** Prescription grid coloured by rate (a step expression built from legend breaks). */
-export function rxGridLayers(source: string, colorExpr: unknown[]): maplibregl.LayerSpecification[] {
+export function rxGridLayers(source: string, colorExpr: unknown): maplibregl.LayerSpecification[] {
   return [
     {
       id: `${source}-fill`,

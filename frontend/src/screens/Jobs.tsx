@@ -74,11 +74,12 @@ export function JobsScreen() {
           e.preventDefault();
           setError(null);
           try {
-            await api.post('/jobs', {
+            const j = await api.post<{ id: number; state?: string }>('/jobs', {
               prescription_id: Number(rxId),
               version: version ? Number(version) : undefined,
               machine_id: Number(machineId),
             });
+            if (!j.state || j.state === 'planned') await api.post(`/jobs/${j.id}/state`, { state: 'sent' });
             await load();
           } catch (err) {
             setError(err);

@@ -95,7 +95,10 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
   const hi = pick(stats, 'rate_max_kg_ha', 'max_rate_kg_ha') ?? (rates.length ? maxOf(rates) : undefined);
   const breaks = useMemo(() => niceBreaks(lo ?? 0, hi ?? 1000, CLASSES), [lo, hi]);
   const colors = useMemo(() => classColors(breaks.length - 1), [breaks]);
-  const legend = legendEntries(breaks, colors, (v) => v.toFixed(0));
+  const legend =
+    lo != null && lo === hi
+      ? [{ color: colors[0], from: lo, to: lo, label: `${lo.toFixed(1)} (uniform)` }]
+      : legendEntries(breaks, colors, (v) => v.toFixed(0));
   const colorExpr = useMemo(() => stepExpression('rate_kg_ha', breaks, colors), [breaks, colors]);
 
   // (Re)load the tile source for the chosen version.
@@ -341,11 +344,13 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
             disabled={!machineId}
             onClick={async () => {
               try {
-                const j = await api.post<{ id: number }>('/jobs', {
+                const j = await api.post<{ id: number; state?: string }>('/jobs', {
                   prescription_id: rxId,
                   version: version ?? 1,
                   machine_id: Number(machineId),
                 });
+                // A new job is 'planned'; sending makes it downloadable by the machine.
+                if (!j.state || j.state === 'planned') await api.post(`/jobs/${j.id}/state`, { state: 'sent' });
                 setMsg(`Job #${j.id} created`);
                 navigate(`/jobs?created=${j.id}`);
               } catch (e) {
