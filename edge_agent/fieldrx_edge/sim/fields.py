@@ -31,6 +31,7 @@ def rect_job(
     machine_id: int = 1,
     speed_min_m_s: float = 3 / 3.6,
     speed_max_m_s: float = 9 / 3.6,
+    roughness: float = 0.3,
 ) -> JobPackage:
     """A ``length_m`` x ``width_m`` field; ``hole`` = (x0, y0, x1, y1) relative to the origin."""
     ox, oy = origin
@@ -60,7 +61,7 @@ def rect_job(
         np.sin(cx / 23.0 + ph[0]) * np.cos(cy / 17.0 + ph[1])
         + 0.5 * np.sin(cx / 9.0 + ph[2])
         + 0.5 * np.cos(cy / 7.0 + ph[3])
-        + rng.normal(0, 0.3, len(arr))
+        + rng.normal(0, roughness, len(arr))  # cell-to-cell variation
     )
     surf = (surf - surf.min()) / max(np.ptp(surf), 1e-9)
     rates = np.round((lo + surf * (hi - lo)) / 5.0) * 5.0
@@ -113,5 +114,7 @@ def rect_job(
 
 
 def field_20ha(seed: int = 0, **kw: object) -> JobPackage:
-    """500 m x 400.2 m (174 swaths of 2.3 m): 20.01 ha, 17,400 cells."""
+    """500 m x 400.2 m (174 swaths of 2.3 m): 20.01 ha, 17,400 cells, with a rough
+    rate map (about a third of the cell borders step by >= 8 %)."""
+    kw.setdefault("roughness", 1.0)
     return rect_job(length_m=500.0, width_m=174 * 2.3, seed=seed, **kw)  # type: ignore[arg-type]
