@@ -1,4 +1,17 @@
-"""``fieldrx-edge``: pull jobs, run one, simulate one, replay a receiver log, NDVI mode."""
+"""``fieldrx-edge``: pull jobs, run one, simulate one, replay a receiver log, NDVI mode.
+
+    fieldrx-edge pull --server URL --token DEVICE_TOKEN [--state-dir D]
+    fieldrx-edge run JOB_ID --source serial:/dev/ttyACM0@115200 [--motor serial:/dev/ttyUSB0]
+    fieldrx-edge run JOB_ID --source file:drive.nmea --replay-speed 10 --offline
+    fieldrx-edge run JOB_ID --source tcp:192.168.1.5:2101 --mqtt 127.0.0.1:1883
+    fieldrx-edge simulate JOB.json|demo:35x23|demo:20ha --speed 3-9km/h --gnss-noise 0.02 \
+        --controller ladrc --lag-compensation on [--seed N] [--server URL --token T] --json
+    fieldrx-edge replay-nmea LOG [--json]
+    fieldrx-edge ndvi file:ndvi.csv [--gnss SRC | --speed-kmh 6] [--machine-id N] [--json]
+
+State (cached jobs, progress, telemetry queue) lives in --state-dir, default
+$FIELDRX_EDGE_HOME or ~/.fieldrx-edge. After ``pull`` the agent needs no network.
+"""
 
 from __future__ import annotations
 
@@ -406,7 +419,11 @@ def cmd_ndvi(a: argparse.Namespace) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="fieldrx-edge", description=__doc__)
+    p = argparse.ArgumentParser(
+        prog="fieldrx-edge",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     p.add_argument("-v", "--log-level", default="WARNING")
     sub = p.add_subparsers(dest="cmd", required=True)
 
