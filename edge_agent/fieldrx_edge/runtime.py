@@ -37,6 +37,9 @@ from fieldrx_edge.protocol import JobPackage, TelemetryRecord
 log = logging.getLogger(__name__)
 
 
+SATURATED_DUTY_PCT = 99.5  # controller output at its 100 % limit
+
+
 @dataclass
 class RuntimeConfig:
     lag_compensation: bool = True
@@ -275,6 +278,9 @@ def make_record(
     ndvi: float | None = None,
 ) -> dict[str, Any]:
     """Telemetry record body (seq and machine_id are set by the queue)."""
+    alarms = list(d.alarms)
+    if d.metering and duty >= SATURATED_DUTY_PCT:
+        alarms.append("motor_saturated")
     lon = lat = None
     if fix is not None and fix.lon is not None and fix.lat is not None:
         lon, lat = fix.lon, fix.lat
@@ -300,7 +306,7 @@ def make_record(
         duty=duty,
         ndvi=ndvi,
         implement_down=implement_down,
-        alarms=list(d.alarms),
+        alarms=alarms,
         queue_backlog=backlog,
     )
     return rec.to_dict()

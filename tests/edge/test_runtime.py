@@ -140,3 +140,11 @@ def test_motor_loop_tracks_setpoint_with_ladrc():
     for name in ("pid", "incremental_pid", "fuzzy_pid"):
         c = build_controller(ControllerSettings(name))
         assert math.isfinite(c.step(50.0, 0.0, 0.01))
+
+
+def test_saturated_motor_raises_alarm():
+    job = trial_plot()
+    p = pipe(job, lag_compensation=False)
+    d = p.on_position(0.0, OX + 2.0, OY + 1.15, 2.0, EAST)
+    assert "motor_saturated" in make_record(p, d, None, 50.0, 100.0, True, 1.0)["alarms"]
+    assert "motor_saturated" not in make_record(p, d, None, 50.0, 60.0, True, 1.0)["alarms"]
