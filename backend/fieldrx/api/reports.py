@@ -1,0 +1,310 @@
+"""As-applied reports of a job: per-cell accuracy, GeoJSON, vector tiles, CSV/Shapefile, summary.
+
+The figures come from ``fieldrx.fleet.reports`` (seed 001 eq. 17-18). The
+vector tiles use the incrementally kept per-cell aggregates
+(``job_cells_applied``), so a map can refresh them cheaply while the job runs:
+their ``applied_rate`` is the mean of the records' applied rate and their
+``accuracy`` eq. 18 with that rate (M2 = applied rate * area / 10); the report
+uses the metered mass per record instead.
+"""
+
+from __future__ import annotations
+
+import csv
+import datetime as dt
+import io
+import zipfile
+from dataclasses import asdict
+from typing import Any, Literal
+
+import shapefile
+from fastapi import APIRouter, Query, Request
+from fastapi.responses import Response
+from geoalchemy2.shape import to_shape
+from shapely.geometry import mapping
+from sqlalchemy import select, text
+
+from fieldrx.api.common import ApiError, get_scoped
+from fieldrx.auth.deps import SessionDep, UserDep
+from fieldrx.db.models import Field, Job, JobEvent, PlanCell, Prescription
+from fieldrx.fleet.reports import JobReport, build_report, job_plan
+
+router = APIRouter(tags=["reports"])
+
+WGS84_PRJ = (
+    'GEOGCS["GCS_WGS_1984",DATUM["D_WGS_1984",SPHEROID["WGS_1984",6378137.0,298.257223563]],'
+    'PRIMEM["Greenwich",0.0],UNIT["Degree",0.0174532925199433]]'
+)
+
+
+def _report(session: SessionDep, job_id: int, principal: Any) -> tuple[Job, JobReport]:
+    job = get_scoped(session, Job, job_id, principal)
+    return job, build_report(session, job)
+
+
+@router.get("/jobs/{job_id:int}/report")
+def job_report(
+    job_id: int,
+    principal: UserDep,
+    session: SessionDep,
+    cells: bool = Query(default=True, description="include the per-cell rows"),
+) -> dict[str, Any]:
+    """Per-cell target vs applied rate and accuracy theta, coverage, totals, time worked."""
+    _, rep = _report(session, job_id, principal)
+    out = rep.summary()
+    if cells:
+        out["cells"] = [asdict(c) for c in rep.cells]
+    return out
+
+
+@router.get("/jobs/{job_id:int}/summary")
+def job_summary(job_id: int, principal: UserDep, session: SessionDep) -> dict[str, Any]:
+    """Compact job record for farm software: what, where, when, how much, how well."""
+    job, rep = _report(session, job_id, principal)
+    rx = session.get(Prescription, job.prescription_id)
+    plan = job_plan(session, job)
+    fld = session.get(Field, plan.field_id)
+    events = session.execute(
+        select(JobEvent.state, JobEvent.at).where(JobEvent.job_id == job.id).order_by(JobEvent.id)
+    ).all()
+    started = next((e.at for e in events if e.state == "running"), None)
+    ended = next((e.at for e in reversed(events) if e.state in ("completed", "aborted")), None)
+    applied_area = sum(c.area_m2 for c in rep.cells if c.m2_g > 0)
+    return {
+        "job_id": job.id,
+        "name": job.name,
+        "state": job.state,
+        "field": {"id": fld.id, "name": fld.name} if fld else None,
+        "machine_id": job.machine_id,
+        "prescription": {
+            "id": job.prescription_id,
+            "version": job.prescription_version,
+            "product": rx.product if rx else "",
+        },
+        "started_at": started,
+        "ended_at": ended,
+        "first_record_at": rep.summary()["first_t"],
+        "last_record_at": rep.summary()["last_t"],
+        "time_worked_s": rep.time_worked_s,
+        "area_applied_ha": applied_area / 1e4,
+        "coverage_pct": rep.coverage_pct,
+        "planned_total_kg": rep.planned_total_kg,
+        "applied_total_kg": rep.applied_total_kg,
+        "applied_outside_cells_kg": rep.applied_outside_cells_kg,
+        "mean_accuracy_pct": rep.mean_accuracy_pct,
+        "min_accuracy_pct": rep.min_accuracy_pct,
+        "cells_planned": rep.cells_planned,
+        "cells_applied": rep.cells_applied,
+        "unit": "kg",
+    }
+
+
+@router.get("/jobs/{job_id:int}/as-applied")
+def as_applied_points(
+    job_id: int,
+    principal: UserDep,
+    session: SessionDep,
+    limit: int = Query(default=5000, ge=1, le=50000),
+    offset: int = Query(default=0, ge=0),
+) -> dict[str, Any]:
+    """As-applied points (one per record with a position), in time order, paged."""
+    job = get_scoped(session, Job, job_id, principal)
+    params = {"m": job.machine_id, "j": job.id, "lim": limit, "off": offset}
+    where = "machine_id = :m AND job_id = :j AND geom IS NOT NULL"
+    total = session.execute(text(f"SELECT count(*) FROM telemetry WHERE {where}"), params).scalar()
+    rows = session.execute(
+        text(
+            "SELECT seq, extract(epoch FROM t)::float8 AS t, ST_X(geom) AS lon, ST_Y(geom) AS lat,"
+            " cell_seq, target_rate_kg_ha, applied_rate_kg_ha, speed_filtered_m_s,"
+            f" implement_down FROM telemetry WHERE {where} ORDER BY t, seq LIMIT :lim OFFSET :off"
+        ),
+        params,
+    ).mappings()
+    feats = [
+        {
+            "type": "Feature",
+            "geometry": {"type": "Point", "coordinates": [r["lon"], r["lat"]]},
+            "properties": {k: r[k] for k in r.keys() if k not in ("lon", "lat")},
+        }
+        for r in rows
+    ]
+    nxt = offset + len(feats)
+    return {
+        "type": "FeatureCollection",
+        "features": feats,
+        "total": total,
+        "limit": limit,
+        "offset": offset,
+        "next_offset": nxt if nxt < (total or 0) else None,
+    }
+
+
+def _cell_geoms(session: SessionDep, plan_id: int) -> dict[int, Any]:
+    rows = session.execute(
+        select(PlanCell.seq, PlanCell.geom).where(PlanCell.plan_id == plan_id)
+    ).all()
+    return {int(s): to_shape(g) for s, g in rows}
+
+
+@router.get("/jobs/{job_id:int}/as-applied/cells")
+def as_applied_cells(job_id: int, principal: UserDep, session: SessionDep) -> dict[str, Any]:
+    """Per-cell GeoJSON: planned vs applied rate, masses and accuracy."""
+    job, rep = _report(session, job_id, principal)
+    geoms = _cell_geoms(session, rep.plan_id)
+    feats = [
+        {
+            "type": "Feature",
+            "id": c.seq,
+            "geometry": mapping(geoms[c.seq]) if c.seq in geoms else None,
+            "properties": asdict(c),
+        }
+        for c in rep.cells
+    ]
+    return {"type": "FeatureCollection", "features": feats, "summary": rep.summary()}
+
+
+CSV_COLUMNS = (
+    "seq",
+    "swath",
+    "area_m2",
+    "target_rate_kg_ha",
+    "applied_rate_kg_ha",
+    "mean_applied_rate_kg_ha",
+    "m1_g",
+    "m2_g",
+    "accuracy_pct",
+    "n_records",
+)
+
+
+@router.get("/jobs/{job_id:int}/export")
+def export_report(
+    job_id: int,
+    principal: UserDep,
+    session: SessionDep,
+    format: Literal["csv", "shapefile"] = "csv",  # noqa: A002
+) -> Response:
+    """Per-cell as-applied table as CSV, or zipped Shapefile (WGS84 polygons + attributes)."""
+    job, rep = _report(session, job_id, principal)
+    stem = f"job{job.id}_as_applied"
+    if format == "csv":
+        buf = io.StringIO()
+        w = csv.writer(buf, lineterminator="\n")
+        w.writerow(CSV_COLUMNS)
+        for c in rep.cells:
+            d = asdict(c)
+            w.writerow(
+                [
+                    "" if d[k] is None else (round(d[k], 6) if isinstance(d[k], float) else d[k])
+                    for k in CSV_COLUMNS
+                ]
+            )
+        return Response(
+            buf.getvalue(),
+            media_type="text/csv",
+            headers={"Content-Disposition": f'attachment; filename="{stem}.csv"'},
+        )
+    geoms = _cell_geoms(session, rep.plan_id)
+    shp, shx, dbf = io.BytesIO(), io.BytesIO(), io.BytesIO()
+    with shapefile.Writer(shp=shp, shx=shx, dbf=dbf, shapeType=shapefile.POLYGON) as w:
+        for name in ("SEQ", "SWATH", "NREC"):
+            w.field(name, "N", 10, 0)
+        for name in ("AREA_M2", "TARGET", "APPLIED", "M1_G", "M2_G", "ACCURACY"):
+            w.field(name, "N", 16, 4)
+        w.field("UNIT", "C", 8)
+        for c in rep.cells:
+            g = geoms.get(c.seq)
+            if g is None or g.is_empty:
+                continue
+            polys = list(getattr(g, "geoms", [g]))
+            rings = []
+            for p in polys:
+                rings.append(
+                    [list(xy) for xy in reversed(p.exterior.coords)]
+                )  # shapefile: clockwise
+                rings.extend([list(xy) for xy in i.coords] for i in p.interiors)
+            w.poly(rings)
+            w.record(
+                c.seq,
+                c.swath,
+                c.n_records,
+                c.area_m2,
+                c.target_rate_kg_ha,
+                c.applied_rate_kg_ha,
+                c.m1_g,
+                c.m2_g,
+                c.accuracy_pct if c.accuracy_pct is not None else 0.0,
+                "kg/ha",
+            )
+    zbuf = io.BytesIO()
+    with zipfile.ZipFile(zbuf, "w", zipfile.ZIP_DEFLATED) as z:
+        z.writestr(f"{stem}.shp", shp.getvalue())
+        z.writestr(f"{stem}.shx", shx.getvalue())
+        z.writestr(f"{stem}.dbf", dbf.getvalue())
+        z.writestr(f"{stem}.prj", WGS84_PRJ)
+        z.writestr(f"{stem}.cpg", "UTF-8")
+    return Response(
+        zbuf.getvalue(),
+        media_type="application/zip",
+        headers={"Content-Disposition": f'attachment; filename="{stem}.zip"'},
+    )
+
+
+TILE_SQL = text(
+    """
+    WITH env AS (
+        SELECT ST_TileEnvelope(:z, :x, :y) AS e,
+               ST_Transform(ST_TileEnvelope(:z, :x, :y, margin => 0.0156), 4326) AS e4326
+    ), c AS (
+        SELECT pc.seq, pc.swath, pc.geom, coalesce(r.rate_kg_ha, 0) AS target_rate,
+               a.n_records,
+               a.applied_rate_sum / nullif(a.n_records, 0) AS applied_rate
+        FROM env
+        JOIN plan_cells pc ON pc.plan_id = :plan AND pc.geom && env.e4326
+        LEFT JOIN prescription_versions v ON v.prescription_id = :rx AND v.version = :ver
+        LEFT JOIN prescription_rates r ON r.version_id = v.id AND r.seq = pc.seq
+        LEFT JOIN job_cells_applied a ON a.job_id = :job AND a.seq = pc.seq
+    )
+    SELECT ST_AsMVT(q, 'cells', 4096, 'geom') FROM (
+        SELECT c.seq, c.swath, c.target_rate, coalesce(c.applied_rate, 0) AS applied_rate,
+               coalesce(c.n_records, 0) AS n_records,
+               CASE WHEN c.target_rate > 0 THEN
+                   (1 - abs(c.target_rate - coalesce(c.applied_rate, 0)) / c.target_rate) * 100
+               END AS accuracy,
+               ST_AsMVTGeom(ST_Transform(c.geom, 3857), env.e, 4096, 64, true) AS geom
+        FROM c, env
+    ) q WHERE q.geom IS NOT NULL
+    """
+)
+
+
+@router.get("/tiles/jobs/{job_id:int}/{z:int}/{x:int}/{y:int}.mvt")
+def job_tile(
+    job_id: int, z: int, x: int, y: int, request: Request, principal: UserDep, session: SessionDep
+) -> Response:
+    """Vector tile, layer "cells": seq, swath, target_rate, applied_rate, accuracy, n_records."""
+    if not 0 <= z <= 24 or not (0 <= x < (1 << z) and 0 <= y < (1 << z)):
+        raise ApiError(422, f"tile {z}/{x}/{y} does not exist", where="z/x/y")
+    job = get_scoped(session, Job, job_id, principal)
+    plan = job_plan(session, job)
+    data = session.execute(
+        TILE_SQL,
+        {
+            "z": z,
+            "x": x,
+            "y": y,
+            "rx": job.prescription_id,
+            "ver": job.prescription_version,
+            "job": job.id,
+            "plan": plan.id,
+        },
+    ).scalar()
+    return Response(
+        bytes(data or b""),
+        media_type="application/vnd.mapbox-vector-tile",
+        headers={"Cache-Control": "no-cache", "Last-Modified": _http_date(job.updated_at)},
+    )
+
+
+def _http_date(t: dt.datetime) -> str:
+    return t.astimezone(dt.UTC).strftime("%a, %d %b %Y %H:%M:%S GMT")
