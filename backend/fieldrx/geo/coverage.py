@@ -88,8 +88,8 @@ def azimuth_to_phi(azimuth_deg: float) -> float:
 
 
 def phi_to_azimuth(phi: float) -> float:
-    az = round((90.0 - math.degrees(phi)) % 180.0, 9)
-    return 0.0 if az >= 180.0 else az
+    az = (90.0 - math.degrees(phi)) % 180.0
+    return 0.0 if az > 180.0 - 1e-7 or az < 1e-9 else az
 
 
 # --------------------------------------------------------------------------- data

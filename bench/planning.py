@@ -1,0 +1,241 @@
+"""Coverage planning + grid benchmark (issue 3).
+
+For a rectangle, an L, a U, a field with a pond, an irregular 40-vertex field and a
+500 ha field, at w = 2.3 m and 12 m: swaths, turns, lengths, coverage, overlap and the
+time of each stage. Then the time to plan and grid a 1,000 ha field at 5 m x 2.3 m
+(~870,000 cells; target < 5 s), and the heading search against the baseline measured in
+the same run: a brute-force scan at 1-degree steps with the swath-count objective (what
+Fields2Cover's BruteForce + NSwath does), using FieldRx's own swath generator so both
+count the same thing. The last line is one JSON object with the key figures.
+
+Run: .venv/bin/python bench/planning.py [--quick]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import statistics
+import time
+
+import numpy as np
+import shapely.affinity
+from fieldrx.geo.coverage import optimal_phi, plan_coverage, swath_count
+from fieldrx.geo.grid import build_grid
+from shapely.geometry import Polygon, box
+
+X0, Y0 = 640_000.0, 5_320_000.0  # UTM 32N, Bavaria
+
+
+def rect() -> Polygon:
+    return box(X0, Y0, X0 + 400, Y0 + 250)
+
+
+def l_shape() -> Polygon:
+    return Polygon(
+        [
+            (X0, Y0),
+            (X0 + 300, Y0),
+            (X0 + 300, Y0 + 100),
+            (X0 + 100, Y0 + 100),
+            (X0 + 100, Y0 + 300),
+            (X0, Y0 + 300),
+        ]
+    )
+
+
+def u_shape() -> Polygon:
+    return Polygon(
+        [
+            (X0, Y0),
+            (X0 + 300, Y0),
+            (X0 + 300, Y0 + 300),
+            (X0 + 200, Y0 + 300),
+            (X0 + 200, Y0 + 100),
+            (X0 + 100, Y0 + 100),
+            (X0 + 100, Y0 + 300),
+            (X0, Y0 + 300),
+        ]
+    )
+
+
+def pond() -> Polygon:
+    return Polygon(
+        [(X0, Y0), (X0 + 400, Y0), (X0 + 420, Y0 + 300), (X0 - 10, Y0 + 280)],
+        [[(X0 + 150, Y0 + 100), (X0 + 250, Y0 + 120), (X0 + 230, Y0 + 200), (X0 + 160, Y0 + 190)]],
+    )
+
+
+def irregular40() -> Polygon:
+    rng = np.random.default_rng(7)
+    ang = np.sort(rng.uniform(0, 2 * math.pi, 40))
+    r = 300.0 * rng.uniform(0.55, 1.0, 40)
+    return Polygon(np.stack([X0 + r * np.cos(ang), Y0 + r * np.sin(ang)], 1))
+
+
+def scaled(poly: Polygon, hectares: float) -> Polygon:
+    k = math.sqrt(hectares * 10_000 / poly.area)
+    return shapely.affinity.scale(poly, k, k, origin=(X0, Y0))
+
+
+def field_500ha() -> Polygon:
+    base = Polygon(
+        [
+            (0, 0),
+            (1000, -80),
+            (1900, 150),
+            (2300, 900),
+            (1500, 1300),
+            (1150, 800),
+            (700, 1250),
+            (-100, 900),
+        ]
+    )
+    return scaled(shapely.affinity.translate(base, X0, Y0), 500)
+
+
+def field_1000ha() -> Polygon:
+    side = math.sqrt(1000 * 10_000)
+    return shapely.affinity.rotate(box(X0, Y0, X0 + side, Y0 + side), 17, origin=(X0, Y0))
+
+
+FIELDS = {
+    "rectangle_10ha": rect,
+    "L": l_shape,
+    "U": u_shape,
+    "pond": pond,
+    "irregular40": irregular40,
+    "field_500ha": field_500ha,
+}
+
+
+def brute_force(field: Polygon, w: float) -> tuple[int, float]:
+    t = time.perf_counter()
+    best = min(swath_count(field, w, math.radians(a), field) for a in range(180))
+    return best, time.perf_counter() - t
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--quick", action="store_true", help="skip the 500 ha brute force at 2.3 m")
+    args = ap.parse_args()
+    rows = []
+    hdr = (
+        f"{'field':15s} {'w':>5s} {'h':>2s} {'heading':>12s} {'az':>7s} {'swaths':>6s} "
+        f"{'turns':>5s} {'blocks':>6s} {'work_m':>9s} {'nonwork_m':>9s} {'cov%':>8s} "
+        f"{'ovl%':>6s} {'out%':>6s} {'rt_out':>6s} {'cells':>7s}  stages(s)"
+    )
+    print(hdr)
+    for name, make in FIELDS.items():
+        f = make()
+        for w in (2.3, 12.0):
+            for h, heading in ((0, "longest_edge"), (0, "optimal"), (1, "optimal")):
+                t0 = time.perf_counter()
+                p = plan_coverage(f, w, heading, headland_passes=h)
+                t1 = time.perf_counter()
+                g = build_grid(p, f, 5.0)
+                t2 = time.perf_counter()
+                st = {k: round(v, 3) for k, v in p.timings_s.items()}
+                st["grid"] = round(t2 - t1, 3)
+                st["total"] = round(t2 - t0, 3)
+                print(
+                    f"{name:15s} {w:5.1f} {h:2d} {heading:>12s} {p.heading_deg:7.2f} "
+                    f"{p.n_swaths:6d} {p.n_turns:5d} {p.n_blocks:6d} "
+                    f"{p.working_length_m:9.0f} {p.nonworking_length_m:9.0f} "
+                    f"{p.coverage_pct:8.4f} {p.overlap_pct:6.3f} {p.outside_pct:6.3f} "
+                    f"{p.route_outside_m:6.1f} {len(g):7d}  {st}"
+                )
+                rows.append(
+                    {
+                        "field": name,
+                        "w": w,
+                        "h": h,
+                        "heading": heading,
+                        "n_swaths": p.n_swaths,
+                        "total_s": st["total"],
+                    }
+                )
+
+    print("\nheading search: FieldRx 'optimal' vs brute force at 1 degree (swath count)")
+    print(
+        f"{'field':15s} {'w':>5s} {'brute_n':>7s} {'brute_s':>8s} {'ours_n':>6s} "
+        f"{'ours_s':>7s} {'evals':>5s} {'speedup':>7s} {'longest_edge_n':>14s}"
+    )
+    cmp = []
+    for name, make in FIELDS.items():
+        f = make()
+        for w in (2.3, 12.0):
+            if args.quick and name == "field_500ha" and w == 2.3:
+                continue
+            bn, bt = brute_force(f, w)
+            t = time.perf_counter()
+            phi, info = optimal_phi(f, f, w)
+            ot = time.perf_counter() - t
+            on = swath_count(f, w, phi, f)
+            le = plan_coverage(f, w, "longest_edge").n_swaths
+            cmp.append(
+                {
+                    "field": name,
+                    "w": w,
+                    "brute_n": bn,
+                    "brute_s": round(bt, 3),
+                    "ours_n": on,
+                    "ours_s": round(ot, 4),
+                    "speedup": round(bt / ot, 1),
+                    "longest_edge_n": le,
+                }
+            )
+            print(
+                f"{name:15s} {w:5.1f} {bn:7d} {bt:8.3f} {on:6d} {ot:7.4f} "
+                f"{info['evaluated']:5d} {bt / ot:7.1f} {le:14d}"
+            )
+
+    print("\n1,000 ha field, 5 m x 2.3 m cells (plan + grid), best and median of 3 runs")
+    big = field_1000ha()
+    big_res = {}
+    for h, heading in ((0, "optimal"), (1, "optimal"), (0, "longest_edge")):
+        times, n_cells = [], 0
+        for _ in range(3):
+            t0 = time.perf_counter()
+            p = plan_coverage(big, 2.3, heading, headland_passes=h)
+            t1 = time.perf_counter()
+            g = build_grid(p, big, 5.0)
+            t2 = time.perf_counter()
+            times.append((t2 - t0, t1 - t0, t2 - t1))
+            n_cells = len(g)
+        best = min(times)
+        med = statistics.median(t[0] for t in times)
+        key = f"{heading}_h{h}"
+        big_res[key] = {
+            "best_s": round(best[0], 3),
+            "median_s": round(med, 3),
+            "plan_s": round(best[1], 3),
+            "grid_s": round(best[2], 3),
+            "n_cells": n_cells,
+            "n_swaths": p.n_swaths,
+        }
+        print(
+            f"  {key:16s} cells {n_cells:8d}  best {best[0]:.3f} s (plan {best[1]:.3f} + grid "
+            f"{best[2]:.3f})  median {med:.3f} s  target < 5 s: "
+            f"{'OK' if best[0] < 5 else 'MISSED'}"
+        )
+
+    never_worse = all(c["ours_n"] <= c["brute_n"] for c in cmp)
+    summary = {
+        "bench": "planning",
+        "plan_grid_1000ha_s": big_res["optimal_h0"]["best_s"],
+        "plan_grid_1000ha_headland_s": big_res["optimal_h1"]["best_s"],
+        "n_cells_1000ha": big_res["optimal_h0"]["n_cells"],
+        "target_s": 5.0,
+        "optimal_never_more_swaths_than_brute_force": never_worse,
+        "swaths_saved_vs_brute_force": int(sum(c["brute_n"] - c["ours_n"] for c in cmp)),
+        "heading_search_speedup_median": statistics.median(c["speedup"] for c in cmp),
+        "heading_search_speedup_min": min(c["speedup"] for c in cmp),
+        "comparisons": cmp,
+    }
+    print(json.dumps(summary))
+
+
+if __name__ == "__main__":
+    main()
