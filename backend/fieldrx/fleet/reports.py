@@ -3,9 +3,10 @@
 Per cell (path order, planned rate M in kg/ha):
 
 * theoretical mass M1 = M v t l / 36 g (seed 001 eq. 17; SCIENCE.md erratum:
-  grams) where v t l is the cell's area in m^2 (v km/h over t s with width l):
-  M1 = M * area / 10 g, area from the cell's four UTM corners, the same
-  rectangle the job package and the edge simulator use;
+  grams) with v t the distance driven in the cell and l the implement width:
+  M1 = M * l * d / 10 g, d = the cell's centre line (between the midpoints of
+  its two cut edges) inside the field, as the edge simulator counts it; for a
+  whole cell this is M * area / 10;
 * applied mass M2 = sum over the job's records in that cell (implement down) of
   applied_rate * width * v * dt / 10 g: the mass metered during the record's
   fix period dt (time to the next record, capped at ``max_gap_s`` so a pause
@@ -23,6 +24,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+import shapely
 from sqlalchemy import text
 from sqlalchemy.orm import Session
 
@@ -88,6 +90,32 @@ def quad_area(corners: np.ndarray) -> np.ndarray:
     c = corners.reshape(-1, 4, 2)
     x, y = c[..., 0], c[..., 1]
     return 0.5 * np.abs(np.sum(x * np.roll(y, -1, axis=1) - np.roll(x, -1, axis=1) * y, axis=1))
+
+
+def driven_length(corners: np.ndarray, swath_width_m: float, boundary_utm: Any) -> np.ndarray:
+    """Length of each cell's centre line inside the field (m).
+
+    The centre line joins the midpoints of the two opposite edges whose length
+    is nearest the swath width (the cut edges); corners are (n, 8) in UTM.
+    """
+    c = corners.reshape(-1, 4, 2)
+    if len(c) == 0:
+        return np.zeros(0)
+    e01 = np.linalg.norm(c[:, 1] - c[:, 0], axis=1)
+    e12 = np.linalg.norm(c[:, 2] - c[:, 1], axis=1)
+    cut01 = np.abs(e01 - swath_width_m) <= np.abs(e12 - swath_width_m)
+    a = np.where(cut01[:, None], (c[:, 0] + c[:, 1]) / 2, (c[:, 1] + c[:, 2]) / 2)
+    b = np.where(cut01[:, None], (c[:, 2] + c[:, 3]) / 2, (c[:, 3] + c[:, 0]) / 2)
+    lines = shapely.linestrings(np.stack([a, b], axis=1))
+    if boundary_utm is None:
+        return shapely.length(lines)
+    shapely.prepare(boundary_utm)
+    inside = shapely.contains_properly(boundary_utm, lines)
+    out = shapely.length(lines)
+    part = ~inside
+    if part.any():
+        out[part] = shapely.length(shapely.intersection(lines[part], boundary_utm))
+    return out
 
 
 def job_plan(session: Session, job: Job) -> Plan:
