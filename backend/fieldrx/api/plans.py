@@ -14,7 +14,13 @@ from fieldrx.auth.deps import SessionDep, UserDep, WriterDep
 from fieldrx.db.models import Field as FieldRow
 from fieldrx.db.models import Plan, Prescription
 from fieldrx.geo import PlanningError
-from fieldrx.services.plans import PlanParams, cells_page, create_plan, plan_summary
+from fieldrx.services.plans import (
+    PlanParams,
+    cells_page,
+    create_plan,
+    delete_plan,
+    plan_summary,
+)
 
 router = APIRouter(tags=["plans"])
 
@@ -111,7 +117,7 @@ def list_plan_prescriptions(plan_id: int, principal: UserDep, session: SessionDe
 
 
 @router.delete("/plans/{plan_id:int}", status_code=204)
-def delete_plan(plan_id: int, principal: WriterDep, session: SessionDep) -> None:
+def remove_plan(plan_id: int, principal: WriterDep, session: SessionDep) -> None:
     """Delete the plan, its cells and the prescriptions made on it."""
-    session.delete(get_scoped(session, Plan, plan_id, principal))
+    delete_plan(session, get_scoped(session, Plan, plan_id, principal))
     session.commit()

@@ -1,0 +1,204 @@
+"""Plan storage: plan + grid a ~1,000 ha field and store its ~870k cells in PostGIS.
+
+Prints the planner / grid / store times and the store rate (cells/s) of
+FieldRx's path (EWKB built by numpy, binary COPY into the plan's own partition
+of plan_cells, bulk build of its PK + GiST indexes, ATTACH), compared in the
+same run with (a) the same payload COPYed into an index-free copy of the table
+(raw COPY baseline: what the server alone costs) and (b) psycopg's per-row
+``copy.write_row`` on a 100k-cell subset. Ends with one JSON line.
+
+Run: .venv/bin/python bench/plan_store.py   (needs PostgreSQL on 127.0.0.1:5432)
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import time
+import uuid
+
+
+def main() -> None:
+    from alembic import command
+    from fieldrx.db.bootstrap import alembic_config, drop_database, ensure_database
+
+    pg = os.environ.get("FIELDRX_TEST_PG", "postgresql://postgres@127.0.0.1:5432")
+    url = (
+        pg.replace("postgresql://", "postgresql+psycopg://", 1)
+        + f"/fieldrx_bench_{uuid.uuid4().hex[:8]}"
+    )
+    ensure_database(url)
+    os.environ["DATABASE_URL"] = url
+    try:
+        command.upgrade(alembic_config(url), "head")
+        run(url)
+    finally:
+        from fieldrx.db.session import get_engine
+
+        get_engine().dispose()
+        drop_database(url)
+
+
+def run(url: str) -> None:
+    import psycopg
+    import shapely
+    from fieldrx.api.common import shape_to_db
+    from fieldrx.auth.service import create_organisation
+    from fieldrx.db.models import Field
+    from fieldrx.db.session import get_sessionmaker
+    from fieldrx.geo.crs import to_wgs84
+    from fieldrx.services.plans import (
+        PlanParams,
+        as_polygons,
+        create_plan,
+        fast_cell_copy_payloads,
+        load_cell_table,
+    )
+    from shapely.geometry import Polygon
+
+    # 1,000 ha: 4 km x 2.5 km rectangle, slightly rotated, near the demo farm (UTM 49N)
+    epsg = 32649
+    cx, cy = 600_000.0, 3_555_000.0
+    a = math.radians(7.0)
+    pts = [(-2000, -1250), (2000, -1250), (2000, 1250), (-2000, 1250)]
+    utm = Polygon(
+        [
+            (cx + x * math.cos(a) - y * math.sin(a), cy + x * math.sin(a) + y * math.cos(a))
+            for x, y in pts
+        ]
+    )
+    wgs = to_wgs84(utm, epsg)
+    sm = get_sessionmaker()
+    with sm() as s:
+        org = create_organisation(s, f"bench-{uuid.uuid4().hex[:6]}")
+        fld = Field(
+            organisation_id=org.id,
+            name="1000 ha",
+            boundary=shape_to_db(shapely.MultiPolygon([wgs])),
+            utm_epsg=epsg,
+            area_m2=utm.area,
+        )
+        s.add(fld)
+        s.commit()
+        t0 = time.perf_counter()
+        plan = create_plan(s, fld, PlanParams(swath_width_m=2.3, cell_length_m=5.0), org.id)
+        s.commit()
+        total = time.perf_counter() - t0
+        tm = plan.metrics["timings_s"]
+        n = plan.n_cells
+        print(f"field {utm.area / 1e4:.0f} ha, {n} cells")
+        print(
+            f"plan {tm['plan']:.2f} s, grid {tm['grid']:.2f} s, store {tm['store']:.2f} s "
+            f"(COPY {tm['store_copy']:.2f} s, index build + attach {tm['store_index']:.2f} s), "
+            f"total {total:.2f} s"
+        )
+        store_rate = n / tm["store"]
+        copy_rate = n / tm["store_copy"]
+        print(
+            f"store (transform + build + COPY + index): {store_rate:,.0f} cells/s; "
+            f"COPY alone {copy_rate:,.0f}"
+        )
+
+        # baselines on the same rows: rebuild the grid (pure) and its payload
+        from fieldrx.geo.coverage import plan_coverage
+        from fieldrx.geo.grid import build_grid
+
+        grid = build_grid(plan_coverage(utm, 2.3), utm, 5.0)
+        polys, _ = as_polygons(grid.polygons)
+        t = time.perf_counter()
+        payload = list(
+            fast_cell_copy_payloads(
+                plan.id,
+                grid.seq,
+                grid.swath,
+                grid.index_in_swath,
+                grid.area_m2,
+                grid.corners_utm,
+                polys,
+                epsg,
+            )
+        )
+        build_s = time.perf_counter() - t
+        print(f"payload build (EWKB by numpy): {build_s:.2f} s")
+        wgs_polys = to_wgs84(polys, epsg)
+        t = time.perf_counter()
+        load_cell_table(s, plan, epsg)
+        load_s = time.perf_counter() - t
+        print(f"load back as CellTable: {load_s:.2f} s ({n / load_s:,.0f} cells/s)")
+    dsn = url.replace("postgresql+psycopg://", "postgresql://", 1)
+    with psycopg.connect(dsn, options="-c jit=off") as conn:
+        conn.execute("CREATE UNLOGGED TABLE bench_cells (LIKE plan_cells)")
+        t = time.perf_counter()
+        with (
+            conn.cursor() as cur,
+            cur.copy(
+                "COPY bench_cells "
+                "(plan_id, seq, swath, index_in_swath, area_m2, corners_utm, geom) "
+                "FROM STDIN (FORMAT BINARY)"
+            ) as cp,
+        ):
+            for chunk in payload:
+                cp.write(chunk)
+        raw_s = time.perf_counter() - t
+        conn.execute("TRUNCATE bench_cells")
+        m = min(n, 100_000)
+        wkb = shapely.to_wkb(shapely.set_srid(wgs_polys[:m], 4326), include_srid=True, hex=True)
+        corners = grid.corners_utm.reshape(-1, 8)[:m].tolist()
+        t = time.perf_counter()
+        with (
+            conn.cursor() as cur,
+            cur.copy(
+                "COPY bench_cells "
+                "(plan_id, seq, swath, index_in_swath, area_m2, corners_utm, geom) "
+                "FROM STDIN"
+            ) as cp,
+        ):
+            for i in range(m):
+                cp.write_row(
+                    (
+                        1,
+                        int(grid.seq[i]),
+                        int(grid.swath[i]),
+                        0,
+                        float(grid.area_m2[i]),
+                        corners[i],
+                        wkb[i],
+                    )
+                )
+        row_s = time.perf_counter() - t
+        conn.execute("DROP TABLE bench_cells")
+    raw_rate = n / raw_s
+    row_rate = m / row_s
+    print(f"baseline raw COPY, same payload, no indexes: {raw_rate:,.0f} cells/s")
+    print(f"baseline psycopg write_row (text, {m} cells): {row_rate:,.0f} cells/s")
+    print(
+        f"ratio store/raw COPY {store_rate / raw_rate:.2f}, "
+        f"COPY into partition/raw {copy_rate / raw_rate:.2f}, "
+        f"store/write_row {store_rate / row_rate:.2f}"
+    )
+    print(
+        json.dumps(
+            {
+                "bench": "plan_store",
+                "n_cells": n,
+                "area_ha": round(utm.area / 1e4, 1),
+                "plan_s": tm["plan"],
+                "grid_s": tm["grid"],
+                "store_s": tm["store"],
+                "copy_s": tm["store_copy"],
+                "index_attach_s": tm["store_index"],
+                "total_s": round(total, 3),
+                "store_cells_per_s": round(store_rate),
+                "raw_copy_cells_per_s": round(raw_rate),
+                "write_row_cells_per_s": round(row_rate),
+                "store_vs_raw_copy": round(store_rate / raw_rate, 3),
+                "store_vs_write_row": round(store_rate / row_rate, 3),
+                "load_s": round(load_s, 3),
+            }
+        )
+    )
+
+
+if __name__ == "__main__":
+    main()
