@@ -28,6 +28,7 @@ uses the same convention.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -48,6 +49,7 @@ CORNERS = ("sw", "se", "nw", "ne")
 _N_EPS = 1e-9  # tolerance on H / w when counting strips
 _MAX_SWATHS = 200_000
 _ROUTED_ORDER_MAX_BLOCKS = 40
+_EXACT_ORDER_MAX_BLOCKS = 8
 
 
 # --------------------------------------------------------------------------- frame
@@ -470,6 +472,86 @@ def _endpoints(subs: list[_Sub], order: list[int], first_dir: int) -> tuple[tupl
     return start, end
 
 
+def _turns_length(subs: list[_Sub], order: list[int], first_dir: int) -> float:
+    """Straight-line length of the turns inside a block driven in this configuration."""
+    total = 0.0
+    d = first_dir
+    for a, b in zip(order[:-1], order[1:], strict=True):
+        sa, sb = subs[a], subs[b]
+        xa = sa.x1 if d > 0 else sa.x0
+        xb = sb.x1 if d > 0 else sb.x0  # the next swath starts where this one ended
+        total += math.hypot(xa - xb, sb.y - sa.y)
+        d = -d
+    return total
+
+
+def _order_blocks_exact(
+    subs: list[_Sub],
+    blocks: list[list[int]],
+    frame: Frame,
+    pos: np.ndarray,
+    from_corner: bool,
+    dist: Callable[[np.ndarray, np.ndarray], float],
+) -> list[tuple[int, list[int], int]]:
+    """Block order and configuration with the least non-working travel (Held-Karp DP).
+
+    Cost = routed hops between blocks (shortest paths inside the field) + turns inside
+    the blocks; the first hop is from the start corner (straight) or from the end of the
+    headland (routed). Exact for the few blocks real fields decompose into.
+    """
+    nb = len(blocks)
+    cfgs = [_block_configs(subs, b) for b in blocks]
+    starts, ends, inner = [], [], []
+    for b in range(nb):
+        for order, d in cfgs[b]:
+            st, en = _endpoints(subs, order, d)
+            starts.append(frame.inv(np.asarray(st)))
+            ends.append(frame.inv(np.asarray(en)))
+            inner.append(_turns_length(subs, order, d))
+    nn = 4 * nb
+    first = np.array(
+        [
+            float(math.dist(pos, starts[i])) if from_corner else dist(pos, starts[i])
+            for i in range(nn)
+        ]
+    ) + np.array(inner)
+    hop = np.full((nn, nn), np.inf)
+    for i in range(nn):
+        for j in range(nn):
+            if i // 4 != j // 4:
+                hop[i, j] = dist(ends[i], starts[j]) + inner[j]
+    full = (1 << nb) - 1
+    cost = np.full((1 << nb, nn), np.inf)
+    back = np.full((1 << nb, nn), -1, dtype=np.int64)
+    for i in range(nn):
+        cost[1 << (i // 4), i] = first[i]
+    for mask in range(1, full + 1):
+        row = cost[mask]
+        live = np.flatnonzero(np.isfinite(row))
+        if not len(live):
+            continue
+        for j in range(nn):
+            bit = 1 << (j // 4)
+            if mask & bit:
+                continue
+            cand = row[live] + hop[live, j]
+            k = int(np.argmin(cand))
+            nm = mask | bit
+            if cand[k] < cost[nm, j]:
+                cost[nm, j] = cand[k]
+                back[nm, j] = live[k]
+    j = int(np.argmin(cost[full]))
+    mask = full
+    chain = []
+    while j >= 0:
+        chain.append(j)
+        pj = int(back[mask, j])
+        mask ^= 1 << (j // 4)
+        j = pj
+    chain.reverse()
+    return [(i // 4, *cfgs[i // 4][i % 4]) for i in chain]
+
+
 def _estimate_nonworking(subs: list[_Sub], blocks: list[list[int]]) -> float:
     """Euclidean turn lengths inside blocks + greedy block-to-block hops (heading tie-break)."""
     total = 0.0
@@ -746,10 +828,38 @@ def plan_coverage(
             )
             pos = np.asarray(ring.coords[-1])
 
+    def emit(b: int, order: list[int], d: int) -> None:
+        for j, k in enumerate(order):
+            s = subs[k]
+            dj = d if j % 2 == 0 else -d
+            xa, xb = (s.x0, s.x1) if dj > 0 else (s.x1, s.x0)
+            line = LineString(frame.inv(np.array([[xa, s.y], [xb, s.y]])))
+            swaths.append(
+                Swath(
+                    len(swaths),
+                    line,
+                    "inner",
+                    b,
+                    dj,
+                    y=s.y,
+                    x0=s.x0,
+                    x1=s.x1,
+                    clip=s.comp,
+                    full=s.full,
+                )
+            )
+
     def add_blocks() -> None:
         nonlocal pos
+        from_corner = not swaths  # nothing driven yet: start near the start corner
+        if 2 <= len(blocks) <= _EXACT_ORDER_MAX_BLOCKS:
+            seq = _order_blocks_exact(subs, blocks, frame, pos, from_corner, router.distance)
+            for b, order, d in seq:
+                emit(b, order, d)
+            pos = np.asarray(swaths[-1].line.coords[-1])
+            return
         left = list(range(len(blocks)))
-        first = True
+        first = from_corner
         while left:
             # candidates by straight-line distance; the routed distance is never shorter,
             # so stop once the straight distance exceeds the best routed one
@@ -771,25 +881,7 @@ def plan_coverage(
             _, b, order, d = best
             left.remove(b)
             first = False
-            for j, k in enumerate(order):
-                s = subs[k]
-                dj = d if j % 2 == 0 else -d
-                xa, xb = (s.x0, s.x1) if dj > 0 else (s.x1, s.x0)
-                line = LineString(frame.inv(np.array([[xa, s.y], [xb, s.y]])))
-                swaths.append(
-                    Swath(
-                        len(swaths),
-                        line,
-                        "inner",
-                        b,
-                        dj,
-                        y=s.y,
-                        x0=s.x0,
-                        x1=s.x1,
-                        clip=s.comp,
-                        full=s.full,
-                    )
-                )
+            emit(b, order, d)
             pos = np.asarray(swaths[-1].line.coords[-1])
 
     if headland_order == "first":
@@ -858,7 +950,7 @@ def _fill_metrics(plan: CoveragePlan) -> None:
     plan.nonworking_length_m = float(sum(c.length for c in plan.connections))
     plan.coverage_pct = 100.0 * inside / area
     clipped = shapely.area(shapely.intersection(fp, fld)).sum()
-    plan.overlap_pct = 100.0 * max(0.0, clipped - inside) / area
+    plan.overlap_pct = float(100.0 * max(0.0, clipped - inside) / area)
     plan.outside_pct = 100.0 * max(0.0, union.area - inside) / area
     route = plan.route()
     plan.route_outside_m = float(route.difference(fld).length)
