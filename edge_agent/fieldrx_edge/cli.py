@@ -144,6 +144,8 @@ def cmd_run(a: argparse.Namespace) -> int:
         lag_compensation=a.lag_compensation,
         response_s=t50,
         stop_extra_s=max(0.0, t50_stop - t50),
+        min_fix_quality=a.min_fix_quality,
+        max_hdop=a.max_hdop if a.max_hdop > 0 else None,
     )
     agent = Agent(job, queue, motor, rcfg, progress.get("finished", []), save_progress)
     sender = _make_sender(a, store, queue)
@@ -456,6 +458,8 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--lag-compensation", type=_on_off, default=True)
     sp.add_argument("--response-s", type=float, help="motor response added to the look-ahead")
     sp.add_argument("--drain-timeout", type=float, default=30.0)
+    sp.add_argument("--min-fix-quality", type=int, default=1, help="GGA quality (4 = RTK fixed)")
+    sp.add_argument("--max-hdop", type=float, default=5.0, help="0 disables the HDOP check")
     sp.set_defaults(func=cmd_run)
 
     sp = sub.add_parser("simulate", help="drive a job in simulation")

@@ -8,7 +8,14 @@ import time
 
 import pyproj
 import pytest
-from fieldrx_edge.gnss import NmeaParser, UtmProjection, file_lines, tcp_lines, udp_lines
+from fieldrx_edge.gnss import (
+    NmeaParser,
+    UtmProjection,
+    file_lines,
+    serial_lines,
+    tcp_lines,
+    udp_lines,
+)
 from fieldrx_edge.sim import nmea
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -247,3 +254,25 @@ def test_meridian_convergence_matches_pyproj():
     for lon, lat in ((17.9, 52.0), (12.1, 48.0), (15.0, 60.0)):
         ref = pyproj.Proj("EPSG:32633").get_factors(lon, lat).meridian_convergence
         assert abs(math.degrees(p.convergence_rad(lon, lat)) - ref) < 1e-4
+
+
+def test_serial_source_reads_a_pty():
+    import os
+
+    master, slave = os.openpty()
+    try:
+        it = serial_lines(os.ttyname(slave), 115200, timeout_s=0.2)
+        assert next(it) == ""  # port open, receiver silent: a timeout, not a hang
+        lines = epoch(T0)
+        os.write(master, ("\r\n".join(lines) + "\r\n").encode())
+        got = []
+        for _ in range(50):
+            ln = next(it)
+            if ln:
+                got.append(ln)
+            if len(got) == 3:
+                break
+        assert got == lines
+    finally:
+        os.close(master)
+        os.close(slave)
