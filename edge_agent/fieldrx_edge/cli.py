@@ -221,6 +221,7 @@ def cmd_simulate(a: argparse.Namespace) -> int:
         lag_compensation=a.lag_compensation,
         seed=a.seed,
         gnss_hz=a.gnss_hz,
+        realtime=a.realtime,
     )
     sink = None
     sender = queue = None
@@ -235,13 +236,22 @@ def cmd_simulate(a: argparse.Namespace) -> int:
         queue = TelemetryQueue(qdir / "queue.sqlite", job.machine_id)
         sender = HttpSender(queue, a.server, a.token)
         sink = queue.put_many
+    stop = threading.Event()
+    sth = None
+    if sender is not None:  # sends while the tractor drives, exactly like `run`
+        sth = threading.Thread(target=sender.run, args=(stop,), daemon=True)
+        sth.start()
     res = simulate(job, cfg, sink=sink)
+    stop.set()
+    if sth is not None:
+        sth.join(timeout=15.0)
     res_u = None
     if a.lag_compensation:
         res_u = simulate(
             job, dataclasses.replace(cfg, lag_compensation=False), max_runs=a.compare_runs
         )
     out = summary(res, res_u if res_u is not None else res, cfg, job)
+    out["uncompensated_runs"] = a.compare_runs if res_u is not None else "all"
     if res_u is None:
         out["uncompensated_borders"] = out["lag_borders"]
     if sender is not None and queue is not None:
@@ -478,6 +488,7 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--token")
     sp.add_argument("--state-dir")
     sp.add_argument("--drain-timeout", type=float, default=60.0)
+    sp.add_argument("--realtime", type=float, default=0.0, help="pace: 1 = real time, 10 = 10x")
     sp.add_argument("--cells-out")
     sp.add_argument("--json", action="store_true")
     sp.add_argument("--verbose", action="store_true")

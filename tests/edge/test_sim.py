@@ -140,3 +140,17 @@ def test_simulate_sends_telemetry_like_an_agent(tmp_path):
         assert len(metering) > n // 3  # the rest is headland turns on a small plot
     finally:
         peer.stop()
+
+
+def test_realtime_pacing_stamps_records_with_wall_time():
+    import time
+
+    job = trial_plot()
+    got = []
+    t0 = time.time()
+    res = simulate(job, SimConfig(realtime=250.0), sink=got.extend)
+    wall = time.time() - t0
+    assert wall >= 0.9 * res.duration_s / 250.0
+    ts = [r["t"] for r in got]
+    assert len(ts) == res.n_fixes and ts == sorted(ts)
+    assert t0 - 0.1 <= ts[0] and ts[-1] <= time.time() + 0.1

@@ -42,6 +42,7 @@ class SimConfig:
     speed_wobble: float = 0.05  # slow speed variation along a swath (fraction)
     run_in_m: float | None = None
     compare_runs: int = 20  # swath runs simulated without compensation for the comparison
+    realtime: float = 0.0  # > 0: pace the drive at this multiple of real time (live telemetry)
     edge_stop: bool = True  # anticipate the coast-down at field edges (RuntimeConfig.stop_extra_s)
     border_min_step: float = 0.08  # rate steps smaller than this fraction are not lag borders
 
@@ -345,15 +346,26 @@ def simulate(
     pos = pipe.on_position
     fxl, fyl, fvl, fcl = fx.tolist(), fy.tolist(), fv.tolist(), fc.tolist()
     batch: list[dict] = []
-    tbase = t0 if t0 is not None else time.time()
+    # records are stamped so the drive ends now (as fast as possible) or in wall time (paced)
+    tbase = t0 if t0 is not None else time.time() - (0.0 if cfg.realtime > 0 else t_end)
+    pace = cfg.realtime
+    batch_n = 1 if pace > 0 else 200
+    wall_start = time.time()
     j = 0
     for k0 in range(0, n_steps, ratio):
         down = fdown[j]
         d = pos(k0 * dt, fxl[j], fyl[j], fvl[j], fcl[j], down)
         sp = d.target_rpm if d.metering else 0.0
         if sink is not None:
-            batch.append(make_record(pipe, d, None, y, ctrl.output, down, tbase + k0 * dt))
-            if len(batch) >= 200:
+            if pace > 0:
+                ahead = wall_start + k0 * dt / pace - time.time()
+                if ahead > 0:
+                    time.sleep(ahead)
+                tstamp = time.time()
+            else:
+                tstamp = tbase + k0 * dt
+            batch.append(make_record(pipe, d, None, y, ctrl.output, down, tstamp))
+            if len(batch) >= batch_n:
                 sink(batch)
                 batch = []
         j += 1
