@@ -267,7 +267,15 @@ def _strip_layout(
     bx0, bx1 = xmin - 1.0, xmax + 1.0
     strips = shapely.box(bx0, edges[:-1], bx1, edges[1:])
     shapely.prepare(q)
-    inter = shapely.intersection(strips, q)
+    # GEOS's rectangle clipper is ~3x faster than a general overlay; its output is not
+    # guaranteed valid, so the rare invalid piece is repaired
+    inter = np.array(
+        [shapely.clip_by_rect(q, bx0, edges[i], bx1, edges[i + 1]) for i in range(n)],
+        dtype=object,
+    )
+    bad = ~shapely.is_valid(inter)
+    if bad.any():
+        inter[bad] = shapely.make_valid(inter[bad])
     cl = shapely.linestrings(
         np.stack([np.stack([np.full(n, bx0), ys], 1), np.stack([np.full(n, bx1), ys], 1)], 1)
     )
