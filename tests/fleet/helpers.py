@@ -90,15 +90,14 @@ def make_job(org_id: int, state: str = "planned", **machine_kw: Any) -> JobFixtu
     cells = grid()
     boundary = MultiPolygon([Polygon.from_bounds(112.3200, 32.1300, 112.32037, 32.13021)])
     with get_sessionmaker()() as s:
-        m = Machine(
-            organisation_id=org_id,
-            name=f"tractor-{time.monotonic_ns()}",
-            width_m=CELL_W,
-            lag_s=1.52,
-            calibration=SEED001_CALIBRATION.to_dict(),
-            controller={"name": "ladrc", "params": {}, "period_s": 0.01},
-            **machine_kw,
-        )
+        kw: dict[str, Any] = {
+            "name": f"tractor-{time.monotonic_ns()}",
+            "width_m": CELL_W,
+            "lag_s": 1.52,
+            "calibration": SEED001_CALIBRATION.to_dict(),
+            "controller": {"name": "ladrc", "params": {}, "period_s": 0.01},
+        }
+        m = Machine(organisation_id=org_id, **{**kw, **machine_kw})
         f = Field(
             organisation_id=org_id,
             name="plot",

@@ -7,11 +7,15 @@ Per cell (path order, planned rate M in kg/ha):
   M1 = M * l * d / 10 g, d = the cell's centre line (between the midpoints of
   its two cut edges) inside the field, as the edge simulator counts it; for a
   whole cell this is M * area / 10;
-* applied mass M2 = sum over the job's records in that cell (implement down) of
-  applied_rate * width * v * dt / 10 g: the mass metered during the record's
-  fix period dt (time to the next record, capped at ``max_gap_s`` so a pause
-  or lost link adds nothing). The record's ``cell_seq`` is the lag-compensated
-  cell the agent was metering for, i.e. where that mass lands;
+* applied mass M2: what landed in the cell. Each record's fix period dt (to
+  the next record, 0 across a gap longer than ``max_gap_s``) meters
+  flow(actual shaft speed) * dt grams (the machine's calibration, trapezoid
+  between this record and the next); that mass lands T_lag later (seed 001
+  eq. 16) at the outlet, i.e. where the track is at t + dt/2 + T_lag, moved
+  ``antenna_forward_m`` along the heading. The landing point is located in the
+  cells' quadrilaterals; mass landing off the field or outside every cell is
+  "outside". Records without positions fall back to their own ``cell_seq``
+  (the lag-compensated cell the agent metered for);
 * accuracy theta = (1 - |M1 - M2| / M1) * 100 % (seed 001 eq. 18).
 
 Coverage = cells that received fertilizer / cells with a planned rate > 0.
@@ -25,10 +29,13 @@ from typing import Any
 
 import numpy as np
 import shapely
+from fieldrx_edge.metering import calibration_from_dict
+from geoalchemy2.shape import to_shape
 from sqlalchemy import text
 from sqlalchemy.orm import Session
 
-from fieldrx.db.models import Job, Machine, Plan, Prescription
+from fieldrx.db.models import Field, Job, Machine, Plan, Prescription
+from fieldrx.geo.crs import to_utm
 
 MAX_GAP_S = 2.0
 
@@ -118,6 +125,79 @@ def driven_length(corners: np.ndarray, swath_width_m: float, boundary_utm: Any) 
     return out
 
 
+def _metered_g(
+    machine: Machine | None,
+    rpm: np.ndarray,
+    applied: np.ndarray,
+    width: float,
+    v: np.ndarray,
+    dts: np.ndarray,
+) -> np.ndarray:
+    """Grams metered in each record's fix period (trapezoid over the shaft speed)."""
+    flow = np.full(len(rpm), np.nan)
+    if machine is not None and machine.calibration:
+        cal = calibration_from_dict(machine.calibration)
+        ok = np.isfinite(rpm)
+        flow[ok] = [max(0.0, cal.flow_g_min(r)) if r > 0 else 0.0 for r in rpm[ok]]
+    # records without a shaft speed: the applied rate over the strip driven
+    fallback = applied * width * v * 6.0  # kg/ha * m * m/s -> g/min
+    flow = np.where(np.isfinite(flow), flow, fallback) / 60.0  # g/s
+    nxt = np.append(flow[1:], flow[-1:]) if len(flow) else flow
+    return 0.5 * (flow + nxt) * dts
+
+
+def _landing_cells(
+    t: np.ndarray,
+    dts: np.ndarray,
+    x: np.ndarray,
+    y: np.ndarray,
+    heading_deg: np.ndarray,
+    cell: np.ndarray,
+    seqs: np.ndarray,
+    corners: np.ndarray,
+    boundary: Any,
+    lag_s: float,
+    forward_m: float,
+) -> np.ndarray:
+    """Index (into seqs) of the cell where each record's metered mass lands; -1 outside."""
+    n = len(t)
+    out = np.full(n, -1, dtype=np.int64)
+    have = np.isfinite(x) & np.isfinite(y)
+    if have.sum() >= 2 and len(seqs):
+        tl = t + dts / 2 + lag_s
+        xl = np.interp(tl, t[have], x[have])
+        yl = np.interp(tl, t[have], y[have])
+        hl = np.radians(
+            np.interp(
+                tl,
+                t[have],
+                np.unwrap(np.radians(heading_deg[have]), period=2 * np.pi) * 180 / np.pi,
+            )
+        )
+        xl = xl + forward_m * np.sin(hl)
+        yl = yl + forward_m * np.cos(hl)
+        quads = shapely.polygons(corners.reshape(-1, 4, 2))
+        tree = shapely.STRtree(quads)
+        pts = shapely.points(xl, yl)
+        pi, ci = tree.query(pts, predicate="intersects")
+        if len(pi):
+            first, at = np.unique(pi, return_index=True)
+            out[first] = ci[at]
+        if boundary is not None:
+            off = ~shapely.contains_xy(boundary, xl, yl)
+            out[off] = -1
+        # records before the track starts or after it ends land somewhere unknown
+        outside_track = (tl < t[have][0]) | (tl > t[have][-1] + 1.0)
+        out[outside_track] = -1
+    none = ~have
+    if none.any():
+        pos = np.searchsorted(seqs, cell[none])
+        ok = (cell[none] >= 0) & (pos < len(seqs))
+        ok[ok] = seqs[pos[ok]] == cell[none][ok]
+        out[np.flatnonzero(none)[ok]] = pos[ok]
+    return out
+
+
 def job_plan(session: Session, job: Job) -> Plan:
     rx = session.get(Prescription, job.prescription_id)
     assert rx is not None
@@ -144,47 +224,60 @@ def build_report(session: Session, job: Job, max_gap_s: float = MAX_GAP_S) -> Jo
     seqs = np.asarray([c.seq for c in cells], dtype=np.int64)
     swath = np.asarray([c.swath for c in cells], dtype=np.int64)
     rate = np.asarray([c.rate for c in cells], dtype=float)
-    area = quad_area(np.asarray([c.corners_utm for c in cells], dtype=float)) if n else np.zeros(0)
-    m1 = rate * area / 10.0  # seed 001 eq. 17 (g)
+    corners = np.asarray([c.corners_utm for c in cells], dtype=float).reshape(n, 8)
+    area = quad_area(corners) if n else np.zeros(0)
+    fld = session.get(Field, plan.field_id)
+    boundary = to_utm(to_shape(fld.boundary), fld.utm_epsg) if fld is not None else None
+    swath_w = float((plan.params or {}).get("swath_width_m") or width or 1.0)
+    drive = driven_length(corners, swath_w, boundary)
+    m1 = rate * width * drive / 10.0  # seed 001 eq. 17: M v t l / 36 g, v t = driven length
 
     recs = session.execute(
         text(
-            "SELECT extract(epoch FROM t)::float8, cell_seq, applied_rate_kg_ha, target_rate_kg_ha,"
-            " coalesce(speed_filtered_m_s, speed_raw_m_s), implement_down"
+            "SELECT extract(epoch FROM t)::float8, cell_seq, applied_rate_kg_ha,"
+            " target_rate_kg_ha, coalesce(speed_filtered_m_s, speed_raw_m_s), implement_down,"
+            " actual_shaft_rpm, heading_deg,"
+            " ST_X(ST_Transform(geom, :epsg)), ST_Y(ST_Transform(geom, :epsg))"
             " FROM telemetry WHERE machine_id = :m AND job_id = :j ORDER BY t, seq"
         ),
-        {"m": job.machine_id, "j": job.id},
+        {"m": job.machine_id, "j": job.id, "epsg": fld.utm_epsg if fld is not None else 4326},
     ).all()
     nr = len(recs)
     if nr:
-        t = np.fromiter((r[0] for r in recs), float, nr)
-        cell = np.fromiter((-1 if r[1] is None else r[1] for r in recs), np.int64, nr)
-        applied = np.fromiter((r[2] or 0.0 for r in recs), float, nr)
-        target = np.fromiter((np.nan if r[3] is None else r[3] for r in recs), float, nr)
-        v = np.fromiter((r[4] or 0.0 for r in recs), float, nr)
-        down = np.fromiter((bool(r[5]) for r in recs), bool, nr)
+        col = list(zip(*recs, strict=True))
+
+        def arr(i: int, default: float = np.nan) -> np.ndarray:
+            return np.asarray([default if v is None else v for v in col[i]], dtype=float)
+
+        t = arr(0)
+        cell = np.asarray([-1 if v is None else v for v in col[1]], dtype=np.int64)
+        applied, target, v, rpm = arr(2, 0.0), arr(3), arr(4, 0.0), arr(6)
+        down = np.asarray(col[5], dtype=bool)
+        heading, x, y = arr(7, 0.0), arr(8), arr(9)
         gaps = np.diff(t)
         period = float(np.median(gaps)) if len(gaps) else 0.0
         dts = np.append(gaps, period)
         dts = np.where(dts > max_gap_s, 0.0, np.maximum(dts, 0.0))
-        mass = np.where(down, applied * width * v * dts / 10.0, 0.0)  # g metered per record
+        mass = _metered_g(machine, rpm, applied, width, v, dts)
         time_worked = float(dts[down].sum())
+        idx = _landing_cells(
+            t, dts, x, y, heading, cell, seqs, corners, boundary,
+            machine.lag_s if machine else 0.0, machine.antenna_forward_m if machine else 0.0,
+        )  # fmt: skip
+        in_cell = idx >= 0
+        m2 = np.bincount(idx[in_cell], weights=mass[in_cell], minlength=n)
+        outside_g = float(mass[~in_cell].sum())
+        # per-cell record statistics use the cell the agent metered for
         pos = np.searchsorted(seqs, cell)
-        pos_ok = (cell >= 0) & (pos < n)
-        in_cell = pos_ok.copy()
-        in_cell[pos_ok] = seqs[pos[pos_ok]] == cell[pos_ok]
-        idx = pos[in_cell]
-        m2 = np.bincount(idx, weights=mass[in_cell], minlength=n)
-        cnt = np.bincount(idx[down[in_cell]], minlength=n)
-        sel = in_cell & down
+        sel = (cell >= 0) & (pos < n) & down
+        sel[sel] = seqs[pos[sel]] == cell[sel]
+        cnt = np.bincount(pos[sel], minlength=n)
         asum = np.bincount(pos[sel], weights=applied[sel], minlength=n)
-        tt = np.nan_to_num(target[sel])
-        tsum = np.bincount(pos[sel], weights=tt, minlength=n)
+        tsum = np.bincount(pos[sel], weights=np.nan_to_num(target[sel]), minlength=n)
         first = np.full(n, np.inf)
         last = np.full(n, -np.inf)
         np.minimum.at(first, pos[sel], t[sel])
         np.maximum.at(last, pos[sel], t[sel])
-        outside_g = float(mass[~in_cell].sum())
         first_t, last_t = float(t[0]), float(t[-1])
     else:
         m2 = np.zeros(n)
