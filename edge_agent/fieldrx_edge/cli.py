@@ -140,10 +140,13 @@ def cmd_run(a: argparse.Namespace) -> int:
     # with the job's controller unless given (real hardware: measure and pass it)
     t50 = a.response_s if a.response_s is not None else closed_loop_t50_s(settings, period)
     t50_stop = closed_loop_t50_s(settings, period, 100.0, 0.0)
+    t50_start = closed_loop_t50_s(settings, period, 0.0, 100.0)
     rcfg = RuntimeConfig(
         lag_compensation=a.lag_compensation,
         response_s=t50,
         stop_extra_s=max(0.0, t50_stop - t50),
+        # spin-up anticipation is off: at a field edge it would put fertilizer outside
+        start_extra_s=max(0.0, t50_start - t50) if a.early_start else 0.0,
         min_fix_quality=a.min_fix_quality,
         max_hdop=a.max_hdop if a.max_hdop > 0 else None,
     )
@@ -468,6 +471,7 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--lag-compensation", type=_on_off, default=True)
     sp.add_argument("--response-s", type=float, help="motor response added to the look-ahead")
     sp.add_argument("--drain-timeout", type=float, default=30.0)
+    sp.add_argument("--early-start", action="store_true", help="anticipate shaft spin-up")
     sp.add_argument("--min-fix-quality", type=int, default=1, help="GGA quality (4 = RTK fixed)")
     sp.add_argument("--max-hdop", type=float, default=5.0, help="0 disables the HDOP check")
     sp.set_defaults(func=cmd_run)

@@ -50,6 +50,7 @@ class RuntimeConfig:
     max_hdop: float | None = 5.0
     min_course_speed_m_s: float = 0.3  # below this the GNSS course is noise: keep the last heading
     stop_extra_s: float = 0.0  # extra look-ahead for stops at the field edge (coast-down)
+    start_extra_s: float = 0.0  # extra look-ahead for starts from rest (spin-up)
     border_tolerance_m: float = 0.3  # jitter back over a border within this stays in the cell
 
 
@@ -182,11 +183,17 @@ class Pipeline:
             d.alarms.append("speed_out_of_range")
         where = self.boundary.where(lx, ly)
         if where != Where.INSIDE:
+            early = self._early_start(d, x, y, v, implement_down)
+            if early is not None:
+                return early
             d.alarms.append("outside_field")
             return self._stop(d, "outside_field" if where == Where.OUTSIDE else "hole")
         idx = self.locator.locate(lx, ly)
         d.cell = idx
         if idx < 0:
+            early = self._early_start(d, x, y, v, implement_down)
+            if early is not None:
+                return early
             return self._stop(d, "no_cell")
         if (
             idx != self._applying
@@ -222,7 +229,12 @@ class Pipeline:
         rate = self.rates[idx]
         if rate <= 0.0:
             return self._stop(d, "zero_rate")
-        rpm = shaft_rpm_for_rate(self.cal, rate, job.implement_width_m, v)
+        self._meter(d, rate, v, "metering")
+        self._applying = idx
+        return d
+
+    def _meter(self, d: Decision, rate: float, v: float, reason: str) -> None:
+        rpm = shaft_rpm_for_rate(self.cal, rate, self.job.implement_width_m, v)
         if rpm < self.cal.min_rpm:
             d.alarms.append("shaft_below_range")
             rpm = self.cal.min_rpm
@@ -232,9 +244,35 @@ class Pipeline:
         d.metering = True
         d.target_rate_kg_ha = rate
         d.target_rpm = rpm
-        d.reason = "metering"
-        self._applying = idx
+        d.reason = reason
         self.last = d
+
+    def _early_start(
+        self, d: Decision, x: float, y: float, v: float, implement_down: bool
+    ) -> Decision | None:
+        """Start the shaft ``start_extra_s`` early when the landing point is about to
+        enter an unapplied cell: spinning up from rest is slower than a small step."""
+        cfg, job = self.cfg, self.job
+        if not (cfg.lag_compensation and cfg.start_extra_s > 0 and implement_down):
+            return None
+        if self._applying >= 0:
+            return None
+        sx, sy = look_ahead(
+            x,
+            y,
+            self.heading_rad,
+            v,
+            self.look_ahead_time_s() + cfg.start_extra_s,
+            job.antenna_forward_m,
+            job.antenna_lateral_m,
+        )
+        if self.boundary.where(sx, sy) != Where.INSIDE:
+            return None
+        k = self.locator.locate(sx, sy)
+        if k < 0 or (job.overlap_control and self.locator.finished[k]) or self.rates[k] <= 0:
+            return None
+        d.cell, d.cell_seq = k, self.seqs[k]
+        self._meter(d, self.rates[k], v, "start_ahead")
         return d
 
     def on_no_fix(self, now: float) -> Decision:

@@ -148,3 +148,22 @@ def test_saturated_motor_raises_alarm():
     d = p.on_position(0.0, OX + 2.0, OY + 1.15, 2.0, EAST)
     assert "motor_saturated" in make_record(p, d, None, 50.0, 100.0, True, 1.0)["alarms"]
     assert "motor_saturated" not in make_record(p, d, None, 50.0, 60.0, True, 1.0)["alarms"]
+
+
+def test_early_start_meters_before_the_landing_point_enters():
+    job = trial_plot()
+    cfg = dict(lag_compensation=True, response_s=0.0, gnss_period_s=0.0)
+    x = OX - 2.0 * job.lag_s - 0.1  # landing point 0.1 m before the field edge
+    plain = pipe(job, **cfg).on_position(0.0, x, OY + 1.15, 2.0, EAST)
+    assert not plain.metering and plain.reason == "outside_field"
+    early = pipe(job, start_extra_s=0.1, **cfg).on_position(0.0, x, OY + 1.15, 2.0, EAST)
+    assert early.metering and early.reason == "start_ahead" and early.cell == 0
+
+
+def test_edge_stop_anticipates_the_coast_down():
+    job = trial_plot()
+    cfg = dict(lag_compensation=True, response_s=0.0, gnss_period_s=0.0)
+    x = OX + 35.0 - 2.0 * job.lag_s - 0.1  # landing point 0.1 m before the far edge
+    assert pipe(job, **cfg).on_position(0.0, x, OY + 1.15, 2.0, EAST).metering
+    d = pipe(job, stop_extra_s=0.1, **cfg).on_position(0.0, x, OY + 1.15, 2.0, EAST)
+    assert not d.metering and d.reason == "edge_ahead"

@@ -44,6 +44,9 @@ class SimConfig:
     compare_runs: int = 20  # swath runs simulated without compensation for the comparison
     realtime: float = 0.0  # > 0: pace the drive at this multiple of real time (live telemetry)
     edge_stop: bool = True  # anticipate the coast-down at field edges (RuntimeConfig.stop_extra_s)
+    # anticipate the spin-up from rest (RuntimeConfig.start_extra_s): first cells of a
+    # swath gain ~2 %, but half the spin-up tail then lands before the field edge
+    edge_start: bool = False
     border_min_step: float = 0.08  # rate steps smaller than this fraction are not lag borders
 
 
@@ -329,10 +332,12 @@ def simulate(
         settings = ControllerSettings(name=cfg.controller, params={}, period_s=dt)
     t50 = closed_loop_t50_s(settings, dt)
     t50_stop = closed_loop_t50_s(settings, dt, 100.0, 0.0)
+    t50_start = closed_loop_t50_s(settings, dt, 0.0, 100.0)
     rcfg = RuntimeConfig(
         lag_compensation=cfg.lag_compensation,
         response_s=t50,
         stop_extra_s=max(0.0, t50_stop - t50) if cfg.edge_stop else 0.0,
+        start_extra_s=max(0.0, t50_start - t50) if cfg.edge_start else 0.0,
         gnss_period_s=1.0 / cfg.gnss_hz,
     )
     pipe = Pipeline(job, rcfg)
