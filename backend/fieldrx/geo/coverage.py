@@ -813,7 +813,7 @@ def plan_coverage(
     timings["swaths"] = time.perf_counter() - t
 
     t = time.perf_counter()
-    router = FieldRouter(fld)
+    router = FieldRouter(fld, avoid=region if h else None)
     dist_fn = (
         router.distance
         if len(blocks) <= _ROUTED_ORDER_MAX_BLOCKS
