@@ -103,6 +103,9 @@ export interface Alert {
   created_at?: string;
   acknowledged?: boolean;
   acknowledged_at?: string | null;
+  active?: boolean;
+  started_at?: string;
+  ended_at?: string | null;
   [k: string]: unknown;
 }
 

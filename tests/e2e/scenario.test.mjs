@@ -1,7 +1,7 @@
 // End-to-end: the agronomist's and fleet manager's path through the real UI,
 // against the real server and database (FIELDRX_URL, demo credentials).
 // Steps whose endpoints the server does not have yet are skipped with a reason.
-import { after, before, describe, it } from 'node:test';
+import { after, before, describe, it as nodeIt } from 'node:test';
 import assert from 'node:assert/strict';
 import { spawn } from 'node:child_process';
 import { existsSync, readFileSync, writeFileSync } from 'node:fs';
@@ -31,6 +31,18 @@ const SKIP_ALL = !up
   : !ui
     ? `server at ${BASE_URL} does not serve the UI (build frontend/ first)`
     : false;
+
+/** A step that leaves a screenshot behind when it fails. */
+function it(name, fn) {
+  return nodeIt(name, async (t) => {
+    try {
+      await fn(t);
+    } catch (e) {
+      if (page) await shot(page, `FAILED-${name.replace(/\W+/g, '-').slice(0, 40)}`).catch(() => {});
+      throw e;
+    }
+  });
+}
 
 /** Shared state between steps (each step needs the previous one's result). */
 const S = {};
@@ -97,6 +109,34 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
     assert.equal(await page.textContent('[data-testid=current-user]'), EMAIL);
     await mapIdle(page, 'fields');
     await shot(page, 'fields');
+  });
+
+  it('imports a GeoJSON field file', async () => {
+    const fc = (await api(token, 'GET', '/fields?limit=500')).data;
+    const bb = fc.features.map((f) => f.bbox).filter(Boolean);
+    const west = bb.length ? Math.min(...bb.map((b) => b[0])) - 0.02 : 112.29;
+    const lat = bb.length ? bb[0][1] : 32.13;
+    const d = 0.002;
+    const file = join(ARTIFACTS, 'import.geojson');
+    writeFileSync(
+      file,
+      JSON.stringify({
+        type: 'FeatureCollection',
+        features: [
+          {
+            type: 'Feature',
+            properties: { name: `E2E imported ${Date.now()}` },
+            geometry: { type: 'Polygon', coordinates: [[[west, lat], [west + d, lat], [west + d, lat + d], [west, lat + d], [west, lat]]] },
+          },
+        ],
+      }),
+    );
+    const before = Number((await page.textContent('[data-testid=field-count]')).replace(/\D/g, ''));
+    await page.setInputFiles('[data-testid=import-file]', file);
+    await page.waitForSelector('[data-testid=import-result]');
+    await page.waitForFunction((n) => Number(document.querySelector('[data-testid=field-count]').textContent.replace(/\D/g, '')) > n, before);
+    await mapIdle(page, 'fields');
+    await shot(page, 'fields-imported');
   });
 
   it('draws a field by clicking, sees the validation error on the map, then saves a good one', async () => {
@@ -257,6 +297,30 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
     await shot(page, 'prescription-edited');
   });
 
+  it('paints a zone with one rate (another version)', async (t) => {
+    if (!need(t, 'rxId', 'rxVersion')) return;
+    // Around a rendered cell (the field's middle may be a hole).
+    const c = await page.evaluate(() => {
+      const map = window.__fieldrxMaps.rx;
+      const fs = map.queryRenderedFeatures({ layers: ['rx-fill'] });
+      const f = fs[Math.floor(fs.length / 3)];
+      const ring = f.geometry.type === 'Polygon' ? f.geometry.coordinates[0] : f.geometry.coordinates[0][0];
+      const p = map.project(ring[0]);
+      const cv = map.getCanvas();
+      return [p.x - cv.clientWidth / 2, p.y - cv.clientHeight / 2];
+    });
+    await page.click('[data-testid=paint-zone]');
+    const [x, y] = c;
+    await clickPath('rx', [[x - 45, y - 45], [x + 45, y - 45], [x + 45, y + 45], [x - 45, y + 45], [x - 45, y - 45]]);
+    await page.waitForSelector('[data-testid=zone-panel]');
+    await page.fill('[data-testid=zone-rate]', '650');
+    await page.click('[data-testid=zone-save]');
+    await page.waitForFunction((v) => Number(document.querySelector('[data-testid=rx-version]')?.value) > v, S.rxVersion, { timeout: 30_000 });
+    S.rxVersion = Number(await page.inputValue('[data-testid=rx-version]'));
+    await mapIdle(page, 'rx');
+    await shot(page, 'prescription-zone');
+  });
+
   it('exports ISOXML as a download', async (t) => {
     if (!need(t, 'rxId')) return;
     if (!(await needEndpoint(t, 'GET', '/prescriptions/{}/export', 'exports'))) return;
@@ -353,23 +417,29 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
     if (!need(t, 'jobId', 'moved')) return;
     if (!(await needEndpoint(t, 'GET', '/jobs/{}/report', 'job report'))) return;
     await page.goto(`${BASE_URL}/#/jobs/${S.jobId}`);
-    await page.waitForFunction(
-      () => Number(document.querySelector('[data-testid=report-records]')?.textContent ?? 0) > 0 ||
-        /^[1-9]/.test(document.querySelector('[data-testid=report-features]')?.textContent ?? ''),
-      null,
-      { timeout: 30_000 },
-    );
+    await page.waitForFunction(() => /^[1-9]/.test(document.querySelector('[data-testid=report-points]')?.textContent ?? ''), null, {
+      timeout: 60_000,
+    });
+    await page.waitForFunction(() => /^[1-9]/.test(document.querySelector('[data-testid=report-cells]')?.textContent ?? ''), null, {
+      timeout: 60_000,
+    });
     await mapIdle(page, 'report');
+    const applied = await page.evaluate(() => {
+      const map = window.__fieldrxMaps.report;
+      return map.queryRenderedFeatures({ layers: ['job-fill'] }).filter((f) => Number(f.properties.n_records) > 0).length;
+    });
+    assert.ok(applied > 0, 'cells with records drawn on the as-applied map');
     await shot(page, 'report-applied');
     await page.click('[data-testid=view-accuracy]');
     await mapIdle(page, 'report');
     await shot(page, 'report-accuracy');
     const n = await page.evaluate(() => Number(document.querySelector('[data-testid=replay-slider]').max));
-    if (n > 2) {
-      await page.fill('[data-testid=replay-slider]', String(Math.floor(n / 2)));
-      await mapIdle(page, 'report');
-      await shot(page, 'report-replay');
-    }
+    assert.ok(n > 2, `records to replay (${n})`);
+    const t1 = await page.textContent('[data-testid=replay-time]');
+    await page.fill('[data-testid=replay-slider]', String(Math.floor(n / 2)));
+    await page.waitForFunction((old) => document.querySelector('[data-testid=replay-time]').textContent !== old, t1);
+    await mapIdle(page, 'report');
+    await shot(page, 'report-replay');
   });
 });
 

@@ -1,5 +1,7 @@
 import { describe, expect, it } from 'vitest';
 import {
+  ACCURACY_BREAKS,
+  RED_GREEN,
   classColors,
   classify,
   equalIntervalBreaks,
@@ -119,6 +121,14 @@ describe('classify / histogram / legend / expression agree', () => {
     expect(c[4]).toBe('#fde725');
     expect(classColors(0)).toEqual([]);
     expect(classColors(1)).toHaveLength(1);
+  });
+});
+
+describe('accuracy classes', () => {
+  it('100 % falls in the top (green) class and 85 % in the second', () => {
+    expect(classify(100, ACCURACY_BREAKS)).toBe(4);
+    expect(classify(85, ACCURACY_BREAKS)).toBe(1);
+    expect(classColors(5, RED_GREEN)[4]).toBe('#1a9850');
   });
 });
 

@@ -17,6 +17,18 @@ export const VIRIDIS: RGB[] = [
   [253, 231, 37],
 ];
 
+/** Red (poor) to green (good) for accuracy maps. */
+export const RED_GREEN: RGB[] = [
+  [215, 48, 39],
+  [252, 141, 89],
+  [254, 224, 139],
+  [145, 207, 96],
+  [26, 152, 80],
+];
+
+/** Accuracy classes in percent (100 = applied exactly the target); most cells sit near the top. */
+export const ACCURACY_BREAKS = [0, 80, 90, 95, 98, 100];
+
 /** Diverging red-white-blue ramp for accuracy (applied - target) maps. */
 export const DIVERGING: RGB[] = [
   [178, 24, 43],

@@ -3,18 +3,21 @@ import type * as maplibregl from 'maplibre-gl';
 import { api } from '../api';
 import { ErrorBox, isMissingEndpoint } from '../components/Status';
 import { statusColor } from '../lib/colors';
+import { applyLive, fromStatusItem, type Fleet } from '../lib/fleet';
 import { bboxOf } from '../lib/geo';
 import { compass, formatPercent, formatSpeed } from '../lib/units';
-import { useLive, type LiveMessage } from '../live';
+import { useLive } from '../live';
 import { MapView } from '../map/MapView';
 import { fitTo, setGeoJSON } from '../map/setup';
-import type { Alert, MachineStatus } from '../types';
+import type { Alert } from '../types';
 import { listOf } from '../types';
 
-function toFC(ms: Map<number, MachineStatus>): GeoJSON.FeatureCollection {
+const TRAIL = 300;
+
+function toFC(fleet: Fleet): GeoJSON.FeatureCollection {
   return {
     type: 'FeatureCollection',
-    features: [...ms.values()]
+    features: [...fleet.values()]
       .filter((m) => m.lon != null && m.lat != null)
       .map((m) => ({
         type: 'Feature',
@@ -30,45 +33,31 @@ function toFC(ms: Map<number, MachineStatus>): GeoJSON.FeatureCollection {
   };
 }
 
-function normStatus(m: Record<string, unknown>): MachineStatus {
-  const id = Number(m.machine_id ?? m.id);
-  return { ...m, machine_id: id } as MachineStatus;
-}
-
 /** Live fleet: positions over WebSocket, status colours, heading arrows, job progress, alerts. */
 export function FleetScreen() {
-  const [machines, setMachines] = useState<Map<number, MachineStatus>>(new Map());
+  const [fleet, setFleet] = useState<Fleet>(new Map());
   const [alerts, setAlerts] = useState<Alert[]>([]);
   const [error, setError] = useState<unknown>(null);
   const [missing, setMissing] = useState(false);
+  const trails = useRef(new Map<number, [number, number][]>());
   const mapRef = useRef<maplibregl.Map | null>(null);
   const fitted = useRef(false);
 
   const loadStatus = useCallback(async () => {
     try {
       const r = await api.get('/machines/status');
-      const m = new Map<number, MachineStatus>();
-      for (const s of listOf<Record<string, unknown>>(r)) {
-        const n = normStatus(s);
-        m.set(n.machine_id, n);
-      }
-      setMachines(m);
+      setFleet(new Map(listOf<Record<string, unknown>>(r).map((o) => [Number(o.machine_id ?? o.id), fromStatusItem(o)])));
     } catch (e) {
-      if (isMissingEndpoint(e)) {
-        setMissing(true);
-        // Fall back to the plain machine list so the screen still shows the fleet.
-        try {
-          const r = await api.get('/machines');
-          setMachines(new Map(listOf<Record<string, unknown>>(r).map((x) => [Number(x.id), normStatus(x)])));
-        } catch {
-          /* nothing to show */
-        }
-      } else setError(e);
+      if (!isMissingEndpoint(e)) return setError(e);
+      setMissing(true);
+      // Without fleet status, still list the machines.
+      const r = await api.get('/machines').catch(() => []);
+      setFleet(new Map(listOf<Record<string, unknown>>(r).map((o) => [Number(o.id), fromStatusItem(o)])));
     }
   }, []);
   const loadAlerts = useCallback(async () => {
     try {
-      setAlerts(listOf<Alert>(await api.get('/alerts')));
+      setAlerts(listOf<Alert>(await api.get('/alerts?limit=50')));
     } catch (e) {
       if (!isMissingEndpoint(e)) setError(e);
     }
@@ -81,39 +70,49 @@ export function FleetScreen() {
     return () => clearInterval(t);
   }, [loadStatus, loadAlerts]);
 
-  const live = useLive((msg: LiveMessage) => {
-    if (msg.type === 'alert') {
-      const a = (msg.alert ?? msg) as Alert;
-      setAlerts((cur) => [a, ...cur.filter((x) => x.id !== a.id)]);
-      return;
+  const live = useLive((msg) => {
+    if (msg.type === 'alert') void loadAlerts();
+    if (msg.type === 'position' && typeof msg.lon === 'number' && typeof msg.lat === 'number') {
+      const id = Number(msg.machine_id);
+      const tr = trails.current.get(id) ?? [];
+      tr.push([msg.lon, msg.lat]);
+      if (tr.length > TRAIL) tr.splice(0, tr.length - TRAIL);
+      trails.current.set(id, tr);
     }
-    const id = Number(msg.machine_id);
-    if (!Number.isFinite(id)) return;
-    setMachines((cur) => {
-      const next = new Map(cur);
-      const prev = next.get(id) ?? { machine_id: id };
-      const upd: MachineStatus = { ...prev, ...(msg as Record<string, unknown>), machine_id: id };
-      if (msg.type === 'position' && !msg.status && !prev.status) upd.status = 'working';
-      delete (upd as Record<string, unknown>).type;
-      next.set(id, upd);
-      return next;
-    });
+    setFleet((cur) => applyLive(cur, msg));
   });
 
   useEffect(() => {
     const map = mapRef.current;
     if (!map) return;
-    const fc = toFC(machines);
+    const fc = toFC(fleet);
     setGeoJSON(map, 'machines', fc);
+    setGeoJSON(map, 'trails', {
+      type: 'FeatureCollection',
+      features: [...trails.current.entries()]
+        .filter(([, c]) => c.length > 1)
+        .map(([id, c]) => ({ type: 'Feature', properties: { machine_id: id }, geometry: { type: 'LineString', coordinates: c } })),
+    });
     if (!fitted.current && fc.features.length) {
-      fitTo(map, bboxOf(fc), 120);
+      fitTo(map, bboxOf(fc), 200);
+      if (map.getZoom() > 16) map.setZoom(16);
       fitted.current = true;
     }
-  }, [machines]);
+  }, [fleet]);
 
   const onReady = (map: maplibregl.Map) => {
     mapRef.current = map;
-    setGeoJSON(map, 'machines', toFC(machines));
+    // Fields as context under the machines.
+    setGeoJSON(map, 'fields', { type: 'FeatureCollection', features: [] });
+    map.addLayer({ id: 'fields-fill', type: 'fill', source: 'fields', paint: { 'fill-color': '#4c9a2a', 'fill-opacity': 0.15 } });
+    map.addLayer({ id: 'fields-line', type: 'line', source: 'fields', paint: { 'line-color': '#2d5e16', 'line-width': 1 } });
+    api
+      .get<GeoJSON.FeatureCollection>('/fields?limit=500')
+      .then((fc) => setGeoJSON(map, 'fields', fc))
+      .catch(() => undefined);
+    setGeoJSON(map, 'trails', { type: 'FeatureCollection', features: [] });
+    map.addLayer({ id: 'trails', type: 'line', source: 'trails', paint: { 'line-color': '#1e3a8a', 'line-width': 2, 'line-opacity': 0.6 } });
+    setGeoJSON(map, 'machines', toFC(fleet));
     map.addLayer({
       id: 'machines-dot',
       type: 'circle',
@@ -138,15 +137,11 @@ export function FleetScreen() {
       const id = e.features?.[0]?.properties?.machine_id;
       if (id != null) location.hash = `/machines/${id}`;
     });
-    const fc = toFC(machines);
-    if (fc.features.length) {
-      fitTo(map, bboxOf(fc), 120);
-      fitted.current = true;
-    }
   };
 
-  const list = [...machines.values()].sort((a, b) => a.machine_id - b.machine_id);
-  const open = alerts.filter((a) => !a.acknowledged && !a.acknowledged_at);
+  const list = [...fleet.values()].sort((a, b) => a.machine_id - b.machine_id);
+  const name = (id?: number) => (id != null ? (fleet.get(id)?.name ?? `#${id}`) : '');
+  const open = alerts.filter((a) => !a.acknowledged_at && !a.acknowledged);
   return (
     <div className="split">
       <aside className="panel">
@@ -162,21 +157,22 @@ export function FleetScreen() {
               <span className="dot" style={{ background: statusColor(m.status) }} />
               <a href={`#/machines/${m.machine_id}`}>{m.name ?? `Machine #${m.machine_id}`}</a>{' '}
               <span className="muted" data-testid={`machine-status-${m.machine_id}`}>
-                {m.status ?? 'unknown'}
+                {m.status}
               </span>
               <div className="muted small">
-                {formatSpeed(m.speed_filtered_m_s ?? (m.speed_m_s as number | undefined))} · heading{' '}
+                {formatSpeed(m.speed_m_s)} · heading{' '}
                 {m.heading_deg != null ? `${Math.round(m.heading_deg)}° ${compass(m.heading_deg)}` : '–'}
                 {m.job_id != null && (
                   <>
                     {' '}
-                    · <a href={`#/jobs/${m.job_id}`}>job #{m.job_id}</a>{' '}
-                    <span data-testid={`machine-progress-${m.machine_id}`}>
-                      {m.progress != null ? formatPercent(m.progress > 1 ? m.progress / 100 : m.progress) : ''}
-                    </span>
+                    · <a href={`#/jobs/${m.job_id}`}>job #{m.job_id}</a> {m.job_state ?? ''}{' '}
+                    <span data-testid={`machine-progress-${m.machine_id}`}>{m.progress != null ? formatPercent(m.progress) : ''}</span>
                   </>
                 )}
               </div>
+              {m.progress != null && (
+                <progress max={1} value={m.progress} style={{ width: '100%' }} data-testid={`machine-progressbar-${m.machine_id}`} />
+              )}
               <div className="muted small" data-testid={`machine-pos-${m.machine_id}`}>
                 {m.lon != null && m.lat != null ? `${Number(m.lon).toFixed(6)}, ${Number(m.lat).toFixed(6)}` : 'no position'}
               </div>
@@ -187,20 +183,24 @@ export function FleetScreen() {
           Alerts <span className="badge" data-testid="alert-count">{open.length}</span>
         </h3>
         <ul className="list" data-testid="alert-list">
-          {alerts.slice(0, 50).map((a) => {
+          {alerts.map((a) => {
             const acked = Boolean(a.acknowledged || a.acknowledged_at);
+            const active = a.active !== false && !a.ended_at;
             return (
               <li key={a.id} className={acked ? 'muted' : 'alert'} data-testid={`alert-${a.id}`}>
-                <strong>{a.kind ?? a.severity ?? 'alert'}</strong> {a.message ?? ''}{' '}
-                {a.machine_id != null && <span className="muted">machine #{a.machine_id}</span>}{' '}
+                <strong>{String(a.kind ?? 'alert').replace(/_/g, ' ')}</strong> · {name(a.machine_id)}
+                {a.job_id != null && <> · job #{a.job_id}</>}
+                <span className="muted small"> {active ? 'active' : 'ended'}</span>
+                {a.message && <div className="small">{a.message}</div>}
+                <div className="muted small">{a.started_at ? new Date(String(a.started_at)).toLocaleString() : ''}</div>
                 {!acked && (
                   <button
                     className="link"
                     data-testid={`ack-${a.id}`}
                     onClick={async () => {
                       try {
-                        await api.post(`/alerts/${a.id}/ack`);
-                        setAlerts((cur) => cur.map((x) => (x.id === a.id ? { ...x, acknowledged: true } : x)));
+                        const r = await api.post<Alert>(`/alerts/${a.id}/ack`);
+                        setAlerts((cur) => cur.map((x) => (x.id === a.id ? { ...x, ...r, acknowledged: true } : x)));
                       } catch (e) {
                         setError(e);
                       }

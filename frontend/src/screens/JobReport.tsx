@@ -3,168 +3,161 @@ import type * as maplibregl from 'maplibre-gl';
 import { api } from '../api';
 import { Legend } from '../components/Legend';
 import { ErrorBox, isMissingEndpoint, Kv } from '../components/Status';
-import {
-  classColors,
-  DIVERGING,
-  legendEntries,
-  niceBreaks,
-  stepExpression,
-  symmetricBreaks,
-} from '../lib/colors';
-import { bboxOf } from '../lib/geo';
-import { indexAtTime, normaliseTrack, type TrackPoint } from '../lib/track';
+import { ACCURACY_BREAKS, RED_GREEN, classColors, legendEntries, niceBreaks, stepExpression } from '../lib/colors';
+import { bboxOf, bearingDeg } from '../lib/geo';
+import { normaliseTrack, type TrackPoint } from '../lib/track';
 import { formatArea, formatDuration, formatMass, formatPercent, formatRate } from '../lib/units';
 import { MapView } from '../map/MapView';
-import { fitTo, setGeoJSON } from '../map/setup';
-import type { Job } from '../types';
+import { absoluteApiUrl, fitTo, setGeoJSON } from '../map/setup';
+import { GRID_MAXZOOM, GRID_MINZOOM } from '../map/grid';
+import type { FieldFeature, Job, Plan, Prescription } from '../types';
 import { pick } from '../types';
 
 type View = 'applied' | 'accuracy';
 const EMPTY: GeoJSON.FeatureCollection = { type: 'FeatureCollection', features: [] };
+const FINAL = new Set(['completed', 'aborted']);
+const MAX_POINTS = 200_000;
 
-/** Adds error_pct = (applied - target) / target * 100 where the server did not. */
-export function withAccuracy(fc: GeoJSON.FeatureCollection): GeoJSON.FeatureCollection {
-  return {
-    ...fc,
-    features: fc.features.map((f) => {
-      const p = { ...(f.properties ?? {}) } as Record<string, unknown>;
-      if (p.error_pct == null) {
-        const a = Number(p.applied_rate_kg_ha ?? p.applied_kg_ha ?? p.rate_kg_ha);
-        const t = Number(p.target_rate_kg_ha ?? p.target_kg_ha);
-        if (Number.isFinite(a) && Number.isFinite(t) && t > 0) p.error_pct = ((a - t) / t) * 100;
-      }
-      if (p.applied_rate_kg_ha == null && p.applied_kg_ha != null) p.applied_rate_kg_ha = p.applied_kg_ha;
-      return { ...f, properties: p };
-    }),
-  };
-}
-
-/** As-applied map, per-cell accuracy, totals, and a replay of the machine's track. */
+/** As-applied map (job vector tiles), per-cell accuracy, totals, and a replay of the records. */
 export function JobReport({ jobId }: { jobId: number }) {
   const [job, setJob] = useState<Job | null>(null);
+  const [rx, setRx] = useState<Prescription | null>(null);
+  const [field, setField] = useState<FieldFeature | null>(null);
   const [report, setReport] = useState<Record<string, unknown> | null>(null);
-  const [applied, setApplied] = useState<GeoJSON.FeatureCollection>(EMPTY);
-  const [track, setTrack] = useState<TrackPoint[]>([]);
+  const [points, setPoints] = useState<TrackPoint[]>([]);
   const [view, setView] = useState<View>('applied');
   const [tIdx, setTIdx] = useState(-1);
+  const [follow, setFollow] = useState(true);
   const [error, setError] = useState<unknown>(null);
   const [missing, setMissing] = useState(false);
+  const [tick, setTick] = useState(0);
   const mapRef = useRef<maplibregl.Map | null>(null);
-  const fitted = useRef(false);
+  const nextOffset = useRef(0);
 
-  const load = useCallback(async () => {
+  // Static context: job -> prescription (for the colour scale) -> plan -> field (to fit the map).
+  useEffect(() => {
+    (async () => {
+      try {
+        const j = await api.get<Job>(`/jobs/${jobId}`);
+        setJob(j);
+        const r = await api.get<Prescription>(`/prescriptions/${j.prescription_id}`);
+        setRx(r);
+        const p = await api.get<Plan>(`/plans/${r.plan_id}`);
+        setField(await api.get<FieldFeature>(`/fields/${p.field_id}`));
+      } catch (e) {
+        setError(e);
+      }
+    })();
+  }, [jobId]);
+
+  const refresh = useCallback(async () => {
     try {
       const j = await api.get<Job>(`/jobs/${jobId}`);
       setJob(j);
-      const [rep, aa] = await Promise.all([
-        api.get<Record<string, unknown>>(`/jobs/${jobId}/report`).catch((e) => {
-          if (isMissingEndpoint(e)) setMissing(true);
-          return null;
-        }),
-        api.get<GeoJSON.FeatureCollection>(`/jobs/${jobId}/as-applied`).catch(() => null),
-      ]);
-      setReport(rep);
-      const cells = (rep?.cells as GeoJSON.FeatureCollection | undefined)?.features ? (rep!.cells as GeoJSON.FeatureCollection) : null;
-      const fc = aa?.features ? aa : cells;
-      if (fc) setApplied(withAccuracy(fc));
-      const tr = await api
-        .get(`/machines/${j.machine_id}/track?job_id=${jobId}&limit=20000`)
-        .catch(() => null);
-      const pts = normaliseTrack(tr).filter((p) => p.job_id == null || p.job_id === jobId);
-      setTrack(pts);
-      setTIdx((cur) => (cur < 0 || cur >= pts.length - 2 ? pts.length - 1 : cur));
+      const rep = await api.get<Record<string, unknown>>(`/jobs/${jobId}/report?cells=false`).catch((e) => {
+        if (isMissingEndpoint(e)) setMissing(true);
+        return null;
+      });
+      if (rep) setReport(rep);
+      // New records since the last poll (the endpoint pages in time order).
+      for (let page = 0; page < 10 && nextOffset.current < MAX_POINTS; page++) {
+        const r = await api.get<{ features: unknown[]; next_offset?: number | null }>(
+          `/jobs/${jobId}/as-applied?limit=20000&offset=${nextOffset.current}`,
+        );
+        const pts = normaliseTrack(r);
+        if (pts.length) setPoints((cur) => [...cur, ...pts]);
+        nextOffset.current += r.features?.length ?? 0;
+        if (!r.next_offset) break;
+      }
+      setTick((t) => t + 1);
     } catch (e) {
-      setError(e);
+      if (!isMissingEndpoint(e)) setError(e);
     }
   }, [jobId]);
 
   useEffect(() => {
-    void load();
-    const t = setInterval(() => void load(), 5000);
-    return () => clearInterval(t);
-  }, [load]);
+    void refresh();
+  }, [refresh]);
+  useEffect(() => {
+    if (job && FINAL.has(job.state) && tick > 1) return;
+    const t = setTimeout(() => void refresh(), 4000);
+    return () => clearTimeout(t);
+  }, [tick, job, refresh]);
 
-  const appliedVals = applied.features.map((f) => Number(f.properties?.applied_rate_kg_ha)).filter(Number.isFinite);
-  const errVals = applied.features.map((f) => Number(f.properties?.error_pct)).filter(Number.isFinite);
-  let aLo = Infinity;
-  let aHi = -Infinity;
-  for (const v of appliedVals) {
-    if (v < aLo) aLo = v;
-    if (v > aHi) aHi = v;
-  }
-  const aBreaks = useMemo(() => niceBreaks(aLo <= aHi ? aLo : 0, aLo <= aHi ? aHi : 1000, 6), [aLo, aHi]);
-  let eMax = 10;
-  for (const v of errVals) if (Math.abs(v) > eMax) eMax = Math.abs(v);
-  const aColors = classColors(aBreaks.length - 1);
-  const eBreaks = symmetricBreaks(Math.min(50, eMax), 6);
-  const eColors = classColors(6, DIVERGING);
-  const prop = view === 'applied' ? 'applied_rate_kg_ha' : 'error_pct';
-  const expr = view === 'applied' ? stepExpression(prop, aBreaks, aColors) : stepExpression(prop, eBreaks, eColors);
+  useEffect(() => {
+    if (follow) setTIdx(points.length - 1);
+  }, [points.length, follow]);
+
+  const stats = { ...(rx ?? {}), ...((rx?.stats as Record<string, unknown>) ?? {}) } as Record<string, unknown>;
+  const lo = pick(stats, 'rate_min_kg_ha') ?? 0;
+  const hi = pick(stats, 'rate_max_kg_ha') ?? 1000;
+  const rateBreaks = useMemo(() => niceBreaks(lo, hi === lo ? lo + 1 : hi, 6), [lo, hi]);
+  const rateColors = classColors(rateBreaks.length - 1);
+  const accColors = classColors(ACCURACY_BREAKS.length - 1, RED_GREEN);
+  const fill = useMemo(() => {
+    const byRate = stepExpression('applied_rate', rateBreaks, rateColors);
+    const byAcc = stepExpression('accuracy', ACCURACY_BREAKS, accColors);
+    // Cells nobody drove over yet stay light grey.
+    return ['case', ['<=', ['to-number', ['get', 'n_records'], 0], 0], '#dddddd', view === 'applied' ? byRate : byAcc];
+  }, [view, rateBreaks, rateColors, accColors]);
   const legend =
     view === 'applied'
-      ? legendEntries(aBreaks, aColors, (v) => v.toFixed(0))
-      : legendEntries(eBreaks, eColors, (v) => `${v > 0 ? '+' : ''}${v.toFixed(0)} %`);
+      ? legendEntries(rateBreaks, rateColors, (v) => v.toFixed(0))
+      : legendEntries(ACCURACY_BREAKS, accColors, (v) => `${v} %`);
 
   useEffect(() => {
     const map = mapRef.current;
-    if (!map) return;
-    setGeoJSON(map, 'applied', applied);
-    for (const l of ['applied-fill', 'applied-pts']) {
-      if (!map.getLayer(l)) continue;
-      map.setPaintProperty(l, l === 'applied-fill' ? 'fill-color' : 'circle-color', expr as never);
-    }
-    if (!fitted.current && applied.features.length) {
-      fitTo(map, bboxOf(applied));
-      fitted.current = true;
-    }
-  }, [applied, JSON.stringify(expr)]); // eslint-disable-line react-hooks/exhaustive-deps
+    if (map?.getLayer('job-fill')) map.setPaintProperty('job-fill', 'fill-color', fill as never);
+  }, [fill]);
 
-  const cur = tIdx >= 0 ? track[tIdx] : undefined;
+  // Reload tiles as records arrive (the server answers no-cache tiles).
+  useEffect(() => {
+    const map = mapRef.current;
+    const src = map?.getSource('job') as maplibregl.VectorTileSource | undefined;
+    if (src && tick > 1 && !(job && FINAL.has(job.state) && tick > 3)) src.setTiles([tilesUrl(jobId, tick)]);
+  }, [tick]); // eslint-disable-line react-hooks/exhaustive-deps
+
+  useEffect(() => {
+    const map = mapRef.current;
+    if (!map || !field) return;
+    setGeoJSON(map, 'field', field as GeoJSON.Feature);
+    fitTo(map, bboxOf(field));
+  }, [field]);
+
+  const cur = tIdx >= 0 ? points[tIdx] : undefined;
   useEffect(() => {
     const map = mapRef.current;
     if (!map) return;
-    const upto = track.slice(0, tIdx + 1).filter((p) => p.lon != null && p.lat != null);
+    const upto = points.slice(0, tIdx + 1).filter((p) => p.lon != null && p.lat != null);
     setGeoJSON(map, 'trail', {
       type: 'Feature',
       properties: {},
       geometry: { type: 'LineString', coordinates: upto.map((p) => [p.lon!, p.lat!]) },
     });
+    const n = upto.length;
+    const heading = n > 1 ? bearingDeg([upto[n - 2].lon!, upto[n - 2].lat!], [upto[n - 1].lon!, upto[n - 1].lat!]) : 0;
     setGeoJSON(
       map,
       'replay',
       cur?.lon != null && cur.lat != null
-        ? {
-            type: 'Feature',
-            properties: { heading: cur.heading_deg ?? 0 },
-            geometry: { type: 'Point', coordinates: [cur.lon, cur.lat] },
-          }
+        ? { type: 'Feature', properties: { heading: cur.heading_deg ?? heading }, geometry: { type: 'Point', coordinates: [cur.lon, cur.lat] } }
         : EMPTY,
     );
-    if (!fitted.current && upto.length > 1) {
-      fitTo(map, bboxOf({ type: 'LineString', coordinates: upto.map((p) => [p.lon!, p.lat!]) }));
-      fitted.current = true;
-    }
-  }, [track, tIdx, cur]);
+  }, [points, tIdx, cur]);
 
   const onReady = (map: maplibregl.Map) => {
     mapRef.current = map;
-    setGeoJSON(map, 'applied', EMPTY);
-    map.addLayer({
-      id: 'applied-fill',
-      type: 'fill',
-      source: 'applied',
-      filter: ['==', ['geometry-type'], 'Polygon'],
-      paint: { 'fill-color': '#999', 'fill-opacity': 0.85 },
+    setGeoJSON(map, 'field', (field as GeoJSON.Feature) ?? EMPTY);
+    map.addSource('job', {
+      type: 'vector',
+      tiles: [tilesUrl(jobId, 0)],
+      minzoom: GRID_MINZOOM,
+      maxzoom: GRID_MAXZOOM,
     });
-    map.addLayer({
-      id: 'applied-pts',
-      type: 'circle',
-      source: 'applied',
-      filter: ['==', ['geometry-type'], 'Point'],
-      paint: { 'circle-radius': 3, 'circle-color': '#999' },
-    });
+    map.addLayer({ id: 'job-fill', type: 'fill', source: 'job', 'source-layer': 'cells', paint: { 'fill-color': fill as never, 'fill-opacity': 0.85 } });
+    map.addLayer({ id: 'field-line', type: 'line', source: 'field', paint: { 'line-color': '#222', 'line-width': 2 } });
     setGeoJSON(map, 'trail', EMPTY);
-    map.addLayer({ id: 'trail', type: 'line', source: 'trail', paint: { 'line-color': '#111', 'line-width': 1.5, 'line-opacity': 0.6 } });
+    map.addLayer({ id: 'trail', type: 'line', source: 'trail', paint: { 'line-color': '#111', 'line-width': 1.2, 'line-opacity': 0.55 } });
     setGeoJSON(map, 'replay', EMPTY);
     map.addLayer({
       id: 'replay',
@@ -179,10 +172,12 @@ export function JobReport({ jobId }: { jobId: number }) {
       },
       paint: { 'icon-color': '#d7263d', 'icon-halo-color': '#fff', 'icon-halo-width': 2 },
     });
+    if (field) fitTo(map, bboxOf(field));
   };
 
-  const r = { ...(report ?? {}), ...((report?.totals as Record<string, unknown>) ?? {}) } as Record<string, unknown>;
-  const cov = pick(r, 'coverage', 'coverage_fraction', 'progress');
+  const r = report ?? {};
+  const cov = pick(r, 'coverage_pct');
+  const acc = pick(r, 'mean_accuracy_pct');
   return (
     <div className="split">
       <aside className="panel">
@@ -196,16 +191,20 @@ export function JobReport({ jobId }: { jobId: number }) {
           items={[
             ['State', job?.state ?? '–', 'report-state'],
             ['Machine', job ? <a href={`#/machines/${job.machine_id}`}>#{job.machine_id}</a> : '–'],
-            ['Prescription', job ? <a href={`#/prescriptions/${job.prescription_id}`}>#{job.prescription_id}</a> : '–'],
-            ['Cells done', String(pick(r, 'cells_done', 'cells_applied', 'cells_covered') ?? '–') + (pick(r, 'cell_count', 'cells_total') != null ? ` / ${pick(r, 'cell_count', 'cells_total')}` : ''), 'report-cells'],
-            ['Coverage', cov != null ? formatPercent(cov > 1 ? cov / 100 : cov) : '–', 'report-coverage'],
-            ['Area applied', formatArea(pick(r, 'area_applied_m2', 'applied_area_m2', 'area_m2')), 'report-area'],
-            ['Product (target)', formatMass(pick(r, 'target_kg', 'product_target_kg', 'total_target_kg'))],
-            ['Product (applied)', formatMass(pick(r, 'applied_kg', 'product_applied_kg', 'total_applied_kg')), 'report-applied-kg'],
-            ['Mean |error|', pick(r, 'mean_abs_error_pct') != null ? `${pick(r, 'mean_abs_error_pct')!.toFixed(1)} %` : '–'],
-            ['Mean rate', formatRate(pick(r, 'mean_applied_rate_kg_ha', 'applied_rate_mean_kg_ha'))],
-            ['Duration', formatDuration(pick(r, 'duration_s'))],
-            ['Records', String(track.length), 'report-records'],
+            [
+              'Prescription',
+              job ? <a href={`#/prescriptions/${job.prescription_id}`}>#{job.prescription_id} v{job.prescription_version ?? job.version}</a> : '–',
+            ],
+            ['Cells applied', `${pick(r, 'cells_applied') ?? '–'} / ${pick(r, 'cells_planned', 'n_cells') ?? '–'}`, 'report-cells'],
+            ['Coverage', cov != null ? formatPercent(cov / 100) : '–', 'report-coverage'],
+            ['Planned', formatMass(pick(r, 'planned_total_kg'))],
+            ['Applied', formatMass(pick(r, 'applied_total_kg')), 'report-applied-kg'],
+            ['Outside cells', formatMass(pick(r, 'applied_outside_cells_kg'))],
+            ['Mean accuracy', acc != null ? `${acc.toFixed(1)} %` : '–', 'report-accuracy'],
+            ['Worst cell', pick(r, 'min_accuracy_pct') != null ? `${pick(r, 'min_accuracy_pct')!.toFixed(1)} %` : '–'],
+            ['Time worked', formatDuration(pick(r, 'time_worked_s'))],
+            ['Records', String(pick(r, 'n_records') ?? points.length), 'report-records'],
+            ['Field', field ? `${field.properties.name} (${formatArea(field.properties.area_m2)})` : '–'],
           ]}
         />
         <div className="row" role="group">
@@ -216,42 +215,40 @@ export function JobReport({ jobId }: { jobId: number }) {
             Accuracy
           </button>
         </div>
-        <Legend entries={legend} title={view === 'applied' ? 'Applied (kg/ha)' : 'Applied vs target'} testid="report-legend" />
-        <p className="muted" data-testid="report-features">
-          {applied.features.length} as-applied features
-        </p>
+        <Legend
+          entries={legend}
+          title={view === 'applied' ? 'Applied rate (kg/ha)' : 'Accuracy (100 % = target met)'}
+          testid="report-legend"
+        />
         <h3>Track replay</h3>
         <input
           data-testid="replay-slider"
           type="range"
           min={0}
-          max={Math.max(0, track.length - 1)}
+          max={Math.max(0, points.length - 1)}
           value={Math.max(0, tIdx)}
-          disabled={track.length === 0}
-          onChange={(e) => setTIdx(Number(e.target.value))}
+          disabled={points.length === 0}
+          onChange={(e) => {
+            const v = Number(e.target.value);
+            setFollow(v >= points.length - 1);
+            setTIdx(v);
+          }}
           style={{ width: '100%' }}
         />
         <p className="muted small" data-testid="replay-time">
           {cur
-            ? `${new Date(cur.t * 1000).toISOString().replace('T', ' ').slice(0, 19)} UTC · ${
-                cur.target_rate_kg_ha != null ? formatRate(cur.target_rate_kg_ha) : ''
-              } → ${cur.applied_rate_kg_ha != null ? formatRate(cur.applied_rate_kg_ha) : ''}`
-            : 'no track yet'}
+            ? `${new Date(cur.t * 1000).toISOString().replace('T', ' ').slice(0, 19)} UTC · target ${formatRate(cur.target_rate_kg_ha)} · applied ${formatRate(cur.applied_rate_kg_ha)}`
+            : 'no records yet'}
         </p>
-        {track.length > 0 && (
-          <button
-            className="secondary"
-            onClick={() => {
-              if (!track.length) return;
-              const t0 = track[tIdx]?.t ?? track[0].t;
-              setTIdx(Math.max(0, indexAtTime(track, t0 - 60)));
-            }}
-          >
-            −1 min
-          </button>
-        )}
+        <p className="muted small" data-testid="report-points">
+          {points.length} as-applied records
+        </p>
       </aside>
       <MapView name="report" onReady={onReady} />
     </div>
   );
+}
+
+function tilesUrl(jobId: number, v: number): string {
+  return absoluteApiUrl(`/api/v1/tiles/jobs/${jobId}/{z}/{x}/{y}.mvt?v=${v}`);
 }

@@ -19,8 +19,12 @@ export function MachineDetail({ machineId }: { machineId: number }) {
 
   const loadTrack = useCallback(async () => {
     try {
-      const from = new Date(Date.now() - 6 * 3600_000).toISOString();
-      setTrack(normaliseTrack(await api.get(`/machines/${machineId}/track?from=${encodeURIComponent(from)}&limit=20000`)));
+      // The newest records: ask for the total first, then the last page (time order).
+      const head = await api.get<{ total?: number }>(`/machines/${machineId}/track?limit=1`);
+      const total = head.total ?? 0;
+      const limit = 10_000;
+      const offset = Math.max(0, total - limit);
+      setTrack(normaliseTrack(await api.get(`/machines/${machineId}/track?limit=${limit}&offset=${offset}`)));
     } catch (e) {
       if (isMissingEndpoint(e)) setMissing(true);
       else setError(e);
@@ -34,7 +38,7 @@ export function MachineDetail({ machineId }: { machineId: number }) {
 
   useLive((m) => {
     if (Number(m.machine_id) !== machineId || m.type !== 'position') return;
-    const p = normaliseTrack([m]);
+    const p = normaliseTrack([{ ...m, speed_filtered_m_s: m.speed_filtered_m_s ?? m.speed_m_s }]);
     if (p.length) setTrack((cur) => [...cur, ...p].slice(-20000));
   });
 
@@ -59,6 +63,8 @@ export function MachineDetail({ machineId }: { machineId: number }) {
     [d],
   );
   const last = track[track.length - 1];
+  const hasRaw = track.some((p) => p.speed_raw_m_s != null);
+  const hasShaft = track.some((p) => p.target_shaft_rpm != null || p.actual_shaft_rpm != null);
 
   return (
     <div className="page">
@@ -99,7 +105,17 @@ export function MachineDetail({ machineId }: { machineId: number }) {
       {token && <p className="muted small">Shown once: copy it into the edge agent's configuration now.</p>}
       {missing && <p className="muted">Track history is not available on this server yet.</p>}
       <TimeChart t={t} series={speed} title="Ground speed: raw vs Kalman-filtered" unit="km/h" testid="chart-speed" />
+      {track.length > 0 && !hasRaw && (
+        <p className="muted small" data-testid="chart-speed-note">
+          The server's track has no raw GNSS speed yet: only the filtered speed is drawn.
+        </p>
+      )}
       <TimeChart t={t} series={shaft} title="Metering shaft: target vs actual" unit="r/min" testid="chart-shaft" />
+      {track.length > 0 && !hasShaft && (
+        <p className="muted small" data-testid="chart-shaft-note">
+          The server's track has no shaft speeds yet.
+        </p>
+      )}
     </div>
   );
 }

@@ -1,0 +1,53 @@
+import { describe, expect, it } from 'vitest';
+import { applyLive, deriveStatus, fromStatusItem, type Fleet } from './fleet';
+
+const item = {
+  machine_id: 1,
+  name: 'Tractor 1',
+  online: true,
+  position: { type: 'Point', coordinates: [112.3, 32.1] },
+  speed_m_s: 2,
+  heading_deg: 90,
+  job: { id: 7, state: 'running', progress: 0.25 },
+  active_alerts: 0,
+  alarms: [],
+};
+
+describe('fleet status', () => {
+  it('reads a /machines/status item', () => {
+    const m = fromStatusItem(item);
+    expect([m.lon, m.lat, m.job_id, m.progress, m.status]).toEqual([112.3, 32.1, 7, 0.25, 'working']);
+  });
+  it('alarm beats offline beats working; slow is idle', () => {
+    expect(deriveStatus({ machine_id: 1, online: false, active_alerts: 2 })).toBe('alarm');
+    expect(deriveStatus({ machine_id: 1, online: false, speed_m_s: 2, job_state: 'running' })).toBe('offline');
+    expect(deriveStatus({ machine_id: 1, online: true, speed_m_s: 0.1, job_state: 'running' })).toBe('idle');
+    expect(deriveStatus({ machine_id: 1, online: true, speed_m_s: 2 })).toBe('moving');
+    expect(deriveStatus({ machine_id: 1, online: true, speed_m_s: 2, implement_down: true })).toBe('working');
+  });
+});
+
+describe('live messages', () => {
+  const start: Fleet = new Map([[1, fromStatusItem(item)]]);
+  it('a position moves the machine and keeps its job', () => {
+    const f = applyLive(start, { type: 'position', machine_id: 1, lon: 112.31, lat: 32.11, speed_m_s: 2.5, heading_deg: 270 });
+    const m = f.get(1)!;
+    expect([m.lon, m.lat, m.heading_deg, m.job_id]).toEqual([112.31, 32.11, 270, 7]);
+    expect(start.get(1)!.lon).toBe(112.3); // not mutated
+  });
+  it('a job message updates progress; alerts count up and down', () => {
+    let f = applyLive(start, { type: 'job', machine_id: 1, job_id: 7, state: 'running', progress: 0.5 });
+    expect(f.get(1)!.progress).toBe(0.5);
+    f = applyLive(f, { type: 'alert', machine_id: 1, event: 'started', kind: 'no_data' });
+    expect(f.get(1)!.status).toBe('alarm');
+    f = applyLive(f, { type: 'alert', machine_id: 1, event: 'ended', kind: 'no_data' });
+    expect(f.get(1)!.status).toBe('working');
+  });
+  it('a status snapshot replaces the fleet; unknown messages change nothing', () => {
+    const f = applyLive(start, { type: 'status', machines: [{ ...item, machine_id: 2, position: null, online: false }] });
+    expect([...f.keys()]).toEqual([2]);
+    expect(f.get(2)!.status).toBe('offline');
+    expect(applyLive(start, { type: 'hello' })).toBe(start);
+    expect(applyLive(start, { type: 'position' })).toBe(start);
+  });
+});
