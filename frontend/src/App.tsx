@@ -1,5 +1,5 @@
 import { useEffect, useState } from 'react';
-import { getSession, getToken, setSession, type SessionInfo } from './api';
+import { api, getSession, getToken, setSession, type SessionInfo } from './api';
 import { navigate, useRoute } from './router';
 import { Login } from './screens/Login';
 import { FieldsScreen } from './screens/Fields';
@@ -76,6 +76,8 @@ export function App() {
         <button
           data-testid="logout"
           onClick={() => {
+            // Revoke the token on the server too; sign out locally whatever happens.
+            void api.post('/auth/logout').catch(() => undefined);
             setSession(null);
             setSess(null);
           }}

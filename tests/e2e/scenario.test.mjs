@@ -131,6 +131,22 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
         ],
       }),
     );
+    // A bow-tie first: refused as a whole, the reason listed and its location marked.
+    const bad = join(ARTIFACTS, 'import-bad.geojson');
+    writeFileSync(
+      bad,
+      JSON.stringify({
+        type: 'Feature',
+        properties: { name: 'bow-tie' },
+        geometry: { type: 'Polygon', coordinates: [[[west, lat], [west + d, lat + d], [west + d, lat], [west, lat + d], [west, lat]]] },
+      }),
+    );
+    await page.setInputFiles('[data-testid=import-file]', bad);
+    await page.waitForSelector('[data-testid=fields-error]');
+    await mapIdle(page, 'fields');
+    const marked = await page.evaluate(() => window.__fieldrxMaps.fields.queryRenderedFeatures({ layers: ['problems'] }).length);
+    await shot(page, 'import-invalid');
+    assert.ok(marked > 0, 'import problem marked on the map');
     const before = Number((await page.textContent('[data-testid=field-count]')).replace(/\D/g, ''));
     await page.setInputFiles('[data-testid=import-file]', file);
     await page.waitForSelector('[data-testid=import-result]');
@@ -224,13 +240,13 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
     const [w, e, s, n] = [Math.min(...lons), Math.max(...lons), Math.min(...lats), Math.max(...lats)];
     const rows = [];
     let k = 0;
-    for (let i = 1; i <= 3; i++)
-      for (let j = 1; j <= 3; j++) {
-        k++;
-        const lon = w + ((e - w) * i) / 4;
-        const la = s + ((n - s) * j) / 4;
-        rows.push(`S${k},${lon.toFixed(7)},${la.toFixed(7)},${(80 + 9 * k).toFixed(1)}`);
-      }
+    // Around the ring between the boundary and the hole cut in the drawing step.
+    for (const [fi, fj] of [[0.1, 0.1], [0.5, 0.1], [0.9, 0.1], [0.1, 0.5], [0.9, 0.5], [0.1, 0.9], [0.5, 0.9], [0.9, 0.9]]) {
+      k++;
+      const lon = w + (e - w) * fi;
+      const la = s + (n - s) * fj;
+      rows.push(`S${k},${lon.toFixed(7)},${la.toFixed(7)},${(80 + 9 * k).toFixed(1)}`);
+    }
     const header = 'sample_id,lon,lat,n_mg_kg';
     const bad = [header, ...rows.slice(0, 4), 'S99,not-a-number,32.1,90', ...rows.slice(4)].join('\n');
     const good = [header, ...rows].join('\n');
@@ -246,6 +262,7 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
     await shot(page, 'soil-error');
     await page.setInputFiles('[data-testid=soil-file]', goodFile);
     await page.waitForSelector('[data-testid=soil-result]');
+    await page.waitForSelector('[data-testid=soil-legend]');
     await page.waitForFunction(() => /^[1-9]/.test(document.querySelector('[data-testid=soil-count]')?.textContent ?? ''));
     await mapIdle(page, 'field');
     await shot(page, 'soil-ok');

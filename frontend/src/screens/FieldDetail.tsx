@@ -2,6 +2,8 @@ import { useCallback, useEffect, useRef, useState } from 'react';
 import * as maplibregl from 'maplibre-gl';
 import { api } from '../api';
 import { ErrorBox, isMissingEndpoint, Kv } from '../components/Status';
+import { Legend } from '../components/Legend';
+import { classColors, legendEntries, niceBreaks, stepExpression } from '../lib/colors';
 import { bboxOf } from '../lib/geo';
 import { formatArea } from '../lib/units';
 import { MapView } from '../map/MapView';
@@ -25,6 +27,7 @@ export function FieldDetail({ fieldId }: { fieldId: number }) {
   const [soilError, setSoilError] = useState<unknown>(null);
   const [soilMsg, setSoilMsg] = useState('');
   const [skipBad, setSkipBad] = useState(false);
+  const [colorKey, setColorKey] = useState('');
   const mapRef = useRef<maplibregl.Map | null>(null);
 
   const loadSoil = useCallback(async () => {
@@ -67,7 +70,7 @@ export function FieldDetail({ fieldId }: { fieldId: number }) {
       id: 'soil',
       type: 'circle',
       source: 'soil',
-      paint: { 'circle-radius': 6, 'circle-color': '#8b4513', 'circle-stroke-color': '#fff', 'circle-stroke-width': 1.5 },
+      paint: { 'circle-radius': 7, 'circle-color': '#8b4513', 'circle-stroke-color': '#222', 'circle-stroke-width': 1.5 },
     });
     map.on('click', 'soil', (e) => {
       const f = e.features?.[0];
@@ -103,6 +106,19 @@ export function FieldDetail({ fieldId }: { fieldId: number }) {
   const sampleKeys = soil?.features[0]
     ? Object.keys(soil.features[0].properties ?? {}).filter((k) => !SKIP_KEYS.has(k))
     : [];
+  const numericKeys = sampleKeys.filter((k) => soil!.features.some((f) => typeof f.properties?.[k] === 'number') && k !== 'row');
+  const key = colorKey && numericKeys.includes(colorKey) ? colorKey : (numericKeys.find((k) => /^n_|nitrogen/i.test(k)) ?? numericKeys[0] ?? '');
+  const vals = key ? (soil?.features ?? []).map((f) => Number(f.properties?.[key])).filter(Number.isFinite) : [];
+  const vLo = vals.length ? vals.reduce((a, b) => Math.min(a, b)) : 0;
+  const vHi = vals.length ? vals.reduce((a, b) => Math.max(a, b)) : 1;
+  const sBreaks = niceBreaks(vLo, vHi === vLo ? vLo + 1 : vHi, 5);
+  const sColors = classColors(sBreaks.length - 1);
+  const sExpr = key ? stepExpression(key, sBreaks, sColors) : '#8b4513';
+
+  useEffect(() => {
+    const map = mapRef.current;
+    if (map?.getLayer('soil')) map.setPaintProperty('soil', 'circle-color', sExpr as never);
+  }, [JSON.stringify(sExpr)]); // eslint-disable-line react-hooks/exhaustive-deps
 
   return (
     <div className="split">
@@ -171,6 +187,21 @@ export function FieldDetail({ fieldId }: { fieldId: number }) {
         <p className="muted" data-testid="soil-count">
           {soil?.features.length ?? 0} samples
         </p>
+        {key && (
+          <>
+            <label className="inline">
+              Colour by{' '}
+              <select data-testid="soil-color-key" value={key} onChange={(e) => setColorKey(e.target.value)}>
+                {numericKeys.map((k) => (
+                  <option key={k} value={k}>
+                    {k}
+                  </option>
+                ))}
+              </select>
+            </label>
+            <Legend entries={legendEntries(sBreaks, sColors, (v) => String(Math.round(v * 100) / 100))} title={key} testid="soil-legend" />
+          </>
+        )}
         {soil && soil.features.length > 0 && (
           <div className="scroll">
             <table className="table" data-testid="soil-table">

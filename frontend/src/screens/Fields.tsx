@@ -1,6 +1,6 @@
 import { useCallback, useEffect, useRef, useState } from 'react';
 import type * as maplibregl from 'maplibre-gl';
-import { api } from '../api';
+import { api, ApiError } from '../api';
 import { ErrorBox } from '../components/Status';
 import { bboxOf } from '../lib/geo';
 import { formatArea } from '../lib/units';
@@ -52,6 +52,18 @@ export function FieldsScreen() {
     return () => clearTimeout(t);
   }, [loadFields]);
 
+  // An import refused with a location (e.g. a self-intersection) is marked on the map.
+  const problem = error instanceof ApiError ? error.parsed.location : undefined;
+  useEffect(() => {
+    const map = mapRef.current;
+    if (!map || !map.getSource('problems')) return;
+    setGeoJSON(map, 'problems', {
+      type: 'FeatureCollection',
+      features: problem ? [{ type: 'Feature', properties: {}, geometry: { type: 'Point', coordinates: problem } }] : [],
+    });
+    if (problem) map.jumpTo({ center: problem, zoom: Math.max(map.getZoom(), 15) });
+  }, [problem?.[0], problem?.[1]]); // eslint-disable-line react-hooks/exhaustive-deps
+
   useEffect(() => {
     const map = mapRef.current;
     if (!map) return;
@@ -76,6 +88,13 @@ export function FieldsScreen() {
       type: 'line',
       source: 'fields',
       paint: { 'line-color': '#2d5e16', 'line-width': 2 },
+    });
+    setGeoJSON(map, 'problems', { type: 'FeatureCollection', features: [] });
+    map.addLayer({
+      id: 'problems',
+      type: 'circle',
+      source: 'problems',
+      paint: { 'circle-radius': 14, 'circle-color': 'rgba(215, 38, 61, 0.35)', 'circle-stroke-color': '#d7263d', 'circle-stroke-width': 3 },
     });
     map.on('click', 'fields-fill', (e) => {
       const f = e.features?.[0];
