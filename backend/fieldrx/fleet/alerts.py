@@ -111,17 +111,18 @@ def evaluate(
     samples: list[Sample],
     speed_min_m_s: float,
     speed_max_m_s: float,
+    open_ids: dict[str, int],
     rules: AlertRules = RULES,
 ) -> list[dict[str, Any]]:
-    """Open/close alerts for a batch of new samples (time-ordered). Returns live messages."""
+    """Open/close alerts for a batch of new samples (time-ordered). Returns live messages.
+
+    ``open_ids``: kind -> id of the machine's alerts not ended yet (read with
+    the machine row under the ingest lock).
+    """
     if not samples:
         return []
+    open_ids = dict(open_ids)
     conds = conditions(speed_min_m_s, speed_max_m_s, rules)
-    cur.execute(
-        "SELECT id, kind FROM alerts WHERE machine_id = %s AND ended_at IS NULL",
-        (machine_id,),
-    )
-    open_ids: dict[str, int] = {kind: aid for aid, kind in cur.fetchall()}
     messages: list[dict[str, Any]] = []
     # data arrived: a no_data alert is over
     if "no_data" in open_ids:
@@ -221,8 +222,11 @@ def _msg(
 
 def notify(cur: psycopg.Cursor[Any], messages: list[dict[str, Any]]) -> None:
     """Queue live messages; PostgreSQL delivers them to every listener at commit."""
-    for m in messages:
-        cur.execute("SELECT pg_notify(%s, %s)", (LIVE_CHANNEL, json.dumps(m, default=str)))
+    if messages:
+        cur.execute(
+            "SELECT pg_notify(%s, m) FROM unnest(%s::text[]) AS m",
+            (LIVE_CHANNEL, [json.dumps(m, default=str) for m in messages]),
+        )
 
 
 def check_no_data(conn: psycopg.Connection[Any], timeout_s: float) -> int:

@@ -287,14 +287,19 @@ class MachineInfo:
     speed_max_m_s: float
     acked_seq: int
     last_t: float | None
+    open_alerts: dict[str, int]
 
 
-def _machine(cur: psycopg.Cursor[Any], machine_id: int) -> MachineInfo | None:
+def _lock_machine(cur: psycopg.Cursor[Any], machine_id: int) -> MachineInfo | None:
+    """Take the machine's ingest lock and read what this batch needs, in one round trip."""
     cur.execute(
         "SELECT m.organisation_id, m.speed_min_m_s, m.speed_max_m_s, coalesce(s.acked_seq, 0),"
-        " extract(epoch FROM s.last_t)::float8"
-        " FROM machines m LEFT JOIN machine_status s ON s.machine_id = m.id WHERE m.id = %s",
-        (machine_id,),
+        " extract(epoch FROM s.last_t)::float8,"
+        " (SELECT coalesce(json_object_agg(a.kind, a.id), '{}') FROM alerts a"
+        "   WHERE a.machine_id = m.id AND a.ended_at IS NULL)"
+        " FROM (SELECT pg_advisory_xact_lock(%s, %s)) AS lock, machines m"
+        " LEFT JOIN machine_status s ON s.machine_id = m.id WHERE m.id = %s",
+        (_LOCK_NS, machine_id, machine_id),
     )
     r = cur.fetchone()
     return None if r is None else MachineInfo(*r)
@@ -304,8 +309,7 @@ def ingest(conn: psycopg.Connection[Any], machine_id: int, raw: list[Any]) -> In
     """Store one batch for ``machine_id`` (already authenticated) and return the ack."""
     rows, rejected, dead, repeats = validate(raw, machine_id)
     with conn.transaction(), conn.cursor() as cur:
-        cur.execute("SELECT pg_advisory_xact_lock(%s, %s)", (_LOCK_NS, machine_id))
-        info = _machine(cur, machine_id)
+        info = _lock_machine(cur, machine_id)
         if info is None:
             raise IngestError(f"machine {machine_id} does not exist")
         result = IngestResult(machine_id, info.acked_seq, rejected=rejected, duplicates=repeats)
@@ -354,6 +358,7 @@ def ingest(conn: psycopg.Connection[Any], machine_id: int, raw: list[Any]) -> In
                     samples,
                     info.speed_min_m_s,
                     info.speed_max_m_s,
+                    info.open_alerts,
                 )
             )
         alert_rules.notify(cur, messages)
@@ -500,12 +505,7 @@ def _cells(
                 a[4] = r[2]
     if not agg:
         return []
-    job_ids = sorted({k[0] for k in agg})
-    cur.execute("SELECT id FROM jobs WHERE id = ANY(%s) AND machine_id = %s", (job_ids, machine_id))
-    mine = {r[0] for r in cur.fetchall()}
-    items = [(k, v) for k, v in agg.items() if k[0] in mine]
-    if not items:
-        return []
+    items = list(agg.items())
 
     def ts(us: int) -> dt.datetime:
         return dt.datetime.fromtimestamp(us / 1e6 + PG_EPOCH, dt.UTC)
@@ -516,6 +516,7 @@ def _cells(
             SELECT * FROM unnest(%s::int[], %s::int[], %s::int[], %s::float8[], %s::float8[],
                                  %s::timestamptz[], %s::timestamptz[])
                 AS n(job_id, seq, n, ts, aps, ft, lt)
+            WHERE n.job_id IN (SELECT id FROM jobs WHERE machine_id = %s)  -- this machine's jobs
         ), old AS (
             SELECT c.job_id, c.seq, c.applied_rate_sum FROM job_cells_applied c
             JOIN new USING (job_id, seq)
@@ -547,6 +548,7 @@ def _cells(
             [v[2] for _, v in items],
             [ts(v[3]) for _, v in items],
             [ts(v[4]) for _, v in items],
+            machine_id,
         ),
     )
     return [
