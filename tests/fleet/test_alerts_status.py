@@ -150,3 +150,44 @@ def test_track_and_chart(client, make_org) -> None:  # noqa: ANN001
     assert client.get(f"{base}/telemetry", headers=fx.device_headers).status_code == 403
     bad = client.get(f"{base}/track", params={"from": to, "to": frm}, headers=org.headers())
     assert bad.status_code == 422
+
+
+def test_no_data_ends_when_the_job_stops(client, db, org) -> None:  # noqa: ANN001
+    fx = make_job(org.id, state="running")  # running, never heard from
+    client.get("/api/v1/machines/status", headers=org.headers())
+    (a,) = _alerts(client, org, fx, active=True)
+    assert a["kind"] == "no_data"
+    r = client.post(
+        f"/api/v1/jobs/{fx.job_id}/state", json={"state": "paused"}, headers=org.headers()
+    )
+    assert r.status_code == 200
+    client.get("/api/v1/machines/status", headers=org.headers())
+    assert _alerts(client, org, fx, active=True) == []
+
+
+def test_fleet_isolation(client, make_org) -> None:  # noqa: ANN001
+    a, b = make_org(), make_org()
+    fa, fb = make_job(a.id, state="running"), make_job(b.id, state="running")
+    _post(client, fb, [record(fb, 1)])
+    ids = [
+        m["machine_id"]
+        for m in client.get("/api/v1/machines/status", headers=a.headers()).json()["items"]
+    ]
+    assert ids == [fa.machine_id]
+    assert client.get("/api/v1/alerts", headers=a.headers()).json()["items"] == [] or all(
+        x["machine_id"] == fa.machine_id
+        for x in client.get("/api/v1/alerts", headers=a.headers()).json()["items"]
+    )
+    # device tokens cannot use the people's fleet and report endpoints
+    for path in (
+        "/api/v1/machines/status",
+        "/api/v1/alerts",
+        f"/api/v1/jobs/{fa.job_id}/report",
+        f"/api/v1/jobs/{fa.job_id}/summary",
+        f"/api/v1/machines/{fa.machine_id}/track",
+    ):
+        assert client.get(path, headers=fa.device_headers).status_code == 403, path
+    assert (
+        client.get(f"/api/v1/machines/{fb.machine_id}/telemetry", headers=a.headers()).status_code
+        == 404
+    )

@@ -257,6 +257,21 @@ def check_no_data(conn: psycopg.Connection[Any], timeout_s: float) -> int:
             (f"{timeout_s:g}", timeout_s),
         )
         rows = cur.fetchall()
+        # a machine that no longer runs a job is not "silent"
+        cur.execute(
+            """
+            UPDATE alerts a SET ended_at = now()
+            WHERE a.kind = 'no_data' AND a.ended_at IS NULL
+              AND NOT EXISTS (SELECT 1 FROM jobs j WHERE j.machine_id = a.machine_id
+                              AND j.state = 'running')
+            RETURNING id, organisation_id, machine_id, job_id
+            """
+        )
+        ended = cur.fetchall()
+        notify(
+            cur,
+            [_msg(org, aid, mid, "no_data", "ended", job_id=jid) for aid, org, mid, jid in ended],
+        )
         notify(
             cur,
             [
