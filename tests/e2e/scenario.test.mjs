@@ -422,6 +422,18 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
       if (sim.exitCode == null) sim.kill('SIGTERM');
       writeFileSync(join(ARTIFACTS, 'edge-simulate.log'), simOut);
     }
+    // Alerts raised by the run (if any) can be acknowledged from the fleet screen.
+    await page.reload();
+    await page.waitForSelector('[data-testid=alert-list]');
+    const ack = page.locator('[data-testid^=ack-]').first();
+    if (await ack.count()) {
+      const id = (await ack.getAttribute('data-testid')).slice(4);
+      await ack.click();
+      await page.waitForSelector(`[data-testid=alert-${id}].muted`);
+      const a = listOf((await api(token, 'GET', '/alerts?limit=1000')).data).find((x) => String(x.id) === id);
+      assert.ok(a?.acknowledged_at, `alert ${id} acknowledged on the server`);
+      await shot(page, 'fleet-alert-acknowledged');
+    }
     // Machine detail: raw vs filtered speed and target vs actual shaft speed.
     await page.goto(`${BASE_URL}/#/machines/${S.machineId}`);
     await page.waitForFunction(() => Number(document.querySelector('[data-testid=machine-track-count]')?.textContent ?? 0) > 0, null, {
