@@ -153,6 +153,12 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
     await page.waitForFunction((n) => Number(document.querySelector('[data-testid=field-count]').textContent.replace(/\D/g, '')) > n, before);
     await mapIdle(page, 'fields');
     await shot(page, 'fields-imported');
+    // Search narrows the list (and the map) to the imported field.
+    await page.fill('[data-testid=field-search]', 'E2E imported');
+    await page.waitForFunction(
+      () => [...document.querySelectorAll('[data-testid=field-list] li')].every((li) => li.textContent.includes('E2E imported')),
+    );
+    await page.fill('[data-testid=field-search]', '');
   });
 
   it('draws a field by clicking, sees the validation error on the map, then saves a good one', async () => {
@@ -197,6 +203,21 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
     const areaHoled = await page.textContent('[data-testid=draw-area]');
     const [a0, a1] = [parseFloat(area), parseFloat(areaHoled)];
     assert.ok(a1 < a0 && a1 > 0.5 * a0, `hole reduces area: ${area} -> ${areaHoled}`);
+    // Edit a vertex: drag the north-east corner outwards; the live area grows.
+    await page.click('[data-testid=mode-select]');
+    {
+      const box = await canvasBox('draw');
+      const [cx, cy] = [box.x + box.width / 2, box.y + box.height / 2];
+      await page.mouse.click(cx + 90, cy - 60); // select the boundary (inside it, outside the hole)
+      await sleep(200);
+      await page.mouse.move(cx + 120, cy - 80);
+      await page.mouse.down();
+      await page.mouse.move(cx + 150, cy - 100, { steps: 8 });
+      await page.mouse.up();
+      await sleep(200);
+    }
+    const areaEdited = await page.textContent('[data-testid=draw-area]');
+    assert.ok(parseFloat(areaEdited) > parseFloat(areaHoled), `dragging a vertex grows the area: ${areaHoled} -> ${areaEdited}`);
     S.fieldName = `E2E field ${Date.now()}`;
     await page.fill('[data-testid=field-name]', S.fieldName);
     await page.fill('[data-testid=field-crop]', 'winter oilseed rape');

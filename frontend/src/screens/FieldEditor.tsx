@@ -221,7 +221,7 @@ export function FieldEditor({ fieldId }: { fieldId?: number }) {
     const feature = {
       type: 'Feature',
       geometry,
-      properties: { name, farm_id: farmId ? Number(farmId) : null, ...(crop ? { crop } : {}) },
+      properties: { name, farm_id: farmId ? Number(farmId) : null, crop },
     };
     try {
       const r = fieldId
