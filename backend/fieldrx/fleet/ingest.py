@@ -337,6 +337,7 @@ def ingest(conn: psycopg.Connection[Any], machine_id: int, raw: list[Any]) -> In
             latest = max(new, key=lambda r: r[2])
             messages.append(_position(info.organisation_id, latest, result))
             messages.extend(_cells(cur, machine_id, info.organisation_id, new))
+        if new and _may_alert(new, info):
             samples = [
                 alert_rules.Sample(
                     r[2] / 1e6 + PG_EPOCH,
@@ -363,6 +364,25 @@ def ingest(conn: psycopg.Connection[Any], machine_id: int, raw: list[Any]) -> In
             )
         alert_rules.notify(cur, messages)
     return result
+
+
+def _may_alert(new: list[tuple[Any, ...]], info: MachineInfo) -> bool:
+    """Cheap pre-check: could any alert open or close with this batch? (Most batches: no.)"""
+    if info.open_alerts:
+        return True
+    lo, hi = info.speed_min_m_s, info.speed_max_m_s
+    tol = alert_rules.RULES.rate_tolerance
+    for r in new:
+        if r[5] == 0 or r[19]:  # no fix, or any alarm from the agent
+            return True
+        if r[18]:
+            v = r[8] if r[8] is not None else r[7]
+            if v is not None and (v < lo or v > hi):
+                return True
+            tr, ar = r[11], r[12]
+            if tr is not None and ar is not None and tr > 0 and abs(ar - tr) > tol * tr:
+                return True
+    return False
 
 
 def _advance(cur: psycopg.Cursor[Any], machine_id: int, acked: int, done: set[int]) -> int:
