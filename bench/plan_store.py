@@ -40,6 +40,65 @@ def main() -> None:
         drop_database(url)
 
 
+def tiles_and_rx(s, plan, fld, org_id) -> dict:
+    """Tile sizes / times over the field centre at several zooms, and a prescription."""
+    from fieldrx.services import tiles
+    from fieldrx.services.prescriptions import MeterSpec, create_prescription
+    from fieldrx_edge.metering import SEED001_CALIBRATION
+    from geoalchemy2.shape import to_shape
+
+    c = to_shape(fld.boundary).centroid
+    out: dict = {}
+    t = time.perf_counter()
+    rx = create_prescription(
+        s,
+        plan,
+        fld,
+        name="bench",
+        product="",
+        model="uniform",
+        params={"rate_kg_ha": 700},
+        interpolation="cell_mean",
+        interpolation_params={},
+        fallback_rate_kg_ha=None,
+        meter=MeterSpec(SEED001_CALIBRATION.to_dict(), 2.3, 0.8, 2.5),
+        machine_id=None,
+        user_id=None,
+        organisation_id=org_id,
+    )
+    s.commit()
+    out["rx_create_s"] = round(time.perf_counter() - t, 3)
+    print(
+        f"uniform prescription on {plan.n_cells} cells (load, rate, clamp, COPY rates): "
+        f"{out['rx_create_s']:.2f} s"
+    )
+    from fieldrx.services.prescriptions import get_version
+
+    vid = get_version(s, rx, 1).id
+    for z in (12, 14, 15, 16, 17, 18):
+        n = 1 << z
+        x = int((c.x + 180.0) / 360.0 * n)
+        y = int((1.0 - math.asinh(math.tan(math.radians(c.y))) / math.pi) / 2.0 * n)
+        ov = tiles.use_overview(z, 2.3, c.y)
+        st = tiles.strides(z, 2.3, 5.0, c.y) if ov else (1, 1)
+        t = time.perf_counter()
+        data = tiles.plan_tile(s, plan.id, z, x, y, ov, st)
+        dt = time.perf_counter() - t
+        t = time.perf_counter()
+        rdata = tiles.prescription_tile(s, plan.id, vid, z, x, y, ov, st)
+        rdt = time.perf_counter() - t
+        mode = "overview" if ov else "detail"
+        print(
+            f"tile z{z} ({mode}): plan {len(data) / 1024:.1f} KiB in {dt * 1000:.0f} ms, "
+            f"prescription {len(rdata) / 1024:.1f} KiB in {rdt * 1000:.0f} ms"
+        )
+        out[f"tile_z{z}_kib"] = round(len(data) / 1024, 1)
+        out[f"tile_z{z}_ms"] = round(dt * 1000)
+        out[f"rx_tile_z{z}_kib"] = round(len(rdata) / 1024, 1)
+        out[f"rx_tile_z{z}_ms"] = round(rdt * 1000)
+    return out
+
+
 def run(url: str) -> None:
     import psycopg
     import shapely
@@ -126,6 +185,7 @@ def run(url: str) -> None:
         load_cell_table(s, plan, epsg)
         load_s = time.perf_counter() - t
         print(f"load back as CellTable: {load_s:.2f} s ({n / load_s:,.0f} cells/s)")
+        extra = tiles_and_rx(s, plan, fld, org.id)
     dsn = url.replace("postgresql+psycopg://", "postgresql://", 1)
     with psycopg.connect(dsn, options="-c jit=off") as conn:
         conn.execute("CREATE UNLOGGED TABLE bench_cells (LIKE plan_cells)")
@@ -195,6 +255,7 @@ def run(url: str) -> None:
                 "store_vs_raw_copy": round(store_rate / raw_rate, 3),
                 "store_vs_write_row": round(store_rate / row_rate, 3),
                 "load_s": round(load_s, 3),
+                **extra,
             }
         )
     )

@@ -33,7 +33,7 @@ def test_plan_tile_detail_and_overview(client, org) -> None:
     r = client.get(f"{API}/tiles/plans/{plan['id']}/13/{x}/{y}.mvt", headers=h)
     ov = decode(r.content)["cells"]["features"]
     assert 0 < len(ov) < n / 4
-    assert sum(f["properties"]["n_cells"] for f in ov) <= n
+    assert 0.5 * n < sum(f["properties"]["n_cells"] for f in ov) < 1.5 * n  # sampled, scaled
     assert len(r.content) < 64_000
     # ETag revalidation
     r2 = client.get(

@@ -23,12 +23,14 @@ def _check_xyz(z: int, x: int, y: int) -> None:
         raise ApiError(422, f"tile {z}/{x}/{y} does not exist (x and y must be < {1 << z})")
 
 
-def _overview(session: SessionDep, plan: Plan, z: int) -> bool:
+def _lod(session: SessionDep, plan: Plan, z: int) -> tuple[bool, tuple[int, int]]:
+    """Level of detail: overview or not, and the sampling strides of an overview."""
     field = session.get(Field, plan.field_id)
     lat = to_shape(field.boundary).centroid.y if field is not None else 0.0
     width = float((plan.params or {}).get("swath_width_m") or 2.3)
     length = float((plan.params or {}).get("cell_length_m") or 5.0)
-    return tiles.use_overview(z, min(width, length), lat)
+    overview = tiles.use_overview(z, min(width, length), lat)
+    return overview, tiles.strides(z, width, length, lat) if overview else (1, 1)
 
 
 def _tile_response(request: Request, etag: str, data: bytes) -> Response:
@@ -45,11 +47,13 @@ def plan_tile(
     """Cells of a plan (props seq, swath; overview tiles add n_cells)."""
     plan = get_scoped(session, Plan, plan_id, principal)
     _check_xyz(z, x, y)
-    overview = _overview(session, plan, z)
+    overview, stride = _lod(session, plan, z)
     etag = f'"plan-{plan.id}-{int(plan.created_at.timestamp())}-{z}-{x}-{y}"'
     if request.headers.get("if-none-match") == etag:
         return _tile_response(request, etag, b"")
-    return _tile_response(request, etag, tiles.plan_tile(session, plan.id, z, x, y, overview))
+    return _tile_response(
+        request, etag, tiles.plan_tile(session, plan.id, z, x, y, overview, stride)
+    )
 
 
 @router.get("/prescriptions/{rx_id:int}/{version:int}/{z:int}/{x:int}/{y:int}.mvt")
@@ -76,5 +80,6 @@ def prescription_tile(
     etag = f'"rx-{ver.id}-{z}-{x}-{y}"'
     if request.headers.get("if-none-match") == etag:
         return _tile_response(request, etag, b"")
-    data = tiles.prescription_tile(session, plan.id, ver.id, z, x, y, _overview(session, plan, z))
+    overview, stride = _lod(session, plan, z)
+    data = tiles.prescription_tile(session, plan.id, ver.id, z, x, y, overview, stride)
     return _tile_response(request, etag, data)

@@ -568,3 +568,22 @@ def _load_cell_table(session: Session, plan: Plan, epsg: int) -> CellTable:
     )
     table._wgs84_polys = polys_wgs
     return table
+
+
+def load_seq_area(session: Session, plan: Plan) -> tuple[np.ndarray, np.ndarray]:
+    """(seq, area_m2) of every cell in path order: all a uniform prescription needs."""
+    conn = driver_connection(session)
+    with conn.cursor(binary=True) as cur:
+        cur.execute(
+            "SELECT string_agg(int4send(seq), ''::bytea), string_agg(float8send(area_m2), "
+            "''::bytea) FROM (SELECT seq, area_m2 FROM plan_cells WHERE plan_id = %s "
+            "ORDER BY seq) c",
+            (plan.id,),
+        )
+        row = cur.fetchone()
+    if row is None or row[0] is None:
+        return np.zeros(0, np.int64), np.zeros(0)
+    seq = np.frombuffer(bytes(row[0]), ">i4").astype(np.int64)
+    area = np.frombuffer(bytes(row[1]), ">f8").astype(float)
+    order = np.argsort(seq, kind="stable")
+    return seq[order], area[order]

@@ -9,7 +9,7 @@ kept in ``prescriptions.params["meter"]`` so edits are clamped the same way.
 from __future__ import annotations
 
 import json
-import math
+import struct
 from dataclasses import dataclass
 from typing import Any
 
@@ -40,7 +40,8 @@ from fieldrx.db.models import (
     SoilSample,
 )
 from fieldrx.geo.crs import lonlat_to_utm_coords, lonlat_to_utm_xy, to_utm
-from fieldrx.services.plans import driver_connection, load_cell_table
+from fieldrx.services import copy as pgcopy
+from fieldrx.services.plans import driver_connection, load_cell_table, load_seq_area
 
 MODEL_ALIASES = {"constant": "uniform", "ndvi_linear": "ndvi"}
 PARAM_ALIASES = {
@@ -166,6 +167,19 @@ def _flags_literal(mask: int, cache: dict[int, str]) -> str:
     return s
 
 
+VARCHAR_OID = 1043
+
+
+def _flags_array_bytes(mask: int) -> bytes:
+    """Binary COPY form of a varchar[] holding the flag names of ``mask``."""
+    names = [n.encode() for n in flag_names(mask)]
+    if not names:
+        return struct.pack(">iiI", 0, 0, VARCHAR_OID)
+    body = struct.pack(">iiIii", 1, 0, VARCHAR_OID, len(names), 1)
+    body += b"".join(struct.pack(">i", len(b)) + b for b in names)
+    return body
+
+
 def copy_rates(
     session: Session,
     version_id: int,
@@ -174,56 +188,86 @@ def copy_rates(
     flags: np.ndarray,
     source_value: np.ndarray | None,
 ) -> None:
-    """All rates of one version with one text COPY (in the session's transaction)."""
+    """All rates of one version with one binary COPY (in the session's transaction).
+
+    Rows are grouped by (flag mask, source present): within a group every row
+    has the same layout, so each group is one numpy structured array.
+    """
     n = len(seq)
     src = np.full(n, np.nan) if source_value is None else np.asarray(source_value, float)
-    cache: dict[int, str] = {}
-    seq_l = np.asarray(seq).tolist()
-    rate_l = np.asarray(rate_kg_ha, float).tolist()
-    src_l = [("\\N" if math.isnan(v) else repr(v)) for v in src.tolist()]
-    fl_l = [_flags_literal(m, cache) for m in np.asarray(flags, np.int64).tolist()]
+    has_src = ~np.isnan(src)
+    masks = np.asarray(flags, np.int64)
+    key = masks * 2 + has_src
     conn = driver_connection(session)
-    step = 200_000
     with (
         conn.cursor() as cur,
         cur.copy(
-            "COPY prescription_rates (version_id, seq, rate_kg_ha, source_value, flags) FROM STDIN"
+            "COPY prescription_rates (version_id, seq, rate_kg_ha, source_value, flags) "
+            "FROM STDIN (FORMAT BINARY)"
         ) as cp,
     ):
-        for a in range(0, n, step):
-            b = min(n, a + step)
-            cp.write(
-                "".join(
-                    f"{version_id}\t{seq_l[i]}\t{rate_l[i]!r}\t{src_l[i]}\t{fl_l[i]}\n"
-                    for i in range(a, b)
-                )
-            )
+        cp.write(pgcopy.HEADER)
+        for k in np.unique(key):
+            rows = np.flatnonzero(key == k)
+            fl = _flags_array_bytes(int(k) // 2)
+            with_src = bool(k % 2)
+            fields: list[tuple[str, Any]] = [
+                ("nf", ">i2"),
+                ("l_v", ">i4"),
+                ("v", ">i4"),
+                ("l_s", ">i4"),
+                ("s", ">i4"),
+                ("l_r", ">i4"),
+                ("r", ">f8"),
+                ("l_src", ">i4"),
+            ]
+            if with_src:
+                fields.append(("src", ">f8"))
+            fields += [("l_fl", ">i4"), ("fl", f"V{len(fl)}")]
+            a = np.zeros(len(rows), dtype=np.dtype(fields))
+            a["nf"] = 5
+            a["l_v"], a["v"] = 4, version_id
+            a["l_s"], a["s"] = 4, np.asarray(seq)[rows]
+            a["l_r"], a["r"] = 8, np.asarray(rate_kg_ha, float)[rows]
+            if with_src:
+                a["l_src"], a["src"] = 8, src[rows]
+            else:
+                a["l_src"] = -1  # NULL
+            a["l_fl"] = len(fl)
+            a["fl"] = np.frombuffer(fl, dtype=f"V{len(fl)}")[0]
+            cp.write(a.tobytes())
+        cp.write(pgcopy.TRAILER)
+
+
+_MASK_SQL = " | ".join(
+    f"(CASE WHEN '{name}' = ANY(flags) THEN {bit} ELSE 0 END)" for name, bit in FLAG_BITS.items()
+)
+_RATES_SQL = f"""
+SELECT string_agg(int4send(seq), ''::bytea), string_agg(float8send(rate_kg_ha), ''::bytea),
+       string_agg(float8send(coalesce(source_value, 'NaN'::float8)), ''::bytea),
+       string_agg(int4send({_MASK_SQL}), ''::bytea)
+FROM (SELECT * FROM prescription_rates WHERE version_id = %s ORDER BY seq) r
+"""
 
 
 def load_rates(
     session: Session, version_id: int
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """(seq, rate_kg_ha, flag bits, source_value) of one version in path order."""
+    """(seq, rate_kg_ha, flag bits, source_value) of one version in path order (packed fetch)."""
     conn = driver_connection(session)
-    with conn.cursor() as cur:
-        cur.execute(
-            "SELECT seq, rate_kg_ha, coalesce(source_value, 'NaN'::float8), "
-            "array_to_string(flags, ',') FROM prescription_rates "
-            "WHERE version_id = %s ORDER BY seq",
-            (version_id,),
-        )
-        rows = cur.fetchall()
-    if not rows:
+    with conn.cursor(binary=True) as cur:
+        cur.execute(_RATES_SQL, (version_id,))
+        row = cur.fetchone()
+    if row is None or row[0] is None:
         return np.zeros(0, np.int64), np.zeros(0), np.zeros(0, np.uint16), np.zeros(0)
-    seq, rate, src, fl = zip(*rows, strict=True)
-    cache: dict[str, int] = {}
-    masks = np.empty(len(fl), np.uint16)
-    for i, s in enumerate(fl):
-        m = cache.get(s)
-        if m is None:
-            m = cache[s] = sum(FLAG_BITS.get(name, 0) for name in s.split(",") if name)
-        masks[i] = m
-    return np.asarray(seq), np.asarray(rate, float), masks, np.asarray(src, float)
+    seq = np.frombuffer(bytes(row[0]), ">i4").astype(np.int64)
+    rate = np.frombuffer(bytes(row[1]), ">f8").astype(float)
+    src = np.frombuffer(bytes(row[2]), ">f8").astype(float)
+    masks = np.frombuffer(bytes(row[3]), ">i4").astype(np.uint16)
+    order = np.argsort(seq, kind="stable")
+    if not np.array_equal(order, np.arange(len(seq))):
+        seq, rate, src, masks = seq[order], rate[order], src[order], masks[order]
+    return seq, rate, masks, src
 
 
 # --------------------------------------------------------------------------- versions
@@ -354,14 +398,19 @@ def create_prescription(
     model, params = canonical_model(model, params)
     if model not in MODEL_INPUT:
         raise RxError(f"unknown model {model!r} (expected one of {sorted(MODEL_INPUT)})")
-    cells = load_cell_table(session, plan, field.utm_epsg)
-    if len(cells) == 0:
+    column = MODEL_INPUT[model]
+    if column is None:  # uniform: no geometry needed
+        seq, area = load_seq_area(session, plan)
+        cells = None
+    else:
+        cells = load_cell_table(session, plan, field.utm_epsg)
+        seq, area = cells.seq, cells.area_m2
+    if len(seq) == 0:
         raise RxError(f"plan {plan.id} has no cells")
     check = None if meter is None else meter.check()
-    column = MODEL_INPUT[model]
     values = no_data = None
     interp_info: dict[str, Any] | None = None
-    if column is not None:
+    if cells is not None and column is not None:
         xy, z = field_samples(session, field.id, column, field.utm_epsg)
         if len(z) == 0:
             what = "soil samples with n_mg_kg" if column == "n_mg_kg" else "samples with ndvi"
@@ -377,14 +426,14 @@ def create_prescription(
     p = build_prescription(
         model,
         params,
-        len(cells),
+        len(seq),
         values,
         no_data,
         check,
         fallback_rate_kg_ha,
-        cells.area_m2,
+        area,
     )
-    summary = p.summary(cells.area_m2, seq=cells.seq)
+    summary = p.summary(area, seq=seq)
     if interp_info is not None:
         summary["interpolation"] = interp_info
     summary = _json_safe(summary)
@@ -406,9 +455,7 @@ def create_prescription(
     )
     session.add(rx)
     session.flush()
-    _new_version(
-        session, rx, 1, "created", user_id, cells.seq, p.rate_kg_ha, p.flags, values, summary
-    )
+    _new_version(session, rx, 1, "created", user_id, seq, p.rate_kg_ha, p.flags, values, summary)
     return rx
 
 
@@ -473,14 +520,9 @@ def edit_prescription(
         )
         if changed == 0:
             raise RxError("the zone covers no cell centre of this plan")
-    area = np.asarray(
-        session.execute(
-            text("SELECT area_m2 FROM plan_cells WHERE plan_id = :p ORDER BY seq"), {"p": plan.id}
-        )
-        .scalars()
-        .all(),
-        dtype=float,
-    )
+    aseq, area = load_seq_area(session, plan)
+    if not np.array_equal(aseq, seq):
+        raise RxError("the plan's cells do not match the prescription's rates")
     summary = summarize(new_rates, new_flags, area, seq=seq)
     old = base.summary or {}
     for key in ("model", "params", "meter_range_kg_ha", "fallback_rate_kg_ha", "interpolation"):

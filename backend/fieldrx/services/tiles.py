@@ -23,7 +23,8 @@ from sqlalchemy.orm import Session
 
 EXTENT = 4096
 BUFFER = 64
-BINS = 128
+BINS = 64
+DETAIL_PX = 128  # detail once a cell is at least 1/128 of the tile wide
 MERC_HALF = 20037508.342789244
 EARTH_R = 6378137.0
 LAYER = "cells"
@@ -34,9 +35,18 @@ def tile_width_m(z: int) -> float:
 
 
 def use_overview(z: int, cell_width_m: float, lat_deg: float) -> bool:
-    """True when a cell (its narrow side, in mercator metres) is narrower than a bin."""
+    """True when a cell (its narrow side, in mercator metres) is under ~2 px."""
     merc = cell_width_m / max(math.cos(math.radians(lat_deg)), 1e-6)
-    return merc < tile_width_m(z) / BINS
+    return merc < tile_width_m(z) / DETAIL_PX
+
+
+def strides(z: int, swath_width_m: float, cell_length_m: float, lat_deg: float) -> tuple[int, int]:
+    """(along, across) sampling strides for overview tiles: ~4 x 4 cells per bin remain."""
+    scale = 1.0 / max(math.cos(math.radians(lat_deg)), 1e-6)
+    bin_m = tile_width_m(z) / BINS
+    along = max(1, int(bin_m / (4.0 * cell_length_m * scale)))
+    across = max(1, int(bin_m / (4.0 * swath_width_m * scale)))
+    return along, across
 
 
 _ENV = (
@@ -76,9 +86,10 @@ b AS (
   SELECT c.seq, c.swath, {_BIN}
   FROM plan_cells c, env
   WHERE c.plan_id = :pid AND c.geom && env.e4326
+    AND c.index_in_swath % :sa = 0 AND c.swath % :sx = 0
 ),
 g AS (
-  SELECT min(seq) AS seq, min(swath) AS swath, count(*)::int AS n_cells, bi, bj
+  SELECT min(seq) AS seq, min(swath) AS swath, (count(*) * :sa * :sx)::int AS n_cells, bi, bj
   FROM b WHERE bi BETWEEN 0 AND {BINS - 1} AND bj BETWEEN 0 AND {BINS - 1}
   GROUP BY bi, bj
 ),
@@ -107,10 +118,12 @@ b AS (
          {_CLAMPED} AS clamped, {_BIN}
   FROM plan_cells c JOIN prescription_rates r ON r.version_id = :vid AND r.seq = c.seq, env
   WHERE c.plan_id = :pid AND c.geom && env.e4326
+    AND c.index_in_swath % :sa = 0 AND c.swath % :sx = 0
 ),
 g AS (
-  SELECT min(seq) AS seq, min(swath) AS swath, count(*)::int AS n_cells,
-         (sum(rate_kg_ha * area_m2) / nullif(sum(area_m2), 0)) AS rate_kg_ha,
+  SELECT min(seq) AS seq, min(swath) AS swath, (count(*) * :sa * :sx)::int AS n_cells,
+         round((sum(rate_kg_ha * area_m2) / nullif(sum(area_m2), 0))::numeric, 1)::float8
+           AS rate_kg_ha,
          max(flags) AS flags, bool_or(clamped) AS clamped, bi, bj
   FROM b WHERE bi BETWEEN 0 AND {BINS - 1} AND bj BETWEEN 0 AND {BINS - 1}
   GROUP BY bi, bj
@@ -121,15 +134,32 @@ SELECT ST_AsMVT(t.*, '{LAYER}', {EXTENT}, 'geom') FROM t WHERE geom IS NOT NULL
 """
 
 
-def plan_tile(session: Session, plan_id: int, z: int, x: int, y: int, overview: bool) -> bytes:
+def plan_tile(
+    session: Session,
+    plan_id: int,
+    z: int,
+    x: int,
+    y: int,
+    overview: bool,
+    stride: tuple[int, int] = (1, 1),
+) -> bytes:
     sql = PLAN_OVERVIEW if overview else PLAN_DETAIL
     params = {"pid": plan_id, "z": z, "x": x, "y": y, "m": BUFFER / EXTENT}
+    params.update(sa=stride[0], sx=stride[1])
     return bytes(session.scalar(text(sql), params) or b"")
 
 
 def prescription_tile(
-    session: Session, plan_id: int, version_id: int, z: int, x: int, y: int, overview: bool
+    session: Session,
+    plan_id: int,
+    version_id: int,
+    z: int,
+    x: int,
+    y: int,
+    overview: bool,
+    stride: tuple[int, int] = (1, 1),
 ) -> bytes:
     sql = RX_OVERVIEW if overview else RX_DETAIL
     params = {"pid": plan_id, "vid": version_id, "z": z, "x": x, "y": y, "m": BUFFER / EXTENT}
+    params.update(sa=stride[0], sx=stride[1])
     return bytes(session.scalar(text(sql), params) or b"")
