@@ -12,6 +12,7 @@ Run: .venv/bin/python bench/plan_store.py   (needs PostgreSQL on 127.0.0.1:5432)
 
 from __future__ import annotations
 
+import gzip
 import json
 import math
 import os
@@ -88,10 +89,15 @@ def tiles_and_rx(s, plan, fld, org_id) -> dict:
         rdata = tiles.prescription_tile(s, plan.id, vid, z, x, y, ov, st)
         rdt = time.perf_counter() - t
         mode = "overview" if ov else "detail"
+        gz = len(gzip.compress(data, compresslevel=5))
+        rgz = len(gzip.compress(rdata, compresslevel=5))
         print(
-            f"tile z{z} ({mode}): plan {len(data) / 1024:.1f} KiB in {dt * 1000:.0f} ms, "
-            f"prescription {len(rdata) / 1024:.1f} KiB in {rdt * 1000:.0f} ms"
+            f"tile z{z} ({mode}): plan {len(data) / 1024:.1f} KiB ({gz / 1024:.1f} gzipped) "
+            f"in {dt * 1000:.0f} ms, prescription {len(rdata) / 1024:.1f} KiB "
+            f"({rgz / 1024:.1f} gzipped) in {rdt * 1000:.0f} ms"
         )
+        out[f"tile_z{z}_gz_kib"] = round(gz / 1024, 1)
+        out[f"rx_tile_z{z}_gz_kib"] = round(rgz / 1024, 1)
         out[f"tile_z{z}_kib"] = round(len(data) / 1024, 1)
         out[f"tile_z{z}_ms"] = round(dt * 1000)
         out[f"rx_tile_z{z}_kib"] = round(len(rdata) / 1024, 1)

@@ -35,6 +35,12 @@ def test_plan_tile_detail_and_overview(client, org) -> None:
     assert 0 < len(ov) < n / 4
     assert 0.5 * n < sum(f["properties"]["n_cells"] for f in ov) < 1.5 * n  # sampled, scaled
     assert len(r.content) < 64_000
+    assert r.headers.get("content-encoding") == "gzip"  # TestClient sends Accept-Encoding: gzip
+    raw = client.get(
+        f"{API}/tiles/plans/{plan['id']}/13/{x}/{y}.mvt",
+        headers={**h, "Accept-Encoding": "identity"},
+    )
+    assert "content-encoding" not in raw.headers and raw.content == r.content
     # ETag revalidation
     r2 = client.get(
         f"{API}/tiles/plans/{plan['id']}/13/{x}/{y}.mvt",
