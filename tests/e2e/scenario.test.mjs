@@ -243,6 +243,7 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
     await page.waitForURL(/#\/plans\/\d+$/, { timeout: 60_000 });
     S.planId = Number(page.url().match(/#\/plans\/(\d+)/)[1]);
     await page.waitForFunction(() => /\d/.test(document.querySelector('[data-testid=plan-cells]')?.textContent ?? ''));
+    await page.waitForFunction(() => window.__fieldrxPerf?.grid?.idleMs != null, null, { timeout: 30_000 });
     await mapIdle(page, 'plan');
     const cells = Number((await page.textContent('[data-testid=plan-cells]')).replace(/\D/g, ''));
     assert.ok(cells > 100, `cells ${cells}`);
@@ -473,6 +474,7 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
     await page.waitForFunction(() => /^[1-9]/.test(document.querySelector('[data-testid=report-cells]')?.textContent ?? ''), null, {
       timeout: 60_000,
     });
+    await page.waitForFunction(() => window.__fieldrxPerf?.job?.idleMs != null, null, { timeout: 30_000 });
     await mapIdle(page, 'report');
     const applied = await page.evaluate(() => {
       const map = window.__fieldrxMaps.report;

@@ -9,7 +9,7 @@ import { normaliseTrack, type TrackPoint } from '../lib/track';
 import { formatArea, formatDuration, formatMass, formatPercent, formatRate } from '../lib/units';
 import { MapView } from '../map/MapView';
 import { absoluteApiUrl, fitTo, setGeoJSON } from '../map/setup';
-import { GRID_MAXZOOM, GRID_MINZOOM } from '../map/grid';
+import { replaceVectorSource } from '../map/grid';
 import type { FieldFeature, Job, Plan, Prescription } from '../types';
 import { pick } from '../types';
 
@@ -117,12 +117,20 @@ export function JobReport({ jobId }: { jobId: number }) {
     if (src && tick > 1 && !(job && FINAL.has(job.state) && tick > 3)) src.setTiles([tilesUrl(jobId, tick)]);
   }, [tick]); // eslint-disable-line react-hooks/exhaustive-deps
 
+  const [mapReady, setMapReady] = useState(false);
   useEffect(() => {
     const map = mapRef.current;
     if (!map || !field) return;
     setGeoJSON(map, 'field', field as GeoJSON.Feature);
     fitTo(map, bboxOf(field));
-  }, [field]);
+    // Cell tiles only once the view is on the field; below the field outline and the replay.
+    if (!map.getSource('job')) {
+      replaceVectorSource(map, 'job', tilesUrl(jobId, tick), [
+        { id: 'job-fill', type: 'fill', source: 'job', 'source-layer': 'cells', paint: { 'fill-color': fill as never, 'fill-opacity': 0.85 } },
+      ]);
+      for (const l of ['field-line', 'trail', 'replay']) if (map.getLayer(l)) map.moveLayer(l);
+    }
+  }, [field, mapReady]); // eslint-disable-line react-hooks/exhaustive-deps
 
   const cur = tIdx >= 0 ? points[tIdx] : undefined;
   useEffect(() => {
@@ -148,13 +156,6 @@ export function JobReport({ jobId }: { jobId: number }) {
   const onReady = (map: maplibregl.Map) => {
     mapRef.current = map;
     setGeoJSON(map, 'field', (field as GeoJSON.Feature) ?? EMPTY);
-    map.addSource('job', {
-      type: 'vector',
-      tiles: [tilesUrl(jobId, 0)],
-      minzoom: GRID_MINZOOM,
-      maxzoom: GRID_MAXZOOM,
-    });
-    map.addLayer({ id: 'job-fill', type: 'fill', source: 'job', 'source-layer': 'cells', paint: { 'fill-color': fill as never, 'fill-opacity': 0.85 } });
     map.addLayer({ id: 'field-line', type: 'line', source: 'field', paint: { 'line-color': '#222', 'line-width': 2 } });
     setGeoJSON(map, 'trail', EMPTY);
     map.addLayer({ id: 'trail', type: 'line', source: 'trail', paint: { 'line-color': '#111', 'line-width': 1.2, 'line-opacity': 0.55 } });
@@ -172,7 +173,7 @@ export function JobReport({ jobId }: { jobId: number }) {
       },
       paint: { 'icon-color': '#d7263d', 'icon-halo-color': '#fff', 'icon-halo-width': 2 },
     });
-    if (field) fitTo(map, bboxOf(field));
+    setMapReady(true);
   };
 
   const r = report ?? {};

@@ -36,24 +36,30 @@ export function PlanScreen({ planId }: { planId: number }) {
       .catch((e) => (isMissingEndpoint(e) ? undefined : setError(e)));
   }, [planId]);
 
+  const [mapReady, setMapReady] = useState(false);
   useEffect(() => {
     const map = mapRef.current;
     if (!map) return;
     if (field) {
       setGeoJSON(map, 'field', field as GeoJSON.Feature);
       fitTo(map, bboxOf(field));
+      // Grid tiles only once the view is on the field (no wasted low-zoom requests).
+      if (!map.getSource('grid')) {
+        replaceVectorSource(map, 'grid', planTilesUrl(planId), planGridLayers('grid'));
+        if (map.getLayer('route-line')) map.moveLayer('route-line');
+        if (map.getLayer('route-arrows')) map.moveLayer('route-arrows');
+      }
     }
     if (route) setGeoJSON(map, 'route', route);
-  }, [field, route]);
+  }, [field, route, mapReady, planId]);
 
   const onReady = (map: maplibregl.Map) => {
     mapRef.current = map;
     setGeoJSON(map, 'field', (field as GeoJSON.Feature) ?? { type: 'FeatureCollection', features: [] });
     map.addLayer({ id: 'field-line', type: 'line', source: 'field', paint: { 'line-color': '#2d5e16', 'line-width': 2 } });
-    replaceVectorSource(map, 'grid', planTilesUrl(planId), planGridLayers('grid'));
     setGeoJSON(map, 'route', route ?? { type: 'FeatureCollection', features: [] });
     addRouteLayers(map, 'route');
-    if (field) fitTo(map, bboxOf(field));
+    setMapReady(true);
   };
 
   const s = {
