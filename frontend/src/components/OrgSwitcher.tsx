@@ -6,7 +6,14 @@ import { api, errorText, getToken, setSession, type SessionInfo } from '../api';
  */
 export function OrgSwitcher({ session, onChange }: { session: SessionInfo; onChange: (s: SessionInfo) => void }) {
   const orgs = session.organisations ?? [];
-  if (orgs.length < 2) return <span data-testid="org-name">{session.organisation?.name ?? ''}</span>;
+  const role = (session.organisation as { role?: string } | undefined)?.role;
+  if (orgs.length < 2)
+    return (
+      <span data-testid="org-name">
+        {session.organisation?.name ?? ''}
+        {role ? <span className="role"> · {role}</span> : null}
+      </span>
+    );
   return (
     <select
       data-testid="org-switcher"
