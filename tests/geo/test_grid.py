@@ -118,3 +118,22 @@ def test_too_many_cells_refused_before_allocating():
     with pytest.raises(PlanningError, match="more than 5000000"):
         build_grid(plan, f, 0.5)
     assert time.perf_counter() - t < 1.0
+
+
+def test_dense_noisy_boundary_is_planned_quickly_and_cells_fit_it():
+    # a GNSS-traced boundary: 600 vertices ~1 m apart with 0.3 m noise
+    import time
+
+    from shapely.geometry import Polygon
+
+    rng = np.random.default_rng(1)
+    ang = np.linspace(0, 2 * math.pi, 600, endpoint=False)
+    r = 120 * (1 + 0.05 * np.sin(5 * ang)) + rng.normal(0, 0.3, 600)
+    f = Polygon(np.stack([X0 + 1.5 * r * np.cos(ang), Y0 + r * np.sin(ang)], 1))
+    t = time.perf_counter()
+    plan = plan_coverage(f, 2.3, "optimal", headland_passes=1)
+    grid = build_grid(plan, f, 5.0)
+    assert time.perf_counter() - t < 20.0
+    # noise does not multiply the swaths: close to the strip count of the clean shape
+    assert plan.n_swaths <= 1.15 * (2 * 120 * 1.05 / 2.3)
+    check_grid(grid, f)

@@ -130,6 +130,7 @@ class CoveragePlan:
     frame: Frame
     headland_passes: int
     n_blocks: int
+    input_field: Polygon | MultiPolygon | None = None
     n_swaths: int = 0
     n_turns: int = 0
     working_length_m: float = 0.0
@@ -194,6 +195,37 @@ def _polygonal(geom: BaseGeometry) -> Polygon | MultiPolygon:
     if geom.area <= 0:
         raise PlanningError("the field has no area (degenerate boundary)")
     return geom
+
+
+def _simplified(fld: Polygon | MultiPolygon, tol: float) -> Polygon | MultiPolygon:
+    """Boundary without detail finer than ``tol`` (digitising / GNSS noise).
+
+    A jagged boundary makes strips split into teeth: many tiny swaths and blocks for
+    detail the implement cannot follow anyway. Douglas-Peucker at a quarter of the
+    working width (at most 1 m) removes that noise; corners of real fields stay. Only
+    dense (traced / GNSS-recorded) boundaries are touched: median edge shorter than
+    ``8 * tol``; a drawn polygon keeps its exact vertices.
+    """
+    if tol <= 0:
+        return fld
+    lens = np.concatenate(
+        [
+            np.hypot(*np.diff(np.asarray(r.coords), axis=0).T)
+            for p in _parts(fld)
+            for r in [p.exterior, *p.interiors]
+        ]
+    )
+    if np.median(lens) >= 8 * tol:
+        return fld
+    simp = fld.simplify(tol, preserve_topology=True)
+    if (
+        simp.is_empty
+        or not simp.is_valid
+        or not isinstance(simp, Polygon | MultiPolygon)
+        or abs(simp.area - fld.area) > 0.01 * fld.area
+    ):
+        return fld
+    return shapely.normalize(simp)
 
 
 def _parts(g: BaseGeometry) -> list[Polygon]:
@@ -584,20 +616,25 @@ def _estimate_nonworking(subs: list[_Sub], blocks: list[list[int]]) -> float:
 # --------------------------------------------------------------------------- headings
 
 
-def _edge_angles(geom: BaseGeometry) -> np.ndarray:
-    """Directions (math angle mod pi) of every ring edge of geom and of its convex hull."""
-    angs = []
-    for g in [*_parts(geom), geom.convex_hull]:
-        if not isinstance(g, Polygon) or g.is_empty:
-            continue
+def _edge_angles(geom: BaseGeometry, max_ring_edges: int = 64) -> np.ndarray:
+    """Candidate directions (math angle mod pi): every convex-hull edge (one of them is
+    the rotating-calipers minimum-width direction) and the longest ring edges of geom
+    (long edges are where swaths parallel to the boundary save turns)."""
+    angs, lens = [], []
+    for g in _parts(geom):
         for ring in [g.exterior, *g.interiors]:
-            c = np.asarray(ring.coords)
-            e = np.diff(c, axis=0)
-            keep = np.hypot(e[:, 0], e[:, 1]) > 1e-6
-            angs.append(np.arctan2(e[keep, 1], e[keep, 0]) % math.pi)
+            e = np.diff(np.asarray(ring.coords), axis=0)
+            angs.append(np.arctan2(e[:, 1], e[:, 0]) % math.pi)
+            lens.append(np.hypot(e[:, 0], e[:, 1]))
     a = np.concatenate(angs) if angs else np.zeros(0)
-    a = np.round(a, 9) % math.pi
-    return np.unique(a)
+    ln = np.concatenate(lens) if lens else np.zeros(0)
+    a = a[np.argsort(-ln)][:max_ring_edges][ln[np.argsort(-ln)][:max_ring_edges] > 1e-6]
+    hull = geom.convex_hull
+    if isinstance(hull, Polygon) and not hull.is_empty:
+        e = np.diff(np.asarray(hull.exterior.coords), axis=0)
+        keep = np.hypot(e[:, 0], e[:, 1]) > 1e-6
+        a = np.concatenate([a, np.arctan2(e[keep, 1], e[keep, 0]) % math.pi])
+    return np.unique(np.round(a, 9) % math.pi)
 
 
 def _longest_edge_phi(field_geom: Polygon | MultiPolygon) -> float:
@@ -761,6 +798,7 @@ def plan_coverage(
     headland_passes: int = 0,
     start_corner: Corner = "sw",
     headland_order: Literal["first", "last"] = "first",
+    simplify_tolerance_m: float | None = None,
 ) -> CoveragePlan:
     """Plan the coverage path of a field given in UTM metres (see module docstring)."""
     import time
@@ -781,7 +819,10 @@ def plan_coverage(
     if heading == "angle":
         if angle_deg is None or not math.isfinite(float(angle_deg)):
             raise PlanningError("heading 'angle' needs angle_deg (degrees clockwise from north)")
-    fld = _polygonal(boundary_utm)
+    fld_in = _polygonal(boundary_utm)
+    fld = _simplified(
+        fld_in, min(0.25 * w, 1.0) if simplify_tolerance_m is None else float(simplify_tolerance_m)
+    )
     narrow = _min_width(fld)
     if narrow < w:
         raise PlanningError(
@@ -912,6 +953,7 @@ def plan_coverage(
         field=fld,
         region=region,
         frame=frame,
+        input_field=fld_in,
         headland_passes=h,
         n_blocks=len(blocks),
     )

@@ -106,7 +106,8 @@ def build_grid(
         raise PlanningError(f"min_cell_fraction must be in [0, 1), got {min_cell_fraction}")
     if boundary_utm is not None:
         fld = _polygonal(boundary_utm)
-        if abs(fld.symmetric_difference(plan.field).area) > 1e-6 * plan.field.area:
+        ref = plan.input_field if plan.input_field is not None else plan.field
+        if abs(fld.symmetric_difference(ref).area) > 1e-6 * ref.area:
             raise PlanningError("boundary_utm is not the field this plan was made for")
     w = plan.swath_width_m
     n_est = sum(_n_cells(s.line.length, cell) for s in plan.swaths)
