@@ -67,6 +67,8 @@ const b = await launch({ width: 1280, height: 800 });
 const { page } = b;
 const times = [];
 let rendered = 0;
+let features = 0;
+let binned = 0;
 try {
   await page.goto(`${srv.url}/#/login`);
   await page.fill('[data-testid=login-email]', email);
@@ -85,10 +87,17 @@ try {
       const seen = new Map();
       for (const f of map.queryRenderedFeatures({ layers: ['rx-fill'] })) seen.set(f.properties.seq, Number(f.properties.n_cells ?? 1));
       let n = 0;
-      for (const v of seen.values()) n += v;
-      return n;
+      let binned = 0;
+      for (const v of seen.values()) {
+        n += v;
+        if (v > 1) binned++;
+      }
+      return { n, features: seen.size, binned };
     });
-    console.log(`run ${i + 1}: ${times[i].toFixed(0)} ms to idle, ${rendered} cells rendered, zoom ${await page.evaluate(() => window.__fieldrxMaps.rx.getZoom().toFixed(2))}`);
+    features = rendered.features;
+    binned = rendered.binned;
+    rendered = rendered.n;
+    console.log(`run ${i + 1}: ${times[i].toFixed(0)} ms to idle, ${rendered} cells rendered as ${features} features (${binned} overview bins), zoom ${await page.evaluate(() => window.__fieldrxMaps.rx.getZoom().toFixed(2))}`);
   }
   await page.screenshot({ path: join(ARTIFACTS, 'perf-grid.png') });
 } finally {
@@ -105,6 +114,8 @@ console.log(
     source: useServer ? 'server' : 'synthetic',
     cells: nCells,
     rendered_cells: rendered,
+    features,
+    overview_bins: binned,
     first_ms: Math.round(times[0]),
     median_ms: Math.round(median),
     runs,
