@@ -372,6 +372,7 @@ def _strip_layout(
                         owner[k] = c
                         break
         per_comp: dict[int, list[tuple[float, float]]] = {c: [] for c in ci}
+        cand: list[tuple[float, float, int]] = []
         for k, c in owner.items():
             per_comp[c].append((sb[k, 0], sb[k, 2]))
         for c in sorted(ci, key=lambda c: cb[c, 0]):
@@ -393,18 +394,38 @@ def _strip_layout(
             for a, b, core in ranges:
                 a, b = _cut_at_holes(a, b, float(ys[i]), core, holes)
                 if b - a > 1e-9:
-                    subs_of_comp.setdefault(c, []).append(len(subs))
-                    subs.append(
-                        _Sub(
-                            part,
-                            i,
-                            float(ys[i]),
-                            float(a),
-                            float(b),
-                            comps[c],
-                            full_by_strip.get(i),
-                        )
-                    )
+                    cand.append((a, b, c, core))
+        # A notch narrower than half the working width does not split a swath: the
+        # implement cannot work it anyway, and traced boundaries are full of such teeth.
+        # Two swaths on the centre line merge when the gap between the centre-line
+        # intervals is < w/2 (the rule _lower_bounds counts with); a piece the centre
+        # line misses joins a neighbour closer than w/2.
+        cand.sort(key=lambda t: (t[0], t[1]))
+        groups: list[list] = []
+        for a, b, c, core in cand:
+            if groups and a >= groups[-1][1] - 1e-9:
+                g = groups[-1]
+                if core is not None and g[3] is not None:
+                    gap_x = core[0] - g[3]
+                else:
+                    gap_x = a - g[1]
+                seg = LineString([(g[1], ys[i]), (a, ys[i])])
+                if gap_x < 0.5 * w and (holes is None or not holes.intersects(seg)):
+                    g[1] = max(g[1], b)
+                    g[2].append(c)
+                    if core is not None:
+                        g[3] = core[1]
+                    continue
+            groups.append([a, b, [c], None if core is None else core[1]])
+        for a, b, cs, _ in groups:
+            for c in set(cs):
+                subs_of_comp.setdefault(c, []).append(len(subs))
+            clip = (
+                comps[cs[0]]
+                if len(set(cs)) == 1
+                else shapely.union_all([comps[c] for c in set(cs)])
+            )
+            subs.append(_Sub(part, i, float(ys[i]), float(a), float(b), clip, full_by_strip.get(i)))
 
     # Links between swaths of consecutive strips: through the pieces J of the strip edge
     # line inside q. Each J belongs to one strip piece below and one above; two swaths
@@ -670,11 +691,30 @@ def _lower_bounds(parts: list[Polygon], w: float, phis: np.ndarray) -> np.ndarra
             ys = y0 + (np.arange(n) + 0.5) * w
             lo = np.searchsorted(ys, np.minimum(ya, yb), side="left")
             hi = np.searchsorted(ys, np.maximum(ya, yb), side="left")
-            diff = np.zeros(n + 1, dtype=np.int64)
-            np.add.at(diff, lo, 1)
-            np.add.at(diff, hi, -1)
-            cross = np.cumsum(diff)[:n]
-            lb[k] += int(np.maximum(1, cross // 2).sum())
+            cnt = hi - lo
+            e = np.repeat(np.arange(len(a)), cnt)
+            line = np.repeat(lo, cnt) + (
+                np.arange(cnt.sum()) - np.repeat(np.cumsum(cnt) - cnt, cnt)
+            )
+            xa = a[e, 0] * cs + a[e, 1] * sn
+            xb = b[e, 0] * cs + b[e, 1] * sn
+            t = (ys[line] - ya[e]) / (yb[e] - ya[e])
+            x = xa + t * (xb - xa)
+            order = np.lexsort((x, line))
+            line, x = line[order], x[order]
+            # crossings pair up into intervals; intervals closer than w/2 count once
+            # (the planner bridges such notches), so this stays a lower bound
+            starts = np.r_[0, np.flatnonzero(np.diff(line)) + 1]
+            pos = np.arange(len(line)) - np.repeat(starts, np.diff(np.r_[starts, len(line)]))
+            n_int = np.bincount(line, minlength=n) // 2
+            gap_start = (pos % 2 == 1) & (
+                pos + 1
+                < np.repeat(np.diff(np.r_[starts, len(line)]), np.diff(np.r_[starts, len(line)]))
+            )
+            gi = np.flatnonzero(gap_start)
+            small = (x[gi + 1] - x[gi]) < 0.5 * w
+            n_int = n_int - np.bincount(line[gi[small]], minlength=n)
+            lb[k] += int(np.maximum(1, n_int).sum())
     return lb
 
 
