@@ -10,7 +10,8 @@ boundary's longest edge) with a scan line. FieldRx generalises that (issue 3):
 * A strip may cross R several times: each connected piece of ``strip & R`` is its own
   swath, stretched over the piece's whole x-extent so the implement (w wide) covers it
   completely. Where the centre line itself crosses a hole or notch inside one piece the
-  swath is split there, so swaths never run through a hole.
+  swath is split there, so swaths never run through a hole; notches narrower than w/2
+  (traced-boundary teeth) are bridged instead of splitting the swath.
 * Boustrophedon decomposition is done on the swaths themselves: swaths of consecutive
   strips that touch are linked when the link is unique (one swath above, one below);
   maximal chains are the monotone blocks (cells) of Choset's decomposition, split at the
@@ -672,7 +673,8 @@ def _lower_bounds(parts: list[Polygon], w: float, phis: np.ndarray) -> np.ndarra
 
     Every strip of a part holds at least one swath, and at least one per interval its
     centre line cuts out of the part (the planner splits a strip piece wherever its centre
-    line leaves the region), so sum_i max(1, crossings_i / 2) <= swath count.
+    line leaves the region), except intervals closer than w/2, which the planner may
+    bridge and which count once here; so the sum over strips is <= the swath count.
     """
     lb = np.zeros(len(phis), dtype=np.int64)
     for p in parts:
