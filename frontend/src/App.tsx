@@ -58,7 +58,7 @@ export function App() {
     </a>
   );
   return (
-    <div className="app">
+    <div className={`app ${(session.organisation as { role?: string } | undefined)?.role === 'viewer' ? 'role-viewer' : ''}`}>
       <header className="topbar">
         <span className="brand">FieldRx</span>
         <nav>

@@ -138,12 +138,12 @@ export function FieldDetail({ fieldId }: { fieldId: number }) {
           />
         )}
         <div className="row">
-          <button data-testid="edit-field" onClick={() => navigate(`/fields/${fieldId}/edit`)}>
+          <button data-testid="edit-field" data-write="" onClick={() => navigate(`/fields/${fieldId}/edit`)}>
             Edit boundary
           </button>
           <button
             className="danger"
-            data-testid="delete-field"
+            data-testid="delete-field" data-write=""
             onClick={async () => {
               if (!confirm('Delete this field?')) return;
               try {
@@ -160,10 +160,10 @@ export function FieldDetail({ fieldId }: { fieldId: number }) {
 
         <h3>Soil samples</h3>
         <div className="row">
-          <label className="button">
+          <label className="button" data-write="">
             Upload CSV…
             <input
-              data-testid="soil-file"
+              data-testid="soil-file" data-write=""
               type="file"
               accept=".csv,.geojson,.json"
               hidden

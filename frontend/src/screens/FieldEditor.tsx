@@ -308,7 +308,7 @@ export function FieldEditor({ fieldId }: { fieldId?: number }) {
           <input data-testid="field-crop" value={crop} onChange={(e) => setCrop(e.target.value)} />
         </label>
         <div className="row">
-          <button data-testid="field-save" disabled={!geometry || !name || busy} onClick={() => void save()}>
+          <button data-testid="field-save" data-write="" disabled={!geometry || !name || busy} onClick={() => void save()}>
             Save field
           </button>
           <button

@@ -144,13 +144,13 @@ export function FieldsScreen() {
           </select>
         </div>
         <div className="row">
-          <button data-testid="new-field" onClick={() => navigate('/fields/new')}>
+          <button data-testid="new-field" data-write="" onClick={() => navigate('/fields/new')}>
             Draw new field
           </button>
-          <label className="button">
+          <label className="button" data-write="">
             Import…
             <input
-              data-testid="import-file"
+              data-testid="import-file" data-write=""
               type="file"
               accept=".geojson,.json,.kml,.zip"
               hidden
@@ -207,7 +207,7 @@ export function FieldsScreen() {
               onChange={(e) => setNewFarm(e.target.value)}
               required
             />
-            <button data-testid="new-farm-submit">Add farm</button>
+            <button data-testid="new-farm-submit" data-write="">Add farm</button>
           </form>
           <ul className="list">
             {farms.map((f) => (

@@ -151,6 +151,14 @@ export function FleetScreen() {
         </p>
         {missing && <p className="muted">Fleet status is not available on this server yet.</p>}
         <ErrorBox error={error} />
+        <div className="row wrap small" data-testid="fleet-legend">
+          {(['working', 'moving', 'idle', 'alarm', 'offline'] as const).map((st) => (
+            <span key={st}>
+              <span className="dot" style={{ background: statusColor(st) }} />
+              {st}
+            </span>
+          ))}
+        </div>
         <ul className="list" data-testid="fleet-list">
           {list.map((m) => (
             <li key={m.machine_id} data-testid={`fleet-machine-${m.machine_id}`}>
@@ -196,7 +204,7 @@ export function FleetScreen() {
                 {!acked && (
                   <button
                     className="link"
-                    data-testid={`ack-${a.id}`}
+                    data-testid={`ack-${a.id}`} data-write=""
                     onClick={async () => {
                       try {
                         const r = await api.post<Alert>(`/alerts/${a.id}/ack`);

@@ -69,7 +69,7 @@ export function JobsScreen() {
       <ErrorBox error={error} testid="jobs-error" />
       <form
         className="row"
-        data-testid="job-form"
+        data-testid="job-form" data-write=""
         onSubmit={async (e) => {
           e.preventDefault();
           setError(null);
@@ -133,7 +133,7 @@ export function JobsScreen() {
                   <button
                     key={s}
                     className="link"
-                    data-testid={`job-${j.id}-${s}`}
+                    data-testid={`job-${j.id}-${s}`} data-write=""
                     onClick={async () => {
                       try {
                         await api.post(`/jobs/${j.id}/state`, { state: s });

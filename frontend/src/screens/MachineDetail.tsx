@@ -84,7 +84,7 @@ export function MachineDetail({ machineId }: { machineId: number }) {
       />
       <div className="row">
         <button
-          data-testid="device-token"
+          data-testid="device-token" data-write=""
           onClick={async () => {
             try {
               const r = await api.post<{ token: string }>(`/machines/${machineId}/device-token`);

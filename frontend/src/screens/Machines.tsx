@@ -50,7 +50,7 @@ export function MachinesScreen() {
         <label className="inline">
           lag s <input type="number" step="0.01" value={lag} onChange={(e) => setLag(e.target.value)} />
         </label>
-        <button data-testid="machine-submit">Add machine</button>
+        <button data-testid="machine-submit" data-write="">Add machine</button>
       </form>
       <table className="table" data-testid="machine-table">
         <thead>

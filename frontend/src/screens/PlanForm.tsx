@@ -15,7 +15,7 @@ export function PlanForm({ fieldId, onCreated }: { fieldId: number; onCreated: (
   return (
     <form
       className="form"
-      data-testid="plan-form"
+      data-testid="plan-form" data-write=""
       onSubmit={async (e) => {
         e.preventDefault();
         setBusy(true);

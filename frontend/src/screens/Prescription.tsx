@@ -264,7 +264,7 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
               }}
             >
               <input data-testid="cell-new-rate" type="number" step="any" value={newRate} onChange={(e) => setNewRate(e.target.value)} />
-              <button data-testid="cell-save">Set rate</button>
+              <button data-testid="cell-save" data-write="">Set rate</button>
             </form>
             )}
           </div>
@@ -273,7 +273,7 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
         )}
         <div className="row">
           <button
-            data-testid="paint-zone"
+            data-testid="paint-zone" data-write=""
             className={painting ? 'on' : ''}
             onClick={() => {
               setPainting(true);
@@ -303,7 +303,7 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
               onChange={(e) => setZoneRate(e.target.value)}
               required
             />
-            <button data-testid="zone-save">Apply to zone</button>
+            <button data-testid="zone-save" data-write="">Apply to zone</button>
           </form>
         )}
 
@@ -340,7 +340,7 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
             ))}
           </select>
           <button
-            data-testid="send-job"
+            data-testid="send-job" data-write=""
             disabled={!machineId}
             onClick={async () => {
               try {

@@ -37,7 +37,7 @@ export function RxForm({ planId, onCreated }: { planId: number; onCreated: (r: P
   return (
     <form
       className="form"
-      data-testid="rx-form"
+      data-testid="rx-form" data-write=""
       onSubmit={async (e) => {
         e.preventDefault();
         setError(null);
