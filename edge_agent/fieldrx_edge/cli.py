@@ -244,6 +244,10 @@ def cmd_simulate(a: argparse.Namespace) -> int:
     if sender is not None:  # sends while the tractor drives, exactly like `run`
         sth = threading.Thread(target=sender.run, args=(stop,), daemon=True)
         sth.start()
+    if a.server:
+        from fieldrx_edge.jobs import post_state
+
+        post_state(a.server, a.token, job.job_id, "running")
     res = simulate(job, cfg, sink=sink)
     stop.set()
     if sth is not None:
@@ -261,6 +265,10 @@ def cmd_simulate(a: argparse.Namespace) -> int:
         out["telemetry_drained"] = sender.drain(a.drain_timeout)
         out["telemetry"] = queue.stats()
         sender.close()
+        from fieldrx_edge.jobs import post_state
+
+        # the simulated tractor drove the whole path: the job is done
+        out["job_state_reported"] = post_state(a.server, a.token, job.job_id, "completed")
     seqs = res.extra["seq"]
     if a.cells_out:
         with open(a.cells_out, "w", newline="") as fh:

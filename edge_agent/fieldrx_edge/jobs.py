@@ -170,17 +170,24 @@ def pull(
 
 
 def report_state(store: JobStore, job_id: int, state: str, timeout_s: float = 2.0) -> bool:
-    """Best effort POST /device/jobs/{id}/state; offline is normal, so failures are only logged."""
+    """Best effort POST /device/jobs/{id}/state with the saved server and token."""
     cfg = store.config()
     if not cfg.get("server") or not cfg.get("token"):
         return False
+    return post_state(cfg["server"], cfg["token"], job_id, state, timeout_s)
+
+
+def post_state(server: str, token: str, job_id: int, state: str, timeout_s: float = 2.0) -> bool:
+    """Best effort state report; offline is normal, so failures are only logged."""
     try:
         r = httpx.post(
-            f"{cfg['server'].rstrip('/')}/api/v1/device/jobs/{job_id}/state",
-            headers={"Authorization": f"Bearer {cfg['token']}"},
+            f"{server.rstrip('/')}/api/v1/device/jobs/{job_id}/state",
+            headers={"Authorization": f"Bearer {token}"},
             json={"state": state},
             timeout=timeout_s,
         )
+        if r.status_code >= 400:
+            log.info("job %s state %s refused: %s %s", job_id, state, r.status_code, r.text)
         return r.status_code < 400
     except httpx.HTTPError as exc:
         log.info("job %s state %s not reported: %s", job_id, state, exc)
