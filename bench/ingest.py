@@ -27,6 +27,7 @@ import argparse
 import asyncio
 import json
 import os
+import re
 import shutil
 import socket
 import subprocess
@@ -247,10 +248,22 @@ def raw_copy_baseline(url: str, fleet: Fleet) -> float:
 
 
 # processes ---------------------------------------------------------------------------
-def start(args: list[str], env: dict[str, str]) -> subprocess.Popen[bytes]:
+def start(args: list[str], env: dict[str, str], log: Path | None = None) -> subprocess.Popen[bytes]:
+    err: Any = log.open("wb") if log is not None else subprocess.PIPE
     return subprocess.Popen(
-        args, cwd=ROOT, env={**os.environ, **env}, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE
+        args, cwd=ROOT, env={**os.environ, **env}, stdout=subprocess.DEVNULL, stderr=err
     )
+
+
+def wait_log(paths: list[Path], text: str, timeout: float = 60.0) -> None:
+    """Wait until every log file contains ``text`` (e.g. each worker has subscribed:
+    a message published before any subscription exists is dropped by the broker)."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if all(p.exists() and text in p.read_text(errors="replace") for p in paths):
+            return
+        time.sleep(0.1)
+    raise SystemExit(f"timed out waiting for {text!r} in {paths}")
 
 
 def stop(p: subprocess.Popen[bytes]) -> str:
@@ -261,7 +274,9 @@ def stop(p: subprocess.Popen[bytes]) -> str:
         except subprocess.TimeoutExpired:
             p.kill()
             p.wait()
-    return (p.stderr.read() if p.stderr else b"").decode(errors="replace")
+    if p.stderr is None:
+        return ""
+    return p.stderr.read().decode(errors="replace")
 
 
 def wait_http(url: str, proc: subprocess.Popen[bytes], timeout: float = 40.0) -> None:
@@ -297,22 +312,74 @@ def warm_up(base: str, machines: list[tuple[int, int, str]], n: int) -> None:
 
 
 # HTTP --------------------------------------------------------------------------------
+class LeanHttp:
+    """Keep-alive HTTP/1.1 POSTs over raw asyncio streams.
+
+    The load generator shares the 2 cores with the server under test; httpx cost
+    ~3x more CPU per request, which the server then did not get.
+    """
+
+    def __init__(self, base: str, connections: int) -> None:
+        u = base.split("//", 1)[1]
+        self.host, _, port = u.partition(":")
+        self.port = int(port)
+        self.n = connections
+        self.pool: asyncio.Queue[tuple[asyncio.StreamReader, asyncio.StreamWriter]] = (
+            asyncio.Queue()
+        )
+
+    async def __aenter__(self) -> LeanHttp:
+        for _ in range(self.n):
+            self.pool.put_nowait(await asyncio.open_connection(self.host, self.port))
+        return self
+
+    async def __aexit__(self, *exc: object) -> None:
+        while not self.pool.empty():
+            _, w = self.pool.get_nowait()
+            w.close()
+
+    async def post(self, path: str, body: str, token: str) -> tuple[int, bytes]:
+        data = body.encode()
+        head = (
+            f"POST {path} HTTP/1.1\r\nHost: {self.host}\r\nAuthorization: Bearer {token}\r\n"
+            f"Content-Type: application/json\r\nContent-Length: {len(data)}\r\n\r\n"
+        ).encode()
+        r, w = await self.pool.get()
+        try:
+            w.write(head + data)
+            await w.drain()
+            status_line = await r.readline()
+            status = int(status_line.split()[1])
+            length = 0
+            while True:
+                line = await r.readline()
+                if line in (b"\r\n", b""):
+                    break
+                name, _, value = line.partition(b":")
+                if name.strip().lower() == b"content-length":
+                    length = int(value)
+            payload = await r.readexactly(length)
+        except BaseException:
+            w.close()
+            r, w = await asyncio.open_connection(self.host, self.port)
+            raise
+        finally:
+            self.pool.put_nowait((r, w))
+        return status, payload
+
+
 async def drive_http(
     base: str, fleet: Fleet, batch: int, concurrency: int, realtime: bool, send_every: float
 ) -> tuple[float, list[float], int]:
-    import httpx
-
     latencies: list[float] = []
     stored = 0
     sem = asyncio.Semaphore(concurrency)
-    limits = httpx.Limits(max_connections=concurrency, max_keepalive_connections=concurrency)
-    async with httpx.AsyncClient(base_url=base, timeout=120, limits=limits) as client:
+    async with LeanHttp(base, concurrency) as client:
         start = time.time()
 
         async def machine(k: int) -> None:
             nonlocal stored
             token = fleet.machines[k][2]
-            headers = {"Authorization": f"Bearer {token}", "Content-Type": "application/json"}
             seq = 1
             while seq <= fleet.n:
                 if realtime:
@@ -332,12 +399,12 @@ async def drive_http(
                         times = [t_now - (count - 1 - i) * 1e-6 for i in range(count)]
                     body = fleet.body(k, seq, times)
                     while True:
-                        r = await client.post("/api/v1/telemetry", content=body, headers=headers)
-                        if r.status_code == 200:
+                        status, payload = await client.post("/api/v1/telemetry", body, token)
+                        if status == 200:
                             break
-                        print(f"HTTP {r.status_code}: {r.text[:200]}", file=sys.stderr)
+                        print(f"HTTP {status}: {payload[:200]!r}", file=sys.stderr)
                         await asyncio.sleep(0.5)
-                    ack = r.json()
+                    ack = json.loads(payload)
                     t_ack = time.time()
                 assert ack["acked_seq"] == seq + count - 1, ack
                 stored += ack["stored"]
@@ -545,6 +612,7 @@ def main() -> int:
     url = make_db()
     tmp = Path(tempfile.mkdtemp(prefix="fieldrx-bench-"))
     procs: list[subprocess.Popen[bytes]] = []
+    worker_records: list[int] = []
     try:
         machines = seed(url, args.machines)
         db_name = url.rsplit("/", 1)[1]
@@ -593,7 +661,8 @@ def main() -> int:
             broker, port = start_broker(tmp)
             procs.append(broker)
             group = "bench"
-            for _ in range(workers):
+            logs = [tmp / f"worker{i}.log" for i in range(workers)]
+            for log in logs:
                 w = start(
                     [
                         str(BIN / "fieldrx"),
@@ -606,12 +675,24 @@ def main() -> int:
                         f"mqtt://127.0.0.1:{port}",
                     ],
                     env,
+                    log,
                 )
                 procs.append(w)
-            time.sleep(3.0)  # workers import, connect and subscribe
+            wait_log(logs, "subscribed to")
             cpu0 = cpu_seconds(db_name)
             elapsed, lat, stored = drive_mqtt(port, fleet, batch, 1000, args.realtime)
-        cpu1 = cpu_seconds(db_name)
+            cpu1 = cpu_seconds(db_name)
+            for w in procs[1:]:
+                stop(w)  # the workers log their totals when they stop
+            for log in logs:
+                text = log.read_text(errors="replace")
+                m = re.search(r"records=(\d+), stored=(\d+), duplicates=(\d+)", text)
+                worker_records.append(int(m.group(2)) if m else -1)
+                if "Traceback" in text or os.environ.get("BENCH_LOGS"):
+                    print(text[-3000:], file=sys.stderr)
+            print(f"records stored per worker: {worker_records}")
+        if args.transport == "http":
+            cpu1 = cpu_seconds(db_name)
         cpu_us = {k: round((cpu1[k] - cpu0[k]) / total * 1e6, 1) for k in cpu0}
         print(f"CPU per record (us): {cpu_us}")
         import psycopg
@@ -651,6 +732,7 @@ def main() -> int:
             "acked_total": int(acked),
             "cell_records": int(cells),
             "cpu_us_per_record": cpu_us,
+            "worker_stored": worker_records,
         }
         print(
             f"{args.transport}: {rps:,.0f} records/s sustained ({total} in {elapsed:.2f} s), "
@@ -663,7 +745,7 @@ def main() -> int:
     finally:
         for p in reversed(procs):
             err = stop(p)
-            if "Traceback" in err:
+            if "Traceback" in err or "WARNING" in err or os.environ.get("BENCH_LOGS"):
                 print(err[-3000:], file=sys.stderr)
         shutil.rmtree(tmp, ignore_errors=True)
         if not args.keep_db:
