@@ -1,26 +1,47 @@
-"""Raw psycopg connections for ingest, borrowed from the application's SQLAlchemy pool.
+"""Raw psycopg connections for ingest: a small per-process pool, keyed by DSN.
 
-COPY BINARY and LISTEN need the driver connection itself; borrowing it from
-the engine's pool keeps one pool per process (and its ``jit=off`` option).
+COPY BINARY needs the driver connection itself. The application's SQLAlchemy
+pool pings on every checkout and rolls back on return; at hundreds of batches
+per second those round trips cost more than the batch's own statements, so
+ingest keeps its own LIFO pool of plain connections (``jit=off`` as everywhere).
+A connection that raised is closed, not reused.
 """
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Any
 
 import psycopg
 
-from fieldrx.db.session import get_engine
+from fieldrx.db.session import raw_dsn
+
+MAX_IDLE = 16
+
+_lock = threading.Lock()
+_idle: dict[str, list[psycopg.Connection[Any]]] = {}
 
 
 @contextmanager
-def raw_connection() -> Iterator[psycopg.Connection[Any]]:
-    fairy = get_engine().raw_connection()
+def raw_connection(dsn: str | None = None) -> Iterator[psycopg.Connection[Any]]:
+    dsn = dsn or raw_dsn()
+    with _lock:
+        stack = _idle.setdefault(dsn, [])
+        conn = stack.pop() if stack else None
+    if conn is None or conn.closed:
+        conn = psycopg.connect(dsn, options="-c jit=off")
     try:
-        conn = fairy.driver_connection
-        assert isinstance(conn, psycopg.Connection)
         yield conn
-    finally:
-        fairy.close()
+    except BaseException:
+        conn.close()
+        raise
+    if conn.info.transaction_status != psycopg.pq.TransactionStatus.IDLE:
+        conn.rollback()
+    with _lock:
+        stack = _idle.setdefault(dsn, [])
+        if len(stack) < MAX_IDLE:
+            stack.append(conn)
+            return
+    conn.close()
