@@ -11,7 +11,6 @@ ingest deduplicates by (machine, seq). Messages that arrive within
 
 from __future__ import annotations
 
-import json
 import logging
 import os
 import queue
@@ -22,6 +21,7 @@ from dataclasses import dataclass, field
 from typing import Any
 from urllib.parse import urlparse
 
+import orjson
 import paho.mqtt.client as mqtt
 import psycopg
 from fieldrx_edge.protocol import ack_topic
@@ -174,11 +174,11 @@ class IngestWorker:
             self.stats.messages += 1
             mid = _machine_of(m.topic)
             try:
-                obj = json.loads(m.payload)
+                obj = orjson.loads(m.payload)
                 records = obj["records"] if isinstance(obj, dict) else None
                 if mid is None or not isinstance(records, list):
                     raise ValueError("not a telemetry batch")
-            except (ValueError, KeyError) as exc:
+            except (ValueError, KeyError) as exc:  # orjson.JSONDecodeError is a ValueError
                 log.warning("dropping bad message on %s: %s", m.topic, exc)
                 self.client.ack(m.mid, m.qos)
                 continue
