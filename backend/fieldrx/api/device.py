@@ -1,6 +1,7 @@
 """The machine's side of jobs (device token only): list, download the package, report state.
 
-The package is served with its checksum as a strong ETag; ``If-None-Match``
+The package is built by ``fieldrx.services.jobpackage.build_job_package`` and
+served with its checksum as a strong ETag; ``If-None-Match``
 with the same checksum answers 304, so an agent polls cheaply. Downloading a
 job that was ``sent`` moves it to ``downloaded``.
 """
@@ -20,7 +21,7 @@ from fieldrx.api.jobs import JobOut, job_out
 from fieldrx.auth.deps import DeviceDep, Principal, SessionDep
 from fieldrx.db.models import Job
 from fieldrx.fleet.jobstate import change_state
-from fieldrx.fleet.package import load_package
+from fieldrx.services.jobpackage import build_job_package
 
 router = APIRouter(prefix="/device", tags=["device"])
 
@@ -74,7 +75,10 @@ def job_package(
     job = _my_job(session, job_id, principal)
     if job.state in ("planned", "completed", "aborted"):
         raise ApiError(409, f"job {job_id} is '{job.state}': only sent or active jobs download")
-    pkg = load_package(session, job)
+    try:
+        pkg = build_job_package(session, job)
+    except LookupError as exc:
+        raise ApiError(409, f"job {job_id}: cannot build its package: {exc}") from exc
     body = pkg.to_json()
     etag = f'"{pkg.checksum}"'
     changed = False
