@@ -36,9 +36,11 @@ class LiveHub:
     async def subscribe(self, organisation_id: int) -> asyncio.Queue[str]:
         q: asyncio.Queue[str] = asyncio.Queue(QUEUE_SIZE)
         self._subs.setdefault(organisation_id, set()).add(q)
-        if self._task is None or self._task.done():
+        loop = asyncio.get_running_loop()
+        if self._task is None or self._task.done() or self._task.get_loop() is not loop:
+            # (a new event loop, e.g. a test client's, needs its own listener)
             self._ready = asyncio.Event()
-            self._task = asyncio.create_task(self._listen(self._ready))
+            self._task = loop.create_task(self._listen(self._ready))
         assert self._ready is not None
         with contextlib.suppress(TimeoutError):
             await asyncio.wait_for(self._ready.wait(), 5.0)
