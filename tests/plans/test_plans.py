@@ -159,3 +159,32 @@ def test_demo_size_field_stores_grid_in_path_order(client, org, db) -> None:
         text("SELECT corners_utm FROM plan_cells WHERE plan_id=:p AND seq=0"), {"p": plan["id"]}
     )
     assert len(c) == 8
+
+
+def test_partition_per_plan_follows_plan_and_field_lifecycle(client, org, db) -> None:
+    """Each plan's cells live in their own partition; deleting the plan or its field drops it."""
+    from sqlalchemy import text
+
+    h = org.headers()
+    fid = make_field(client, h)
+    p1, p2 = make_plan(client, h, fid), make_plan(client, h, fid, heading="optimal")
+
+    def exists(pid: int) -> bool:
+        return bool(
+            db.scalar(text("SELECT to_regclass(:t) IS NOT NULL"), {"t": f"plan_cells_p{pid}"})
+        )
+
+    assert exists(p1["id"]) and exists(p2["id"])
+    n = db.scalar(
+        text("SELECT count(*) FROM plan_cells_p" + str(p1["id"])),
+    )
+    assert n == p1["n_cells"]
+    db.rollback()  # release our locks: dropping a partition needs an exclusive lock
+    assert client.delete(f"{API}/plans/{p1['id']}", headers=h).status_code == 204
+    db.rollback()
+    assert not exists(p1["id"]) and exists(p2["id"])
+    db.rollback()
+    assert client.delete(f"{API}/fields/{fid}", headers=h).status_code == 204
+    db.rollback()
+    assert not exists(p2["id"])
+    assert client.get(f"{API}/plans/{p2['id']}", headers=h).status_code == 404

@@ -366,6 +366,7 @@ def plan_summary(plan: Plan) -> dict[str, Any]:
         "params": p,
         "swath_width_m": p.get("swath_width_m"),
         "cell_length_m": p.get("cell_length_m"),
+        "heading": p.get("heading"),
         "heading_rule": p.get("heading"),
         "headland_passes": p.get("headland_passes"),
         "heading_deg": plan.heading_deg,
