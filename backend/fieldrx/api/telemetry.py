@@ -66,7 +66,6 @@ def _ingest(token: str, body: bytes) -> IngestResult:
         401: {"description": "missing, invalid, expired or revoked token"},
         403: {"description": "not a device token"},
     },
-    openapi_extra={"security": [{"HTTPBearer": []}]},
 )
 async def post_telemetry(request: Request) -> Response:
     token = _bearer(request)
