@@ -188,3 +188,16 @@ def test_partition_per_plan_follows_plan_and_field_lifecycle(client, org, db) ->
     db.rollback()
     assert not exists(p2["id"])
     assert client.get(f"{API}/plans/{p2['id']}", headers=h).status_code == 404
+
+
+def test_delete_while_cells_are_read_is_409_not_a_hang(client, org, db) -> None:
+    from sqlalchemy import text
+
+    h = org.headers()
+    plan = make_plan(client, h, make_field(client, h))
+    db.execute(text("SELECT count(*) FROM plan_cells WHERE plan_id = :p"), {"p": plan["id"]})
+    r = client.delete(f"{API}/plans/{plan['id']}", headers=h)  # our open transaction holds a lock
+    assert r.status_code == 409 and "in use" in r.json()["detail"]
+    db.rollback()
+    assert client.get(f"{API}/plans/{plan['id']}", headers=h).status_code == 200
+    assert client.delete(f"{API}/plans/{plan['id']}", headers=h).status_code == 204

@@ -8,6 +8,7 @@ from typing import Any, Literal
 from fastapi import APIRouter, Query
 from pydantic import BaseModel, Field
 from sqlalchemy import func, select
+from sqlalchemy.exc import OperationalError
 
 from fieldrx.api.common import ApiError, get_scoped
 from fieldrx.auth.deps import SessionDep, UserDep, WriterDep
@@ -119,5 +120,10 @@ def list_plan_prescriptions(plan_id: int, principal: UserDep, session: SessionDe
 @router.delete("/plans/{plan_id:int}", status_code=204)
 def remove_plan(plan_id: int, principal: WriterDep, session: SessionDep) -> None:
     """Delete the plan, its cells and the prescriptions made on it."""
-    delete_plan(session, get_scoped(session, Plan, plan_id, principal))
+    plan = get_scoped(session, Plan, plan_id, principal)
+    try:
+        delete_plan(session, plan)
+    except OperationalError as exc:
+        session.rollback()
+        raise ApiError(409, f"plan {plan_id} is in use (its cells are being read); retry") from exc
     session.commit()

@@ -298,7 +298,13 @@ def copy_cells(session: Session, plan_id: int, grid: Grid, epsg: int) -> dict[st
 
 
 def delete_plan(session: Session, plan: Plan) -> None:
-    """Delete the plan; a trigger (migration 0002) drops its partition, no row-by-row delete."""
+    """Delete the plan; a trigger (migration 0002) drops its partition, no row-by-row delete.
+
+    Dropping a partition needs a short exclusive lock on plan_cells; the lock wait is
+    bounded so a busy table makes this fail (sqlalchemy OperationalError) instead of
+    queueing every tile request behind it.
+    """
+    session.execute(text("SET LOCAL lock_timeout = '5s'"))
     session.delete(plan)
     session.flush()
 
