@@ -131,9 +131,10 @@ def machine_track(
     ).scalar_one()
     rows = session.execute(
         text(
-            f"SELECT seq, t, ST_X(geom) AS lon, ST_Y(geom) AS lat, fix_quality,"
-            f" speed_filtered_m_s, heading_deg, job_id, cell_seq, applied_rate_kg_ha,"
-            f" implement_down FROM telemetry WHERE {where}"
+            f"SELECT seq, t, ST_X(geom) AS lon, ST_Y(geom) AS lat, fix_quality, hdop,"
+            f" speed_raw_m_s, speed_filtered_m_s, heading_deg, job_id, cell_seq,"
+            f" target_rate_kg_ha, applied_rate_kg_ha, target_shaft_rpm, actual_shaft_rpm,"
+            f" duty, implement_down, alarms FROM telemetry WHERE {where}"
             f" ORDER BY t, seq LIMIT :lim OFFSET :off"
         ),
         params,
