@@ -258,28 +258,31 @@ def copy_cells(session: Session, plan_id: int, grid: Grid, epsg: int) -> dict[st
     """
     t0 = time.perf_counter()
     polys, n_multi = as_polygons(grid.polygons)
-    payload = list(
-        fast_cell_copy_payloads(
-            plan_id,
-            grid.seq,
-            grid.swath,
-            grid.index_in_swath,
-            grid.area_m2,
-            grid.corners_utm,
-            polys,
-            epsg,
-        )
+    payload = fast_cell_copy_payloads(
+        plan_id,
+        grid.seq,
+        grid.swath,
+        grid.index_in_swath,
+        grid.area_m2,
+        grid.corners_utm,
+        polys,
+        epsg,
     )
-    t1 = time.perf_counter()
+    build_s = 0.0
     part = partition_name(plan_id)
     conn = driver_connection(session)
     with conn.cursor() as cur:
         cur.execute(f"CREATE TABLE {part} (LIKE plan_cells INCLUDING DEFAULTS)")
         with cur.copy(cell_copy_sql(part)) as cp:
-            for chunk in payload:
+            while True:  # streamed: only one 100k-row chunk in memory at a time
+                tb = time.perf_counter()
+                chunk = next(payload, None)
+                build_s += time.perf_counter() - tb
+                if chunk is None:
+                    break
                 cp.write(chunk)
-        del payload
         t2 = time.perf_counter()
+        t1 = t0 + build_s
         cur.execute("SET LOCAL maintenance_work_mem = '256MB'")
         cur.execute(f"ALTER TABLE {part} ADD CONSTRAINT {part}_pkey PRIMARY KEY (plan_id, seq)")
         cur.execute(f"CREATE INDEX {part}_geom_idx ON {part} USING gist (geom)")
