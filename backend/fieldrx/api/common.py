@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Mapping
 from typing import Any, TypeVar
 
 from fastapi import HTTPException, status
@@ -42,3 +43,27 @@ class ApiError(Exception):
         super().__init__(message)
         self.status_code = status_code
         self.body: dict[str, Any] = {"detail": message, **extra}
+
+
+def point_page(
+    rows: Iterable[Mapping[str, Any]], total: int, limit: int, offset: int, **extra: Any
+) -> dict[str, Any]:
+    """A page of telemetry rows (with lon/lat columns) as a GeoJSON FeatureCollection."""
+    feats = [
+        {
+            "type": "Feature",
+            "geometry": {"type": "Point", "coordinates": [r["lon"], r["lat"]]},
+            "properties": {k: v for k, v in r.items() if k not in ("lon", "lat")},
+        }
+        for r in rows
+    ]
+    nxt = offset + len(feats)
+    return {
+        "type": "FeatureCollection",
+        "features": feats,
+        **extra,
+        "total": total,
+        "limit": limit,
+        "offset": offset,
+        "next_offset": nxt if nxt < total else None,
+    }

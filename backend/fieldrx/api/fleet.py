@@ -12,7 +12,7 @@ from typing import Any
 from fastapi import APIRouter, Query
 from sqlalchemy import func, select, text
 
-from fieldrx.api.common import ApiError, get_scoped
+from fieldrx.api.common import ApiError, get_scoped, point_page
 from fieldrx.auth.deps import SessionDep, UserDep, WriterDep
 from fieldrx.db.models import Alert, Machine
 from fieldrx.fleet.alerts import ALERT_KINDS, check_no_data
@@ -139,24 +139,7 @@ def machine_track(
         ),
         params,
     ).mappings()
-    feats = [
-        {
-            "type": "Feature",
-            "geometry": {"type": "Point", "coordinates": [r["lon"], r["lat"]]},
-            "properties": {k: r[k] for k in r.keys() if k not in ("lon", "lat")},
-        }
-        for r in rows
-    ]
-    nxt = offset + len(feats)
-    return {
-        "type": "FeatureCollection",
-        "features": feats,
-        "machine_id": machine_id,
-        "total": total,
-        "limit": limit,
-        "offset": offset,
-        "next_offset": nxt if nxt < total else None,
-    }
+    return point_page(rows, total or 0, limit, offset, machine_id=machine_id)
 
 
 CHART_COLUMNS = (

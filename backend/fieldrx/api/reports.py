@@ -24,7 +24,7 @@ from geoalchemy2.shape import to_shape
 from shapely.geometry import mapping
 from sqlalchemy import select, text
 
-from fieldrx.api.common import ApiError, get_scoped
+from fieldrx.api.common import ApiError, get_scoped, point_page
 from fieldrx.auth.deps import SessionDep, UserDep
 from fieldrx.db.models import Field, Job, JobEvent, PlanCell, Prescription
 from fieldrx.fleet.reports import JobReport, build_report, job_plan
@@ -120,23 +120,7 @@ def as_applied_points(
         ),
         params,
     ).mappings()
-    feats = [
-        {
-            "type": "Feature",
-            "geometry": {"type": "Point", "coordinates": [r["lon"], r["lat"]]},
-            "properties": {k: r[k] for k in r.keys() if k not in ("lon", "lat")},
-        }
-        for r in rows
-    ]
-    nxt = offset + len(feats)
-    return {
-        "type": "FeatureCollection",
-        "features": feats,
-        "total": total,
-        "limit": limit,
-        "offset": offset,
-        "next_offset": nxt if nxt < (total or 0) else None,
-    }
+    return point_page(rows, total or 0, limit, offset)
 
 
 def _cell_geoms(session: SessionDep, plan_id: int) -> dict[int, Any]:
