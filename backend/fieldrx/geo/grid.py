@@ -236,7 +236,7 @@ def _inner_cells(plan: CoveragePlan, inner: list[Swath], cell: float) -> _Cells:
         cut = shapely.transform(_only_polygons(cut), fr.inv)
         polys[part] = cut
         area[part] = shapely.area(cut)
-        cent[part] = _inside_centres(cut)
+        cent[part] = inside_centres(cut)
     return _Cells(sidx[rep], j, corners, polys, area, cent, False)
 
 
@@ -279,7 +279,7 @@ def _rectangles(corners: np.ndarray) -> np.ndarray:
     return shapely.from_ragged_array(shapely.GeometryType.POLYGON, closed, offsets)
 
 
-def _inside_centres(polys: np.ndarray) -> np.ndarray:
+def inside_centres(polys: np.ndarray) -> np.ndarray:
     """Centroid, or a point on the surface where the centroid falls outside the cell."""
     c = shapely.centroid(polys)
     bad = ~shapely.within(c, polys) & ~shapely.is_empty(polys)
@@ -478,7 +478,7 @@ def _absorb_leftovers(area: BaseGeometry, groups: list[_Cells]) -> None:
         merged = _only_polygons(np.array([shapely.union_all([g.polys[k], *add])]))[0]
         g.polys[k] = merged
         g.area[k] = shapely.area(merged)
-        g.cent[k] = _inside_centres(np.array([merged], dtype=object))[0]
+        g.cent[k] = inside_centres(np.array([merged], dtype=object))[0]
 
 
 def _absorb_inner_leftovers(frame: Frame, inner: list[Swath], cells: _Cells) -> None:
@@ -534,7 +534,7 @@ def _resolve_overlaps(rings: list[_Cells]) -> list[_Cells]:
                 np.array([shapely.difference(allp[a], shapely.union_all(allp[earlier]))])
             )[0]
     area = shapely.area(allp)
-    cent = _inside_centres(allp)
+    cent = inside_centres(allp)
     out = []
     o = 0
     for r in rings:
@@ -572,7 +572,7 @@ def _merge_slivers(cat: dict[str, np.ndarray], min_area: float) -> np.ndarray:
         merged = _only_polygons(np.array([shapely.union(cat["polys"][target], cat["polys"][i])]))[0]
         cat["polys"][target] = merged
         cat["area"][target] = shapely.area(merged)
-        cat["cent"][target] = _inside_centres(np.array([merged], dtype=object))[0]
+        cat["cent"][target] = inside_centres(np.array([merged], dtype=object))[0]
         cr = cat["corners"]
         if target < i:  # the sliver extends the target forward
             cr[target, 1], cr[target, 2] = cr[i, 1], cr[i, 2]

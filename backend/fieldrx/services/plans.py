@@ -24,7 +24,7 @@ from fieldrx.api.common import shape_to_db
 from fieldrx.db.models import Field, Plan
 from fieldrx.geo.coverage import plan_coverage
 from fieldrx.geo.crs import to_utm, to_wgs84
-from fieldrx.geo.grid import Grid, build_grid
+from fieldrx.geo.grid import Grid, build_grid, inside_centres
 from fieldrx.services import copy as pgcopy
 
 POLYGON = 3
@@ -409,18 +409,6 @@ def cells_page(session: Session, plan_id: int, limit: int, offset: int) -> list[
         }
         for seq, swath, idx, area, gj in rows
     ]
-
-
-def inside_centres(polys: np.ndarray) -> np.ndarray:
-    """Centroid, or a point on the surface where the centroid falls outside the cell."""
-    c = shapely.centroid(polys)
-    bad = ~shapely.within(c, polys) & ~shapely.is_empty(polys)
-    if bad.any():
-        c[bad] = shapely.point_on_surface(polys[bad])
-    xy = np.full((len(polys), 2), np.nan)
-    ok = ~shapely.is_empty(c)
-    xy[ok] = shapely.get_coordinates(c[ok])
-    return xy
 
 
 def _to_utm(lonlat: np.ndarray, epsg: int) -> np.ndarray:
