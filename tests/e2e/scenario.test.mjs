@@ -235,7 +235,7 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
   it('plans coverage and shows path, grid and stats', async (t) => {
     if (!need(t, 'fieldId')) return;
     if (!(await needEndpoint(t, 'POST', '/fields/{}/plans', 'planning'))) return;
-    await page.fill('[data-testid=plan-swath]', '12');
+    await page.fill('[data-testid=plan-swath]', '2.3'); // the demo machine's width: jobs refuse a mismatch
     await page.fill('[data-testid=plan-cell]', '5');
     await page.selectOption('[data-testid=plan-heading-rule]', 'longest_edge');
     await page.fill('[data-testid=plan-headland]', '1');

@@ -144,3 +144,18 @@ def test_isolation(client, make_org) -> None:  # noqa: ANN001
         assert r.status_code == 404
     assert client.get(f"/api/v1/jobs/{fa.job_id}", headers=fa.device_headers).status_code == 403
     assert client.get("/api/v1/device/jobs", headers=a.headers()).status_code == 403
+
+
+def test_machine_width_must_match_the_plan(client, org) -> None:  # noqa: ANN001
+    fx = make_job(org.id)
+    wide = client.post(
+        "/api/v1/machines", headers=org.headers(), json={"name": "12 m spreader", "width_m": 12.0}
+    ).json()
+    r = client.post(
+        "/api/v1/jobs",
+        json={"prescription_id": fx.prescription_id, "machine_id": wide["id"]},
+        headers=org.headers(),
+    )
+    assert r.status_code == 422, r.text
+    assert "works 12 m wide" in r.json()["detail"] and r.json()["where"] == "machine_id"
+    assert client.get("/api/v1/jobs", headers=org.headers()).json()["total"] == 1  # only fx's

@@ -16,6 +16,7 @@ from fieldrx.db.models import (
     Job,
     JobEvent,
     Machine,
+    Plan,
     Prescription,
     PrescriptionRate,
     PrescriptionVersion,
@@ -96,6 +97,19 @@ def _events(session: SessionDep, job_id: int) -> list[JobEvent]:
     )
 
 
+def _check_width(session: SessionDep, rx: Prescription, machine: Machine) -> None:
+    """The grid's cells are one swath wide: a machine of another width would meter wrongly."""
+    plan = session.get(Plan, rx.plan_id)
+    swath = float((plan.params or {}).get("swath_width_m") or 0.0) if plan else 0.0
+    if swath > 0 and abs(machine.width_m - swath) > 0.01 * swath:
+        raise ApiError(
+            422,
+            f"machine '{machine.name}' works {machine.width_m:g} m wide but plan {rx.plan_id}"
+            f" was planned with {swath:g} m swaths; plan the field again with the machine's width",
+            where="machine_id",
+        )
+
+
 @router.post("", response_model=JobOut, status_code=201)
 def create_job(body: JobIn, principal: WriterDep, session: SessionDep) -> JobOut:
     rx = session.get(Prescription, body.prescription_id)
@@ -114,6 +128,7 @@ def create_job(body: JobIn, principal: WriterDep, session: SessionDep) -> JobOut
     )
     if v is None:
         raise ApiError(404, f"prescription {rx.id} has no version {version}", where="version")
+    _check_width(session, rx, machine)
     n_cells = session.scalar(
         select(func.count())
         .select_from(PrescriptionRate)

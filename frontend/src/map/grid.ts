@@ -7,7 +7,8 @@ import type * as maplibregl from 'maplibre-gl';
 import { absoluteApiUrl } from './setup';
 
 export const GRID_MINZOOM = 8;
-export const GRID_MAXZOOM = 16;
+// Detail tiles (one feature per cell) start where a cell is ~2 px wide: z17 for 2.3 m cells.
+export const GRID_MAXZOOM = 19;
 
 export function planTilesUrl(planId: number): string {
   return absoluteApiUrl(`/api/v1/tiles/plans/${planId}/{z}/{x}/{y}.mvt`);

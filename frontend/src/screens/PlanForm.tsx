@@ -5,8 +5,8 @@ import type { Plan } from '../types';
 
 /** Planning parameters (metres, degrees); the server validates and returns 422 with the field name. */
 export function PlanForm({ fieldId, onCreated }: { fieldId: number; onCreated: (p: Plan) => void }) {
-  const [swath, setSwath] = useState('12');
-  const [cell, setCell] = useState('10');
+  const [swath, setSwath] = useState('2.3'); // seed 001's implement width
+  const [cell, setCell] = useState('5'); // seed 001: L >= v_max * T_lag = 3.8 m
   const [rule, setRule] = useState('longest_edge');
   const [heading, setHeading] = useState('0');
   const [headland, setHeadland] = useState('1');
