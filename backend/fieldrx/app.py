@@ -5,10 +5,12 @@ from __future__ import annotations
 import importlib
 from pathlib import Path
 
+import psycopg
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import FileResponse, JSONResponse
 from fastapi.staticfiles import StaticFiles
+from sqlalchemy import exc as sa_exc
 
 from fieldrx import __version__
 from fieldrx.api.common import ApiError
@@ -58,6 +60,16 @@ def create_app() -> FastAPI:
     @app.exception_handler(ApiError)
     async def _api_error(_: Request, exc: ApiError) -> JSONResponse:
         return JSONResponse(status_code=exc.status_code, content=exc.body)
+
+    @app.exception_handler(sa_exc.DataError)
+    @app.exception_handler(psycopg.errors.DataError)
+    async def _data_error(_: Request, exc: Exception) -> JSONResponse:
+        """Values the database cannot hold (an id beyond 64 bits, a huge offset) are bad input."""
+        orig = getattr(exc, "orig", exc)
+        reason = str(orig).splitlines()[0] if str(orig) else type(orig).__name__
+        return JSONResponse(
+            status_code=422, content={"detail": f"a value is out of range: {reason}"}
+        )
 
     @app.exception_handler(RequestValidationError)
     async def _validation_error(_: Request, exc: RequestValidationError) -> JSONResponse:

@@ -59,3 +59,11 @@ def test_device_token_reads_only_own_machine(client, org) -> None:
     # a new token revokes the old one
     client.post(f"/api/v1/machines/{m1['id']}/device-token", headers=h)
     assert client.get(f"/api/v1/machines/{m1['id']}", headers=dh).status_code == 401
+
+
+def test_ids_beyond_the_database_range_are_bad_input_not_500(client, org) -> None:
+    h = org.headers()
+    for path in ("/api/v1/farms/10000000000000000001", "/api/v1/farms?offset=10000000000000000001"):
+        r = client.get(path, headers=h)
+        assert r.status_code == 422, (path, r.text)
+        assert "out of range" in r.json()["detail"]
