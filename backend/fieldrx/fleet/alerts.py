@@ -87,8 +87,8 @@ def conditions(
         "speed_out_of_range": (
             rules.speed_duration_s,
             speed,
-            f"ground speed outside the calibrated {speed_min_m_s:g}-{speed_max_m_s:g} m/s"
-            f" for {rules.speed_duration_s:g} s",
+            f"ground speed outside the planned {speed_min_m_s * 3.6:.1f}-{speed_max_m_s * 3.6:.1f}"
+            f" km/h for {rules.speed_duration_s:g} s",
         ),
         "shaft_saturation": (
             rules.saturation_duration_s,
