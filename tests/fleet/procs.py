@@ -97,7 +97,11 @@ def start_api(database_url: str, port: int | None = None, workers: int = 1) -> t
 
 
 def start_worker(
-    database_url: str, group: str, mqtt_url: str = "mqtt://127.0.0.1:1883", batch_ms: int = 50
+    database_url: str,
+    group: str,
+    mqtt_url: str = "mqtt://127.0.0.1:1883",
+    batch_ms: int = 50,
+    env: dict[str, str] | None = None,
 ) -> Proc:
     proc = Proc(
         [
@@ -110,7 +114,7 @@ def start_worker(
             "--mqtt-url",
             mqtt_url,
         ],
-        {"DATABASE_URL": database_url, "FIELDRX_HEARTBEAT_TIMEOUT_S": "30"},
+        {"DATABASE_URL": database_url, "FIELDRX_HEARTBEAT_TIMEOUT_S": "30", **(env or {})},
     )
     proc.wait_for("subscribed to")
     return proc
