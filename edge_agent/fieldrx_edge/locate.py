@@ -10,6 +10,12 @@ uniform grid hash over the cells' bounding boxes answers in O(1) as well.
 all rings (outer rings and holes), restricted to the edges that span the
 point's horizontal band, so a 1000-vertex boundary costs a handful of edge
 tests per fix. The agent must never apply outside the field or in a hole.
+
+Cells are the package's 4-corner rectangles (seed 001 Table 1), except where
+the package gives a cell's real shape (field edge, holes, headland rings:
+``JobPackage.shape_*``): there a point is in the cell only if it is in the
+shape (even-odd over its rings, behind a bounding-box test), so overlapping
+rectangles of neighbouring headland cells no longer claim each other's points.
 """
 
 from __future__ import annotations
@@ -123,6 +129,46 @@ def _in_quad(q: tuple[float, ...], x: float, y: float) -> bool:
     return inside
 
 
+Shape = tuple[tuple[float, float, float, float], tuple[tuple[float, ...], ...]]
+
+
+def _in_shape(sh: Shape, x: float, y: float) -> bool:
+    """Point in a cell shape: bounding box first, then even-odd over all its rings."""
+    bx0, by0, bx1, by1 = sh[0]
+    if x < bx0 or x > bx1 or y < by0 or y > by1:
+        return False
+    inside = False
+    for ring in sh[1]:
+        x0, y0 = ring[-2], ring[-1]
+        for i in range(0, len(ring), 2):
+            x1, y1 = ring[i], ring[i + 1]
+            if (y0 > y) != (y1 > y) and x < x0 + (y - y0) * (x1 - x0) / (y1 - y0):
+                inside = not inside
+            x0, y0 = x1, y1
+    return inside
+
+
+def points_in_rings(rings: list[list[float]], x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Vectorised even-odd test of many points against one cell shape (simulator)."""
+    inside = np.zeros(len(x), dtype=bool)
+    for r in rings:
+        p = np.asarray(r, dtype=float).reshape(-1, 2)
+        q = np.roll(p, -1, axis=0)
+        for (x0, y0), (x1, y1) in zip(p.tolist(), q.tolist(), strict=True):
+            if y0 == y1:
+                continue
+            cond = (y0 > y) != (y1 > y)
+            inside ^= cond & (x < x0 + (y - y0) * (x1 - x0) / (y1 - y0))
+    return inside
+
+
+def _make_shape(rings: list[list[float]]) -> Shape:
+    flat = [tuple(float(v) for v in r) for r in rings]
+    xs = [v for r in flat for v in r[0::2]]
+    ys = [v for r in flat for v in r[1::2]]
+    return (min(xs), min(ys), max(xs), max(ys)), tuple(flat)
+
+
 class CellLocator:
     """Path-ordered cell search with finished-cell dropping and a grid-hash fallback.
 
@@ -130,15 +176,27 @@ class CellLocator:
     -1. ``finished`` marks cells already applied; the forward search skips
     them, while the fallback still reports them (so overlap control can tell a
     point is in an already-applied cell).
+
+    ``shapes`` (path index -> rings as flat x y lists, ``JobPackage.cell_shapes``)
+    replaces the rectangle of those cells; the grid hash then covers the
+    shape's bounding box.
     """
 
     def __init__(
-        self, corners_utm: np.ndarray | list[float], window: int = 6, bucket_m: float | None = None
+        self,
+        corners_utm: np.ndarray | list[float],
+        window: int = 6,
+        bucket_m: float | None = None,
+        shapes: dict[int, list[list[float]]] | None = None,
     ) -> None:
         c = np.asarray(corners_utm, dtype=float).reshape(-1, 8)
         self.n = len(c)
         self.corners = c
         self._quads: list[tuple[float, ...]] = [tuple(row) for row in c.tolist()]
+        self._shapes: list[Shape | None] = [None] * self.n
+        for k, rings in (shapes or {}).items():
+            self._shapes[k] = _make_shape(rings)
+        self.n_shapes = sum(1 for sh in self._shapes if sh is not None)
         self.finished = np.zeros(self.n, dtype=bool)
         self._fin = self.finished  # same buffer; numpy bool indexing is fast enough
         self.window = window
@@ -146,6 +204,9 @@ class CellLocator:
         self.fallbacks = 0
         xs, ys = c[:, 0::2], c[:, 1::2]
         bx0, bx1, by0, by1 = xs.min(1), xs.max(1), ys.min(1), ys.max(1)
+        for k, sh in enumerate(self._shapes):
+            if sh is not None:
+                bx0[k], by0[k], bx1[k], by1[k] = sh[0]
         if self.n == 0:
             self.x0 = self.y0 = 0.0
             self.b = 1.0
@@ -189,25 +250,35 @@ class CellLocator:
         k = j * self.nx + i
         return self._itemlist[self._startlist[k] : self._startlist[k + 1]]
 
+    def contains(self, k: int, x: float, y: float) -> bool:
+        """Is (x, y) in cell k (its shape if it has one, else its rectangle)?"""
+        sh = self._shapes[k]
+        return _in_quad(self._quads[k], x, y) if sh is None else _in_shape(sh, x, y)
+
     def locate(self, x: float, y: float) -> int:
         """Cell under (x, y), searching forward in path order first."""
-        quads, fin = self._quads, self.finished
+        quads, shapes, fin = self._quads, self._shapes, self.finished
         cur = self.current
         n = self.n
         if n == 0:
             return -1
-        if not fin[cur] and _in_quad(quads[cur], x, y):
-            return cur
+        if not fin[cur]:
+            sh = shapes[cur]
+            if _in_quad(quads[cur], x, y) if sh is None else _in_shape(sh, x, y):
+                return cur
         end = min(n, cur + 1 + self.window)
         for k in range(cur + 1, end):
-            if not fin[k] and _in_quad(quads[k], x, y):
-                self.current = k
-                return k
+            if not fin[k]:
+                sh = shapes[k]
+                if _in_quad(quads[k], x, y) if sh is None else _in_shape(sh, x, y):
+                    self.current = k
+                    return k
         # off the path: spatial fallback; prefer an unfinished cell, lowest path index
         self.fallbacks += 1
         best = -1
         for k in self.candidates(x, y):
-            if _in_quad(quads[k], x, y):
+            sh = shapes[k]
+            if _in_quad(quads[k], x, y) if sh is None else _in_shape(sh, x, y):
                 if not fin[k]:
                     self.current = k
                     return k
@@ -217,18 +288,20 @@ class CellLocator:
 
     def distance_to_cell(self, idx: int, x: float, y: float) -> float:
         """Distance from a point to a cell (0 inside): border hysteresis against GNSS jitter."""
-        q = self._quads[idx]
-        if _in_quad(q, x, y):
+        if self.contains(idx, x, y):
             return 0.0
+        sh = self._shapes[idx]
+        rings = (self._quads[idx],) if sh is None else sh[1]
         best = math.inf
-        x0, y0 = q[6], q[7]
-        for i in range(0, 8, 2):
-            x1, y1 = q[i], q[i + 1]
-            dx, dy = x1 - x0, y1 - y0
-            L2 = dx * dx + dy * dy
-            t = 0.0 if L2 == 0 else max(0.0, min(1.0, ((x - x0) * dx + (y - y0) * dy) / L2))
-            best = min(best, math.hypot(x - x0 - t * dx, y - y0 - t * dy))
-            x0, y0 = x1, y1
+        for q in rings:
+            x0, y0 = q[-2], q[-1]
+            for i in range(0, len(q), 2):
+                x1, y1 = q[i], q[i + 1]
+                dx, dy = x1 - x0, y1 - y0
+                L2 = dx * dx + dy * dy
+                t = 0.0 if L2 == 0 else max(0.0, min(1.0, ((x - x0) * dx + (y - y0) * dy) / L2))
+                best = min(best, math.hypot(x - x0 - t * dx, y - y0 - t * dy))
+                x0, y0 = x1, y1
         return best
 
     def locate_naive(self, x: float, y: float) -> int:
@@ -242,9 +315,27 @@ class CellLocator:
             with np.errstate(divide="ignore", invalid="ignore"):
                 xi = x0 + (y - y0) * (x1 - x0) / (y1 - y0)
             inside ^= cond & (x < xi)
+        if self.n_shapes:
+            if not hasattr(self, "_shape_edges"):
+                rows = []
+                for k, sh in enumerate(self._shapes):
+                    if sh is None:
+                        continue
+                    for r in sh[1]:
+                        a = np.asarray(r).reshape(-1, 2)
+                        b = np.roll(a, -1, axis=0)
+                        rows.append(np.column_stack([a, b, np.full(len(a), k)]))
+                self._shape_edges = np.vstack(rows)
+                self._shaped_mask = np.array([sh is not None for sh in self._shapes])
+            e = self._shape_edges
+            cond = (e[:, 1] > y) != (e[:, 3] > y)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                xi = e[:, 0] + (y - e[:, 1]) * (e[:, 2] - e[:, 0]) / (e[:, 3] - e[:, 1])
+            cross = np.bincount(e[cond & (x < xi), 4].astype(np.int64), minlength=self.n)
+            inside = np.where(self._shaped_mask, cross % 2 == 1, inside)
         hits = np.flatnonzero(inside)
         return int(hits[0]) if len(hits) else -1
 
 
 def locator_for_job(job: JobPackage) -> tuple[CellLocator, FieldBoundary]:
-    return CellLocator(job.corners_utm), FieldBoundary(job.boundary_utm)
+    return CellLocator(job.corners_utm, shapes=job.cell_shapes()), FieldBoundary(job.boundary_utm)

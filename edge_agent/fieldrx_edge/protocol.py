@@ -52,6 +52,25 @@ class JobPackage:
     path order as ``seq``. ``boundary_utm`` is the field boundary as GeoJSON
     Polygon/MultiPolygon coordinates in the field's UTM zone (holes included):
     the agent never applies outside it.
+
+    The four corners are the cell's unclipped implement footprint (Table 1). At
+    the field edge, around holes and in headland rings the real cell (clipped
+    to the field, or between two offset curves) differs from it, and the
+    rectangles of neighbouring cells overlap. Such cells also carry their real
+    shape, as ragged rings in UTM, so the agent locates points in the cells the
+    server planned and reports on (interior cells carry nothing extra):
+
+    * ``shape_seq``: seq of each shaped cell, in path order (m cells);
+    * ``shape_ring_offsets``: m + 1 offsets into the ring list; cell k's rings
+      are rings ``shape_ring_offsets[k]:shape_ring_offsets[k + 1]`` (outer
+      rings and holes alike: a point is in the cell by even-odd over all rings);
+    * ``shape_offsets``: R + 1 offsets into the vertex list; ring r's vertices
+      are ``shape_xy_utm[2 * shape_offsets[r]:2 * shape_offsets[r + 1]]`` as
+      x y pairs, open (the first vertex is not repeated), at least 3 each.
+
+    The shape fields are optional: a package without them (every older
+    package) loads unchanged and keeps its checksum, because empty shape fields
+    are left out of the canonical JSON; when present, the checksum covers them.
     """
 
     job_id: int
@@ -77,6 +96,10 @@ class JobPackage:
     fix_loss_hold_s: float = 2.0  # hold the last rate this long after losing fix, then stop
     overlap_control: bool = True
     product: str = ""
+    shape_seq: list[int] = field(default_factory=list)
+    shape_ring_offsets: list[int] = field(default_factory=list)
+    shape_offsets: list[int] = field(default_factory=list)
+    shape_xy_utm: list[float] = field(default_factory=list)
     format_version: int = FORMAT_VERSION
     checksum: str = ""
 
@@ -89,7 +112,21 @@ class JobPackage:
         deep-copy ~1.6 M numbers for a 100k-cell job)."""
         body = {f.name: getattr(self, f.name) for f in fields(self) if f.name != "checksum"}
         body["controller"] = asdict(self.controller)
+        if not self.shape_seq:  # optional: absent shapes keep older packages' bytes and checksum
+            for name in SHAPE_FIELDS:
+                del body[name]
         return body
+
+    def cell_shapes(self) -> dict[int, list[list[float]]]:
+        """Shaped cells: path index -> rings, each a flat x y list in UTM (see class doc)."""
+        if not self.shape_seq:
+            return {}
+        index = {s: i for i, s in enumerate(self.seq)}
+        ro, vo, xy = self.shape_ring_offsets, self.shape_offsets, self.shape_xy_utm
+        out: dict[int, list[list[float]]] = {}
+        for k, s in enumerate(self.shape_seq):
+            out[index[s]] = [xy[2 * vo[r] : 2 * vo[r + 1]] for r in range(ro[k], ro[k + 1])]
+        return out
 
     def compute_checksum(self) -> str:
         return hashlib.sha256(_canonical(self._body())).hexdigest()
@@ -110,6 +147,7 @@ class JobPackage:
         ):
             if got != want:
                 raise ProtocolError(f"job package: {name} has {got} values, expected {want}")
+        self._validate_shapes()
         if self.implement_width_m <= 0:
             raise ProtocolError("job package: implement_width_m must be positive")
         if self.lag_s < 0:
@@ -117,6 +155,37 @@ class JobPackage:
         for i, r in enumerate(self.rate_kg_ha):
             if not math.isfinite(r) or r < 0:
                 raise ProtocolError(f"job package: cell {self.seq[i]} has invalid rate {r!r}")
+
+    def _validate_shapes(self) -> None:
+        m = len(self.shape_seq)
+        ro, vo, xy = self.shape_ring_offsets, self.shape_offsets, self.shape_xy_utm
+        if m == 0:
+            if ro or vo or xy:
+                raise ProtocolError("job package: shape fields given without shape_seq")
+            return
+        known = set(self.seq)
+        if len(set(self.shape_seq)) != m or any(s not in known for s in self.shape_seq):
+            raise ProtocolError("job package: shape_seq must name distinct cells of seq")
+        if len(ro) != m + 1 or ro[0] != 0 or any(b <= a for a, b in zip(ro, ro[1:], strict=False)):
+            raise ProtocolError(
+                f"job package: shape_ring_offsets must be {m + 1} increasing offsets from 0"
+            )
+        n_rings = ro[-1]
+        if (
+            len(vo) != n_rings + 1
+            or vo[0] != 0
+            or any(b - a < 3 for a, b in zip(vo, vo[1:], strict=False))
+        ):
+            raise ProtocolError(
+                f"job package: shape_offsets must be {n_rings + 1} offsets from 0,"
+                " at least 3 vertices per ring"
+            )
+        if len(xy) != 2 * vo[-1]:
+            raise ProtocolError(
+                f"job package: shape_xy_utm has {len(xy)} values, expected {2 * vo[-1]}"
+            )
+        if not all(math.isfinite(v) for v in xy):
+            raise ProtocolError("job package: shape_xy_utm has a non-finite coordinate")
 
     def to_json(self) -> bytes:
         if not self.checksum:
@@ -146,6 +215,8 @@ class JobPackage:
             raise ProtocolError("job package: checksum does not match its content")
         return pkg
 
+
+SHAPE_FIELDS = ("shape_seq", "shape_ring_offsets", "shape_offsets", "shape_xy_utm")
 
 # Telemetry -----------------------------------------------------------------
 

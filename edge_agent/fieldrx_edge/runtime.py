@@ -86,7 +86,7 @@ class Pipeline:
         self.job = job
         self.cfg = cfg or RuntimeConfig()
         self.proj = UtmProjection(job.utm_epsg)
-        self.locator = CellLocator(job.corners_utm)
+        self.locator = CellLocator(job.corners_utm, shapes=job.cell_shapes())
         self.boundary = FieldBoundary(job.boundary_utm)
         for i in finished:
             self.locator.finished[i] = True

@@ -13,9 +13,15 @@ Per cell (path order, planned rate M in kg/ha):
   between this record and the next); that mass lands T_lag later (seed 001
   eq. 16) at the outlet, i.e. where the track is at t + dt/2 + T_lag, moved
   ``antenna_forward_m`` along the heading. The landing point is located in the
-  cells' quadrilaterals; mass landing off the field or outside every cell is
+  cells' quadrilaterals, or in the real cell polygon (``plan_cells.geom``) for
+  the cells whose polygon differs from the rectangle (field edge, holes,
+  headland rings: ``formats.jobpackage.shaped_cells``, the cells that carry
+  their shape in the job package); mass landing off the field or outside every cell is
   "outside". Records without positions fall back to their own ``cell_seq``
   (the lag-compensated cell the agent metered for);
+* for those shaped cells d is the length inside the real polygon of the centre
+  lines of the cell and its same-swath neighbours, joined (5 m straight on at a
+  swath's end), as the edge simulator's ``shape_drive_len`` counts it;
 * accuracy theta = (1 - |M1 - M2| / M1) * 100 % (seed 001 eq. 18).
 
 Coverage = cells that received fertilizer / cells with a planned rate > 0.
@@ -35,6 +41,7 @@ from sqlalchemy import text
 from sqlalchemy.orm import Session
 
 from fieldrx.db.models import Field, Job, Machine, Plan, Prescription
+from fieldrx.formats.jobpackage import shaped_cells
 from fieldrx.geo.crs import to_utm
 
 MAX_GAP_S = 2.0
@@ -125,6 +132,39 @@ def driven_length(corners: np.ndarray, swath_width_m: float, boundary_utm: Any) 
     return out
 
 
+def shaped_driven_length(
+    corners: np.ndarray, swath: np.ndarray, polys: np.ndarray, which: np.ndarray
+) -> np.ndarray:
+    """Driving-line length inside the real polygon of each cell in ``which``.
+
+    The line joins the centre lines (rear -> front cut-edge midpoints; corners are
+    rear-right, front-right, front-left, rear-left) of the cell and of its neighbours
+    in the same swath, 5 m straight on where the swath starts or ends: the same line
+    the edge simulator measures (``fieldrx_edge.sim.simulator.shape_drive_len``).
+    """
+    c = corners.reshape(-1, 4, 2)
+    n = len(c)
+    rear = (c[:, 3] + c[:, 0]) / 2
+    front = (c[:, 1] + c[:, 2]) / 2
+    out = np.zeros(n)
+    lines = []
+    for i in which:
+        d = front[i] - rear[i]
+        u = d / max(float(np.hypot(*d)), 1e-9)
+        pts = (
+            [rear[i - 1], front[i - 1]] if i > 0 and swath[i - 1] == swath[i] else [rear[i] - 5 * u]
+        )
+        pts += [rear[i], front[i]]
+        if i + 1 < n and swath[i + 1] == swath[i]:
+            pts += [rear[i + 1], front[i + 1]]
+        else:
+            pts.append(front[i] + 5 * u)
+        lines.append(shapely.linestrings(np.asarray(pts)))
+    if len(lines):
+        out[which] = shapely.length(shapely.intersection(np.asarray(lines), polys[which]))
+    return out
+
+
 def _metered_g(
     machine: Machine | None,
     rpm: np.ndarray,
@@ -154,7 +194,7 @@ def _landing_cells(
     heading_deg: np.ndarray,
     cell: np.ndarray,
     seqs: np.ndarray,
-    corners: np.ndarray,
+    cell_geoms: np.ndarray,
     boundary: Any,
     lag_s: float,
     forward_m: float,
@@ -176,11 +216,12 @@ def _landing_cells(
         )
         xl = xl + forward_m * np.sin(hl)
         yl = yl + forward_m * np.cos(hl)
-        quads = shapely.polygons(corners.reshape(-1, 4, 2))
-        tree = shapely.STRtree(quads)
+        tree = shapely.STRtree(cell_geoms)
         pts = shapely.points(xl, yl)
         pi, ci = tree.query(pts, predicate="intersects")
         if len(pi):
+            order = np.lexsort((ci, pi))  # lowest cell index first, as the agent's locator
+            pi, ci = pi[order], ci[order]
             first, at = np.unique(pi, return_index=True)
             out[first] = ci[at]
         if boundary is not None:
@@ -210,15 +251,22 @@ def build_report(session: Session, job: Job, max_gap_s: float = MAX_GAP_S) -> Jo
     machine = session.get(Machine, job.machine_id)
     width = machine.width_m if machine is not None else 0.0
     plan = job_plan(session, job)
+    fld = session.get(Field, plan.field_id)
     cells = session.execute(
         text(
-            "SELECT pc.seq, pc.swath, pc.corners_utm, coalesce(r.rate_kg_ha, 0) AS rate"
+            "SELECT pc.seq, pc.swath, pc.corners_utm, coalesce(r.rate_kg_ha, 0) AS rate,"
+            " ST_AsBinary(ST_Transform(pc.geom, :epsg)) AS geom"
             " FROM plan_cells pc"
             " LEFT JOIN prescription_versions v ON v.prescription_id = :rx AND v.version = :ver"
             " LEFT JOIN prescription_rates r ON r.version_id = v.id AND r.seq = pc.seq"
             " WHERE pc.plan_id = :plan ORDER BY pc.seq"
         ),
-        {"rx": job.prescription_id, "ver": job.prescription_version, "plan": plan.id},
+        {
+            "rx": job.prescription_id,
+            "ver": job.prescription_version,
+            "plan": plan.id,
+            "epsg": fld.utm_epsg if fld is not None else 4326,
+        },
     ).all()
     n = len(cells)
     seqs = np.asarray([c.seq for c in cells], dtype=np.int64)
@@ -226,10 +274,17 @@ def build_report(session: Session, job: Job, max_gap_s: float = MAX_GAP_S) -> Jo
     rate = np.asarray([c.rate for c in cells], dtype=float)
     corners = np.asarray([c.corners_utm for c in cells], dtype=float).reshape(n, 8)
     area = quad_area(corners) if n else np.zeros(0)
-    fld = session.get(Field, plan.field_id)
     boundary = to_utm(to_shape(fld.boundary), fld.utm_epsg) if fld is not None else None
     swath_w = float((plan.params or {}).get("swath_width_m") or width or 1.0)
     drive = driven_length(corners, swath_w, boundary)
+    # real cells where they differ from the rectangle (edge, holes, headland rings)
+    quads = shapely.polygons(corners.reshape(-1, 4, 2)) if n else np.zeros(0, dtype=object)
+    polys = shapely.from_wkb(np.asarray([bytes(c.geom) for c in cells], dtype=object))
+    shaped = shaped_cells(polys, corners) if n else np.zeros(0, dtype=bool)
+    which = np.flatnonzero(shaped)
+    cell_geoms = np.where(shaped, polys, quads) if n else quads
+    if len(which):
+        drive[which] = shaped_driven_length(corners, swath, polys, which)[which]
     m1 = rate * width * drive / 10.0  # seed 001 eq. 17: M v t l / 36 g, v t = driven length
 
     recs = session.execute(
@@ -261,7 +316,7 @@ def build_report(session: Session, job: Job, max_gap_s: float = MAX_GAP_S) -> Jo
         mass = _metered_g(machine, rpm, applied, width, v, dts)
         time_worked = float(dts[down].sum())
         idx = _landing_cells(
-            t, dts, x, y, heading, cell, seqs, corners, boundary,
+            t, dts, x, y, heading, cell, seqs, cell_geoms, boundary,
             machine.lag_s if machine else 0.0, machine.antenna_forward_m if machine else 0.0,
         )  # fmt: skip
         in_cell = idx >= 0

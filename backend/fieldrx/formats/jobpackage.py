@@ -3,6 +3,12 @@
 Cells go in path order with UTM corners (for the agent's metric cell lookup)
 and WGS84 corners (display, cross-checks), rounded to what matters in the
 field: 1 mm in UTM, 1e-8 degrees (about 1 mm) in WGS84, 0.01 kg/ha in rates.
+
+Cells whose real (clipped or headland) polygon differs from their 4-corner
+rectangle also get their shape (``JobPackage.shape_*``): field-edge, hole and
+headland-ring cells, whose rectangles overlap their neighbours'. The same
+``shaped_cells`` rule decides which cells the as-applied report locates by
+polygon, so the tractor, the simulator and the report agree on cell borders.
 """
 
 from __future__ import annotations
@@ -30,6 +36,76 @@ def _geojson_coords(geom: Any, decimals: int = 3) -> dict[str, Any]:
         raise FormatError("job package: boundary_utm must be a non-empty Polygon or MultiPolygon")
     g = round_coords(geom, decimals)
     return json.loads(shapely.to_geojson(g))
+
+
+SHAPE_TOLERANCE = 0.005  # a cell is "shaped" when polygon and rectangle differ by > 0.5 %
+
+
+def shaped_cells(
+    polygons_utm: Any, corners_utm: np.ndarray, tolerance: float = SHAPE_TOLERANCE
+) -> np.ndarray:
+    """Mask of cells whose polygon differs from its rectangle by more than ``tolerance``
+    of the rectangle's area (symmetric difference: a moved cell of equal area counts).
+
+    Interior cells are the rectangle itself (4 vertices within 1 cm of the corners,
+    checked with numpy); only the others are compared with shapely.
+    """
+    polys = np.asarray(polygons_utm, dtype=object)
+    c = np.asarray(corners_utm, dtype=float).reshape(-1, 4, 2)
+    n = len(c)
+    out = np.zeros(n, dtype=bool)
+    if n == 0:
+        return out
+    simple = (
+        (shapely.get_type_id(polys) == 3)
+        & (shapely.get_num_interior_rings(polys) == 0)
+        & (shapely.get_num_coordinates(polys) == 5)
+    )
+    same = np.zeros(n, dtype=bool)
+    if simple.any():
+        v = shapely.get_coordinates(shapely.get_exterior_ring(polys[simple])).reshape(-1, 5, 2)
+        d = np.linalg.norm(v[:, :4, None, :] - c[simple][:, None, :, :], axis=-1)
+        same[simple] = (d.min(axis=2) < 0.01).all(axis=1) & (d.min(axis=1) < 0.01).all(axis=1)
+    rest = np.flatnonzero(~same)
+    if len(rest):
+        quads = shapely.polygons(c[rest])
+        diff = shapely.area(shapely.symmetric_difference(shapely.make_valid(polys[rest]), quads))
+        out[rest] = diff > tolerance * np.maximum(shapely.area(quads), 1e-9)
+    return out
+
+
+def _shape_fields(cells: CellTable, decimals: int) -> dict[str, list]:
+    """``JobPackage.shape_*`` for the shaped cells: rings of every polygon part, open, rounded."""
+    mask = shaped_cells(cells.polygons_utm, cells.corners_utm)
+    seqs: list[int] = []
+    ring_off = [0]
+    vert_off = [0]
+    xy: list[float] = []
+    for i in np.flatnonzero(mask):
+        g = cells.polygons_utm[i]
+        parts = list(g.geoms) if g.geom_type == "MultiPolygon" else [g]
+        n_rings = 0
+        for poly in parts:
+            if poly.geom_type != "Polygon" or poly.is_empty:
+                continue
+            for ring in (poly.exterior, *poly.interiors):
+                pts = np.round(np.asarray(ring.coords, dtype=float)[:-1, :2], decimals)
+                if len(pts) < 3:
+                    continue
+                xy.extend(float(v) for v in pts.ravel().tolist())
+                vert_off.append(vert_off[-1] + len(pts))
+                n_rings += 1
+        if n_rings:
+            seqs.append(int(cells.seq[i]))
+            ring_off.append(ring_off[-1] + n_rings)
+    if not seqs:
+        return {}
+    return {
+        "shape_seq": seqs,
+        "shape_ring_offsets": ring_off,
+        "shape_offsets": vert_off,
+        "shape_xy_utm": xy,
+    }
 
 
 def build_job_package(
@@ -94,6 +170,7 @@ def build_job_package(
         speed_min_m_s=float(speed_min_m_s),
         speed_max_m_s=float(speed_max_m_s),
         product=str(product),
+        **_shape_fields(cells, utm_decimals),
     )
     return pkg.seal()
 

@@ -8,6 +8,10 @@ or, without a job row, ``build_package(session, prescription_id, version, machin
 Cells come from ``plan_cells`` in path order (UTM corners straight from
 ``plan_cells.corners_utm``, WGS84 corners through fieldrx.geo.crs), rates from
 ``prescription_rates`` of that version, the boundary in the field's UTM zone.
+The real cell shapes of edge, hole and headland cells (``JobPackage.shape_*``)
+come from ``plan_cells.geom`` (WGS84, the largest piece of a split cell), which
+``load_cell_table`` brings back to UTM; ``build_job_package`` keeps those that
+differ from their rectangle.
 The serialising (rounding, checksum) is fieldrx.formats.jobpackage's.
 Raises ``LookupError`` when the prescription, version, plan or field is missing.
 """

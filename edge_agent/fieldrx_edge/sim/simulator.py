@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from fieldrx_edge.locate import FieldBoundary
+from fieldrx_edge.locate import CellLocator, FieldBoundary, points_in_rings
 from fieldrx_edge.metering import calibration_from_dict
 from fieldrx_edge.motor import build_controller, closed_loop_t50_s
 from fieldrx_edge.protocol import ControllerSettings, JobPackage
@@ -276,6 +276,68 @@ def _flow_g_min(cal: Any, rpm: np.ndarray) -> np.ndarray:
     return np.maximum(cal.slope_g_min_per_rpm * rpm + cal.intercept_g_min, 0.0)
 
 
+def _near_shapes(loc: CellLocator, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Points whose grid-hash bucket holds a shaped cell (they need the exact test)."""
+    flag = np.zeros(loc.nx * loc.ny, dtype=bool)
+    items, start = loc._items, loc._start
+    owner = np.repeat(np.arange(loc.nx * loc.ny), np.diff(start))
+    shaped_cells = np.array([sh is not None for sh in loc._shapes], dtype=bool)
+    flag[owner[shaped_cells[items]]] = True
+    i = np.floor((x - loc.x0) / loc.b).astype(np.int64)
+    j = np.floor((y - loc.y0) / loc.b).astype(np.int64)
+    ok = (i >= 0) & (i < loc.nx) & (j >= 0) & (j < loc.ny)
+    out = np.zeros(len(x), dtype=bool)
+    out[ok] = flag[j[ok] * loc.nx + i[ok]]
+    return out
+
+
+def _segment_inside(sh: list[list[float]], p: np.ndarray, q: np.ndarray) -> float:
+    """Exact length of segment p-q inside a shape (even-odd rings): split at every edge
+    crossing, keep the pieces whose midpoint is inside."""
+    d = q - p
+    ts = [0.0, 1.0]
+    for r in sh:
+        e = np.asarray(r, dtype=float).reshape(-1, 2)
+        f = np.roll(e, -1, axis=0) - e
+        den = d[0] * f[:, 1] - d[1] * f[:, 0]
+        ok = np.abs(den) > 1e-12
+        w = e[ok] - p
+        t = (w[:, 0] * f[ok, 1] - w[:, 1] * f[ok, 0]) / den[ok]
+        u = (w[:, 0] * d[1] - w[:, 1] * d[0]) / den[ok]
+        ts.extend(t[(t > 0) & (t < 1) & (u >= 0) & (u <= 1)].tolist())
+    ts = np.unique(ts)
+    mid = (ts[:-1] + ts[1:]) / 2
+    inside = points_in_rings(sh, p[0] + mid * d[0], p[1] + mid * d[1])
+    return float(np.hypot(*d) * (np.diff(ts) * inside).sum())
+
+
+def shape_drive_len(job: JobPackage, shapes: dict[int, list[list[float]]]) -> np.ndarray:
+    """Planned driving-line length inside each shaped cell (seed 001 eq. 17's v t).
+
+    The line joins the centre lines (rear -> front cut-edge midpoints, corners in
+    the grid's rear-right, front-right, front-left, rear-left order) of the cell and
+    of its neighbours in the same swath, 5 m straight on where the swath starts or
+    ends, so a real cell reaching past its rectangle is counted whole. The server's
+    report (fleet.reports) uses the same definition.
+    """
+    c = np.asarray(job.corners_utm, dtype=float).reshape(-1, 4, 2)
+    sw = np.asarray(job.swath)
+    n = len(c)
+    rear = (c[:, 3] + c[:, 0]) / 2
+    front = (c[:, 1] + c[:, 2]) / 2
+    out = np.zeros(n)
+    for i, rings in shapes.items():
+        u = _unit(front[i] - rear[i])
+        pts = [rear[i - 1], front[i - 1]] if i > 0 and sw[i - 1] == sw[i] else [rear[i] - 5 * u]
+        pts += [rear[i], front[i]]
+        if i + 1 < n and sw[i + 1] == sw[i]:
+            pts += [rear[i + 1], front[i + 1]]
+        else:
+            pts.append(front[i] + 5 * u)
+        out[i] = sum(_segment_inside(rings, p, q) for p, q in zip(pts, pts[1:], strict=False))
+    return out
+
+
 def simulate(
     job: JobPackage,
     cfg: SimConfig,
@@ -396,16 +458,20 @@ def simulate(
     ok &= path.run_id[seg] >= 0
     corners = np.asarray(job.corners_utm, dtype=float).reshape(-1, 8)
     rates = np.asarray(job.rate_kg_ha)
+    shapes = job.cell_shapes()
+    shaped = np.zeros(n, dtype=bool)
+    shaped[list(shapes)] = True
     # outside the field: test landing points not inside a cell that lies fully inside
     boundary = FieldBoundary(job.boundary_utm)
     cxy = corners.reshape(-1, 4, 2)
     shrink = cxy + 0.01 * (cxy.mean(axis=1, keepdims=True) - cxy)
     cell_in = boundary.contains_many(shrink.reshape(-1, 2)).reshape(-1, 4).all(axis=1)
+    cell_in &= ~shaped  # shaped cells are counted by their real polygon below
     # seed 001 eq. 17: M1 = M v t l / 36 g, v t the distance driven in the cell: the
     # driving line's length inside the cell and inside the field (the agent never
     # applies outside it); for a whole 5 m x 2.3 m cell this is rate * area / 10
     drive_len = b - a
-    part = np.flatnonzero(~cell_in)
+    part = np.flatnonzero(~cell_in & ~shaped)
     if len(part):
         step = 0.05
         ss = np.concatenate([np.arange(a[i] + step / 2, b[i], step) for i in part])
@@ -415,6 +481,8 @@ def simulate(
         px, py, _ = _interp_path(path, ss)
         ins = boundary.contains_many(np.column_stack([px, py]))
         drive_len[part] = np.bincount(own, weights=ins * step, minlength=n)[part]
+    if shapes:
+        drive_len[shaped] = shape_drive_len(job, shapes)[shaped]
     m1 = rates * job.implement_width_m * drive_len / 10.0
     used = np.zeros(n, dtype=bool)
     used[:n_cells_used] = True
@@ -426,7 +494,23 @@ def simulate(
     outside_g = float(mass_g[check][~inside].sum())
     landed_in = ok.copy()
     landed_in[np.flatnonzero(check)[~inside]] = False  # in a cell's quad but off the field
-    m2 = np.bincount(ci[landed_in], weights=mass_g[landed_in], minlength=n)
+    cell_of = ci.copy()
+    if shapes:
+        # where shapes exist, the landing point's cell is decided geometrically (real
+        # polygons, rectangles elsewhere), as the tractor and the server's report do
+        loc = CellLocator(job.corners_utm, shapes=shapes)
+        cand = np.flatnonzero(check)[inside]
+        cand = cand[
+            shaped[np.maximum(ci[cand], 0)] | ~ok[cand] | _near_shapes(loc, lx[inside], ly[inside])
+        ]
+        cx_, cy_, _ = _interp_path(path, s_land[cand])
+        found = np.array(
+            [loc.locate(x, y) for x, y in zip(cx_.tolist(), cy_.tolist(), strict=True)],
+            dtype=np.int64,
+        )
+        cell_of[cand] = found
+        landed_in[cand] = found >= 0
+    m2 = np.bincount(cell_of[landed_in], weights=mass_g[landed_in], minlength=n)
     acc = (1.0 - np.abs(m1 - m2) / np.where(m1 > 0, m1, 1.0)) * 100.0  # eq. 18
     # lag distance at cell borders with a real rate step, inside one run
     rate_land = np.where(
