@@ -38,6 +38,7 @@ log = logging.getLogger(__name__)
 
 
 SATURATED_DUTY_PCT = 99.5  # controller output at its 100 % limit
+TURN_COS = math.cos(math.radians(25.0))  # heading this far off the run's next cell: a turn
 
 
 @dataclass
@@ -94,6 +95,10 @@ class Pipeline:
         self.kf = KalmanSpeedFilter()
         self.rates = list(job.rate_kg_ha)
         self.seqs = list(job.seq)
+        self.swaths = list(job.swath)
+        cxy = [job.corners_utm[8 * i : 8 * i + 8] for i in range(job.n_cells)]
+        self._cx = [sum(c[0::2]) / 4 for c in cxy]
+        self._cy = [sum(c[1::2]) / 4 for c in cxy]
         self.on_cell_finished = on_cell_finished
         self.heading_rad = 0.0
         self.last_good_t: float | None = None
@@ -187,14 +192,30 @@ class Pipeline:
             if early is not None:
                 return early
             d.alarms.append("outside_field")
-            return self._stop(d, "outside_field" if where == Where.OUTSIDE else "hole")
+            # a headland ring's corner: the straight look-ahead leaves the field for a
+            # moment while the path stays in the cell being applied; do not finish it
+            return self._stop(
+                d,
+                "outside_field" if where == Where.OUTSIDE else "hole",
+                finish=not self._turning_in_run(self._applying),
+            )
         idx = self.locator.locate(lx, ly)
+        if (
+            idx >= 0
+            and self._applying >= 0
+            and self.swaths[idx] != self.swaths[self._applying]
+            and self._turning_in_run(self._applying)
+        ):
+            # ... or cuts across another swath's cells inside the corner: the fertilizer
+            # lands on the ring's path, so keep the cell being applied (never start and
+            # finish an inner cell before it is driven)
+            idx = self._applying
         d.cell = idx
         if idx < 0:
             early = self._early_start(d, x, y, v, implement_down)
             if early is not None:
                 return early
-            return self._stop(d, "no_cell")
+            return self._stop(d, "no_cell", finish=not self._turning_in_run(self._applying))
         if (
             idx != self._applying
             and self._applying >= 0
@@ -220,8 +241,11 @@ class Pipeline:
                 job.antenna_forward_m,
                 job.antenna_lateral_m,
             )
-            if self.boundary.where(sx, sy) != Where.INSIDE:
+            if self.boundary.where(sx, sy) != Where.INSIDE and not self._turning_in_run(idx):
                 return self._stop(d, "edge_ahead", finish=False)
+            if job.overlap_control and self._applied_ahead(idx, sx, sy):
+                # the same before a headland ring already applied: the tail would land twice
+                return self._stop(d, "applied_ahead", finish=False)
         if not implement_down:
             return self._stop(d, "implement_raised", finish=False)  # lowered again: resume
         if job.overlap_control and self.locator.finished[idx]:
@@ -232,6 +256,39 @@ class Pipeline:
         self._meter(d, rate, v, "metering")
         self._applying = idx
         return d
+
+    def _run_continues(self, idx: int) -> bool:
+        """The path goes on in the same swath after cell ``idx`` (a headland ring turning
+        a corner): the straight look-ahead leaving the field there is not an edge."""
+        nxt = idx + 1
+        return (
+            idx >= 0
+            and nxt < len(self.swaths)
+            and self.swaths[nxt] == self.swaths[idx]
+            and not self.locator.finished[nxt]
+        )
+
+    def _applied_ahead(self, idx: int, x: float, y: float) -> bool:
+        """Is (x, y) in another cell already applied (the locator's path pointer is kept)?"""
+        loc = self.locator
+        cur = loc.current
+        k = loc.locate(x, y)
+        loc.current = cur
+        return k >= 0 and k != idx and bool(loc.finished[k]) and not self._turning_in_run(idx)
+
+    def _turning_in_run(self, idx: int) -> bool:
+        """The machine turns inside a run (a headland ring's corner): the run goes on
+        after cell ``idx`` but not where the machine heads (> 25 degrees off), so the
+        straight look-ahead misses the path the fertilizer will land on."""
+        if not self._run_continues(idx):
+            return False
+        dx = self._cx[idx + 1] - self._cx[idx]
+        dy = self._cy[idx + 1] - self._cy[idx]
+        norm = math.hypot(dx, dy)
+        if norm == 0.0:
+            return False
+        cos = (dx * math.sin(self.heading_rad) + dy * math.cos(self.heading_rad)) / norm
+        return cos < TURN_COS
 
     def _meter(self, d: Decision, rate: float, v: float, reason: str) -> None:
         rpm = shaft_rpm_for_rate(self.cal, rate, self.job.implement_width_m, v)

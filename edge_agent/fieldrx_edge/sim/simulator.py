@@ -141,9 +141,17 @@ def _run_waypoints(
             ext = float(((exit_[j] - c[j]) @ u).max())
             entry[j] = exit_[j] - ext * u
         elif entry[j] is None:
-            proj = (c[j] - cent[j]) @ run_u
-            entry[j] = cent[j] + float(proj.min()) * run_u
-            exit_[j] = cent[j] + float(proj.max()) * run_u
+            u = run_u
+            if k >= 2:
+                # local travel direction snapped to the cell's own axis: a headland ring's
+                # corner cell is crossed along itself, not along the ring's chord
+                t = _unit(cent[min(j + 1, k - 1)] - cent[max(j - 1, 0)])
+                axes = [_unit(c[j, 1] - c[j, 0]), _unit(c[j, 2] - c[j, 1])]
+                ax = max(axes, key=lambda a: abs(float(np.dot(a, t))))
+                u = ax if float(np.dot(ax, t)) >= 0 else -ax
+            proj = (c[j] - cent[j]) @ u
+            entry[j] = cent[j] + float(proj.min()) * u
+            exit_[j] = cent[j] + float(proj.max()) * u
     return entry, exit_  # type: ignore[return-value]
 
 
