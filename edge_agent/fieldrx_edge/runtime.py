@@ -104,6 +104,7 @@ class Pipeline:
         self.last_good_t: float | None = None
         self.last: Decision | None = None
         self._applying = -1  # cell being applied (landing point inside, metering on)
+        self._reach_m = 0.5  # look-ahead distance of the last fix (+0.5 m)
 
     # -- helpers ---------------------------------------------------------
 
@@ -184,6 +185,7 @@ class Pipeline:
             speed_m_s=v,
             heading_deg=math.degrees(self.heading_rad) % 360.0,
         )
+        self._reach_m = v * self.look_ahead_time_s() + 0.5
         if not (job.speed_min_m_s <= v <= job.speed_max_m_s):
             d.alarms.append("speed_out_of_range")
         where = self.boundary.where(lx, ly)
@@ -197,14 +199,14 @@ class Pipeline:
             return self._stop(
                 d,
                 "outside_field" if where == Where.OUTSIDE else "hole",
-                finish=not self._turning_in_run(self._applying),
+                finish=not self._turning_in_run(self._applying, lx, ly),
             )
         idx = self.locator.locate(lx, ly)
         if (
             idx >= 0
             and self._applying >= 0
             and self.swaths[idx] != self.swaths[self._applying]
-            and self._turning_in_run(self._applying)
+            and self._turning_in_run(self._applying, lx, ly)
         ):
             # ... or cuts across another swath's cells inside the corner: the fertilizer
             # lands on the ring's path, so keep the cell being applied (never start and
@@ -215,7 +217,7 @@ class Pipeline:
             early = self._early_start(d, x, y, v, implement_down)
             if early is not None:
                 return early
-            return self._stop(d, "no_cell", finish=not self._turning_in_run(self._applying))
+            return self._stop(d, "no_cell", finish=not self._turning_in_run(self._applying, lx, ly))
         if (
             idx != self._applying
             and self._applying >= 0
@@ -241,7 +243,9 @@ class Pipeline:
                 job.antenna_forward_m,
                 job.antenna_lateral_m,
             )
-            if self.boundary.where(sx, sy) != Where.INSIDE and not self._turning_in_run(idx):
+            if self.boundary.where(sx, sy) != Where.INSIDE and not self._turning_in_run(
+                idx, lx, ly
+            ):
                 return self._stop(d, "edge_ahead", finish=False)
             if job.overlap_control and self._applied_ahead(idx, sx, sy):
                 # the same before a headland ring already applied: the tail would land twice
@@ -274,12 +278,14 @@ class Pipeline:
         cur = loc.current
         k = loc.locate(x, y)
         loc.current = cur
-        return k >= 0 and k != idx and bool(loc.finished[k]) and not self._turning_in_run(idx)
+        return k >= 0 and k != idx and bool(loc.finished[k]) and not self._turning_in_run(idx, x, y)
 
-    def _turning_in_run(self, idx: int) -> bool:
+    def _turning_in_run(self, idx: int, lx: float, ly: float) -> bool:
         """The machine turns inside a run (a headland ring's corner): the run goes on
         after cell ``idx`` but not where the machine heads (> 25 degrees off), so the
-        straight look-ahead misses the path the fertilizer will land on."""
+        straight look-ahead misses the path the fertilizer will land on. Only while the
+        look-ahead point (lx, ly) is within the look-ahead distance of cell ``idx``:
+        a cell left behind (implement raised, a headland turn) is no longer turned from."""
         if not self._run_continues(idx):
             return False
         dx = self._cx[idx + 1] - self._cx[idx]
@@ -288,7 +294,9 @@ class Pipeline:
         if norm == 0.0:
             return False
         cos = (dx * math.sin(self.heading_rad) + dy * math.cos(self.heading_rad)) / norm
-        return cos < TURN_COS
+        if cos >= TURN_COS:
+            return False
+        return self.locator.distance_to_cell(idx, lx, ly) <= self._reach_m
 
     def _meter(self, d: Decision, rate: float, v: float, reason: str) -> None:
         rpm = shaft_rpm_for_rate(self.cal, rate, self.job.implement_width_m, v)
