@@ -11,6 +11,13 @@ goes into the local queue before anything else sees it.
 Metering stops when the implement is raised, outside the field, in a hole,
 in an already-applied cell (overlap control), and after ``fix_loss_hold_s``
 without a usable fix (the last rate is held until then).
+
+Cells are the package's real shapes where it gives them (headland rings, field
+edge, holes), else the 4-corner rectangles. While the machine turns inside a
+run (a headland ring's corner) the straight look-ahead leaves the path: the
+cell being applied is then neither finished early nor replaced by another
+swath's cell, and metering stops early before already-applied cells as it does
+before the field edge.
 """
 
 from __future__ import annotations

@@ -31,11 +31,20 @@ FIELD = shapely.Polygon(  # 3.35 ha, irregular, with a 35 m x 30 m hole
 )
 
 
-def headland_job(field, headland_passes: int = 1) -> tuple[JobPackage, CellTable]:
+SMALL = shapely.Polygon(  # test_server_jobs' irregular field (1.1 ha, 941 cells with a ring)
+    [(X0, Y0), (X0 + 120, Y0 + 10), (X0 + 140, Y0 + 80), (X0 + 30, Y0 + 95), (X0 - 10, Y0 + 50)],
+    [[(X0 + 50, Y0 + 40), (X0 + 70, Y0 + 40), (X0 + 70, Y0 + 55), (X0 + 50, Y0 + 55)]],
+)
+FIELDS = {"plot": (PLOT, 5.0), "field": (FIELD, 12.0), "small": (SMALL, 12.0)}
+
+
+def headland_job(
+    field, headland_passes: int = 1, period_m: float = 12.0
+) -> tuple[JobPackage, CellTable]:
     plan = plan_coverage(field, 2.3, headland_passes=headland_passes)
     grid = build_grid(plan, field, 5.0)
     cx = grid.centroids_utm[:, 0]
-    rates = np.round(600 + 250 * (0.5 + 0.5 * np.sign(np.sin((cx - X0) / 12.0))), 0)
+    rates = np.round(600 + 250 * (0.5 + 0.5 * np.sign(np.sin((cx - X0) / period_m))), 0)
     cells = CellTable.from_grid(grid, 32633).with_rates(rates)
     pkg = build_job_package(
         cells,
@@ -144,16 +153,22 @@ def test_naive_scan_agrees_with_locator_on_shapes(job_cells):
                 assert loc.contains(fast, x, y) and loc.contains(slow, x, y)
 
 
-@pytest.mark.parametrize("which", ["plot", "field"])
+@pytest.mark.parametrize("which", ["plot", "field", "small"])
 def test_simulator_accuracy_on_headland_fields(which):
-    job, _ = headland_job(PLOT if which == "plot" else FIELD)
+    """Seed 001's targets (>= 98 % accuracy, lag distance well under 0.3 m) hold with a
+    headland ring; measured 98.4 / 99.0 / 98.9 % (96.5 % on "small" before shapes)."""
+    field, period = FIELDS[which]
+    job, _ = headland_job(field, period_m=period)
     cfg = SimConfig(seed=0, controller="ladrc", lag_compensation=True)
     out = summary(simulate(job, cfg), None, cfg, job)
     print(which, out)
     assert out["mean_accuracy_pct"] >= 98.0, out
-    if which == "field":
-        assert out["mean_lag_m"] <= 0.28, out
+    assert out["lag_borders"] >= 5 and out["mean_lag_m"] <= 0.28, out
     assert out["applied_outside_kg"] < 0.005 * out["applied_total_kg"], out
+    # without lag compensation the same job is clearly worse: the test can fail
+    slow = SimConfig(seed=0, controller="ladrc", lag_compensation=False)
+    out_u = summary(simulate(job, slow), None, slow, job)
+    assert out_u["mean_accuracy_pct"] < out["mean_accuracy_pct"] - 3.0, out_u
 
 
 def test_package_shape_fields_are_optional_and_checksummed():
