@@ -364,9 +364,10 @@ def build_report(session: Session, job: Job, max_gap_s: float = MAX_GAP_S) -> Jo
         )
         for i in range(n)
     ]
-    planned = m1 > 0
+    planned = m1 > 0  # cells the machine drove over with a target (M1 of eq. 17)
     done = m2 > 0
     applied_acc = acc[planned & done]
+    prescribed = rate > 0  # cells the prescription asks fertilizer for
     return JobReport(
         job_id=job.id,
         name=job.name,
@@ -375,10 +376,10 @@ def build_report(session: Session, job: Job, max_gap_s: float = MAX_GAP_S) -> Jo
         implement_width_m=width,
         plan_id=plan.id,
         n_cells=n,
-        cells_planned=int(planned.sum()),
-        cells_applied=int(done.sum()),
-        coverage_pct=float(100.0 * (planned & done).sum() / planned.sum())
-        if planned.any()
+        cells_planned=int(prescribed.sum()),
+        cells_applied=int((prescribed & done).sum()),
+        coverage_pct=float(100.0 * (prescribed & done).sum() / prescribed.sum())
+        if prescribed.any()
         else 0.0,
         planned_total_kg=float(m1.sum() / 1000.0),
         applied_total_kg=float((m2.sum() + outside_g) / 1000.0),
