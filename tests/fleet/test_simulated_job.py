@@ -1,5 +1,9 @@
 """Issue 7 acceptance: a job driven by `fieldrx-edge simulate --server` is reported per cell
-as the simulator itself reports it (seed 001 eq. 17-18)."""
+as the simulator itself reports it (seed 001 eq. 17-18).
+
+With a headland pass both sides attribute landed mass to the real cell polygons (the job
+package's shapes on the tractor, plan_cells.geom on the server), so the headland ring must
+agree as closely as the plain grid."""
 
 from __future__ import annotations
 
@@ -10,12 +14,19 @@ from pathlib import Path
 
 import httpx
 import numpy as np
+import pytest
 
 from tests.fleet.procs import BIN, ROOT, start_api
 from tests.support import SMALL_PLOT, feature
 
 
-def test_simulated_job_report_matches_simulator(database_url, org, tmp_path: Path) -> None:  # noqa: ANN001
+@pytest.mark.parametrize("headland_passes", [0, 1])
+def test_simulated_job_report_matches_simulator(
+    database_url,
+    org,
+    tmp_path: Path,
+    headland_passes: int,  # noqa: ANN001
+) -> None:
     api, url = start_api(database_url)
     try:
         c = httpx.Client(base_url=url, headers=org.headers(), timeout=60)
@@ -23,7 +34,8 @@ def test_simulated_job_report_matches_simulator(database_url, org, tmp_path: Pat
         m = c.post("/api/v1/machines", json={"name": "sim", "width_m": 2.3}).json()
         token = c.post(f"/api/v1/machines/{m['id']}/device-token").json()["token"]
         plan = c.post(
-            f"/api/v1/fields/{field['id']}/plans", json={"swath_width_m": 2.3, "cell_length_m": 5.0}
+            f"/api/v1/fields/{field['id']}/plans",
+            json={"swath_width_m": 2.3, "cell_length_m": 5.0, "headland_passes": headland_passes},
         )
         assert plan.status_code == 201, plan.text
         plan = plan.json()
@@ -47,6 +59,8 @@ def test_simulated_job_report_matches_simulator(database_url, org, tmp_path: Pat
         pkg = httpx.get(f"{url}/api/v1/device/jobs/{job['id']}/package", headers=dev)
         assert pkg.status_code == 200
         (tmp_path / "job.json").write_bytes(pkg.content)
+        if headland_passes:  # the ring's corner and clipped cells carry their real shapes
+            assert len(pkg.json()["shape_seq"]) >= 4
         cells_csv = tmp_path / "cells.csv"
         out = subprocess.run(
             [str(BIN / "fieldrx-edge"), "simulate", str(tmp_path / "job.json"), "--server", url,
@@ -57,7 +71,9 @@ def test_simulated_job_report_matches_simulator(database_url, org, tmp_path: Pat
         assert out.returncode == 0, out.stderr[-2000:]
         sim = json.loads(out.stdout.strip().splitlines()[-1])
         assert sim["telemetry_drained"] is True
+        assert sim["job_state_reported"] is True
         rep = c.get(f"/api/v1/jobs/{job['id']}/report").json()
+        assert c.get(f"/api/v1/jobs/{job['id']}").json()["state"] == "completed"
     finally:
         api.stop()
     sim_cells = {int(r["seq"]): r for r in csv.DictReader(cells_csv.open())}
@@ -68,19 +84,10 @@ def test_simulated_job_report_matches_simulator(database_url, org, tmp_path: Pat
     m1_srv = np.array([ours[s]["m1_g"] for s in seqs])
     acc_sim = np.array([float(sim_cells[s]["accuracy_pct"]) for s in seqs])
     acc_srv = np.array([ours[s]["accuracy_pct"] for s in seqs])
-    m2_sim = np.array([float(sim_cells[s]["m2_g"]) for s in seqs])
-    m2_srv = np.array([ours[s]["m2_g"] for s in seqs])
-    print(
-        "M1 max rel diff", np.max(np.abs(m1_srv - m1_sim) / m1_sim),
-        "M2 mean rel diff", np.mean(np.abs(m2_srv - m2_sim) / m1_sim),
-        "acc mean", acc_sim.mean(), acc_srv.mean(),
-        "acc |diff| mean/max",
-        np.mean(np.abs(acc_srv - acc_sim)), np.max(np.abs(acc_srv - acc_sim)),
-    )  # fmt: skip
     # the planned mass is the same definition (eq. 17, driven length x width)
     np.testing.assert_allclose(m1_srv, m1_sim, rtol=0.01, atol=0.5)
-    # per-cell accuracy from telemetry vs the simulator's own landing model
-    # (measured: mean 98.67 vs 99.18 %, per-cell |diff| mean 0.67, max 2.9 points)
+    # per-cell accuracy from telemetry vs the simulator's own landing model (measured, plain
+    # grid: mean 98.67 vs 99.18 %, per-cell |diff| mean 0.67, max 2.9; headland: 0.79, max 4.24)
     assert abs(acc_srv.mean() - sim["mean_accuracy_pct"]) < 1.0
     assert np.mean(np.abs(acc_srv - acc_sim)) < 1.0
     assert np.max(np.abs(acc_srv - acc_sim)) < 5.0
