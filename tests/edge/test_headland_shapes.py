@@ -13,16 +13,12 @@ import pytest
 shapely = pytest.importorskip("shapely")
 pytest.importorskip("fieldrx.geo.grid")
 
-from fieldrx.agronomy.cells import CellTable  # noqa: E402
-from fieldrx.formats.jobpackage import build_job_package, shaped_cells  # noqa: E402
-from fieldrx.geo.coverage import plan_coverage  # noqa: E402
-from fieldrx.geo.grid import build_grid  # noqa: E402
+from fieldrx.formats.jobpackage import shaped_cells  # noqa: E402
 from fieldrx_edge.locate import CellLocator, FieldBoundary  # noqa: E402
-from fieldrx_edge.metering import LinearCalibration  # noqa: E402
 from fieldrx_edge.protocol import JobPackage, ProtocolError  # noqa: E402
 from fieldrx_edge.sim.simulator import SimConfig, simulate, summary  # noqa: E402
 
-X0, Y0 = 500_000.0, 5_800_000.0
+from .planned import X0, Y0, planned_job  # noqa: E402
 
 PLOT = shapely.box(X0, Y0, X0 + 35, Y0 + 23)  # seed 001's 35 m x 23 m trial plot
 FIELD = shapely.Polygon(  # 3.35 ha, irregular, with a 35 m x 30 m hole
@@ -38,30 +34,8 @@ SMALL = shapely.Polygon(  # test_server_jobs' irregular field (1.1 ha, 941 cells
 FIELDS = {"plot": (PLOT, 5.0), "field": (FIELD, 12.0), "small": (SMALL, 12.0)}
 
 
-def headland_job(
-    field, headland_passes: int = 1, period_m: float = 12.0
-) -> tuple[JobPackage, CellTable]:
-    plan = plan_coverage(field, 2.3, headland_passes=headland_passes)
-    grid = build_grid(plan, field, 5.0)
-    cx = grid.centroids_utm[:, 0]
-    rates = np.round(600 + 250 * (0.5 + 0.5 * np.sign(np.sin((cx - X0) / period_m))), 0)
-    cells = CellTable.from_grid(grid, 32633).with_rates(rates)
-    pkg = build_job_package(
-        cells,
-        field,
-        job_id=1,
-        machine_id=1,
-        prescription_id=1,
-        prescription_version=1,
-        field_name="headland",
-        implement_width_m=2.3,
-        lag_s=1.52,
-        calibration=LinearCalibration(),
-        controller={"name": "ladrc"},
-        speed_min_m_s=3 / 3.6,
-        speed_max_m_s=2.5,
-    )
-    return JobPackage.from_json(pkg.to_json()), cells
+def headland_job(field, headland_passes: int = 1, period_m: float = 12.0):  # noqa: ANN001, ANN201
+    return planned_job(field, headland_passes, period_m, name="headland")
 
 
 @pytest.fixture(scope="module", params=["plot", "field"])

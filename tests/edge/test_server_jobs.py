@@ -6,16 +6,11 @@ import pytest
 pytest.importorskip("fieldrx.geo.grid")
 shapely = pytest.importorskip("shapely")
 
-from fieldrx.agronomy.cells import CellTable  # noqa: E402
-from fieldrx.formats.jobpackage import build_job_package  # noqa: E402
-from fieldrx.geo.coverage import plan_coverage  # noqa: E402
-from fieldrx.geo.grid import build_grid  # noqa: E402
 from fieldrx_edge.locate import CellLocator, FieldBoundary  # noqa: E402
-from fieldrx_edge.metering import LinearCalibration  # noqa: E402
 from fieldrx_edge.protocol import JobPackage  # noqa: E402
 from fieldrx_edge.sim.simulator import SimConfig, simulate, summary  # noqa: E402
 
-X0, Y0 = 500_000.0, 5_800_000.0
+from .planned import X0, Y0, planned_job  # noqa: E402
 
 
 def irregular_job(headland_passes=0) -> tuple[JobPackage, object]:
@@ -28,27 +23,8 @@ def irregular_job(headland_passes=0) -> tuple[JobPackage, object]:
     ]
     hole = [(X0 + 50, Y0 + 40), (X0 + 70, Y0 + 40), (X0 + 70, Y0 + 55), (X0 + 50, Y0 + 55)]
     field = shapely.Polygon(outer, [hole])
-    plan = plan_coverage(field, 2.3, headland_passes=headland_passes)
-    grid = build_grid(plan, field, 5.0)
-    cx = grid.centroids_utm[:, 0]
-    rates = np.round(600 + 250 * (0.5 + 0.5 * np.sign(np.sin((cx - X0) / 12.0))), 0)
-    cells = CellTable.from_grid(grid, 32633).with_rates(rates)
-    pkg = build_job_package(
-        cells,
-        field,
-        job_id=1,
-        machine_id=1,
-        prescription_id=1,
-        prescription_version=1,
-        field_name="irregular",
-        implement_width_m=2.3,
-        lag_s=1.52,
-        calibration=LinearCalibration(),
-        controller={"name": "ladrc"},
-        speed_min_m_s=3 / 3.6,
-        speed_max_m_s=2.5,
-    )
-    return JobPackage.from_json(pkg.to_json()), field
+    job, _ = planned_job(field, headland_passes, name="irregular")
+    return job, field
 
 
 def test_server_grid_irregular_field_with_hole():
