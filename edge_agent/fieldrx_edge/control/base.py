@@ -25,6 +25,7 @@ class Controller(ABC):
         self.out_min = float(out_min)
         self.out_max = float(out_max)
         self._u = 0.0
+        self._integ = 0.0
 
     @staticmethod
     def _check_limits(out_min: float, out_max: float) -> None:
@@ -46,6 +47,23 @@ class Controller(ABC):
             return self.out_max
         if u < self.out_min:
             return self.out_min
+        return u
+
+    def _conditional_integration(self, u: float, di: float) -> float:
+        """Clamp ``u`` and add the integral increment ``di`` only when it does not push
+        further into the limit (conditional integration, the anti-windup of the positional
+        PID and the fuzzy PID). Returns the clamped command and remembers it."""
+        if u > self.out_max:
+            u = self.out_max
+            if di < 0.0:
+                self._integ += di
+        elif u < self.out_min:
+            u = self.out_min
+            if di > 0.0:
+                self._integ += di
+        else:
+            self._integ += di
+        self._u = u
         return u
 
     @abstractmethod

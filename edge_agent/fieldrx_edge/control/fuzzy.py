@@ -253,15 +253,4 @@ class FuzzyPID(Controller):
         self.gains = (kp, ki, kd)
         u = kp * e + self._integ + kd * ec
         di = ki * e * dt
-        if u > self.out_max:
-            u = self.out_max
-            if di < 0.0:
-                self._integ += di
-        elif u < self.out_min:
-            u = self.out_min
-            if di > 0.0:
-                self._integ += di
-        else:
-            self._integ += di
-        self._u = u
-        return u
+        return self._conditional_integration(u, di)

@@ -129,18 +129,7 @@ class PID(Controller):
         self._e = e
         u = self.kp * e + self._integ + d
         di = self.ki * e * dt
-        if u > self.out_max:
-            u = self.out_max
-            if di < 0.0:
-                self._integ += di
-        elif u < self.out_min:
-            u = self.out_min
-            if di > 0.0:
-                self._integ += di
-        else:
-            self._integ += di
-        self._u = u
-        return u
+        return self._conditional_integration(u, di)
 
 
 class IncrementalPID(Controller):
