@@ -18,61 +18,18 @@ import json
 import math
 import os
 import statistics
+import sys
 import time
+from pathlib import Path
 
-import numpy as np
 import shapely.affinity
 from fieldrx.geo.coverage import optimal_phi, plan_coverage, swath_count
 from fieldrx.geo.grid import build_grid
 from shapely.geometry import Polygon, box
 
-X0, Y0 = 640_000.0, 5_320_000.0  # UTM 32N, Bavaria
-
-
-def rect() -> Polygon:
-    return box(X0, Y0, X0 + 400, Y0 + 250)
-
-
-def l_shape() -> Polygon:
-    return Polygon(
-        [
-            (X0, Y0),
-            (X0 + 300, Y0),
-            (X0 + 300, Y0 + 100),
-            (X0 + 100, Y0 + 100),
-            (X0 + 100, Y0 + 300),
-            (X0, Y0 + 300),
-        ]
-    )
-
-
-def u_shape() -> Polygon:
-    return Polygon(
-        [
-            (X0, Y0),
-            (X0 + 300, Y0),
-            (X0 + 300, Y0 + 300),
-            (X0 + 200, Y0 + 300),
-            (X0 + 200, Y0 + 100),
-            (X0 + 100, Y0 + 100),
-            (X0 + 100, Y0 + 300),
-            (X0, Y0 + 300),
-        ]
-    )
-
-
-def pond() -> Polygon:
-    return Polygon(
-        [(X0, Y0), (X0 + 400, Y0), (X0 + 420, Y0 + 300), (X0 - 10, Y0 + 280)],
-        [[(X0 + 150, Y0 + 100), (X0 + 250, Y0 + 120), (X0 + 230, Y0 + 200), (X0 + 160, Y0 + 190)]],
-    )
-
-
-def irregular40() -> Polygon:
-    rng = np.random.default_rng(7)
-    ang = np.sort(rng.uniform(0, 2 * math.pi, 40))
-    r = 300.0 * rng.uniform(0.55, 1.0, 40)
-    return Polygon(np.stack([X0 + r * np.cos(ang), Y0 + r * np.sin(ang)], 1))
+# The small fields are the planner tests' own (one definition for tests and bench).
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from tests.geo.cases import X0, Y0, irregular, l_shape, pond_field, rect, u_shape  # noqa: E402
 
 
 def scaled(poly: Polygon, hectares: float) -> Polygon:
@@ -105,8 +62,8 @@ FIELDS = {
     "rectangle_10ha": rect,
     "L": l_shape,
     "U": u_shape,
-    "pond": pond,
-    "irregular40": irregular40,
+    "pond": pond_field,
+    "irregular40": irregular,
     "field_500ha": field_500ha,
 }
 
