@@ -108,7 +108,7 @@ def test_mixed_talkers_bad_checksums_truncation_garbage_counts():
     lines += epoch(T0 + 0.5, talker="GN", hdop=9.9)
     fixes = feed_all(p, lines)
     s = p.stats
-    assert s.sentences == {"RMC": 5, "GGA": 5, "VTG": 5}
+    assert s.sentences == {"RMC": 5, "GGA": 5, "GNS": 0, "VTG": 5}
     assert s.bad_checksum == 1
     assert s.malformed == 3  # truncated, garbage, empty
     assert s.other_sentences == 1
@@ -185,7 +185,7 @@ def test_replay_cli_counts(tmp_path):
         check=True,
     )
     res = json.loads(out.stdout.strip().splitlines()[-1])
-    assert res["sentences"] == {"RMC": exp["RMC"], "GGA": exp["GGA"], "VTG": exp["VTG"]}
+    assert res["sentences"] == {"RMC": exp["RMC"], "GGA": exp["GGA"], "GNS": 0, "VTG": exp["VTG"]}
     assert res["bad_checksum"] == exp["bad_checksum"]
     assert res["malformed"] == exp["malformed"]
     assert res["no_fix"] == exp["no_fix"]

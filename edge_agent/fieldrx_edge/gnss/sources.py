@@ -17,8 +17,11 @@ log = logging.getLogger(__name__)
 
 
 def _tod(line: str) -> float | None:
-    """UTC time of day of an RMC/GGA line, for paced replay."""
-    if len(line) < 14 or line[3:6] not in ("RMC", "GGA"):
+    """UTC time of day of an RMC/GGA/GNS line, for paced replay (after any binary prefix)."""
+    start = line.find("$")
+    if start > 0:
+        line = line[start:]
+    if len(line) < 14 or line[3:6] not in ("RMC", "GGA", "GNS"):
         return None
     field = line[7:17].split(",", 1)[0]
     try:
@@ -30,7 +33,7 @@ def _tod(line: str) -> float | None:
 def file_lines(path: str | Path, speed: float | None = None) -> Iterator[str]:
     """Replay a log. ``speed`` None: as fast as possible; 1.0: recorded pace; k: k times faster.
 
-    Pacing follows the NMEA time field of RMC/GGA lines, so a log recorded at
+    Pacing follows the NMEA time field of RMC/GGA/GNS lines, so a log recorded at
     10 Hz replays at 10 Hz (or 10k Hz with speed=k).
     """
     t0_wall: float | None = None
