@@ -18,6 +18,8 @@ from pathlib import Path
 import pytest
 from fieldrx_edge.gnss import Fix, NmeaParser, file_lines
 from fieldrx_edge.sim import nmea
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 DATA = Path(__file__).parent / "data"
 M_PER_DEG = 111_320.0  # metres per degree of latitude (and of longitude at the equator)
@@ -331,3 +333,71 @@ def test_replay_cli_reports_receiver_counters(tmp_path, name, expected):
         assert key in res
     for key, v in expected.items():
         assert res[key] == v, key
+
+
+# -- any field content: never a crash, never a non-finite or impossible fix ----
+
+FIELD = st.one_of(
+    st.sampled_from(["", "nan", "-inf", "1e999", "0", "-1", "90", "9000.0000", "18000.0000"]),
+    st.sampled_from(["A", "V", "N", "S", "E", "W", "M", "K", "T", "RN", "AAN"]),
+    st.from_regex(r"[0-9]{4,5}\.[0-9]{1,4}", fullmatch=True),
+    st.floats(allow_nan=True, allow_infinity=True).map(str),
+    st.text(alphabet="0123456789.-+eE", max_size=8),
+)
+
+
+TEMPLATES = {
+    "GNRMC": ["A", "5206.0000", "N", "01512.0000", "E", "1.0", "90.0", "211125", "", "", "A"],
+    "INGGA": [
+        "5206.0000",
+        "N",
+        "01512.0000",
+        "E",
+        "4",
+        "14",
+        "0.7",
+        "100.0",
+        "M",
+        "40.0",
+        "M",
+        "",
+        "",
+    ],
+    "GNGNS": ["5206.0000", "N", "01512.0000", "E", "AA", "10", "0.8", "100.0", "40.0", "", "", "V"],
+}
+VTG = ["90.0", "T", "", "M", "1.0", "N", "1.9", "K", "A"]
+
+
+@settings(max_examples=400, deadline=None)
+@given(
+    kinds=st.lists(st.sampled_from(sorted(TEMPLATES)), min_size=1, max_size=3, unique=True),
+    times=st.lists(
+        st.sampled_from(["", "120000.00", "120000.10", "235960.99", "250000"]),
+        min_size=1,
+        max_size=4,
+    ),
+    edits=st.lists(st.tuples(st.integers(0, 12), FIELD), max_size=4),
+    vtg_edits=st.lists(st.tuples(st.integers(0, 8), FIELD), max_size=2),
+)
+def test_any_fields_give_only_finite_in_range_fixes(kinds, times, edits, vtg_edits):
+    """Real sentence shapes with some fields replaced by anything a noisy line can carry."""
+    p = NmeaParser(max_hdop=2.0)
+    fixes: list[Fix] = []
+    vtg = list(VTG)
+    for i, v in vtg_edits:
+        vtg[i] = v
+    for t in times:
+        for kind in kinds:
+            fields = list(TEMPLATES[kind])
+            for i, v in edits:
+                if i < len(fields):
+                    fields[i] = v
+            fixes += p.feed(nmea.sentence(",".join([kind, t, *fields])))
+        fixes += p.feed(nmea.sentence(",".join(["GNVTG", *vtg])))
+    fixes += p.flush()
+    for f in fixes:
+        assert_finite(f)
+        if f.valid:
+            assert -90.0 <= f.lat <= 90.0 and -180.0 <= f.lon <= 180.0
+        if f.hdop is not None:
+            assert f.hdop >= 0.0
