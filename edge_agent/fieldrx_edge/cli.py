@@ -370,6 +370,10 @@ def cmd_replay(a: argparse.Namespace) -> int:
         print(f"lines {out['lines']}, fixes {out['fixes']} (no fix {out['no_fix']})")
         print(f"sentences {out['sentences']}, other {out['other_sentences']}")
         print(f"bad checksum {out['bad_checksum']}, malformed {out['malformed']}")
+        print(
+            f"out of range {out['out_of_range']}, non-finite {out['non_finite']}, "
+            f"resync after binary {out['resync']}, talkers {out['talkers']}"
+        )
         print(f"fix quality {out['fix_quality']}")
         print(f"speed std raw {out['speed_raw_std']} m/s, filtered {out['speed_filtered_std']} m/s")
     else:

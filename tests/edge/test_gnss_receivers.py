@@ -401,3 +401,16 @@ def test_any_fields_give_only_finite_in_range_fixes(kinds, times, edits, vtg_edi
             assert -90.0 <= f.lat <= 90.0 and -180.0 <= f.lon <= 180.0
         if f.hdop is not None:
             assert f.hdop >= 0.0
+
+
+def test_replay_cli_text_shows_the_new_counters(tmp_path):
+    log = tmp_path / "in.nmea"
+    log.write_text("\n".join(log_lines("humminbird-m37.nmea")) + "\n")
+    out = subprocess.run(
+        [sys.executable, "-m", "fieldrx_edge.cli", "replay-nmea", str(log)],
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout
+    assert "lines 36, fixes 9 (no fix 0)" in out
+    assert "out of range 0, non-finite 0, resync after binary 0, talkers {'IN': 12}" in out
