@@ -21,7 +21,7 @@ counted (``non_finite``), so a fix never carries one.
 
 A line may carry binary bytes (UBX, RTCM) in front of or behind a sentence
 when a receiver mixes protocols on one port; the parser resynchronises on
-``$`` and counts the skipped bytes (``resync``). Bad checksums and garbage are
+``$`` and counts the lines it had to resync (``resync``). Bad checksums and garbage are
 counted and skipped, never raised: a receiver on a noisy serial line must not
 stop the metering loop.
 """
@@ -36,7 +36,6 @@ from dataclasses import dataclass, field
 import pynmea2
 
 KNOT_M_S = 1852.0 / 3600.0
-POSITION_TYPES = ("RMC", "GGA", "GNS")
 # GNS mode letters, best first, as the GGA quality they mean (NMEA 4.10 table
 # for GNS field 6): R RTK fixed, F RTK float, P precise, D differential,
 # A autonomous, E estimated (dead reckoning), M manual, S simulator; N none.
