@@ -26,6 +26,8 @@ ALERT_KINDS = (
     "cells_not_applied",
 )
 LIVE_CHANNEL = "fieldrx_live"
+# kinds opened and closed by records; a machine gone silent leaves them unobservable
+RECORD_KINDS = ("rate_error", "speed_out_of_range", "shaft_saturation", "fix_lost")
 
 SATURATION_ALARMS = frozenset({"shaft_above_range", "shaft_below_range", "motor_saturated"})
 
