@@ -193,14 +193,18 @@ class Pipeline:
             heading_deg=math.degrees(self.heading_rad) % 360.0,
         )
         self._reach_m = v * self.look_ahead_time_s() + 0.5
-        if not (job.speed_min_m_s <= v <= job.speed_max_m_s):
+        # with the implement raised (headland turns, transport) nothing is applied: the
+        # speed range and the field edge do not matter, and flagging them painted the
+        # fleet marker red at every turn (issue 11 defect 7)
+        if implement_down and not (job.speed_min_m_s <= v <= job.speed_max_m_s):
             d.alarms.append("speed_out_of_range")
         where = self.boundary.where(lx, ly)
         if where != Where.INSIDE:
             early = self._early_start(d, x, y, v, implement_down)
             if early is not None:
                 return early
-            d.alarms.append("outside_field")
+            if implement_down:
+                d.alarms.append("outside_field")
             # a headland ring's corner: the straight look-ahead leaves the field for a
             # moment while the path stays in the cell being applied; do not finish it
             return self._stop(

@@ -444,16 +444,26 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
       if (sim.exitCode == null) sim.kill('SIGTERM');
       writeFileSync(join(ARTIFACTS, 'edge-simulate.log'), simOut);
     }
-    // Alerts raised by the run (if any) can be acknowledged from the fleet screen.
+    // The machine stopped reporting: after the heartbeat timeout the server pushes
+    // "offline" on the live socket and the marker turns grey (no reload, no polling).
+    await page.waitForSelector(`[data-testid=machine-status-${S.machineId}]:has-text("offline")`, {
+      timeout: 60_000,
+    });
+    await shot(page, 'fleet-offline');
+    // Alerts raised by the run (if any) are grouped per job and kind; one click
+    // acknowledges a whole group.
     await page.reload();
     await page.waitForSelector('[data-testid=alert-list]');
-    const ack = page.locator('[data-testid^=ack-]').first();
+    const ack = page.locator('[data-testid^=ack-group-]').first();
     if (await ack.count()) {
-      const id = (await ack.getAttribute('data-testid')).slice(4);
+      const key = (await ack.getAttribute('data-testid')).slice('ack-group-'.length);
+      const [mid, jid, kind] = key.split(':');
       await ack.click();
-      await page.waitForSelector(`[data-testid=alert-${id}].muted`);
-      const a = listOf((await api(token, 'GET', '/alerts?limit=1000')).data).find((x) => String(x.id) === id);
-      assert.ok(a?.acknowledged_at, `alert ${id} acknowledged on the server`);
+      await page.waitForSelector(`[data-testid="alert-group-${key}"].muted`);
+      const all = listOf((await api(token, 'GET', '/alerts?limit=1000')).data).filter(
+        (x) => String(x.machine_id) === mid && String(x.job_id ?? '-') === jid && x.kind === kind,
+      );
+      assert.ok(all.length > 0 && all.every((x) => x.acknowledged_at), `group ${key} acknowledged on the server`);
       await shot(page, 'fleet-alert-acknowledged');
     }
     // Machine detail: raw vs filtered speed and target vs actual shaft speed.

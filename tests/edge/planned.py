@@ -18,9 +18,10 @@ def planned_job(
     headland_passes: int = 0,
     period_m: float = 12.0,
     name: str = "field",  # noqa: ANN001
+    width_m: float = 2.3,
 ) -> tuple[JobPackage, CellTable]:
-    """Plan 2.3 m x 5 m, rates alternating 600/850 kg/ha in bands period_m wide, package it."""
-    plan = plan_coverage(field, 2.3, headland_passes=headland_passes)
+    """Plan width_m x 5 m, rates alternating 600/850 kg/ha in bands period_m wide, package it."""
+    plan = plan_coverage(field, width_m, headland_passes=headland_passes)
     grid = build_grid(plan, field, 5.0)
     cx = grid.centroids_utm[:, 0]
     rates = np.round(600 + 250 * (0.5 + 0.5 * np.sign(np.sin((cx - X0) / period_m))), 0)
@@ -33,7 +34,7 @@ def planned_job(
         prescription_id=1,
         prescription_version=1,
         field_name=name,
-        implement_width_m=2.3,
+        implement_width_m=width_m,
         lag_s=1.52,
         calibration=LinearCalibration(),
         controller={"name": "ladrc"},

@@ -65,7 +65,9 @@ class Proc:
         return "\n".join(self.lines)
 
 
-def start_api(database_url: str, port: int | None = None, workers: int = 1) -> tuple[Proc, str]:
+def start_api(
+    database_url: str, port: int | None = None, workers: int = 1, env: dict[str, str] | None = None
+) -> tuple[Proc, str]:
     port = port or free_port()
     args = [
         str(BIN / "uvicorn"),
@@ -81,7 +83,7 @@ def start_api(database_url: str, port: int | None = None, workers: int = 1) -> t
         "warning",
         "--no-access-log",
     ]
-    proc = Proc(args, {"DATABASE_URL": database_url})
+    proc = Proc(args, {"DATABASE_URL": database_url, **(env or {})})
     url = f"http://127.0.0.1:{port}"
     deadline = time.monotonic() + 30
     while time.monotonic() < deadline:

@@ -7,15 +7,17 @@ the machine item routes use an ``int`` path converter.
 from __future__ import annotations
 
 import datetime as dt
+import json
 from typing import Any
 
 from fastapi import APIRouter, Query
-from sqlalchemy import func, select, text
+from pydantic import BaseModel, ConfigDict
+from sqlalchemy import func, select, text, update
 
 from fieldrx.api.common import ApiError, get_scoped, point_page
 from fieldrx.auth.deps import SessionDep, UserDep, WriterDep
 from fieldrx.db.models import Alert, Machine
-from fieldrx.fleet.alerts import ALERT_KINDS, check_no_data
+from fieldrx.fleet.alerts import ALERT_KINDS, LIVE_CHANNEL, check_no_data
 from fieldrx.fleet.db import raw_connection
 from fieldrx.fleet.status import machine_status
 from fieldrx.settings import get_settings
@@ -97,6 +99,105 @@ def ack_alert(alert_id: int, principal: WriterDep, session: SessionDep) -> dict[
         a.acknowledged_by = principal.user_id
         session.commit()
     return _alert_out(a)
+
+
+GROUPS_SQL = """
+SELECT machine_id, job_id, kind, count(*) AS count,
+       count(*) FILTER (WHERE ended_at IS NULL) AS active,
+       count(*) FILTER (WHERE acknowledged_at IS NULL) AS unacknowledged,
+       min(started_at) AS first_started_at, max(started_at) AS last_started_at,
+       max(value) AS max_value,
+       (array_agg(message ORDER BY started_at DESC, id DESC))[1] AS message,
+       (array_agg(id ORDER BY started_at DESC, id DESC))[1:100] AS alert_ids
+FROM alerts
+WHERE organisation_id = :org
+  AND (CAST(:mid AS int) IS NULL OR machine_id = :mid)
+  AND (CAST(:jid AS int) IS NULL OR job_id = :jid)
+GROUP BY machine_id, job_id, kind
+HAVING (CAST(:active AS boolean) IS NULL
+        OR (count(*) FILTER (WHERE ended_at IS NULL) > 0) = :active)
+   AND (CAST(:acked AS boolean) IS NULL
+        OR (count(*) FILTER (WHERE acknowledged_at IS NULL) = 0) = :acked)
+ORDER BY max(started_at) DESC, machine_id, kind
+LIMIT :lim
+"""
+
+
+@router.get("/alerts/groups")
+def alert_groups(
+    principal: UserDep,
+    session: SessionDep,
+    active: bool | None = Query(default=None, description="true: some alert not ended"),
+    acknowledged: bool | None = Query(default=None, description="false: some not acknowledged"),
+    machine_id: int | None = None,
+    job_id: int | None = None,
+    limit: int = Query(default=100, ge=1, le=1000),
+) -> dict[str, Any]:
+    """Alerts of one kind on one job (machine and kind without a job) as one group: a job
+    whose rate wandered in and out of tolerance 16 times is one line, acknowledged at once."""
+    rows = session.execute(
+        text(GROUPS_SQL),
+        {
+            "org": principal.organisation_id,
+            "mid": machine_id,
+            "jid": job_id,
+            "active": active,
+            "acked": acknowledged,
+            "lim": limit,
+        },
+    ).mappings()
+    items = [
+        {
+            **dict(r),
+            "alert_ids": list(r["alert_ids"] or []),
+            "acknowledged": r["unacknowledged"] == 0,
+        }
+        for r in rows
+    ]
+    return {"items": items, "total": len(items)}
+
+
+class AckGroupIn(BaseModel):
+    """One group: the machine's alerts of ``kind`` on ``job_id`` (null: without a job)."""
+
+    model_config = ConfigDict(extra="forbid")
+    machine_id: int
+    kind: str
+    job_id: int | None = None
+
+
+@router.post("/alerts/ack")
+def ack_alert_group(body: AckGroupIn, principal: WriterDep, session: SessionDep) -> dict[str, Any]:
+    """Acknowledge every alert of a group at once (ended or active; active ones stay active)."""
+    if body.kind not in ALERT_KINDS:
+        raise ApiError(422, f"unknown alert kind '{body.kind}'", where="kind", allowed=ALERT_KINDS)
+    get_scoped(session, Machine, body.machine_id, principal)
+    job_cond = Alert.job_id.is_(None) if body.job_id is None else Alert.job_id == body.job_id
+    now = dt.datetime.now(dt.UTC)
+    ids = session.scalars(
+        update(Alert)
+        .where(
+            Alert.organisation_id == principal.organisation_id,
+            Alert.machine_id == body.machine_id,
+            Alert.kind == body.kind,
+            job_cond,
+            Alert.acknowledged_at.is_(None),
+        )
+        .values(acknowledged_at=now, acknowledged_by=principal.user_id)
+        .returning(Alert.id)
+    ).all()
+    msg = {
+        "type": "alert",
+        "event": "acknowledged",
+        "org": principal.organisation_id,
+        "machine_id": body.machine_id,
+        "job_id": body.job_id,
+        "kind": body.kind,
+        "ids": list(ids),
+    }
+    session.execute(text("SELECT pg_notify(:c, :p)"), {"c": LIVE_CHANNEL, "p": json.dumps(msg)})
+    session.commit()
+    return {"acknowledged": len(ids), "ids": list(ids)}
 
 
 def _range(

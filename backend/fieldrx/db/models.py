@@ -357,10 +357,13 @@ class MachineStatus(Base):
     applied_rate_kg_ha: Mapped[float | None] = mapped_column(Double)
     queue_backlog: Mapped[int] = mapped_column(Integer, default=0)
     alarms: Mapped[list[str]] = mapped_column(ARRAY(String(32)), default=list)
+    # when "offline" was announced on the live socket (fleet.status.sweep_offline)
+    offline_at: Mapped[dt.datetime | None] = mapped_column(DateTime(timezone=True))
 
 
 class Alert(Base):
     __tablename__ = "alerts"
+    __table_args__ = (Index("ix_alerts_job_kind", "job_id", "kind"),)
     id: Mapped[int] = mapped_column(primary_key=True)
     organisation_id: Mapped[int] = mapped_column(
         ForeignKey("organisations.id", ondelete="CASCADE"), index=True

@@ -17,8 +17,17 @@ from typing import Any
 
 import psycopg
 
-ALERT_KINDS = ("rate_error", "speed_out_of_range", "shaft_saturation", "fix_lost", "no_data")
+ALERT_KINDS = (
+    "rate_error",
+    "speed_out_of_range",
+    "shaft_saturation",
+    "fix_lost",
+    "no_data",
+    "cells_not_applied",
+)
 LIVE_CHANNEL = "fieldrx_live"
+# kinds opened and closed by records; a machine gone silent leaves them unobservable
+RECORD_KINDS = ("rate_error", "speed_out_of_range", "shaft_saturation", "fix_lost")
 
 SATURATION_ALARMS = frozenset({"shaft_above_range", "shaft_below_range", "motor_saturated"})
 
@@ -130,7 +139,9 @@ def evaluate(
             "UPDATE alerts SET ended_at = %s WHERE id = %s",
             (_ts(samples[0].t), open_ids["no_data"]),
         )
-        messages.append(_msg(organisation_id, open_ids["no_data"], machine_id, "no_data", "ended"))
+        messages.append(
+            alert_message(organisation_id, open_ids["no_data"], machine_id, "no_data", "ended")
+        )
     history: list[Sample] | None = None
     for kind, (duration, cond, text) in conds.items():
         is_open = kind in open_ids
@@ -152,7 +163,7 @@ def evaluate(
                         "UPDATE alerts SET ended_at = %s WHERE id = %s", (_ts(s.t), open_ids[kind])
                     )
                     messages.append(
-                        _msg(organisation_id, open_ids[kind], machine_id, kind, "ended")
+                        alert_message(organisation_id, open_ids[kind], machine_id, kind, "ended")
                     )
                     is_open = False
                     del open_ids[kind]
@@ -170,7 +181,9 @@ def evaluate(
                 open_ids[kind] = row[0]
                 is_open = True
                 messages.append(
-                    _msg(organisation_id, row[0], machine_id, kind, "started", text, value, job_id)
+                    alert_message(
+                        organisation_id, row[0], machine_id, kind, "started", text, value, job_id
+                    )
                 )
     return messages
 
@@ -197,7 +210,7 @@ def _history(
     return [Sample(r[0], r[1], r[2], r[3], r[4], r[5], r[6] or ()) for r in cur.fetchall()]
 
 
-def _msg(
+def alert_message(
     org: int,
     alert_id: int,
     machine_id: int,
@@ -270,12 +283,15 @@ def check_no_data(conn: psycopg.Connection[Any], timeout_s: float) -> int:
         ended = cur.fetchall()
         notify(
             cur,
-            [_msg(org, aid, mid, "no_data", "ended", job_id=jid) for aid, org, mid, jid in ended],
+            [
+                alert_message(org, aid, mid, "no_data", "ended", job_id=jid)
+                for aid, org, mid, jid in ended
+            ],
         )
         notify(
             cur,
             [
-                _msg(org, aid, mid, "no_data", "started", text, value, jid)
+                alert_message(org, aid, mid, "no_data", "started", text, value, jid)
                 for aid, org, mid, jid, text, value in rows
             ],
         )

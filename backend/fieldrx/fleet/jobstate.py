@@ -3,6 +3,10 @@
 Every change is a ``job_events`` row (when, and who: a user or a machine) and a
 live message. Asking for the state a job is already in is a no-op (a device
 that restarts may repeat "running"); anything else not in the table is a 409.
+
+A job that ends "completed" while prescribed cells received nothing raises a
+``cells_not_applied`` alert listing them (issue 11: a job ended "completed" at
+85.7 % coverage with no alert); the report lists them too (``not_applied_seqs``).
 """
 
 from __future__ import annotations
@@ -15,8 +19,9 @@ from sqlalchemy import text
 from sqlalchemy.orm import Session
 
 from fieldrx.api.common import ApiError
-from fieldrx.db.models import Job, JobEvent
-from fieldrx.fleet.alerts import LIVE_CHANNEL
+from fieldrx.db.models import Alert, Job, JobEvent
+from fieldrx.fleet.alerts import LIVE_CHANNEL, alert_message
+from fieldrx.fleet.reports import build_report
 
 FINAL = ("completed", "aborted")
 TRANSITIONS: dict[str, tuple[str, ...]] = {
@@ -62,7 +67,45 @@ def change_state(
         )
     )
     notify_job(session, job)
+    if state == "completed":
+        alert_cells_not_applied(session, job)
     return True
+
+
+LISTED_SEQS = 50  # seqs spelled out in the alert's message; the report lists them all
+
+
+def alert_cells_not_applied(session: Session, job: Job) -> Alert | None:
+    """The job-end check: an alert listing the prescribed cells nothing landed in.
+
+    The alert is an event (it starts and ends when the job ends); it stays in the
+    list until someone acknowledges it. None when every prescribed cell got fertilizer.
+    """
+    session.flush()
+    seqs = build_report(session, job).not_applied_seqs
+    if not seqs:
+        return None
+    shown = ", ".join(str(s) for s in seqs[:LISTED_SEQS])
+    more = f" and {len(seqs) - LISTED_SEQS} more" if len(seqs) > LISTED_SEQS else ""
+    now = dt.datetime.now(dt.UTC)
+    a = Alert(
+        organisation_id=job.organisation_id,
+        machine_id=job.machine_id,
+        job_id=job.id,
+        kind="cells_not_applied",
+        message=f"job ended with {len(seqs)} prescribed cells never applied: seq {shown}{more}",
+        value=float(len(seqs)),
+        started_at=now,
+        ended_at=now,
+    )
+    session.add(a)
+    session.flush()
+    msg = alert_message(
+        job.organisation_id, a.id, job.machine_id, a.kind, "started", a.message, a.value, job.id
+    )
+    msg["seqs"] = seqs[:LISTED_SEQS]
+    session.execute(text("SELECT pg_notify(:c, :p)"), {"c": LIVE_CHANNEL, "p": json.dumps(msg)})
+    return a
 
 
 def notify_job(session: Session, job: Job) -> None:

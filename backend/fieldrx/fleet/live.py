@@ -5,6 +5,10 @@ its transaction; PostgreSQL delivers them at commit to every listening process,
 and each process forwards them to its own WebSocket clients of the same
 organisation. Nothing is shared in memory between processes: the only
 per-process state is the list of sockets connected to that process.
+
+While sockets are connected, each process also sweeps for machines gone silent
+(``fleet.status.sweep_offline``, a few times per heartbeat timeout), so "offline"
+reaches browsers even when no MQTT worker runs; the sweep announces each silence once.
 """
 
 from __future__ import annotations
@@ -19,6 +23,9 @@ import psycopg
 
 from fieldrx.db.session import raw_dsn
 from fieldrx.fleet.alerts import LIVE_CHANNEL
+from fieldrx.fleet.db import raw_connection
+from fieldrx.fleet.status import sweep_offline
+from fieldrx.settings import get_settings
 
 log = logging.getLogger(__name__)
 
@@ -31,6 +38,7 @@ class LiveHub:
     def __init__(self) -> None:
         self._subs: dict[int, set[asyncio.Queue[str]]] = {}
         self._task: asyncio.Task[None] | None = None
+        self._sweeper: asyncio.Task[None] | None = None
         self._ready: asyncio.Event | None = None
 
     async def subscribe(self, organisation_id: int) -> asyncio.Queue[str]:
@@ -41,6 +49,8 @@ class LiveHub:
             # (a new event loop, e.g. a test client's, needs its own listener)
             self._ready = asyncio.Event()
             self._task = loop.create_task(self._listen(self._ready))
+        if self._sweeper is None or self._sweeper.done() or self._sweeper.get_loop() is not loop:
+            self._sweeper = loop.create_task(self._sweep())
         assert self._ready is not None
         with contextlib.suppress(TimeoutError):
             await asyncio.wait_for(self._ready.wait(), 5.0)
@@ -64,6 +74,19 @@ class LiveHub:
                     q.get_nowait()
             q.put_nowait(text)
 
+    async def _sweep(self) -> None:
+        """Offline sweep while anyone listens (period: a quarter of the timeout, 0.5-5 s)."""
+        timeout = get_settings().heartbeat_timeout_s
+        period = min(5.0, max(0.5, timeout / 4))
+        while self._subs:
+            try:
+                await asyncio.to_thread(_sweep_once, timeout)
+            except asyncio.CancelledError:
+                raise
+            except Exception as exc:  # database restart: try again next period
+                log.warning("offline sweep failed: %s", exc)
+            await asyncio.sleep(period)
+
     async def _listen(self, ready: asyncio.Event) -> None:
         while True:
             try:
@@ -83,6 +106,11 @@ class LiveHub:
             except Exception as exc:  # database restart: listen again
                 log.warning("live LISTEN connection lost: %s", exc)
                 await asyncio.sleep(1.0)
+
+
+def _sweep_once(timeout_s: float) -> None:
+    with raw_connection() as conn:
+        sweep_offline(conn, timeout_s)
 
 
 hub = LiveHub()

@@ -16,9 +16,10 @@ Per cell (path order, planned rate M in kg/ha):
   cells' quadrilaterals, or in the real cell polygon (``plan_cells.geom``) for
   the cells whose polygon differs from the rectangle (field edge, holes,
   headland rings: ``formats.jobpackage.shaped_cells``, the cells that carry
-  their shape in the job package); mass landing off the field or outside every cell is
-  "outside". Records without positions fall back to their own ``cell_seq``
-  (the lag-compensated cell the agent metered for);
+  their shape in the job package); where cells overlap, the record's own cell
+  wins; mass landing off the field or outside every cell is "outside". Records
+  without positions fall back to their own ``cell_seq`` (the lag-compensated cell
+  the agent metered for);
 * for those shaped cells d is the length inside the real polygon of the centre
   lines of the cell and its same-swath neighbours, joined (5 m straight on at a
   swath's end), as the edge simulator's ``shape_drive_len`` counts it;
@@ -86,6 +87,8 @@ class JobReport:
     n_records: int
     first_t: float | None
     last_t: float | None
+    # prescribed cells (rate > 0) where nothing landed, path order (the job-end alert's list)
+    not_applied_seqs: list[int] = field(default_factory=list)
     cells: list[CellReport] = field(default_factory=list)
 
     def summary(self) -> dict[str, Any]:
@@ -220,7 +223,13 @@ def _landing_cells(
         pts = shapely.points(xl, yl)
         pi, ci = tree.query(pts, predicate="intersects")
         if len(pi):
-            order = np.lexsort((ci, pi))  # lowest cell index first, as the agent's locator
+            # where cells overlap (a swath's footprint over the headland ring it overlaps,
+            # ``formats.jobpackage.shaped_cells``), the cell the agent metered for wins, as
+            # its path-ordered locator prefers the cell being driven; else the lowest index
+            pos = np.searchsorted(seqs, cell)
+            own = np.where((pos < len(seqs)) & (seqs[np.minimum(pos, len(seqs) - 1)] == cell),
+                           pos, -1)  # fmt: skip
+            order = np.lexsort((ci, ci != own[pi], pi))
             pi, ci = pi[order], ci[order]
             first, at = np.unique(pi, return_index=True)
             out[first] = ci[at]
@@ -391,5 +400,6 @@ def build_report(session: Session, job: Job, max_gap_s: float = MAX_GAP_S) -> Jo
         n_records=nr,
         first_t=first_t,
         last_t=last_t,
+        not_applied_seqs=[int(v) for v in seqs[prescribed & ~done]],
         cells=out_cells,
     )

@@ -31,6 +31,7 @@ from paho.mqtt.properties import Properties
 from fieldrx.db.session import raw_dsn
 from fieldrx.fleet.alerts import check_no_data
 from fieldrx.fleet.ingest import IngestError, ingest
+from fieldrx.fleet.status import sweep_offline
 
 log = logging.getLogger(__name__)
 
@@ -150,6 +151,7 @@ class IngestWorker:
                     last_check = now
                     try:
                         check_no_data(conn, self.heartbeat_timeout_s)
+                        sweep_offline(conn, self.heartbeat_timeout_s)
                         self._beat()
                     except psycopg.Error as exc:
                         log.warning("no-data check failed: %s", exc)

@@ -54,8 +54,20 @@ class ValidBoundary:
 
 
 def geodesic_area_m2(geom: Polygon | MultiPolygon) -> float:
-    """Area on the WGS84 ellipsoid (holes subtracted)."""
-    return abs(_GEOD.geometry_area_perimeter(geom)[0])
+    """Area on the WGS84 ellipsoid (holes subtracted), whatever way the rings wind.
+
+    ``Geod.geometry_area_perimeter`` sums the rings' *signed* areas, assuming
+    RFC 7946 winding (exterior counter-clockwise, holes clockwise): a hole wound
+    like its exterior was added instead of subtracted (issue 11, defect 5). Each
+    ring's magnitude is taken on its own instead.
+    """
+    polys = list(geom.geoms) if isinstance(geom, MultiPolygon) else [geom]
+    total = 0.0
+    for p in polys:
+        total += abs(_GEOD.polygon_area_perimeter(*p.exterior.xy)[0])
+        for hole in p.interiors:
+            total -= abs(_GEOD.polygon_area_perimeter(*hole.xy)[0])
+    return total
 
 
 def _rings(coords: Any, gtype: str) -> list[tuple[str, list]]:

@@ -18,8 +18,13 @@ describe('fleet status', () => {
     const m = fromStatusItem(item);
     expect([m.lon, m.lat, m.job_id, m.progress, m.status]).toEqual([112.3, 32.1, 7, 0.25, 'working']);
   });
-  it('alarm beats offline beats working; slow is idle', () => {
-    expect(deriveStatus({ machine_id: 1, online: false, active_alerts: 2 })).toBe('alarm');
+  it('offline beats alarm beats working; slow is idle; record flags are not alarms', () => {
+    expect(deriveStatus({ machine_id: 1, online: false, active_alerts: 2 })).toBe('offline');
+    expect(deriveStatus({ machine_id: 1, online: true, active_alerts: 1, speed_m_s: 2 })).toBe('alarm');
+    // a headland turn, implement raised: the record says speed_out_of_range, no alert is open
+    expect(deriveStatus({ machine_id: 1, online: true, speed_m_s: 0.6, job_state: 'running', alarms: ['speed_out_of_range'] })).toBe(
+      'working',
+    );
     expect(deriveStatus({ machine_id: 1, online: false, speed_m_s: 2, job_state: 'running' })).toBe('offline');
     expect(deriveStatus({ machine_id: 1, online: true, speed_m_s: 0.1, job_state: 'running' })).toBe('idle');
     expect(deriveStatus({ machine_id: 1, online: true, speed_m_s: 2 })).toBe('moving');
@@ -42,6 +47,16 @@ describe('live messages', () => {
     expect(f.get(1)!.status).toBe('alarm');
     f = applyLive(f, { type: 'alert', machine_id: 1, event: 'ended', kind: 'no_data' });
     expect(f.get(1)!.status).toBe('working');
+  });
+  it('an offline push turns a red, moving machine grey and drops its speed', () => {
+    let f = applyLive(start, { type: 'alert', machine_id: 1, event: 'started', kind: 'rate_error' });
+    expect(f.get(1)!.status).toBe('alarm');
+    f = applyLive(f, { type: 'machine', event: 'offline', machine_id: 1, online: false });
+    const m = f.get(1)!;
+    expect([m.status, m.speed_m_s, m.online]).toEqual(['offline', null, false]);
+    expect([m.lon, m.lat]).toEqual([112.3, 32.1]); // last known position stays on the map
+    f = applyLive(f, { type: 'position', machine_id: 1, lon: 112.3, lat: 32.1, speed_m_s: 2 });
+    expect(f.get(1)!.online).toBe(true); // reporting again
   });
   it('a status snapshot replaces the fleet; unknown messages change nothing', () => {
     const f = applyLive(start, { type: 'status', machines: [{ ...item, machine_id: 2, position: null, online: false }] });

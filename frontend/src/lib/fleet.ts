@@ -1,6 +1,6 @@
 /**
  * Fleet state from GET /machines/status and the /live WebSocket messages
- * ("status" snapshot, "position", "job", "alert"), as a pure reducer so the
+ * ("status" snapshot, "position", "job", "alert", "machine" offline), as a pure reducer so the
  * rules (what counts as working, idle, alarm, offline) are unit-tested.
  */
 
@@ -30,10 +30,15 @@ function num(v: unknown): number | null {
   return typeof v === 'number' && Number.isFinite(v) ? v : null;
 }
 
-/** Alarm beats everything; offline next; then working (implement down or job running while moving). */
+/**
+ * The present, not the last record: offline beats everything (a silent machine's flags are
+ * history), then an active alert; a record's own alarm flags (a slow headland turn with the
+ * implement raised) are not an alarm. Then working (implement down or job running while
+ * moving), moving, idle.
+ */
 export function deriveStatus(m: Omit<FleetMachine, 'status'>): FleetMachine['status'] {
-  if ((m.active_alerts ?? 0) > 0 || (m.alarms?.length ?? 0) > 0) return 'alarm';
   if (m.online === false) return 'offline';
+  if ((m.active_alerts ?? 0) > 0) return 'alarm';
   const moving = (m.speed_m_s ?? 0) > MOVING_M_S;
   if (moving && (m.implement_down || m.job_state === 'running')) return 'working';
   if (moving) return 'moving';
@@ -101,6 +106,9 @@ export function applyLive(fleet: Fleet, msg: LiveMsg): Fleet {
       job_state: (msg.state as string) ?? prev.job_state,
       progress: num(msg.progress) ?? prev.progress,
     };
+  } else if (msg.type === 'machine' && msg.event === 'offline') {
+    // pushed by the server after the heartbeat timeout: no speed, no flags any more
+    upd = { ...prev, online: false, speed_m_s: null, alarms: [] };
   } else if (msg.type === 'alert') {
     const delta = msg.event === 'ended' ? -1 : msg.event === 'started' || msg.event == null ? 1 : 0;
     upd = { ...prev, active_alerts: Math.max(0, (prev.active_alerts ?? 0) + delta) };

@@ -9,7 +9,7 @@ import { compass, formatPercent, formatSpeed } from '../lib/units';
 import { useLive } from '../live';
 import { MapView } from '../map/MapView';
 import { fitTo, setGeoJSON } from '../map/setup';
-import type { Alert } from '../types';
+import { ackBody, groupKey, groupLabel, markAcknowledged, openGroupCount, type AlertGroup } from '../lib/alerts';
 import { listOf } from '../types';
 
 const TRAIL = 300;
@@ -36,7 +36,7 @@ function toFC(fleet: Fleet): GeoJSON.FeatureCollection {
 /** Live fleet: positions over WebSocket, status colours, heading arrows, job progress, alerts. */
 export function FleetScreen() {
   const [fleet, setFleet] = useState<Fleet>(new Map());
-  const [alerts, setAlerts] = useState<Alert[]>([]);
+  const [groups, setGroups] = useState<AlertGroup[]>([]);
   const [error, setError] = useState<unknown>(null);
   const [missing, setMissing] = useState(false);
   const trails = useRef(new Map<number, [number, number][]>());
@@ -57,7 +57,7 @@ export function FleetScreen() {
   }, []);
   const loadAlerts = useCallback(async () => {
     try {
-      setAlerts(listOf<Alert>(await api.get('/alerts?limit=50')));
+      setGroups(listOf<AlertGroup>(await api.get('/alerts/groups?limit=50')));
     } catch (e) {
       if (!isMissingEndpoint(e)) setError(e);
     }
@@ -141,7 +141,14 @@ export function FleetScreen() {
 
   const list = [...fleet.values()].sort((a, b) => a.machine_id - b.machine_id);
   const name = (id?: number) => (id != null ? (fleet.get(id)?.name ?? `#${id}`) : '');
-  const open = alerts.filter((a) => !a.acknowledged_at && !a.acknowledged);
+  const ackAll = async (g: AlertGroup) => {
+    try {
+      await api.post('/alerts/ack', ackBody(g));
+      setGroups((cur) => markAcknowledged(cur, groupKey(g)));
+    } catch (e) {
+      setError(e);
+    }
+  };
   return (
     <div className="split">
       <aside className="panel">
@@ -188,33 +195,24 @@ export function FleetScreen() {
           ))}
         </ul>
         <h3>
-          Alerts <span className="badge" data-testid="alert-count">{open.length}</span>
+          Alerts <span className="badge" data-testid="alert-count">{openGroupCount(groups)}</span>
         </h3>
         <ul className="list" data-testid="alert-list">
-          {alerts.map((a) => {
-            const acked = Boolean(a.acknowledged || a.acknowledged_at);
-            const active = a.active !== false && !a.ended_at;
+          {groups.map((g) => {
+            const key = groupKey(g);
+            const acked = g.unacknowledged === 0;
             return (
-              <li key={a.id} className={acked ? 'muted' : 'alert'} data-testid={`alert-${a.id}`}>
-                <strong>{String(a.kind ?? 'alert').replace(/_/g, ' ')}</strong> · {name(a.machine_id)}
-                {a.job_id != null && <> · job #{a.job_id}</>}
-                <span className="muted small"> {active ? 'active' : 'ended'}</span>
-                {a.message && <div className="small">{a.message}</div>}
-                <div className="muted small">{a.started_at ? new Date(String(a.started_at)).toLocaleString() : ''}</div>
+              <li key={key} className={acked ? 'muted' : 'alert'} data-testid={`alert-group-${key}`}>
+                <strong>{groupLabel(g)}</strong> · {name(g.machine_id)}
+                {g.job_id != null && <> · job #{g.job_id}</>}
+                {g.message && <div className="small">{g.message}</div>}
+                <div className="muted small">
+                  {g.first_started_at ? new Date(String(g.first_started_at)).toLocaleString() : ''}
+                  {g.count > 1 && g.last_started_at ? ` – ${new Date(String(g.last_started_at)).toLocaleString()}` : ''}
+                </div>
                 {!acked && (
-                  <button
-                    className="link"
-                    data-testid={`ack-${a.id}`} data-write=""
-                    onClick={async () => {
-                      try {
-                        const r = await api.post<Alert>(`/alerts/${a.id}/ack`);
-                        setAlerts((cur) => cur.map((x) => (x.id === a.id ? { ...x, ...r, acknowledged: true } : x)));
-                      } catch (e) {
-                        setError(e);
-                      }
-                    }}
-                  >
-                    acknowledge
+                  <button className="link" data-testid={`ack-group-${key}`} data-write="" onClick={() => void ackAll(g)}>
+                    {g.unacknowledged > 1 ? `acknowledge all ${g.unacknowledged}` : 'acknowledge'}
                   </button>
                 )}
               </li>

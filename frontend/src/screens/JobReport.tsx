@@ -177,6 +177,13 @@ export function JobReport({ jobId }: { jobId: number }) {
   };
 
   const r = report ?? {};
+  /** Prescribed cells nothing landed in (the job-end alert lists them too). */
+  const notApplied = (rep: Record<string, unknown>): string => {
+    const seqs = Array.isArray(rep.not_applied_seqs) ? (rep.not_applied_seqs as number[]) : [];
+    if (!seqs.length) return report ? 'none' : '–';
+    const shown = seqs.slice(0, 30).join(', ');
+    return `${seqs.length}: seq ${shown}${seqs.length > 30 ? ` and ${seqs.length - 30} more` : ''}`;
+  };
   const cov = pick(r, 'coverage_pct');
   const acc = pick(r, 'mean_accuracy_pct');
   return (
@@ -205,6 +212,7 @@ export function JobReport({ jobId }: { jobId: number }) {
             ['Worst cell', pick(r, 'min_accuracy_pct') != null ? `${pick(r, 'min_accuracy_pct')!.toFixed(1)} %` : '–'],
             ['Time worked', formatDuration(pick(r, 'time_worked_s'))],
             ['Records', String(pick(r, 'n_records') ?? points.length), 'report-records'],
+            ['Never applied', notApplied(r), 'report-not-applied'],
             ['Field', field ? `${field.properties.name} (${formatArea(field.properties.area_m2)})` : '–'],
           ]}
         />
