@@ -291,9 +291,7 @@ class Job(Base):
     # cells flagged no data / outside the meter range when the job was made, and whether
     # the sender confirmed sending them anyway (created_by is who confirmed)
     flagged_cells: Mapped[int] = mapped_column(Integer, default=0, server_default="0")
-    flagged_confirmed: Mapped[bool] = mapped_column(
-        Boolean, default=False, server_default="false"
-    )
+    flagged_confirmed: Mapped[bool] = mapped_column(Boolean, default=False, server_default="false")
     created_by: Mapped[int | None] = mapped_column(ForeignKey("users.id", ondelete="SET NULL"))
     created_at: Mapped[dt.datetime] = _now()
     updated_at: Mapped[dt.datetime] = _now()
