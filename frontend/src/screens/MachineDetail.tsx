@@ -6,6 +6,7 @@ import { decimate, normaliseTrack, type TrackPoint } from '../lib/track';
 import { formatSpeed, msToKmh } from '../lib/units';
 import { useLive } from '../live';
 import type { Machine } from '../types';
+import { calibrationText } from '../lib/calibration';
 
 const MAX_POINTS = 3000;
 
@@ -78,6 +79,7 @@ export function MachineDetail({ machineId }: { machineId: number }) {
           ['Implement', String(machine?.implement_type ?? '–')],
           ['Width', machine?.width_m != null ? `${machine.width_m} m` : '–'],
           ['Lag', machine?.lag_s != null ? `${machine.lag_s} s` : '–'],
+          ['Calibration', calibrationText(machine?.calibration), 'machine-calibration'],
           ['Last speed', formatSpeed(last?.speed_filtered_m_s), 'machine-last-speed'],
           ['Track points', String(track.length), 'machine-track-count'],
         ]}
