@@ -289,6 +289,31 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
     await mapIdle(page, 'field');
     await shot(page, 'soil-ok');
     S.soil = true;
+    // The same file again is recognised (nothing doubled).
+    await page.setInputFiles('[data-testid=soil-file]', goodFile);
+    await page.waitForSelector('[data-testid=soil-error]:has-text("already imported")');
+    assert.equal(await page.locator('[data-testid=soil-imports] tbody tr').count(), 1, 'one import listed');
+    // A file from a field ~100 km away: its rows are listed with their distance and not stored.
+    const farFile = join(ARTIFACTS, 'soil-far.csv');
+    writeFileSync(farFile, [header, ...rows.map((r, i) => `F${i},${(w + 1).toFixed(7)},${s.toFixed(7)},90`)].join('\n') + '\n');
+    await page.setInputFiles('[data-testid=soil-file]', farFile);
+    await page.waitForSelector('[data-testid=soil-outside]');
+    assert.match(await page.textContent('[data-testid=soil-outside]'), /\d{2},?\d{3} m away/);
+    assert.equal(await page.locator('[data-testid=soil-imports] tbody tr').count(), 1, 'far file not stored');
+    // A second small import, listed, then deleted in the UI.
+    const extraFile = join(ARTIFACTS, 'soil-extra.csv');
+    writeFileSync(extraFile, `${header}\n${rows[0].replace(/^S1,/, 'X1,')}\n`);
+    await page.setInputFiles('[data-testid=soil-file]', extraFile);
+    await page.waitForFunction(() => document.querySelectorAll('[data-testid=soil-imports] tbody tr').length === 2);
+    const before = Number((await page.textContent('[data-testid=soil-count]')).replace(/\D/g, ''));
+    page.once('dialog', (d) => d.accept());
+    await page.click('[data-testid=soil-imports] tbody tr:first-child button');
+    await page.waitForFunction(() => document.querySelectorAll('[data-testid=soil-imports] tbody tr').length === 1);
+    await page.waitForFunction(
+      (n) => Number((document.querySelector('[data-testid=soil-count]')?.textContent ?? '').replace(/\D/g, '')) === n,
+      before - 1,
+    );
+    await shot(page, 'soil-imports');
   });
 
   it('builds a nutrient-balance prescription', async (t) => {
@@ -307,6 +332,13 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
     await shot(page, 'prescription');
     const legend = await page.locator('[data-testid=rx-legend] .legend-row').count();
     assert.ok(legend >= 1, 'legend drawn');
+    // Cells without a sample nearby are counted with their area and the fallback rate named.
+    const rx = (await api(token, 'GET', `/prescriptions/${S.rxId}`)).data;
+    const flagged = await page.textContent('[data-testid=rx-flagged]');
+    assert.match(flagged, new RegExp(`^${rx.summary.attention.count} cells? \\(\\d+\\.\\d{3} ha\\)`), flagged);
+    if (rx.summary.attention.count > 0) {
+      assert.match(await page.textContent('[data-testid=rx-flagged-detail]'), /fallback rate/);
+    }
   });
 
   it('edits a cell rate (new version)', async (t) => {
@@ -371,6 +403,28 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
     await shot(page, 'export-isoxml');
   });
 
+  it('adds a machine with its own metering calibration (no default)', async (t) => {
+    await page.goto(`${BASE_URL}/#/machines`);
+    await page.waitForSelector('[data-testid=machine-form]');
+    await page.fill('[data-testid=machine-name]', 'E2E 12 m spreader');
+    await page.fill('[data-testid=machine-width]', '12');
+    await page.click('[data-testid=machine-submit]');
+    await page.waitForSelector('[data-testid=cal-errors]');
+    assert.match(await page.textContent('[data-testid=cal-errors]'), /slope a .* is required/);
+    for (const [tid, v] of [['cal-slope', '900'], ['cal-intercept', '-500'], ['cal-min-rpm', '10'], ['cal-max-rpm', '150'], ['cal-lag', '1.2']]) {
+      await page.fill(`[data-testid=${tid}]`, v);
+    }
+    assert.match(await page.textContent('[data-testid=cal-range]'), /kg\/ha at 3–9 km\/h/);
+    await page.click('[data-testid=machine-submit]');
+    await page.waitForSelector('[data-testid=machine-table] td:has-text("q0 = 900 r − 500 g/min, 10–150 r/min")');
+    const m = listOf((await api(token, 'GET', '/machines')).data).find((x) => x.name === 'E2E 12 m spreader');
+    assert.deepEqual(m.calibration, { kind: 'linear', slope_g_min_per_rpm: 900, intercept_g_min: -500, min_rpm: 10, max_rpm: 150 });
+    assert.equal(m.lag_s, 1.2);
+    await shot(page, 'machine-added');
+    await page.goto(`${BASE_URL}/#/prescriptions/${S.rxId}`);
+    await page.waitForSelector('[data-testid=job-machine] option');
+  });
+
   it('sends the job to a machine', async (t) => {
     if (!need(t, 'rxId')) return;
     if (!(await needEndpoint(t, 'POST', '/jobs', 'jobs'))) return;
@@ -379,9 +433,16 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
     S.machineId = machines[0].id;
     await page.selectOption('[data-testid=job-machine]', String(S.machineId));
     await page.click('[data-testid=send-job]');
+    // The edited 123.4 kg/ha cell is below what the demo spreader meters and cells have no
+    // sample nearby: sending asks for an explicit confirmation first.
+    await page.waitForSelector('[data-testid=job-confirm-panel]');
+    assert.match(await page.textContent('[data-testid=job-confirm-text]'), /cell\(s\).*confirm_flagged/);
+    await shot(page, 'job-confirm');
+    await page.click('[data-testid=job-confirm]');
     await page.waitForURL(/#\/jobs\?created=\d+/);
     S.jobId = Number(page.url().match(/created=(\d+)/)[1]);
     await page.waitForSelector(`[data-testid=job-row-${S.jobId}]`);
+    assert.match(await page.textContent(`[data-testid=job-flagged-${S.jobId}]`), /\d+ \(sent on confirmation\)/);
     await shot(page, 'job-sent');
   });
 
