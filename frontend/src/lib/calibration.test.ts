@@ -1,5 +1,5 @@
 import { describe, expect, it } from 'vitest';
-import { calibrationText, EMPTY_CALIBRATION, meterableRange, rateAt, shaftRpmFor, validateCalibration } from './calibration';
+import { calibrationText, EMPTY_CALIBRATION, formOf, meterableRange, rateAt, shaftRpmFor, validateCalibration } from './calibration';
 
 const SEED001 = { slope: '237.2', intercept: '-404.4', minRpm: '30', maxRpm: '130', lag: '1.52' };
 
@@ -41,5 +41,13 @@ describe('calibration text', () => {
       calibrationText({ kind: 'linear', slope_g_min_per_rpm: 237.2, intercept_g_min: -404.4, min_rpm: 30, max_rpm: 130 }),
     ).toBe('q0 = 237.2 r − 404.4 g/min, 30–130 r/min');
     expect(calibrationText(undefined)).toBe('–');
+  });
+});
+
+describe('editing a stored calibration', () => {
+  it('round-trips through the form', () => {
+    const stored = { kind: 'linear', slope_g_min_per_rpm: 237.2, intercept_g_min: -404.4, min_rpm: 30, max_rpm: 130 };
+    const r = validateCalibration(formOf(stored, 1.52));
+    expect(r.value).toEqual({ lag_s: 1.52, calibration: stored });
   });
 });

@@ -104,3 +104,15 @@ export function calibrationText(c: Record<string, unknown> | undefined): string 
   const b = l.intercept_g_min;
   return `q0 = ${l.slope_g_min_per_rpm} r ${b < 0 ? '−' : '+'} ${Math.abs(b)} g/min, ${l.min_rpm}–${l.max_rpm} r/min`;
 }
+
+/** The form filled with a stored linear calibration and lag (to edit them). */
+export function formOf(c: Record<string, unknown> | undefined, lagS: number | undefined): CalibrationForm {
+  const str = (v: unknown) => (typeof v === 'number' ? String(v) : '');
+  return {
+    slope: str(c?.slope_g_min_per_rpm),
+    intercept: str(c?.intercept_g_min),
+    minRpm: str(c?.min_rpm),
+    maxRpm: str(c?.max_rpm),
+    lag: str(lagS),
+  };
+}
