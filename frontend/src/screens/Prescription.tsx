@@ -47,6 +47,7 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
   const [machines, setMachines] = useState<Machine[]>([]);
   const [machineId, setMachineId] = useState('');
   const [msg, setMsg] = useState('');
+  const [verSummary, setVerSummary] = useState<Record<string, unknown> | null>(null);
   const [confirmJob, setConfirmJob] = useState<{ message: string; count: number; areaM2: number; seq: number[] } | null>(null);
   const [error, setError] = useState<unknown>(null);
   const mapRef = useRef<maplibregl.Map | null>(null);
@@ -90,8 +91,25 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
     // eslint-disable-next-line react-hooks/exhaustive-deps
   }, [rxId]);
 
+  useEffect(() => {
+    const current = (rx?.current_version ?? rx?.version) as number | undefined;
+    if (!rx || version == null || version === current) {
+      setVerSummary(null);
+      return;
+    }
+    let live = true;
+    api
+      .get<{ summary?: Record<string, unknown> }>(`/prescriptions/${rxId}/versions/${version}`)
+      .then((v) => live && setVerSummary(v.summary ?? null))
+      .catch(() => live && setVerSummary(null));
+    return () => {
+      live = false;
+    };
+  }, [rx, version, rxId]);
+
   const stats = { ...(rx ?? {}), ...((rx?.stats as Record<string, unknown>) ?? {}) } as Record<string, unknown>;
-  const attention = attentionOf(rx);
+  // Flags of the version on screen (the prescription's summary is its current version's).
+  const attention = attentionOf(verSummary ? { ...rx, summary: verSummary } : rx);
   // The server's summary covers every cell; loaded tiles are the fallback.
   const lo = pick(stats, 'rate_min_kg_ha', 'min_rate_kg_ha') ?? (rates.length ? minOf(rates) : undefined);
   const hi = pick(stats, 'rate_max_kg_ha', 'max_rate_kg_ha') ?? (rates.length ? maxOf(rates) : undefined);
