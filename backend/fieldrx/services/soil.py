@@ -15,13 +15,13 @@ import json
 import uuid
 from typing import Any
 
-from geoalchemy2.shape import to_shape
+from geoalchemy2.shape import from_shape, to_shape
 from shapely.geometry import Point
 from sqlalchemy import delete, func, select
+from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from fieldrx.agronomy.soil import OUTSIDE_TOLERANCE_M, SoilImport, read_soil_samples
-from fieldrx.api.common import shape_to_db
 from fieldrx.db.models import Field, SoilSample
 from fieldrx.db.models import SoilImport as SoilImportRow
 
@@ -137,7 +137,14 @@ def store_import(
         created_by=user_id,
     )
     session.add(imp)
-    session.flush()
+    try:
+        session.flush()
+    except IntegrityError as exc:  # the same file, uploaded at the same moment
+        raise ImportRefused(
+            409,
+            f"this file is being imported into field {field.id} by another request; nothing stored",
+            imported=0,
+        ) from exc
     ndvi = ndvi_by_row(filename, data)
     rows = [
         SoilSample(
@@ -151,7 +158,7 @@ def store_import(
             om_pct=None if s.om_g_kg is None else s.om_g_kg / 10.0,  # g/kg -> %
             ph=s.ph,
             ndvi=ndvi.get(s.row),
-            geom=shape_to_db(Point(s.lon, s.lat)),
+            geom=from_shape(Point(s.lon, s.lat), srid=4326),
             import_batch=batch,
             import_id=imp.id,
         )
