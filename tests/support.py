@@ -39,3 +39,19 @@ FIELD_WITH_HOLE = {
 
 def feature(geometry: dict, **props: object) -> dict:
     return {"type": "Feature", "geometry": geometry, "properties": {"name": "Test field", **props}}
+
+
+# Seed 001 eq. 1 calibration of the disc spreader (q0 = 237.2 r - 404.4 g/min, 30..130 r/min):
+# machines have no default calibration, so tests that create one pass it explicitly.
+SEED001_CAL = {
+    "kind": "linear",
+    "slope_g_min_per_rpm": 237.2,
+    "intercept_g_min": -404.4,
+    "min_rpm": 30.0,
+    "max_rpm": 130.0,
+}
+
+
+def machine_body(name: str = "Spreader", width_m: float = 2.3, **extra: object) -> dict:
+    """A POST /machines body with an explicit calibration and lag (seed 001: 1.52 s)."""
+    return {"name": name, "width_m": width_m, "lag_s": 1.52, "calibration": SEED001_CAL, **extra}

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from fieldrx_edge.metering import SEED001_CALIBRATION
 from geoalchemy2.shape import from_shape
 from sqlalchemy import select
 from sqlalchemy.orm import Session
@@ -35,6 +34,15 @@ DEMO_FIELD = {
             [112.3180, 32.1290],
         ]
     ],
+}
+
+
+DEMO_CALIBRATION = {
+    "kind": "linear",
+    "slope_g_min_per_rpm": 237.2,
+    "intercept_g_min": -404.4,
+    "min_rpm": 30.0,
+    "max_rpm": 130.0,
 }
 
 
@@ -86,7 +94,8 @@ def seed_demo(session: Session) -> DemoInfo:
             implement_type="spreader",
             width_m=2.3,
             lag_s=1.52,
-            calibration=SEED001_CALIBRATION.to_dict(),
+            # measured on this spreader: seed 001 eq. 1, q0 = 237.2 r - 404.4 g/min, 30..130 r/min
+            calibration=DEMO_CALIBRATION,
             controller={"name": "ladrc", "params": {}, "period_s": 0.01},
             speed_min_m_s=3 / 3.6,
             speed_max_m_s=9 / 3.6,

@@ -8,10 +8,13 @@ export const API = '/api/v1';
 export class ApiError extends Error {
   readonly status: number;
   readonly parsed: ParsedError;
-  constructor(status: number, parsed: ParsedError) {
+  /** The error body as the server sent it (e.g. the flagged cells of a 409 from POST /jobs). */
+  readonly body: unknown;
+  constructor(status: number, parsed: ParsedError, body?: unknown) {
     super(parsed.message);
     this.status = status;
     this.parsed = parsed;
+    this.body = body;
   }
 }
 
@@ -59,7 +62,10 @@ export async function request<T = unknown>(method: string, path: string, body?: 
     setSession(null);
     window.dispatchEvent(new Event('fieldrx:logout'));
   }
-  if (!res.ok) throw new ApiError(res.status, parseApiError(await readBody(res), res.status));
+  if (!res.ok) {
+    const errBody = await readBody(res);
+    throw new ApiError(res.status, parseApiError(errBody, res.status), errBody);
+  }
   if (res.status === 204) return undefined as T;
   return (await readBody(res)) as T;
 }

@@ -38,6 +38,8 @@ export interface Machine {
   width_m?: number;
   lag_s?: number;
   calibration?: Record<string, unknown>;
+  speed_min_m_s?: number;
+  speed_max_m_s?: number;
   antenna_forward_m?: number;
   antenna_lateral_m?: number;
 }
@@ -76,6 +78,9 @@ export interface Job {
   state: string;
   progress?: number | null;
   created_at?: string;
+  /** cells with no data / outside the meter range when the job was made, and the sender's confirmation */
+  flagged_cells?: number;
+  flagged_confirmed?: boolean;
   [k: string]: unknown;
 }
 

@@ -131,3 +131,27 @@ def test_dispatch_and_large_grid_is_vectorised():
         assert res.no_data.sum() == np.isnan(res.values).sum()
     with pytest.raises(InterpolationError, match="unknown interpolation"):
         interpolate_to_cells("nearest", cells.polygons_utm, cells.centroids_utm, xy, z)
+
+
+def test_default_search_distance_leaves_far_cells_without_data():
+    """ISSUE 11 defect 6: IDW spread four samples over the whole field (no_data 0)."""
+    from fieldrx.agronomy.interpolate import (
+        MIN_SEARCH_RADIUS_M,
+        default_search_radius_m,
+        interpolate_to_cells,
+    )
+
+    pts = np.array([[0.0, 0.0], [40.0, 0.0], [0.0, 40.0], [40.0, 40.0]])
+    assert default_search_radius_m(pts) == pytest.approx(120.0)  # 3 x 40 m spacing
+    assert default_search_radius_m(pts[:1]) == MIN_SEARCH_RADIUS_M
+    assert default_search_radius_m(pts / 10) == MIN_SEARCH_RADIUS_M  # dense: the floor
+    targets = np.array([[20.0, 20.0], [100.0, 20.0], [1000.0, 20.0]])
+    for method in ("idw", "kriging"):
+        res = interpolate_to_cells(method, np.array([None] * 3), targets, pts, [1.0, 2.0, 3.0, 4.0])
+        assert res.no_data.tolist() == [False, False, True], method
+        assert res.info["search_distance_m"] == pytest.approx(120.0)
+        assert res.info["search_distance_default"] is True
+    unlimited = interpolate_to_cells(
+        "idw", np.array([None] * 3), targets, pts, [1.0, 2.0, 3.0, 4.0], radius_m=None
+    )
+    assert not unlimited.no_data.any()

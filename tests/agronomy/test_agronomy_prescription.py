@@ -1,4 +1,4 @@
-"""Prescription building, fallback, meter clamps, edits, zone painting, summary."""
+"""Prescription building, fallback, meter flags, edits, zone painting, summary."""
 
 import numpy as np
 import pytest
@@ -12,7 +12,7 @@ from fieldrx.agronomy.prescription import (
     prescribe,
     summarize,
 )
-from fieldrx.agronomy.rates import MeterCheck, nutrient_balance_rate
+from fieldrx.agronomy.rates import MeterCheck, MeterRangeError, nutrient_balance_rate
 from fieldrx_edge.metering import LinearCalibration
 
 EPSG = 32649
@@ -34,8 +34,9 @@ def test_build_with_no_data_fallback_and_meter_flags():
     assert p.fallback_rate_kg_ha == pytest.approx(float(nutrient_balance_rate(210.0, 2500, 0.25)))
     lo, hi = p.meter_range_kg_ha
     assert p.rate_kg_ha[0] == pytest.approx(700.367, abs=1e-3)
-    assert p.rate_kg_ha[2] == pytest.approx(hi)  # 906 kg/ha > ceiling 882
-    assert p.rate_kg_ha[3] == pytest.approx(lo)  # 114 kg/ha < floor 584
+    # outside the meter range: kept as computed, flagged (never silently rewritten)
+    assert p.rate_kg_ha[2] == pytest.approx(906.433, abs=1e-3) and p.rate_kg_ha[2] > hi
+    assert p.rate_kg_ha[3] < lo  # ~114 kg/ha < floor 584
     assert [flag_names(f) for f in p.flags] == [
         [],
         ["no_data"] + (["below_meter_range"] if p.fallback_rate_kg_ha < lo else []),
@@ -73,13 +74,16 @@ def test_edits_make_new_arrays_and_flag_manual():
     cells = _cells()
     p = prescribe(cells, "uniform", {"rate_kg_ha": 700})
     old_rates, old_flags = p.rate_kg_ha.copy(), p.flags.copy()
-    r2, f2 = apply_cell_edits(cells.seq, p.rate_kg_ha, p.flags, {2: 650.0, 4: 2000.0}, _meter())
+    r2, f2 = apply_cell_edits(cells.seq, p.rate_kg_ha, p.flags, {2: 650.0, 4: 0.0}, _meter())
     np.testing.assert_array_equal(p.rate_kg_ha, old_rates)  # version n unchanged
     np.testing.assert_array_equal(p.flags, old_flags)
     assert r2[2] == 650.0 and flag_names(f2[2]) == ["manual"]
-    assert r2[4] == pytest.approx(_meter().range_kg_ha()[1])
-    assert flag_names(f2[4]) == ["above_meter_range", "manual"]
-    assert flag_strings(f2)[4] == "above_meter_range,manual"
+    assert r2[4] == 0.0 and flag_strings(f2)[4] == "manual"  # 0 = meter off, always possible
+    # a rate the meter cannot deliver is refused, naming the limit and the speed
+    with pytest.raises(MeterRangeError, match=r"cell 4: 2000 kg/ha is above .* 9 km/h: 882\.1"):
+        apply_cell_edits(cells.seq, p.rate_kg_ha, p.flags, {4: 2000.0}, _meter())
+    with pytest.raises(MeterRangeError, match=r"cell 4: 150 kg/ha is below .* 3 km/h: 583\.6"):
+        apply_cell_edits(cells.seq, p.rate_kg_ha, p.flags, {4: 150.0}, _meter())
     with pytest.raises(PrescriptionError, match="cell 999"):
         apply_cell_edits(cells.seq, p.rate_kg_ha, p.flags, {999: 1.0})
     with pytest.raises(PrescriptionError, match="cell 0: rate"):

@@ -97,7 +97,7 @@ def test_metering_750_at_9kmh_is_110_8_rpm():
     assert m.shaft_rpm(300.0, 3.0 / 3.6) == pytest.approx(16.2, abs=0.05)
 
 
-def test_meter_range_clamps_and_flags():
+def test_meter_range_flags_without_changing_rates():
     m = MeterCheck.from_kmh(LinearCalibration(), 2.3, 3.0, 9.0)
     lo, hi = m.range_kg_ha()
     # floor: (237.2*30 - 404.4) / (6 * 2.3 * 3/3.6); ceiling: (237.2*130 - 404.4) / (6 * 2.3 * 2.5)
@@ -105,7 +105,7 @@ def test_meter_range_clamps_and_flags():
     assert hi == pytest.approx(30431.6 / (6 * 2.3 * 2.5))
     rates, flags, rng = check_meter_range(np.array([0.0, 300.0, 700.0, 1000.0]), m)
     assert rng == (lo, hi)
-    np.testing.assert_allclose(rates, [0.0, lo, 700.0, hi])
+    np.testing.assert_allclose(rates, [0.0, 300.0, 700.0, 1000.0])  # stored as asked
     assert [flag_names(f) for f in flags] == [[], ["below_meter_range"], [], ["above_meter_range"]]
     assert flags[1] == FLAG_BITS["below_meter_range"]
 

@@ -2,6 +2,7 @@
 
 import json
 
+import numpy as np
 import pytest
 import shapely
 from fieldrx.agronomy.cells import transform_xy
@@ -92,7 +93,10 @@ def test_samples_outside_field_are_reported():
     res = parse_soil_csv(text, boundary_wgs84=FIELD)
     assert res.ok and len(res.samples) == 4
     assert [s.sample_id for s in res.outside] == ["FAR"]
-    assert res.summary()["outside"] == [{"row": 5, "sample_id": "FAR"}]
+    (far,) = res.summary()["outside"]
+    assert (far["row"], far["sample_id"]) == (5, "FAR")
+    assert 9000 < far["distance_m"] < 11000  # ~0.07 deg away, measured in metres
+    assert [s.sample_id for s in res.inside_samples()] == [s.sample_id for s in res.samples[:3]]
 
 
 def test_geojson_samples_and_feature_errors():
@@ -141,3 +145,25 @@ def test_ndvi_points_use_the_same_parser():
     assert ok.values("ndvi").tolist() == [0.41]
     missing = parse_soil_csv("id,lon,lat,n\nA,1,2,3\n", value_column="ndvi")
     assert [(e.row, e.column) for e in missing.errors] == [(1, "ndvi")]
+
+
+def test_samples_just_outside_the_boundary_are_the_fields_own():
+    """A sample a few metres outside (GNSS error) is within OUTSIDE_TOLERANCE_M; 30 m is not."""
+    from fieldrx.agronomy.soil import OUTSIDE_TOLERANCE_M, distance_outside_m
+
+    minx, miny, maxx, maxy = FIELD.bounds
+    lat = (miny + maxy) / 2
+    m_per_deg_lon = 111320 * np.cos(np.radians(lat))
+    near = maxx + 3.0 / m_per_deg_lon
+    far = maxx + 30.0 / m_per_deg_lon
+    d = distance_outside_m(FIELD, np.array([[near, lat], [far, lat], [(minx + maxx) / 2, lat]]))
+    assert d[0] == pytest.approx(3.0, abs=0.3) and d[1] == pytest.approx(30.0, abs=1.0)
+    assert d[2] == 0.0
+    text = (
+        "sample_id,lon,lat,n_mg_kg\n"
+        f"IN,{(minx + maxx) / 2},{lat},80\nNEAR,{near},{lat},80\nFAR,{far},{lat},80\n"
+    )
+    res = parse_soil_csv(text, boundary_wgs84=FIELD)
+    assert OUTSIDE_TOLERANCE_M < 30
+    assert [s.sample_id for s in res.outside] == ["FAR"]
+    assert [s.sample_id for s in res.inside_samples()] == ["IN", "NEAR"]

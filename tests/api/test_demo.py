@@ -24,3 +24,11 @@ def test_demo_field_area_matches_geodesic(client, db) -> None:
     assert f["properties"]["area_m2"] == pytest.approx(geodesic, rel=1e-3)
     machines = client.get("/api/v1/machines", headers=h).json()["items"]
     assert machines[0]["width_m"] == 2.3 and machines[0]["lag_s"] == 1.52
+    # an explicit calibration: seed 001 eq. 1 (q0 = 237.2 r - 404.4 g/min, 30..130 r/min)
+    assert machines[0]["calibration"] == {
+        "kind": "linear",
+        "slope_g_min_per_rpm": 237.2,
+        "intercept_g_min": -404.4,
+        "min_rpm": 30.0,
+        "max_rpm": 130.0,
+    }

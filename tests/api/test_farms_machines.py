@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from tests.support import SEED001_CAL, machine_body
+
 
 def test_farm_crud(client, org) -> None:
     h = org.headers()
@@ -18,7 +20,35 @@ def test_farm_crud(client, org) -> None:
     assert client.get(f"/api/v1/farms/{fid}", headers=h).status_code == 404
 
 
-MACHINE = {"name": "T1", "width_m": 2.3, "lag_s": 1.52}
+MACHINE = machine_body("T1")
+
+
+def test_machine_without_calibration_is_422_naming_the_missing_fields(client, org) -> None:
+    """ISSUE 11 defect 4: a machine added without calibration got seed 001's (169 kg/ha at 12 m)."""
+    h = org.headers()
+    r = client.post("/api/v1/machines", headers=h, json={"name": "T12", "width_m": 12.0})
+    assert r.status_code == 422, r.text
+    assert "calibration: Field required" in r.json()["detail"]
+    assert "lag_s: Field required" in r.json()["detail"]
+    partial = {"slope_g_min_per_rpm": 237.2}
+    r = client.post("/api/v1/machines", headers=h, json={**MACHINE, "calibration": partial})
+    detail = r.json()["detail"]
+    assert r.status_code == 422
+    for name in ("intercept_g_min", "min_rpm", "max_rpm"):
+        assert f"{name}: Field required" in detail
+    for cal, needle in (
+        ({**SEED001_CAL, "max_rpm": 20}, "must be greater than min_rpm"),
+        ({**SEED001_CAL, "min_rpm": 1}, "a * min_rpm + b must be > 0"),
+        ({**SEED001_CAL, "slope_g_min_per_rpm": 0}, "slope_g_min_per_rpm"),
+    ):
+        r = client.post("/api/v1/machines", headers=h, json={**MACHINE, "calibration": cal})
+        assert r.status_code == 422 and needle in r.json()["detail"], r.text
+    assert client.get("/api/v1/machines", headers=h).json()["total"] == 0
+    # a 12 m spreader with its own calibration keeps it exactly
+    cal = {"slope_g_min_per_rpm": 900.0, "intercept_g_min": -500.0, "min_rpm": 10, "max_rpm": 150}
+    r = client.post("/api/v1/machines", headers=h, json=machine_body("T12", 12.0, calibration=cal))
+    assert r.status_code == 201, r.text
+    assert r.json()["calibration"] == {"kind": "linear", **cal}
 
 
 def test_machine_crud_and_validation(client, org) -> None:
@@ -26,7 +56,7 @@ def test_machine_crud_and_validation(client, org) -> None:
     r = client.post("/api/v1/machines", headers=h, json=MACHINE)
     assert r.status_code == 201, r.text
     m = r.json()
-    assert m["calibration"]["kind"] == "linear" and m["calibration"]["slope_g_min_per_rpm"] == 237.2
+    assert m["calibration"] == SEED001_CAL
     assert m["controller"]["name"] == "ladrc"
     r = client.patch(f"/api/v1/machines/{m['id']}", headers=h, json={"lag_s": 1.0})
     assert r.json()["lag_s"] == 1.0

@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 
 import pytest
 
-from tests.support import SMALL_PLOT, feature
+from tests.support import SMALL_PLOT, feature, machine_body
 
 
 @dataclass
@@ -45,7 +45,7 @@ RESOURCES = [
     ),
     Resource(
         "machine",
-        _create("/api/v1/machines", {"name": "M", "width_m": 2.3}),
+        _create("/api/v1/machines", machine_body("M")),
         "/api/v1/machines/{id}",
         {"name": "x"},
         extra_post=[("/api/v1/machines/{id}/device-token", {})],

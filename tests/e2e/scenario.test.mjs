@@ -289,6 +289,31 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
     await mapIdle(page, 'field');
     await shot(page, 'soil-ok');
     S.soil = true;
+    // The same file again is recognised (nothing doubled).
+    await page.setInputFiles('[data-testid=soil-file]', goodFile);
+    await page.waitForSelector('[data-testid=soil-error]:has-text("already imported")');
+    assert.equal(await page.locator('[data-testid=soil-imports] tbody tr').count(), 1, 'one import listed');
+    // A file from a field ~100 km away: its rows are listed with their distance and not stored.
+    const farFile = join(ARTIFACTS, 'soil-far.csv');
+    writeFileSync(farFile, [header, ...rows.map((r, i) => `F${i},${(w + 1).toFixed(7)},${s.toFixed(7)},90`)].join('\n') + '\n');
+    await page.setInputFiles('[data-testid=soil-file]', farFile);
+    await page.waitForSelector('[data-testid=soil-outside]');
+    assert.match(await page.textContent('[data-testid=soil-outside]'), /\d{2},?\d{3} m away/);
+    assert.equal(await page.locator('[data-testid=soil-imports] tbody tr').count(), 1, 'far file not stored');
+    // A second small import, listed, then deleted in the UI.
+    const extraFile = join(ARTIFACTS, 'soil-extra.csv');
+    writeFileSync(extraFile, `${header}\n${rows[0].replace(/^S1,/, 'X1,')}\n`);
+    await page.setInputFiles('[data-testid=soil-file]', extraFile);
+    await page.waitForFunction(() => document.querySelectorAll('[data-testid=soil-imports] tbody tr').length === 2);
+    const before = Number((await page.textContent('[data-testid=soil-count]')).replace(/\D/g, ''));
+    page.once('dialog', (d) => d.accept());
+    await page.click('[data-testid=soil-imports] tbody tr:first-child button');
+    await page.waitForFunction(() => document.querySelectorAll('[data-testid=soil-imports] tbody tr').length === 1);
+    await page.waitForFunction(
+      (n) => Number((document.querySelector('[data-testid=soil-count]')?.textContent ?? '').replace(/\D/g, '')) === n,
+      before - 1,
+    );
+    await shot(page, 'soil-imports');
   });
 
   it('builds a nutrient-balance prescription', async (t) => {
@@ -307,6 +332,13 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
     await shot(page, 'prescription');
     const legend = await page.locator('[data-testid=rx-legend] .legend-row').count();
     assert.ok(legend >= 1, 'legend drawn');
+    // Cells without a sample nearby are counted with their area and the fallback rate named.
+    const rx = (await api(token, 'GET', `/prescriptions/${S.rxId}`)).data;
+    const flagged = await page.textContent('[data-testid=rx-flagged]');
+    assert.match(flagged, new RegExp(`^${rx.summary.attention.count} cells? \\(\\d+\\.\\d{3} ha\\)`), flagged);
+    if (rx.summary.attention.count > 0) {
+      assert.match(await page.textContent('[data-testid=rx-flagged-detail]'), /fallback rate/);
+    }
   });
 
   it('edits a cell rate (new version)', async (t) => {
@@ -326,7 +358,14 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
     await page.mouse.click(box.x + pt.x, box.y + pt.y);
     await page.waitForSelector('[data-testid=cell-panel]');
     const before = await page.inputValue('[data-testid=rx-version]');
+    // Below what the demo spreader meters at its slowest speed: refused, naming the limit and the speed.
     await page.fill('[data-testid=cell-new-rate]', '123.4');
+    await page.click('[data-testid=cell-save]');
+    await page.waitForSelector('[data-testid=rx-screen-error]:has-text("583.6 kg/ha")');
+    assert.match(await page.textContent('[data-testid=rx-screen-error]'), /123\.4 kg\/ha is below .* 3 km\/h/);
+    assert.equal(await page.inputValue('[data-testid=rx-version]'), before, 'nothing stored');
+    await shot(page, 'prescription-edit-refused');
+    await page.fill('[data-testid=cell-new-rate]', '650');
     await page.click('[data-testid=cell-save]');
     await page.waitForSelector('[data-testid=rx-msg]:has-text("version")');
     const afterV = await page.inputValue('[data-testid=rx-version]');
@@ -371,12 +410,53 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
     await shot(page, 'export-isoxml');
   });
 
+  it('adds a machine with its own metering calibration (no default)', async (t) => {
+    await page.goto(`${BASE_URL}/#/machines`);
+    await page.waitForSelector('[data-testid=machine-form]');
+    await page.fill('[data-testid=machine-name]', 'E2E small meter');
+    await page.fill('[data-testid=machine-width]', '2.3');
+    await page.click('[data-testid=machine-submit]');
+    await page.waitForSelector('[data-testid=cal-errors]');
+    assert.match(await page.textContent('[data-testid=cal-errors]'), /slope a .* is required/);
+    // A small meter: at most ~420 kg/ha at 9 km/h over 2.3 m, below this prescription's rates.
+    for (const [tid, v] of [['cal-slope', '100'], ['cal-intercept', '-500'], ['cal-min-rpm', '10'], ['cal-max-rpm', '150'], ['cal-lag', '1.2']]) {
+      await page.fill(`[data-testid=${tid}]`, v);
+    }
+    assert.match(await page.textContent('[data-testid=cal-range]'), /kg\/ha at 3–9 km\/h/);
+    await page.click('[data-testid=machine-submit]');
+    await page.waitForSelector('[data-testid=machine-table] td:has-text("q0 = 100 r − 500 g/min, 10–150 r/min")');
+    const m = listOf((await api(token, 'GET', '/machines')).data).find((x) => x.name === 'E2E small meter');
+    assert.deepEqual(m.calibration, { kind: 'linear', slope_g_min_per_rpm: 100, intercept_g_min: -500, min_rpm: 10, max_rpm: 150 });
+    assert.equal(m.lag_s, 1.2);
+    S.smallMachineId = m.id;
+    await shot(page, 'machine-added');
+  });
+
   it('sends the job to a machine', async (t) => {
     if (!need(t, 'rxId')) return;
     if (!(await needEndpoint(t, 'POST', '/jobs', 'jobs'))) return;
     const machines = listOf((await api(token, 'GET', '/machines')).data);
     assert.ok(machines.length > 0, 'a machine exists (demo data)');
     S.machineId = machines[0].id;
+    if (S.smallMachineId) {
+      // To the small meter, which cannot meter these rates: sending asks for a confirmation,
+      // and the job records it.
+      await page.goto(`${BASE_URL}/#/prescriptions/${S.rxId}`);
+      await page.waitForSelector(`[data-testid=job-machine] option[value="${S.smallMachineId}"]`, { state: 'attached' });
+      await page.selectOption('[data-testid=job-machine]', String(S.smallMachineId));
+      await page.click('[data-testid=send-job]');
+      await page.waitForSelector('[data-testid=job-confirm-panel]');
+      assert.match(await page.textContent('[data-testid=job-confirm-text]'), /cell\(s\).*outside the meter range.*confirm_flagged/);
+      await shot(page, 'job-confirm');
+      await page.click('[data-testid=job-confirm]');
+      await page.waitForURL(/#\/jobs\?created=\d+/);
+      const flaggedJob = Number(page.url().match(/created=(\d+)/)[1]);
+      await page.waitForSelector(`[data-testid=job-flagged-${flaggedJob}]`);
+      assert.match(await page.textContent(`[data-testid=job-flagged-${flaggedJob}]`), /\d+ \(sent on confirmation\)/);
+      await page.goto(`${BASE_URL}/#/prescriptions/${S.rxId}`);
+    }
+    // To the demo spreader, which meters every cell: no confirmation needed.
+    await page.waitForSelector(`[data-testid=job-machine] option[value="${S.machineId}"]`, { state: 'attached' });
     await page.selectOption('[data-testid=job-machine]', String(S.machineId));
     await page.click('[data-testid=send-job]');
     await page.waitForURL(/#\/jobs\?created=\d+/);

@@ -8,6 +8,7 @@ import pytest
 from fieldrx_edge.protocol import JobPackage
 
 from tests.fleet.helpers import make_job
+from tests.support import machine_body
 
 
 def _state(client, org, job_id, state, role="agronomist"):  # noqa: ANN001, ANN202
@@ -20,13 +21,13 @@ def _state(client, org, job_id, state, role="agronomist"):  # noqa: ANN001, ANN2
 
 def test_create_list_get(client, org) -> None:  # noqa: ANN001
     fx = make_job(org.id)
-    r = client.post(
-        "/api/v1/jobs",
-        json={"prescription_id": fx.prescription_id, "machine_id": fx.machine_id},
-        headers=org.headers(),
-    )
+    body = {"prescription_id": fx.prescription_id, "machine_id": fx.machine_id}
+    # the fixture's rates lie outside the machine's meter range: sending asks to confirm
+    assert client.post("/api/v1/jobs", json=body, headers=org.headers()).status_code == 409
+    r = client.post("/api/v1/jobs", json={**body, "confirm_flagged": True}, headers=org.headers())
     assert r.status_code == 201, r.text
     job = r.json()
+    assert job["flagged_cells"] == 8 and job["flagged_confirmed"] is True
     assert job["state"] == "planned" and job["n_cells"] == 8 and job["prescription_version"] == 1
     assert job["events"][0]["state"] == "planned"
     assert job["events"][0]["by_user_id"] == org.user_ids["agronomist"]
@@ -149,7 +150,7 @@ def test_isolation(client, make_org) -> None:  # noqa: ANN001
 def test_machine_width_must_match_the_plan(client, org) -> None:  # noqa: ANN001
     fx = make_job(org.id)
     wide = client.post(
-        "/api/v1/machines", headers=org.headers(), json={"name": "12 m spreader", "width_m": 12.0}
+        "/api/v1/machines", headers=org.headers(), json=machine_body("12 m spreader", 12.0)
     ).json()
     r = client.post(
         "/api/v1/jobs",

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from tests.fleet.procs import BIN, ROOT, start_api
-from tests.support import SMALL_PLOT, feature
+from tests.support import SEED001_CAL, SMALL_PLOT, feature, machine_body
 
 
 @pytest.mark.parametrize("headland_passes", [0, 1])
@@ -31,7 +31,10 @@ def test_simulated_job_report_matches_simulator(
     try:
         c = httpx.Client(base_url=url, headers=org.headers(), timeout=60)
         field = c.post("/api/v1/fields", json=feature(SMALL_PLOT, name="trial plot")).json()
-        m = c.post("/api/v1/machines", json={"name": "sim", "width_m": 2.3}).json()
+        # floor 10 r/min: the 220..340 kg/ha edits below are meterable at 0.8..2.5 m/s
+        # (seed 001's 30 r/min floor is 608 kg/ha at 0.8 m/s, and edits it cannot meter are refused)
+        cal = {**SEED001_CAL, "min_rpm": 10.0}
+        m = c.post("/api/v1/machines", json=machine_body("sim", 2.3, calibration=cal)).json()
         token = c.post(f"/api/v1/machines/{m['id']}/device-token").json()["token"]
         plan = c.post(
             f"/api/v1/fields/{field['id']}/plans",

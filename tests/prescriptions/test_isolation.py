@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from tests.plans.helpers import API
 from tests.prescriptions.helpers import make_rx, samples_csv, setup_plan
+from tests.support import machine_body
 
 
 def _world(client, org):
@@ -78,7 +79,7 @@ def test_viewer_cannot_write(client, org) -> None:
 
 def test_device_token_is_refused(client, org) -> None:
     plan, rx = _world(client, org)
-    m = client.post(f"{API}/machines", headers=org.headers(), json={"name": "M", "width_m": 2.3})
+    m = client.post(f"{API}/machines", headers=org.headers(), json=machine_body("M"))
     tok = client.post(f"{API}/machines/{m.json()['id']}/device-token", headers=org.headers("admin"))
     assert tok.status_code in (200, 201), tok.text
     dh = {"Authorization": f"Bearer {tok.json()['token']}"}

@@ -9,6 +9,7 @@ from fieldrx_edge.protocol import JobPackage
 
 from tests.plans.helpers import API
 from tests.prescriptions.helpers import all_cells, make_rx, setup_plan
+from tests.support import SEED001_CAL
 
 
 def test_job_package_from_database(client, org, db) -> None:
@@ -24,6 +25,7 @@ def test_job_package_from_database(client, org, db) -> None:
             "name": "S",
             "width_m": 2.3,
             "lag_s": 1.2,
+            "calibration": SEED001_CAL,
             "speed_min_m_s": 1.0,
             "speed_max_m_s": 2.0,
             "controller": {"name": "pid", "params": {"kp": 1.5}},

@@ -1,4 +1,4 @@
-"""Prescriptions API on PostGIS: models, interpolation, meter clamp, versions, edits, 422s."""
+"""Prescriptions API on PostGIS: models, interpolation, meter flags, versions, edits, 422s."""
 
 from __future__ import annotations
 
@@ -7,13 +7,14 @@ from sqlalchemy import text
 
 from tests.plans.helpers import API
 from tests.prescriptions.helpers import FIELD, all_cells, make_rx, samples_csv, setup_plan
+from tests.support import machine_body
 
 # machine defaults: seed 001 calibration, width 2.3 m, 0.8..2.5 m/s -> about 607.9..882.1 kg/ha
 LO, HI = 6711.6 / (6 * 2.3 * 0.8), 30431.6 / (6 * 2.3 * 2.5)
 
 
 def _machine(client, headers) -> int:
-    r = client.post(f"{API}/machines", headers=headers, json={"name": "Spreader", "width_m": 2.3})
+    r = client.post(f"{API}/machines", headers=headers, json=machine_body())
     assert r.status_code == 201, r.text
     return r.json()["id"]
 
@@ -65,7 +66,8 @@ def test_worked_example_nutrient_balance(client, org) -> None:
     assert by_plan["total"] == 2
 
 
-def test_uniform_rates_are_clamped_and_flagged(client, org) -> None:
+def test_model_rates_outside_meter_range_are_kept_and_flagged(client, org) -> None:
+    """ISSUE 11 defect 4: a 300 kg/ha model output was stored as the meter's floor (~608)."""
     h = org.headers()
     plan = setup_plan(client, h)
     mid = _machine(client, h)
@@ -74,15 +76,29 @@ def test_uniform_rates_are_clamped_and_flagged(client, org) -> None:
     )
     s = low["summary"]
     assert s["meter_range_kg_ha"] == pytest.approx([LO, HI], rel=1e-4)
-    assert s["rate_min_kg_ha"] == pytest.approx(LO, rel=1e-4)
+    assert s["meter"]["speed_min_kmh"] == pytest.approx(0.8 * 3.6)
+    assert s["meter"]["rate_min_kg_ha"] == pytest.approx(LO, rel=1e-4)
+    assert s["rate_min_kg_ha"] == 300 and s["rate_max_kg_ha"] == 300  # stored as asked
     assert s["flagged"]["below_meter_range"] == plan["n_cells"]
-    assert low["stats"]["clamped_count"] == plan["n_cells"]
+    assert s["attention"]["count"] == plan["n_cells"]
+    assert s["attention"]["area_m2"] == pytest.approx(s["area_m2"], rel=1e-6)
+    assert s["attention"]["seq"][:3] == [0, 1, 2]
+    assert s["flagged_area_m2"]["below_meter_range"] == pytest.approx(s["area_m2"], rel=1e-6)
+    assert low["stats"]["out_of_meter_range_count"] == plan["n_cells"]
+    assert low["stats"]["attention_area_m2"] == pytest.approx(s["area_m2"], rel=1e-6)
     c = all_cells(client, h, low["id"])[0]["properties"]
-    assert c["flags"] == ["below_meter_range"] and c["clamped"] is True
+    assert c["flags"] == ["below_meter_range"] and c["out_of_meter_range"] is True
+    assert c["rate_kg_ha"] == 300
     high = make_rx(client, h, plan["id"], model="constant", params={"rate": 2000}, machine_id=mid)
-    assert high["summary"]["rate_max_kg_ha"] == pytest.approx(HI, rel=1e-4)
+    assert high["summary"]["rate_max_kg_ha"] == 2000
     assert high["summary"]["flagged"]["above_meter_range"] == plan["n_cells"]
-    # explicit speed range without a machine: 9 km/h only -> range at 2.5 m/s
+    # explicit speed range without a machine needs an explicit calibration (no hidden default)
+    r = client.post(
+        f"{API}/plans/{plan['id']}/prescriptions",
+        headers=h,
+        json={"model": "uniform", "params": {"rate_kg_ha": 750}, "speed_min_kmh": 9},
+    )
+    assert r.status_code == 422 and "calibration" in r.json()["detail"]
     ok = make_rx(
         client,
         h,
@@ -91,12 +107,13 @@ def test_uniform_rates_are_clamped_and_flagged(client, org) -> None:
         params={"rate_kg_ha": 750},
         speed_min_kmh=9,
         speed_max_kmh=9,
+        calibration=machine_body()["calibration"],
     )
     assert ok["summary"]["flagged"]["above_meter_range"] == 0
     assert ok["summary"]["rate_mean_kg_ha"] == pytest.approx(750)
-    # a rate of 0 means "meter off" and is never clamped
+    # a rate of 0 means "meter off" and is never flagged
     off = make_rx(client, h, plan["id"], model="uniform", params={"rate_kg_ha": 0}, machine_id=mid)
-    assert off["summary"]["rate_max_kg_ha"] == 0 and off["stats"]["clamped_count"] == 0
+    assert off["summary"]["rate_max_kg_ha"] == 0 and off["stats"]["attention_count"] == 0
 
 
 def test_cell_mean_no_data_gets_fallback_and_flag(client, org) -> None:
@@ -203,7 +220,7 @@ def test_edits_make_new_versions_and_leave_old_ones(client, org) -> None:
         f"{API}/prescriptions/{rx['id']}/edits",
         headers=h,
         json={
-            "cells": [{"seq": 0, "rate_kg_ha": 800}, {"seq": 3, "rate_kg_ha": 5000}],
+            "cells": [{"seq": 0, "rate_kg_ha": 800}, {"seq": 3, "rate_kg_ha": 850}],
             "note": "wet corner",
         },
     )
@@ -214,8 +231,7 @@ def test_edits_make_new_versions_and_leave_old_ones(client, org) -> None:
     v2 = all_cells(client, h, rx["id"])
     assert v2[0]["properties"]["rate_kg_ha"] == 800 and v2[0]["properties"]["flags"] == ["manual"]
     p3 = v2[3]["properties"]
-    assert p3["rate_kg_ha"] == pytest.approx(HI, rel=1e-4)
-    assert set(p3["flags"]) == {"manual", "above_meter_range"} and p3["clamped"]
+    assert p3["rate_kg_ha"] == 850 and p3["flags"] == ["manual"]
     assert [c["properties"] for c in v2[4:]] == [c["properties"] for c in v1[4:]]
     # version 1 unchanged
     assert all_cells(client, h, rx["id"], 1) == v1
@@ -295,3 +311,125 @@ def test_delete_prescription(client, org, db) -> None:
     rx = make_rx(client, h, plan["id"], model="uniform", params={"rate_kg_ha": 100})
     assert client.delete(f"{API}/plans/{plan['id']}", headers=h).status_code == 204
     assert client.get(f"{API}/prescriptions/{rx['id']}", headers=h).status_code == 404
+
+
+@pytest.mark.parametrize(
+    ("edit", "needle"),
+    [
+        ({"cells": [{"seq": 2, "rate_kg_ha": 150}]}, "cell 2: 150 kg/ha is below"),
+        ({"cells": [{"seq": 2, "rate_kg_ha": 5000}]}, "cell 2: 5000 kg/ha is above"),
+        ({"zone": "FIELD", "rate_kg_ha": 120}, "zone rate: 120 kg/ha is below"),
+    ],
+)
+def test_unmeterable_edits_are_refused_naming_limit_and_speed(
+    client, org, db, edit, needle
+) -> None:
+    """ISSUE 11 defect 4: an edit to 150 kg/ha or a 120 kg/ha zone was stored as 583.6."""
+    h = org.headers()
+    plan = setup_plan(client, h)
+    mid = _machine(client, h)
+    rx = make_rx(client, h, plan["id"], model="uniform", params={"rate_kg_ha": 700}, machine_id=mid)
+    if edit.get("zone") == "FIELD":
+        edit = {**edit, "zone": FIELD}
+    r = client.post(f"{API}/prescriptions/{rx['id']}/edits", headers=h, json=edit)
+    assert r.status_code == 422, r.text
+    detail = r.json()["detail"]
+    assert needle in detail
+    if "below" in needle:  # the floor and the slowest speed it assumes
+        assert f"{LO:.1f} kg/ha" in detail and "2.88 km/h" in detail and "30 r/min" in detail
+    else:
+        assert f"{HI:.1f} kg/ha" in detail and "9 km/h" in detail and "130 r/min" in detail
+    assert client.get(f"{API}/prescriptions/{rx['id']}", headers=h).json()["version"] == 1
+    n = db.scalar(
+        text("SELECT count(*) FROM prescription_versions WHERE prescription_id = :x"),
+        {"x": rx["id"]},
+    )
+    assert n == 1
+    # 0 (meter off) is always accepted
+    r = client.post(
+        f"{API}/prescriptions/{rx['id']}/edits",
+        headers=h,
+        json={"cells": [{"seq": 2, "rate_kg_ha": 0}]},
+    )
+    assert r.status_code == 201, r.text
+
+
+def test_job_with_flagged_cells_needs_explicit_confirmation(client, org, db) -> None:
+    """ISSUE 11 defect 4: a prescription the machine cannot meter was sent without a word."""
+    h = org.headers()
+    plan = setup_plan(client, h)
+    mid = _machine(client, h)
+    low = make_rx(
+        client, h, plan["id"], model="uniform", params={"rate_kg_ha": 300}, machine_id=mid
+    )
+    body = {"prescription_id": low["id"], "machine_id": mid}
+    r = client.post(f"{API}/jobs", headers=h, json=body)
+    assert r.status_code == 409, r.text
+    err = r.json()
+    n = plan["n_cells"]
+    assert err["where"] == "confirm_flagged" and err["flagged"]["count"] == n
+    assert err["flagged"]["area_m2"] == pytest.approx(low["summary"]["area_m2"], rel=1e-6)
+    assert err["flagged"]["seq"][:2] == [0, 1]
+    assert f"{n} cell(s)" in err["detail"] and "confirm_flagged" in err["detail"]
+    assert (
+        db.scalar(text("SELECT count(*) FROM jobs WHERE prescription_id = :x"), {"x": low["id"]})
+        == 0
+    )
+    r = client.post(f"{API}/jobs", headers=h, json={**body, "confirm_flagged": True})
+    assert r.status_code == 201, r.text
+    job = r.json()
+    assert job["flagged_cells"] == n and job["flagged_confirmed"] is True
+    assert f"{n} flagged cell(s) confirmed" in job["events"][0]["note"]
+    # built without a machine (no meter check), sent to one that cannot meter it: still asked
+    bare = make_rx(client, h, plan["id"], model="uniform", params={"rate_kg_ha": 300})
+    assert bare["summary"]["attention"]["count"] == 0
+    r = client.post(
+        f"{API}/jobs", headers=h, json={"prescription_id": bare["id"], "machine_id": mid}
+    )
+    assert r.status_code == 409 and r.json()["flagged"]["out_of_meter_range"] == n
+    # nothing flagged: no confirmation needed, and the job says so
+    ok = make_rx(client, h, plan["id"], model="uniform", params={"rate_kg_ha": 700}, machine_id=mid)
+    r = client.post(f"{API}/jobs", headers=h, json={"prescription_id": ok["id"], "machine_id": mid})
+    assert r.status_code == 201, r.text
+    assert r.json()["flagged_cells"] == 0 and r.json()["flagged_confirmed"] is False
+
+
+def test_cells_without_a_nearby_sample_are_no_data_with_the_fallback_named(client, org) -> None:
+    """ISSUE 11 defect 6: IDW spread samples over the whole field (no_data 0)."""
+    from tests.plans.helpers import make_field, make_plan, rectangle
+
+    h = org.headers()
+    long_field = rectangle(112.3501, 32.1501, 300, 40)  # 300 m x 40 m
+    fid = make_field(client, h, long_field)
+    (lon0, lat0) = long_field["coordinates"][0][0]
+    rows = ["sample_id,lon,lat,n_mg_kg"]
+    for i in range(4):  # four samples within the west 30 m
+        rows.append(f"W{i},{lon0 + (5 + 8 * i) / 94_300:.7f},{lat0 + 20 / 110_574:.7f},{90 + i}")
+    r = client.post(
+        f"{API}/fields/{fid}/soil-samples",
+        headers=h,
+        files={"file": ("w.csv", "\n".join(rows) + "\n", "text/csv")},
+    )
+    assert r.status_code == 201, r.text
+    plan = make_plan(client, h, fid)
+    nb = {"target_yield_kg_ha": 2500, "n_fraction": 0.25}
+    rx = make_rx(
+        client, h, plan["id"], model="nutrient_balance", params=nb, interpolation="idw",
+        fallback_rate_kg_ha=650,
+    )  # fmt: skip
+    s = rx["summary"]
+    assert s["interpolation"]["search_distance_m"] == 50.0
+    assert s["interpolation"]["search_distance_default"] is True
+    nd = s["flagged"]["no_data"]
+    assert 0.5 * plan["n_cells"] < nd < plan["n_cells"]  # the east of the field has no sample
+    assert s["attention"]["count"] == nd and s["attention"]["area_m2"] > 0
+    assert rx["fallback_rate_kg_ha"] == 650 and rx["stats"]["no_data_count"] == nd
+    cells = all_cells(client, h, rx["id"])
+    far = [c["properties"] for c in cells if c["properties"]["fallback"]]
+    assert len(far) == nd and all(p["rate_kg_ha"] == 650 and p["flags"] == ["no_data"] for p in far)
+    # an explicit unlimited radius is the caller's choice
+    wide = make_rx(
+        client, h, plan["id"], model="nutrient_balance", params=nb, interpolation="idw",
+        interpolation_params={"radius_m": None},
+    )  # fmt: skip
+    assert wide["summary"]["flagged"]["no_data"] == 0

@@ -77,13 +77,102 @@ def test_missing_column_and_unreadable_file(client, org) -> None:
     assert r.status_code == 422 and "EPSG" in r.json()["detail"]
 
 
-def test_outside_samples_are_reported(client, org) -> None:
+def _far_csv(n: int = 17, dlon: float = 1.0) -> str:
+    """n samples about dlon degrees (~94 km per degree here) east of SMALL_PLOT."""
+    rows = [f"F{i},{112.32005 + dlon + i * 1e-4:.6f},32.13005,20,{80 + i}" for i in range(n)]
+    return "sample_id,lon,lat,depth_cm,n_mg_kg\n" + "\n".join(rows) + "\n"
+
+
+def _n_samples(client, h, fid) -> int:
+    return len(client.get(f"{API}/fields/{fid}/soil-samples", headers=h).json()["features"])
+
+
+def test_samples_from_another_field_are_refused_and_not_stored(client, org) -> None:
+    """ISSUE 11 defect 6: a CSV from a field ~100 km away was accepted ("17 samples")."""
+    h = org.headers()
+    fid = make_field(client, h)
+    r = _post(client, h, fid, "far.csv", _far_csv())
+    assert r.status_code == 422, r.text
+    body = r.json()
+    assert body["imported"] == 0 and len(body["outside"]) == 17
+    assert "none of the 17 samples" in body["detail"] and "m outside" in body["detail"]
+    assert all(o["distance_m"] > 90_000 for o in body["outside"])
+    assert _n_samples(client, h, fid) == 0
+    assert client.get(f"{API}/fields/{fid}/soil-imports", headers=h).json()["total"] == 0
+
+
+def test_outside_rows_are_listed_and_stored_only_when_asked(client, org) -> None:
     h = org.headers()
     fid = make_field(client, h)
     data = GOOD_CSV + "FAR,112.40,32.20,20,80\n"
     r = _post(client, h, fid, "soil.csv", data)
-    assert r.status_code == 201
-    assert r.json()["outside"] == [{"row": 5, "sample_id": "FAR"}]
+    assert r.status_code == 201, r.text
+    body = r.json()
+    (far,) = body["outside"]
+    assert (far["row"], far["sample_id"]) == (5, "FAR") and far["distance_m"] > 9000
+    assert body["imported"] == 3 and body["n_outside"] == 1 and body["outside_stored"] is False
+    assert "1 outside the field" in body["message"] and "not stored" in body["message"]
+    assert {
+        f["properties"]["sample_id"]
+        for f in client.get(f"{API}/fields/{fid}/soil-samples", headers=h).json()["features"]
+    } == {"S1", "S2", "S3"}
+    # asked to: another file with an outside row, stored as asked
+    data2 = "sample_id,lon,lat,n_mg_kg\nS9,112.32010,32.13010,90\nFAR2,112.40,32.20,80\n"
+    r = _post(client, h, fid, "soil2.csv", data2, include_outside="true")
+    assert r.status_code == 201, r.text
+    assert r.json()["imported"] == 2 and r.json()["outside_stored"] is True
+    assert _n_samples(client, h, fid) == 5
+
+
+def test_identical_reupload_is_recognised(client, org) -> None:
+    h = org.headers()
+    fid = make_field(client, h)
+    first = _post(client, h, fid, "soil.csv", GOOD_CSV)
+    assert first.status_code == 201
+    again = _post(client, h, fid, "soil-copy.csv", GOOD_CSV)
+    assert again.status_code == 409, again.text
+    body = again.json()
+    assert body["imported"] == 0 and body["duplicate_of"]["id"] == first.json()["import"]["id"]
+    assert "already imported" in body["detail"]
+    assert _n_samples(client, h, fid) == 3  # not doubled
+    # the same file on another field is a different import
+    other = make_field(client, h, name="other")
+    assert _post(client, h, other, "soil.csv", GOOD_CSV).status_code == 201
+
+
+def test_imports_are_listed_and_deleted(client, make_org) -> None:
+    a, b = make_org(), make_org()
+    h = a.headers()
+    fid = make_field(client, h)
+    i1 = _post(client, h, fid, "one.csv", GOOD_CSV).json()["import"]
+    two = "sample_id,lon,lat,n_mg_kg\nT1,112.32010,32.13010,90\nT2,112.32020,32.13012,91\n"
+    i2 = _post(client, h, fid, "two.csv", two).json()["import"]
+    lst = client.get(f"{API}/fields/{fid}/soil-imports", headers=a.headers("viewer")).json()
+    assert [(i["id"], i["filename"], i["n_stored"]) for i in lst["items"]] == [
+        (i2["id"], "two.csv", 2),
+        (i1["id"], "one.csv", 3),
+    ]
+    assert lst["items"][0]["sha256"].startswith("sha256:")
+    url = f"{API}/fields/{fid}/soil-imports/{i1['id']}"
+    assert client.delete(url, headers=a.headers("viewer")).status_code == 403
+    assert client.delete(url, headers=b.headers()).status_code == 404
+    r = client.delete(url, headers=h)
+    assert r.status_code == 200 and r.json() == {"deleted": 3}
+    assert client.delete(url, headers=h).status_code == 404
+    feats = client.get(f"{API}/fields/{fid}/soil-samples", headers=h).json()["features"]
+    assert {f["properties"]["sample_id"] for f in feats} == {"T1", "T2"}
+    assert all(f["properties"]["import_id"] == i2["id"] for f in feats)
+    # one sample
+    one = feats[0]["properties"]["id"]
+    assert client.delete(f"{API}/fields/{fid}/soil-samples/{one}", headers=h).status_code == 200
+    assert client.delete(f"{API}/fields/{fid}/soil-samples/{one}", headers=h).status_code == 404
+    lst = client.get(f"{API}/fields/{fid}/soil-imports", headers=h).json()
+    assert [(i["id"], i["n_stored"]) for i in lst["items"]] == [(i2["id"], 1)]
+    # once deleted, the file can be imported again
+    assert _post(client, h, fid, "one.csv", GOOD_CSV).status_code == 201
+    # deleting everything removes the imports too
+    assert client.delete(f"{API}/fields/{fid}/soil-samples", headers=h).json() == {"deleted": 4}
+    assert client.get(f"{API}/fields/{fid}/soil-imports", headers=h).json()["total"] == 0
 
 
 def test_xy_with_epsg_and_geojson(client, org) -> None:

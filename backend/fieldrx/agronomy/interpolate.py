@@ -11,6 +11,12 @@ fallback rate):
   within a search radius (scipy cKDTree), exact at sample points.
 * ``kriging``: ordinary kriging (pykrige) with a selectable variogram model;
   reports the leave-one-out cross-validation RMSE (Dubrule 1983 closed form).
+
+IDW and kriging predict anywhere, so without a limit a cell 1 km from every
+sample would get a confident-looking value. ``interpolate_to_cells`` therefore
+gives both a search distance by default (``default_search_radius_m``: a few
+sample spacings) and cells with no sample that near are no data; an explicit
+``radius_m`` / ``max_distance_m`` (``None`` = unlimited) overrides it.
 """
 
 from __future__ import annotations
@@ -23,6 +29,10 @@ import shapely
 from scipy.spatial import cKDTree
 
 METHODS = ("cell_mean", "idw", "kriging")
+# Default search distance: SPACING_FACTOR x the median nearest-neighbour spacing of
+# the samples, at least MIN_SEARCH_RADIUS_M (a single sample gets the minimum).
+SPACING_FACTOR = 3.0
+MIN_SEARCH_RADIUS_M = 50.0
 MAX_KRIGING_SAMPLES = 3000
 VARIOGRAM_MODELS = ("linear", "power", "gaussian", "spherical", "exponential", "hole-effect")
 
@@ -214,6 +224,24 @@ def kriging(
     )
 
 
+def default_search_radius_m(sample_xy: np.ndarray) -> float:
+    """How far a sample may speak for a cell when the caller does not say.
+
+    SPACING_FACTOR x the median distance from each sample to its nearest
+    neighbour (the sampling density), at least MIN_SEARCH_RADIUS_M. On a
+    regular grid every point lies within 0.71 spacings of a sample, so only
+    cells well away from all samples (another field, an unsampled corner)
+    become no data.
+    """
+    xy = np.asarray(sample_xy, dtype=float).reshape(-1, 2)
+    xy = xy[np.isfinite(xy).all(axis=1)]
+    xy = np.unique(np.round(xy, 3), axis=0)
+    if len(xy) < 2:
+        return MIN_SEARCH_RADIUS_M
+    d, _ = cKDTree(xy).query(xy, k=2)
+    return float(max(MIN_SEARCH_RADIUS_M, SPACING_FACTOR * float(np.median(d[:, 1]))))
+
+
 def interpolate_to_cells(
     method: str,
     polygons_utm: np.ndarray,
@@ -222,7 +250,11 @@ def interpolate_to_cells(
     values: np.ndarray,
     **params: Any,
 ) -> InterpolationResult:
-    """Dispatch by method name; params as in ``idw`` / ``kriging``."""
+    """Dispatch by method name; params as in ``idw`` / ``kriging``.
+
+    IDW's ``radius_m`` and kriging's ``max_distance_m`` default to
+    ``default_search_radius_m`` of the samples (given as None: unlimited).
+    """
     if method == "cell_mean":
         if params:
             raise InterpolationError(f"cell_mean takes no parameters, got {sorted(params)}")
@@ -238,5 +270,12 @@ def interpolate_to_cells(
     extra = set(params) - allowed
     if extra:
         raise InterpolationError(f"{method}: unknown parameters {sorted(extra)}")
+    limit = "radius_m" if method == "idw" else "max_distance_m"
+    defaulted = limit not in params
+    if defaulted:
+        params = {**params, limit: default_search_radius_m(sample_xy)}
     fn = idw if method == "idw" else kriging
-    return fn(centroids_utm, sample_xy, values, **params)
+    res = fn(centroids_utm, sample_xy, values, **params)
+    res.info["search_distance_m"] = params[limit]
+    res.info["search_distance_default"] = defaulted
+    return res

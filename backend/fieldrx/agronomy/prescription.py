@@ -16,7 +16,12 @@ import shapely
 
 from fieldrx.agronomy.cells import FLAG_BITS, CellTable
 from fieldrx.agronomy.interpolate import InterpolationResult, interpolate_to_cells
-from fieldrx.agronomy.rates import MeterCheck, check_meter_range, model_rates
+from fieldrx.agronomy.rates import (
+    MeterCheck,
+    check_meter_range,
+    model_rates,
+    require_meterable,
+)
 
 # Which sample column feeds which model.
 MODEL_INPUT = {"nutrient_balance": "n_mg_kg", "ndvi": "ndvi", "uniform": None}
@@ -52,11 +57,17 @@ class Prescription:
         return out
 
 
+# Flags that mean "the machine will not apply what this cell asks for, or the
+# rate is a guess": a job with such cells is sent only on explicit confirmation.
+ATTENTION_FLAGS = ("no_data", "below_meter_range", "above_meter_range")
+ATTENTION_MASK = sum(FLAG_BITS[n] for n in ATTENTION_FLAGS)
+
+
 def _finalise(
     rates: np.ndarray, base_flags: np.ndarray, meter: MeterCheck | None
 ) -> tuple[np.ndarray, np.ndarray, tuple[float, float] | None]:
-    clamped, meter_flags, rng = check_meter_range(rates, meter)
-    return clamped, (base_flags | meter_flags).astype(np.uint16), rng
+    same, meter_flags, rng = check_meter_range(rates, meter)
+    return same, (base_flags | meter_flags).astype(np.uint16), rng
 
 
 def build_prescription(
@@ -74,7 +85,7 @@ def build_prescription(
     Cells without data get ``fallback_rate_kg_ha``, or when None the model's
     rate at the area-weighted mean of the cells that have data; they are
     flagged ``no_data``. Then every rate is checked against the meter range
-    (clamped and flagged, see ``rates.check_meter_range``).
+    (kept as computed and flagged, see ``rates.check_meter_range``).
     """
     params = dict(params)
     if model == "uniform":
@@ -158,7 +169,9 @@ def apply_cell_edits(
     """Manual per-cell rates by cell ``seq``; returns new (rates, flags).
 
     Edited cells are flagged ``manual`` (their old flags are replaced, they
-    no longer carry a fallback) and meter-checked like any other rate.
+    no longer carry a fallback). A rate the meter cannot deliver at the planned
+    speeds is refused (``MeterRangeError`` naming the limit and the speed),
+    never stored as something else.
     """
     seq = np.asarray(seq)
     pos = {int(s): i for i, s in enumerate(seq.tolist())}
@@ -172,6 +185,7 @@ def apply_cell_edits(
         r = float(r)
         if not np.isfinite(r) or r < 0:
             raise PrescriptionError(f"cell {s}: rate must be >= 0, got {r!r}")
+        require_meterable(r, meter, f"cell {s}")
         idx.append(pos[int(s)])
         vals.append(r)
     ii = np.array(idx, dtype=np.int64)
@@ -210,11 +224,13 @@ def paint_zone(
     """Zone painting: every cell covered by the polygon (centroid inside) gets the rate.
 
     Returns new (rates, flags, number of cells painted); painted cells are
-    flagged ``zone`` and meter-checked. The zone is in the cells' UTM zone.
+    flagged ``zone``. A rate the meter cannot deliver is refused like a cell
+    edit (``rates.require_meterable``). The zone is in the cells' UTM zone.
     """
     r = float(zone_rate_kg_ha)
     if not np.isfinite(r) or r < 0:
         raise PrescriptionError(f"zone rate must be >= 0, got {zone_rate_kg_ha!r}")
+    require_meterable(r, meter, "zone rate")
     mask = cells_in_zone(centroids_utm, zone_utm)
     rates = np.array(rate_kg_ha, dtype=float)
     fl = np.array(flags, dtype=np.uint16)
@@ -251,7 +267,11 @@ def summarize(
     counts, _ = np.histogram(r, bins=edges)
     areas, _ = np.histogram(r, bins=edges, weights=a)
     flagged = {name: int(((fl & bit) != 0).sum()) for name, bit in FLAG_BITS.items()}
+    flagged_area = {
+        name: round(float(a[(fl & bit) != 0].sum()), 3) for name, bit in FLAG_BITS.items()
+    }
     flagged_seq_mask = fl != 0
+    attention = (fl & ATTENTION_MASK) != 0
     return {
         "n_cells": int(len(r)),
         "area_m2": round(total_area, 3),
@@ -268,7 +288,19 @@ def summarize(
             "area_m2": [round(float(x), 3) for x in areas],
         },
         "flagged": flagged,
+        "flagged_area_m2": flagged_area,
         "n_flagged": int(flagged_seq_mask.sum()),
+        # cells the machine will not apply as asked (meter range) or whose rate is a
+        # fallback (no data): count, area and seq, shown wherever the prescription is
+        "attention": {
+            "flags": list(ATTENTION_FLAGS),
+            "count": int(attention.sum()),
+            "area_m2": round(float(a[attention].sum()), 3),
+            "area_ha": round(float(a[attention].sum()) / 1e4, 7),
+            "seq": None
+            if seq is None
+            else [int(x) for x in np.asarray(seq)[attention][:max_listed]],
+        },
         "flagged_seq": None
         if seq is None
         else [int(x) for x in np.asarray(seq)[flagged_seq_mask][:max_listed]],

@@ -1,8 +1,8 @@
 """Rate models: soil or crop data per cell -> fertilizer rate in kg/ha of product.
 
 Pure, vectorised functions over numpy arrays. Which rates an implement can
-actually meter is checked separately (``check_meter_range``), so that every
-clamp is visible as a per-cell flag instead of silently changing a rate.
+actually meter is checked separately (``check_meter_range``): a rate it cannot
+meter is kept as computed and flagged per cell, never silently changed.
 """
 
 from __future__ import annotations
@@ -220,12 +220,16 @@ class MeterCheck:
 def check_meter_range(
     rate_kg_ha: np.ndarray, meter: MeterCheck | None
 ) -> tuple[np.ndarray, np.ndarray, tuple[float, float] | None]:
-    """Clamp rates into the meterable range and flag every clamped cell.
+    """Flag every rate the implement cannot meter at the planned speeds; change none.
 
     A rate of exactly 0 means "meter off" and is always possible. A positive
-    rate below the range is raised to the lowest meterable rate
-    (``below_meter_range``), one above it lowered to the highest
-    (``above_meter_range``). Returns (rates, flag bits, range or None).
+    rate below the lowest meterable rate (shaft floor at the slowest planned
+    speed, seed 001 eq. 1-3) is flagged ``below_meter_range``, one above the
+    highest (shaft ceiling at the fastest speed) ``above_meter_range``. The
+    rates are returned as computed: the prescription keeps what the model or
+    the agronomist asked for, and the flags (with their count, area and cells
+    in the summary) say where the machine will not deliver it. Returns
+    (rates, flag bits, range or None).
     """
     r = np.asarray(rate_kg_ha, dtype=float).copy()
     flags = np.zeros(len(r), dtype=np.uint16)
@@ -239,10 +243,34 @@ def check_meter_range(
             f"meterable rate at the slowest speed ({lo:.1f} kg/ha) exceeds the highest at the "
             f"fastest speed ({hi:.1f} kg/ha); narrow the speed range"
         )
-    below = (r > 0) & (r < lo)
-    above = r > hi
-    r[below] = lo
-    r[above] = hi
-    flags[below] |= FLAG_BITS["below_meter_range"]
-    flags[above] |= FLAG_BITS["above_meter_range"]
+    flags[(r > 0) & (r < lo)] |= FLAG_BITS["below_meter_range"]
+    flags[r > hi] |= FLAG_BITS["above_meter_range"]
     return r, flags, (lo, hi)
+
+
+def require_meterable(rate_kg_ha: float, meter: MeterCheck | None, what: str) -> None:
+    """Refuse a rate typed by a person that the implement cannot meter at the planned speeds.
+
+    An edit is a number the agronomist gives now, so it is answered now (422)
+    rather than stored and flagged: the message names the limit, the speed it
+    assumes and the shaft speed behind it (seed 001 eq. 1-3). 0 (meter off) is
+    always accepted.
+    """
+    if meter is None or rate_kg_ha <= 0:
+        return
+    lo, hi = meter.range_kg_ha()
+    cal = meter.calibration
+    if rate_kg_ha < lo:
+        raise MeterRangeError(
+            f"{what}: {rate_kg_ha:g} kg/ha is below the lowest rate this machine can meter at "
+            f"its slowest planned speed {meter.speed_min_m_s * 3.6:.3g} km/h: {lo:.1f} kg/ha "
+            f"(shaft floor {cal.min_rpm:g} r/min, width {meter.width_m:g} m); use 0 (off), "
+            f"a rate >= {lo:.1f} kg/ha, or a machine / speed range that meters it"
+        )
+    if rate_kg_ha > hi:
+        raise MeterRangeError(
+            f"{what}: {rate_kg_ha:g} kg/ha is above the highest rate this machine can meter at "
+            f"its fastest planned speed {meter.speed_max_m_s * 3.6:.3g} km/h: {hi:.1f} kg/ha "
+            f"(shaft ceiling {cal.max_rpm:g} r/min, width {meter.width_m:g} m); use a rate "
+            f"<= {hi:.1f} kg/ha, or a machine / speed range that meters it"
+        )

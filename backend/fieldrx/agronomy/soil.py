@@ -7,8 +7,10 @@ shows it, the header being row 1, so the first data row is row 2. GeoJSON:
 An import that has any error returns the errors and no samples, unless
 ``skip_bad_rows`` is set, in which case the good rows are returned together
 with the errors for the skipped ones. Header problems (a missing required
-column) always reject the whole file. Samples outside the field boundary are
-kept and reported in ``outside``.
+column) always reject the whole file. Samples farther than
+``OUTSIDE_TOLERANCE_M`` outside the field boundary are set apart in
+``outside`` (with their distance): a file from another field must not feed the
+interpolation, so the caller stores them only when asked to.
 
 Columns (case-insensitive, aliases in ``COLUMN_ALIASES``): ``sample_id``,
 ``lon``/``lat`` (WGS84) or ``x``/``y`` with an ``epsg`` code given by the
@@ -31,6 +33,7 @@ from pyproj import CRS
 from pyproj.exceptions import CRSError
 
 from fieldrx.agronomy.cells import transform_xy
+from fieldrx.geo.crs import epsg_for_geometry, lonlat_to_utm_xy, to_utm
 
 COLUMN_ALIASES: dict[str, tuple[str, ...]] = {
     "sample_id": ("sample_id", "id", "sample", "name"),
@@ -61,6 +64,9 @@ RANGES: dict[str, tuple[float, float]] = {
 OPTIONAL = ("p_mg_kg", "k_mg_kg", "om_g_kg", "ph", "ndvi")
 VALUE_COLUMNS = ("n_mg_kg", "ndvi")  # what a rate model can be fed with
 DEFAULT_DEPTH_CM = 20.0  # seed 001 samples 0-20 cm
+# A sample this close outside the boundary is the field's own (handheld GNSS error and
+# a boundary drawn on an orthophoto are each a few metres); farther, it is set apart.
+OUTSIDE_TOLERANCE_M = 10.0
 
 
 @dataclass
@@ -108,8 +114,14 @@ class SoilImport:
 
     samples: list[SoilSample] = field(default_factory=list)
     errors: list[RowError] = field(default_factory=list)
-    outside: list[SoilSample] = field(default_factory=list)
+    outside: list[SoilSample] = field(default_factory=list)  # also in samples
     rejected: bool = False  # True when errors made the import store nothing
+    outside_distance_m: list[float] = field(default_factory=list)  # one per ``outside``
+
+    def inside_samples(self) -> list[SoilSample]:
+        """The samples within the field (or within the tolerance of its boundary)."""
+        away = {id(s) for s in self.outside}
+        return [s for s in self.samples if id(s) not in away]
 
     @property
     def ok(self) -> bool:
@@ -130,7 +142,21 @@ class SoilImport:
             "n_errors": len(self.errors),
             "rejected": self.rejected,
             "errors": [e.to_dict() for e in self.errors],
-            "outside": [{"row": s.row, "sample_id": s.sample_id} for s in self.outside],
+            "outside": [
+                {
+                    "row": s.row,
+                    "sample_id": s.sample_id,
+                    "lon": s.lon,
+                    "lat": s.lat,
+                    "distance_m": None if d is None else round(d, 1),
+                }
+                for s, d in zip(
+                    self.outside,
+                    self.outside_distance_m or [None] * len(self.outside),
+                    strict=True,
+                )
+            ],
+            "outside_tolerance_m": OUTSIDE_TOLERANCE_M,
         }
 
 
@@ -254,15 +280,30 @@ def _finish(
     if errors and (fatal or not skip_bad_rows):
         return SoilImport([], errors, [], rejected=True)
     outside: list[SoilSample] = []
+    dist: list[float] = []
     if boundary_wgs84 is not None and samples:
-        xy = np.array([[s.lon, s.lat] for s in samples])
-        inside = shapely.intersects_xy(boundary_wgs84, xy[:, 0], xy[:, 1])
-        outside = [s for s, ok in zip(samples, inside, strict=True) if not ok]
+        d = distance_outside_m(
+            boundary_wgs84, np.array([[s.lon, s.lat] for s in samples], dtype=float)
+        )
+        away = d > OUTSIDE_TOLERANCE_M
+        outside = [s for s, a in zip(samples, away, strict=True) if a]
+        dist = [float(x) for x in d[away]]
     if not samples:
         if not errors:
             errors = [RowError(1, None, "no samples in the file")]
         return SoilImport([], errors, [], rejected=True)  # nothing usable to store
-    return SoilImport(samples, errors, outside, rejected=False)
+    return SoilImport(samples, errors, outside, rejected=False, outside_distance_m=dist)
+
+
+def distance_outside_m(boundary_wgs84: Any, lonlat: np.ndarray) -> np.ndarray:
+    """Distance in metres from each point to the field (0 inside or on the boundary).
+
+    Measured in the field's UTM zone, so a sample 100 km away reads ~100000 m.
+    """
+    epsg = epsg_for_geometry(boundary_wgs84)
+    poly = to_utm(boundary_wgs84, epsg)
+    x, y = lonlat_to_utm_xy(lonlat[:, 0], lonlat[:, 1], epsg)
+    return np.asarray(shapely.distance(poly, shapely.points(np.column_stack([x, y]))), float)
 
 
 def _resolve_header(header: list[str]) -> tuple[dict[str, int], list[RowError]]:

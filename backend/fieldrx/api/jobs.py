@@ -22,6 +22,7 @@ from fieldrx.db.models import (
     PrescriptionVersion,
 )
 from fieldrx.fleet.jobstate import change_state, notify_job
+from fieldrx.services import prescriptions as rx_svc
 
 router = APIRouter(prefix="/jobs", tags=["jobs"])
 
@@ -33,6 +34,11 @@ class JobIn(BaseModel):
     version: int | None = Field(default=None, description="prescription version; default current")
     machine_id: int
     name: str = Field(default="", max_length=200)
+    confirm_flagged: bool = Field(
+        default=False,
+        description="send although cells have no data or lie outside the machine's meter range "
+        "(without it such a job is refused with 409 listing count, area and cells)",
+    )
 
 
 class StateIn(BaseModel):
@@ -59,6 +65,8 @@ class JobOut(BaseModel):
     cells_applied: int
     progress: float
     package_checksum: str
+    flagged_cells: int = 0
+    flagged_confirmed: bool = False
     created_by: int | None
     created_at: dt.datetime
     updated_at: dt.datetime
@@ -82,6 +90,8 @@ def job_out(job: Job, events: list[JobEvent] | None = None) -> JobOut:
         cells_applied=job.cells_applied,
         progress=(job.cells_applied / job.n_cells) if job.n_cells else 0.0,
         package_checksum=job.package_checksum,
+        flagged_cells=job.flagged_cells or 0,
+        flagged_confirmed=bool(job.flagged_confirmed),
         created_by=job.created_by,
         created_at=job.created_at,
         updated_at=job.updated_at,
@@ -110,6 +120,15 @@ def _check_width(session: SessionDep, rx: Prescription, machine: Machine) -> Non
         )
 
 
+def _attention(
+    session: SessionDep, rx: Prescription, v: PrescriptionVersion, machine: Machine
+) -> dict:
+    try:
+        return rx_svc.job_attention(session, rx, v, machine)
+    except (LookupError, ValueError) as exc:
+        raise ApiError(422, str(exc), where="prescription_id") from exc
+
+
 @router.post("", response_model=JobOut, status_code=201)
 def create_job(body: JobIn, principal: WriterDep, session: SessionDep) -> JobOut:
     rx = session.get(Prescription, body.prescription_id)
@@ -129,6 +148,21 @@ def create_job(body: JobIn, principal: WriterDep, session: SessionDep) -> JobOut
     if v is None:
         raise ApiError(404, f"prescription {rx.id} has no version {version}", where="version")
     _check_width(session, rx, machine)
+    attention = _attention(session, rx, v, machine)
+    if attention["count"] and not body.confirm_flagged:
+        m = attention["meter"]
+        raise ApiError(
+            409,
+            f"prescription {rx.id} v{version} has {attention['count']} cell(s) "
+            f"({attention['area_m2'] / 1e4:.4f} ha) that '{machine.name}' will not apply as "
+            f"prescribed: {attention['no_data']} with no soil data (fallback rate), "
+            f"{attention['out_of_meter_range']} outside the meter range "
+            f"{m['rate_min_kg_ha']:.1f}..{m['rate_max_kg_ha']:.1f} kg/ha at "
+            f"{m['speed_min_kmh']:g}..{m['speed_max_kmh']:g} km/h; send again with "
+            "confirm_flagged=true to send it anyway",
+            where="confirm_flagged",
+            flagged=attention,
+        )
     n_cells = session.scalar(
         select(func.count())
         .select_from(PrescriptionRate)
@@ -144,11 +178,16 @@ def create_job(body: JobIn, principal: WriterDep, session: SessionDep) -> JobOut
         n_cells=n_cells or 0,
         cells_applied=0,
         package_checksum="",
+        flagged_cells=attention["count"],
+        flagged_confirmed=bool(attention["count"]) and body.confirm_flagged,
         created_by=principal.user_id,
     )
     session.add(job)
     session.flush()
-    session.add(JobEvent(job_id=job.id, state="planned", by_user_id=principal.user_id, note=""))
+    note = (
+        f"sent with {attention['count']} flagged cell(s) confirmed" if job.flagged_confirmed else ""
+    )
+    session.add(JobEvent(job_id=job.id, state="planned", by_user_id=principal.user_id, note=note))
     session.flush()
     session.refresh(job)
     notify_job(session, job)

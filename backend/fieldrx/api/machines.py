@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 import datetime as dt
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Query
-from fieldrx_edge.metering import SEED001_CALIBRATION, calibration_from_dict
-from pydantic import BaseModel, Field, field_validator
+from fieldrx_edge.metering import calibration_from_dict
+from pydantic import BaseModel, Field, field_validator, model_validator
 from sqlalchemy import func, select
 
 from fieldrx.api.common import ApiError, get_scoped
@@ -26,25 +26,82 @@ class ControllerIn(BaseModel):
     period_s: float = Field(default=0.01, gt=0, le=1)
 
 
+class LinearCalibrationIn(BaseModel):
+    """Seed 001 eq. 1 form of a meter's calibration: q0 = a * r + b [g/min], r in r/min.
+
+    Every field is required: a machine's calibration is measured on that machine,
+    so there is no default (seed 001's disc spreader is a = 237.2, b = -404.4,
+    30..130 r/min).
+    """
+
+    kind: Literal["linear"] = "linear"
+    slope_g_min_per_rpm: float = Field(gt=0, description="a: g/min per r/min")
+    intercept_g_min: float = Field(description="b: g/min at r = 0 (may be negative)")
+    min_rpm: float = Field(ge=0, description="lowest stable shaft speed, r/min")
+    max_rpm: float = Field(gt=0, le=10000, description="highest shaft speed, r/min")
+
+    @model_validator(mode="after")
+    def _range(self) -> LinearCalibrationIn:
+        if self.max_rpm <= self.min_rpm:
+            raise ValueError(
+                f"max_rpm ({self.max_rpm:g}) must be greater than min_rpm ({self.min_rpm:g})"
+            )
+        q_min = self.slope_g_min_per_rpm * self.min_rpm + self.intercept_g_min
+        if q_min <= 0:
+            raise ValueError(
+                f"the meter delivers {q_min:g} g/min at min_rpm {self.min_rpm:g} r/min "
+                "(a * min_rpm + b must be > 0): raise min_rpm to where it meters"
+            )
+        return self
+
+
+class TableCalibrationIn(BaseModel):
+    """Seed 000 form: discharge per revolution measured at several shaft speeds."""
+
+    kind: Literal["table"]
+    rpm: list[float] = Field(min_length=2)
+    g_per_rev: list[float] = Field(min_length=2)
+    min_rpm: float = Field(ge=0)
+    max_rpm: float = Field(gt=0, le=10000)
+
+    @model_validator(mode="after")
+    def _table(self) -> TableCalibrationIn:
+        if self.max_rpm <= self.min_rpm:
+            raise ValueError(
+                f"max_rpm ({self.max_rpm:g}) must be greater than min_rpm ({self.min_rpm:g})"
+            )
+        calibration_from_dict(self.model_dump())  # monotone flow, equal lengths
+        return self
+
+
+CalibrationIn = Annotated[LinearCalibrationIn | TableCalibrationIn, Field(discriminator="kind")]
+
+
+def _calibration_dict(value: Any) -> Any:
+    """Calibrations without ``kind`` are the linear (seed 001 eq. 1) form."""
+    if isinstance(value, dict) and "kind" not in value:
+        return {**value, "kind": "linear"}
+    return value
+
+
 class MachineIn(BaseModel):
     name: str = Field(min_length=1, max_length=200)
     implement_type: str = Field(default="spreader", max_length=50)
     width_m: float = Field(gt=0, le=60, description="working width, m")
-    lag_s: float = Field(default=1.52, ge=0, le=30, description="application lag T_lag, s")
-    calibration: dict[str, Any] = Field(default_factory=SEED001_CALIBRATION.to_dict)
+    lag_s: float = Field(ge=0, le=30, description="application lag T_lag, s (seed 001: 1.52)")
+    calibration: CalibrationIn = Field(
+        description="metering calibration, measured on this machine (no default)"
+    )
     controller: ControllerIn = Field(default_factory=ControllerIn)
     antenna_forward_m: float = 0.0
     antenna_lateral_m: float = 0.0
     speed_min_m_s: float = Field(default=0.8, gt=0)
     speed_max_m_s: float = Field(default=2.5, gt=0)
 
-    @field_validator("calibration")
+    @field_validator("calibration", mode="before")
     @classmethod
-    def _calibration(cls, value: dict[str, Any]) -> dict[str, Any]:
-        try:
-            return calibration_from_dict(value).to_dict()
-        except (KeyError, TypeError, ValueError) as exc:
-            raise ValueError(f"invalid metering calibration: {exc}") from exc
+    def _kind(cls, value: Any) -> Any:
+        return _calibration_dict(value)
 
 
 class MachinePatch(BaseModel):
@@ -52,17 +109,17 @@ class MachinePatch(BaseModel):
     implement_type: str | None = None
     width_m: float | None = Field(default=None, gt=0, le=60)
     lag_s: float | None = Field(default=None, ge=0, le=30)
-    calibration: dict[str, Any] | None = None
+    calibration: CalibrationIn | None = None
     controller: ControllerIn | None = None
     antenna_forward_m: float | None = None
     antenna_lateral_m: float | None = None
     speed_min_m_s: float | None = Field(default=None, gt=0)
     speed_max_m_s: float | None = Field(default=None, gt=0)
 
-    @field_validator("calibration")
+    @field_validator("calibration", mode="before")
     @classmethod
-    def _calibration(cls, value: dict[str, Any] | None) -> dict[str, Any] | None:
-        return None if value is None else MachineIn._calibration(value)
+    def _kind(cls, value: Any) -> Any:
+        return _calibration_dict(value)
 
 
 class MachineOut(BaseModel):
@@ -94,6 +151,11 @@ def _out(m: Machine) -> MachineOut:
     return MachineOut.model_validate(m, from_attributes=True)
 
 
+def _stored_calibration(cal: LinearCalibrationIn | TableCalibrationIn) -> dict[str, Any]:
+    """The JSON form the job package and the edge agent read (fieldrx_edge.metering)."""
+    return calibration_from_dict(cal.model_dump()).to_dict()
+
+
 def _check_speeds(m: Machine) -> None:
     if m.speed_min_m_s > m.speed_max_m_s:
         raise ApiError(422, "speed_min_m_s is greater than speed_max_m_s", where="speed_min_m_s")
@@ -115,6 +177,7 @@ def list_machines(
 @router.post("", response_model=MachineOut, status_code=201)
 def create_machine(body: MachineIn, principal: WriterDep, session: SessionDep) -> MachineOut:
     m = Machine(organisation_id=principal.organisation_id, **body.model_dump())
+    m.calibration = _stored_calibration(body.calibration)
     _check_speeds(m)
     session.add(m)
     session.commit()
@@ -137,6 +200,8 @@ def update_machine(
     for key, value in body.model_dump(exclude_unset=True).items():
         if value is not None:
             setattr(m, key, value)
+    if body.calibration is not None:
+        m.calibration = _stored_calibration(body.calibration)
     _check_speeds(m)
     session.commit()
     return _out(m)

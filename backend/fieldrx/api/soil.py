@@ -26,9 +26,14 @@ async def import_samples(
     session: SessionDep,
     skip_bad_rows: bool = Query(default=False, description="store the good rows, report the bad"),
     epsg: int | None = Query(default=None, description="EPSG code of x/y columns (else lon/lat)"),
+    include_outside: bool = Query(
+        default=False, description="also store samples lying outside the field (reported anyway)"
+    ),
 ) -> JSONResponse:
     """Import samples. Any bad row rejects the whole file (422 listing row + column of every
-    error) unless ``skip_bad_rows``; samples outside the field are stored and reported."""
+    error) unless ``skip_bad_rows``; samples outside the field (beyond a 10 m tolerance) are
+    reported with their distance and stored only with ``include_outside``; the same file
+    twice on one field is refused (409)."""
     field = get_scoped(session, Field, field_id, principal)
     data = await file.read(MAX_BYTES + 1)
     if len(data) > MAX_BYTES:
@@ -50,19 +55,15 @@ async def import_samples(
             outside=report["outside"],
             imported=0,
         )
-    batch = svc.store_import(session, field, result, svc.ndvi_by_row(name, data))
+    try:
+        content = svc.store_import(
+            session, field, name, data, result, include_outside, principal.user_id
+        )
+    except svc.ImportRefused as exc:
+        session.rollback()
+        raise ApiError(exc.status, str(exc), **exc.extra) from exc
     session.commit()
-    return JSONResponse(
-        status_code=201,
-        content={
-            "imported": len(result.samples),
-            "import_batch": batch,
-            "skipped": len(result.errors),
-            "errors": report["errors"],
-            "outside": report["outside"],
-            "n_outside": len(result.outside),
-        },
-    )
+    return JSONResponse(status_code=201, content=content)
 
 
 @router.get("/{field_id:int}/soil-samples")
@@ -77,3 +78,35 @@ def delete_samples(field_id: int, principal: WriterDep, session: SessionDep) -> 
     n = svc.delete_samples(session, field.id)
     session.commit()
     return {"deleted": n}
+
+
+@router.get("/{field_id:int}/soil-imports")
+def list_imports(field_id: int, principal: UserDep, session: SessionDep) -> dict[str, Any]:
+    """The field's uploads (file, digest, samples stored, outside rows), newest first."""
+    field = get_scoped(session, Field, field_id, principal)
+    return svc.list_imports(session, field.id)
+
+
+@router.delete("/{field_id:int}/soil-imports/{import_id:int}")
+def delete_import(
+    field_id: int, import_id: int, principal: WriterDep, session: SessionDep
+) -> dict[str, int]:
+    """Delete one upload and its samples."""
+    field = get_scoped(session, Field, field_id, principal)
+    n = svc.delete_import(session, field.id, import_id)
+    if n is None:
+        raise ApiError(404, f"field {field.id} has no soil import {import_id}", where="import_id")
+    session.commit()
+    return {"deleted": n}
+
+
+@router.delete("/{field_id:int}/soil-samples/{sample_pk:int}")
+def delete_sample(
+    field_id: int, sample_pk: int, principal: WriterDep, session: SessionDep
+) -> dict[str, int]:
+    """Delete one sample by its id (``properties.id`` in the list)."""
+    field = get_scoped(session, Field, field_id, principal)
+    if not svc.delete_sample(session, field.id, sample_pk):
+        raise ApiError(404, f"field {field.id} has no soil sample {sample_pk}", where="sample_pk")
+    session.commit()
+    return {"deleted": 1}

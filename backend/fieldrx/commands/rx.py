@@ -78,7 +78,9 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
         default=None,
         help="metering calibration JSON (default seed 001: 237.2 r - 404.4 g/min, 30-130 r/min)",
     )
-    g.add_argument("--no-meter-check", action="store_true", help="do not clamp to the meter range")
+    g.add_argument(
+        "--no-meter-check", action="store_true", help="do not flag rates outside the meter range"
+    )
     g.add_argument("--lag-s", type=float, default=1.52, help="job package: lag time")
     g.add_argument("--controller", default="ladrc", help="job package: controller name")
     g = p.add_argument_group("output")

@@ -185,6 +185,26 @@ class PlanCell(Base):
     geom: Mapped[Any] = mapped_column(Geometry("POLYGON", srid=4326, spatial_index=True))
 
 
+class SoilImport(Base):
+    """One uploaded soil file: its samples are deleted with it; the same bytes twice are refused."""
+
+    __tablename__ = "soil_imports"
+    __table_args__ = (UniqueConstraint("field_id", "sha256", name="uq_soil_imports_field_sha256"),)
+    id: Mapped[int] = mapped_column(primary_key=True)
+    organisation_id: Mapped[int] = mapped_column(
+        ForeignKey("organisations.id", ondelete="CASCADE"), index=True
+    )
+    field_id: Mapped[int] = mapped_column(ForeignKey("fields.id", ondelete="CASCADE"), index=True)
+    filename: Mapped[str] = mapped_column(String(255), default="")
+    sha256: Mapped[str] = mapped_column(String(71))
+    batch: Mapped[str] = mapped_column(String(64), default="")
+    n_samples: Mapped[int] = mapped_column(Integer, default=0)
+    n_outside: Mapped[int] = mapped_column(Integer, default=0)
+    outside_stored: Mapped[bool] = mapped_column(Boolean, default=False)
+    created_by: Mapped[int | None] = mapped_column(ForeignKey("users.id", ondelete="SET NULL"))
+    created_at: Mapped[dt.datetime] = _now()
+
+
 class SoilSample(Base):
     __tablename__ = "soil_samples"
     id: Mapped[int] = mapped_column(primary_key=True)
@@ -202,6 +222,9 @@ class SoilSample(Base):
     ndvi: Mapped[float | None] = mapped_column(Double)
     geom: Mapped[Any] = mapped_column(Geometry("POINT", srid=4326, spatial_index=True))
     import_batch: Mapped[str] = mapped_column(String(64), default="")
+    import_id: Mapped[int | None] = mapped_column(
+        ForeignKey("soil_imports.id", ondelete="CASCADE"), index=True
+    )
     created_at: Mapped[dt.datetime] = _now()
 
 
@@ -265,6 +288,10 @@ class Job(Base):
     n_cells: Mapped[int] = mapped_column(Integer, default=0)
     cells_applied: Mapped[int] = mapped_column(Integer, default=0)
     package_checksum: Mapped[str] = mapped_column(String(64), default="")
+    # cells flagged no data / outside the meter range when the job was made, and whether
+    # the sender confirmed sending them anyway (created_by is who confirmed)
+    flagged_cells: Mapped[int] = mapped_column(Integer, default=0, server_default="0")
+    flagged_confirmed: Mapped[bool] = mapped_column(Boolean, default=False, server_default="false")
     created_by: Mapped[int | None] = mapped_column(ForeignKey("users.id", ondelete="SET NULL"))
     created_at: Mapped[dt.datetime] = _now()
     updated_at: Mapped[dt.datetime] = _now()

@@ -2,8 +2,10 @@
 
 A prescription has immutable versions; version n's rates live in
 ``prescription_rates`` under that version's id, so an edit writes a whole new
-rate set (n+1) and never touches n. The metering range used for clamping is
-kept in ``prescriptions.params["meter"]`` so edits are clamped the same way.
+rate set (n+1) and never touches n. The metering range the rates are checked
+against is kept in ``prescriptions.params["meter"]`` so edits are checked the
+same way: model outputs outside it are stored as computed and flagged, edits
+outside it are refused (422 naming the limit and the speed).
 """
 
 from __future__ import annotations
@@ -14,7 +16,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from fieldrx_edge.metering import SEED001_CALIBRATION, calibration_from_dict
+from fieldrx_edge.metering import calibration_from_dict
 from geoalchemy2.shape import to_shape
 from sqlalchemy import func, select, text
 from sqlalchemy.orm import Session
@@ -22,6 +24,7 @@ from sqlalchemy.orm import Session
 from fieldrx.agronomy.cells import FLAG_BITS, CellTable, flag_names
 from fieldrx.agronomy.interpolate import interpolate_to_cells
 from fieldrx.agronomy.prescription import (
+    ATTENTION_MASK,
     MODEL_INPUT,
     PrescriptionError,
     apply_cell_edits,
@@ -29,7 +32,7 @@ from fieldrx.agronomy.prescription import (
     paint_zone,
     summarize,
 )
-from fieldrx.agronomy.rates import MeterCheck
+from fieldrx.agronomy.rates import MeterCheck, check_meter_range
 from fieldrx.db.models import (
     Field,
     Machine,
@@ -91,6 +94,18 @@ class MeterSpec:
     def to_dict(self) -> dict[str, Any]:
         return dict(self.__dict__)
 
+    def describe(self) -> dict[str, Any]:
+        """The range and the speeds it assumes, for summaries (seed 001 eq. 1-3)."""
+        lo, hi = self.check().range_kg_ha()
+        return {
+            "rate_min_kg_ha": round(lo, 3),
+            "rate_max_kg_ha": round(hi, 3),
+            "speed_min_kmh": round(self.speed_min_m_s * 3.6, 3),
+            "speed_max_kmh": round(self.speed_max_m_s * 3.6, 3),
+            "width_m": self.width_m,
+            "calibration": self.calibration,
+        }
+
 
 def meter_spec(
     machine: Machine | None,
@@ -102,7 +117,8 @@ def meter_spec(
 ) -> MeterSpec | None:
     """What the implement can meter: the machine's, overridden by explicit values.
 
-    None (no clamping) when neither a machine nor a speed range is given.
+    None (no meter check) when neither a machine nor a speed range is given.
+    Without a machine the calibration must be given: no meter is assumed.
     """
     if machine is None and speed_min_kmh is None and speed_max_kmh is None:
         return None
@@ -114,8 +130,14 @@ def meter_spec(
             machine.speed_max_m_s,
         )
     else:
+        if calibration is None:
+            raise RxError(
+                "a speed range without machine_id needs calibration (the meter's "
+                "q0 = a*r + b: slope_g_min_per_rpm, intercept_g_min, min_rpm, max_rpm): "
+                "give machine_id or calibration"
+            )
         spec = MeterSpec(
-            SEED001_CALIBRATION.to_dict(),
+            dict(calibration),
             float((plan.params or {}).get("swath_width_m", 2.3)),
             0.8,
             2.5,
@@ -299,8 +321,13 @@ def _stats(summary: dict[str, Any]) -> dict[str, Any]:
     out = {k: v for k, v in summary.items() if isinstance(v, int | float) and v is not None}
     fl = summary.get("flagged") or {}
     out["cell_count"] = summary.get("n_cells", 0)
-    out["clamped_count"] = int(fl.get("below_meter_range", 0)) + int(fl.get("above_meter_range", 0))
+    out["out_of_meter_range_count"] = int(fl.get("below_meter_range", 0)) + int(
+        fl.get("above_meter_range", 0)
+    )
     out["no_data_count"] = int(fl.get("no_data", 0))
+    att = summary.get("attention") or {}
+    out["attention_count"] = int(att.get("count", 0))
+    out["attention_area_m2"] = float(att.get("area_m2", 0.0))
     interp = summary.get("interpolation") or {}
     if isinstance(interp, dict) and interp.get("loo_rmse") is not None:
         out["kriging_cv_rmse"] = interp["loo_rmse"]
@@ -436,6 +463,8 @@ def create_prescription(
     summary = p.summary(area, seq=seq)
     if interp_info is not None:
         summary["interpolation"] = interp_info
+    if meter is not None:
+        summary["meter"] = meter.describe()
     summary = _json_safe(summary)
     rx = Prescription(
         organisation_id=organisation_id,
@@ -525,7 +554,14 @@ def edit_prescription(
         raise RxError("the plan's cells do not match the prescription's rates")
     summary = summarize(new_rates, new_flags, area, seq=seq)
     old = base.summary or {}
-    for key in ("model", "params", "meter_range_kg_ha", "fallback_rate_kg_ha", "interpolation"):
+    for key in (
+        "model",
+        "params",
+        "meter_range_kg_ha",
+        "meter",
+        "fallback_rate_kg_ha",
+        "interpolation",
+    ):
         if key in old:
             summary[key] = old[key]
     summary["edited_cells"] = int(changed)
@@ -583,12 +619,54 @@ def rates_page(
                     "rate_kg_ha": rate,
                     "flags": fl,
                     "flag": ",".join(fl),
+                    # outside what the machine meters at the planned speeds (stored as
+                    # asked); "clamped" is the same flag under the tiles' older name
+                    "out_of_meter_range": "below_meter_range" in fl or "above_meter_range" in fl,
                     "clamped": "below_meter_range" in fl or "above_meter_range" in fl,
+                    # no sample near enough: the rate is the prescription's fallback rate
+                    "fallback": "no_data" in fl,
                     "source_value": src,
                 },
             }
         )
     return out
+
+
+def job_attention(
+    session: Session, rx: Prescription, ver: PrescriptionVersion, machine: Machine
+) -> dict[str, Any]:
+    """Cells of a version that need the sender's confirmation before a job goes to ``machine``.
+
+    A cell counts when its stored flags say no data / outside the meter range, or
+    when the job's machine (its calibration, width and speed range, seed 001
+    eq. 1-3) cannot meter its rate although the prescription was checked against
+    another meter or none. Returns count, area and the first seq.
+    """
+    seq, rates, flags, _ = load_rates(session, ver.id)
+    plan = session.get(Plan, rx.plan_id)
+    if plan is None:
+        raise LookupError(f"prescription {rx.id}: plan is gone")
+    aseq, area = load_seq_area(session, plan)
+    if not np.array_equal(aseq, seq):
+        raise RxError("the plan's cells do not match the prescription's rates")
+    spec = MeterSpec(
+        dict(machine.calibration), machine.width_m, machine.speed_min_m_s, machine.speed_max_m_s
+    )
+    _, meter_flags, _ = check_meter_range(rates, spec.check())
+    mask = ((flags & ATTENTION_MASK) != 0) | (meter_flags != 0)
+    return {
+        "count": int(mask.sum()),
+        "area_m2": round(float(np.asarray(area)[mask].sum()), 3),
+        "no_data": int(((flags & FLAG_BITS["no_data"]) != 0).sum()),
+        "out_of_meter_range": int(
+            (
+                ((flags & (FLAG_BITS["below_meter_range"] | FLAG_BITS["above_meter_range"])) != 0)
+                | (meter_flags != 0)
+            ).sum()
+        ),
+        "seq": [int(x) for x in seq[mask][:50]],
+        "meter": spec.describe(),
+    }
 
 
 def version_cells(session: Session, rx: Prescription, ver: PrescriptionVersion) -> CellTable:

@@ -1,21 +1,42 @@
-"""Soil samples of a field in PostGIS: store an import (all or nothing), list, delete."""
+"""Soil samples of a field in PostGIS: store an import (all or nothing), list, delete.
+
+Every upload is a ``SoilImport`` row (file name, sha256 of its bytes, counts);
+its samples point at it and are deleted with it. The same bytes uploaded to the
+same field again are refused (``DuplicateImport``), and samples farther than
+the parser's tolerance outside the field are stored only when asked to.
+"""
 
 from __future__ import annotations
 
 import csv
+import hashlib
 import io
 import json
 import uuid
 from typing import Any
 
-from geoalchemy2.shape import to_shape
+from geoalchemy2.shape import from_shape, to_shape
 from shapely.geometry import Point
-from sqlalchemy import delete, select
+from sqlalchemy import delete, func, select
+from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
-from fieldrx.agronomy.soil import SoilImport, read_soil_samples
-from fieldrx.api.common import shape_to_db
+from fieldrx.agronomy.soil import OUTSIDE_TOLERANCE_M, SoilImport, read_soil_samples
 from fieldrx.db.models import Field, SoilSample
+from fieldrx.db.models import SoilImport as SoilImportRow
+
+
+class ImportRefused(ValueError):
+    """An import that stores nothing: ``status`` and ``extra`` go into the answer."""
+
+    def __init__(self, status: int, message: str, **extra: Any) -> None:
+        super().__init__(message)
+        self.status = status
+        self.extra = extra
+
+
+def file_digest(data: bytes) -> str:
+    return "sha256:" + hashlib.sha256(data).hexdigest()
 
 
 def ndvi_by_row(filename: str, data: bytes) -> dict[int, float]:
@@ -59,9 +80,72 @@ def parse_for_field(
     )
 
 
-def store_import(session: Session, field: Field, result: SoilImport, ndvi: dict[int, float]) -> str:
-    """Add the samples of an accepted import (flush only; the caller commits)."""
+def store_import(
+    session: Session,
+    field: Field,
+    filename: str,
+    data: bytes,
+    result: SoilImport,
+    include_outside: bool,
+    user_id: int | None,
+) -> dict[str, Any]:
+    """Store an accepted import (flush only; the caller commits) and describe it.
+
+    Samples outside the field (beyond ``OUTSIDE_TOLERANCE_M``) are stored only
+    with ``include_outside``; when none is left the import is refused (422) so
+    that nothing is stored. The same bytes twice on one field: 409.
+    """
+    digest = file_digest(data)
+    same = session.scalar(
+        select(SoilImportRow).where(
+            SoilImportRow.field_id == field.id, SoilImportRow.sha256 == digest
+        )
+    )
+    report = result.summary()
+    if same is not None:
+        raise ImportRefused(
+            409,
+            f"this file was already imported into field {field.id} as import {same.id} "
+            f"({same.filename or 'no name'}, {same.n_samples} samples, "
+            f"{same.created_at:%Y-%m-%d %H:%M} UTC); nothing stored: delete that import to "
+            "import the file again",
+            duplicate_of=import_out(same),
+            imported=0,
+        )
+    keep = result.samples if include_outside else result.inside_samples()
+    if not keep:
+        far = min(result.outside_distance_m or [0.0])
+        raise ImportRefused(
+            422,
+            f"none of the {len(result.samples)} samples lies in field {field.id} (the nearest is "
+            f"{far:,.0f} m outside, tolerance {OUTSIDE_TOLERANCE_M:g} m); nothing stored: is "
+            "this the right field? (include_outside=true stores them anyway)",
+            where=filename,
+            outside=report["outside"],
+            imported=0,
+        )
     batch = uuid.uuid4().hex[:16]
+    imp = SoilImportRow(
+        organisation_id=field.organisation_id,
+        field_id=field.id,
+        filename=filename[:255],
+        sha256=digest,
+        batch=batch,
+        n_samples=len(keep),
+        n_outside=len(result.outside),
+        outside_stored=include_outside and bool(result.outside),
+        created_by=user_id,
+    )
+    session.add(imp)
+    try:
+        session.flush()
+    except IntegrityError as exc:  # the same file, uploaded at the same moment
+        raise ImportRefused(
+            409,
+            f"this file is being imported into field {field.id} by another request; nothing stored",
+            imported=0,
+        ) from exc
+    ndvi = ndvi_by_row(filename, data)
     rows = [
         SoilSample(
             organisation_id=field.organisation_id,
@@ -74,14 +158,86 @@ def store_import(session: Session, field: Field, result: SoilImport, ndvi: dict[
             om_pct=None if s.om_g_kg is None else s.om_g_kg / 10.0,  # g/kg -> %
             ph=s.ph,
             ndvi=ndvi.get(s.row),
-            geom=shape_to_db(Point(s.lon, s.lat)),
+            geom=from_shape(Point(s.lon, s.lat), srid=4326),
             import_batch=batch,
+            import_id=imp.id,
         )
-        for s in result.samples
+        for s in keep
     ]
     session.add_all(rows)
     session.flush()
-    return batch
+    session.refresh(imp)
+    n_out = len(result.outside)
+    return {
+        "imported": len(keep),
+        "import_batch": batch,
+        "import": import_out(imp),
+        "skipped": len(result.errors),
+        "errors": report["errors"],
+        "outside": report["outside"],
+        "n_outside": n_out,
+        "outside_stored": imp.outside_stored,
+        "outside_tolerance_m": OUTSIDE_TOLERANCE_M,
+        "message": f"{len(keep)} samples imported"
+        + (
+            ""
+            if not n_out
+            else f"; {n_out} outside the field (> {OUTSIDE_TOLERANCE_M:g} m) "
+            + ("stored as asked" if imp.outside_stored else "not stored")
+        ),
+    }
+
+
+def import_out(imp: SoilImportRow) -> dict[str, Any]:
+    return {
+        "id": imp.id,
+        "field_id": imp.field_id,
+        "filename": imp.filename,
+        "sha256": imp.sha256,
+        "batch": imp.batch,
+        "n_samples": imp.n_samples,
+        "n_outside": imp.n_outside,
+        "outside_stored": imp.outside_stored,
+        "created_by": imp.created_by,
+        "created_at": imp.created_at.isoformat() if imp.created_at else None,
+    }
+
+
+def list_imports(session: Session, field_id: int) -> dict[str, Any]:
+    """A field's imports, newest first, with the number of samples each still has."""
+    counts = dict(
+        session.execute(
+            select(SoilSample.import_id, func.count())
+            .where(SoilSample.field_id == field_id)
+            .group_by(SoilSample.import_id)
+        ).all()
+    )
+    rows = session.scalars(
+        select(SoilImportRow)
+        .where(SoilImportRow.field_id == field_id)
+        .order_by(SoilImportRow.id.desc())
+    ).all()
+    items = [{**import_out(r), "n_stored": int(counts.get(r.id, 0))} for r in rows]
+    return {"items": items, "total": len(items)}
+
+
+def delete_import(session: Session, field_id: int, import_id: int) -> int | None:
+    """Delete one import and its samples; None when the field has no such import."""
+    imp = session.get(SoilImportRow, import_id)
+    if imp is None or imp.field_id != field_id:
+        return None
+    n = session.execute(delete(SoilSample).where(SoilSample.import_id == imp.id)).rowcount
+    session.delete(imp)
+    session.flush()
+    return int(n or 0)
+
+
+def delete_sample(session: Session, field_id: int, sample_pk: int) -> bool:
+    """Delete one sample (by its row id); its import's count follows in ``list_imports``."""
+    res = session.execute(
+        delete(SoilSample).where(SoilSample.field_id == field_id, SoilSample.id == sample_pk)
+    )
+    return bool(res.rowcount)
 
 
 def sample_rows(session: Session, field_id: int) -> list[SoilSample]:
@@ -112,6 +268,7 @@ def samples_geojson(rows: list[SoilSample]) -> dict[str, Any]:
                     "ph": r.ph,
                     "ndvi": r.ndvi,
                     "import_batch": r.import_batch,
+                    "import_id": r.import_id,
                 },
             }
         )
@@ -119,5 +276,7 @@ def samples_geojson(rows: list[SoilSample]) -> dict[str, Any]:
 
 
 def delete_samples(session: Session, field_id: int) -> int:
+    """Every sample and import of the field."""
     res = session.execute(delete(SoilSample).where(SoilSample.field_id == field_id))
+    session.execute(delete(SoilImportRow).where(SoilImportRow.field_id == field_id))
     return int(res.rowcount or 0)

@@ -1,6 +1,6 @@
 import { useCallback, useEffect, useRef, useState } from 'react';
 import * as maplibregl from 'maplibre-gl';
-import { api } from '../api';
+import { api, ApiError } from '../api';
 import { ErrorBox, isMissingEndpoint, Kv } from '../components/Status';
 import { Legend } from '../components/Legend';
 import { classColors, legendEntries, niceBreaks, stepExpression } from '../lib/colors';
@@ -15,7 +15,33 @@ import { PlanForm } from './PlanForm';
 
 type SoilFC = GeoJSON.FeatureCollection<GeoJSON.Point, Record<string, unknown>>;
 
-const SKIP_KEYS = new Set(['id', 'field_id', 'geometry', 'lon', 'lat', 'created_at', 'organisation_id']);
+interface SoilImportRow {
+  id: number;
+  filename: string;
+  n_samples: number;
+  n_stored: number;
+  n_outside: number;
+  outside_stored: boolean;
+  created_at?: string;
+}
+
+interface OutsideRow {
+  row: number;
+  sample_id: string;
+  distance_m?: number | null;
+}
+
+const SKIP_KEYS = new Set([
+  'id',
+  'field_id',
+  'geometry',
+  'lon',
+  'lat',
+  'created_at',
+  'organisation_id',
+  'import_batch',
+  'import_id',
+]);
 
 /** One field: boundary, soil samples, plans; soil CSV upload with per-row errors. */
 export function FieldDetail({ fieldId }: { fieldId: number }) {
@@ -27,6 +53,9 @@ export function FieldDetail({ fieldId }: { fieldId: number }) {
   const [soilError, setSoilError] = useState<unknown>(null);
   const [soilMsg, setSoilMsg] = useState('');
   const [skipBad, setSkipBad] = useState(false);
+  const [includeOutside, setIncludeOutside] = useState(false);
+  const [outside, setOutside] = useState<OutsideRow[]>([]);
+  const [imports, setImports] = useState<SoilImportRow[]>([]);
   const [colorKey, setColorKey] = useState('');
   const mapRef = useRef<maplibregl.Map | null>(null);
 
@@ -34,6 +63,7 @@ export function FieldDetail({ fieldId }: { fieldId: number }) {
     try {
       const fc = await api.get<SoilFC>(`/fields/${fieldId}/soil-samples`);
       setSoil(fc?.features ? fc : null);
+      setImports(listOf<SoilImportRow>(await api.get(`/fields/${fieldId}/soil-imports`)));
     } catch (e) {
       if (!isMissingEndpoint(e)) setSoilError(e);
     }
@@ -87,16 +117,40 @@ export function FieldDetail({ fieldId }: { fieldId: number }) {
   const uploadSoil = async (file: File) => {
     setSoilError(null);
     setSoilMsg('');
+    setOutside([]);
     const fd = new FormData();
     fd.append('file', file);
+    const q = new URLSearchParams();
+    if (skipBad) q.set('skip_bad_rows', 'true');
+    if (includeOutside) q.set('include_outside', 'true');
     try {
       const r = await api.post<Record<string, unknown>>(
-        `/fields/${fieldId}/soil-samples${skipBad ? '?skip_bad_rows=true' : ''}`,
+        `/fields/${fieldId}/soil-samples${q.size ? `?${q}` : ''}`,
         fd,
       );
       const n = (r?.stored ?? r?.imported ?? r?.count ?? listOf(r).length) as number;
       const skipped = Array.isArray(r?.skipped) ? (r.skipped as unknown[]).length : r?.skipped;
-      setSoilMsg(`Uploaded ${file.name}: ${n ?? '?'} samples${skipped ? `, ${String(skipped)} rows skipped` : ''}`);
+      const far = Array.isArray(r?.outside) ? (r.outside as OutsideRow[]) : [];
+      setOutside(far);
+      setSoilMsg(
+        `Uploaded ${file.name}: ${n ?? '?'} samples${skipped ? `, ${String(skipped)} rows skipped` : ''}${
+          far.length ? `, ${far.length} outside the field ${r?.outside_stored ? '(stored as asked)' : '(not stored)'}` : ''
+        }`,
+      );
+      await loadSoil();
+    } catch (e) {
+      const body = e instanceof ApiError ? (e.body as Record<string, unknown> | null) : null;
+      if (body && Array.isArray(body.outside)) setOutside(body.outside as OutsideRow[]);
+      setSoilError(e);
+    }
+  };
+
+  const remove = async (path: string, what: string) => {
+    if (!confirm(`Delete ${what}?`)) return;
+    setSoilError(null);
+    try {
+      const r = await api.del<{ deleted?: number }>(path);
+      setSoilMsg(`Deleted ${what} (${r?.deleted ?? 0} samples)`);
       await loadSoil();
     } catch (e) {
       setSoilError(e);
@@ -177,6 +231,15 @@ export function FieldDetail({ fieldId }: { fieldId: number }) {
           <label className="inline">
             <input type="checkbox" checked={skipBad} onChange={(e) => setSkipBad(e.target.checked)} /> skip bad rows
           </label>
+          <label className="inline">
+            <input
+              data-testid="soil-include-outside"
+              type="checkbox"
+              checked={includeOutside}
+              onChange={(e) => setIncludeOutside(e.target.checked)}
+            />{' '}
+            also store samples outside the field
+          </label>
         </div>
         {soilMsg && (
           <p className="ok" data-testid="soil-result">
@@ -184,6 +247,52 @@ export function FieldDetail({ fieldId }: { fieldId: number }) {
           </p>
         )}
         <ErrorBox error={soilError} testid="soil-error" />
+        {outside.length > 0 && (
+          <div className="card warn" data-testid="soil-outside">
+            {outside.length} row{outside.length === 1 ? '' : 's'} outside the field:
+            <ul>
+              {outside.slice(0, 20).map((o) => (
+                <li key={o.row}>
+                  row {o.row} ({o.sample_id}){o.distance_m != null ? `: ${Math.round(o.distance_m).toLocaleString()} m away` : ''}
+                </li>
+              ))}
+            </ul>
+          </div>
+        )}
+        {imports.length > 0 && (
+          <table className="table" data-testid="soil-imports">
+            <thead>
+              <tr>
+                <th>Import</th>
+                <th>Samples</th>
+                <th>Outside</th>
+                <th />
+              </tr>
+            </thead>
+            <tbody>
+              {imports.map((i) => (
+                <tr key={i.id} data-testid={`soil-import-${i.id}`}>
+                  <td>
+                    {i.filename || `#${i.id}`}{' '}
+                    <span className="muted small">{i.created_at ? new Date(i.created_at).toLocaleString() : ''}</span>
+                  </td>
+                  <td>{i.n_stored}</td>
+                  <td>{i.n_outside ? `${i.n_outside}${i.outside_stored ? ' (stored)' : ' (not stored)'}` : '–'}</td>
+                  <td>
+                    <button
+                      className="danger"
+                      data-write=""
+                      data-testid={`soil-import-delete-${i.id}`}
+                      onClick={() => void remove(`/fields/${fieldId}/soil-imports/${i.id}`, `import ${i.filename || i.id}`)}
+                    >
+                      Delete
+                    </button>
+                  </td>
+                </tr>
+              ))}
+            </tbody>
+          </table>
+        )}
         <p className="muted" data-testid="soil-count">
           {soil?.features.length ?? 0} samples
         </p>
@@ -210,6 +319,7 @@ export function FieldDetail({ fieldId }: { fieldId: number }) {
                   {sampleKeys.map((k) => (
                     <th key={k}>{k}</th>
                   ))}
+                  <th />
                 </tr>
               </thead>
               <tbody>
@@ -218,6 +328,22 @@ export function FieldDetail({ fieldId }: { fieldId: number }) {
                     {sampleKeys.map((k) => (
                       <td key={k}>{fmtCell(f.properties?.[k])}</td>
                     ))}
+                    <td>
+                      <button
+                        className="small"
+                        data-write=""
+                        data-testid={`soil-sample-delete-${String(f.properties?.id)}`}
+                        title="Delete this sample"
+                        onClick={() =>
+                          void remove(
+                            `/fields/${fieldId}/soil-samples/${String(f.properties?.id)}`,
+                            `sample ${String(f.properties?.sample_id ?? '')}`,
+                          )
+                        }
+                      >
+                        ×
+                      </button>
+                    </td>
                   </tr>
                 ))}
               </tbody>

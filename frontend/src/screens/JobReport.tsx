@@ -203,6 +203,11 @@ export function JobReport({ jobId }: { jobId: number }) {
               'Prescription',
               job ? <a href={`#/prescriptions/${job.prescription_id}`}>#{job.prescription_id} v{job.prescription_version ?? job.version}</a> : '–',
             ],
+            [
+              'Flagged cells',
+              job?.flagged_cells ? `${String(job.flagged_cells)}${job.flagged_confirmed ? ' (sent on confirmation)' : ''}` : '–',
+              'report-flagged',
+            ],
             ['Cells applied', `${pick(r, 'cells_applied') ?? '–'} / ${pick(r, 'cells_planned', 'n_cells') ?? '–'}`, 'report-cells'],
             ['Coverage', cov != null ? formatPercent(cov / 100) : '–', 'report-coverage'],
             ['Planned', formatMass(pick(r, 'planned_total_kg'))],

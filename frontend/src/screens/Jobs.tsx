@@ -105,6 +105,7 @@ export function JobsScreen() {
             <th>Machine</th>
             <th>State</th>
             <th>Progress</th>
+            <th>Flagged cells</th>
             <th />
           </tr>
         </thead>
@@ -128,6 +129,9 @@ export function JobsScreen() {
                 </span>
               </td>
               <td>{j.progress != null ? formatPercent(j.progress > 1 ? j.progress / 100 : j.progress) : '–'}</td>
+              <td data-testid={`job-flagged-${j.id}`} className={j.flagged_cells ? 'warn' : undefined}>
+                {j.flagged_cells ? `${String(j.flagged_cells)}${j.flagged_confirmed ? ' (sent on confirmation)' : ''}` : '–'}
+              </td>
               <td>
                 {(NEXT_STATES[j.state] ?? []).map((s) => (
                   <button

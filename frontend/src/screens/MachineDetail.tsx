@@ -6,6 +6,7 @@ import { decimate, normaliseTrack, type TrackPoint } from '../lib/track';
 import { formatSpeed, msToKmh } from '../lib/units';
 import { useLive } from '../live';
 import type { Machine } from '../types';
+import { calibrationText, formOf, validateCalibration, type CalibrationErrors, type CalibrationForm } from '../lib/calibration';
 
 const MAX_POINTS = 3000;
 
@@ -16,6 +17,8 @@ export function MachineDetail({ machineId }: { machineId: number }) {
   const [error, setError] = useState<unknown>(null);
   const [token, setToken] = useState('');
   const [missing, setMissing] = useState(false);
+  const [calForm, setCalForm] = useState<CalibrationForm | null>(null);
+  const [calErrors, setCalErrors] = useState<CalibrationErrors>({});
 
   const loadTrack = useCallback(async () => {
     try {
@@ -78,10 +81,66 @@ export function MachineDetail({ machineId }: { machineId: number }) {
           ['Implement', String(machine?.implement_type ?? '–')],
           ['Width', machine?.width_m != null ? `${machine.width_m} m` : '–'],
           ['Lag', machine?.lag_s != null ? `${machine.lag_s} s` : '–'],
+          ['Calibration', calibrationText(machine?.calibration), 'machine-calibration'],
           ['Last speed', formatSpeed(last?.speed_filtered_m_s), 'machine-last-speed'],
           ['Track points', String(track.length), 'machine-track-count'],
         ]}
       />
+      {calForm ? (
+        <form
+          className="card"
+          data-testid="cal-edit-form"
+          noValidate
+          onSubmit={async (e) => {
+            e.preventDefault();
+            const r = validateCalibration(calForm);
+            setCalErrors(r.errors);
+            if (!r.value) return;
+            try {
+              setMachine(await api.patch<Machine>(`/machines/${machineId}`, r.value));
+              setCalForm(null);
+            } catch (err) {
+              setError(err);
+            }
+          }}
+        >
+          <div className="row wrap">
+            {(
+              [
+                ['slope', 'a (g/min per r/min)'],
+                ['intercept', 'b (g/min)'],
+                ['minRpm', 'min r/min'],
+                ['maxRpm', 'max r/min'],
+                ['lag', 'lag s'],
+              ] as [keyof CalibrationForm, string][]
+            ).map(([k, label]) => (
+              <label className="inline" key={k}>
+                {label}{' '}
+                <input type="number" step="any" value={calForm[k]} onChange={(e) => setCalForm({ ...calForm, [k]: e.target.value })} />
+              </label>
+            ))}
+          </div>
+          {Object.keys(calErrors).length > 0 && (
+            <ul className="error" role="alert">
+              {Object.values(calErrors).map((m) => (
+                <li key={m}>{m}</li>
+              ))}
+            </ul>
+          )}
+          <div className="row">
+            <button data-write="">Save calibration</button>
+            <button type="button" onClick={() => setCalForm(null)}>
+              Cancel
+            </button>
+          </div>
+        </form>
+      ) : (
+        machine?.calibration?.kind !== 'table' && (
+          <button data-write="" data-testid="cal-edit" onClick={() => setCalForm(formOf(machine?.calibration, machine?.lag_s))}>
+            Edit calibration
+          </button>
+        )
+      )}
       <div className="row">
         <button
           data-testid="device-token" data-write=""

@@ -1,16 +1,35 @@
 import { useCallback, useEffect, useState } from 'react';
 import { api } from '../api';
 import { ErrorBox } from '../components/Status';
+import {
+  calibrationText,
+  EMPTY_CALIBRATION,
+  meterableRange,
+  validateCalibration,
+  type CalibrationErrors,
+  type CalibrationForm,
+} from '../lib/calibration';
 import type { Machine } from '../types';
 import { listOf } from '../types';
 
-/** Machine register: create implements with width, lag and metering calibration. */
+const FIELDS: [keyof CalibrationForm, string, string][] = [
+  ['slope', 'a (g/min per r/min)', 'cal-slope'],
+  ['intercept', 'b (g/min)', 'cal-intercept'],
+  ['minRpm', 'min r/min', 'cal-min-rpm'],
+  ['maxRpm', 'max r/min', 'cal-max-rpm'],
+  ['lag', 'lag s', 'cal-lag'],
+];
+
+/** Machine register: create implements with width, lag time and their measured metering calibration. */
 export function MachinesScreen() {
   const [machines, setMachines] = useState<Machine[]>([]);
   const [error, setError] = useState<unknown>(null);
   const [name, setName] = useState('');
   const [width, setWidth] = useState('12');
-  const [lag, setLag] = useState('1.52');
+  const [speedMin, setSpeedMin] = useState('3');
+  const [speedMax, setSpeedMax] = useState('9');
+  const [cal, setCal] = useState<CalibrationForm>(EMPTY_CALIBRATION);
+  const [calErrors, setCalErrors] = useState<CalibrationErrors>({});
   const load = useCallback(async () => {
     try {
       setMachines(listOf<Machine>(await api.get('/machines')));
@@ -19,37 +38,88 @@ export function MachinesScreen() {
     }
   }, []);
   useEffect(() => void load(), [load]);
+  const checked = validateCalibration(cal);
+  const w = Number(width);
+  const range =
+    checked.value && w > 0 && Number(speedMin) > 0 && Number(speedMax) >= Number(speedMin)
+      ? meterableRange(checked.value.calibration, w, Number(speedMin) / 3.6, Number(speedMax) / 3.6)
+      : null;
   return (
     <div className="page">
       <h2>Machines</h2>
       <ErrorBox error={error} />
       <form
-        className="row"
+        className="card"
+        data-testid="machine-form"
+        noValidate
         onSubmit={async (e) => {
           e.preventDefault();
+          setError(null);
+          const r = validateCalibration(cal);
+          setCalErrors(r.errors);
+          if (!r.value) return;
           try {
             await api.post('/machines', {
               name,
               implement_type: 'spreader',
               width_m: Number(width),
-              lag_s: Number(lag),
-              // seed 001 eq. 1 calibration (SCIENCE.md)
-              calibration: { kind: 'linear', slope_g_min_per_rpm: 237.2, intercept_g_min: -404.4, min_rpm: 30, max_rpm: 130 },
+              lag_s: r.value.lag_s,
+              calibration: r.value.calibration,
+              speed_min_m_s: Number(speedMin) / 3.6,
+              speed_max_m_s: Number(speedMax) / 3.6,
             });
             setName('');
+            setCal(EMPTY_CALIBRATION);
             await load();
           } catch (err) {
             setError(err);
           }
         }}
       >
-        <input data-testid="machine-name" placeholder="Name" value={name} onChange={(e) => setName(e.target.value)} required />
-        <label className="inline">
-          width m <input type="number" step="0.1" value={width} onChange={(e) => setWidth(e.target.value)} />
-        </label>
-        <label className="inline">
-          lag s <input type="number" step="0.01" value={lag} onChange={(e) => setLag(e.target.value)} />
-        </label>
+        <div className="row wrap">
+          <input data-testid="machine-name" placeholder="Name" value={name} onChange={(e) => setName(e.target.value)} required />
+          <label className="inline">
+            width m <input data-testid="machine-width" type="number" step="0.1" value={width} onChange={(e) => setWidth(e.target.value)} />
+          </label>
+          <label className="inline">
+            speed km/h{' '}
+            <input data-testid="machine-speed-min" type="number" step="0.1" value={speedMin} onChange={(e) => setSpeedMin(e.target.value)} />
+            –
+            <input data-testid="machine-speed-max" type="number" step="0.1" value={speedMax} onChange={(e) => setSpeedMax(e.target.value)} />
+          </label>
+        </div>
+        <p className="muted small">
+          Metering calibration measured on this machine (seed 001 eq. 1): q0 = a·r + b in g/min for a shaft speed r
+          between min and max r/min, and the lag time from the meter to the ground.
+        </p>
+        <div className="row wrap">
+          {FIELDS.map(([k, label, tid]) => (
+            <label className="inline" key={k}>
+              {label}{' '}
+              <input
+                data-testid={tid}
+                type="number"
+                step="any"
+                value={cal[k]}
+                aria-invalid={calErrors[k] ? true : undefined}
+                onChange={(e) => setCal({ ...cal, [k]: e.target.value })}
+              />
+            </label>
+          ))}
+        </div>
+        {Object.keys(calErrors).length > 0 && (
+          <ul className="error" data-testid="cal-errors" role="alert">
+            {Object.values(calErrors).map((m) => (
+              <li key={m}>{m}</li>
+            ))}
+          </ul>
+        )}
+        {range && (
+          <p className="muted small" data-testid="cal-range">
+            Meters {range[0].toFixed(1)} – {range[1].toFixed(1)} kg/ha at {speedMin}–{speedMax} km/h over {width} m
+            {range[0] > range[1] ? ' (no rate fits the whole speed range: narrow it)' : ''}
+          </p>
+        )}
         <button data-testid="machine-submit" data-write="">Add machine</button>
       </form>
       <table className="table" data-testid="machine-table">
@@ -59,6 +129,7 @@ export function MachinesScreen() {
             <th>Implement</th>
             <th>Width</th>
             <th>Lag</th>
+            <th>Calibration</th>
           </tr>
         </thead>
         <tbody>
@@ -72,6 +143,7 @@ export function MachinesScreen() {
               <td>{m.implement_type ?? '–'}</td>
               <td>{m.width_m != null ? `${m.width_m} m` : '–'}</td>
               <td>{m.lag_s != null ? `${m.lag_s} s` : '–'}</td>
+              <td data-testid={`machine-cal-${m.id}`}>{calibrationText(m.calibration)}</td>
             </tr>
           ))}
         </tbody>

@@ -7,6 +7,7 @@ import { formatDistance, formatPercent } from '../lib/units';
 import { MapView } from '../map/MapView';
 import { addRouteLayers, planGridLayers, planTilesUrl, replaceVectorSource } from '../map/grid';
 import { fitTo, setGeoJSON } from '../map/setup';
+import { attentionOf, attentionSummary } from '../lib/flags';
 import { navigate } from '../router';
 import type { FieldFeature, Plan, Prescription } from '../types';
 import { listOf, pick } from '../types';
@@ -117,6 +118,12 @@ export function PlanScreen({ planId }: { planId: number }) {
               <a href={`#/prescriptions/${r.id}`}>
                 #{r.id} {r.model}
               </a>
+              {attentionOf(r).count > 0 && (
+                <span className="warn small" data-testid={`rx-list-flagged-${r.id}`}>
+                  {' '}
+                  · {attentionSummary(attentionOf(r))} flagged
+                </span>
+              )}
             </li>
           ))}
         </ul>

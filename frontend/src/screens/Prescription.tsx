@@ -2,10 +2,11 @@ import { useCallback, useEffect, useMemo, useRef, useState } from 'react';
 import type * as maplibregl from 'maplibre-gl';
 import { TerraDraw, TerraDrawPolygonMode } from 'terra-draw';
 import { TerraDrawMapLibreGLAdapter } from 'terra-draw-maplibre-gl-adapter';
-import { api, download } from '../api';
+import { api, ApiError, download } from '../api';
 import { Histogram, Legend } from '../components/Legend';
 import { ErrorBox, Kv } from '../components/Status';
 import { classColors, histogram, legendEntries, niceBreaks, stepExpression } from '../lib/colors';
+import { attentionLines, attentionOf, attentionSummary, flaggedConfirmation } from '../lib/flags';
 import { bboxOf, type PolygonGeom } from '../lib/geo';
 import { formatRate } from '../lib/units';
 import { MapView } from '../map/MapView';
@@ -38,7 +39,6 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
   const [version, setVersion] = useState<number | null>(null);
   const [field, setField] = useState<FieldFeature | null>(null);
   const [rates, setRates] = useState<number[]>([]);
-  const [clamped, setClamped] = useState(0);
   const [cell, setCell] = useState<CellInfo | null>(null);
   const [newRate, setNewRate] = useState('');
   const [zone, setZone] = useState<PolygonGeom | null>(null);
@@ -47,6 +47,8 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
   const [machines, setMachines] = useState<Machine[]>([]);
   const [machineId, setMachineId] = useState('');
   const [msg, setMsg] = useState('');
+  const [verSummary, setVerSummary] = useState<Record<string, unknown> | null>(null);
+  const [confirmJob, setConfirmJob] = useState<{ message: string; count: number; areaM2: number; seq: number[] } | null>(null);
   const [error, setError] = useState<unknown>(null);
   const mapRef = useRef<maplibregl.Map | null>(null);
   const drawRef = useRef<TerraDraw | null>(null);
@@ -89,7 +91,25 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
     // eslint-disable-next-line react-hooks/exhaustive-deps
   }, [rxId]);
 
+  useEffect(() => {
+    const current = (rx?.current_version ?? rx?.version) as number | undefined;
+    if (!rx || version == null || version === current) {
+      setVerSummary(null);
+      return;
+    }
+    let live = true;
+    api
+      .get<{ summary?: Record<string, unknown> }>(`/prescriptions/${rxId}/versions/${version}`)
+      .then((v) => live && setVerSummary(v.summary ?? null))
+      .catch(() => live && setVerSummary(null));
+    return () => {
+      live = false;
+    };
+  }, [rx, version, rxId]);
+
   const stats = { ...(rx ?? {}), ...((rx?.stats as Record<string, unknown>) ?? {}) } as Record<string, unknown>;
+  // Flags of the version on screen (the prescription's summary is its current version's).
+  const attention = attentionOf(verSummary ? { ...rx, summary: verSummary } : rx);
   // The server's summary covers every cell; loaded tiles are the fallback.
   const lo = pick(stats, 'rate_min_kg_ha', 'min_rate_kg_ha') ?? (rates.length ? minOf(rates) : undefined);
   const hi = pick(stats, 'rate_max_kg_ha', 'max_rate_kg_ha') ?? (rates.length ? maxOf(rates) : undefined);
@@ -111,16 +131,13 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
       const cells = loadedCells(map, 'rx');
       if (!cells.size) return;
       const vals: number[] = [];
-      let nClamped = 0;
       for (const p of cells.values()) {
         // Overview tiles bin many cells into one feature: weight by n_cells.
         const n = Math.max(1, Number(p.n_cells ?? 1) || 1);
         const r = Number(p.rate_kg_ha);
         for (let i = 0; i < n; i++) vals.push(r);
-        if (p.clamped === true || p.clamped === 'true') nClamped += n;
       }
       setRates(vals);
-      setClamped(nClamped);
       map.off('idle', onIdle);
     };
     map.on('idle', onIdle);
@@ -201,6 +218,28 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
     }
   };
 
+  /** Creates the job; a 409 naming flagged cells asks the user to confirm, then resends with the flag. */
+  const sendJob = async (confirmFlagged: boolean) => {
+    setError(null);
+    try {
+      const j = await api.post<{ id: number; state?: string }>('/jobs', {
+        prescription_id: rxId,
+        version: version ?? 1,
+        machine_id: Number(machineId),
+        confirm_flagged: confirmFlagged,
+      });
+      setConfirmJob(null);
+      // A new job is 'planned'; sending makes it downloadable by the machine.
+      if (!j.state || j.state === 'planned') await api.post(`/jobs/${j.id}/state`, { state: 'sent' });
+      setMsg(`Job #${j.id} created`);
+      navigate(`/jobs?created=${j.id}`);
+    } catch (e) {
+      const c = e instanceof ApiError ? flaggedConfirmation(e.status, e.body) : null;
+      if (c) setConfirmJob(c);
+      else setError(e);
+    }
+  };
+
   const versions = listOf<{ version: number; created_at?: string; note?: string }>(rx?.versions);
   const versionNums = versions.length
     ? versions.map((v) => v.version)
@@ -222,10 +261,28 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
             ['Model', String(rx?.model ?? '–'), 'rx-model-name'],
             ['Cells', String(pick(stats, 'cell_count', 'n_cells') ?? (rates.length || '–')), 'rx-cell-count'],
             ['Rate range', lo != null && hi != null ? `${formatRate(lo)} – ${formatRate(hi)}` : '–', 'rx-range'],
-            ['Clamped cells', String(pick(stats, 'clamped_count') ?? (rates.length ? clamped : '–')), 'rx-clamped'],
-            ['No soil data', String(pick(stats, 'no_data_count') ?? '–')],
+            ['Flagged cells', rx ? attentionSummary(attention) : '–', 'rx-flagged'],
           ]}
         />
+        {attention.count > 0 && (
+          <div className="card warn" data-testid="rx-flagged-detail">
+            <div>
+              <strong>{attentionSummary(attention)}</strong> will not be applied as prescribed:
+            </div>
+            <ul>
+              {attentionLines(attention).map((l) => (
+                <li key={l}>{l}</li>
+              ))}
+            </ul>
+            <div className="small">
+              Rates are stored as asked (outlined on the map). Cells:{' '}
+              <span data-testid="rx-flagged-seq">
+                {attention.seq.slice(0, 30).join(', ')}
+                {attention.count > 30 ? ` … (${attention.count - 30} more)` : ''}
+              </span>
+            </div>
+          </div>
+        )}
         <label>
           Version
           <select
@@ -250,6 +307,19 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
               Cell <strong data-testid="cell-seq">{cell.seq}</strong>: <span data-testid="cell-rate">{formatRate(cell.rate)}</span>
               {cell.flags ? <span className={cell.clamped ? 'warn' : 'muted'}> ({cell.flags.replace(/,/g, ', ')})</span> : null}
             </div>
+            {cell.flags?.includes('no_data') && (
+              <p className="warn small" data-testid="cell-no-data">
+                No soil sample near this cell: it has the fallback rate
+                {attention.fallbackRate != null ? ` ${formatRate(attention.fallbackRate)}` : ''}.
+              </p>
+            )}
+            {cell.clamped && attention.meter && (
+              <p className="warn small" data-testid="cell-out-of-range">
+                Outside what the machine meters ({formatRate(attention.meter.rate_min_kg_ha)} at{' '}
+                {attention.meter.speed_min_kmh} km/h – {formatRate(attention.meter.rate_max_kg_ha)} at{' '}
+                {attention.meter.speed_max_kmh} km/h): stored as asked.
+              </p>
+            )}
             {cell.nCells > 1 ? (
               <p className="muted">
                 {cell.nCells} cells are drawn together at this zoom (mean rate shown); zoom in to edit one cell, or paint a
@@ -342,25 +412,28 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
           <button
             data-testid="send-job" data-write=""
             disabled={!machineId}
-            onClick={async () => {
-              try {
-                const j = await api.post<{ id: number; state?: string }>('/jobs', {
-                  prescription_id: rxId,
-                  version: version ?? 1,
-                  machine_id: Number(machineId),
-                });
-                // A new job is 'planned'; sending makes it downloadable by the machine.
-                if (!j.state || j.state === 'planned') await api.post(`/jobs/${j.id}/state`, { state: 'sent' });
-                setMsg(`Job #${j.id} created`);
-                navigate(`/jobs?created=${j.id}`);
-              } catch (e) {
-                setError(e);
-              }
-            }}
+            onClick={() => void sendJob(false)}
           >
             Send job
           </button>
         </div>
+        {confirmJob && (
+          <div className="card warn" data-testid="job-confirm-panel" role="alertdialog">
+            <p data-testid="job-confirm-text">{confirmJob.message}</p>
+            <p className="small">
+              Cells: {confirmJob.seq.slice(0, 30).join(', ')}
+              {confirmJob.count > 30 ? ' …' : ''}
+            </p>
+            <div className="row">
+              <button data-testid="job-confirm" data-write="" className="danger" onClick={() => void sendJob(true)}>
+                Send anyway ({confirmJob.count} flagged)
+              </button>
+              <button data-testid="job-confirm-cancel" onClick={() => setConfirmJob(null)}>
+                Cancel
+              </button>
+            </div>
+          </div>
+        )}
       </aside>
       <MapView name="rx" onReady={onReady} />
     </div>

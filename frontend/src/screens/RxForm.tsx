@@ -92,7 +92,7 @@ export function RxForm({ planId, onCreated }: { planId: number; onCreated: (r: P
       <label>
         Meter limits from
         <select data-testid="rx-machine" value={machineId} onChange={(e) => setMachineId(e.target.value)}>
-          <option value="">— (no clamping)</option>
+          <option value="">— (no meter check)</option>
           {machines.map((m) => (
             <option key={m.id} value={m.id}>
               {m.name}
