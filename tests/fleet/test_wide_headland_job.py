@@ -23,7 +23,7 @@ import httpx
 import pytest
 
 from tests.fleet.procs import BIN, ROOT, start_api
-from tests.support import feature
+from tests.support import feature, machine_body
 
 LON0, LAT0 = 7.90, 51.75
 
@@ -49,7 +49,7 @@ def test_12m_one_headland_pass_every_cell_applied_or_alerted(
         c = httpx.Client(base_url=url, headers=org.headers(), timeout=120)
         geom = lonlat_rect(width_m, 192.0)
         field = c.post("/api/v1/fields", json=feature(geom, name="wide")).json()
-        m = c.post("/api/v1/machines", json={"name": "spreader", "width_m": 12.0}).json()
+        m = c.post("/api/v1/machines", json=machine_body("spreader", width_m=12.0)).json()
         token = c.post(f"/api/v1/machines/{m['id']}/device-token").json()["token"]
         plan = c.post(
             f"/api/v1/fields/{field['id']}/plans",
@@ -59,7 +59,7 @@ def test_12m_one_headland_pass_every_cell_applied_or_alerted(
         plan = plan.json()
         rx = c.post(
             f"/api/v1/plans/{plan['id']}/prescriptions",
-            json={"model": "uniform", "params": {"rate_kg_ha": 300.0}, "machine_id": m["id"]},
+            json={"model": "uniform", "params": {"rate_kg_ha": 150.0}, "machine_id": m["id"]},
         )
         assert rx.status_code == 201, rx.text
         job = c.post(
