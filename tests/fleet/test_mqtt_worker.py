@@ -8,12 +8,12 @@ import threading
 import time
 import uuid
 
-import paho.mqtt.client as mqtt
 from fieldrx_edge.protocol import ack_topic, telemetry_topic
 from sqlalchemy import text
 
 from tests.fleet.helpers import make_job, record
 from tests.fleet.procs import start_worker
+from tests.mqtt_broker import device_client
 
 
 def test_two_workers_no_loss_no_duplicates(database_url, db, org) -> None:  # noqa: ANN001
@@ -33,16 +33,12 @@ def test_two_workers_no_loss_no_duplicates(database_url, db, org) -> None:  # no
                 if all(acks.get(j.machine_id) == n_per_machine for j in jobs):
                     done.set()
 
-        sub = mqtt.Client(mqtt.CallbackAPIVersion.VERSION2, protocol=mqtt.MQTTv5)
-        sub.on_message = on_message
-        sub.connect("127.0.0.1", 1883)
-        sub.loop_start()
+        # each machine logs in with its own credentials (user machine-<id>, its device token)
+        devices = {j.machine_id: device_client(j.machine_id, j.device_token) for j in jobs}
         for j in jobs:
-            sub.subscribe(ack_topic(j.machine_id), qos=1)
+            devices[j.machine_id].on_message = on_message
+            devices[j.machine_id].subscribe(ack_topic(j.machine_id), qos=1)
         time.sleep(0.3)
-        pub = mqtt.Client(mqtt.CallbackAPIVersion.VERSION2, protocol=mqtt.MQTTv5)
-        pub.connect("127.0.0.1", 1883)
-        pub.loop_start()
         infos = []
         t0 = 1_790_000_000.0
         for start in range(1, n_per_machine + 1, batch):
@@ -52,14 +48,16 @@ def test_two_workers_no_loss_no_duplicates(database_url, db, org) -> None:  # no
                     for s in range(start, start + batch)
                 ]
                 payload = json.dumps({"records": recs})
+                pub = devices[j.machine_id]
                 infos.append(pub.publish(telemetry_topic(j.machine_id), payload, qos=1))
                 if start == 101:  # an edge resending a batch it got no ack for
                     infos.append(pub.publish(telemetry_topic(j.machine_id), payload, qos=1))
         for info in infos:
             info.wait_for_publish(10)
         assert done.wait(30), f"acks {acks}"
-        pub.loop_stop()
-        sub.loop_stop()
+        for c in devices.values():
+            c.disconnect()
+            c.loop_stop()
         for j in jobs:
             row = db.execute(
                 text(
