@@ -78,3 +78,56 @@ def test_two_workers_no_loss_no_duplicates(database_url, db, org) -> None:  # no
     assert all(g[1] > 0 for g in got), got
     assert sum(g[1] for g in got) == 4 * n_per_machine
     assert sum(g[2] for g in got) == 4 * batch
+
+
+def test_killed_worker_with_persistent_session_loses_nothing(database_url, db, org) -> None:  # noqa: ANN001
+    """Issue 20 item 6: SIGKILL the only worker mid-stream while a publisher that never
+    retransmits keeps going; the restarted worker takes the same slot, so the same broker
+    session, and gets every unacknowledged and queued message."""
+    group = f"k{uuid.uuid4().hex[:8]}"
+    j = make_job(org.id, state="running")
+    n_msgs, batch = 300, 20
+    pub = device_client(j.machine_id, j.device_token)
+    worker = start_worker(database_url, group)
+    restarted = None
+    try:
+        t0 = 1_790_000_000.0
+        infos = []
+        for i in range(n_msgs):
+            recs = [
+                record(j, s, t=t0 + s * 0.1, cell=(s // 40) % 8)
+                for s in range(i * batch + 1, (i + 1) * batch + 1)
+            ]
+            infos.append(
+                pub.publish(telemetry_topic(j.machine_id), json.dumps({"records": recs}), qos=1)
+            )
+            if i == n_msgs // 3:
+                time.sleep(0.3)  # some stored, some in flight
+                worker.p.kill()
+                worker.p.wait()
+            time.sleep(0.002)
+        for info in infos:
+            info.wait_for_publish(10)  # the broker has them all; the publisher is done
+        restarted = start_worker(database_url, group)
+        first_id = re.search(r"as (\S+) \(session", "\n".join(worker.lines))
+        second_id = re.search(r"as (\S+) \(session", "\n".join(restarted.lines))
+        assert first_id and second_id and first_id.group(1) == second_id.group(1)
+        want = n_msgs * batch
+        deadline = time.monotonic() + 60
+        got = -1
+        while time.monotonic() < deadline:
+            got = db.execute(
+                text("SELECT count(DISTINCT seq) FROM telemetry WHERE machine_id = :m"),
+                {"m": j.machine_id},
+            ).scalar_one()
+            db.rollback()
+            if got == want:
+                break
+            time.sleep(0.5)
+        assert got == want
+    finally:
+        pub.disconnect()
+        pub.loop_stop()
+        worker.stop()
+        if restarted is not None:
+            restarted.stop()
