@@ -24,9 +24,12 @@ class Settings(BaseSettings):
     mqtt_credentials: Literal["dynsec", "off"] = Field(
         default="dynsec", alias="FIELDRX_MQTT_CREDENTIALS"
     )
+    # ingest workers: persistent MQTT sessions per stable slot (fleet/worker.py)
     worker_session_expiry_s: int = Field(
         default=3600, ge=0, alias="FIELDRX_WORKER_SESSION_EXPIRY_S"
     )
+    worker_node: str = Field(default="", alias="FIELDRX_WORKER_NODE")
+    worker_slot_dir: str = Field(default="", alias="FIELDRX_WORKER_SLOT_DIR")
     secret_key: str = Field(default="dev-insecure-change-me", alias="SECRET_KEY")
     host: str = Field(default="127.0.0.1", alias="FIELDRX_HOST")
     port: int = Field(default=8000, alias="FIELDRX_PORT")

@@ -160,8 +160,10 @@ def test_forged_records_never_reach_the_database(database_url, db, make_org) -> 
         worker.stop()
     counts = dict(
         db.execute(
-            text("SELECT machine_id, count(*) FROM telemetry WHERE machine_id IN (:a, :b)"
-                 " GROUP BY machine_id"),
+            text(
+                "SELECT machine_id, count(*) FROM telemetry WHERE machine_id IN (:a, :b)"
+                " GROUP BY machine_id"
+            ),
             {"a": a.machine_id, "b": b.machine_id},
         ).all()
     )
@@ -229,7 +231,11 @@ def test_revoked_device_token_stops_working_on_mqtt(client, db, org, database_ur
 
 
 def test_token_is_not_issued_when_the_broker_cannot_take_its_credential(
-    client, db, org, database_url, monkeypatch  # noqa: ANN001
+    client,
+    db,
+    org,
+    database_url,
+    monkeypatch,  # noqa: ANN001
 ) -> None:
     """Broker down: 503 saying so, and no token row left behind."""
     from fieldrx.settings import get_settings

@@ -93,6 +93,33 @@ class Broker:
             client.tls_set(ca_certs=get_settings().mqtt_ca_file or None)
 
 
+def login_error(broker: Broker, timeout_s: float = 5.0) -> str | None:
+    """Why ``broker``'s user cannot log in (None if it can)."""
+    got: list[mqtt.ReasonCode] = []
+    done = threading.Event()
+    client = mqtt.Client(
+        mqtt.CallbackAPIVersion.VERSION2,
+        client_id=f"fieldrx-check-{uuid.uuid4().hex[:12]}",
+        protocol=mqtt.MQTTv5,
+    )
+    broker.configure(client)
+    client.on_connect = lambda c, u, f, rc, p: (got.append(rc), done.set())
+    try:
+        client.connect(broker.host, broker.port, keepalive=10)
+    except OSError as exc:
+        return f"MQTT broker {broker.host}:{broker.port} unreachable: {exc}"
+    client.loop_start()
+    try:
+        if not done.wait(timeout_s):
+            return f"MQTT broker {broker.host}:{broker.port}: no CONNACK"
+        if got[0].is_failure:
+            return f"MQTT broker {broker.host}:{broker.port} refused {broker.username}: {got[0]}"
+        return None
+    finally:
+        client.disconnect()
+        client.loop_stop()
+
+
 # -- roles ---------------------------------------------------------------------------
 
 

@@ -46,6 +46,8 @@ def run(args: argparse.Namespace) -> int:
         client_id=args.client_id,
         heartbeat_timeout_s=s.heartbeat_timeout_s,
         session_expiry_s=s.worker_session_expiry_s,
+        node=s.worker_node,
+        slot_dir=s.worker_slot_dir,
     )
     stop = threading.Event()
     signal.signal(signal.SIGTERM, lambda *_: stop.set())

@@ -13,9 +13,10 @@ broker lets only machine N publish on machine N's telemetry topic, so the machin
 id taken from the topic is the sender's. Defence in depth: ingest rejects every
 record whose ``machine_id`` is not the topic's.
 
-Sessions: each worker holds a *slot* (the lowest free one per host, broker and
-group, kept by a lock file) and connects as ``fieldrx-worker-<group>-<host>-<slot>``
-with a persistent session (expiry FIELDRX_WORKER_SESSION_EXPIRY_S, default 1 h).
+Sessions: each worker holds a *slot* (the lowest free one per node, broker and
+group, kept by a lock file in FIELDRX_WORKER_SLOT_DIR) and connects as
+``fieldrx-worker-<group>-<node>-<slot>`` (node: FIELDRX_WORKER_NODE, default the
+host name) with a persistent session (expiry FIELDRX_WORKER_SESSION_EXPIRY_S, default 1 h).
 A killed worker's unacknowledged and queued messages wait in its session, and the
 restarted worker takes the same slot, so the same session: nothing is lost, and a
 dead member holds messages only until its slot is back (not for the whole expiry).
@@ -87,6 +88,8 @@ class IngestWorker:
         heartbeat_timeout_s: float = 30.0,
         no_data_every_s: float = 5.0,
         session_expiry_s: int = 3600,
+        node: str = "",
+        slot_dir: str = "",
     ) -> None:
         self.broker = Broker.from_url(mqtt_url, WORKER_USER)
         self.host = self.broker.host
@@ -103,8 +106,9 @@ class IngestWorker:
         self.persistent = session_expiry_s > 0
         self._slot_lock: IO[str] | None = None
         if client_id is None:
-            slot = self._take_slot()
-            client_id = f"fieldrx-worker-{group}-{socket.gethostname()}-{slot}"
+            node = node or socket.gethostname()
+            slot = self._take_slot(Path(slot_dir or tempfile.gettempdir()) / "fieldrx-worker-slots")
+            client_id = f"fieldrx-worker-{group}-{node}-{slot}"
         self.client_id = client_id
         cid = client_id
         self.client = mqtt.Client(
@@ -119,12 +123,11 @@ class IngestWorker:
         self.client.reconnect_delay_set(0.5, 10)
         self.broker.configure(self.client)
 
-    def _take_slot(self) -> int:
-        """The lowest slot no live worker of this host, broker and group holds; the lock
+    def _take_slot(self, d: Path) -> int:
+        """The lowest slot no live worker of this node, broker and group holds; the lock
         file's flock lasts as long as this process, so a killed worker's slot is free for
-        its replacement at once."""
-        d = Path(tempfile.gettempdir()) / "fieldrx-worker-slots"
-        d.mkdir(exist_ok=True)
+        its replacement at once. Containers that share ``d`` (a volume) share the slots."""
+        d.mkdir(parents=True, exist_ok=True)
         slot = 0
         while True:
             name = f"{self.host}-{self.port}-{self.group}-{slot}.lock".replace("/", "_")
@@ -149,12 +152,18 @@ class IngestWorker:
         if any(rc.is_failure for rc in reason_codes):
             log.error(
                 "subscription to $share/%s/%s refused: %s (is %s a worker user?)",
-                self.group, TOPIC, reason_codes[0], self.broker.username,
+                self.group,
+                TOPIC,
+                reason_codes[0],
+                self.broker.username,
             )
             return
         log.warning(
             "subscribed to $share/%s/%s as %s (session expiry %d s)",
-            self.group, TOPIC, self.client_id, self.session_expiry_s,
+            self.group,
+            TOPIC,
+            self.client_id,
+            self.session_expiry_s,
         )
         self.subscribed.set()
 
