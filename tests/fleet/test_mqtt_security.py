@@ -249,3 +249,28 @@ def test_token_is_not_issued_when_the_broker_cannot_take_its_credential(
         text("SELECT count(*) FROM api_tokens WHERE machine_id = :m"), {"m": j.machine_id}
     ).scalar_one()
     assert after == before
+
+
+def test_sync_deletes_credentials_of_expired_or_sql_revoked_tokens(db, org, database_url) -> None:  # noqa: ANN001
+    """Expiry happens by time, not through an API call: `fieldrx mqtt-sync` removes the
+    broker users of machines whose device token expired or was revoked behind the API's back."""
+    from fieldrx.auth.mqtt import sync_devices
+
+    expired, revoked, live = (make_job(org.id) for _ in range(3))
+    db.execute(
+        text("UPDATE api_tokens SET expires_at = now() - interval '1 s' WHERE machine_id = :m"),
+        {"m": expired.machine_id},
+    )
+    db.execute(
+        text("UPDATE api_tokens SET revoked_at = now() WHERE machine_id = :m"),
+        {"m": revoked.machine_id},
+    )
+    db.commit()
+    assert not _refused(expired.machine_id, expired.device_token)  # until the sync
+    stale = sync_devices(db)
+    assert {expired.machine_id, revoked.machine_id} <= set(stale)
+    assert live.machine_id not in stale
+    assert _refused(expired.machine_id, expired.device_token)
+    assert _refused(revoked.machine_id, revoked.device_token)
+    assert not _refused(live.machine_id, live.device_token)
+    assert live.machine_id not in sync_devices(db)  # idempotent, live users stay

@@ -38,7 +38,10 @@ from urllib.parse import unquote, urlparse
 
 import paho.mqtt.client as mqtt
 from fieldrx_edge.protocol import ack_topic, jobs_topic, mqtt_username, telemetry_topic
+from sqlalchemy import func, or_, select
+from sqlalchemy.orm import Session
 
+from fieldrx.db.models import ApiToken
 from fieldrx.settings import get_settings
 
 ADMIN_USER = "fieldrx-admin"
@@ -338,3 +341,37 @@ def revoke_device(machine_id: int) -> None:
     if get_settings().mqtt_credentials == "off":
         return
     _check(DynsecAdmin().run(_delete_device_commands(machine_id)), tolerate_missing=2)
+
+
+def sync_devices(session: Session) -> list[int]:
+    """Delete the broker users of machines that have no live device token; their ids.
+
+    Issuing and revoking keep the broker in step as they happen; this catches what
+    happens by time or behind the API's back (a token that expired, rows deleted in
+    SQL, a failed revoke). ``fieldrx mqtt-sync`` runs it; run it periodically (cron).
+    """
+    if get_settings().mqtt_credentials == "off":
+        return []
+    admin = DynsecAdmin()
+    (listed,) = admin.run([{"command": "listClients", "verbose": False}])
+    _check([listed])
+    names = listed.get("data", {}).get("clients", [])
+    on_broker = {
+        int(n.removeprefix("machine-"))
+        for n in names
+        if isinstance(n, str) and n.startswith("machine-") and n[8:].isdigit()
+    }
+    live = set(
+        session.scalars(
+            select(ApiToken.machine_id).where(
+                ApiToken.kind == "device",
+                ApiToken.machine_id.in_(on_broker),
+                ApiToken.revoked_at.is_(None),
+                or_(ApiToken.expires_at.is_(None), ApiToken.expires_at > func.now()),
+            )
+        )
+    )
+    stale = sorted(on_broker - live)
+    for machine_id in stale:
+        revoke_device(machine_id)
+    return stale

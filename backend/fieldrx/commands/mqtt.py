@@ -20,6 +20,11 @@ def register(subparsers: Any) -> None:
     p.add_argument("--file", help="dynamic-security JSON to create (before the broker starts)")
     p.add_argument("--check", action="store_true", help="verify both service logins on MQTT_URL")
     p.set_defaults(func=run)
+    p = subparsers.add_parser(
+        "mqtt-sync",
+        help="delete broker users of machines without a live device token (run periodically)",
+    )
+    p.set_defaults(func=run_sync)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -48,4 +53,18 @@ def run(args: argparse.Namespace) -> int:
             )
             return 1
         print("MQTT service users OK")
+    return 0
+
+
+def run_sync(args: argparse.Namespace) -> int:
+    from fieldrx.auth.mqtt import MqttCredentialError, sync_devices
+    from fieldrx.db.session import get_sessionmaker
+
+    try:
+        with get_sessionmaker()() as session:
+            stale = sync_devices(session)
+    except MqttCredentialError as exc:
+        print(exc, file=sys.stderr)
+        return 1
+    print(f"deleted MQTT users of machines {stale}" if stale else "MQTT users in step")
     return 0
