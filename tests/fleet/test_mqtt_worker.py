@@ -1,4 +1,5 @@
-"""Two `fieldrx worker`s on the real Mosquitto share the subscription: no loss, no duplicates."""
+"""`fieldrx worker`s on the real broker: shared subscription without loss or duplicates; a killed
+worker (persistent session, stable slot) loses nothing."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ import threading
 import time
 import uuid
 
+import pytest
 from fieldrx_edge.protocol import ack_topic, telemetry_topic
 from sqlalchemy import text
 
@@ -80,15 +82,24 @@ def test_two_workers_no_loss_no_duplicates(database_url, db, org) -> None:  # no
     assert sum(g[2] for g in got) == 4 * batch
 
 
-def test_killed_worker_with_persistent_session_loses_nothing(database_url, db, org) -> None:  # noqa: ANN001
-    """Issue 20 item 6: SIGKILL the only worker mid-stream while a publisher that never
+@pytest.mark.parametrize("n_workers", [1, 2])
+def test_killed_worker_with_persistent_session_loses_nothing(
+    database_url,
+    db,
+    org,
+    n_workers: int,  # noqa: ANN001
+) -> None:
+    """Issue 20 item 6: SIGKILL a worker mid-stream while a publisher that never
     retransmits keeps going; the restarted worker takes the same slot, so the same broker
-    session, and gets every unacknowledged and queued message."""
+    session, and gets every unacknowledged and queued message. With two workers the dead
+    member's share (the shared subscription keeps assigning it messages) arrives as soon
+    as its slot is back, not after the session expiry."""
     group = f"k{uuid.uuid4().hex[:8]}"
     j = make_job(org.id, state="running")
     n_msgs, batch = 300, 20
     pub = device_client(j.machine_id, j.device_token)
-    worker = start_worker(database_url, group)
+    others = [start_worker(database_url, group) for _ in range(n_workers - 1)]
+    worker = start_worker(database_url, group)  # the highest slot: killed and restarted
     restarted = None
     try:
         t0 = 1_790_000_000.0
@@ -128,6 +139,7 @@ def test_killed_worker_with_persistent_session_loses_nothing(database_url, db, o
     finally:
         pub.disconnect()
         pub.loop_stop()
-        worker.stop()
+        for w in [worker, *others]:
+            w.stop()
         if restarted is not None:
             restarted.stop()
