@@ -173,3 +173,54 @@ def test_mqtt_sender_with_a_wrong_token_sends_nothing(tmp_path):
     finally:
         s.close()
         srv.stop()
+
+
+def test_edge_cli_mqtt_logs_in_with_its_device_token(tmp_path):
+    """`fieldrx-edge ... --mqtt HOST:PORT --token T` logs in as machine-<id> with the token
+    and delivers everything; without the right token nothing is delivered."""
+    import subprocess
+    import sys
+
+    machine_id = 900_000_000 + uuid.uuid4().int % 99_999_999
+    token = f"frx_d_{uuid.uuid4().hex}"
+    provision_device(machine_id, token)
+    srv = MqttServerPeer(machine_id)
+    f = tmp_path / "ndvi.csv"
+    f.write_text("\n".join(f"{i * 0.1},0.3,0.31,0.29,0.3" for i in range(30)) + "\n")
+    host, port = mqtt_port()
+
+    def run(tok: str, state: str) -> dict:
+        r = subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "fieldrx_edge.cli",
+                "ndvi",
+                f"file:{f}",
+                "--json",
+                "--machine-id",
+                str(machine_id),
+                "--state-dir",
+                str(tmp_path / state),
+                "--mqtt",
+                f"{host}:{port}",
+                "--token",
+                tok,
+                "--drain-timeout",
+                "3",
+            ],
+            capture_output=True,
+            text=True,
+            check=True,
+            timeout=60,
+        )
+        return json.loads(r.stdout)
+
+    try:
+        bad = run("frx_d_wrong", "a")
+        assert bad["drained"] is False and srv.deliveries == 0
+        good = run(token, "b")
+        assert good["drained"] is True and good["samples"] == 30
+        assert sorted(srv.records) == list(range(1, 31))
+    finally:
+        srv.stop()
