@@ -274,3 +274,28 @@ def test_sync_deletes_credentials_of_expired_or_sql_revoked_tokens(db, org, data
     assert _refused(revoked.machine_id, revoked.device_token)
     assert not _refused(live.machine_id, live.device_token)
     assert live.machine_id not in sync_devices(db)  # idempotent, live users stay
+
+
+def test_revoking_with_the_broker_down_revokes_and_says_the_credential_is_left(
+    client, db, org, database_url, monkeypatch
+) -> None:  # noqa: ANN001
+    """A revocation never waits for the broker: the token is revoked, the 503 says its MQTT
+    credential is still there, and `fieldrx mqtt-sync` removes it once the broker answers."""
+    from fieldrx.auth.mqtt import sync_devices
+    from fieldrx.settings import get_settings
+
+    j = make_job(org.id)
+    token_id = db.execute(
+        text("SELECT id FROM api_tokens WHERE machine_id = :m AND revoked_at IS NULL"),
+        {"m": j.machine_id},
+    ).scalar_one()
+    url = get_settings().mqtt_url
+    monkeypatch.setattr(get_settings(), "mqtt_url", "mqtt://127.0.0.1:9")
+    r = client.delete(f"/api/v1/auth/tokens/{token_id}", headers=org.headers("admin"))
+    assert r.status_code == 503, r.text
+    assert "is revoked" in r.json()["detail"] and "mqtt-sync" in r.json()["detail"]
+    assert client.get("/api/v1/device/jobs", headers=j.device_headers).status_code == 401
+    monkeypatch.setattr(get_settings(), "mqtt_url", url)
+    assert not _refused(j.machine_id, j.device_token)
+    assert j.machine_id in sync_devices(db)
+    assert _refused(j.machine_id, j.device_token)

@@ -13,7 +13,7 @@ from sqlalchemy import func, select
 
 from fieldrx.api.common import ApiError, get_scoped
 from fieldrx.auth.deps import AnyPrincipal, SessionDep, UserDep, WriterDep
-from fieldrx.auth.mqtt import revoke_device
+from fieldrx.auth.mqtt import revoke_device_after
 from fieldrx.auth.service import issue_device_token
 from fieldrx.db.models import Machine
 
@@ -149,11 +149,9 @@ def update_machine(
 
 @router.delete("/{machine_id:int}", status_code=204)
 def delete_machine(machine_id: int, principal: WriterDep, session: SessionDep) -> None:
-    m = get_scoped(session, Machine, machine_id, principal)
-    session.delete(m)
-    session.flush()
-    revoke_device(machine_id)  # its MQTT credential goes with it
+    session.delete(get_scoped(session, Machine, machine_id, principal))
     session.commit()
+    revoke_device_after(machine_id, f"machine {machine_id} is deleted")  # and its MQTT user
 
 
 @router.post("/{machine_id:int}/device-token", response_model=DeviceTokenOut, status_code=201)

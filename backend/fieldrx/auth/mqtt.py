@@ -343,6 +343,18 @@ def revoke_device(machine_id: int) -> None:
     _check(DynsecAdmin().run(_delete_device_commands(machine_id)), tolerate_missing=2)
 
 
+def revoke_device_after(machine_id: int, done: str) -> None:
+    """:func:`revoke_device` after the database change ``done`` was committed: a revocation
+    must not wait for the broker, but a broker that did not take it is reported (503)."""
+    try:
+        revoke_device(machine_id)
+    except MqttCredentialError as exc:
+        raise MqttCredentialError(
+            f"{done}, but its MQTT credential is still on the broker ({exc}); "
+            "`fieldrx mqtt-sync` deletes it once the broker answers"
+        ) from exc
+
+
 def sync_devices(session: Session) -> list[int]:
     """Delete the broker users of machines that have no live device token; their ids.
 

@@ -110,10 +110,9 @@ class IngestWorker:
             slot = self._take_slot(Path(slot_dir or tempfile.gettempdir()) / "fieldrx-worker-slots")
             client_id = f"fieldrx-worker-{group}-{node}-{slot}"
         self.client_id = client_id
-        cid = client_id
         self.client = mqtt.Client(
             mqtt.CallbackAPIVersion.VERSION2,
-            client_id=cid,
+            client_id=client_id,
             protocol=mqtt.MQTTv5,
             manual_ack=True,
         )
