@@ -427,7 +427,7 @@ def drive_mqtt(
     """Every machine logs in as itself (machine-<id>, its device token), as agents do:
     the broker lets it publish only its own telemetry and read only its own acks."""
     import paho.mqtt.client as mqtt
-    from fieldrx_edge.protocol import ack_topic, mqtt_username, telemetry_topic
+    from fieldrx_edge.protocol import ack_topic, mqtt_client_id, mqtt_username, telemetry_topic
 
     n_m = len(fleet.machines)
     acked = {m[0]: 0 for m in fleet.machines}
@@ -455,7 +455,9 @@ def drive_mqtt(
 
     clients: dict[int, mqtt.Client] = {}
     for mid, _, token in fleet.machines:
-        c = mqtt.Client(mqtt.CallbackAPIVersion.VERSION2, protocol=mqtt.MQTTv5)
+        c = mqtt.Client(
+            mqtt.CallbackAPIVersion.VERSION2, client_id=mqtt_client_id(mid), protocol=mqtt.MQTTv5
+        )
         c.username_pw_set(mqtt_username(mid), token)
         c.max_inflight_messages_set(max_inflight)
         c.max_queued_messages_set(0)

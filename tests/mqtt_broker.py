@@ -115,10 +115,11 @@ def connect(
 
 
 def device_client(machine_id: int, token: str) -> mqtt.Client:
-    """A connected client with the machine's credentials (user machine-<id>, the token)."""
-    from fieldrx_edge.protocol import mqtt_username
+    """A connected client with the machine's credentials (user machine-<id>, the token,
+    its client id): one at a time per machine, as the broker allows."""
+    from fieldrx_edge.protocol import mqtt_client_id, mqtt_username
 
-    c, rc = connect(mqtt_username(machine_id), token)
+    c, rc = connect(mqtt_username(machine_id), token, mqtt_client_id(machine_id))
     assert rc is not None and not rc.is_failure, rc
     return c
 

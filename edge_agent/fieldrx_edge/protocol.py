@@ -350,3 +350,9 @@ def jobs_topic(machine_id: int) -> str:
 def mqtt_username(machine_id: int) -> str:
     """A machine's MQTT user name; its password is the machine's current device token."""
     return f"machine-{machine_id}"
+
+
+def mqtt_client_id(machine_id: int) -> str:
+    """The one MQTT client id the broker accepts from the machine's user (so it cannot take
+    over, and disconnect, a worker's or another machine's session by reusing its id)."""
+    return f"fieldrx-edge-{machine_id}"

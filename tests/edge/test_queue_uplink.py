@@ -137,7 +137,6 @@ def _sender(q, token, **kw):
         port,
         username=mqtt_username(q.machine_id),
         password=token,
-        client_id=f"edge-{uuid.uuid4().hex[:8]}",
         **kw,
     )
 

@@ -15,7 +15,13 @@ import uuid
 
 import paho.mqtt.client as mqtt
 import pytest
-from fieldrx_edge.protocol import ack_topic, jobs_topic, mqtt_username, telemetry_topic
+from fieldrx_edge.protocol import (
+    ack_topic,
+    jobs_topic,
+    mqtt_client_id,
+    mqtt_username,
+    telemetry_topic,
+)
 from sqlalchemy import text
 
 from tests.fleet.helpers import make_job, record
@@ -113,6 +119,7 @@ def test_device_can_only_use_its_own_topics(database_url, make_org) -> None:  # 
     assert not spy.subscribe(f"$share/x/{telemetry_topic(b.machine_id)}")
     assert spy.subscribe(ack_topic(a.machine_id))
     assert spy.subscribe(jobs_topic(a.machine_id))
+    _close(spy.c)  # one connection per machine: the forgeries below use fresh ones
 
     watcher = Sub(worker_client())  # sees every telemetry message that gets through
     assert watcher.subscribe("fieldrx/machines/+/telemetry")
@@ -132,9 +139,9 @@ def test_device_can_only_use_its_own_topics(database_url, make_org) -> None:  # 
         assert watcher.wait(1)
         time.sleep(0.5)
         assert watcher.got == [(telemetry_topic(b.machine_id), b"{}")]
-        assert victim.got == [] and spy.got == []
+        assert victim.got == []  # no forged ack reached B
     finally:
-        _close(spy.c, watcher.c, victim.c)
+        _close(watcher.c, victim.c)
 
 
 def test_forged_records_never_reach_the_database(database_url, db, make_org) -> None:  # noqa: ANN001
@@ -142,11 +149,11 @@ def test_forged_records_never_reach_the_database(database_url, db, make_org) -> 
     a = make_job(make_org().id, state="running")
     b = make_job(make_org().id, state="running")
     worker = start_worker(database_url, f"sec{uuid.uuid4().hex[:6]}")
+    forged = json.dumps({"records": [record(b, 1)]})
+    assert _publish_refused(a.machine_id, a.device_token, telemetry_topic(b.machine_id), forged)
     acks = Sub(device_client(a.machine_id, a.device_token))
     try:
         assert acks.subscribe(ack_topic(a.machine_id))
-        forged = json.dumps({"records": [record(b, 1)]})
-        assert _publish_refused(a.machine_id, a.device_token, telemetry_topic(b.machine_id), forged)
         # a record naming B on A's own topic is rejected by the worker's record check
         own = [record(a, 1), {**record(a, 2), "machine_id": b.machine_id}]
         acks.c.publish(
@@ -178,10 +185,30 @@ def test_device_token_response_names_the_mqtt_user(client, org, database_url) ->
     _close(c)
 
 
-def _refused(machine_id: int, token: str) -> bool:
-    c, rc = connect(mqtt_username(machine_id), token)
+def _refused(machine_id: int, token: str, client_id: str | None = None) -> bool:
+    c, rc = connect(mqtt_username(machine_id), token, client_id or mqtt_client_id(machine_id))
     _close(c)
     return rc is not None and rc.is_failure
+
+
+def test_device_cannot_take_over_another_session(database_url, org) -> None:  # noqa: ANN001
+    """A device reusing a worker's (or another machine's) client id would disconnect it and
+    take over its session: the broker accepts a machine only under its own client id."""
+    from fieldrx.auth.mqtt import WORKER_USER, service_password
+
+    a, b = make_job(org.id), make_job(org.id)
+    worker_id = f"fieldrx-worker-sec{uuid.uuid4().hex[:6]}-node-0"
+    worker, rc = connect(WORKER_USER, service_password(WORKER_USER), worker_id)
+    assert rc is not None and not rc.is_failure
+    kicked = threading.Event()
+    worker.on_disconnect = lambda *args: kicked.set()
+    try:
+        assert _refused(a.machine_id, a.device_token, client_id=worker_id)
+        assert _refused(a.machine_id, a.device_token, client_id=mqtt_client_id(b.machine_id))
+        assert not kicked.wait(0.5) and worker.is_connected()
+        assert not _refused(a.machine_id, a.device_token)
+    finally:
+        _close(worker)
 
 
 def test_reissued_token_replaces_the_mqtt_credential(client, org, database_url) -> None:  # noqa: ANN001

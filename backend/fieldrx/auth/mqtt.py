@@ -11,8 +11,10 @@ admits no anonymous client. Three kinds of user exist:
   broker keeps only a salted PBKDF2-SHA512 hash of it. The user is (re)created when a
   device token is issued and deleted when the token is revoked, so a revoked or replaced
   token stops working on the broker too (the broker also disconnects a deleted user's
-  live connection). Its role allows publishing ``fieldrx/machines/<id>/telemetry`` and
-  reading ``.../<id>/ack`` and ``.../<id>/jobs``, nothing else: no other machine's topics,
+  live connection). It must connect with client id ``fieldrx-edge-<id>`` (a device
+  reusing a worker's client id would otherwise take over and disconnect its session).
+  Its role allows publishing ``fieldrx/machines/<id>/telemetry`` and reading
+  ``.../<id>/ack`` and ``.../<id>/jobs``, nothing else: no other machine's topics,
   no ``#``, and no acks (only workers publish acks).
 
 The two service passwords are derived from ``SECRET_KEY`` (HMAC-SHA256), so a
@@ -37,7 +39,13 @@ from typing import Any
 from urllib.parse import unquote, urlparse
 
 import paho.mqtt.client as mqtt
-from fieldrx_edge.protocol import ack_topic, jobs_topic, mqtt_username, telemetry_topic
+from fieldrx_edge.protocol import (
+    ack_topic,
+    jobs_topic,
+    mqtt_client_id,
+    mqtt_username,
+    telemetry_topic,
+)
 from sqlalchemy import func, or_, select
 from sqlalchemy.orm import Session
 
@@ -325,6 +333,7 @@ def provision_device(machine_id: int, token: str) -> str:
             "command": "createClient",
             "username": name,
             "password": token,
+            "clientid": mqtt_client_id(machine_id),
             "textName": f"machine {machine_id}",
             "roles": [{"rolename": name, "priority": 0}],
         },

@@ -22,7 +22,7 @@ import time
 
 import paho.mqtt.client as mqtt
 
-from fieldrx_edge.protocol import ack_topic, telemetry_topic
+from fieldrx_edge.protocol import ack_topic, mqtt_client_id, telemetry_topic
 from fieldrx_edge.uplink.backoff import Backoff
 from fieldrx_edge.uplink.queue import TelemetryQueue
 
@@ -57,7 +57,7 @@ class MqttSender:
         self._inflight: list[tuple[int, float]] = []  # (last seq of batch, sent at)
         self._connected = False
         self._pending_ack: tuple[int, int] | None = None  # set by the network thread
-        cid = client_id or f"fieldrx-edge-{queue.machine_id}"
+        cid = client_id or mqtt_client_id(queue.machine_id)
         self.client = mqtt.Client(
             mqtt.CallbackAPIVersion.VERSION2, client_id=cid, clean_session=False
         )
