@@ -17,5 +17,7 @@ COPY migrations/ migrations/
 COPY --from=frontend /src/frontend/dist /app/frontend/dist
 ENV FIELDRX_FRONTEND_DIST=/app/frontend/dist
 EXPOSE 8000
+# ingest workers' slot locks (docker-compose.yml mounts a shared volume here)
+RUN mkdir -p /var/lib/fieldrx-worker && chown nobody /var/lib/fieldrx-worker
 USER nobody
 CMD ["fieldrx", "serve", "--host", "0.0.0.0", "--port", "8000"]

@@ -2,8 +2,9 @@
 
 Everything runs against a throw-away database: this script starts its own API
 server (uvicorn, ``--workers`` processes on a free port) or, for MQTT, its own
-Mosquitto (the project's deploy/mosquitto.conf on a free port, no persistence)
-and two ``fieldrx worker`` processes sharing the subscription.
+Mosquitto (the project's deploy/mosquitto.conf on a free port: no anonymous
+clients, each machine logs in with its device token) and two ``fieldrx worker``
+processes sharing the subscription.
 
 Each machine has ``hz * seconds`` records (default 200 machines x 10 Hz x 60 s
 = 120,000). They are replayed as fast as the server accepts them (a fleet
@@ -42,6 +43,9 @@ from typing import Any
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+from tests.mqtt_broker import ProjectBroker  # noqa: E402
+
 BIN = Path(sys.executable).parent
 PG = os.environ.get("FIELDRX_TEST_PG", "postgresql://postgres@127.0.0.1:5432")
 
@@ -420,8 +424,10 @@ async def drive_http(
 def drive_mqtt(
     port: int, fleet: Fleet, batch: int, max_inflight: int, realtime: bool
 ) -> tuple[float, list[float], int]:
+    """Every machine logs in as itself (machine-<id>, its device token), as agents do:
+    the broker lets it publish only its own telemetry and read only its own acks."""
     import paho.mqtt.client as mqtt
-    from fieldrx_edge.protocol import telemetry_topic
+    from fieldrx_edge.protocol import ack_topic, mqtt_client_id, mqtt_username, telemetry_topic
 
     n_m = len(fleet.machines)
     acked = {m[0]: 0 for m in fleet.machines}
@@ -447,16 +453,19 @@ def drive_mqtt(
                 acked[mid] = a
             cv.notify_all()
 
-    sub = mqtt.Client(mqtt.CallbackAPIVersion.VERSION2, protocol=mqtt.MQTTv5)
-    sub.on_message = on_message
-    sub.connect("127.0.0.1", port)
-    sub.subscribe("fieldrx/machines/+/ack", qos=1)
-    sub.loop_start()
-    pub = mqtt.Client(mqtt.CallbackAPIVersion.VERSION2, protocol=mqtt.MQTTv5)
-    pub.max_inflight_messages_set(max_inflight)
-    pub.max_queued_messages_set(0)
-    pub.connect("127.0.0.1", port)
-    pub.loop_start()
+    clients: dict[int, mqtt.Client] = {}
+    for mid, _, token in fleet.machines:
+        c = mqtt.Client(
+            mqtt.CallbackAPIVersion.VERSION2, client_id=mqtt_client_id(mid), protocol=mqtt.MQTTv5
+        )
+        c.username_pw_set(mqtt_username(mid), token)
+        c.max_inflight_messages_set(max_inflight)
+        c.max_queued_messages_set(0)
+        c.on_message = on_message
+        c.connect("127.0.0.1", port)
+        c.subscribe(ack_topic(mid), qos=1)
+        c.loop_start()
+        clients[mid] = c
     time.sleep(0.5)
     sent = [1] * n_m
     start = time.time()
@@ -485,7 +494,7 @@ def drive_mqtt(
                 for i, r in enumerate(recs):
                     r["t"] = start + (seq + i) / fleet.hz
             tstamps[k][seq : seq + count] = [r["t"] for r in recs]
-            info = pub.publish(
+            info = clients[mid].publish(
                 telemetry_topic(mid), json.dumps({"records": recs}, separators=(",", ":")), qos=1
             )
             if info.rc != mqtt.MQTT_ERR_SUCCESS:
@@ -500,8 +509,9 @@ def drive_mqtt(
     with cv:
         ok = cv.wait_for(lambda: all(v == fleet.n for v in acked.values()), timeout=300)
     elapsed = time.time() - start
-    pub.loop_stop()
-    sub.loop_stop()
+    for c in clients.values():
+        c.disconnect()
+        c.loop_stop()
     if not ok:
         print(
             f"timed out waiting for acks: {sum(acked.values())} / {fleet.n * n_m}", file=sys.stderr
@@ -509,35 +519,16 @@ def drive_mqtt(
     return elapsed, latencies, stored
 
 
-def start_broker(tmp: Path) -> tuple[subprocess.Popen[bytes], int]:
-    port = free_port()
-    conf = (ROOT / "deploy" / "mosquitto.conf").read_text().splitlines()
-    lines = []
-    for line in conf:
-        key = line.split(" ", 1)[0]
-        if key == "listener":
-            line = f"listener {port} 127.0.0.1"
-        elif key == "persistence":
-            line = "persistence false"
-        elif key in ("persistence_location", "autosave_interval"):
-            continue
-        elif key == "max_packet_size" and line.split()[1:] == ["0"]:
-            continue  # Mosquitto 2.0.11 refuses 0 ("invalid"); omitted = no limit
-        lines.append(line)
-    path = tmp / "mosquitto.conf"
-    path.write_text("\n".join(lines) + "\n")
-    proc = subprocess.Popen(
-        [shutil.which("mosquitto") or "/usr/sbin/mosquitto", "-c", str(path)],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.PIPE,
-    )
-    deadline = time.monotonic() + 10
-    while time.monotonic() < deadline:
-        with socket.socket() as s:
-            if s.connect_ex(("127.0.0.1", port)) == 0:
-                return proc, port
-        time.sleep(0.05)
-    raise SystemExit(f"mosquitto did not start: {stop(proc)}")
+def start_broker() -> ProjectBroker:
+    """The project's broker from the shipped deploy/mosquitto.conf (authentication and
+    per-machine ACLs included) on a free port; MQTT_URL points at it, so the device
+    tokens seed() issues get their broker credentials there."""
+    from fieldrx.settings import get_settings
+
+    broker = ProjectBroker()
+    os.environ["MQTT_URL"] = broker.url
+    get_settings.cache_clear()
+    return broker
 
 
 def cpu_seconds(db_name: str) -> dict[str, float]:
@@ -613,7 +604,12 @@ def main() -> int:
     tmp = Path(tempfile.mkdtemp(prefix="fieldrx-bench-"))
     procs: list[subprocess.Popen[bytes]] = []
     worker_records: list[int] = []
+    broker: ProjectBroker | None = None
     try:
+        if args.transport == "mqtt":
+            broker = start_broker()
+        else:  # HTTP only: device tokens need no broker credential
+            os.environ["FIELDRX_MQTT_CREDENTIALS"] = "off"
         machines = seed(url, args.machines)
         db_name = url.rsplit("/", 1)[1]
         fleet = Fleet(machines, args.hz, args.seconds)
@@ -658,8 +654,9 @@ def main() -> int:
                 drive_http(base, fleet, batch, args.concurrency, args.realtime, args.send_every)
             )
         else:
-            broker, port = start_broker(tmp)
-            procs.append(broker)
+            assert broker is not None
+            port = broker.port
+            env["MQTT_URL"] = broker.url
             group = "bench"
             logs = [tmp / f"worker{i}.log" for i in range(workers)]
             for log in logs:
@@ -682,7 +679,7 @@ def main() -> int:
             cpu0 = cpu_seconds(db_name)
             elapsed, lat, stored = drive_mqtt(port, fleet, batch, 1000, args.realtime)
             cpu1 = cpu_seconds(db_name)
-            for w in procs[1:]:
+            for w in procs:
                 stop(w)  # the workers log their totals when they stop
             for log in logs:
                 text = log.read_text(errors="replace")
@@ -748,6 +745,8 @@ def main() -> int:
             if "Traceback" in err or "WARNING" in err or os.environ.get("BENCH_LOGS"):
                 print(err[-3000:], file=sys.stderr)
         shutil.rmtree(tmp, ignore_errors=True)
+        if broker is not None:
+            broker.close()
         if not args.keep_db:
             drop_database(url)
 

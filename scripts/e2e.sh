@@ -21,7 +21,8 @@ fieldrx serve --port "$PORT" --quiet >.run/e2e-server.log 2>&1 &
 SERVER=$!
 WORKER=""
 if fieldrx worker --help >/dev/null 2>&1; then
-  fieldrx worker >.run/e2e-worker.log 2>&1 &
+  # a throw-away worker: its own group, and no session left behind on the broker
+  FIELDRX_WORKER_SESSION_EXPIRY_S=0 fieldrx worker --group "e2e-$$" >.run/e2e-worker.log 2>&1 &
   WORKER=$!
 fi
 cleanup() {

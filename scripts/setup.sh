@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Idempotent set-up of everything FieldRx needs on a Debian 12 machine:
-# PostgreSQL 15 + PostGIS (started if not running), an MQTT broker, the Python
+# PostgreSQL 15 + PostGIS (started if not running), the project's MQTT broker, the Python
 # virtual environment, the frontend build, the database and its migrations.
 # Usage: scripts/setup.sh [--test]   (--test also installs Chromium for browser tests)
 set -euo pipefail
@@ -53,15 +53,9 @@ pg_isready -h $PG_HOST -p $PG_PORT >/dev/null || { echo "PostgreSQL does not ans
 # so throw-away test databases get it.
 runuser -u postgres -- psql -q -d template1 -c "CREATE EXTENSION IF NOT EXISTS postgis" >/dev/null
 
-# --- MQTT broker ------------------------------------------------------------
+# --- MQTT broker (package; started below, once the virtual environment exists) ---
 if ! command -v mosquitto >/dev/null; then
   apt_install mosquitto
-fi
-if ! (exec 3<>/dev/tcp/127.0.0.1/1883) 2>/dev/null; then
-  log "starting Mosquitto with deploy/mosquitto.conf"
-  mkdir -p /var/lib/mosquitto && chown mosquitto: /var/lib/mosquitto 2>/dev/null || true
-  mosquitto -d -c "$ROOT/deploy/mosquitto.conf"
-  sleep 1
 fi
 
 # --- Python -----------------------------------------------------------------
@@ -79,6 +73,21 @@ if [[ ! -f $STAMP || requirements.lock -nt $STAMP || backend/pyproject.toml -nt 
     -e ./edge_agent -e ./backend -r requirements-dev.txt
   touch $STAMP
 fi
+
+# --- MQTT broker ------------------------------------------------------------
+# The project's own broker: deploy/mosquitto.conf (no anonymous clients, per-machine
+# ACLs) on 127.0.0.1:1884, state in .run/mosquitto/. A system Mosquitto on 1883 (often
+# anonymous) is neither used nor touched. The dynamic-security file is created once,
+# with service passwords derived from SECRET_KEY; the check below says if they differ.
+MQTT_PORT=1884
+if ! (exec 3<>/dev/tcp/127.0.0.1/$MQTT_PORT) 2>/dev/null; then
+  log "starting Mosquitto (deploy/mosquitto.conf) on 127.0.0.1:$MQTT_PORT"
+  .venv/bin/fieldrx mqtt-init --file .run/mosquitto/dynamic-security.json >/dev/null
+  setsid nohup mosquitto -c "$ROOT/deploy/mosquitto.conf" >>.run/mosquitto.log 2>&1 </dev/null &
+  for _ in $(seq 1 50); do (exec 3<>/dev/tcp/127.0.0.1/$MQTT_PORT) 2>/dev/null && break; sleep 0.1; done
+fi
+MQTT_URL=${MQTT_URL:-mqtt://127.0.0.1:$MQTT_PORT} .venv/bin/fieldrx mqtt-init --check >/dev/null \
+  || { echo "MQTT broker check failed (see above; log: .run/mosquitto.log)" >&2; exit 1; }
 
 # --- Browser for UI tests ---------------------------------------------------
 if [[ $WITH_TEST -eq 1 ]] && [[ ! -x /usr/bin/chromium ]]; then

@@ -17,6 +17,19 @@ import pytest
 PG = os.environ.get("FIELDRX_TEST_PG", "postgresql://postgres@127.0.0.1:5432")
 
 
+@pytest.fixture(scope="session", autouse=True)
+def mqtt_broker() -> Iterator[object]:
+    """The session's own Mosquitto from the shipped deploy/mosquitto.conf (tests/mqtt_broker.py);
+    MQTT_URL points at it, so the API, workers and device-token issuing all use it."""
+    from tests.mqtt_broker import ProjectBroker
+
+    broker = ProjectBroker()
+    os.environ["MQTT_URL"] = broker.url
+    _clear_caches()
+    yield broker
+    broker.close()
+
+
 @pytest.fixture(scope="session")
 def database_url() -> Iterator[str]:
     """URL of a fresh database with PostGIS and every migration applied."""

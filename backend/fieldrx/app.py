@@ -14,6 +14,7 @@ from sqlalchemy import exc as sa_exc
 
 from fieldrx import __version__
 from fieldrx.api.common import ApiError
+from fieldrx.auth.mqtt import MqttCredentialError
 from fieldrx.settings import get_settings
 
 API_PREFIX = "/api/v1"
@@ -60,6 +61,11 @@ def create_app() -> FastAPI:
     @app.exception_handler(ApiError)
     async def _api_error(_: Request, exc: ApiError) -> JSONResponse:
         return JSONResponse(status_code=exc.status_code, content=exc.body)
+
+    @app.exception_handler(MqttCredentialError)
+    async def _mqtt_error(_: Request, exc: MqttCredentialError) -> JSONResponse:
+        """A device credential could not be changed on the broker: nothing was committed."""
+        return JSONResponse(status_code=503, content={"detail": str(exc)})
 
     @app.exception_handler(sa_exc.DataError)
     @app.exception_handler(psycopg.errors.DataError)

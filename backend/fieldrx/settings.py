@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from functools import lru_cache
+from typing import Literal
 
 from pydantic import Field
 from pydantic_settings import BaseSettings, SettingsConfigDict
@@ -16,7 +17,19 @@ class Settings(BaseSettings):
     database_url: str = Field(
         default="postgresql+psycopg://postgres@127.0.0.1:5432/fieldrx", alias="DATABASE_URL"
     )
-    mqtt_url: str = Field(default="mqtt://127.0.0.1:1883", alias="MQTT_URL")
+    # the project's own broker (deploy/mosquitto.conf); user-info, if any, is the worker's
+    mqtt_url: str = Field(default="mqtt://127.0.0.1:1884", alias="MQTT_URL")
+    mqtt_ca_file: str = Field(default="", alias="MQTT_CA_FILE")
+    # "dynsec": device tokens get broker credentials; "off": HTTP-only deployments
+    mqtt_credentials: Literal["dynsec", "off"] = Field(
+        default="dynsec", alias="FIELDRX_MQTT_CREDENTIALS"
+    )
+    # ingest workers: persistent MQTT sessions per stable slot (fleet/worker.py)
+    worker_session_expiry_s: int = Field(
+        default=3600, ge=0, alias="FIELDRX_WORKER_SESSION_EXPIRY_S"
+    )
+    worker_node: str = Field(default="", alias="FIELDRX_WORKER_NODE")
+    worker_slot_dir: str = Field(default="", alias="FIELDRX_WORKER_SLOT_DIR")
     secret_key: str = Field(default="dev-insecure-change-me", alias="SECRET_KEY")
     host: str = Field(default="127.0.0.1", alias="FIELDRX_HOST")
     port: int = Field(default=8000, alias="FIELDRX_PORT")

@@ -3,7 +3,7 @@
     fieldrx-edge pull --server URL --token DEVICE_TOKEN [--state-dir D]
     fieldrx-edge run JOB_ID --source serial:/dev/ttyACM0@115200 [--motor serial:/dev/ttyUSB0]
     fieldrx-edge run JOB_ID --source file:drive.nmea --replay-speed 10 --offline
-    fieldrx-edge run JOB_ID --source tcp:192.168.1.5:2101 --mqtt 127.0.0.1:1883
+    fieldrx-edge run JOB_ID --source tcp:192.168.1.5:2101 --mqtt 127.0.0.1:1884
     fieldrx-edge simulate JOB.json|demo:35x23|demo:20ha --speed 3-9km/h --gnss-noise 0.02 \
         --controller ladrc --lag-compensation on [--seed N] [--server URL --token T] --json
     fieldrx-edge replay-nmea LOG [--json]
@@ -28,7 +28,7 @@ from pathlib import Path
 from typing import Any
 
 from fieldrx_edge.jobs import JobStore, pull, report_state
-from fieldrx_edge.protocol import JobPackage
+from fieldrx_edge.protocol import JobPackage, mqtt_username
 
 
 def _on_off(v: str) -> bool:
@@ -88,13 +88,24 @@ def cmd_pull(a: argparse.Namespace) -> int:
 
 def _make_sender(a: argparse.Namespace, store: JobStore, queue: Any) -> Any:
     cfg = store.config()
+    server = a.server or cfg.get("server")
+    token = a.token or cfg.get("token")
     if a.mqtt:
         from fieldrx_edge.uplink import MqttSender
 
+        # the broker knows the machine as machine-<id>, its password is the device token
+        if not token:
+            raise SystemExit("--mqtt needs the device token (--token, or saved by pull)")
         host, _, port = a.mqtt.partition(":")
-        return MqttSender(queue, host or "127.0.0.1", int(port or 1883))
-    server = a.server or cfg.get("server")
-    token = a.token or cfg.get("token")
+        ca = getattr(a, "mqtt_ca", None)
+        return MqttSender(
+            queue,
+            host or "127.0.0.1",
+            int(port or (8883 if ca else 1884)),
+            username=mqtt_username(queue.machine_id),
+            password=token,
+            tls_ca=ca,
+        )
     if server and token and not a.offline:
         from fieldrx_edge.uplink import HttpSender
 
@@ -476,7 +487,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sp.add_argument("--server")
     sp.add_argument("--token")
-    sp.add_argument("--mqtt", help="HOST:PORT: send telemetry over MQTT instead of HTTP")
+    sp.add_argument(
+        "--mqtt",
+        help="HOST:PORT: send telemetry over MQTT instead of HTTP"
+        " (user machine-ID, password: the device token)",
+    )
+    sp.add_argument("--mqtt-ca", help="CA certificate file: connect to the broker over TLS")
     sp.add_argument("--offline", action="store_true", help="queue telemetry only")
     sp.add_argument("--motor", default="sim", help="sim or serial:DEV")
     sp.add_argument("--controller")
@@ -528,6 +544,7 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--server")
     sp.add_argument("--token")
     sp.add_argument("--mqtt")
+    sp.add_argument("--mqtt-ca")
     sp.add_argument("--offline", action="store_true")
     sp.add_argument("--drain-timeout", type=float, default=30.0)
     sp.add_argument("--json", action="store_true")

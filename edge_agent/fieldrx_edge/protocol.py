@@ -340,3 +340,19 @@ def telemetry_topic(machine_id: int) -> str:
 def ack_topic(machine_id: int) -> str:
     """MQTT topic the server publishes ``TelemetryAck`` on for one machine."""
     return f"fieldrx/machines/{machine_id}/ack"
+
+
+def jobs_topic(machine_id: int) -> str:
+    """MQTT topic reserved for job notifications to one machine (readable by it only)."""
+    return f"fieldrx/machines/{machine_id}/jobs"
+
+
+def mqtt_username(machine_id: int) -> str:
+    """A machine's MQTT user name; its password is the machine's current device token."""
+    return f"machine-{machine_id}"
+
+
+def mqtt_client_id(machine_id: int) -> str:
+    """The one MQTT client id the broker accepts from the machine's user (so it cannot take
+    over, and disconnect, a worker's or another machine's session by reusing its id)."""
+    return f"fieldrx-edge-{machine_id}"

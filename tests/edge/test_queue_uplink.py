@@ -3,10 +3,12 @@ import threading
 import time
 import uuid
 
-import paho.mqtt.client as mqtt
 import pytest
-from fieldrx_edge.protocol import ack_topic, telemetry_topic
+from fieldrx.auth.mqtt import provision_device
+from fieldrx_edge.protocol import ack_topic, mqtt_username, telemetry_topic
 from fieldrx_edge.uplink import Backoff, HttpSender, MqttSender, TelemetryQueue
+
+from tests.mqtt_broker import mqtt_port, worker_client
 
 from .peer import Peer
 
@@ -94,21 +96,18 @@ def test_http_sender_unreachable_keeps_everything(tmp_path):
 
 
 class MqttServerPeer:
-    """Plays the server's MQTT worker: dedupe by seq, publish TelemetryAck."""
+    """Plays the server's MQTT worker (with the workers' credentials, on the session's
+    broker from the shipped config): dedupe by seq, publish TelemetryAck."""
 
-    def __init__(self, prefix, machine_id, drop_first=0):
+    def __init__(self, machine_id, drop_first=0):
         self.records = {}
         self.deliveries = 0
         self.drop_first = drop_first
-        self.c = mqtt.Client(
-            mqtt.CallbackAPIVersion.VERSION2, client_id=f"srv-{uuid.uuid4().hex[:8]}"
-        )
-        self.topic = prefix + telemetry_topic(machine_id)
-        self.ack = prefix + ack_topic(machine_id)
+        self.c = worker_client()
+        self.topic = telemetry_topic(machine_id)
+        self.ack = ack_topic(machine_id)
         self.c.on_message = self.on_message
-        self.c.connect("127.0.0.1", 1883)
         self.c.subscribe(self.topic, qos=1)
-        self.c.loop_start()
         time.sleep(0.3)
 
     def on_message(self, client, userdata, msg):
@@ -129,23 +128,98 @@ class MqttServerPeer:
         self.c.disconnect()
 
 
-def test_mqtt_sender_delivers_everything_once(tmp_path):
-    prefix = f"test-{uuid.uuid4().hex[:8]}/"
-    srv = MqttServerPeer(prefix, 5, drop_first=2)
-    q = TelemetryQueue(tmp_path / "q.sqlite", machine_id=5)
-    q.put_many([rec(i) for i in range(5000)])
-    s = MqttSender(
+def _sender(q, token, **kw):
+    """The agent's sender logged in as its machine (user machine-<id>, the device token)."""
+    host, port = mqtt_port()
+    return MqttSender(
         q,
-        batch_size=100,
-        max_inflight_batches=10,
-        ack_timeout_s=1.0,
-        topic_prefix=prefix,
-        client_id=f"edge-{uuid.uuid4().hex[:8]}",
+        host,
+        port,
+        username=mqtt_username(q.machine_id),
+        password=token,
+        **kw,
     )
+
+
+def test_mqtt_sender_delivers_everything_once(tmp_path):
+    machine_id = 900_000_000 + uuid.uuid4().int % 99_999_999
+    token = f"frx_d_{uuid.uuid4().hex}"
+    provision_device(machine_id, token)  # as issuing its device token does
+    srv = MqttServerPeer(machine_id, drop_first=2)
+    q = TelemetryQueue(tmp_path / "q.sqlite", machine_id=machine_id)
+    q.put_many([rec(i) for i in range(5000)])
+    s = _sender(q, token, batch_size=100, max_inflight_batches=10, ack_timeout_s=1.0)
     try:
         assert s.drain(30.0)
         assert sorted(srv.records) == list(range(1, 5001))
         assert q.backlog() == 0
     finally:
         s.close()
+        srv.stop()
+
+
+def test_mqtt_sender_with_a_wrong_token_sends_nothing(tmp_path):
+    """No anonymous or mistaken login: the broker refuses it, and the queue stays intact."""
+    machine_id = 900_000_000 + uuid.uuid4().int % 99_999_999
+    provision_device(machine_id, "frx_d_the-real-token")
+    srv = MqttServerPeer(machine_id)
+    q = TelemetryQueue(tmp_path / "q.sqlite", machine_id=machine_id)
+    q.put_many([rec(i) for i in range(50)])
+    s = _sender(q, "frx_d_a-guess", ack_timeout_s=0.5)
+    try:
+        assert not s.drain(2.0)
+        assert srv.deliveries == 0 and q.backlog() == 50
+    finally:
+        s.close()
+        srv.stop()
+
+
+def test_edge_cli_mqtt_logs_in_with_its_device_token(tmp_path):
+    """`fieldrx-edge ... --mqtt HOST:PORT --token T` logs in as machine-<id> with the token
+    and delivers everything; without the right token nothing is delivered."""
+    import subprocess
+    import sys
+
+    machine_id = 900_000_000 + uuid.uuid4().int % 99_999_999
+    token = f"frx_d_{uuid.uuid4().hex}"
+    provision_device(machine_id, token)
+    srv = MqttServerPeer(machine_id)
+    f = tmp_path / "ndvi.csv"
+    f.write_text("\n".join(f"{i * 0.1},0.3,0.31,0.29,0.3" for i in range(30)) + "\n")
+    host, port = mqtt_port()
+
+    def run(tok: str, state: str) -> dict:
+        r = subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "fieldrx_edge.cli",
+                "ndvi",
+                f"file:{f}",
+                "--json",
+                "--machine-id",
+                str(machine_id),
+                "--state-dir",
+                str(tmp_path / state),
+                "--mqtt",
+                f"{host}:{port}",
+                "--token",
+                tok,
+                "--drain-timeout",
+                "3",
+            ],
+            capture_output=True,
+            text=True,
+            check=True,
+            timeout=60,
+        )
+        return json.loads(r.stdout)
+
+    try:
+        bad = run("frx_d_wrong", "a")
+        assert bad["drained"] is False and srv.deliveries == 0
+        good = run(token, "b")
+        assert good["drained"] is True and good["samples"] == 30
+        assert sorted(srv.records) == list(range(1, 31))
+    finally:
         srv.stop()

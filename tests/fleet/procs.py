@@ -101,10 +101,12 @@ def start_api(
 def start_worker(
     database_url: str,
     group: str,
-    mqtt_url: str = "mqtt://127.0.0.1:1883",
+    mqtt_url: str | None = None,
     batch_ms: int = 50,
     env: dict[str, str] | None = None,
 ) -> Proc:
+    """A `fieldrx worker` on the session's broker (MQTT_URL, tests/conftest.py::mqtt_broker)
+    with the workers' credentials; returns once its shared subscription is granted."""
     proc = Proc(
         [
             str(BIN / "fieldrx"),
@@ -114,7 +116,7 @@ def start_worker(
             "--batch-ms",
             str(batch_ms),
             "--mqtt-url",
-            mqtt_url,
+            mqtt_url or os.environ["MQTT_URL"],
         ],
         {"DATABASE_URL": database_url, "FIELDRX_HEARTBEAT_TIMEOUT_S": "30", **(env or {})},
     )

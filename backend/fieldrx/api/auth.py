@@ -9,6 +9,7 @@ from pydantic import BaseModel, Field
 from sqlalchemy import select
 
 from fieldrx.auth.deps import SessionDep, UserDep
+from fieldrx.auth.mqtt import revoke_device_after
 from fieldrx.auth.security import verify_password
 from fieldrx.auth.service import issue_user_token
 from fieldrx.db.models import ROLES, ApiToken, Membership, Organisation, User
@@ -192,5 +193,8 @@ def revoke_token(token_id: int, principal: UserDep, session: SessionDep) -> None
         or (row.user_id != principal.user_id and principal.role != "admin")
     ):
         raise HTTPException(404, f"token {token_id} not found")
+    live_device = row.machine_id if row.kind == "device" and row.revoked_at is None else None
     row.revoked_at = dt.datetime.now(dt.UTC)
     session.commit()
+    if live_device is not None:  # its MQTT credential goes with it
+        revoke_device_after(live_device, f"token {token_id} is revoked")

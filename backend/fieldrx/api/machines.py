@@ -7,11 +7,13 @@ from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Query
 from fieldrx_edge.metering import calibration_from_dict
+from fieldrx_edge.protocol import mqtt_username
 from pydantic import BaseModel, Field, field_validator, model_validator
 from sqlalchemy import func, select
 
 from fieldrx.api.common import ApiError, get_scoped
 from fieldrx.auth.deps import AnyPrincipal, SessionDep, UserDep, WriterDep
+from fieldrx.auth.mqtt import revoke_device_after
 from fieldrx.auth.service import issue_device_token
 from fieldrx.db.models import Machine
 
@@ -145,6 +147,9 @@ class MachineList(BaseModel):
 class DeviceTokenOut(BaseModel):
     machine_id: int
     token: str
+    mqtt_username: str = Field(
+        description="MQTT user name of the machine; its MQTT password is this token"
+    )
 
 
 def _out(m: Machine) -> MachineOut:
@@ -211,6 +216,7 @@ def update_machine(
 def delete_machine(machine_id: int, principal: WriterDep, session: SessionDep) -> None:
     session.delete(get_scoped(session, Machine, machine_id, principal))
     session.commit()
+    revoke_device_after(machine_id, f"machine {machine_id} is deleted")  # and its MQTT user
 
 
 @router.post("/{machine_id:int}/device-token", response_model=DeviceTokenOut, status_code=201)
@@ -219,4 +225,4 @@ def new_device_token(machine_id: int, principal: WriterDep, session: SessionDep)
     m = get_scoped(session, Machine, machine_id, principal)
     token = issue_device_token(session, m.id, m.organisation_id)
     session.commit()
-    return DeviceTokenOut(machine_id=m.id, token=token)
+    return DeviceTokenOut(machine_id=m.id, token=token, mqtt_username=mqtt_username(m.id))

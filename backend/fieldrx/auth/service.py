@@ -7,6 +7,7 @@ import datetime as dt
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
+from fieldrx.auth.mqtt import provision_device
 from fieldrx.auth.security import hash_password, new_token, token_digest
 from fieldrx.db.models import ROLES, ApiToken, Membership, Organisation, User
 from fieldrx.settings import get_settings
@@ -84,4 +85,6 @@ def issue_device_token(session: Session, machine_id: int, organisation_id: int) 
         )
     )
     session.flush()
+    # the broker credential follows the token (raises MqttCredentialError: nothing committed)
+    provision_device(machine_id, token)
     return token

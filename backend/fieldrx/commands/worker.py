@@ -21,7 +21,11 @@ def register(subparsers: Any) -> None:
     p.add_argument("--group", default="fieldrx", help="shared subscription group (default fieldrx)")
     p.add_argument("--batch-ms", type=float, default=100.0, help="batching window, ms")
     p.add_argument("--mqtt-url", default=None, help="default: settings MQTT_URL")
-    p.add_argument("--client-id", default=None, help="stable MQTT client id (persistent session)")
+    p.add_argument(
+        "--client-id",
+        default=None,
+        help="MQTT client id (default: fieldrx-worker-GROUP-HOST-SLOT, the lowest free slot)",
+    )
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(func=run)
 
@@ -41,6 +45,9 @@ def run(args: argparse.Namespace) -> int:
         batch_ms=args.batch_ms,
         client_id=args.client_id,
         heartbeat_timeout_s=s.heartbeat_timeout_s,
+        session_expiry_s=s.worker_session_expiry_s,
+        node=s.worker_node,
+        slot_dir=s.worker_slot_dir,
     )
     stop = threading.Event()
     signal.signal(signal.SIGTERM, lambda *_: stop.set())

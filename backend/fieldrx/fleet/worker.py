@@ -7,19 +7,34 @@ are committed, so a worker that dies loses nothing: the broker redelivers, and
 ingest deduplicates by (machine, seq). Messages that arrive within
 ``batch_ms`` are grouped per machine into one transaction, and the
 ``TelemetryAck`` goes back on ``ack_topic(machine_id)``.
+
+Security: the worker logs in as ``fieldrx-worker`` (``fieldrx.auth.mqtt``); the
+broker lets only machine N publish on machine N's telemetry topic, so the machine
+id taken from the topic is the sender's. Defence in depth: ingest rejects every
+record whose ``machine_id`` is not the topic's.
+
+Sessions: each worker holds a *slot* (the lowest free one per node, broker and
+group, kept by a lock file in FIELDRX_WORKER_SLOT_DIR) and connects as
+``fieldrx-worker-<group>-<node>-<slot>`` (node: FIELDRX_WORKER_NODE, default the
+host name) with a persistent session (expiry FIELDRX_WORKER_SESSION_EXPIRY_S, default 1 h).
+A killed worker's unacknowledged and queued messages wait in its session, and the
+restarted worker takes the same slot, so the same session: nothing is lost, and a
+dead member holds messages only until its slot is back (not for the whole expiry).
 """
 
 from __future__ import annotations
 
+import fcntl
 import logging
 import os
 import queue
 import socket
+import tempfile
 import threading
 import time
 from dataclasses import dataclass, field
-from typing import Any
-from urllib.parse import urlparse
+from pathlib import Path
+from typing import IO, Any
 
 import orjson
 import paho.mqtt.client as mqtt
@@ -28,6 +43,7 @@ from fieldrx_edge.protocol import ack_topic
 from paho.mqtt.packettypes import PacketTypes
 from paho.mqtt.properties import Properties
 
+from fieldrx.auth.mqtt import WORKER_USER, Broker
 from fieldrx.db.session import raw_dsn
 from fieldrx.fleet.alerts import check_no_data
 from fieldrx.fleet.ingest import IngestError, ingest
@@ -72,10 +88,13 @@ class IngestWorker:
         client_id: str | None = None,
         heartbeat_timeout_s: float = 30.0,
         no_data_every_s: float = 5.0,
+        session_expiry_s: int = 3600,
+        node: str = "",
+        slot_dir: str = "",
     ) -> None:
-        u = urlparse(mqtt_url)
-        self.host = u.hostname or "127.0.0.1"
-        self.port = u.port or 1883
+        self.broker = Broker.from_url(mqtt_url, WORKER_USER)
+        self.host = self.broker.host
+        self.port = self.broker.port
         self.dsn = dsn or raw_dsn()
         self.group = group
         self.batch_s = batch_ms / 1000.0
@@ -84,11 +103,17 @@ class IngestWorker:
         self.stats = WorkerStats()
         self.inbox: queue.Queue[mqtt.MQTTMessage] = queue.Queue()
         self.subscribed = threading.Event()
-        self.persistent = client_id is not None
-        cid = client_id or f"fieldrx-worker-{socket.gethostname()}-{os.getpid()}"
+        self.session_expiry_s = session_expiry_s
+        self.persistent = session_expiry_s > 0
+        self._slot_lock: IO[str] | None = None
+        if client_id is None:
+            node = node or socket.gethostname()
+            slot = self._take_slot(Path(slot_dir or tempfile.gettempdir()) / "fieldrx-worker-slots")
+            client_id = f"fieldrx-worker-{group}-{node}-{slot}"
+        self.client_id = client_id
         self.client = mqtt.Client(
             mqtt.CallbackAPIVersion.VERSION2,
-            client_id=cid,
+            client_id=client_id,
             protocol=mqtt.MQTTv5,
             manual_ack=True,
         )
@@ -96,6 +121,25 @@ class IngestWorker:
         self.client.on_message = self._on_message
         self.client.on_subscribe = self._on_subscribe
         self.client.reconnect_delay_set(0.5, 10)
+        self.broker.configure(self.client)
+
+    def _take_slot(self, d: Path) -> int:
+        """The lowest slot no live worker of this node, broker and group holds; the lock
+        file's flock lasts as long as this process, so a killed worker's slot is free for
+        its replacement at once. Containers that share ``d`` (a volume) share the slots."""
+        d.mkdir(parents=True, exist_ok=True)
+        slot = 0
+        while True:
+            name = f"{self.host}-{self.port}-{self.group}-{slot}.lock".replace("/", "_")
+            f = open(d / name, "a")  # noqa: SIM115 - held until the process ends
+            try:
+                fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                f.close()
+                slot += 1
+                continue
+            self._slot_lock = f
+            return slot
 
     # paho network thread ------------------------------------------------------------
     def _on_connect(self, client, userdata, flags, reason_code, properties) -> None:  # noqa: ANN001
@@ -105,7 +149,22 @@ class IngestWorker:
         client.subscribe(f"$share/{self.group}/{TOPIC}", qos=1)
 
     def _on_subscribe(self, client, userdata, mid, reason_codes, properties) -> None:  # noqa: ANN001
-        log.warning("subscribed to $share/%s/%s", self.group, TOPIC)
+        if any(rc.is_failure for rc in reason_codes):
+            log.error(
+                "subscription to $share/%s/%s refused: %s (is %s a worker user?)",
+                self.group,
+                TOPIC,
+                reason_codes[0],
+                self.broker.username,
+            )
+            return
+        log.warning(
+            "subscribed to $share/%s/%s as %s (session expiry %d s)",
+            self.group,
+            TOPIC,
+            self.client_id,
+            self.session_expiry_s,
+        )
         self.subscribed.set()
 
     def _on_message(self, client, userdata, msg: mqtt.MQTTMessage) -> None:  # noqa: ANN001
@@ -113,10 +172,9 @@ class IngestWorker:
 
     # processing thread -------------------------------------------------------------
     def run(self, stop: threading.Event) -> WorkerStats:
-        # a stable client id keeps its session (and unacked messages) across restarts;
-        # a per-process id starts clean so no orphaned session holds messages
+        # the slot's stable client id resumes its session (unacked and queued messages)
         props = Properties(PacketTypes.CONNECT)
-        props.SessionExpiryInterval = 300 if self.persistent else 0
+        props.SessionExpiryInterval = self.session_expiry_s
         self.client.connect(
             self.host, self.port, keepalive=30, clean_start=not self.persistent, properties=props
         )

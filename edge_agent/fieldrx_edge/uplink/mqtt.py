@@ -6,6 +6,11 @@ number of unacknowledged batches is capped well below paho's 65535 message
 ids (STACK.md: publish fails with ERR_QUEUE_SIZE otherwise). If no ack arrives
 for ``ack_timeout_s``, everything after acked_seq is sent again: the server
 deduplicates by (machine, seq).
+
+The broker admits no anonymous client: the machine logs in as
+``mqtt_username(machine_id)`` with its device token as password, and may only
+publish its own telemetry and read its own acks (server README, "MQTT security").
+``tls_ca`` turns on TLS (production brokers listen on 8883 with TLS only).
 """
 
 from __future__ import annotations
@@ -17,7 +22,7 @@ import time
 
 import paho.mqtt.client as mqtt
 
-from fieldrx_edge.protocol import ack_topic, telemetry_topic
+from fieldrx_edge.protocol import ack_topic, mqtt_client_id, telemetry_topic
 from fieldrx_edge.uplink.backoff import Backoff
 from fieldrx_edge.uplink.queue import TelemetryQueue
 
@@ -29,12 +34,15 @@ class MqttSender:
         self,
         queue: TelemetryQueue,
         host: str = "127.0.0.1",
-        port: int = 1883,
+        port: int = 1884,
         batch_size: int = 200,
         max_inflight_batches: int = 20,
         ack_timeout_s: float = 10.0,
         topic_prefix: str = "",
         client_id: str | None = None,
+        username: str | None = None,
+        password: str | None = None,
+        tls_ca: str | None = None,
     ) -> None:
         self.queue = queue
         self.batch_size = batch_size
@@ -49,12 +57,16 @@ class MqttSender:
         self._inflight: list[tuple[int, float]] = []  # (last seq of batch, sent at)
         self._connected = False
         self._pending_ack: tuple[int, int] | None = None  # set by the network thread
-        cid = client_id or f"fieldrx-edge-{queue.machine_id}"
+        cid = client_id or mqtt_client_id(queue.machine_id)
         self.client = mqtt.Client(
             mqtt.CallbackAPIVersion.VERSION2, client_id=cid, clean_session=False
         )
         self.client.max_inflight_messages_set(max_inflight_batches)
         self.client.max_queued_messages_set(max_inflight_batches * 2)
+        if username is not None:
+            self.client.username_pw_set(username, password)
+        if tls_ca:
+            self.client.tls_set(ca_certs=tls_ca)
         self.client.on_connect = self._on_connect
         self.client.on_disconnect = self._on_disconnect
         self.client.on_message = self._on_message
@@ -69,6 +81,7 @@ class MqttSender:
     # callbacks (paho network thread)
     def _on_connect(self, client, userdata, flags, reason_code, properties) -> None:  # noqa: ANN001
         if reason_code.is_failure:
+            log.warning("MQTT broker refused the connection: %s", reason_code)
             return
         client.subscribe(self.ack_topic, qos=1)
         with self._cv:
