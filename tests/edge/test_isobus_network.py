@@ -79,7 +79,7 @@ def test_address_claim_with_contention_lower_name_wins():
     assert b.address == 0x80 and b.claimed
     assert a.claimed and a.address not in (0x80, NULL_ADDRESS)
     assert a.stats.address_conflicts >= 1
-    assert "address_lost" in a.alarms
+    assert "isobus_address_lost" in a.alarms
     # two nodes that cannot pick another address: the higher NAME sends Cannot Claim
     # (the self-configurable bit is NAME bit 63, so these both outrank a and b)
     d = make(ch, clock, ident=3, addr=0x70, self_cfg=False)
@@ -197,5 +197,5 @@ def test_send_on_a_dead_bus_is_an_alarm_not_a_crash():
     a.bus.shutdown()
     for _ in range(3):
         a.send(0xCB00, bytes(8), da=b.address)
-    assert "can_bus_off" in a.alarms and a.stats.tx_errors == 3
+    assert "isobus_bus_off" in a.alarms and a.stats.tx_errors == 3
     a.poll(0.0)  # receiving on a closed bus is also survived

@@ -198,7 +198,7 @@ class Node:
         self._consecutive_tx_errors = 0
         self._rx: dict[tuple[int, int], _Rx] = {}
         self._tx: dict[tuple[int, int], _Tx] = {}  # (da, 0) -> session; BAM keyed (0xFF, 1)
-        self._lock = threading.RLock()
+        self.lock = threading.RLock()  # also taken by the roles built on this node
         self._last_warn: dict[str, float] = {}
 
     # -- frames ------------------------------------------------------------
@@ -234,21 +234,21 @@ class Node:
             self._consecutive_tx_errors += 1
             if self._consecutive_tx_errors >= 3:
                 self.bus_ok = False
-                self.alarms.add("can_bus_off")
+                self.alarms.add("isobus_bus_off")
             self._warn("tx", "CAN send failed (%s): %s", type(e).__name__, e)
             return False
         self.stats.frames_tx += 1
         if self._consecutive_tx_errors:
             self._consecutive_tx_errors = 0
             self.bus_ok = True
-            self.alarms.discard("can_bus_off")
+            self.alarms.discard("isobus_bus_off")
         return True
 
     # -- public API ----------------------------------------------------------
 
     def start(self) -> None:
         """Begin the address claim from the preferred address."""
-        with self._lock:
+        with self.lock:
             self._claim(self.preferred_address)
 
     @property
@@ -263,7 +263,7 @@ class Node:
         Returns the transfer session for multi-frame messages (``done`` is set when the
         receiver acknowledged it or it failed), None for a single frame."""
         data = bytes(data)
-        with self._lock:
+        with self.lock:
             if not self.claimed:
                 self._warn("noaddr", "no address claimed; PGN 0x%04X not sent", pgn)
                 return None
@@ -307,7 +307,7 @@ class Node:
 
     def request(self, pgn: int, da: int = GLOBAL_ADDRESS) -> None:
         """ISO 11783-3 request (PGN 0xEA00) for ``pgn``."""
-        with self._lock:
+        with self.lock:
             sa = self.address if self.claimed else NULL_ADDRESS
             self.send_frame(PGN_REQUEST, _pgn3(pgn), da, 6, sa=sa)
 
@@ -319,7 +319,7 @@ class Node:
         except Exception as e:  # a bus that went away: alarm, keep the node alive
             self.stats.rx_errors += 1
             self.bus_ok = False
-            self.alarms.add("can_bus_off")
+            self.alarms.add("isobus_bus_off")
             self._warn("rx", "CAN receive failed (%s): %s", type(e).__name__, e)
             msg = None
             if timeout:
@@ -346,7 +346,7 @@ class Node:
 
     def handle_frame(self, frame: Any) -> None:
         """One received python-can message; anything malformed is counted, never raised."""
-        with self._lock:
+        with self.lock:
             self.stats.frames_rx += 1
             if not getattr(frame, "is_extended_id", False) or getattr(
                 frame, "is_error_frame", False
@@ -381,7 +381,7 @@ class Node:
         if self.claimed and sa == self.address:
             # someone else transmits with our source address: re-assert our claim
             self.stats.address_conflicts += 1
-            self.alarms.add("address_conflict")
+            self.alarms.add("isobus_address_conflict")
             self._warn("conflict", "frame from our own address 0x%02X: re-claiming", sa)
             self._send_claim()
             return
@@ -459,7 +459,7 @@ class Node:
             self._send_claim()  # we win: re-assert; the other node must move
             return
         self.peers[sa] = other
-        self.alarms.add("address_lost")
+        self.alarms.add("isobus_address_lost")
         if self.name.self_configurable:
             nxt = self._free_address(sa)
             if nxt is not None:
@@ -665,7 +665,7 @@ class Node:
 
     def update(self) -> None:
         """Address-claim timer, BAM pacing, transfer time-outs."""
-        with self._lock:
+        with self.lock:
             now = self.clock()
             if self.state == "claiming" and now - self._claim_t >= CLAIM_WAIT_S:
                 self.address = self._claiming

@@ -48,6 +48,9 @@ class SimConfig:
     # swath gain ~2 %, but half the spin-up tail then lands before the field edge
     edge_start: bool = False
     border_min_step: float = 0.08  # rate steps smaller than this fraction are not lag borders
+    # None: the agent drives the motor directly. Else an object whose step(t, decision,
+    # actual_rpm) returns the shaft target, e.g. isobus.pair.IsobusPair (TC -> CAN -> ECU)
+    implement: Any = None
 
 
 @dataclass
@@ -431,6 +434,8 @@ def simulate(
         down = fdown[j]
         d = pos(k0 * dt, fxl[j], fyl[j], fvl[j], fcl[j], down)
         sp = d.target_rpm if d.metering else 0.0
+        if cfg.implement is not None:
+            sp = cfg.implement.step(k0 * dt, d, y)
         if sink is not None:
             if pace > 0:
                 ahead = wall_start + k0 * dt / pace - time.time()
