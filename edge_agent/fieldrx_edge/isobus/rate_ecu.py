@@ -93,6 +93,8 @@ class RateEcu:
         self.state = "wait_tc"
         self.state_t = self.clock()
         self.tc_addr: int | None = None
+        self.tc_name: Any = None
+        self.tc_losses = 0
         self.tc_version: int | None = None
         self.last_tc_status_t = -1e9
         self.rate_mg_m2 = 0
@@ -159,9 +161,15 @@ class RateEcu:
         cmd = d[0] & 0x0F
         if cmd == pdm.CMD_STATUS and msg.da == GLOBAL_ADDRESS:
             if self.tc_addr is not None and msg.sa != self.tc_addr:
-                return  # another TC on the bus; we stay with ours
+                name = self.node.peers.get(msg.sa)
+                if name is None or name != self.tc_name:
+                    return  # another TC on the bus; we stay with ours
+                # our TC re-claimed another address (J1939-81 contention): follow its NAME
+                log.warning("[%s] TC moved 0x%02X -> 0x%02X", self.node.label, self.tc_addr, msg.sa)
+                self.tc_addr = msg.sa
             if self.tc_addr is None:
                 self.tc_addr = msg.sa
+                self.tc_name = self.node.peers.get(msg.sa)
             self.last_tc_status_t = msg.t
             self.alarms.discard("isobus_tc_lost")
             return
@@ -316,7 +324,9 @@ class RateEcu:
                 "[%s] TC status lost for %.0f s: metering stops", self.node.label, TC_TIMEOUT_S
             )
             self.alarms.add("isobus_tc_lost")
+            self.tc_losses += 1
             self.tc_addr = None
+            self.tc_name = None
             self.triggers.clear()
             self._to("wait_tc")
         if self.state == "wait_tc" and self.tc_addr is not None and tc_alive:
