@@ -326,10 +326,18 @@ class TaskControllerServer:
 
     def _on_dd(self, c: Client, sub: int, d: bytes) -> None:
         if sub == pdm.DD_REQ_STRUCTURE:
-            pool = self.stored.get((c.name.value if c.name else 0, bytes(d[1:8])))
-            if pool is not None:
-                c.pool = bytearray(pool)
-                self._pd(c, b"\x11" + bytes(d[1:8]))
+            # the request may carry the client's label (AgIsoStack++ reads it) or 0xFFs;
+            # either way the reply is the label of the pool stored for this NAME, if any
+            nv = c.name.value if c.name else 0
+            want = bytes(d[1:8])
+            hit = [
+                (lbl, pool)
+                for (n, lbl), pool in self.stored.items()
+                if n == nv and (want == b"\xff" * 7 or lbl == want)
+            ]
+            if hit:
+                c.pool = bytearray(hit[-1][1])
+                self._pd(c, b"\x11" + hit[-1][0])
             else:
                 self._pd(c, b"\x11" + b"\xff" * 7)
         elif sub == pdm.DD_REQ_LOCALIZATION:
