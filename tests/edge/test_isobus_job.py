@@ -116,3 +116,35 @@ def test_wrong_ddop_is_refused_with_an_alarm():
     assert pair2.ecu.state == "rejected" and pair2.tc.client is None
     pair.close()
     pair2.close()
+
+
+def test_tc_status_announces_the_running_task():
+    import can
+    from fieldrx_edge.isobus.j1939 import PGN_PROCESS_DATA, decode_id
+
+    from .test_isobus_network import channel
+
+    ch = channel()
+    pair = IsobusPair(trial_plot(), channel=ch)
+    sniff = can.Bus(interface="virtual", channel=ch)
+    pair.connect()
+
+    def status_bytes() -> list[int]:
+        out = []
+        while (m := sniff.recv(0.0)) is not None:
+            if decode_id(m.arbitration_id)[0] == PGN_PROCESS_DATA and m.data[0] == 0xFE:
+                out.append(m.data[4])
+        return out
+
+    assert status_bytes() == [0]  # idle TC: task totals not active
+
+    class D:
+        target_rate_kg_ha, metering, speed_m_s, target_rpm, reason = 700.0, True, 2.0, 80.0, ""
+
+        def __init__(self) -> None:
+            self.alarms: list[str] = []
+
+    pair.step(0.0, D(), 0.0)
+    assert status_bytes() == [1]  # announced at once when the job starts
+    pair.close()
+    sniff.shutdown()

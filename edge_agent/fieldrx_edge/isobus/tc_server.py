@@ -12,7 +12,8 @@ checks that it can be driven:
 
 * a settable setpoint mass per area (DDI 6, mg/m^2) or volume per area (DDI 1,
   0.01 mm^3/m^2; needs ``density_kg_l`` to convert the job's kg/ha);
-* optional: actual rate (DDI 7 / 2), actual shaft speed (DDI 390), setpoint condensed
+* optional: actual rate (DDI 7 / 2), actual shaft speed (DDI 390), the implement's
+  ground speed (DDI 397), setpoint condensed
   work state (DDI 290) for section control, actual condensed work state (DDI 161),
   working width (DDI 67) checked against the job's.
 
@@ -88,12 +89,14 @@ class Client:
     rpm: Binding | None = None
     work_state: Binding | None = None
     actual_ws: Binding | None = None
+    speed: Binding | None = None
     n_sections: int = 1
     width_m: float | None = None
     measurements_sent: bool = False
     actual_rate_kg_ha: float | None = None
     actual_rpm: float | None = None
     actual_sections: list[bool] | None = None
+    actual_speed_m_s: float | None = None
     values_rx: int = 0
     sent_rate: int | None = None
     sent_ws: int | None = None
@@ -128,6 +131,7 @@ class TaskControllerServer:
         self._last_cmd_t: float | None = None
         self.setpoints_sent = 0
         self.values_rx = 0
+        self.task_active = False  # set by the first command(): a job is running
         node.handlers.append(self._on_message)
 
     # -- state for the runtime ------------------------------------------------------
@@ -152,12 +156,10 @@ class TaskControllerServer:
         self.node.send(PGN_PROCESS_DATA, data, c.address, priority)
 
     def _status(self) -> None:
-        self.node.send(
-            PGN_PROCESS_DATA,
-            bytes((0xFE, 0xFF, 0xFF, 0xFF, 0x00, 0xFF, 0x00, 0xFF)),
-            GLOBAL_ADDRESS,
-            3,
-        )
+        # byte 4 bit 0: task totals active (a job is running); no command in progress
+        status = 0x01 if self.task_active else 0x00
+        data = bytes((0xFE, 0xFF, 0xFF, 0xFF, status, 0xFF, 0x00, 0xFF))
+        self.node.send(PGN_PROCESS_DATA, data, GLOBAL_ADDRESS, 3)
 
     def update(self) -> None:
         """Status broadcast, client time-outs, measurement set-up of new clients."""
@@ -189,6 +191,7 @@ class TaskControllerServer:
             (c.actual, self.measure_time_ms, self.measure_distance_mm, 0),
             (c.rpm, self.measure_time_ms, 0, 0),
             (c.actual_ws, 0, 0, 1),
+            (c.speed, self.measure_time_ms, 0, 0),
         ):
             if b is None or not isinstance(b.pd, ProcessData):
                 continue
@@ -243,6 +246,9 @@ class TaskControllerServer:
         """One fix's decision: speed broadcast, rate setpoint and section state."""
         with self.node.lock:
             now = self.clock()
+            if not self.task_active:
+                self.task_active = True
+                self._status_t = -1e9  # announce the running task at the next update
             v = max(0.0, speed_m_s or 0.0)
             if self._last_cmd_t is not None:
                 self.distance_m += v * max(0.0, now - self._last_cmd_t)
@@ -321,6 +327,8 @@ class TaskControllerServer:
                 c.actual_rate_kg_ha = pd.value / pdm.DDI1_BITS_PER_L_HA * self.density_kg_l
         elif pd.ddi == pdm.DDI_ACTUAL_REVOLUTIONS:
             c.actual_rpm = pd.value / pdm.RPM_BITS
+        elif pd.ddi == pdm.DDI_ACTUAL_SPEED:
+            c.actual_speed_m_s = pd.value / 1000.0
         elif pd.ddi == pdm.DDI_ACTUAL_CONDENSED_WORK_STATE:
             c.actual_sections = pdm.sections_on(pd.value & 0xFFFFFFFF, c.n_sections)
 
@@ -417,6 +425,8 @@ class TaskControllerServer:
         c.work_state = ws[0] if ws else None
         aws = dd.find(pdm.DDI_ACTUAL_CONDENSED_WORK_STATE)
         c.actual_ws = aws[0] if aws else None
+        spd = dd.find(pdm.DDI_ACTUAL_SPEED)  # an implement's own ground speed, if it has one
+        c.speed = spd[0] if spd else None
         c.n_sections = max(1, min(16, len(dd.sections())))
         widths = [
             b
