@@ -96,3 +96,32 @@ def test_tc_keeps_the_pool_and_a_reconnecting_client_skips_the_upload():
     assert pair.ecu.connected
     assert pair.ecu_node.stats.transfers_tx == 1  # matched by structure label, not re-sent
     pair.close()
+
+
+def test_structure_label_follows_the_pool():
+    a = rate_ecu_ddop(NAME, 2.3, sections=1).device.structure_label
+    assert a == rate_ecu_ddop(NAME, 2.3, sections=1).device.structure_label
+    assert a != rate_ecu_ddop(NAME, 3.0, sections=1).device.structure_label
+    assert a != rate_ecu_ddop(NAME, 2.3, sections=2).device.structure_label
+    assert len(a) == 7 and a.startswith(b"FX")
+
+
+def test_a_changed_implement_is_uploaded_again_not_served_from_the_store():
+    job = trial_plot()
+    pair = IsobusPair(job, sections=1)
+    pair.connect()
+    # the implement is reconfigured (other width) and reconnects under the same NAME
+    ecu = pair.ecu
+    ecu.ddop = rate_ecu_ddop(pair.ecu_node.name, 3.0, sections=1)
+    ecu.pool = ecu.ddop.to_bytes()
+    ecu._to("wait_tc")
+    ecu.tc_addr = None
+    for _ in range(300):
+        pair.tick()
+        pair.clock.t += 0.01
+        if ecu.connected:
+            break
+    assert ecu.connected and pair.ecu_node.stats.transfers_tx == 2
+    c = pair.tc.client
+    assert c is not None and c.width_m == 3.0 and "isobus_width_mismatch" in pair.tc.alarms
+    pair.close()

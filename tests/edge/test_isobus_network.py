@@ -199,3 +199,12 @@ def test_send_on_a_dead_bus_is_an_alarm_not_a_crash():
         a.send(0xCB00, bytes(8), da=b.address)
     assert "isobus_bus_off" in a.alarms and a.stats.tx_errors == 3
     a.poll(0.0)  # receiving on a closed bus is also survived
+
+
+def test_bus_off_error_frame_raises_the_alarm():
+    clock, a, b, got = _pair()
+    b.handle_frame(can.Message(arbitration_id=0x40, is_error_frame=True, data=bytes(8)))
+    assert "isobus_bus_off" in b.alarms and b.stats.error_frames == 1 and not b.bus_ok
+    # the next successful send clears it
+    b.send(0xCB00, bytes(8), da=a.address)
+    assert "isobus_bus_off" not in b.alarms and b.bus_ok

@@ -103,7 +103,11 @@ def test_bus_off_at_the_tc_stops_metering_at_the_ecu():
     t, _ = _run(pair, 0.0, 2.0)
     assert pair.ecu.target_rpm > 0
     pair.tc_node.bus.shutdown()  # the TC's CAN interface goes bus-off
-    t, d = _run(pair, t, t + 7.0)
+    t, d = _run(pair, t, t + 1.5)
+    # no machine selected speed for 1 s: the ECU stops the shaft long before the
+    # 6 s TC time-out
+    assert pair.ecu.target_rpm == 0.0 and pair.ecu.state == "connected"
+    t, d = _run(pair, t, t + 6.0)
     assert "isobus_bus_off" in d.alarms
     assert pair.ecu.target_rpm == 0.0 and "isobus_tc_lost" in pair.ecu.alarms
     pair.ecu_node.close()

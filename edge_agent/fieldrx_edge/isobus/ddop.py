@@ -26,6 +26,7 @@ DevicePropertyObject, DeviceValuePresentationObject) and the isoxml package's DD
 
 from __future__ import annotations
 
+import hashlib
 import struct
 from dataclasses import dataclass, field
 
@@ -308,18 +309,21 @@ def rate_ecu_ddop(
     width_m: float,
     sections: int = 1,
     serial: str = "0001",
-    structure_label: bytes = b"FRXRATE",
+    structure_label: bytes | None = None,
 ) -> DeviceDescriptor:
     """FieldRx's metering ECU described for any TC: a device, one metering function with
     setpoint/actual mass per area (DDI 6/7), actual shaft speed (DDI 390), setpoint/actual
     condensed work state (DDI 290/161), working width (DDI 67) and ``sections`` section
     elements with their widths and offsets (DDI 67, 134 X, 135 Y). Many sections make a
-    large pool (about 90 bytes each), like real boom implements."""
+    large pool (about 90 bytes each), like real boom implements.
+
+    The structure label must change whenever the pool does (a TC that already holds a
+    pool with the client's NAME and label reuses it without an upload), so by default it
+    is derived from the pool's own bytes: "FX" + 5 hex digits of their SHA-1."""
     from fieldrx_edge.isobus import process_data as pdm
 
-    objs: list[Obj] = [
-        Device(1, "FieldRx rate ECU", "fieldrx-edge 0.1", name, serial, structure_label)
-    ]
+    dvc = Device(1, "FieldRx rate ECU", "fieldrx-edge 0.1", name, serial, b"FX00000")
+    objs: list[Obj] = [dvc]
     nid = [100]
 
     def new_id() -> int:
@@ -386,4 +390,8 @@ def rate_ecu_ddop(
             p = Property(new_id(), ddi, val, label, dvp_mm.object_id)
             objs.append(p)
             sec.children.append(p.object_id)
+    if structure_label is None:
+        digest = hashlib.sha1(b"".join(encode_object(o) for o in objs)).hexdigest()
+        structure_label = b"FX" + digest[:5].upper().encode("ascii")
+    dvc.structure_label = structure_label
     return DeviceDescriptor(objs)

@@ -112,6 +112,7 @@ class NodeStats:
     transfers_rx: int = 0
     transfers_tx: int = 0
     address_conflicts: int = 0
+    error_frames: int = 0
 
     def to_dict(self) -> dict[str, int]:
         return dict(self.__dict__)
@@ -238,7 +239,7 @@ class Node:
             self._warn("tx", "CAN send failed (%s): %s", type(e).__name__, e)
             return False
         self.stats.frames_tx += 1
-        if self._consecutive_tx_errors:
+        if self._consecutive_tx_errors or not self.bus_ok:  # the controller recovered
             self._consecutive_tx_errors = 0
             self.bus_ok = True
             self.alarms.discard("isobus_bus_off")
@@ -348,9 +349,10 @@ class Node:
         """One received python-can message; anything malformed is counted, never raised."""
         with self.lock:
             self.stats.frames_rx += 1
-            if not getattr(frame, "is_extended_id", False) or getattr(
-                frame, "is_error_frame", False
-            ):
+            if getattr(frame, "is_error_frame", False):
+                self._on_error_frame(frame)
+                return
+            if not getattr(frame, "is_extended_id", False):
                 return  # 11-bit traffic is not ISO 11783
             try:
                 self._handle(frame)
@@ -363,6 +365,19 @@ class Node:
                     bytes(frame.data).hex(),
                     e,
                 )
+
+    def _on_error_frame(self, frame: Any) -> None:
+        """SocketCAN error frames (linux/can/error.h): class bit 0x40 is bus-off, 0x04
+        controller problems (error passive/warning). Other interfaces report through
+        python-can exceptions on send/receive, handled where they occur."""
+        self.stats.error_frames += 1
+        cls = frame.arbitration_id
+        if cls & 0x40:
+            self.bus_ok = False
+            self.alarms.add("isobus_bus_off")
+            self._warn("busoff", "CAN controller reports bus-off (error frame 0x%X)", cls)
+        elif cls & 0x04:
+            self._warn("ctrl", "CAN controller error state (error frame 0x%X)", cls)
 
     def _handle(self, frame: Any) -> None:
         pgn, sa, da, prio = decode_id(frame.arbitration_id)
