@@ -219,16 +219,38 @@ def cmd_run(a: argparse.Namespace) -> int:
 # -- ISOBUS -------------------------------------------------------------------
 
 
+def _address(v: str) -> int:
+    """A source address, decimal or 0x.., 0..253 (254 and 255 are NULL and global)."""
+    try:
+        n = int(v, 0)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"bad address {v!r}") from None
+    if not 0 <= n <= 253:
+        raise argparse.ArgumentTypeError(f"address {v!r} outside 0..253")
+    return n
+
+
+def _open_can(a: argparse.Namespace) -> Any:
+    """The ``--can`` bus, or a clear exit naming the option and what failed."""
+    from fieldrx_edge.isobus.transport import CanSpecError, open_bus
+
+    try:
+        return open_bus(a.can, a.can_bitrate)
+    except CanSpecError as e:
+        raise SystemExit(str(e)) from None
+    except Exception as e:  # python-can: no such interface, driver or device
+        raise SystemExit(f"--can {a.can}: cannot open the CAN interface: {e}") from None
+
+
 def _isobus_implement(a: argparse.Namespace, job: JobPackage) -> Any:
     """The TC server on ``--can`` standing where the motor loop stands."""
     from fieldrx_edge.isobus.network import Node
     from fieldrx_edge.isobus.pair import tc_name
     from fieldrx_edge.isobus.tc_server import IsobusImplement, TaskControllerServer
-    from fieldrx_edge.isobus.transport import open_bus
 
     if not a.can:
         raise SystemExit("--implement isobus needs --can INTERFACE:CHANNEL (e.g. socketcan:can0)")
-    node = Node(open_bus(a.can, a.can_bitrate), tc_name(), int(a.tc_address, 0), label="tc")
+    node = Node(_open_can(a), tc_name(), a.tc_address, label="tc")
     tc = TaskControllerServer(node, implement_width_m=job.implement_width_m, density_kg_l=a.density)
     return IsobusImplement(tc)
 
@@ -258,7 +280,6 @@ def cmd_ecu(a: argparse.Namespace) -> int:
     from fieldrx_edge.isobus.network import Node
     from fieldrx_edge.isobus.pair import ecu_name
     from fieldrx_edge.isobus.rate_ecu import RateEcu, run_ecu
-    from fieldrx_edge.isobus.transport import open_bus
     from fieldrx_edge.metering import LinearCalibration, calibration_from_dict
     from fieldrx_edge.motor import MotorLoop, SerialMotorDriver, build_controller, simulated_motor
     from fieldrx_edge.protocol import ControllerSettings
@@ -280,9 +301,7 @@ def cmd_ecu(a: argparse.Namespace) -> int:
         else SerialMotorDriver(a.motor.removeprefix("serial:"))
     )
     motor = MotorLoop(build_controller(settings), driver, period)
-    node = Node(
-        open_bus(a.can, a.can_bitrate), ecu_name(a.identity), int(a.address, 0), label="ecu"
-    )
+    node = Node(_open_can(a), ecu_name(a.identity), a.address, label="ecu")
     ecu = RateEcu(node, cal, width, a.sections)
     stop = threading.Event()
     mstop = threading.Event()
@@ -626,7 +645,7 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--min-fix-quality", type=int, default=1, help="GGA quality (4 = RTK fixed)")
     sp.add_argument("--max-hdop", type=float, default=5.0, help="0 disables the HDOP check")
     _isobus_args(sp)
-    sp.add_argument("--tc-address", default="0xF7", help="preferred TC source address")
+    sp.add_argument("--tc-address", type=_address, default=0xF7, help="preferred TC source address")
     sp.add_argument(
         "--density", type=float, help="kg/l: lets volume-rate implements (DDI 1) be driven"
     )
@@ -641,7 +660,7 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--sections", type=int, default=1)
     sp.add_argument("--motor", default="sim", help="sim or serial:DEV")
     sp.add_argument("--controller")
-    sp.add_argument("--address", default="0x80", help="preferred source address")
+    sp.add_argument("--address", type=_address, default=0x80, help="preferred source address")
     sp.add_argument("--identity", type=int, default=0x2A2, help="NAME identity number")
     sp.add_argument("--duration", type=float, default=0.0, help="stop after S seconds (0: never)")
     sp.set_defaults(func=cmd_ecu)

@@ -91,3 +91,13 @@ def test_simulate_behind_the_isobus_pair(capsys):
     out = json.loads(capsys.readouterr().out.splitlines()[-1])
     assert out["implement"] == "isobus" and out["isobus"]["client"]["kind"] == "mass"
     assert out["mean_accuracy_pct"] >= 98.0
+
+
+def test_bad_can_option_and_address_are_clear_errors(tmp_path, capsys):
+    with pytest.raises(SystemExit, match="INTERFACE:CHANNEL"):
+        cli.main(["ecu", "--can", "can0", "--duration", "0.1"])
+    with pytest.raises(SystemExit, match="cannot open the CAN interface"):
+        cli.main(["ecu", "--can", "nosuchiface:x", "--duration", "0.1"])
+    with pytest.raises(SystemExit):
+        cli.main(["ecu", "--can", "virtual:x", "--address", "0xFE"])
+    assert "outside 0..253" in capsys.readouterr().err
