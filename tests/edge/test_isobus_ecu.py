@@ -119,3 +119,5 @@ def test_ecu_connects_to_a_scripted_tc_and_follows_setpoints():
         tc.send(PGN_MACHINE_SELECTED_SPEED, pdm.mss_payload(2.0, 0.0))
         step(0.1)
     assert "isobus_tc_lost" in ecu.alarms and ecu.state == "wait_tc" and ecu.target_rpm == 0.0
+    tc.close()
+    node.close()

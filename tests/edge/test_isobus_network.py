@@ -18,6 +18,14 @@ from fieldrx_edge.isobus.network import Message, Node, pump
 from fieldrx_edge.isobus.transport import CanSpecError, parse_can_spec
 
 _chan = itertools.count()
+_open: list[Node] = []
+
+
+@pytest.fixture(autouse=True)
+def _close_nodes():
+    yield
+    while _open:
+        _open.pop().close()
 
 
 class Clock:
@@ -37,7 +45,9 @@ def make(ch: str, clock: Clock, ident: int, addr: int, self_cfg: bool = True, **
     name = Name(
         identity_number=ident, manufacturer_code=1407, function=130, self_configurable=self_cfg
     )
-    return Node(bus, name, addr, clock=clock, label=f"n{ident}", **kw)
+    node = Node(bus, name, addr, clock=clock, label=f"n{ident}", **kw)
+    _open.append(node)
+    return node
 
 
 def settle(nodes: list[Node], clock: Clock, seconds: float = 0.5, step: float = 0.01) -> None:
