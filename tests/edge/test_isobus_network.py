@@ -218,3 +218,26 @@ def test_bus_off_error_frame_raises_the_alarm():
     # the next successful send clears it
     b.send(0xCB00, bytes(8), da=a.address)
     assert "isobus_bus_off" not in b.alarms and b.bus_ok
+
+
+def test_transfer_to_a_silent_node_times_out():
+    clock, a, b, got = _pair()
+    tx = a.send(0xCB00, bytes(5000), da=0x99)  # nobody at 0x99: no CTS ever comes
+    settle([a, b], clock, 1.0)
+    assert tx is not None and not tx.done.is_set()
+    settle([a, b], clock, 0.5)
+    assert tx.done.is_set() and not tx.ok and tx.error == "timeout"
+    assert a.stats.aborts_tx == 1
+
+
+def test_receiver_drops_a_transfer_whose_data_stops():
+    clock, a, b, got = _pair()
+    rts = b"\x10" + (100).to_bytes(2, "little") + bytes((15, 0xFF)) + b"\x00\xcb\x00"
+    b.handle_frame(
+        can.Message(
+            arbitration_id=encode_id(0xEC00, a.address, b.address, 7), data=rts, is_extended_id=True
+        )
+    )
+    assert b.open_transfers == (1, 0)  # session open, CTS sent
+    settle([b], clock, 1.5)
+    assert b.open_transfers == (0, 0) and b.stats.aborts_tx == 1 and not got

@@ -76,7 +76,6 @@ CLAIM_WAIT_S = 0.25
 T1_S = 0.75  # receiver: gap between data frames
 T2_S = 1.25  # receiver: data after CTS
 T3_S = 1.25  # sender: CTS / EoMA after the last data frame
-TH_S = 0.5  # hold (CTS with 0 packets) refresh
 BAM_GAP_S = 0.05
 
 ABORT_BUSY = 1
@@ -255,6 +254,11 @@ class Node:
     @property
     def claimed(self) -> bool:
         return self.state == "claimed"
+
+    @property
+    def open_transfers(self) -> tuple[int, int]:
+        """(being received, being sent) multi-frame transfers."""
+        return len(self._rx), len(self._tx)
 
     def send(
         self, pgn: int, data: bytes, da: int = GLOBAL_ADDRESS, priority: int = 6
@@ -700,8 +704,7 @@ class Node:
             for key, tx in list(self._tx.items()):
                 if tx.kind == "bam":
                     continue
-                limit = T3_S if tx.state in ("wait_cts", "wait_eoma") else T3_S
-                if now - tx.last_t > limit:
+                if now - tx.last_t > T3_S:  # no CTS / EoMA (J1939-21 T3; holds refresh it)
                     cm = PGN_ETP_CM if tx.kind == "etp" else PGN_TP_CM
                     self._abort(cm, tx.da, ABORT_TIMEOUT, tx.pgn)
                     self._tx.pop(key, None)
