@@ -86,8 +86,7 @@ def test_tc_keeps_the_pool_and_a_reconnecting_client_skips_the_upload():
     job = trial_plot()
     pair = IsobusPair(job, sections=130)
     pair.connect()
-    pair.ecu._to("wait_tc")  # the implement restarts its connection procedure
-    pair.ecu.tc_addr = None
+    pair.ecu.restart()  # the implement restarts its connection procedure
     for _ in range(300):
         pair.tick()
         pair.clock.t += 0.01
@@ -114,8 +113,7 @@ def test_a_changed_implement_is_uploaded_again_not_served_from_the_store():
     ecu = pair.ecu
     ecu.ddop = rate_ecu_ddop(pair.ecu_node.name, 3.0, sections=1)
     ecu.pool = ecu.ddop.to_bytes()
-    ecu._to("wait_tc")
-    ecu.tc_addr = None
+    ecu.restart()
     for _ in range(300):
         pair.tick()
         pair.clock.t += 0.01

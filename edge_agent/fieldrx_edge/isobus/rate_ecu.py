@@ -124,6 +124,13 @@ class RateEcu:
         self.state = state
         self.state_t = self.clock()
 
+    def restart(self) -> None:
+        """Start the connection procedure again (the implement was reset or reconfigured)."""
+        self.tc_addr = None
+        self.tc_name = None
+        self.triggers.clear()
+        self._to("wait_tc")
+
     @property
     def connected(self) -> bool:
         return self.state == "connected"
