@@ -445,6 +445,15 @@ class TaskControllerServer:
                     c.width_m,
                     self.implement_width_m,
                 )
+        other = self.client
+        if other is not None and other is not c:
+            log.warning(
+                "[%s] client 0x%02X activated while 0x%02X is driven: only one implement "
+                "is driven at a time",
+                self.node.label,
+                c.address,
+                other.address,
+            )
         c.active = True
         c.measurements_sent = False
         c.sent_rate = c.sent_ws = None
