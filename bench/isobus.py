@@ -117,7 +117,8 @@ def latency(seconds: float, gnss_hz: float = 10.0) -> dict[str, object]:
     while not ecu.connected and time.perf_counter() - t0 < 10:
         time.sleep(0.01)
     connect_s = time.perf_counter() - t0
-    cfg = SimConfig(seed=1, gnss_hz=gnss_hz)
+    # 9 km/h throughout: a 5 m cell every 2 s, so a minute gives ~25 cell changes
+    cfg = SimConfig(seed=1, gnss_hz=gnss_hz, speed_min_kmh=9.0, speed_max_kmh=9.0)
     f = drive_fixes(job, cfg, max_s=400.0)
     t50 = closed_loop_t50_s(job.controller, 0.01)
     rcfg = RuntimeConfig(response_s=t50, gnss_period_s=1.0 / gnss_hz)
