@@ -36,6 +36,9 @@ class SimConfig:
     gnss_hz: float = 10.0
     motor_hz: float = 100.0
     controller: str | None = None  # None: the job's controller
+    # None: the agent drives the motor directly. Else an object whose step(t, decision,
+    # actual_rpm) returns the shaft target, e.g. isobus.pair.IsobusPair (TC -> CAN -> ECU)
+    implement: Any = None
     lag_compensation: bool = True
     seed: int = 0
     accel_m_s2: float = 0.5
@@ -48,9 +51,6 @@ class SimConfig:
     # swath gain ~2 %, but half the spin-up tail then lands before the field edge
     edge_start: bool = False
     border_min_step: float = 0.08  # rate steps smaller than this fraction are not lag borders
-    # None: the agent drives the motor directly. Else an object whose step(t, decision,
-    # actual_rpm) returns the shaft target, e.g. isobus.pair.IsobusPair (TC -> CAN -> ECU)
-    implement: Any = None
 
 
 @dataclass
