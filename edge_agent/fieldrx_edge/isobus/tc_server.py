@@ -46,13 +46,16 @@ from typing import Any
 
 from fieldrx_edge.isobus import process_data as pdm
 from fieldrx_edge.isobus.ddop import (
+    ELEMENT_DEVICE,
     TRIG_CHANGE,
     TRIG_DISTANCE,
     TRIG_TIME,
     Binding,
     DdopError,
     DeviceDescriptor,
+    Element,
     ProcessData,
+    Property,
     parse,
 )
 from fieldrx_edge.isobus.j1939 import (
@@ -389,6 +392,23 @@ class TaskControllerServer:
             c.active = False
             self._pd(c, b"\xb1\x00\xff" + b"\xff" * 5)
 
+    @staticmethod
+    def _width_m(dd: DeviceDescriptor, element_id: int) -> float | None:
+        """Working width (DDI 67 property) of the setpoint's element or, as in most pools
+        where the rate sits on a bin, of the nearest element above it (boom, device)."""
+        seen: set[int] = set()
+        eid = element_id
+        while eid not in seen:
+            seen.add(eid)
+            w = _element_width(dd, eid)
+            if w is not None:
+                return w
+            el = dd.by_id.get(eid)
+            if not isinstance(el, Element) or el.element_type == ELEMENT_DEVICE:
+                return None
+            eid = el.parent_id
+        return None
+
     def _activate(self, c: Client) -> tuple[int, int]:
         """Map the client's pool to the job; (error, faulty object id)."""
         if c.ddop is None and c.pool:
@@ -428,14 +448,7 @@ class TaskControllerServer:
         spd = dd.find(pdm.DDI_ACTUAL_SPEED)  # an implement's own ground speed, if it has one
         c.speed = spd[0] if spd else None
         c.n_sections = max(1, min(16, len(dd.sections())))
-        widths = [
-            b
-            for b in dd.find(pdm.DDI_ACTUAL_WORKING_WIDTH)
-            if b.element_id == c.setpoint.element_id
-        ]
-        if widths:
-            raw = getattr(widths[0].pd, "value", None)
-            c.width_m = raw / 1000.0 if raw is not None else None
+        c.width_m = self._width_m(dd, c.setpoint.element_id)
         if c.width_m and self.implement_width_m:
             if abs(c.width_m - self.implement_width_m) > 0.02 * self.implement_width_m:
                 self.alarms.add("isobus_width_mismatch")
@@ -473,6 +486,13 @@ class TaskControllerServer:
             "" if c.work_state else ", no section control",
         )
         return 0, 0xFFFF
+
+
+def _element_width(dd: DeviceDescriptor, element_id: int) -> float | None:
+    for b in dd.find(pdm.DDI_ACTUAL_WORKING_WIDTH):
+        if b.element_id == element_id and isinstance(b.pd, Property):
+            return b.pd.value / 1000.0
+    return None
 
 
 class IsobusImplement:
