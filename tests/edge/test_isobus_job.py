@@ -148,3 +148,49 @@ def test_tc_status_announces_the_running_task():
     assert status_bytes() == [1]  # announced at once when the job starts
     pair.close()
     sniff.shutdown()
+
+
+def test_a_lost_client_that_comes_back_is_driven_again():
+    from fieldrx_edge.isobus.network import Node
+    from fieldrx_edge.isobus.pair import ecu_name
+    from fieldrx_edge.isobus.rate_ecu import RateEcu
+    from fieldrx_edge.isobus.transport import open_bus
+    from fieldrx_edge.metering import calibration_from_dict
+
+    from .test_isobus_network import channel
+
+    job = trial_plot()
+    ch = channel()
+    pair = IsobusPair(job, channel=ch)
+    pair.connect()
+
+    class D:
+        def __init__(self) -> None:
+            self.target_rate_kg_ha, self.metering, self.speed_m_s = 700.0, True, 2.0
+            self.target_rpm, self.reason, self.alarms = 80.0, "metering", []
+
+    t = 0.0
+    pair.drop_ecu()
+    while t < 7.0:
+        pair.step(t, D(), 0.0)
+        t += 0.1
+    assert "isobus_client_lost" in pair.tc.alarm_list()
+    # the implement is plugged in again (same NAME): a new node on the bus
+    node = Node(open_bus(f"virtual:{ch}"), ecu_name(), 0x80, pair.clock, "ecu2")
+    ecu = RateEcu(node, calibration_from_dict(job.calibration), job.implement_width_m)
+    node.start()
+    d = D()
+    while t < 12.0 and not (ecu.connected and ecu.target_rpm > 0):
+        d = D()
+        pair.step(t, d, 0.0)
+        for _ in range(10):
+            node.poll(0.0)
+            ecu.update(0.0)
+            pair.tc_node.poll(0.0)
+            pair.tc.update()
+        t += 0.1
+    assert ecu.connected and ecu.target_rpm > 0
+    assert pair.tc.client is not None and "isobus_client_lost" not in pair.tc.alarm_list()
+    assert d.metering and "isobus_no_client" not in d.alarms
+    node.close()
+    pair.close()
