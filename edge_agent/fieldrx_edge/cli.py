@@ -6,6 +6,9 @@
     fieldrx-edge run JOB_ID --source tcp:192.168.1.5:2101 --mqtt 127.0.0.1:1884
     fieldrx-edge simulate JOB.json|demo:35x23|demo:20ha --speed 3-9km/h --gnss-noise 0.02 \
         --controller ladrc --lag-compensation on [--seed N] [--server URL --token T] --json
+    fieldrx-edge run JOB_ID --source ... --implement isobus --can socketcan:can0
+    fieldrx-edge ecu --can pcan:PCAN_USBBUS1 [--job JOB_ID|FILE] [--motor serial:/dev/ttyUSB0]
+    fieldrx-edge simulate demo:35x23 --implement isobus      (TC -> virtual CAN -> rate ECU)
     fieldrx-edge replay-nmea LOG [--json]
     fieldrx-edge ndvi file:ndvi.csv [--gnss SRC | --speed-kmh 6] [--machine-id N] [--json]
 
@@ -129,11 +132,15 @@ def cmd_run(a: argparse.Namespace) -> int:
     if a.controller:
         settings = dataclasses.replace(settings, name=a.controller, params={})
     period = settings.period_s or 0.01
-    if a.motor == "sim":
-        driver: Any = simulated_motor(period)
+    motor: Any
+    if a.implement == "isobus":
+        motor = _isobus_implement(a, job)
     else:
-        driver = SerialMotorDriver(a.motor.removeprefix("serial:"))
-    motor = MotorLoop(build_controller(settings), driver, period)
+        if a.motor == "sim":
+            driver: Any = simulated_motor(period)
+        else:
+            driver = SerialMotorDriver(a.motor.removeprefix("serial:"))
+        motor = MotorLoop(build_controller(settings), driver, period)
     lines_done = int(progress.get("source_lines", 0)) if a.source.startswith("file:") else 0
     state = {"lines": lines_done}
 
@@ -205,12 +212,133 @@ def cmd_run(a: argparse.Namespace) -> int:
         sender.close()
     out = {
         "job_id": job.job_id,
+        "implement": a.implement,
         "records": agent.records,
         "finished_cells": len(progress.get("finished", [])),
         "queue": queue.stats(),
         "drained": drained,
         "parse": agent.parser.stats.to_dict(),
         "wall_s": round(time.monotonic() - t0, 2),
+    }
+    if a.implement == "isobus":
+        out["isobus"] = _isobus_stats(motor.tc)
+        motor.tc.node.close()
+    print(json.dumps(out))
+    return 0
+
+
+# -- ISOBUS -------------------------------------------------------------------
+
+
+def _address(v: str) -> int:
+    """A source address, decimal or 0x.., 0..253 (254 and 255 are NULL and global)."""
+    try:
+        n = int(v, 0)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"bad address {v!r}") from None
+    if not 0 <= n <= 253:
+        raise argparse.ArgumentTypeError(f"address {v!r} outside 0..253")
+    return n
+
+
+def _open_can(a: argparse.Namespace) -> Any:
+    """The ``--can`` bus, or a clear exit naming the option and what failed."""
+    from fieldrx_edge.isobus.transport import CanSpecError, open_bus
+
+    try:
+        return open_bus(a.can, a.can_bitrate)
+    except CanSpecError as e:
+        raise SystemExit(str(e)) from None
+    except Exception as e:  # python-can: no such interface, driver or device
+        raise SystemExit(f"--can {a.can}: cannot open the CAN interface: {e}") from None
+
+
+def _isobus_implement(a: argparse.Namespace, job: JobPackage) -> Any:
+    """The TC server on ``--can`` standing where the motor loop stands."""
+    from fieldrx_edge.isobus.network import Node
+    from fieldrx_edge.isobus.pair import tc_name
+    from fieldrx_edge.isobus.tc_server import IsobusImplement, TaskControllerServer
+
+    if not a.can:
+        raise SystemExit("--implement isobus needs --can INTERFACE:CHANNEL (e.g. socketcan:can0)")
+    node = Node(_open_can(a), tc_name(), a.tc_address, label="tc")
+    tc = TaskControllerServer(node, implement_width_m=job.implement_width_m, density_kg_l=a.density)
+    return IsobusImplement(tc)
+
+
+def _isobus_stats(tc: Any) -> dict[str, Any]:
+    c = tc.client
+    return {
+        "address": tc.node.address,
+        "client": None
+        if c is None
+        else {
+            "address": c.address,
+            "kind": c.kind,
+            "sections": c.n_sections,
+            "actual_rate_kg_ha": c.actual_rate_kg_ha,
+            "actual_rpm": c.actual_rpm,
+        },
+        "alarms": tc.alarm_list(),
+        "setpoints_sent": tc.setpoints_sent,
+        "values_rx": tc.values_rx,
+        "bus": tc.node.stats.to_dict(),
+    }
+
+
+def cmd_ecu(a: argparse.Namespace) -> int:
+    """The rate ECU: the motor loop as an ISOBUS TC client, until Ctrl-C or --duration."""
+    from fieldrx_edge.isobus.network import Node
+    from fieldrx_edge.isobus.pair import ecu_name
+    from fieldrx_edge.isobus.rate_ecu import RateEcu, run_ecu
+    from fieldrx_edge.metering import LinearCalibration, calibration_from_dict
+    from fieldrx_edge.motor import MotorLoop, SerialMotorDriver, build_controller, simulated_motor
+    from fieldrx_edge.protocol import ControllerSettings
+
+    if a.job:
+        job = _load_job(a.job, JobStore(a.state_dir))
+        cal: Any = calibration_from_dict(job.calibration)
+        width = a.width or job.implement_width_m
+        settings = job.controller
+    else:
+        cal, width = LinearCalibration(), a.width or 2.3
+        settings = ControllerSettings(name="ladrc")
+    if a.controller:
+        settings = dataclasses.replace(settings, name=a.controller, params={})
+    period = settings.period_s or 0.01
+    driver: Any = (
+        simulated_motor(period)
+        if a.motor == "sim"
+        else SerialMotorDriver(a.motor.removeprefix("serial:"))
+    )
+    motor = MotorLoop(build_controller(settings), driver, period)
+    node = Node(_open_can(a), ecu_name(a.identity), a.address, label="ecu")
+    ecu = RateEcu(node, cal, width, a.sections)
+    stop = threading.Event()
+    mstop = threading.Event()
+    mth = threading.Thread(target=motor.run, args=(mstop,), daemon=True)
+    mth.start()
+    if a.duration > 0:
+        threading.Timer(a.duration, stop.set).start()
+    node.start()
+    try:
+        run_ecu(ecu, motor, stop, period)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        mstop.set()
+        mth.join(timeout=2.0)
+        node.close()
+    out = {
+        "address": node.address,
+        "state": ecu.state,
+        "tc_address": ecu.tc_addr,
+        "pool_bytes": len(ecu.pool),
+        "setpoints_rx": ecu.setpoints_rx,
+        "rate_kg_ha": ecu.rate_kg_ha(),
+        "sections": ecu.sections(),
+        "alarms": sorted(ecu.alarms | node.alarms),
+        "bus": node.stats.to_dict(),
     }
     print(json.dumps(out))
     return 0
@@ -237,6 +365,13 @@ def cmd_simulate(a: argparse.Namespace) -> int:
         gnss_hz=a.gnss_hz,
         realtime=a.realtime,
     )
+    pair = None
+    if a.implement == "isobus":
+        from fieldrx_edge.isobus.pair import IsobusPair
+
+        pair = IsobusPair(job, sections=a.sections)
+        pair.connect()
+        cfg = dataclasses.replace(cfg, implement=pair)
     sink = None
     sender = queue = None
     if a.server:
@@ -266,10 +401,16 @@ def cmd_simulate(a: argparse.Namespace) -> int:
     res_u = None
     if a.lag_compensation:
         res_u = simulate(
-            job, dataclasses.replace(cfg, lag_compensation=False), max_runs=a.compare_runs
+            job,
+            dataclasses.replace(cfg, lag_compensation=False, implement=None),
+            max_runs=a.compare_runs,
         )
     out = summary(res, res_u if res_u is not None else res, cfg, job)
     out["uncompensated_runs"] = a.compare_runs if res_u is not None else "all"
+    out["implement"] = a.implement
+    if pair is not None:
+        out["isobus"] = _isobus_stats(pair.tc)
+        pair.close()
     if res_u is None:
         out["uncompensated_borders"] = out["lag_borders"]
     if sender is not None and queue is not None:
@@ -456,6 +597,23 @@ def cmd_ndvi(a: argparse.Namespace) -> int:
     return 0
 
 
+CAN_HELP = (
+    "socketcan:can0, pcan:PCAN_USBBUS1, slcan:/dev/ttyACM0@500000, "
+    "socketcand:HOST:PORT:CHANNEL, virtual:NAME (any python-can interface:channel)"
+)
+
+
+def _isobus_args(sp: argparse.ArgumentParser) -> None:
+    sp.add_argument(
+        "--implement",
+        choices=("motor", "isobus"),
+        default="motor",
+        help="motor: --motor drives the meter; isobus: act as Task Controller on --can",
+    )
+    sp.add_argument("--can", help=CAN_HELP)
+    sp.add_argument("--can-bitrate", type=int, default=250_000, help="ISOBUS: 250000")
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="fieldrx-edge",
@@ -502,7 +660,26 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--early-start", action="store_true", help="anticipate shaft spin-up")
     sp.add_argument("--min-fix-quality", type=int, default=1, help="GGA quality (4 = RTK fixed)")
     sp.add_argument("--max-hdop", type=float, default=5.0, help="0 disables the HDOP check")
+    _isobus_args(sp)
+    sp.add_argument("--tc-address", type=_address, default=0xF7, help="preferred TC source address")
+    sp.add_argument(
+        "--density", type=float, help="kg/l: lets volume-rate implements (DDI 1) be driven"
+    )
     sp.set_defaults(func=cmd_run)
+
+    sp = sub.add_parser("ecu", help="rate ECU: the motor loop as an ISOBUS TC client")
+    sp.add_argument("--can", required=True, help=CAN_HELP)
+    sp.add_argument("--can-bitrate", type=int, default=250_000)
+    sp.add_argument("--job", help="job (id or file) for calibration, width and controller")
+    sp.add_argument("--state-dir")
+    sp.add_argument("--width", type=float, help="working width m (default: the job's, else 2.3)")
+    sp.add_argument("--sections", type=int, default=1)
+    sp.add_argument("--motor", default="sim", help="sim or serial:DEV")
+    sp.add_argument("--controller")
+    sp.add_argument("--address", type=_address, default=0x80, help="preferred source address")
+    sp.add_argument("--identity", type=int, default=0x2A2, help="NAME identity number")
+    sp.add_argument("--duration", type=float, default=0.0, help="stop after S seconds (0: never)")
+    sp.set_defaults(func=cmd_ecu)
 
     sp = sub.add_parser("simulate", help="drive a job in simulation")
     sp.add_argument("job", help="package file, or demo:35x23 / demo:20ha")
@@ -524,6 +701,13 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--cells-out")
     sp.add_argument("--json", action="store_true")
     sp.add_argument("--verbose", action="store_true")
+    sp.add_argument(
+        "--implement",
+        choices=("direct", "isobus"),
+        default="direct",
+        help="isobus: the motor sits behind a rate ECU, driven by the TC over a virtual CAN bus",
+    )
+    sp.add_argument("--sections", type=int, default=1, help="isobus: sections of the rate ECU")
     sp.set_defaults(func=cmd_simulate)
 
     sp = sub.add_parser("replay-nmea", help="parse a receiver log and report")

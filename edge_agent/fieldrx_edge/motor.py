@@ -12,7 +12,7 @@ import logging
 import math
 import threading
 import time
-from typing import Any
+from typing import Any, Protocol, runtime_checkable
 
 from fieldrx_edge.control import make_controller
 from fieldrx_edge.plants.motor import MotorDriver, SerialMotorDriver, SimulatedMotor
@@ -20,6 +20,7 @@ from fieldrx_edge.plants.seeds import seed001_motor
 from fieldrx_edge.protocol import ControllerSettings
 
 __all__ = [
+    "MeteringImplement",
     "MotorDriver",
     "MotorLoop",
     "SerialMotorDriver",
@@ -42,6 +43,21 @@ DEFAULT_PARAMS: dict[str, dict[str, Any]] = {
     "isp": {"kp": 0.15, "ki": 0.32, "kd": 0.07},
     "fuzzy_pid": {"kp": 1.15, "ki": 15.16, "kd": 0.01},
 }
+
+
+@runtime_checkable
+class MeteringImplement(Protocol):
+    """What the runtime's ``Agent`` drives: a ``MotorLoop`` here, or an implement behind
+    ISOBUS (``isobus.tc_server.IsobusImplement``). ``setpoint_rpm`` is written and
+    ``rpm``/``duty`` read at every fix; ``run`` is the implement's own thread. An
+    implement that also has ``on_decision(decision)`` receives the whole decision (rate,
+    metering on/off, speed) and may add alarms to it before the record is made."""
+
+    setpoint_rpm: float
+    rpm: float
+    duty: float
+
+    def run(self, stop: threading.Event) -> None: ...
 
 
 def simulated_motor(dt: float) -> SimulatedMotor:

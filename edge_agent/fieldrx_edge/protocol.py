@@ -228,6 +228,15 @@ ALARMS = (
     "rate_error",  # applied rate off target beyond tolerance
     "outside_field",  # machine outside the boundary: metering stopped
     "motor_saturated",  # controller output at its limit
+    # ISOBUS implement (fieldrx_edge.isobus): the TC server's view of the bus and client
+    "isobus_no_client",  # no implement connected: nothing is metered
+    "isobus_client_lost",  # the connected implement went silent: metering paused
+    "isobus_wrong_ddop",  # an implement's device description cannot be driven
+    "isobus_pdack_error",  # the implement refused a process data command
+    "isobus_width_mismatch",  # implement working width differs from the job's
+    "isobus_bus_off",  # CAN send/receive failing
+    "isobus_address_lost",  # our address was taken by a higher-priority NAME
+    "isobus_address_conflict",  # another node transmitted with our address
 )
 
 

@@ -479,6 +479,8 @@ class Agent:
 
     def _emit(self, d: Decision, fix: Fix | None, down: bool, t: float) -> None:
         self.motor.setpoint_rpm = d.target_rpm if d.metering else 0.0
+        if hasattr(self.motor, "on_decision"):  # an ISOBUS implement takes rate + sections
+            self.motor.on_decision(d)
         if self.records % 20 == 0:
             self._backlog = self.queue.backlog()  # one query per 20 records is plenty
         rec = make_record(

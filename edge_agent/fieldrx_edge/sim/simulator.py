@@ -36,6 +36,9 @@ class SimConfig:
     gnss_hz: float = 10.0
     motor_hz: float = 100.0
     controller: str | None = None  # None: the job's controller
+    # None: the agent drives the motor directly. Else an object whose step(t, decision,
+    # actual_rpm) returns the shaft target, e.g. isobus.pair.IsobusPair (TC -> CAN -> ECU)
+    implement: Any = None
     lag_compensation: bool = True
     seed: int = 0
     accel_m_s2: float = 0.5
@@ -431,6 +434,8 @@ def simulate(
         down = fdown[j]
         d = pos(k0 * dt, fxl[j], fyl[j], fvl[j], fcl[j], down)
         sp = d.target_rpm if d.metering else 0.0
+        if cfg.implement is not None:
+            sp = cfg.implement.step(k0 * dt, d, y)
         if sink is not None:
             if pace > 0:
                 ahead = wall_start + k0 * dt / pace - time.time()
