@@ -4,6 +4,9 @@ The body is parsed with orjson and validated per record (not through a
 pydantic model, which costs several times more per record); a bad record is
 rejected on its own with a reason, the rest is stored (fieldrx.fleet.ingest).
 Records naming another machine than the device token's are rejected one by one.
+The batch names its stream (telemetry format 2: ``{"format": 2, "stream": id,
+"stream_start": n, "records": [...]}``); a batch without one (format 1) is the
+machine's legacy stream.
 
 Authentication: ``Authorization: Bearer <device token>`` with the same rules
 as every endpoint (401 unknown/revoked/expired, 403 for a person's token),
@@ -19,7 +22,7 @@ from starlette.concurrency import run_in_threadpool
 from fieldrx.api.common import ApiError
 from fieldrx.fleet.auth import device_of
 from fieldrx.fleet.db import raw_connection
-from fieldrx.fleet.ingest import IngestError, IngestResult, ingest, parse_body
+from fieldrx.fleet.ingest import IngestError, IngestResult, ingest, parse_batch
 
 router = APIRouter(tags=["telemetry"])
 
@@ -50,12 +53,15 @@ def _ingest(token: str, body: bytes) -> IngestResult:
         if kind != "device" or machine_id is None:
             raise HTTPException(status.HTTP_403_FORBIDDEN, "a device token is required")
         try:
-            records = parse_body(body)
+            batch = parse_batch(body)
         except IngestError as exc:
             raise ApiError(422, str(exc)) from exc
-        if len(records) > MAX_RECORDS:
-            raise ApiError(413, f"at most {MAX_RECORDS} records per request, got {len(records)}")
-        return ingest(conn, machine_id, records)
+        n = len(batch.records)
+        if n > MAX_RECORDS:
+            raise ApiError(413, f"at most {MAX_RECORDS} records per request, got {n}")
+        return ingest(
+            conn, machine_id, batch.records, batch.stream, batch.stream_start, batch.streamed
+        )
 
 
 @router.post(
