@@ -15,11 +15,17 @@ checked on the ingest connection in one statement (fieldrx.fleet.auth).
 
 from __future__ import annotations
 
+import datetime as dt
+
 from fastapi import APIRouter, HTTPException, Request, status
 from fastapi.responses import Response
+from pydantic import BaseModel
+from sqlalchemy import select
 from starlette.concurrency import run_in_threadpool
 
-from fieldrx.api.common import ApiError
+from fieldrx.api.common import ApiError, get_scoped
+from fieldrx.auth.deps import SessionDep, UserDep
+from fieldrx.db.models import Machine, TelemetryStream
 from fieldrx.fleet.auth import device_of
 from fieldrx.fleet.db import raw_connection
 from fieldrx.fleet.ingest import IngestError, IngestResult, ingest, parse_batch
@@ -78,3 +84,46 @@ async def post_telemetry(request: Request) -> Response:
     body = await request.body()
     result = await run_in_threadpool(_ingest, token, body)
     return Response(content=result.to_json(), media_type="application/json")
+
+
+class StreamOut(BaseModel):
+    """One agent queue's numbering of a machine's telemetry (stream '' = legacy agents)."""
+
+    stream: str
+    first_seq: int
+    acked_seq: int
+    n_records: int
+    first_seen_at: dt.datetime
+    last_seen_at: dt.datetime
+    first_t: dt.datetime | None
+    last_t: dt.datetime | None
+
+
+@router.get(
+    "/machines/{machine_id:int}/telemetry-streams",
+    response_model=list[StreamOut],
+    summary="The machine's telemetry streams (one per agent queue), most recent first",
+)
+def list_streams(machine_id: int, principal: UserDep, session: SessionDep) -> list[StreamOut]:
+    """A new stream appears when an agent's queue is replaced (new tablet, wiped state);
+    two streams sending at the same time are two agents with one device token (the
+    ``duplicate_stream`` alert). Every stream's records are kept."""
+    get_scoped(session, Machine, machine_id, principal)
+    rows = session.scalars(
+        select(TelemetryStream)
+        .where(TelemetryStream.machine_id == machine_id)
+        .order_by(TelemetryStream.last_seen_at.desc())
+    )
+    return [
+        StreamOut(
+            stream=r.stream,
+            first_seq=r.first_seq,
+            acked_seq=r.acked_seq,
+            n_records=r.n_records,
+            first_seen_at=r.first_seen_at,
+            last_seen_at=r.last_seen_at,
+            first_t=r.first_t,
+            last_t=r.last_t,
+        )
+        for r in rows
+    ]
