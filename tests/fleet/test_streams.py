@@ -105,7 +105,6 @@ def test_two_simulations_without_state_dir_store_both_jobs(
     for sim in sims:
         assert sim["telemetry_drained"] is True
         assert sim["telemetry"]["rejected"] == 0
-    assert sims[0]["telemetry"]["stream"] != sims[1]["telemetry"]["stream"]
     reports = [c.get(f"/api/v1/jobs/{j}/report").json() for j in (j1, j2)]
     for sim, rep in zip(sims, reports, strict=True):
         assert rep["n_records"] == sim["telemetry"]["last_seq"] > 1000
@@ -113,6 +112,7 @@ def test_two_simulations_without_state_dir_store_both_jobs(
     # same seed, same package: the two jobs' reports agree
     assert reports[1]["applied_total_kg"] == pytest.approx(reports[0]["applied_total_kg"], 1e-6)
     assert c.get(f"/api/v1/jobs/{j2}").json()["state"] == "completed"
+    assert sims[0]["telemetry"]["stream"] != sims[1]["telemetry"]["stream"]
     machine = c.get(f"/api/v1/jobs/{j2}").json()["machine_id"]
     streams = c.get(f"/api/v1/machines/{machine}/telemetry-streams").json()
     assert sorted(s["stream"] for s in streams) == sorted(s["telemetry"]["stream"] for s in sims)
@@ -134,9 +134,11 @@ def test_paced_and_unpaced_simulations_report_the_same(
     GNSS period apart and the report integrated 1/realtime of the mass."""
     c = httpx.Client(base_url=api_url, headers=org.headers(), timeout=60)
     token, (j1, j2) = _plan_jobs(c, 2)
-    fast = _simulate(api_url, token, j1, tmp_path)
+    # one state dir for both runs: this test is about time, not about streams
+    state = ("--state-dir", str(tmp_path / "state"))
+    fast = _simulate(api_url, token, j1, tmp_path, *state)
     t0 = time.monotonic()
-    paced = _simulate(api_url, token, j2, tmp_path, "--realtime", "60")
+    paced = _simulate(api_url, token, j2, tmp_path, "--realtime", "60", *state)
     assert time.monotonic() - t0 >= 0.9 * paced["driven_s"] / 60  # it really was paced
     assert paced["applied_total_kg"] == pytest.approx(fast["applied_total_kg"], rel=1e-9)
     r1, r2 = (c.get(f"/api/v1/jobs/{j}/report").json() for j in (j1, j2))
@@ -150,6 +152,12 @@ def test_paced_and_unpaced_simulations_report_the_same(
 
 def _sender(q: TelemetryQueue, url: str, fx: JobFixture) -> HttpSender:
     return HttpSender(q, url, fx.device_token, batch_size=40, backoff=Backoff(0.01, 0.05))
+
+
+def _count(db, machine_id: int) -> int:  # noqa: ANN001
+    return db.execute(
+        text("SELECT count(*) FROM telemetry WHERE machine_id = :m"), {"m": machine_id}
+    ).scalar_one()
 
 
 def _stored(db, machine_id: int) -> list[tuple[str, int, float]]:  # noqa: ANN001
@@ -173,17 +181,18 @@ def test_queue_wiped_mid_job_loses_nothing(api_url: str, org, db, tmp_path: Path
     s1 = _sender(q1, api_url, fx)
     assert s1.drain(20)
     s1.close()
-    sid1 = q1.stream[0]
+    sid1 = q1.stats().get("stream")
     q1.close()
     shutil.rmtree(tmp_path / "a")  # the state directory is gone mid-job
     q2 = TelemetryQueue(tmp_path / "a" / "queue.sqlite", fx.machine_id)
-    assert q2.last_seq == 0 and q2.stream[0] != sid1
+    assert q2.last_seq == 0
     q2.put_many([record(fx, 0, t=t0 + 6.0 + 0.1 * i, cell=3 + i // 20) for i in range(60)])
     s2 = _sender(q2, api_url, fx)
     assert s2.drain(20)
     s2.close()
+    assert _count(db, fx.machine_id) == 120  # the old code acknowledged q2's 60 unstored
+    assert q2.stream[0] != sid1
     rows = _stored(db, fx.machine_id)
-    assert len(rows) == 120
     assert [r[1] for r in rows] == list(range(1, 61)) * 2
     assert {r[0] for r in rows[:60]} == {sid1} and {r[0] for r in rows[60:]} == {q2.stream[0]}
     assert q2.stats()["rejected"] == 0
@@ -208,8 +217,8 @@ def test_two_agents_with_one_token_both_kept_two_streams_and_an_alert(
     finally:
         for s in senders:
             s.close()
+    assert _count(db, fx.machine_id) == 160
     rows = _stored(db, fx.machine_id)
-    assert len(rows) == 160
     by_stream = {q.stream[0]: [r[1] for r in rows if r[0] == q.stream[0]] for q in qs}
     assert all(sorted(v) == list(range(1, 81)) for v in by_stream.values())
     c = httpx.Client(base_url=api_url, headers=org.headers(), timeout=30)
@@ -246,15 +255,16 @@ def test_restored_queue_conflict_is_heard_and_nothing_is_dropped(
     assert sa.drain(10)
     sa.close()
     qb = TelemetryQueue(tmp_path / "b.sqlite", fx.machine_id)  # restored: numbers 31.. again
-    assert qb.stream[0] == qa.stream[0] and qb.last_seq == 30
+    sid_a = qa.stats().get("stream")
+    assert qb.stats().get("stream") == sid_a and qb.last_seq == 30
     qb.put_many([record(fx, 0, t=t0 + 10.0 + 0.1 * i, cell=2) for i in range(30)])
     sb = _sender(qb, api_url, fx)
     assert sb.drain(10)
     sb.close()
-    assert qb.stream[0] != qa.stream[0]  # moved to a new stream
+    assert _count(db, fx.machine_id) == 90  # the old code acknowledged qb's 30 unstored
+    assert qb.stream[0] != sid_a  # moved to a new stream
     assert qb.reasons()["stream"] == {"stream conflict: switched to a new stream": 1}
     rows = _stored(db, fx.machine_id)
-    assert len(rows) == 90
     assert [r for r in rows if r[0] == qb.stream[0]] == [
         (qb.stream[0], 31 + i, pytest.approx(t0 + 10.0 + 0.1 * i, abs=1e-5)) for i in range(30)
     ]
@@ -276,7 +286,7 @@ def test_wiped_queue_and_second_agent_over_mqtt(database_url: str, org, db, tmp_
         s1 = sender(q1)
         assert s1.drain(20)
         s1.close()
-        sid1 = q1.stream[0]
+        sid1 = q1.stats().get("stream")
         q1.close()
         shutil.rmtree(tmp_path / "a")  # wiped: the next queue numbers from 1 again
         qs = [TelemetryQueue(tmp_path / f"t{k}.sqlite", fx.machine_id) for k in (0, 1)]
@@ -293,8 +303,8 @@ def test_wiped_queue_and_second_agent_over_mqtt(database_url: str, org, db, tmp_
                 s.close()
     finally:
         worker.stop()
+    assert _count(db, fx.machine_id) == 100 + 2 * 75
     rows = _stored(db, fx.machine_id)
-    assert len(rows) == 100 + 2 * 75
     counts = {sid: sum(1 for r in rows if r[0] == sid) for sid in {r[0] for r in rows}}
     assert counts == {sid1: 100, qs[0].stream[0]: 75, qs[1].stream[0]: 75}
     assert all(q.stats()["rejected"] == 0 for q in qs)
