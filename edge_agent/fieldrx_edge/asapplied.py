@@ -17,16 +17,22 @@ from __future__ import annotations
 
 import numpy as np
 
+MISSED_FIX = 1.5  # a gap beyond this many fix periods means fixes were missed
+
 
 def fix_periods(
     t: np.ndarray, period: np.ndarray | None = None, max_gap_s: float = 2.0
 ) -> np.ndarray:
     """Duration (s) each record's metering state lasted, records sorted by time.
 
-    Where a record carries its fix period (finite, > 0) that is its duration.
-    Older records without one last until the next record's time, 0 across a
-    gap longer than ``max_gap_s`` (an outage: nothing is known about it), and
-    the last record lasts the median gap.
+    Records without a fix period (format 1) last until the next record's time,
+    0 across a gap longer than ``max_gap_s`` (an outage: nothing is known about
+    it); the last record lasts the median gap. A record that carries its fix
+    period (finite, > 0) lasts that period, whatever the spacing of the time
+    stamps (jitter, or stamps squeezed together), except where the next record
+    comes clearly later (more than ``MISSED_FIX`` periods, up to ``max_gap_s``):
+    fixes were missed there (the agent holds the last rate through a short loss
+    of fix) and the gap is the duration, as for records without a period.
     """
     t = np.asarray(t, dtype=float)
     n = len(t)
@@ -39,7 +45,8 @@ def fix_periods(
     if period is not None:
         p = np.asarray(period, dtype=float)
         known = np.isfinite(p) & (p > 0)
-        dts = np.where(known, p, dts)
+        missed = known & (dts > MISSED_FIX * np.where(known, p, 0.0))
+        dts = np.where(known & ~missed, p, dts)
     return dts
 
 

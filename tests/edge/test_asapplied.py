@@ -24,3 +24,13 @@ def test_records_without_period_use_the_gap_but_not_across_an_outage() -> None:
     np.testing.assert_allclose(dts, [0.1, 0.1, 0.0, 0.1, 0.1])
     assert len(fix_periods(np.zeros(0))) == 0
     assert fix_periods(np.array([3.0]), np.array([0.2]))[0] == 0.2
+
+
+def test_missed_fixes_extend_a_record_but_jitter_does_not() -> None:
+    t = np.array([0.0, 0.11, 0.19, 0.3, 1.3, 1.4, 9.0])
+    p = np.full(7, 0.1)
+    # jitter: the period; a missed-fix gap (1.0 s, the agent holds its rate): the gap;
+    # an outage beyond max_gap_s: the record's own period
+    np.testing.assert_allclose(
+        fix_periods(t, p, max_gap_s=2.0), [0.1, 0.1, 0.1, 1.0, 0.1, 0.1, 0.1]
+    )
