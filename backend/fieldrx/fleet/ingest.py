@@ -458,7 +458,7 @@ def ingest(
                     conflict = min(clash)
                     result.stream_conflict = True
                     for q in sorted(rows):
-                        if q >= conflict and q not in existing or q in clash:
+                        if (q >= conflict and q not in existing) or q in clash:
                             result.rejected.append({"seq": q, "reason": _conflict_reason(
                                 q, stream, q in clash)})  # fmt: skip
                     rows = {q: r for q, r in rows.items() if q < conflict}
