@@ -62,7 +62,7 @@ def _check(db, q: TelemetryQueue, fx: JobFixture, t0: float) -> None:  # noqa: A
     assert by_seq[7].hdop is None and "invalid_value" in by_seq[7].alarms
     assert by_seq[8].speed_raw_m_s == 0.0 and "invalid_value" in by_seq[8].alarms
     assert by_seq[10].alarms == []
-    rejected = q.reasons()["rejected"]
+    rejected = q.stats()["reasons"]["rejected"]  # what `fieldrx-edge run` prints
     assert sum(rejected.values()) == 2 == q.stats()["rejected"]
     assert any("hdop must be a finite number" in r for r in rejected), rejected
     assert any("ahead of the server clock" in r for r in rejected), rejected

@@ -277,4 +277,5 @@ class TelemetryQueue:
             "dropped": self._meta(con, "dropped"),
             "backlog": last - acked,
             "stream": self.stream[0],
+            "reasons": self.reasons(),  # what `run` / `simulate` print: why records changed
         }
