@@ -163,7 +163,7 @@ class Fleet:
     def body(self, k: int, seq: int, times: list[float]) -> str:
         parts = self._parts[k]
         return (
-            '{"records":['
+            f'{{"format":2,"stream":"bench{k}","stream_start":1,"records":['
             + ",".join(f"{parts[seq + i][0]}{t!r}{parts[seq + i][1]}" for i, t in enumerate(times))
             + "]}"
         )
@@ -199,6 +199,7 @@ class Fleet:
                     "implement_down": True,
                     "alarms": [],
                     "queue_backlog": self.n - seq,
+                    "fix_period_s": dt,
                 }
             )
         return out
@@ -209,18 +210,14 @@ def raw_copy_baseline(url: str, fleet: Fleet) -> float:
     (same columns and indexes; 10,000 rows per COPY, one connection): median of thirds."""
     import psycopg
     from fieldrx.db.session import raw_dsn
-    from fieldrx.fleet.ingest import COPY_TYPES, validate
+    from fieldrx.fleet.ingest import COLUMNS, COPY_TYPES, validate
 
     rows: list[tuple[Any, ...]] = []
     t_now = time.time()
     for k in range(len(fleet.machines)):
         valid, *_ = validate(fleet.records(k, 1, fleet.n, t_now), fleet.machines[k][0])
         rows.extend(valid.values())
-    cols = (
-        "machine_id, seq, t, job_id, geom, fix_quality, hdop, speed_raw_m_s, speed_filtered_m_s,"
-        " heading_deg, cell_seq, target_rate_kg_ha, applied_rate_kg_ha, target_shaft_rpm,"
-        " actual_shaft_rpm, duty, ndvi, depth_mm, implement_down, alarms, queue_backlog"
-    )
+    cols = ", ".join(COLUMNS)
     with psycopg.connect(raw_dsn(url), options="-c jit=off", autocommit=True) as conn:
         conn.execute("CREATE TABLE telemetry_baseline (LIKE telemetry INCLUDING ALL)")
         # same indexes (INCLUDING ALL: primary key, btrees, GiST) and the same foreign key
@@ -495,7 +492,12 @@ def drive_mqtt(
                     r["t"] = start + (seq + i) / fleet.hz
             tstamps[k][seq : seq + count] = [r["t"] for r in recs]
             info = clients[mid].publish(
-                telemetry_topic(mid), json.dumps({"records": recs}, separators=(",", ":")), qos=1
+                telemetry_topic(mid),
+                json.dumps(
+                    {"format": 2, "stream": f"bench{k}", "stream_start": 1, "records": recs},
+                    separators=(",", ":"),
+                ),
+                qos=1,
             )
             if info.rc != mqtt.MQTT_ERR_SUCCESS:
                 raise SystemExit(f"publish failed rc={info.rc}")
@@ -697,7 +699,7 @@ def main() -> int:
 
         with psycopg.connect(raw_dsn(url)) as conn:
             rows, distinct = conn.execute(
-                "SELECT count(*), count(DISTINCT (machine_id, seq)) FROM telemetry"
+                "SELECT count(*), count(DISTINCT (machine_id, stream, seq)) FROM telemetry"
             ).fetchone()
             acked = conn.execute(
                 "SELECT coalesce(sum(acked_seq), 0) FROM machine_status"

@@ -8,8 +8,13 @@ Two messages cross the network:
   work and WGS84 corners for display and cross-checks. A SHA-256 checksum over
   the canonical JSON lets the agent verify what it cached.
 * ``TelemetryRecord`` (tractor -> server): one record per GNSS fix, numbered
-  per machine (``seq``) so the server can deduplicate and acknowledge the
-  highest contiguous number it stored.
+  per stream (``seq``) so the server can deduplicate and acknowledge the
+  highest contiguous number it stored. Records travel in batches
+  (``telemetry_batch``) that name their stream: a random id the agent's queue
+  creates with itself, so a machine whose queue is lost or replaced (new
+  tablet, wiped state, a second agent) starts a new stream instead of reusing
+  numbers the server already holds. The server deduplicates by
+  (machine, stream, seq).
 
 Only the standard library is used here, so the server and the agent share it
 without pulling each other's dependencies.
@@ -20,10 +25,17 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import re
+import uuid
 from dataclasses import asdict, dataclass, field, fields
 from typing import Any
 
 FORMAT_VERSION = 1
+# Telemetry wire format. 1: batches {"records": [...]}, deduplicated by (machine, seq).
+# 2: batches also carry "format", "stream" and "stream_start"; records may carry
+# fix_period_s and the "invalid_value" alarm. A version 1 batch is still accepted
+# (stream "", the machine's legacy stream); a version 2 agent needs a version 2 server.
+TELEMETRY_FORMAT_VERSION = 2
 
 
 class ProtocolError(ValueError):
@@ -237,6 +249,7 @@ ALARMS = (
     "isobus_bus_off",  # CAN send/receive failing
     "isobus_address_lost",  # our address was taken by a higher-priority NAME
     "isobus_address_conflict",  # another node transmitted with our address
+    "invalid_value",  # the agent nulled or clamped a field that broke the protocol (sanitize)
 )
 
 
@@ -244,8 +257,17 @@ ALARMS = (
 class TelemetryRecord:
     """One record per GNSS fix (or per NDVI/depth sample), as stored on the server.
 
-    (machine_id, seq) is the deduplication key; seq starts at 1 and increases
-    by one per record, so the server can acknowledge the highest contiguous seq.
+    (machine_id, stream, seq) is the deduplication key (the stream travels with
+    the batch); seq increases by one per record, so the server can acknowledge
+    the highest contiguous seq of the stream.
+
+    ``t`` is the time of the GNSS fix the record describes (receiver time, unix
+    seconds), never the time the record was written or sent: the as-applied
+    report integrates metered mass over record time. ``fix_period_s`` is the
+    fix period the record stands for (the receiver's fix interval): metering
+    described by this record lasts that long. The report integrates over it
+    when given (``fieldrx_edge.asapplied.fix_periods``), so compressed or
+    stretched time stamps cannot scale the applied mass.
     """
 
     machine_id: int
@@ -270,6 +292,7 @@ class TelemetryRecord:
     implement_down: bool = False
     alarms: list[str] = field(default_factory=list)
     queue_backlog: int = 0
+    fix_period_s: float | None = None  # format 2; absent in format 1 records
 
     def to_dict(self) -> dict[str, Any]:
         return {f: getattr(self, f) for f in TELEMETRY_FIELDS}
@@ -311,11 +334,20 @@ class TelemetryRecord:
                 raise ProtocolError(f"{name} must be a finite number or null, got {v!r}")
         if not isinstance(self.alarms, list) or any(a not in ALARMS for a in self.alarms):
             raise ProtocolError(f"alarms must be a list of {list(ALARMS)}, got {self.alarms!r}")
+        p = self.fix_period_s
+        if p is not None and (
+            not isinstance(p, int | float)
+            or isinstance(p, bool)
+            or not (0.0 < p <= MAX_FIX_PERIOD_S)
+        ):
+            raise ProtocolError(
+                f"fix_period_s must be in (0, {MAX_FIX_PERIOD_S:g}] s or null, got {p!r}"
+            )
 
 
 TELEMETRY_FIELDS: tuple[str, ...] = tuple(f.name for f in fields(TelemetryRecord))
-_FIELD_SET = frozenset(TELEMETRY_FIELDS)
-_FLOAT_FIELDS = (
+FIELD_SET = _FIELD_SET = frozenset(TELEMETRY_FIELDS)
+FLOAT_FIELDS = _FLOAT_FIELDS = (
     "hdop",
     "speed_raw_m_s",
     "speed_filtered_m_s",
@@ -330,15 +362,138 @@ _FLOAT_FIELDS = (
 )
 
 
+MAX_FIX_PERIOD_S = 60.0
+INT4_MAX = 2**31 - 1
+# plausible ranges the agent clamps to before queueing (sanitize_record)
+_CLAMP = {
+    "hdop": (0.0, 99.99),
+    "speed_raw_m_s": (0.0, 100.0),
+    "speed_filtered_m_s": (0.0, 100.0),
+    "target_rate_kg_ha": (0.0, 1.0e5),
+    "applied_rate_kg_ha": (0.0, 1.0e5),
+    "target_shaft_rpm": (0.0, 1.0e5),
+    "actual_shaft_rpm": (-1.0e5, 1.0e5),
+    "duty": (-100.0, 100.0),
+    "ndvi": (-1.0, 1.0),
+    "depth_mm": (-1.0e4, 1.0e4),
+}
+
+
+def _finite(v: Any) -> bool:
+    return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def sanitize_record(rec: dict[str, Any]) -> list[str]:
+    """Make a record the agent is about to queue follow the protocol, in place.
+
+    Returns the reasons (``"field: what"``) for everything changed; an empty
+    list means the record was already clean. Non-finite numbers (a NaN HDOP
+    from a receiver) become null, out-of-range values are clamped or nulled,
+    and the record gets the ``invalid_value`` alarm so the change is visible.
+    A record whose time is unusable cannot be repaired: the reason list then
+    starts with ``"drop: ..."`` and the caller must not queue it. One bad value
+    must never block the records behind it (issue 20).
+    """
+    reasons: list[str] = []
+    t = rec.get("t")
+    if not _finite(t) or t <= 0:
+        return [f"drop: t {t!r} is not a positive finite unix time"]
+    lon, lat = rec.get("lon"), rec.get("lat")
+    if lon is not None or lat is not None:
+        if not (_finite(lon) and _finite(lat) and -180.0 <= lon <= 180.0 and -90.0 <= lat <= 90.0):
+            reasons.append(f"lon/lat: ({lon!r}, {lat!r}) is not a position")
+            rec["lon"] = rec["lat"] = None
+    for name in _FLOAT_FIELDS:
+        v = rec.get(name)
+        if v is None:
+            continue
+        if not _finite(v):
+            reasons.append(f"{name}: {v!r} is not a finite number")
+            rec[name] = None
+            continue
+        if name == "heading_deg":
+            if not 0.0 <= v < 360.0:
+                rec[name] = float(v) % 360.0  # a direction: wrap, not an error
+            continue
+        lo, hi = _CLAMP[name]
+        if v < lo or v > hi:
+            reasons.append(f"{name}: {v!r} clamped to [{lo:g}, {hi:g}]")
+            rec[name] = min(max(float(v), lo), hi)
+    p = rec.get("fix_period_s")
+    if p is not None and not (_finite(p) and 0.0 < p <= MAX_FIX_PERIOD_S):
+        reasons.append(f"fix_period_s: {p!r} is not a fix period")
+        rec["fix_period_s"] = None
+    fq = rec.get("fix_quality", 0)
+    if type(fq) is not int or not 0 <= fq <= 32767:
+        reasons.append(f"fix_quality: {fq!r} is not a GGA quality")
+        rec["fix_quality"] = 0
+    for name in ("job_id", "cell_seq"):
+        v = rec.get(name)
+        if v is not None and (type(v) is not int or not -INT4_MAX <= v <= INT4_MAX):
+            reasons.append(f"{name}: {v!r} is not an integer id")
+            rec[name] = None
+    if rec.get("job_id") is not None and rec["job_id"] <= 0:
+        reasons.append(f"job_id: {rec['job_id']!r} is not a positive id")
+        rec["job_id"] = None
+    b = rec.get("queue_backlog", 0)
+    if type(b) is not int or not 0 <= b <= INT4_MAX:
+        rec["queue_backlog"] = min(max(int(b), 0), INT4_MAX) if _finite(b) else 0
+    if reasons:
+        alarms = [a for a in rec.get("alarms") or [] if a in ALARMS]
+        if "invalid_value" not in alarms:
+            alarms.append("invalid_value")
+        rec["alarms"] = alarms
+    return reasons
+
+
+STREAM_RE = re.compile(r"^[0-9A-Za-z_-]{1,32}$")
+
+
+def new_stream_id() -> str:
+    """A random stream id (128 bits): unique per queue, without any registry."""
+    return uuid.uuid4().hex
+
+
+def telemetry_batch_json(stream: str, stream_start: int, records_json: list[str]) -> bytes:
+    """A format 2 batch from records already serialised (the queue stores JSON text).
+
+    ``stream_start`` is the stream's first seq: the server starts the stream's
+    acknowledgement just below it (an older queue migrated to streams goes on
+    numbering where it was)."""
+    head = (
+        f'{{"format":{TELEMETRY_FORMAT_VERSION},"stream":"{stream}",'
+        f'"stream_start":{int(stream_start)},"records":['
+    )
+    return (head + ",".join(records_json) + "]}").encode()
+
+
 @dataclass
 class TelemetryAck:
-    """Server -> agent: everything up to ``acked_seq`` is stored; rejected records with reasons."""
+    """Server -> agent: everything up to ``acked_seq`` of ``stream`` is stored (or rejected for
+    good); rejected records with reasons.
+
+    ``stream_conflict``: seqs of this batch are already stored on this stream with
+    different content (the queue's numbering went backwards: restored or cloned
+    state). Nothing from there on was stored; the agent must continue on a new
+    stream (``TelemetryQueue.new_stream``). ``stream`` and ``stream_conflict`` are
+    sent to format 2 agents only (a format 1 agent would not know them).
+    """
 
     machine_id: int
     acked_seq: int
     stored: int = 0
     duplicates: int = 0
     rejected: list[dict[str, Any]] = field(default_factory=list)  # {"seq": n, "reason": "..."}
+    stream: str = ""
+    stream_conflict: bool = False
+
+    @classmethod
+    def from_dict(cls, obj: dict[str, Any]) -> TelemetryAck:
+        """Parse an ack, ignoring fields a newer server may add."""
+        return cls(**{k: v for k, v in obj.items() if k in _ACK_FIELDS})
+
+
+_ACK_FIELDS = frozenset(f.name for f in fields(TelemetryAck))
 
 
 def telemetry_topic(machine_id: int) -> str:

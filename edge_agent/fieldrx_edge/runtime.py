@@ -46,6 +46,7 @@ log = logging.getLogger(__name__)
 
 SATURATED_DUTY_PCT = 99.5  # controller output at its 100 % limit
 TURN_COS = math.cos(math.radians(25.0))  # heading this far off the run's next cell: a turn
+MAX_PERIOD_S = 2.0  # a longer interval between fixes is an outage, not a fix period
 
 
 @dataclass
@@ -390,8 +391,12 @@ def make_record(
     t: float,
     backlog: int = 0,
     ndvi: float | None = None,
+    fix_period_s: float | None = None,
 ) -> dict[str, Any]:
-    """Telemetry record body (seq and machine_id are set by the queue)."""
+    """Telemetry record body (seq and machine_id are set by the queue).
+
+    ``t`` is the fix time (``TelemetryRecord``: receiver time of the fix, not the
+    time the record is written) and ``fix_period_s`` the fix interval it stands for."""
     alarms = list(d.alarms)
     if d.metering and duty >= SATURATED_DUTY_PCT:
         alarms.append("motor_saturated")
@@ -422,6 +427,7 @@ def make_record(
         implement_down=implement_down,
         alarms=alarms,
         queue_backlog=backlog,
+        fix_period_s=fix_period_s,
     )
     return rec.to_dict()
 
@@ -451,6 +457,7 @@ class Agent:
         self._backlog = 0
         self.lines = 0
         self._last_fix_wall = time.monotonic()
+        self._last_fix_t: float | None = None
 
     def _cell_done(self, idx: int) -> None:
         self._finished.append(idx)
@@ -465,10 +472,14 @@ class Agent:
         fixes = self.parser.feed(line) if line else []
         for fix in fixes:
             self._last_fix_wall = now_wall
+            # record time = the fix's own time (receiver clock); the period it stands for
+            # is the receiver's fix interval, measured between consecutive fixes
             t = fix.t if fix.t is not None else time.time()
+            prev, self._last_fix_t = self._last_fix_t, t
+            period = t - prev if prev is not None and 0.0 < t - prev <= MAX_PERIOD_S else None
             down = self.implement_down()
             d = self.pipe.on_fix(fix, now_wall, down)
-            self._emit(d, fix, down, t)
+            self._emit(d, fix, down, t, period)
             n += 1
         if not fixes and now_wall - self._last_fix_wall > self.pipe.cfg.fix_timeout_s:
             self._last_fix_wall = now_wall  # one no-fix record per timeout period
@@ -477,14 +488,24 @@ class Agent:
             n += 1
         return n
 
-    def _emit(self, d: Decision, fix: Fix | None, down: bool, t: float) -> None:
+    def _emit(
+        self, d: Decision, fix: Fix | None, down: bool, t: float, period: float | None = None
+    ) -> None:
         self.motor.setpoint_rpm = d.target_rpm if d.metering else 0.0
         if hasattr(self.motor, "on_decision"):  # an ISOBUS implement takes rate + sections
             self.motor.on_decision(d)
         if self.records % 20 == 0:
             self._backlog = self.queue.backlog()  # one query per 20 records is plenty
         rec = make_record(
-            self.pipe, d, fix, self.motor.rpm, self.motor.duty, down, t, self._backlog
+            self.pipe,
+            d,
+            fix,
+            self.motor.rpm,
+            self.motor.duty,
+            down,
+            t,
+            self._backlog,
+            fix_period_s=period,
         )
         self.queue.put(rec)
         self.records += 1

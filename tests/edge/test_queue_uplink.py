@@ -223,3 +223,85 @@ def test_edge_cli_mqtt_logs_in_with_its_device_token(tmp_path):
         assert sorted(srv.records) == list(range(1, 31))
     finally:
         srv.stop()
+
+
+# issue 11 (streams) and issue 20 (nothing the protocol forbids is queued) ------------------
+
+
+def test_queue_never_holds_a_record_the_protocol_forbids(tmp_path):
+    q = TelemetryQueue(tmp_path / "q.sqlite", machine_id=3)
+    seqs = q.put_many(
+        [
+            {**rec(0), "hdop": float("nan")},
+            {**rec(1), "lon": float("inf")},
+            {**rec(2), "t": float("nan")},  # no time: cannot be repaired
+            {**rec(3), "duty": 250.0, "heading_deg": -90.0, "alarms": ["fix_lost"]},
+            rec(4),
+        ]
+    )
+    assert seqs == [1, 2, 3, 4]  # numbering stays contiguous around the dropped record
+    body, n, last = q.pending_batch(10)
+    obj = json.loads(body, parse_constant=lambda c: pytest.fail(f"{c} on the wire"))
+    assert (n, last) == (4, 4)
+    r1, r2, r3, r4 = obj["records"]
+    assert r1["hdop"] is None and r1["alarms"] == ["invalid_value"]
+    assert r2["lon"] is None and r2["lat"] is None and "invalid_value" in r2["alarms"]
+    assert r3["duty"] == 100.0 and r3["heading_deg"] == 270.0
+    assert r3["alarms"] == ["fix_lost", "invalid_value"]
+    assert "invalid_value" not in r4.get("alarms", [])
+    st = q.stats()
+    assert (st["sanitized"], st["dropped"], st["last_seq"]) == (3, 1, 4)
+    reasons = q.reasons()
+    assert reasons["sanitized"] == {"hdop": 1, "lon/lat": 1, "duty": 1}
+    assert list(reasons["dropped"]) == ["drop: t nan is not a positive finite unix time"]
+
+
+def test_queue_streams_and_acks_of_other_streams(tmp_path):
+    q = TelemetryQueue(tmp_path / "q.sqlite", machine_id=3)
+    sid, start = q.stream
+    assert len(sid) == 32 and start == 1
+    q.put_many([rec(i) for i in range(10)])
+    body = json.loads(q.pending_batch(4)[0])
+    assert (body["format"], body["stream"], body["stream_start"]) == (2, sid, 1)
+    assert [r["seq"] for r in body["records"]] == [1, 2, 3, 4]
+    assert q.ack(8, stream="another-agent") == 0  # not this queue's stream
+    assert q.ack(4, stream=sid, rejected=[{"seq": 2, "reason": "bad"}]) == 4
+    assert q.reasons()["rejected"] == {"bad": 1} and q.stats()["rejected"] == 1
+    new = q.new_stream()
+    assert q.stream == (new, 5) and new != sid
+    assert json.loads(q.pending_batch(10)[0])["stream_start"] == 5
+    assert q.ack(10, stream=sid) == 0  # a late ack of the stream it left
+    q.close()
+    assert TelemetryQueue(tmp_path / "q.sqlite", machine_id=3).stream == (new, 5)
+    assert TelemetryQueue(tmp_path / "other.sqlite", machine_id=3).stream[0] != new
+
+
+def test_queue_database_from_before_streams_migrates(tmp_path):
+    """A tractor's queue written by the format 1 agent keeps its pending records; they go on
+    a new stream that starts after the acknowledged seq (nothing stored is sent again)."""
+    import sqlite3
+
+    path = tmp_path / "old.sqlite"
+    con = sqlite3.connect(path)
+    con.executescript(
+        """
+        CREATE TABLE records (seq INTEGER PRIMARY KEY, body TEXT NOT NULL);
+        CREATE TABLE meta (key TEXT PRIMARY KEY, value INTEGER NOT NULL);
+        INSERT INTO meta VALUES ('last_seq', 10), ('acked_seq', 6), ('rejected', 1),
+            ('machine_id', 9);
+        """
+    )
+    for s in range(7, 11):
+        con.execute(
+            "INSERT INTO records VALUES (?, ?)",
+            (s, json.dumps({**rec(s), "machine_id": 9, "seq": s, "hdop": float("nan")})),
+        )
+    con.commit()
+    con.close()
+    q = TelemetryQueue(path, machine_id=9)
+    st = q.stats()
+    assert (st["last_seq"], st["acked_seq"], st["rejected"], st["backlog"]) == (10, 6, 1, 4)
+    assert q.stream[1] == 7
+    body = q.pending_batch(10)[0].decode()
+    assert '"stream_start":7' in body and body.count("NaN") == 4  # sent as queued
+    assert q.put(rec(11)) == 11

@@ -167,3 +167,36 @@ def test_edge_stop_anticipates_the_coast_down():
     assert pipe(job, **cfg).on_position(0.0, x, OY + 1.15, 2.0, EAST).metering
     d = pipe(job, stop_extra_s=0.1, **cfg).on_position(0.0, x, OY + 1.15, 2.0, EAST)
     assert not d.metering and d.reason == "edge_ahead"
+
+
+def test_agent_records_carry_fix_time_and_period_and_never_a_nan(tmp_path):
+    """Issue 11: a record's t is the receiver's fix time and fix_period_s the fix interval,
+    however fast the lines arrive. Issue 20: a GGA with HDOP 'nan' never puts a NaN in the
+    queue (the batch on the wire is strict JSON)."""
+    import json
+
+    from fieldrx_edge.runtime import Agent
+    from fieldrx_edge.sim import nmea
+    from fieldrx_edge.uplink import TelemetryQueue
+
+    class Motor:
+        rpm = 0.0
+        duty = 0.0
+        setpoint_rpm = 0.0
+
+    job = trial_plot()
+    q = TelemetryQueue(tmp_path / "q.sqlite", job.machine_id)
+    agent = Agent(job, q, Motor(), RuntimeConfig())
+    t0 = 1_763_700_000.0
+    for i in range(20):
+        t, lat, lon = t0 + 0.1 * i, 52.3 + 1e-6 * i, 15.0
+        gga = nmea.gga(t, lat, lon, hdop=float("nan") if i == 7 else 0.7)
+        agent.handle_line(gga)
+        agent.handle_line(nmea.rmc(t, lat, lon, 1.5, 0.0))
+    body, n, _ = q.pending_batch(100)
+    recs = json.loads(body, parse_constant=lambda c: pytest.fail(f"{c} on the wire"))["records"]
+    assert n == 20
+    assert [r["t"] for r in recs] == pytest.approx([t0 + 0.1 * i for i in range(20)], abs=0.006)
+    assert recs[0]["fix_period_s"] is None
+    assert all(r["fix_period_s"] == pytest.approx(0.1, abs=0.011) for r in recs[1:])
+    assert recs[7]["hdop"] is None and recs[8]["hdop"] == 0.7

@@ -6,6 +6,7 @@ import subprocess
 import sys
 
 import numpy as np
+import pytest
 from fieldrx_edge.sim.simulator import SimConfig, simulate, summary
 
 from .jobfactory import field_20ha, holed_field, trial_plot
@@ -142,15 +143,29 @@ def test_simulate_sends_telemetry_like_an_agent(tmp_path):
         peer.stop()
 
 
-def test_realtime_pacing_stamps_records_with_wall_time():
+def test_realtime_pacing_stamps_records_with_fix_time():
+    """Issue 11: a record's time is its fix time. Paced at 250 x, fixes go out 0.4 ms apart
+    in wall time but are stamped 0.1 s apart (the GNSS period they carry), the drive ends
+    when the paced run ends, and no record is stamped after it was produced."""
     import time
 
     job = trial_plot()
     got = []
+    stamped_late = []
+
+    def sink(batch: list[dict]) -> None:
+        now = time.time()
+        stamped_late.extend(r["t"] - now for r in batch)
+        got.extend(batch)
+
     t0 = time.time()
-    res = simulate(job, SimConfig(realtime=250.0), sink=got.extend)
+    res = simulate(job, SimConfig(realtime=250.0), sink=sink)
     wall = time.time() - t0
     assert wall >= 0.9 * res.duration_s / 250.0
-    ts = [r["t"] for r in got]
-    assert len(ts) == res.n_fixes and ts == sorted(ts)
-    assert t0 - 0.1 <= ts[0] and ts[-1] <= time.time() + 0.1
+    ts = np.array([r["t"] for r in got])
+    assert len(ts) == res.n_fixes and (np.diff(ts) > 0).all()
+    np.testing.assert_allclose(np.diff(ts), 0.1, atol=1e-6)
+    assert all(r["fix_period_s"] == 0.1 for r in got)
+    assert ts[-1] - ts[0] == pytest.approx(res.duration_s, abs=0.2)
+    assert max(stamped_late) <= 0.05  # never stamped in the future
+    assert ts[-1] <= time.time() + 0.05 and ts[-1] >= time.time() - 5.0

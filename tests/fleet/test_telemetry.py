@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import json
+import time
+
+import pytest
 from sqlalchemy import text
 
 from tests.fleet.helpers import make_job, record
@@ -129,3 +133,121 @@ def test_status_cells_and_progress(client, db, job) -> None:  # noqa: ANN001
     ).one()
     assert st.acked_seq == 21 and st.cell_seq == 3
     assert abs(st.lon - job.cells[3]["lon"]) < 1e-9
+
+
+# issue 20 item 2 / issue 11: poison records, future times, streams --------------------------
+
+
+def _raw(client, fx, body: str):  # noqa: ANN001, ANN202
+    return client.post(
+        "/api/v1/telemetry",
+        content=body.encode(),
+        headers={**fx.device_headers, "Content-Type": "application/json"},
+    )
+
+
+def test_nan_and_infinity_tokens_reject_only_their_records(client, db, job) -> None:  # noqa: ANN001
+    """An older agent's queue can hold NaN/Infinity (Python's json.dumps writes them). They
+    used to make the whole batch a 422, forever: that tractor's uplink was blocked."""
+    recs = [json.dumps(record(job, s)) for s in range(1, 6)]
+    recs[1] = json.dumps(record(job, 2, hdop=float("nan")))
+    recs[3] = json.dumps(record(job, 4, speed_raw_m_s=float("inf"), duty=float("-inf")))
+    assert "NaN" in recs[1] and "Infinity" in recs[3]
+    r = _raw(client, job, '{"records": [' + ",".join(recs) + "]}")
+    assert r.status_code == 200, r.text
+    a = r.json()
+    assert (a["stored"], a["acked_seq"]) == (3, 5)
+    reasons = {x["seq"]: x["reason"] for x in a["rejected"]}
+    assert set(reasons) == {2, 4}
+    assert "hdop" in reasons[2] and "finite" in reasons[2]
+    assert "finite" in reasons[4]
+    assert _count(db, job.machine_id) == 3
+    assert set(a) == {"machine_id", "acked_seq", "stored", "duplicates", "rejected"}  # format 1
+
+
+def test_future_record_rejected_and_never_the_latest_state(client, db, job) -> None:  # noqa: ANN001
+    now = time.time()
+    a = _post(
+        client,
+        job,
+        [record(job, 1, t=now - 2), record(job, 2, t=4_070_000_000.0), record(job, 3, t=now - 1)],
+    ).json()
+    assert (a["stored"], a["acked_seq"]) == (2, 3)
+    assert [x["seq"] for x in a["rejected"]] == [2]
+    assert "ahead of the server clock" in a["rejected"][0]["reason"]
+    # a small clock skew is tolerated
+    a = _post(client, job, [record(job, 4, t=now + 60)]).json()
+    assert a["stored"] == 1
+    # a status already frozen by an old far-future record thaws with the next real one
+    db.execute(
+        text("UPDATE machine_status SET last_t = to_timestamp(4070000000) WHERE machine_id = :m"),
+        {"m": job.machine_id},
+    )
+    db.commit()
+    assert _post(client, job, [record(job, 5, t=now + 1, cell=3)]).json()["stored"] == 1
+    st = db.execute(
+        text(
+            "SELECT extract(epoch FROM last_t)::float8, cell_seq FROM machine_status"
+            " WHERE machine_id = :m"
+        ),
+        {"m": job.machine_id},
+    ).one()
+    assert st[0] == pytest.approx(now + 1, abs=1e-3) and st[1] == 3
+
+
+def _stream_post(client, fx, stream: str, records, start: int = 1):  # noqa: ANN001, ANN202
+    body = {"format": 2, "stream": stream, "stream_start": start, "records": records}
+    return client.post("/api/v1/telemetry", json=body, headers=fx.device_headers).json()
+
+
+def test_streams_deduplicate_separately(client, db, job) -> None:  # noqa: ANN001
+    """Issue 11: the same seqs on another stream are other records; on the same stream with
+    the same fix time they are duplicates (a resend)."""
+    a = _post(client, job, [record(job, s) for s in range(1, 11)]).json()  # legacy stream
+    assert a["stored"] == 10
+    b = _stream_post(
+        client, job, "s1", [record(job, s, t=1_790_000_100.0 + s) for s in range(1, 11)]
+    )
+    assert (b["stored"], b["acked_seq"], b["stream"], b["stream_conflict"]) == (10, 10, "s1", False)
+    b = _stream_post(
+        client, job, "s1", [record(job, s, t=1_790_000_100.0 + s) for s in range(5, 13)]
+    )
+    assert (b["stored"], b["duplicates"], b["acked_seq"]) == (2, 6, 12)
+    assert _count(db, job.machine_id) == 22
+    # a stream migrated from an older queue starts where that queue's acks were
+    c = _stream_post(
+        client, job, "s2", [record(job, s, t=1_790_000_200.0 + s) for s in (41, 42)], start=41
+    )
+    assert (c["stored"], c["acked_seq"]) == (2, 42)
+
+
+def test_seq_reused_on_a_known_stream_is_a_conflict_not_a_duplicate(client, db, job) -> None:  # noqa: ANN001
+    a = _stream_post(
+        client, job, "s1", [record(job, s, t=1_790_000_000.0 + s) for s in range(1, 21)]
+    )
+    assert a["acked_seq"] == 20
+    # a restored copy numbers 16.. again with other records: 16-18 new content, 19-22 too
+    b = _stream_post(
+        client, job, "s1", [record(job, s, t=1_790_000_500.0 + s) for s in range(16, 23)]
+    )
+    assert b["stream_conflict"] is True
+    assert b["stored"] == 0 and b["acked_seq"] == 15  # the agent may trim nothing it sent
+    assert sorted(x["seq"] for x in b["rejected"]) == list(range(16, 23))
+    assert all("went backwards" in x["reason"] for x in b["rejected"])
+    assert _count(db, job.machine_id) == 20
+    # the stored stream is untouched and still acknowledges its own resends
+    c = _stream_post(
+        client, job, "s1", [record(job, s, t=1_790_000_000.0 + s) for s in (19, 20, 21)]
+    )
+    assert (c["stream_conflict"], c["stored"], c["duplicates"], c["acked_seq"]) == (False, 1, 2, 21)
+
+
+def test_bad_stream_or_format_is_a_422(client, job) -> None:  # noqa: ANN001
+    for body in (
+        {"stream": "../x", "records": []},
+        {"stream": "a" * 33, "records": []},
+        {"stream": "s", "stream_start": 0, "records": []},
+        {"format": 3, "records": []},
+    ):
+        r = client.post("/api/v1/telemetry", json=body, headers=job.device_headers)
+        assert r.status_code == 422, body

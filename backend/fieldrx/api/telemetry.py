@@ -4,6 +4,9 @@ The body is parsed with orjson and validated per record (not through a
 pydantic model, which costs several times more per record); a bad record is
 rejected on its own with a reason, the rest is stored (fieldrx.fleet.ingest).
 Records naming another machine than the device token's are rejected one by one.
+The batch names its stream (telemetry format 2: ``{"format": 2, "stream": id,
+"stream_start": n, "records": [...]}``); a batch without one (format 1) is the
+machine's legacy stream.
 
 Authentication: ``Authorization: Bearer <device token>`` with the same rules
 as every endpoint (401 unknown/revoked/expired, 403 for a person's token),
@@ -12,14 +15,20 @@ checked on the ingest connection in one statement (fieldrx.fleet.auth).
 
 from __future__ import annotations
 
+import datetime as dt
+
 from fastapi import APIRouter, HTTPException, Request, status
 from fastapi.responses import Response
+from pydantic import BaseModel
+from sqlalchemy import select
 from starlette.concurrency import run_in_threadpool
 
-from fieldrx.api.common import ApiError
+from fieldrx.api.common import ApiError, get_scoped
+from fieldrx.auth.deps import SessionDep, UserDep
+from fieldrx.db.models import Machine, TelemetryStream
 from fieldrx.fleet.auth import device_of
 from fieldrx.fleet.db import raw_connection
-from fieldrx.fleet.ingest import IngestError, IngestResult, ingest, parse_body
+from fieldrx.fleet.ingest import IngestError, IngestResult, ingest, parse_batch
 
 router = APIRouter(tags=["telemetry"])
 
@@ -50,12 +59,15 @@ def _ingest(token: str, body: bytes) -> IngestResult:
         if kind != "device" or machine_id is None:
             raise HTTPException(status.HTTP_403_FORBIDDEN, "a device token is required")
         try:
-            records = parse_body(body)
+            batch = parse_batch(body)
         except IngestError as exc:
             raise ApiError(422, str(exc)) from exc
-        if len(records) > MAX_RECORDS:
-            raise ApiError(413, f"at most {MAX_RECORDS} records per request, got {len(records)}")
-        return ingest(conn, machine_id, records)
+        n = len(batch.records)
+        if n > MAX_RECORDS:
+            raise ApiError(413, f"at most {MAX_RECORDS} records per request, got {n}")
+        return ingest(
+            conn, machine_id, batch.records, batch.stream, batch.stream_start, batch.streamed
+        )
 
 
 @router.post(
@@ -72,3 +84,46 @@ async def post_telemetry(request: Request) -> Response:
     body = await request.body()
     result = await run_in_threadpool(_ingest, token, body)
     return Response(content=result.to_json(), media_type="application/json")
+
+
+class StreamOut(BaseModel):
+    """One agent queue's numbering of a machine's telemetry (stream '' = legacy agents)."""
+
+    stream: str
+    first_seq: int
+    acked_seq: int
+    n_records: int
+    first_seen_at: dt.datetime
+    last_seen_at: dt.datetime
+    first_t: dt.datetime | None
+    last_t: dt.datetime | None
+
+
+@router.get(
+    "/machines/{machine_id:int}/telemetry-streams",
+    response_model=list[StreamOut],
+    summary="The machine's telemetry streams (one per agent queue), most recent first",
+)
+def list_streams(machine_id: int, principal: UserDep, session: SessionDep) -> list[StreamOut]:
+    """A new stream appears when an agent's queue is replaced (new tablet, wiped state);
+    two streams sending at the same time are two agents with one device token (the
+    ``duplicate_stream`` alert). Every stream's records are kept."""
+    get_scoped(session, Machine, machine_id, principal)
+    rows = session.scalars(
+        select(TelemetryStream)
+        .where(TelemetryStream.machine_id == machine_id)
+        .order_by(TelemetryStream.last_seen_at.desc())
+    )
+    return [
+        StreamOut(
+            stream=r.stream,
+            first_seq=r.first_seq,
+            acked_seq=r.acked_seq,
+            n_records=r.n_records,
+            first_seen_at=r.first_seen_at,
+            last_seen_at=r.last_seen_at,
+            first_t=r.first_t,
+            last_t=r.last_t,
+        )
+        for r in rows
+    ]

@@ -326,7 +326,8 @@ class JobCellApplied(Base):
 
 
 class Telemetry(Base):
-    """One record per fix. (machine_id, seq) is the deduplication key; rows arrive by COPY."""
+    """One record per fix. (machine_id, stream, seq) is the deduplication key (stream ''
+    is the legacy stream of agents that send none); rows arrive by COPY."""
 
     __tablename__ = "telemetry"
     __table_args__ = (
@@ -336,8 +337,10 @@ class Telemetry(Base):
     machine_id: Mapped[int] = mapped_column(
         ForeignKey("machines.id", ondelete="CASCADE"), primary_key=True
     )
+    stream: Mapped[str] = mapped_column(String(32), primary_key=True, server_default="")
     seq: Mapped[int] = mapped_column(BigInteger, primary_key=True)
     t: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True))
+    fix_period_s: Mapped[float | None] = mapped_column(Double)
     received_at: Mapped[dt.datetime] = mapped_column(
         DateTime(timezone=True), server_default=func.now()
     )
@@ -362,6 +365,28 @@ class Telemetry(Base):
     implement_down: Mapped[bool] = mapped_column(Boolean, default=False)
     alarms: Mapped[list[str]] = mapped_column(ARRAY(String(32)), default=list)
     queue_backlog: Mapped[int] = mapped_column(Integer, default=0)
+
+
+class TelemetryStream(Base):
+    """One agent queue's numbering of a machine's records (telemetry format 2): its
+    acknowledged seq and what the fleet view shows about it (migration 0004)."""
+
+    __tablename__ = "telemetry_streams"
+    machine_id: Mapped[int] = mapped_column(
+        ForeignKey("machines.id", ondelete="CASCADE"), primary_key=True
+    )
+    stream: Mapped[str] = mapped_column(String(32), primary_key=True)
+    first_seq: Mapped[int] = mapped_column(BigInteger)
+    acked_seq: Mapped[int] = mapped_column(BigInteger)
+    n_records: Mapped[int] = mapped_column(BigInteger)
+    first_seen_at: Mapped[dt.datetime] = mapped_column(
+        DateTime(timezone=True), server_default=func.now()
+    )
+    last_seen_at: Mapped[dt.datetime] = mapped_column(
+        DateTime(timezone=True), server_default=func.now()
+    )
+    first_t: Mapped[dt.datetime | None] = mapped_column(DateTime(timezone=True))
+    last_t: Mapped[dt.datetime | None] = mapped_column(DateTime(timezone=True))
 
 
 class MachineStatus(Base):

@@ -17,6 +17,8 @@ from typing import Any
 
 import psycopg
 
+# events ingest opens and ends itself (not conditions on records, see fleet.ingest)
+EVENT_KINDS = ("duplicate_stream",)  # two agent queues sending for one machine at once
 ALERT_KINDS = (
     "rate_error",
     "speed_out_of_range",
@@ -24,6 +26,7 @@ ALERT_KINDS = (
     "fix_lost",
     "no_data",
     "cells_not_applied",
+    *EVENT_KINDS,
 )
 LIVE_CHANNEL = "fieldrx_live"
 # kinds opened and closed by records; a machine gone silent leaves them unobservable
@@ -296,3 +299,36 @@ def check_no_data(conn: psycopg.Connection[Any], timeout_s: float) -> int:
             ],
         )
     return len(rows)
+
+
+def open_event(
+    cur: psycopg.Cursor[Any],
+    organisation_id: int,
+    machine_id: int,
+    job_id: int | None,
+    kind: str,
+    message: str,
+    value: float | None = None,
+) -> list[dict[str, Any]]:
+    """Open an ``EVENT_KINDS`` alert for the machine unless one of that kind is open.
+    Returns the live messages (empty when one was already open)."""
+    cur.execute(
+        "INSERT INTO alerts (organisation_id, machine_id, job_id, kind, message, value)"
+        " SELECT %s, %s, %s, %s, %s, %s WHERE NOT EXISTS (SELECT 1 FROM alerts"
+        "  WHERE machine_id = %s AND kind = %s AND ended_at IS NULL) RETURNING id",
+        (organisation_id, machine_id, job_id, kind, message, value, machine_id, kind),
+    )
+    row = cur.fetchone()
+    if row is None:
+        return []
+    return [
+        alert_message(organisation_id, row[0], machine_id, kind, "started", message, value, job_id)
+    ]
+
+
+def end_event(
+    cur: psycopg.Cursor[Any], organisation_id: int, machine_id: int, alert_id: int, kind: str
+) -> list[dict[str, Any]]:
+    """End an ``EVENT_KINDS`` alert now; returns the live message."""
+    cur.execute("UPDATE alerts SET ended_at = now() WHERE id = %s", (alert_id,))
+    return [alert_message(organisation_id, alert_id, machine_id, kind, "ended")]

@@ -1,19 +1,34 @@
 """Telemetry ingest shared by HTTP and MQTT: validate, COPY, deduplicate, acknowledge.
 
-One batch is one transaction:
+A batch names its stream (telemetry format 2, ``fieldrx_edge.protocol``): the
+random id of the agent queue that numbered its records. Records are keyed by
+(machine, stream, seq); a batch without a stream (format 1 agents) belongs to
+the machine's legacy stream ''. One batch is one transaction:
 
 1. every record is validated on its own (``TelemetryRecord`` rules plus the
-   column types); a bad record is rejected with a reason, the rest goes on;
+   column types, and a record time no more than ``FUTURE_TOLERANCE_S`` ahead
+   of the server clock); a bad record is rejected with a reason, the rest goes
+   on. A body with NaN/Infinity tokens (not JSON, but what an older agent may
+   have queued) is still read, so only those records are rejected;
 2. a transaction-level advisory lock per machine serialises concurrent
    batches of the same machine (two MQTT workers, a retry racing the
-   original), so the already-stored seqs can be read once and the new rows
-   COPied straight into ``telemetry`` with COPY BINARY (EWKB points), the
-   fastest path measured here (shared/STACK.md) — no staging table needed;
-3. ``acked_seq`` advances over the contiguous seqs that are stored (or were
-   rejected for good: resending them can never succeed, so the edge may trim
-   them; it counts them as rejected), and stops at the first gap;
-4. machine status, per-cell aggregates, job progress and alerts are updated and
-   live messages are queued with NOTIFY, all in the same transaction.
+   original, two agents), so the stream's stored seqs can be read once and
+   the new rows COPied straight into ``telemetry`` with COPY BINARY (EWKB
+   points), the fastest path measured here (shared/STACK.md);
+3. a seq already stored on the stream is a duplicate only if it is the same
+   record (same fix time); if it holds another record the stream's numbering
+   went backwards (restored or cloned queue): nothing from that seq on is
+   stored or acknowledged, and the ack says ``stream_conflict`` so the agent
+   moves to a new stream;
+4. ``acked_seq`` (per stream, ``telemetry_streams``) advances over the
+   contiguous seqs that are stored (or were rejected for good: resending them
+   can never succeed, so the edge may trim them; it counts them as rejected),
+   and stops at the first gap. A new stream starts just below its
+   ``stream_start``;
+5. machine status, per-cell aggregates, job progress, the stream's row and
+   alerts are updated (two streams sending at once for one machine open a
+   ``duplicate_stream`` alert: both are kept) and live messages are queued with
+   NOTIFY, all in the same transaction.
 
 A record whose ``machine_id`` differs from the sending machine (the device
 token's, or the MQTT topic's) is rejected on its own and does not advance
@@ -23,6 +38,7 @@ token's, or the MQTT topic's) is rejected on its own and does not advance
 from __future__ import annotations
 
 import datetime as dt
+import json
 import operator
 import struct
 import time
@@ -33,10 +49,13 @@ from typing import Any
 import orjson
 import psycopg
 from fieldrx_edge.protocol import (
-    _FIELD_SET,
-    _FLOAT_FIELDS,
     ALARMS,
+    FIELD_SET,
+    FLOAT_FIELDS,
+    MAX_FIX_PERIOD_S,
+    STREAM_RE,
     TELEMETRY_FIELDS,
+    TELEMETRY_FORMAT_VERSION,
     TelemetryAck,
     TelemetryRecord,
 )
@@ -65,6 +84,8 @@ COLUMNS = (
     "implement_down",
     "alarms",
     "queue_backlog",
+    "fix_period_s",
+    "stream",
 )
 # t goes as int8 microseconds since 2000-01-01: the binary form of timestamptz, without
 # building a datetime per record; geom goes as raw EWKB bytes (geometry_recv reads EWKB).
@@ -90,11 +111,17 @@ COPY_TYPES = (
     "bool",
     "varchar[]",
     "int4",
+    "float8",
+    "varchar",
 )
 COPY_SQL = f"COPY telemetry ({', '.join(COLUMNS)}) FROM STDIN (FORMAT BINARY)"
 
 PG_EPOCH = 946684800.0  # 2000-01-01T00:00:00Z
-T_MAX = 4102444800.0  # 2100-01-01: anything later is a clock error
+_PG_EPOCH_DT = dt.datetime(2000, 1, 1, tzinfo=dt.UTC)
+# a record time this far ahead of the server clock is a clock error: stored, it would
+# become the machine's latest state until real time caught up (issue 20)
+FUTURE_TOLERANCE_S = 300.0
+CONCURRENT_WINDOW_S = 60.0  # two streams both sending within this: a duplicate_stream alert
 INT4_MAX = 2**31 - 1
 INT8_MAX = 2**63 - 1
 _EWKB_POINT = struct.Struct("<BIIdd")  # little endian, Point with SRID flag, SRID, x, y
@@ -113,6 +140,9 @@ class IngestResult:
     stored: int = 0
     duplicates: int = 0
     rejected: list[dict[str, Any]] = field(default_factory=list)
+    stream: str = ""
+    stream_conflict: bool = False
+    streamed: bool = False  # the batch was format 2: the ack names its stream
 
     def ack(self) -> TelemetryAck:
         return TelemetryAck(
@@ -121,50 +151,99 @@ class IngestResult:
             stored=self.stored,
             duplicates=self.duplicates,
             rejected=self.rejected,
+            stream=self.stream,
+            stream_conflict=self.stream_conflict,
         )
 
     def to_json(self) -> bytes:
-        return orjson.dumps(asdict(self.ack()))
+        out = asdict(self.ack())
+        if not self.streamed:  # a format 1 agent parses the ack strictly: only its fields
+            del out["stream"], out["stream_conflict"]
+        return orjson.dumps(out)
+
+
+@dataclass
+class Batch:
+    records: list[Any]
+    stream: str = ""
+    stream_start: int = 1
+    streamed: bool = False
+
+
+def _loads(body: bytes | str) -> Any:
+    try:
+        return orjson.loads(body)
+    except orjson.JSONDecodeError as exc:
+        # NaN / Infinity tokens (Python's json.dumps writes them): read them so the
+        # records holding them are rejected one by one, not the whole batch
+        try:
+            return json.loads(body)
+        except ValueError:
+            raise IngestError(f"body is not valid JSON: {exc}") from exc
+
+
+def parse_batch(body: bytes | str) -> Batch:
+    """``{"records": [...], "stream": id, "stream_start": n}`` (stream optional) -> Batch;
+    anything else is an ``IngestError``."""
+    obj = _loads(body)
+    if not isinstance(obj, dict) or not isinstance(obj.get("records"), list):
+        raise IngestError('body must be a JSON object {"records": [TelemetryRecord, ...]}')
+    fmt = obj.get("format", 1)
+    if type(fmt) is not int or not 1 <= fmt <= TELEMETRY_FORMAT_VERSION:
+        raise IngestError(
+            f"format {fmt!r} not supported (1..{TELEMETRY_FORMAT_VERSION}): upgrade the server"
+        )
+    stream = obj.get("stream")
+    if stream is None:
+        return Batch(obj["records"])
+    if not isinstance(stream, str) or not STREAM_RE.match(stream):
+        raise IngestError(f"stream must be 1-32 characters [0-9A-Za-z_-], got {stream!r}")
+    start = obj.get("stream_start", 1)
+    if type(start) is not int or not 1 <= start <= INT8_MAX:
+        raise IngestError(f"stream_start must be a positive integer, got {start!r}")
+    return Batch(obj["records"], stream, start, True)
 
 
 def parse_body(body: bytes | str) -> list[Any]:
-    """``{"records": [...]}`` -> the list; anything else is an ``IngestError``."""
-    try:
-        obj = orjson.loads(body)
-    except orjson.JSONDecodeError as exc:
-        raise IngestError(f"body is not valid JSON: {exc}") from exc
-    if not isinstance(obj, dict) or not isinstance(obj.get("records"), list):
-        raise IngestError('body must be a JSON object {"records": [TelemetryRecord, ...]}')
-    return obj["records"]
+    """The records of a batch (``parse_batch``)."""
+    return parse_batch(body).records
 
 
 _GET_ALL = operator.itemgetter(*TELEMETRY_FIELDS)
+_GET_V1 = operator.itemgetter(*TELEMETRY_FIELDS[:-1])  # format 1: no fix_period_s
 _N_FIELDS = len(TELEMETRY_FIELDS)
 _FLOAT_TYPES = frozenset({float, type(None)})
 assert TELEMETRY_FIELDS == (
     "machine_id", "seq", "t", "lon", "lat", "fix_quality", "hdop", "speed_raw_m_s",
     "speed_filtered_m_s", "heading_deg", "job_id", "cell_seq", "target_rate_kg_ha",
     "applied_rate_kg_ha", "target_shaft_rpm", "actual_shaft_rpm", "duty", "ndvi", "depth_mm",
-    "implement_down", "alarms", "queue_backlog",
+    "implement_down", "alarms", "queue_backlog", "fix_period_s",
 )  # fmt: skip
 
 
-def _fast_row(d: Any, machine_id: int) -> tuple[Any, ...] | None:
+def _fast_row(d: Any, machine_id: int, t_max: float, stream: str) -> tuple[Any, ...] | None:
     """A complete, plainly typed record (what agents send) -> COPY row; else None.
 
     None means "not sure": the general path decides. Floats must be floats here
     and their sum finite (NaN and inf propagate through a sum).
     """
-    if type(d) is not dict or len(d) != _N_FIELDS or not (d.keys() <= _FIELD_SET):
+    if type(d) is not dict:
+        return None
+    n = len(d)
+    if n == _N_FIELDS and d.keys() <= FIELD_SET:
+        values = _GET_ALL(d)
+    elif n == _N_FIELDS - 1 and d.keys() <= FIELD_SET and "fix_period_s" not in d:
+        values = (*_GET_V1(d), None)
+    else:
         return None
     (m, s, t, lon, lat, fq, hdop, sraw, sfil, head, job, cell, trate, arate, trpm, arpm, duty,
-     ndvi, depth, down, alarms, backlog) = _GET_ALL(d)  # fmt: skip
+     ndvi, depth, down, alarms, backlog, period) = values  # fmt: skip
     if (
         m != machine_id
         or type(s) is not int
         or not 1 <= s <= INT8_MAX
         or type(t) is not float
-        or not 0.0 < t < T_MAX
+        or not 0.0 < t < t_max
         or type(fq) is not int
         or not 0 <= fq <= 32767
         or type(down) is not bool
@@ -174,6 +253,7 @@ def _fast_row(d: Any, machine_id: int) -> tuple[Any, ...] | None:
         or (alarms and not _ALARM_SET.issuperset(alarms))
         or (job is not None and (type(job) is not int or not 0 < job <= INT4_MAX))
         or (cell is not None and (type(cell) is not int or not -INT4_MAX <= cell <= INT4_MAX))
+        or (period is not None and (type(period) is not float or not 0.0 < period <= 60.0))
     ):
         return None
     floats = (hdop, sraw, sfil, head, trate, arate, trpm, arpm, duty, ndvi, depth)
@@ -194,11 +274,14 @@ def _fast_row(d: Any, machine_id: int) -> tuple[Any, ...] | None:
         geom = _EWKB_POINT.pack(1, 0x20000001, 4326, lon, lat)
     return (
         m, s, int((t - PG_EPOCH) * 1e6), job, geom, fq, hdop, sraw, sfil, head, cell, trate,
-        arate, trpm, arpm, duty, ndvi, depth, down, alarms, backlog,
+        arate, trpm, arpm, duty, ndvi, depth, down, alarms, backlog, period, stream,
     )  # fmt: skip
 
 
-def _slow_row(d: Any, machine_id: int) -> tuple[Any, ...] | str:
+assert MAX_FIX_PERIOD_S == 60.0  # the fast path's literal
+
+
+def _slow_row(d: Any, machine_id: int, now: float, stream: str) -> tuple[Any, ...] | str:
     """Any record: the protocol's own validation, then the column ranges. Row or reason."""
     try:
         rec = TelemetryRecord.from_dict(d)
@@ -208,8 +291,11 @@ def _slow_row(d: Any, machine_id: int) -> tuple[Any, ...] | str:
         return f"machine_id {rec.machine_id} is not this device's machine ({machine_id})"
     if rec.seq > INT8_MAX:
         return f"seq {rec.seq} out of range"
-    if rec.t >= T_MAX:
-        return f"t {rec.t!r} is after 2100: clock error"
+    if rec.t >= now + FUTURE_TOLERANCE_S:
+        return (
+            f"t {rec.t!r} is {rec.t - now:.0f} s ahead of the server clock (tolerance"
+            f" {FUTURE_TOLERANCE_S:g} s): clock error"
+        )
     fq = rec.fix_quality
     if type(fq) is not int or not 0 <= fq <= 32767:
         return f"fix_quality must be an integer 0..32767, got {fq!r}"
@@ -225,7 +311,8 @@ def _slow_row(d: Any, machine_id: int) -> tuple[Any, ...] | str:
     if type(backlog) is not int or not 0 <= backlog <= INT4_MAX:
         return f"queue_backlog must be a non-negative integer, got {backlog!r}"
     try:
-        f = [None if v is None else float(v) for v in (getattr(rec, n) for n in _FLOAT_FIELDS)]
+        f = [None if v is None else float(v) for v in (getattr(rec, n) for n in FLOAT_FIELDS)]
+        period = None if rec.fix_period_s is None else float(rec.fix_period_s)
     except OverflowError:
         return "a number is too large"
     geom = None
@@ -244,26 +331,31 @@ def _slow_row(d: Any, machine_id: int) -> tuple[Any, ...] | str:
         rec.implement_down,
         list(rec.alarms),
         backlog,
+        period,
+        stream,
     )
 
 
 def validate(
-    raw: Iterable[Any], machine_id: int
+    raw: Iterable[Any], machine_id: int, stream: str = "", now: float | None = None
 ) -> tuple[dict[int, tuple[Any, ...]], list[dict[str, Any]], set[int], int]:
     """Split records into valid rows by seq, rejects, rejected-for-good seqs and in-batch repeats.
 
     The fast path takes complete, plainly typed records; everything else goes
     through ``TelemetryRecord.from_dict`` (same rules, same messages) and the
-    column ranges.
+    column ranges. ``now``: the server clock (record times beyond it plus
+    ``FUTURE_TOLERANCE_S`` are rejected).
     """
+    now = time.time() if now is None else now
+    t_max = now + FUTURE_TOLERANCE_S
     rows: dict[int, tuple[Any, ...]] = {}
     rejected: list[dict[str, Any]] = []
     dead: set[int] = set()
     repeats = 0
     for d in raw:
-        r = _fast_row(d, machine_id)
+        r = _fast_row(d, machine_id, t_max, stream)
         if r is None:
-            r = _slow_row(d, machine_id)
+            r = _slow_row(d, machine_id, now, stream)
             if type(r) is str:
                 seq = d.get("seq") if isinstance(d, dict) else None
                 if type(seq) is not int or seq < 1:
@@ -285,43 +377,92 @@ class MachineInfo:
     organisation_id: int
     speed_min_m_s: float
     speed_max_m_s: float
-    acked_seq: int
+    acked_seq: int | None  # the stream's; None: a stream not seen before
     last_t: float | None
-    open_alerts: dict[str, int]
+    open_alerts: dict[str, int]  # condition alerts (fleet.alerts.conditions) not ended
+    stream_seen: float | None  # this stream's last batch (epoch s)
+    other_seen: float | None  # the machine's other streams' last batch (epoch s)
+    event_alerts: dict[str, int] = field(default_factory=dict)  # EVENT_KINDS not ended
 
 
-def _lock_machine(cur: psycopg.Cursor[Any], machine_id: int) -> MachineInfo | None:
+def _lock_machine(cur: psycopg.Cursor[Any], machine_id: int, stream: str) -> MachineInfo | None:
     """Take the machine's ingest lock and read what this batch needs, in one round trip."""
     cur.execute(
-        "SELECT m.organisation_id, m.speed_min_m_s, m.speed_max_m_s, coalesce(s.acked_seq, 0),"
+        "SELECT m.organisation_id, m.speed_min_m_s, m.speed_max_m_s, ts.acked_seq,"
         " extract(epoch FROM s.last_t)::float8,"
         " (SELECT coalesce(json_object_agg(a.kind, a.id), '{}') FROM alerts a"
-        "   WHERE a.machine_id = m.id AND a.ended_at IS NULL)"
+        "   WHERE a.machine_id = m.id AND a.ended_at IS NULL),"
+        " extract(epoch FROM ts.last_seen_at)::float8,"
+        " (SELECT extract(epoch FROM max(o.last_seen_at))::float8 FROM telemetry_streams o"
+        "   WHERE o.machine_id = m.id AND o.stream <> %s)"
         " FROM (SELECT pg_advisory_xact_lock(%s, %s)) AS lock, machines m"
-        " LEFT JOIN machine_status s ON s.machine_id = m.id WHERE m.id = %s",
-        (_LOCK_NS, machine_id, machine_id),
+        " LEFT JOIN machine_status s ON s.machine_id = m.id"
+        " LEFT JOIN telemetry_streams ts ON ts.machine_id = m.id AND ts.stream = %s"
+        " WHERE m.id = %s",
+        (stream, _LOCK_NS, machine_id, stream, machine_id),
     )
     r = cur.fetchone()
-    return None if r is None else MachineInfo(*r)
+    if r is None:
+        return None
+    alerts = r[5] if isinstance(r[5], dict) else orjson.loads(r[5])
+    events = {k: v for k, v in alerts.items() if k in alert_rules.EVENT_KINDS}
+    conds = {k: v for k, v in alerts.items() if k not in events}
+    return MachineInfo(r[0], r[1], r[2], r[3], r[4], conds, r[6], r[7], events)
 
 
-def ingest(conn: psycopg.Connection[Any], machine_id: int, raw: list[Any]) -> IngestResult:
-    """Store one batch for ``machine_id`` (already authenticated) and return the ack."""
-    rows, rejected, dead, repeats = validate(raw, machine_id)
+def _t_us(t: dt.datetime) -> int:
+    """timestamptz -> int8 microseconds since 2000-01-01 (the COPY row's t), exactly."""
+    return (t - _PG_EPOCH_DT) // dt.timedelta(microseconds=1)
+
+
+def ingest(
+    conn: psycopg.Connection[Any],
+    machine_id: int,
+    raw: list[Any],
+    stream: str = "",
+    stream_start: int = 1,
+    streamed: bool | None = None,
+) -> IngestResult:
+    """Store one batch of ``stream`` for ``machine_id`` (already authenticated); the ack.
+
+    ``stream_start``: the stream's first seq, used when the stream is new.
+    ``streamed``: the batch was format 2 (default: a stream was named)."""
+    now = time.time()
+    rows, rejected, dead, repeats = validate(raw, machine_id, stream, now)
     with conn.transaction(), conn.cursor() as cur:
-        info = _lock_machine(cur, machine_id)
+        info = _lock_machine(cur, machine_id, stream)
         if info is None:
             raise IngestError(f"machine {machine_id} does not exist")
-        result = IngestResult(machine_id, info.acked_seq, rejected=rejected, duplicates=repeats)
+        acked0 = info.acked_seq if info.acked_seq is not None else stream_start - 1
+        result = IngestResult(
+            machine_id, acked0, rejected=rejected, duplicates=repeats, stream=stream,
+            streamed=bool(stream) if streamed is None else streamed,
+        )  # fmt: skip
         new: list[tuple[Any, ...]] = []
+        conflict: int | None = None
         if rows:
             lo, hi = min(rows), max(rows)
-            cur.execute(
-                "SELECT seq FROM telemetry WHERE machine_id = %s AND seq BETWEEN %s AND %s",
-                (machine_id, lo, hi),
-            )
-            existing = {r[0] for r in cur.fetchall()}
-            result.duplicates += len(existing.intersection(rows))
+            existing: dict[int, int] = {}
+            if info.acked_seq is not None:  # a new stream holds nothing yet
+                cur.execute(
+                    "SELECT seq, t FROM telemetry WHERE machine_id = %s AND stream = %s"
+                    " AND seq BETWEEN %s AND %s",
+                    (machine_id, stream, lo, hi),
+                )
+                existing = {seq: _t_us(t) for seq, t in cur.fetchall()}
+            if existing:
+                same = [q for q, t_us in existing.items() if q in rows and rows[q][2] == t_us]
+                result.duplicates += len(same)
+                clash = [q for q in existing if q in rows and rows[q][2] != existing[q]]
+                if clash:
+                    conflict = min(clash)
+                    result.stream_conflict = True
+                    for q in sorted(rows):
+                        if (q >= conflict and q not in existing) or q in clash:
+                            result.rejected.append({"seq": q, "reason": _conflict_reason(
+                                q, stream, q in clash)})  # fmt: skip
+                    rows = {q: r for q, r in rows.items() if q < conflict}
+                    dead = {q for q in dead if q < conflict}
             new = [rows[s] for s in sorted(rows) if s not in existing]
         if new:
             with cur.copy(COPY_SQL) as copy:
@@ -330,13 +471,18 @@ def ingest(conn: psycopg.Connection[Any], machine_id: int, raw: list[Any]) -> In
                 for r in new:
                     write(r)
         result.stored = len(new)
-        result.acked_seq = _advance(cur, machine_id, info.acked_seq, set(rows) | dead)
+        result.acked_seq = _advance(cur, machine_id, stream, acked0, set(rows) | dead)
         messages: list[dict[str, Any]] = []
-        _status(cur, machine_id, info, new, result.acked_seq)
+        _stream_row(cur, machine_id, stream, stream_start, result.acked_seq, new, info)
+        if conflict is not None:
+            # the agent may trim only below the conflict; it resends the rest on a new stream
+            result.acked_seq = min(result.acked_seq, conflict - 1)
+        _status(cur, machine_id, info, new, result.acked_seq, now)
         if new:
             latest = max(new, key=lambda r: r[2])
             messages.append(_position(info.organisation_id, latest, result))
             messages.extend(_cells(cur, machine_id, info.organisation_id, new))
+        messages.extend(_streams_alert(cur, machine_id, stream, info, new, now))
         if new and _may_alert(new, info):
             samples = [
                 alert_rules.Sample(
@@ -366,6 +512,71 @@ def ingest(conn: psycopg.Connection[Any], machine_id: int, raw: list[Any]) -> In
     return result
 
 
+def _conflict_reason(seq: int, stream: str, clash: bool) -> str:
+    what = "holds a different record" if clash else "follows a seq that does"
+    return (
+        f"seq {seq} on stream {stream or '(legacy)'} {what}: this queue's numbering went"
+        " backwards (restored or cloned state?); not stored, continue on a new stream"
+    )
+
+
+def _stream_row(
+    cur: psycopg.Cursor[Any],
+    machine_id: int,
+    stream: str,
+    stream_start: int,
+    acked: int,
+    new: list[tuple[Any, ...]],
+    info: MachineInfo,
+) -> None:
+    """Upsert the stream's acknowledged seq, last batch time, record count and time span."""
+    t0 = t1 = None
+    if new:
+        us = [r[2] for r in new]
+        t0 = dt.datetime.fromtimestamp(min(us) / 1e6 + PG_EPOCH, dt.UTC)
+        t1 = dt.datetime.fromtimestamp(max(us) / 1e6 + PG_EPOCH, dt.UTC)
+    cur.execute(
+        "INSERT INTO telemetry_streams AS ts (machine_id, stream, first_seq, acked_seq,"
+        " n_records, first_t, last_t) VALUES (%s, %s, %s, %s, %s, %s, %s)"
+        " ON CONFLICT (machine_id, stream) DO UPDATE SET acked_seq = excluded.acked_seq,"
+        " last_seen_at = now(), n_records = ts.n_records + excluded.n_records,"
+        " first_t = least(ts.first_t, excluded.first_t),"
+        " last_t = greatest(ts.last_t, excluded.last_t)",
+        (machine_id, stream, stream_start if stream else 1, acked, len(new), t0, t1),
+    )
+
+
+def _streams_alert(
+    cur: psycopg.Cursor[Any],
+    machine_id: int,
+    stream: str,
+    info: MachineInfo,
+    new: list[tuple[Any, ...]],
+    now: float,
+) -> list[dict[str, Any]]:
+    """``duplicate_stream``: another stream of this machine sent a batch since this stream's
+    previous one, within ``CONCURRENT_WINDOW_S`` (two agents, e.g. two tablets with one
+    device token). A queue replaced by a new one never sends again, so a sequential restart
+    does not alert. Ended once only this stream has been sending for the window."""
+    other, mine = info.other_seen, info.stream_seen
+    kind = "duplicate_stream"
+    recent = other is not None and now - other < CONCURRENT_WINDOW_S
+    if recent and mine is not None and other is not None and other > mine:
+        if kind in info.event_alerts:
+            return []
+        return alert_rules.open_event(
+            cur, info.organisation_id, machine_id, new[-1][3] if new else None, kind,
+            "two telemetry streams are sending for this machine at once (two agents with one"
+            " device token?); both are stored",
+            None,
+        )  # fmt: skip
+    if kind in info.event_alerts and not recent:
+        return alert_rules.end_event(
+            cur, info.organisation_id, machine_id, info.event_alerts[kind], kind
+        )
+    return []
+
+
 def _may_alert(new: list[tuple[Any, ...]], info: MachineInfo) -> bool:
     """Cheap pre-check: could any alert open or close with this batch? (Most batches: no.)"""
     if info.open_alerts:
@@ -385,14 +596,17 @@ def _may_alert(new: list[tuple[Any, ...]], info: MachineInfo) -> bool:
     return False
 
 
-def _advance(cur: psycopg.Cursor[Any], machine_id: int, acked: int, done: set[int]) -> int:
+def _advance(
+    cur: psycopg.Cursor[Any], machine_id: int, stream: str, acked: int, done: set[int]
+) -> int:
     """Highest contiguous seq stored (or rejected for good), starting from the stored ack."""
     while acked + 1 in done:
         acked += 1
     while True:
         cur.execute(
-            "SELECT seq FROM telemetry WHERE machine_id = %s AND seq > %s ORDER BY seq LIMIT 2000",
-            (machine_id, acked),
+            "SELECT seq FROM telemetry WHERE machine_id = %s AND stream = %s AND seq > %s"
+            " ORDER BY seq LIMIT 2000",
+            (machine_id, stream, acked),
         )
         seqs = [r[0] for r in cur.fetchall()]
         moved = False
@@ -414,8 +628,11 @@ def _status(
     info: MachineInfo,
     new: list[tuple[Any, ...]],
     acked: int,
+    now: float,
 ) -> None:
-    """Upsert the machine's latest state; position fields only move forward in record time."""
+    """Upsert the machine's latest state; position fields only move forward in record time
+    (a stored latest time beyond the future tolerance is a clock error, not a reason to
+    freeze the machine's state: newer real records replace it)."""
     if not new:
         cur.execute(
             "INSERT INTO machine_status (machine_id, last_seen_at, acked_seq, queue_backlog,"
@@ -426,7 +643,7 @@ def _status(
         return
     r = max(new, key=lambda r: r[2])
     t = r[2] / 1e6 + PG_EPOCH
-    if info.last_t is not None and t < info.last_t:
+    if info.last_t is not None and t < info.last_t <= now + FUTURE_TOLERANCE_S:
         cur.execute(
             "UPDATE machine_status SET last_seen_at = now(), acked_seq = %s WHERE machine_id = %s",
             (acked, machine_id),

@@ -7,9 +7,10 @@ Per cell (path order, planned rate M in kg/ha):
   M1 = M * l * d / 10 g, d = the cell's centre line (between the midpoints of
   its two cut edges) inside the field, as the edge simulator counts it; for a
   whole cell this is M * area / 10;
-* applied mass M2: what landed in the cell. Each record's fix period dt (to
-  the next record, 0 across a gap longer than ``max_gap_s``) meters
-  flow(actual shaft speed) * dt grams (the machine's calibration, trapezoid
+* applied mass M2: what landed in the cell. Each record's fix period dt (the
+  ``fix_period_s`` it carries; records without one: to the next record, 0
+  across a gap longer than ``max_gap_s``; ``fieldrx_edge.asapplied.fix_periods``)
+  meters flow(actual shaft speed) * dt grams (the machine's calibration, trapezoid
   between this record and the next); that mass lands T_lag later (seed 001
   eq. 16) at the outlet, i.e. where the track is at t + dt/2 + T_lag, moved
   ``antenna_forward_m`` along the heading. The landing point is located in the
@@ -36,6 +37,7 @@ from typing import Any
 
 import numpy as np
 import shapely
+from fieldrx_edge.asapplied import fix_periods, metered_mass_g
 from fieldrx_edge.metering import calibration_from_dict
 from geoalchemy2.shape import to_shape
 from sqlalchemy import text
@@ -185,8 +187,7 @@ def _metered_g(
     # records without a shaft speed: the applied rate over the strip driven
     fallback = applied * width * v * 6.0  # kg/ha * m * m/s -> g/min
     flow = np.where(np.isfinite(flow), flow, fallback) / 60.0  # g/s
-    nxt = np.append(flow[1:], flow[-1:]) if len(flow) else flow
-    return 0.5 * (flow + nxt) * dts
+    return metered_mass_g(flow, dts)
 
 
 def _landing_cells(
@@ -301,8 +302,8 @@ def build_report(session: Session, job: Job, max_gap_s: float = MAX_GAP_S) -> Jo
             "SELECT extract(epoch FROM t)::float8, cell_seq, applied_rate_kg_ha,"
             " target_rate_kg_ha, coalesce(speed_filtered_m_s, speed_raw_m_s), implement_down,"
             " actual_shaft_rpm, heading_deg,"
-            " ST_X(ST_Transform(geom, :epsg)), ST_Y(ST_Transform(geom, :epsg))"
-            " FROM telemetry WHERE machine_id = :m AND job_id = :j ORDER BY t, seq"
+            " ST_X(ST_Transform(geom, :epsg)), ST_Y(ST_Transform(geom, :epsg)), fix_period_s"
+            " FROM telemetry WHERE machine_id = :m AND job_id = :j ORDER BY t, stream, seq"
         ),
         {"m": job.machine_id, "j": job.id, "epsg": fld.utm_epsg if fld is not None else 4326},
     ).all()
@@ -318,10 +319,7 @@ def build_report(session: Session, job: Job, max_gap_s: float = MAX_GAP_S) -> Jo
         applied, target, v, rpm = arr(2, 0.0), arr(3), arr(4, 0.0), arr(6)
         down = np.asarray(col[5], dtype=bool)
         heading, x, y = arr(7, 0.0), arr(8), arr(9)
-        gaps = np.diff(t)
-        period = float(np.median(gaps)) if len(gaps) else 0.0
-        dts = np.append(gaps, period)
-        dts = np.where(dts > max_gap_s, 0.0, np.maximum(dts, 0.0))
+        dts = fix_periods(t, arr(10), max_gap_s)
         mass = _metered_g(machine, rpm, applied, width, v, dts)
         time_worked = float(dts[down].sum())
         idx = _landing_cells(

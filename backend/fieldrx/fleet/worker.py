@@ -4,9 +4,12 @@ Several workers subscribe to ``$share/<group>/fieldrx/machines/+/telemetry``;
 the broker gives each message to one of them, so they split the load. A
 message is acknowledged to the broker (manual PUBACK) only after its records
 are committed, so a worker that dies loses nothing: the broker redelivers, and
-ingest deduplicates by (machine, seq). Messages that arrive within
-``batch_ms`` are grouped per machine into one transaction, and the
-``TelemetryAck`` goes back on ``ack_topic(machine_id)``.
+ingest deduplicates by (machine, stream, seq). Messages that arrive within
+``batch_ms`` are grouped per machine and stream into one transaction, and the
+``TelemetryAck`` (naming the stream) goes back on ``ack_topic(machine_id)``.
+A record the protocol forbids (NaN, a far-future time) is rejected alone in
+the ack, never a reason to drop the message unanswered: an agent that gets no
+ack resends forever (issue 20).
 
 Security: the worker logs in as ``fieldrx-worker`` (``fieldrx.auth.mqtt``); the
 broker lets only machine N publish on machine N's telemetry topic, so the machine
@@ -36,7 +39,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
 
-import orjson
 import paho.mqtt.client as mqtt
 import psycopg
 from fieldrx_edge.protocol import ack_topic
@@ -46,7 +48,7 @@ from paho.mqtt.properties import Properties
 from fieldrx.auth.mqtt import WORKER_USER, Broker
 from fieldrx.db.session import raw_dsn
 from fieldrx.fleet.alerts import check_no_data
-from fieldrx.fleet.ingest import IngestError, ingest
+from fieldrx.fleet.ingest import Batch, IngestError, ingest, parse_batch
 from fieldrx.fleet.status import sweep_offline
 
 log = logging.getLogger(__name__)
@@ -238,26 +240,32 @@ class IngestWorker:
     def _process(
         self, conn: psycopg.Connection[Any], msgs: list[mqtt.MQTTMessage]
     ) -> psycopg.Connection[Any]:
-        by_machine: dict[int, tuple[list[Any], list[mqtt.MQTTMessage]]] = {}
+        by_stream: dict[tuple[int, str], tuple[Batch, list[mqtt.MQTTMessage]]] = {}
         for m in msgs:
             self.stats.messages += 1
             mid = _machine_of(m.topic)
             try:
-                obj = orjson.loads(m.payload)
-                records = obj["records"] if isinstance(obj, dict) else None
-                if mid is None or not isinstance(records, list):
-                    raise ValueError("not a telemetry batch")
-            except (ValueError, KeyError) as exc:  # orjson.JSONDecodeError is a ValueError
+                if mid is None:
+                    raise IngestError("not a telemetry topic")
+                batch = parse_batch(m.payload)
+            except IngestError as exc:
                 log.warning("dropping bad message on %s: %s", m.topic, exc)
                 self.client.ack(m.mid, m.qos)
                 continue
-            entry = by_machine.setdefault(mid, ([], []))
-            entry[0].extend(records)
-            entry[1].append(m)
-        for machine_id, (records, ms) in by_machine.items():
+            entry = by_stream.get((mid, batch.stream))
+            if entry is None:
+                by_stream[(mid, batch.stream)] = (batch, [m])
+            else:
+                entry[0].records.extend(batch.records)
+                entry[0].stream_start = min(entry[0].stream_start, batch.stream_start)
+                entry[1].append(m)
+        for (machine_id, stream), (batch, ms) in by_stream.items():
+            records = batch.records
             while True:
                 try:
-                    result = ingest(conn, machine_id, records)
+                    result = ingest(
+                        conn, machine_id, records, stream, batch.stream_start, batch.streamed
+                    )
                     break
                 except IngestError as exc:
                     log.warning("dropping batch of machine %s: %s", machine_id, exc)

@@ -424,11 +424,17 @@ def simulate(
     pos = pipe.on_position
     fxl, fyl, fvl, fcl = fx.tolist(), fy.tolist(), fv.tolist(), fc.tolist()
     batch: list[dict] = []
-    # records are stamped so the drive ends now (as fast as possible) or in wall time (paced)
-    tbase = t0 if t0 is not None else time.time() - (0.0 if cfg.realtime > 0 else t_end)
+    # A record's time is its fix time (protocol.TelemetryRecord): simulated time since the
+    # start of the drive, k0 * dt, on a base chosen so the drive ends when the run ends:
+    # now (as fast as possible) or when the paced run will end. Paced at `realtime` x,
+    # fixes 0.1 s apart in simulated time go out 0.1 / realtime s apart in wall time, yet
+    # stay 0.1 s apart in record time, and no record is stamped after the moment it is
+    # sent. (Stamping the wall clock made the report 1 / realtime too low: issue 11.)
     pace = cfg.realtime
-    batch_n = 1 if pace > 0 else 200
     wall_start = time.time()
+    tbase = t0 if t0 is not None else wall_start + (t_end / pace if pace > 0 else 0.0) - t_end
+    period = 1.0 / cfg.gnss_hz
+    batch_n = 1 if pace > 0 else 200
     j = 0
     for k0 in range(0, n_steps, ratio):
         down = fdown[j]
@@ -441,10 +447,11 @@ def simulate(
                 ahead = wall_start + k0 * dt / pace - time.time()
                 if ahead > 0:
                     time.sleep(ahead)
-                tstamp = time.time()
-            else:
-                tstamp = tbase + k0 * dt
-            batch.append(make_record(pipe, d, None, y, ctrl.output, down, tstamp))
+            batch.append(
+                make_record(
+                    pipe, d, None, y, ctrl.output, down, tbase + k0 * dt, fix_period_s=period
+                )
+            )
             if len(batch) >= batch_n:
                 sink(batch)
                 batch = []

@@ -1,4 +1,11 @@
-"""HTTP batch sender: POST /api/v1/telemetry with the device token, trim on ack."""
+"""HTTP batch sender: POST /api/v1/telemetry with the device token, trim on ack.
+
+Batches are telemetry format 2 (``TelemetryQueue.pending_batch``: stream,
+stream_start, records). The ack names the stream; rejected records are logged
+with the server's reasons and counted in the queue (the server acknowledges
+past them, so they never block what follows). A ``stream_conflict`` ack moves
+the unacknowledged records to a new stream.
+"""
 
 from __future__ import annotations
 
@@ -40,19 +47,21 @@ class HttpSender:
 
     def send_once(self) -> int | None:
         """One batch. Returns records trimmed, 0 if nothing pending, None on failure."""
-        batch = self.queue.pending(self.batch_size)
-        if not batch:
+        body, n, _ = self.queue.pending_batch(self.batch_size)
+        if not n:
             return 0
         try:
-            resp = self._client.post(self.url, json={"records": batch})
+            resp = self._client.post(
+                self.url, content=body, headers={"Content-Type": "application/json"}
+            )
             if resp.status_code >= 400:
                 raise httpx.HTTPStatusError(
                     f"HTTP {resp.status_code}: {resp.text[:200]}",
                     request=resp.request,
                     response=resp,
                 )
-            ack = TelemetryAck(**resp.json())
-        except (httpx.HTTPError, ValueError, TypeError) as exc:
+            ack = TelemetryAck.from_dict(resp.json())
+        except (httpx.HTTPError, ValueError, TypeError, AttributeError) as exc:
             self.failures += 1
             self.last_error = str(exc)
             log.info("telemetry upload failed: %s", exc)
@@ -60,7 +69,10 @@ class HttpSender:
         self.sent_batches += 1
         if ack.rejected:
             log.warning("server rejected %d records: %s", len(ack.rejected), ack.rejected[:3])
-        return self.queue.ack(ack.acked_seq, rejected=len(ack.rejected))
+        trimmed = self.queue.ack(ack.acked_seq, rejected=ack.rejected, stream=ack.stream or None)
+        if ack.stream_conflict:
+            self.queue.new_stream()
+        return trimmed
 
     def run(self, stop: threading.Event, idle_s: float = 0.2) -> None:
         """Drain forever until ``stop``; exponential backoff while the server is unreachable."""

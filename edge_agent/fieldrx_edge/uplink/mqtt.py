@@ -5,7 +5,14 @@ only when the FieldRx server publishes its ``TelemetryAck`` (acked_seq). The
 number of unacknowledged batches is capped well below paho's 65535 message
 ids (STACK.md: publish fails with ERR_QUEUE_SIZE otherwise). If no ack arrives
 for ``ack_timeout_s``, everything after acked_seq is sent again: the server
-deduplicates by (machine, seq).
+deduplicates by (machine, stream, seq).
+
+Payloads are telemetry format 2 batches (``TelemetryQueue.pending_batch``).
+Acks name their stream: every agent of a machine listens on the same ack
+topic, so an ack for another stream (another agent, or a stream this queue
+left) is ignored. Rejected records are logged with the server's reasons and
+counted in the queue; a ``stream_conflict`` ack moves the unacknowledged
+records to a new stream and resends them.
 
 The broker admits no anonymous client: the machine logs in as
 ``mqtt_username(machine_id)`` with its device token as password, and may only
@@ -19,10 +26,11 @@ import json
 import logging
 import threading
 import time
+from typing import Any
 
 import paho.mqtt.client as mqtt
 
-from fieldrx_edge.protocol import ack_topic, mqtt_client_id, telemetry_topic
+from fieldrx_edge.protocol import TelemetryAck, ack_topic, mqtt_client_id, telemetry_topic
 from fieldrx_edge.uplink.backoff import Backoff
 from fieldrx_edge.uplink.queue import TelemetryQueue
 
@@ -56,7 +64,10 @@ class MqttSender:
         self._sent_up_to = self._acked
         self._inflight: list[tuple[int, float]] = []  # (last seq of batch, sent at)
         self._connected = False
-        self._pending_ack: tuple[int, int] | None = None  # set by the network thread
+        # set by the network thread, applied to the queue by the sending thread:
+        # (acked_seq, rejects with reasons, stream conflict)
+        self._pending_ack: tuple[int, list[dict[str, Any]], bool] | None = None
+        self._stream = queue.stream[0]
         cid = client_id or mqtt_client_id(queue.machine_id)
         self.client = mqtt.Client(
             mqtt.CallbackAPIVersion.VERSION2, client_id=cid, clean_session=False
@@ -97,26 +108,41 @@ class MqttSender:
 
     def _on_message(self, client, userdata, msg) -> None:  # noqa: ANN001
         try:
-            ack = json.loads(msg.payload)
-            acked = int(ack["acked_seq"])
-        except (ValueError, KeyError, TypeError):
+            ack = TelemetryAck.from_dict(json.loads(msg.payload))
+            acked = int(ack.acked_seq)
+            rejected = [r for r in ack.rejected if isinstance(r, dict)]
+        except (ValueError, KeyError, TypeError, AttributeError):
             log.warning("bad ack payload on %s", msg.topic)
             return
-        rejected = len(ack.get("rejected") or [])
+        if ack.stream and ack.stream != self._stream:
+            return  # another agent's (same machine) or a stream this queue left
+        if rejected:
+            log.warning("server rejected %d records: %s", len(rejected), rejected[:3])
         with self._cv:
             if acked > self._acked:
                 self._acked = acked
                 self._inflight = [b for b in self._inflight if b[0] > acked]
+            pa = self._pending_ack
+            if pa is None:
+                self._pending_ack = (acked, rejected, ack.stream_conflict)
+            else:
+                conflict = pa[2] or ack.stream_conflict
+                self._pending_ack = (max(acked, pa[0]), pa[1] + rejected, conflict)
             self._cv.notify_all()
-        pa = self._pending_ack
-        if pa is None or acked >= pa[0]:
-            self._pending_ack = (acked, rejected + (pa[1] if pa else 0))
 
     def _apply_ack(self) -> None:
-        pa = self._pending_ack
-        if pa is not None:
+        with self._cv:
+            pa = self._pending_ack
             self._pending_ack = None
-            self.queue.ack(pa[0], rejected=pa[1])
+        if pa is None:
+            return
+        self.queue.ack(pa[0], rejected=pa[1])
+        if pa[2]:
+            self._stream = self.queue.new_stream()
+            with self._cv:  # resend everything not acknowledged, on the new stream
+                self._acked = self.queue.acked_seq
+                self._sent_up_to = self._acked
+                self._inflight.clear()
 
     def send_some(self) -> int:
         """Publish batches while the in-flight cap allows; returns records published."""
@@ -133,18 +159,17 @@ class MqttSender:
             after = max(self._sent_up_to, self._acked)
         published = 0
         while room > 0:
-            batch = self.queue.pending(self.batch_size, after=after)
-            if not batch:
+            payload, n, last = self.queue.pending_batch(self.batch_size, after=after)
+            if not n:
                 break
-            payload = json.dumps({"records": batch}, separators=(",", ":"))
             info = self.client.publish(self.topic, payload, qos=1)
             if info.rc != mqtt.MQTT_ERR_SUCCESS:
                 break
-            after = batch[-1]["seq"]
+            after = last
             with self._cv:
                 self._sent_up_to = after
                 self._inflight.append((after, time.monotonic()))
-            published += len(batch)
+            published += n
             room -= 1
         return published
 
