@@ -20,11 +20,13 @@ import uuid
 from pathlib import Path
 
 import pytest
+from fieldrx_edge.protocol import mqtt_username
 from fieldrx_edge.uplink import Backoff, HttpSender, MqttSender, TelemetryQueue
 from sqlalchemy import text
 
 from tests.fleet.helpers import JobFixture, make_job, record
 from tests.fleet.procs import start_api, start_worker
+from tests.mqtt_broker import mqtt_port
 
 T_2099 = 4_070_000_000.0
 
@@ -94,7 +96,16 @@ def test_poison_records_over_mqtt(database_url, org, db, tmp_path: Path) -> None
     q = TelemetryQueue(tmp_path / "q.sqlite", fx.machine_id)
     _fill(q, fx, t0)
     worker = start_worker(database_url, f"t{uuid.uuid4().hex[:8]}")
-    s = MqttSender(q, batch_size=8, ack_timeout_s=3.0, client_id=f"edge-{uuid.uuid4().hex[:8]}")
+    host, port = mqtt_port()
+    s = MqttSender(
+        q,
+        host,
+        port,
+        batch_size=8,
+        ack_timeout_s=3.0,
+        username=mqtt_username(fx.machine_id),
+        password=fx.device_token,
+    )
     try:
         assert s.drain(30)
     finally:

@@ -23,12 +23,14 @@ from typing import Any
 
 import httpx
 import pytest
+from fieldrx_edge.protocol import mqtt_username
 from fieldrx_edge.uplink import Backoff, HttpSender, MqttSender, TelemetryQueue
 from sqlalchemy import text
 
 from tests.fleet.helpers import JobFixture, make_job, record
 from tests.fleet.procs import BIN, ROOT, start_api, start_worker
-from tests.support import SMALL_PLOT, feature
+from tests.mqtt_broker import mqtt_port
+from tests.support import SEED001_CAL, SMALL_PLOT, feature, machine_body
 
 
 @pytest.fixture(scope="module")
@@ -44,7 +46,9 @@ def _plan_jobs(c: httpx.Client, n_jobs: int) -> tuple[str, list[int]]:
     """One machine, one planned small plot with a varying prescription, ``n_jobs`` jobs
     of it for that machine (sent). Returns the device token and the job ids."""
     field = c.post("/api/v1/fields", json=feature(SMALL_PLOT, name="plot")).json()
-    m = c.post("/api/v1/machines", json={"name": "sim", "width_m": 2.3}).json()
+    # a 10 r/min shaft floor so the 220-340 kg/ha edits are meterable (as test_simulated_job)
+    cal = {**SEED001_CAL, "min_rpm": 10.0}
+    m = c.post("/api/v1/machines", json=machine_body("sim", 2.3, calibration=cal)).json()
     token = c.post(f"/api/v1/machines/{m['id']}/device-token").json()["token"]
     plan = c.post(
         f"/api/v1/fields/{field['id']}/plans", json={"swath_width_m": 2.3, "cell_length_m": 5.0}
@@ -277,8 +281,20 @@ def test_wiped_queue_and_second_agent_over_mqtt(database_url: str, org, db, tmp_
     t0 = time.time() - 600
     worker = start_worker(database_url, f"t{uuid.uuid4().hex[:8]}")
 
+    host, port = mqtt_port()
+
     def sender(q: TelemetryQueue) -> MqttSender:
-        return MqttSender(q, batch_size=25, ack_timeout_s=3.0, client_id=f"e-{uuid.uuid4().hex}")
+        # the broker binds machine N's login to client id fieldrx-edge-N: two tablets of one
+        # machine take turns on the connection (each drains, then hands over)
+        return MqttSender(
+            q,
+            host,
+            port,
+            batch_size=25,
+            ack_timeout_s=3.0,
+            username=mqtt_username(fx.machine_id),
+            password=fx.device_token,
+        )
 
     try:
         q1 = TelemetryQueue(tmp_path / "a" / "queue.sqlite", fx.machine_id)
@@ -290,17 +306,16 @@ def test_wiped_queue_and_second_agent_over_mqtt(database_url: str, org, db, tmp_
         q1.close()
         shutil.rmtree(tmp_path / "a")  # wiped: the next queue numbers from 1 again
         qs = [TelemetryQueue(tmp_path / f"t{k}.sqlite", fx.machine_id) for k in (0, 1)]
-        senders = [sender(q) for q in qs]
-        try:
-            for step in range(3):  # two tablets at once
-                for k, q in enumerate(qs):
-                    base = t0 + 20.0 + step * 3.0 + k * 0.05
-                    q.put_many([record(fx, 0, t=base + 0.1 * i) for i in range(25)])
-                for s in senders:
+        for step in range(3):  # two tablets recording at once, sending in turns
+            for k, q in enumerate(qs):
+                base = t0 + 20.0 + step * 3.0 + k * 0.05
+                q.put_many([record(fx, 0, t=base + 0.1 * i) for i in range(25)])
+            for q in qs:
+                s = sender(q)
+                try:
                     assert s.drain(20)
-        finally:
-            for s in senders:
-                s.close()
+                finally:
+                    s.close()
     finally:
         worker.stop()
     assert _count(db, fx.machine_id) == 100 + 2 * 75
