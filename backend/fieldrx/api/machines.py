@@ -49,7 +49,7 @@ class MachineIn(BaseModel):
 
 class MachinePatch(BaseModel):
     name: str | None = Field(default=None, min_length=1, max_length=200)
-    implement_type: str | None = None
+    implement_type: str | None = Field(default=None, max_length=50)
     width_m: float | None = Field(default=None, gt=0, le=60)
     lag_s: float | None = Field(default=None, ge=0, le=30)
     calibration: dict[str, Any] | None = None

@@ -18,7 +18,7 @@ from fieldrx.geo import PlanningError
 from fieldrx.services.plans import (
     PlanParams,
     cells_page,
-    create_plan,
+    create_plan_bounded,
     delete_plan,
     plan_summary,
 )
@@ -46,15 +46,16 @@ def create(field_id: int, body: PlanIn, principal: WriterDep, session: SessionDe
     """Plan the coverage path, cut the grid and store both (one transaction).
 
     Bad parameters (w <= 0, w wider than the field, L < 0.5 m, > 5 million
-    cells, degenerate field) answer 422 with the planner's reason.
+    cells, degenerate field) answer 422 with the planner's reason; the cell count
+    is estimated before any work. Planning runs in a worker process with a time
+    limit (FIELDRX_PLAN_TIME_LIMIT_S, 422 when exceeded; 503 when all workers are busy).
     """
     field = get_scoped(session, FieldRow, field_id, principal)
+    params = PlanParams(**body.model_dump())
     try:
-        plan = create_plan(session, field, PlanParams(**body.model_dump()), field.organisation_id)
+        plan = create_plan_bounded(session, field, params, field.organisation_id)
     except PlanningError as exc:
-        session.rollback()
         raise ApiError(422, str(exc)) from exc
-    session.commit()
     return plan_summary(plan)
 
 

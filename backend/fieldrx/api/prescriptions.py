@@ -68,7 +68,7 @@ class EditIn(BaseModel):
     cells: list[CellEdit] | None = None
     zone: dict[str, Any] | None = Field(default=None, description="GeoJSON Polygon (lon/lat)")
     rate_kg_ha: float | None = Field(default=None, ge=0, description="rate of the zone")
-    note: str = ""
+    note: str = Field(default="", max_length=2000)
 
     @model_validator(mode="after")
     def _one_kind(self) -> EditIn:
