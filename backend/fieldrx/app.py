@@ -17,6 +17,7 @@ from fieldrx import __version__
 from fieldrx.api.common import ApiError
 from fieldrx.errors import DomainError
 from fieldrx.middleware import LimitsAndHeaders, install_log_redaction
+from fieldrx.services import bounded
 from fieldrx.settings import get_settings
 
 API_PREFIX = "/api/v1"
@@ -65,6 +66,7 @@ def create_app() -> FastAPI:
         LimitsAndHeaders, max_body=settings.max_body_bytes, max_upload=settings.max_upload_bytes
     )
     install_log_redaction()
+    bounded.warm_up()
 
     @app.exception_handler(ApiError)
     async def _api_error(_: Request, exc: ApiError) -> JSONResponse:

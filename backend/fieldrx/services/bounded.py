@@ -54,6 +54,16 @@ def _get_slots() -> threading.BoundedSemaphore:
         return _slots
 
 
+def warm_up() -> None:
+    """Start the forkserver (importing the heavy modules) in the background, so the first
+    heavy request does not pay for it while other requests are waiting."""
+    from multiprocessing import forkserver
+
+    threading.Thread(
+        target=forkserver.ensure_running, name="forkserver-warm-up", daemon=True
+    ).start()
+
+
 def _child(conn: Connection, fn: Callable[..., Any], args: tuple[Any, ...]) -> None:
     try:
         result: tuple[bool, Any] = (True, fn(*args))

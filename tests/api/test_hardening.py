@@ -1,0 +1,291 @@
+"""Hostile input against a real API process: each abusive request is refused quickly with a
+clear message while a concurrent health check keeps answering in < 100 ms (ISSUE 20)."""
+
+from __future__ import annotations
+
+import io
+import os
+import socket
+import threading
+import time
+import zipfile
+from collections.abc import Callable, Iterator
+
+import httpx
+import pytest
+
+from tests.fleet.procs import BIN, Proc, start_api
+from tests.plans.helpers import rectangle
+from tests.support import feature
+
+API = "/api/v1"
+HEALTH_BUDGET_S = 0.100
+PLAN_TIME_LIMIT_S = 1.5
+
+
+@pytest.fixture(scope="module")
+def api(database_url: str) -> Iterator[str]:
+    """A uvicorn API process with a short planning time limit (so the limit can be hit)."""
+    old = os.environ.get("FIELDRX_PLAN_TIME_LIMIT_S")
+    os.environ["FIELDRX_PLAN_TIME_LIMIT_S"] = str(PLAN_TIME_LIMIT_S)
+    try:
+        proc, url = start_api(database_url)
+    finally:
+        if old is None:
+            os.environ.pop("FIELDRX_PLAN_TIME_LIMIT_S", None)
+        else:
+            os.environ["FIELDRX_PLAN_TIME_LIMIT_S"] = old
+    yield url
+    proc.stop()
+
+
+def _while_healthy(url: str, request: Callable[[], httpx.Response]) -> tuple[httpx.Response, float]:
+    """Run ``request`` while another thread polls /health; (response, worst health time)."""
+    done = threading.Event()
+    times: list[float] = []
+
+    def poll() -> None:
+        with httpx.Client(base_url=url, timeout=10) as c:
+            c.get(f"{API}/health")  # connect first: measure answers, not TCP set-up
+            while not done.is_set():
+                t0 = time.perf_counter()
+                r = c.get(f"{API}/health")
+                times.append(time.perf_counter() - t0)
+                assert r.status_code == 200
+                time.sleep(0.01)
+
+    t = threading.Thread(target=poll, daemon=True)
+    t.start()
+    time.sleep(0.1)
+    try:
+        resp = request()
+        time.sleep(0.1)
+    finally:
+        done.set()
+        t.join(15)
+    assert times, "health was never answered"
+    return resp, max(times)
+
+
+def _field(url: str, headers: dict[str, str], geometry: dict) -> int:
+    r = httpx.post(f"{url}{API}/fields", headers=headers, json=feature(geometry), timeout=30)
+    assert r.status_code == 201, r.text
+    return int(r.json()["id"])
+
+
+def test_million_row_soil_csv_is_refused_fast(api: str, org) -> None:  # noqa: ANN001
+    h = org.headers()
+    fid = _field(api, h, rectangle(112.30, 32.10, 300, 300))
+    data = b"sample_id,lon,lat,n_mg_kg\n" + b"s,112.301,32.101,50\n" * 1_000_000
+    assert len(data) < 20 * 1024 * 1024  # under the upload limit: the row count must refuse it
+
+    def post() -> httpx.Response:
+        files = {"file": ("big.csv", data, "text/csv")}
+        return httpx.post(
+            f"{api}{API}/fields/{fid}/soil-samples", headers=h, files=files, timeout=60
+        )
+
+    t0 = time.perf_counter()
+    r, worst = _while_healthy(api, post)
+    took = time.perf_counter() - t0
+    assert r.status_code == 422, r.text
+    assert "1000000 rows, more than 50000" in r.json()["detail"]
+    assert took < 5, took
+    assert worst < HEALTH_BUDGET_S, worst
+    listed = httpx.get(f"{api}{API}/fields/{fid}/soil-samples", headers=h, timeout=30).json()
+    assert listed["total"] == 0
+
+
+def _bomb(member: str, size: int) -> bytes:
+    """A zip whose one member inflates to ``size`` bytes of zeros (about 1 MB per GiB)."""
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED, compresslevel=9) as z:
+        with z.open(member, "w", force_zip64=True) as f:
+            chunk = b"\0" * (1 << 20)
+            for _ in range(size >> 20):
+                f.write(chunk)
+    return buf.getvalue()
+
+
+@pytest.mark.parametrize(("name", "member"), [("bomb.zip", "fields.shp"), ("bomb.kmz", "doc.kml")])
+def test_zip_bomb_is_refused_fast(api: str, org, name: str, member: str) -> None:  # noqa: ANN001
+    h = org.headers()
+    data = _bomb(member, 1 << 30)
+    assert len(data) < 2 * 1024 * 1024
+
+    def post() -> httpx.Response:
+        files = {"file": (name, data, "application/zip")}
+        return httpx.post(f"{api}{API}/fields/import", headers=h, files=files, timeout=60)
+
+    t0 = time.perf_counter()
+    r, worst = _while_healthy(api, post)
+    took = time.perf_counter() - t0
+    assert r.status_code == 422, r.text
+    assert "inflates to more than 256 MiB" in r.json()["detail"]
+    assert took < 5, took
+    assert worst < HEALTH_BUDGET_S, worst
+
+
+def test_zip_member_lying_about_its_size_is_refused(api: str, org) -> None:  # noqa: ANN001
+    """A central directory that declares a small size cannot smuggle a bomb past the count."""
+    h = org.headers()
+    data = bytearray(_bomb("doc.kml", 300 << 20))
+    # patch the declared uncompressed size (central directory, zip64 extra) to 1 KiB
+    cd = data.rfind(b"PK\x01\x02")
+    extra_at = data.find(b"\x01\x00", cd + 46)  # zip64 extra block id 0x0001
+    data[extra_at + 4 : extra_at + 12] = (1024).to_bytes(8, "little")
+    files = {"file": ("liar.kmz", bytes(data), "application/zip")}
+    r = httpx.post(f"{api}{API}/fields/import", headers=h, files=files, timeout=60)
+    assert r.status_code == 422, r.text
+
+
+def test_tiny_swath_plan_is_refused_before_work(api: str, org) -> None:  # noqa: ANN001
+    h = org.headers()
+    fid = _field(api, h, rectangle(112.30, 32.10, 2236, 2236))  # 500 ha
+
+    def post() -> httpx.Response:
+        body = {"swath_width_m": 0.05, "cell_length_m": 5.0}
+        return httpx.post(f"{api}{API}/fields/{fid}/plans", headers=h, json=body, timeout=60)
+
+    t0 = time.perf_counter()
+    r, worst = _while_healthy(api, post)
+    took = time.perf_counter() - t0
+    assert r.status_code == 422, r.text
+    assert "more than 5000000" in r.json()["detail"]
+    assert "use a wider swath or longer cells" in r.json()["detail"]
+    assert took < 2, took
+    assert worst < HEALTH_BUDGET_S, worst
+
+
+def test_plan_over_the_time_limit_is_stopped_and_leaves_nothing(
+    api: str,
+    org,
+    db,  # noqa: ANN001
+) -> None:
+    """Within the cell bound but slower than the time limit: the worker is killed, 422."""
+    from sqlalchemy import text
+
+    h = org.headers()
+    fid = _field(api, h, rectangle(112.30, 32.10, 3000, 3000))  # 900 ha, ~1.5 M cells
+
+    def post() -> httpx.Response:
+        body = {"swath_width_m": 1.2, "cell_length_m": 5.0}
+        return httpx.post(f"{api}{API}/fields/{fid}/plans", headers=h, json=body, timeout=60)
+
+    t0 = time.perf_counter()
+    r, worst = _while_healthy(api, post)
+    took = time.perf_counter() - t0
+    assert r.status_code == 422, r.text
+    assert f"longer than the {PLAN_TIME_LIMIT_S:g} s limit" in r.json()["detail"]
+    assert took < PLAN_TIME_LIMIT_S + 3, took
+    assert worst < HEALTH_BUDGET_S, worst
+    n = db.scalar(text("SELECT count(*) FROM plans WHERE field_id = :f"), {"f": fid})
+    assert n == 0
+    # the server still plans a normal request afterwards
+    ok = httpx.post(
+        f"{api}{API}/fields/{fid}/plans",
+        headers=h,
+        json={"swath_width_m": 24.0, "cell_length_m": 30.0},
+        timeout=60,
+    )
+    assert ok.status_code == 201, ok.text
+
+
+def test_hundred_megabyte_body_is_refused_before_it_is_read(api: str, org) -> None:  # noqa: ANN001
+    """Content-Length over the limit: 413 after the headers, the body is never read."""
+    host, port = api.removeprefix("http://").split(":")
+    token = org.tokens["agronomist"]
+    size = 100 * 1024 * 1024
+
+    def post() -> httpx.Response:
+        with socket.create_connection((host, int(port)), timeout=10) as s:
+            s.sendall(
+                (
+                    f"POST {API}/fields HTTP/1.1\r\nHost: {host}\r\n"
+                    f"Authorization: Bearer {token}\r\nContent-Type: application/json\r\n"
+                    f"Content-Length: {size}\r\n\r\n"
+                ).encode()
+                + b'{"type": "Feature", "properties": {"notes": "'
+                + b"x" * (1 << 20)
+            )
+            raw = b""
+            while b"\r\n\r\n" not in raw or not raw.rstrip().endswith(b"}"):
+                chunk = s.recv(65536)
+                if not chunk:
+                    break
+                raw += chunk
+        head, _, body = raw.partition(b"\r\n\r\n")
+        status = int(head.split()[1])
+        return httpx.Response(status, content=body)
+
+    t0 = time.perf_counter()
+    r, worst = _while_healthy(api, post)
+    assert r.status_code == 413, r.text
+    assert "request body larger than 16 MiB" in r.json()["detail"]
+    assert time.perf_counter() - t0 < 2
+    assert worst < HEALTH_BUDGET_S, worst
+
+
+def test_streamed_body_over_the_limit_is_413(api: str, org) -> None:  # noqa: ANN001
+    """No Content-Length (chunked): counted while it streams in."""
+    h = {**org.headers(), "Content-Type": "application/json"}
+
+    def body() -> Iterator[bytes]:
+        yield b'{"type": "Feature", "properties": {"notes": "'
+        for _ in range(20):
+            yield b"x" * (1 << 20)
+        yield b'"}}'
+
+    try:
+        r = httpx.post(f"{api}{API}/fields", headers=h, content=body(), timeout=30)
+    except httpx.WriteError:  # the server may answer and close before all chunks are sent
+        pytest.skip("connection closed before the response could be read")
+    assert r.status_code == 413, r.text
+
+
+def test_long_notes_field_is_422(api: str, org) -> None:  # noqa: ANN001
+    feat = feature(rectangle(112.30, 32.10, 200, 200), notes="x" * 1_000_000)
+    r = httpx.post(f"{api}{API}/fields", headers=org.headers(), json=feat, timeout=30)
+    assert r.status_code == 422, r.text
+    assert "notes" in r.json()["detail"]
+
+
+def test_security_headers_and_csp(api: str) -> None:
+    r = httpx.get(f"{api}/", timeout=10)
+    csp = r.headers["content-security-policy"]
+    assert "default-src 'self'" in csp and "worker-src 'self' blob:" in csp
+    assert "frame-ancestors 'none'" in csp
+    assert r.headers["x-content-type-options"] == "nosniff"
+    assert r.headers["x-frame-options"] == "DENY"
+    h = httpx.get(f"{api}{API}/health", timeout=10)
+    assert h.headers["x-content-type-options"] == "nosniff"
+
+
+def test_health_does_not_disclose_versions(api: str) -> None:
+    body = httpx.get(f"{api}{API}/health", timeout=10).json()
+    assert body == {"status": "ok", "database": "ok"}
+
+
+def test_database_outage_is_503(database_url: str) -> None:
+    """An API whose database is unreachable answers 503 with Retry-After, not 500."""
+    bad = database_url.rsplit("/", 1)[0].replace("127.0.0.1:5432", "127.0.0.1:1") + "/nowhere"
+    proc = Proc(
+        [
+            str(BIN / "uvicorn"),
+            "fieldrx.app:create_app",
+            "--factory",
+            "--port",
+            "0",
+        ],
+        {"DATABASE_URL": bad},
+    )
+    try:
+        proc.wait_for("Uvicorn running on")
+        line = next(x for x in proc.lines if "Uvicorn running on" in x)
+        url = line.split("running on ")[1].split()[0]
+        r = httpx.get(f"{url}{API}/health", timeout=30)
+        assert r.status_code == 503, r.text
+        assert "database is unavailable" in r.json()["detail"]
+        assert r.headers["retry-after"]
+    finally:
+        proc.stop()
