@@ -39,6 +39,7 @@ ROUTERS = (
     "fleet",
     "reports",
     "live",
+    "archive",
 )
 
 

@@ -16,6 +16,7 @@ from fieldrx.auth.deps import Principal, SessionDep, UserDep, WriterDep
 from fieldrx.db.models import Farm
 from fieldrx.db.models import Field as FieldRow
 from fieldrx.geo.validate import BoundaryError, ValidBoundary, validate_boundary
+from fieldrx.services.evidence import refuse_if_evidence
 
 router = APIRouter(prefix="/fields", tags=["fields"])
 
@@ -245,5 +246,8 @@ def update_field(
 
 @router.delete("/{field_id:int}", status_code=204)
 def delete_field(field_id: int, principal: WriterDep, session: SessionDep) -> None:
-    session.delete(get_scoped(session, FieldRow, field_id, principal))
+    """Delete the field, its plans and jobs; 409 while a job holds unarchived as-applied data."""
+    row = get_scoped(session, FieldRow, field_id, principal)
+    refuse_if_evidence(session, "field", row.id)
+    session.delete(row)
     session.commit()

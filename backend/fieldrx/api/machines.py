@@ -14,6 +14,7 @@ from fieldrx.api.common import ApiError, get_scoped
 from fieldrx.auth.deps import AnyPrincipal, SessionDep, UserDep, WriterDep
 from fieldrx.auth.service import issue_device_token
 from fieldrx.db.models import Machine
+from fieldrx.services.evidence import refuse_if_evidence
 
 router = APIRouter(prefix="/machines", tags=["machines"])
 
@@ -144,7 +145,10 @@ def update_machine(
 
 @router.delete("/{machine_id:int}", status_code=204)
 def delete_machine(machine_id: int, principal: WriterDep, session: SessionDep) -> None:
-    session.delete(get_scoped(session, Machine, machine_id, principal))
+    """Delete the machine and its jobs; 409 while a job holds unarchived as-applied data."""
+    machine = get_scoped(session, Machine, machine_id, principal)
+    refuse_if_evidence(session, "machine", machine.id)
+    session.delete(machine)
     session.commit()
 
 

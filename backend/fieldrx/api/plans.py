@@ -15,6 +15,7 @@ from fieldrx.auth.deps import SessionDep, UserDep, WriterDep
 from fieldrx.db.models import Field as FieldRow
 from fieldrx.db.models import Plan, Prescription
 from fieldrx.geo import PlanningError
+from fieldrx.services.evidence import refuse_if_evidence
 from fieldrx.services.plans import (
     PlanParams,
     cells_page,
@@ -122,6 +123,7 @@ def list_plan_prescriptions(plan_id: int, principal: UserDep, session: SessionDe
 def remove_plan(plan_id: int, principal: WriterDep, session: SessionDep) -> None:
     """Delete the plan, its cells and the prescriptions made on it."""
     plan = get_scoped(session, Plan, plan_id, principal)
+    refuse_if_evidence(session, "plan", plan.id)
     try:
         delete_plan(session, plan)
     except OperationalError as exc:

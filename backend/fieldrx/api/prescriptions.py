@@ -19,6 +19,7 @@ from fieldrx.db.models import Machine, Plan, Prescription, PrescriptionVersion
 from fieldrx.formats import FormatError
 from fieldrx.services import exports
 from fieldrx.services import prescriptions as svc
+from fieldrx.services.evidence import refuse_if_evidence
 
 router = APIRouter(tags=["prescriptions"])
 
@@ -248,5 +249,8 @@ def export(
 
 @router.delete("/prescriptions/{rx_id:int}", status_code=204)
 def delete(rx_id: int, principal: WriterDep, session: SessionDep) -> None:
-    session.delete(get_scoped(session, Prescription, rx_id, principal))
+    """Delete the prescription and its jobs; 409 while a job holds unarchived as-applied data."""
+    rx = get_scoped(session, Prescription, rx_id, principal)
+    refuse_if_evidence(session, "prescription", rx.id)
+    session.delete(rx)
     session.commit()
