@@ -289,3 +289,38 @@ def test_database_outage_is_503(database_url: str) -> None:
         assert r.headers["retry-after"]
     finally:
         proc.stop()
+
+
+@pytest.mark.parametrize(
+    "body",
+    [
+        {"swath_width_m": 5e-324, "cell_length_m": 5.0},
+        {"swath_width_m": 1e-320, "cell_length_m": 1e300},
+        {"swath_width_m": 2.0, "cell_length_m": 5e-324},
+    ],
+)
+def test_degenerate_plan_parameters_are_422(api: str, org, body: dict) -> None:  # noqa: ANN001
+    h = org.headers()
+    fid = _field(api, h, rectangle(112.30, 32.10, 300, 300))
+    r = httpx.post(f"{api}{API}/fields/{fid}/plans", headers=h, json=body, timeout=30)
+    assert r.status_code == 422, r.text
+
+
+def test_patch_racing_delete_never_answers_500(api: str, org) -> None:  # noqa: ANN001
+    """40 rounds of PATCH and DELETE on the same field at once: 200/204/404/409, never 5xx."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    h = org.headers()
+    seen: list[int] = []
+    c1 = httpx.Client(base_url=api, headers=h, timeout=30)
+    c2 = httpx.Client(base_url=api, headers=h, timeout=30)
+    with c1, c2, ThreadPoolExecutor(2) as ex:
+        for i in range(40):
+            fid = _field(api, h, rectangle(112.30, 32.10 + i * 0.01, 200, 200))
+            patch = ex.submit(
+                c1.patch, f"{API}/fields/{fid}", json={"properties": {"notes": f"round {i}"}}
+            )
+            delete = ex.submit(c2.delete, f"{API}/fields/{fid}")
+            seen += [patch.result().status_code, delete.result().status_code]
+    assert all(s < 500 for s in seen), seen
+    assert set(seen) <= {200, 204, 404, 409}, seen

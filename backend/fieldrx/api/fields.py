@@ -239,9 +239,11 @@ def update_field(
         row.utm_epsg = valid.utm_epsg
         row.area_m2 = valid.area_m2
     row.updated_at = func.now()
-    session.commit()
-    session.refresh(row)
-    return field_feature(row)
+    session.commit()  # StaleDataError (409, app.py) when a DELETE won the race before this
+    fresh = session.get(FieldRow, field_id, populate_existing=True)
+    if fresh is None:  # ... or after it
+        raise ApiError(409, f"field {field_id} was deleted by another request meanwhile")
+    return field_feature(fresh)
 
 
 @router.delete("/{field_id:int}", status_code=204)
