@@ -29,6 +29,9 @@ class Settings(BaseSettings):
     import_time_limit_s: float = Field(default=60.0, alias="FIELDRX_IMPORT_TIME_LIMIT_S")
     max_body_bytes: int = Field(default=16 * 1024 * 1024, alias="FIELDRX_MAX_BODY_BYTES")
     max_upload_bytes: int = Field(default=51 * 1024 * 1024, alias="FIELDRX_MAX_UPLOAD_BYTES")
+    login_max_failures_account: int = Field(default=10, alias="FIELDRX_LOGIN_MAX_FAILURES")
+    login_max_failures_ip: int = Field(default=100, alias="FIELDRX_LOGIN_MAX_FAILURES_IP")
+    login_window_s: float = Field(default=900.0, alias="FIELDRX_LOGIN_WINDOW_S")
     device_token_ttl_days: float = Field(default=365.0, alias="FIELDRX_DEVICE_TOKEN_TTL_DAYS")
 
 
