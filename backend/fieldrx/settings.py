@@ -32,6 +32,7 @@ class Settings(BaseSettings):
     login_max_failures_account: int = Field(default=10, alias="FIELDRX_LOGIN_MAX_FAILURES")
     login_max_failures_ip: int = Field(default=100, alias="FIELDRX_LOGIN_MAX_FAILURES_IP")
     login_window_s: float = Field(default=900.0, alias="FIELDRX_LOGIN_WINDOW_S")
+    live_token_check_s: float = Field(default=5.0, alias="FIELDRX_LIVE_TOKEN_CHECK_S")
     device_token_ttl_days: float = Field(default=365.0, alias="FIELDRX_DEVICE_TOKEN_TTL_DAYS")
 
 

@@ -26,15 +26,17 @@ PLAN_TIME_LIMIT_S = 1.5
 @pytest.fixture(scope="module")
 def api(database_url: str) -> Iterator[str]:
     """A uvicorn API process with a short planning time limit (so the limit can be hit)."""
-    old = os.environ.get("FIELDRX_PLAN_TIME_LIMIT_S")
-    os.environ["FIELDRX_PLAN_TIME_LIMIT_S"] = str(PLAN_TIME_LIMIT_S)
+    env = {"FIELDRX_PLAN_TIME_LIMIT_S": str(PLAN_TIME_LIMIT_S), "FIELDRX_LIVE_TOKEN_CHECK_S": "0.5"}
+    old = {k: os.environ.get(k) for k in env}
+    os.environ.update(env)
     try:
         proc, url = start_api(database_url)
     finally:
-        if old is None:
-            os.environ.pop("FIELDRX_PLAN_TIME_LIMIT_S", None)
-        else:
-            os.environ["FIELDRX_PLAN_TIME_LIMIT_S"] = old
+        for k, v in old.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
     yield url
     proc.stop()
 
@@ -324,3 +326,81 @@ def test_patch_racing_delete_never_answers_500(api: str, org) -> None:  # noqa: 
             seen += [patch.result().status_code, delete.result().status_code]
     assert all(s < 500 for s in seen), seen
     assert set(seen) <= {200, 204, 404, 409}, seen
+
+
+def test_revoking_a_token_closes_its_live_socket(api: str, org) -> None:  # noqa: ANN001
+    """The live socket authenticated by the subprotocol closes (4401) once its token is
+    revoked; before, it stayed open until the browser left."""
+    import asyncio
+
+    import websockets
+
+    login = httpx.post(
+        f"{api}{API}/auth/login",
+        json={"email": org.email("viewer"), "password": org.password},
+        timeout=30,
+    ).json()
+    token = login["access_token"]
+    ws_url = api.replace("http", "ws") + f"{API}/live"
+
+    async def run() -> tuple[int | None, float]:
+        async with websockets.connect(ws_url, subprotocols=["fieldrx", token]) as ws:
+            assert ws.subprotocol == "fieldrx"
+            first = await asyncio.wait_for(ws.recv(), 10)
+            assert '"status"' in first
+            r = httpx.post(
+                f"{api}{API}/auth/logout", headers={"Authorization": f"Bearer {token}"}, timeout=10
+            )
+            assert r.status_code == 204
+            t0 = time.perf_counter()
+            try:
+                while True:
+                    await asyncio.wait_for(ws.recv(), 10)
+            except websockets.ConnectionClosed as exc:
+                return exc.rcvd.code if exc.rcvd else None, time.perf_counter() - t0
+
+    code, took = asyncio.run(run())
+    assert code == 4401
+    assert took < 3, took
+
+
+def test_live_tokens_are_not_written_to_the_log(database_url: str, org) -> None:  # noqa: ANN001
+    """uvicorn logs every WebSocket URL; a ``?token=`` there is redacted."""
+    import asyncio
+
+    import websockets
+
+    from tests.fleet.procs import free_port
+
+    port = free_port()
+    proc = Proc(
+        [
+            str(BIN / "uvicorn"),
+            "fieldrx.app:create_app",
+            "--factory",
+            "--port",
+            str(port),
+            "--log-level",
+            "info",
+        ],
+        {"DATABASE_URL": database_url},
+    )
+    token = org.tokens["viewer"]
+    try:
+        proc.wait_for("Uvicorn running on")
+
+        async def run() -> None:
+            url = f"ws://127.0.0.1:{port}{API}/live?token={token}"
+            async with websockets.connect(url) as ws:
+                await asyncio.wait_for(ws.recv(), 10)
+            async with websockets.connect(
+                f"ws://127.0.0.1:{port}{API}/live", subprotocols=["fieldrx", token]
+            ) as ws:
+                await asyncio.wait_for(ws.recv(), 10)
+
+        asyncio.run(run())
+        time.sleep(0.3)
+    finally:
+        out = proc.stop()
+    assert "/live?token=[redacted]" in out, out[-2000:]
+    assert token not in out
