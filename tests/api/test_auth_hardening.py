@@ -77,3 +77,41 @@ def test_address_is_throttled_across_accounts(db) -> None:  # noqa: ANN001
 def test_huge_password_is_422_not_hashed(client) -> None:  # noqa: ANN001
     r = client.post(LOGIN, json={"email": "a@b.test", "password": "x" * 1_000_000})
     assert r.status_code == 422
+
+
+def test_device_tokens_expire(client, org, db) -> None:  # noqa: ANN001
+    """Before: device tokens had no expiry and worked forever."""
+    import datetime as dt
+
+    from sqlalchemy import text
+
+    m = client.post("/api/v1/machines", headers=org.headers(), json={"name": "t", "width_m": 3})
+    r = client.post(f"/api/v1/machines/{m.json()['id']}/device-token", headers=org.headers())
+    assert r.status_code == 201, r.text
+    body = r.json()
+    expires = dt.datetime.fromisoformat(body["expires_at"])
+    left = expires - dt.datetime.now(dt.UTC)
+    assert dt.timedelta(days=364) < left <= dt.timedelta(days=365)
+    dev = {"Authorization": f"Bearer {body['token']}"}
+    assert client.get("/api/v1/device/jobs", headers=dev).status_code == 200
+    db.execute(
+        text("UPDATE api_tokens SET expires_at = now() - interval '1 s' WHERE prefix = :p"),
+        {"p": body["token"][:12]},
+    )
+    db.commit()
+    assert client.get("/api/v1/device/jobs", headers=dev).status_code == 401
+
+
+def test_device_rotates_its_own_token(client, org) -> None:  # noqa: ANN001
+    m = client.post("/api/v1/machines", headers=org.headers(), json={"name": "t", "width_m": 3})
+    old = client.post(f"/api/v1/machines/{m.json()['id']}/device-token", headers=org.headers())
+    old_h = {"Authorization": f"Bearer {old.json()['token']}"}
+    r = client.post("/api/v1/device/token", headers=old_h)
+    assert r.status_code == 201, r.text
+    new_h = {"Authorization": f"Bearer {r.json()['token']}"}
+    assert r.json()["token"] != old.json()["token"]
+    assert r.json()["expires_at"]
+    assert client.get("/api/v1/device/jobs", headers=new_h).status_code == 200
+    assert client.get("/api/v1/device/jobs", headers=old_h).status_code == 401
+    # a person's token cannot rotate a device token
+    assert client.post("/api/v1/device/token", headers=org.headers()).status_code == 403

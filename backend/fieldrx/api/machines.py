@@ -12,7 +12,7 @@ from sqlalchemy import func, select
 
 from fieldrx.api.common import ApiError, get_scoped
 from fieldrx.auth.deps import AnyPrincipal, SessionDep, UserDep, WriterDep
-from fieldrx.auth.service import issue_device_token
+from fieldrx.auth.service import issue_device_token, token_expiry
 from fieldrx.db.models import Machine
 from fieldrx.services.evidence import refuse_if_evidence
 
@@ -89,6 +89,7 @@ class MachineList(BaseModel):
 class DeviceTokenOut(BaseModel):
     machine_id: int
     token: str
+    expires_at: dt.datetime | None = None
 
 
 def _out(m: Machine) -> MachineOut:
@@ -158,4 +159,4 @@ def new_device_token(machine_id: int, principal: WriterDep, session: SessionDep)
     m = get_scoped(session, Machine, machine_id, principal)
     token = issue_device_token(session, m.id, m.organisation_id)
     session.commit()
-    return DeviceTokenOut(machine_id=m.id, token=token)
+    return DeviceTokenOut(machine_id=m.id, token=token, expires_at=token_expiry(session, token))
