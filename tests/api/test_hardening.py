@@ -404,3 +404,25 @@ def test_live_tokens_are_not_written_to_the_log(database_url: str, org) -> None:
         out = proc.stop()
     assert "/live?token=[redacted]" in out, out[-2000:]
     assert token not in out
+
+
+@pytest.mark.parametrize("path", ["/machines/status", "/alerts"])
+def test_fleet_reads_do_not_queue_behind_the_alert_sweep_lock(
+    api: str,
+    org,
+    database_url: str,
+    path: str,  # noqa: ANN001
+) -> None:
+    """Before: every GET took the global advisory lock and waited while a sweep held it."""
+    import psycopg
+
+    assert httpx.get(f"{api}{API}{path}", headers=org.headers(), timeout=10).status_code == 200
+    with psycopg.connect(database_url.replace("+psycopg", "")) as conn:
+        conn.execute("BEGIN")
+        conn.execute("SELECT pg_advisory_xact_lock(7002, 0)")  # a long sweep elsewhere
+        t0 = time.perf_counter()
+        r = httpx.get(f"{api}{API}{path}", headers=org.headers(), timeout=10)
+        took = time.perf_counter() - t0
+        conn.execute("ROLLBACK")
+    assert r.status_code == 200, r.text
+    assert took < 1.0, took
