@@ -426,3 +426,19 @@ def test_fleet_reads_do_not_queue_behind_the_alert_sweep_lock(
         conn.execute("ROLLBACK")
     assert r.status_code == 200, r.text
     assert took < 1.0, took
+
+
+def test_degenerate_meter_parameters_are_422_naming_the_field(client, org) -> None:  # noqa: ANN001
+    """A 5e-324 m implement or speed is refused where it is entered, saying which value."""
+    from tests.prescriptions.helpers import setup_plan
+
+    h = org.headers()
+    r = client.post("/api/v1/machines", headers=h, json={"name": "m", "width_m": 5e-324})
+    assert r.status_code == 422 and "width_m" in r.json()["detail"], r.text
+    plan = setup_plan(client, h)
+    pid = plan["id"]
+    for bad in ({"width_m": 5e-324}, {"speed_min_kmh": 1e-300, "speed_max_kmh": 1e-300}):
+        body = {"model": "uniform", "params": {"rate_kg_ha": 200}, **bad}
+        r = client.post(f"/api/v1/plans/{pid}/prescriptions", headers=h, json=body)
+        assert r.status_code == 422, r.text
+        assert next(iter(bad)) in r.json()["detail"]

@@ -30,14 +30,15 @@ class ControllerIn(BaseModel):
 class MachineIn(BaseModel):
     name: str = Field(min_length=1, max_length=200)
     implement_type: str = Field(default="spreader", max_length=50)
-    width_m: float = Field(gt=0, le=60, description="working width, m")
+    # >= 5 cm: a narrower "implement" only makes rate = flow / (w v) overflow (ISSUE 20)
+    width_m: float = Field(ge=0.05, le=60, description="working width, m")
     lag_s: float = Field(default=1.52, ge=0, le=30, description="application lag T_lag, s")
     calibration: dict[str, Any] = Field(default_factory=SEED001_CALIBRATION.to_dict)
     controller: ControllerIn = Field(default_factory=ControllerIn)
     antenna_forward_m: float = 0.0
     antenna_lateral_m: float = 0.0
-    speed_min_m_s: float = Field(default=0.8, gt=0)
-    speed_max_m_s: float = Field(default=2.5, gt=0)
+    speed_min_m_s: float = Field(default=0.8, ge=0.01, le=30)
+    speed_max_m_s: float = Field(default=2.5, ge=0.01, le=30)
 
     @field_validator("calibration")
     @classmethod
@@ -51,14 +52,14 @@ class MachineIn(BaseModel):
 class MachinePatch(BaseModel):
     name: str | None = Field(default=None, min_length=1, max_length=200)
     implement_type: str | None = Field(default=None, max_length=50)
-    width_m: float | None = Field(default=None, gt=0, le=60)
+    width_m: float | None = Field(default=None, ge=0.05, le=60)
     lag_s: float | None = Field(default=None, ge=0, le=30)
     calibration: dict[str, Any] | None = None
     controller: ControllerIn | None = None
     antenna_forward_m: float | None = None
     antenna_lateral_m: float | None = None
-    speed_min_m_s: float | None = Field(default=None, gt=0)
-    speed_max_m_s: float | None = Field(default=None, gt=0)
+    speed_min_m_s: float | None = Field(default=None, ge=0.01, le=30)
+    speed_max_m_s: float | None = Field(default=None, ge=0.01, le=30)
 
     @field_validator("calibration")
     @classmethod

@@ -54,9 +54,10 @@ class PrescriptionIn(BaseModel):
     )
     fallback_rate_kg_ha: float | None = Field(default=None, ge=0)
     machine_id: int | None = None
-    speed_min_kmh: float | None = Field(default=None, gt=0)
-    speed_max_kmh: float | None = Field(default=None, gt=0)
-    width_m: float | None = Field(default=None, gt=0)
+    # physical bounds: degenerate values (5e-324 m) only make rate = flow / (w v) overflow
+    speed_min_kmh: float | None = Field(default=None, ge=0.036, le=108)
+    speed_max_kmh: float | None = Field(default=None, ge=0.036, le=108)
+    width_m: float | None = Field(default=None, ge=0.05, le=60)
     calibration: dict[str, Any] | None = None
 
 
