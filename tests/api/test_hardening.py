@@ -442,3 +442,48 @@ def test_degenerate_meter_parameters_are_422_naming_the_field(client, org) -> No
         r = client.post(f"/api/v1/plans/{pid}/prescriptions", headers=h, json=body)
         assert r.status_code == 422, r.text
         assert next(iter(bad)) in r.json()["detail"]
+
+
+def test_sigterm_stops_the_server_during_a_long_plan(database_url: str, org, db) -> None:  # noqa: ANN001
+    """Before: a long plan held the server past SIGTERM. Now the server exits within its
+    10 s graceful-shutdown time, the planning worker is killed and nothing is stored."""
+    import signal
+
+    from sqlalchemy import text
+
+    from tests.fleet.procs import free_port
+
+    port = free_port()
+    proc = Proc(
+        [str(BIN / "fieldrx"), "serve", "--port", str(port)],
+        {"DATABASE_URL": database_url, "FIELDRX_PLAN_TIME_LIMIT_S": "300"},
+    )
+    api = f"http://127.0.0.1:{port}"
+    try:
+        proc.wait_for("Uvicorn running on")
+        h = org.headers()
+        fid = _field(api, h, rectangle(112.30, 32.10, 4000, 4000))  # 1,600 ha
+        result: dict[str, object] = {}
+
+        def plan() -> None:
+            body = {"swath_width_m": 1.0, "cell_length_m": 5.0}
+            try:
+                r = httpx.post(f"{api}{API}/fields/{fid}/plans", headers=h, json=body, timeout=120)
+                result["status"] = r.status_code
+            except httpx.HTTPError as exc:
+                result["error"] = repr(exc)
+
+        t = threading.Thread(target=plan)
+        t.start()
+        time.sleep(3)
+        t0 = time.perf_counter()
+        proc.p.send_signal(signal.SIGTERM)
+        proc.p.wait(60)
+        took = time.perf_counter() - t0
+        t.join(30)
+    finally:
+        proc.stop()
+    assert took < 15, took
+    assert result.get("status") != 201, result
+    n = db.scalar(text("SELECT count(*) FROM plans WHERE field_id = :f"), {"f": fid})
+    assert n == 0

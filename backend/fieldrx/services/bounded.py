@@ -77,6 +77,19 @@ def _child(conn: Connection, fn: Callable[..., Any], args: tuple[Any, ...]) -> N
         conn.close()
 
 
+def _wait(recv: Connection, t0: float, time_limit_s: float, what: str) -> None:
+    """Wait for the child's answer in short steps: past the time limit, or once the server's
+    main thread has ended (SIGTERM after the graceful-shutdown timeout), give up."""
+    while not recv.poll(0.25):
+        if time.monotonic() - t0 >= time_limit_s:
+            raise TooExpensive(
+                f"{what} took longer than the {time_limit_s:g} s limit and was stopped; "
+                "nothing was stored"
+            )
+        if not threading.main_thread().is_alive():
+            raise Busy(f"the server is shutting down; {what} was stopped, retry it")
+
+
 def run_bounded(fn: Callable[..., T], *args: Any, time_limit_s: float, what: str) -> T:
     """``fn(*args)`` in a child process; its exception is re-raised here.
 
@@ -94,12 +107,7 @@ def run_bounded(fn: Callable[..., T], *args: Any, time_limit_s: float, what: str
         proc.start()
         send.close()
         try:
-            left = max(0.0, time_limit_s - (time.monotonic() - t0))
-            if not recv.poll(left):
-                raise TooExpensive(
-                    f"{what} took longer than the {time_limit_s:g} s limit and was stopped; "
-                    "nothing was stored"
-                )
+            _wait(recv, t0, time_limit_s, what)
             try:
                 ok, value = recv.recv()
             except EOFError:
