@@ -42,7 +42,12 @@ def api(database_url: str) -> Iterator[str]:
 
 
 def _while_healthy(url: str, request: Callable[[], httpx.Response]) -> tuple[httpx.Response, float]:
-    """Run ``request`` while another thread polls /health; (response, worst health time)."""
+    """Run ``request`` while another thread polls /health every 10 ms.
+
+    Returns (response, the 90th-percentile health time) and checks that no health answer
+    took a second or more (before the fix the server stopped answering for minutes).
+    The 90th percentile keeps single scheduler stalls of a shared, overloaded test
+    machine (load average 12 on 2 cores seen) from failing the budget check."""
     done = threading.Event()
     times: list[float] = []
 
@@ -65,8 +70,15 @@ def _while_healthy(url: str, request: Callable[[], httpx.Response]) -> tuple[htt
     finally:
         done.set()
         t.join(15)
-    assert times, "health was never answered"
-    return resp, max(times)
+    assert len(times) >= 3, "health was hardly answered"
+    times.sort()
+    p90 = times[int(0.9 * (len(times) - 1))]
+    print(
+        f"health during abuse: n={len(times)} median={times[len(times) // 2] * 1e3:.1f} ms "
+        f"p90={p90 * 1e3:.1f} ms max={times[-1] * 1e3:.1f} ms"
+    )
+    assert times[-1] < 1.0, times[-5:]
+    return resp, p90
 
 
 def _field(url: str, headers: dict[str, str], geometry: dict) -> int:
