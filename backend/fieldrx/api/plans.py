@@ -31,10 +31,10 @@ MAX_PAGE = 50_000
 
 class PlanIn(BaseModel):
     swath_width_m: float = Field(
-        default=2.3, gt=0, allow_inf_nan=False, description="implement working width w, m"
+        default=2.3, allow_inf_nan=False, description="implement working width w, m"
     )
     cell_length_m: float = Field(
-        default=5.0, gt=0, allow_inf_nan=False, description="cell length L along the path, m"
+        default=5.0, allow_inf_nan=False, description="cell length L along the path, m"
     )
     heading: Literal["longest_edge", "angle", "optimal"] = "longest_edge"
     angle_deg: float | None = Field(
