@@ -11,10 +11,14 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.responses import FileResponse, JSONResponse
 from fastapi.staticfiles import StaticFiles
 from sqlalchemy import exc as sa_exc
+from sqlalchemy.orm import exc as orm_exc
 
 from fieldrx import __version__
 from fieldrx.api.common import ApiError
 from fieldrx.auth.mqtt import MqttCredentialError
+from fieldrx.errors import DomainError
+from fieldrx.middleware import LimitsAndHeaders, install_log_redaction
+from fieldrx.services import bounded
 from fieldrx.settings import get_settings
 
 API_PREFIX = "/api/v1"
@@ -36,6 +40,7 @@ ROUTERS = (
     "fleet",
     "reports",
     "live",
+    "archive",
 )
 
 
@@ -58,6 +63,13 @@ def create_app() -> FastAPI:
         openapi_url=f"{API_PREFIX}/openapi.json",
     )
 
+    settings = get_settings()
+    app.add_middleware(
+        LimitsAndHeaders, max_body=settings.max_body_bytes, max_upload=settings.max_upload_bytes
+    )
+    install_log_redaction()
+    bounded.warm_up()
+
     @app.exception_handler(ApiError)
     async def _api_error(_: Request, exc: ApiError) -> JSONResponse:
         return JSONResponse(status_code=exc.status_code, content=exc.body)
@@ -66,6 +78,45 @@ def create_app() -> FastAPI:
     async def _mqtt_error(_: Request, exc: MqttCredentialError) -> JSONResponse:
         """A device credential could not be changed on the broker: nothing was committed."""
         return JSONResponse(status_code=503, content={"detail": str(exc)})
+
+    @app.exception_handler(DomainError)
+    async def _domain_error(_: Request, exc: DomainError) -> JSONResponse:
+        headers = {"Retry-After": "5"} if exc.status == 503 else None
+        return JSONResponse(status_code=exc.status, content=exc.body(), headers=headers)
+
+    @app.exception_handler(sa_exc.OperationalError)
+    @app.exception_handler(sa_exc.InterfaceError)
+    @app.exception_handler(sa_exc.TimeoutError)
+    @app.exception_handler(psycopg.OperationalError)
+    async def _db_unavailable(_: Request, exc: Exception) -> JSONResponse:
+        """The database is down, restarting or saturated: the client may retry (not a 500)."""
+        orig = getattr(exc, "orig", exc)
+        reason = str(orig).splitlines()[0] if str(orig) else type(orig).__name__
+        return JSONResponse(
+            status_code=503,
+            content={"detail": f"the database is unavailable; retry shortly ({reason})"},
+            headers={"Retry-After": "5"},
+        )
+
+    @app.exception_handler(orm_exc.StaleDataError)
+    @app.exception_handler(orm_exc.ObjectDeletedError)
+    async def _concurrent_change(_: Request, exc: Exception) -> JSONResponse:
+        """A row changed or deleted by a concurrent request between read and write."""
+        return JSONResponse(
+            status_code=409,
+            content={"detail": "the resource was changed or deleted by another request; reload"},
+        )
+
+    @app.exception_handler(sa_exc.IntegrityError)
+    async def _integrity(_: Request, exc: sa_exc.IntegrityError) -> JSONResponse:
+        """A write that conflicts with stored rows (a referenced row deleted meanwhile, a
+        duplicate): 409, naming the constraint."""
+        diag = getattr(exc.orig, "diag", None)
+        constraint = getattr(diag, "constraint_name", None) or "a constraint"
+        return JSONResponse(
+            status_code=409,
+            content={"detail": f"conflicts with stored data ({constraint}); reload and retry"},
+        )
 
     @app.exception_handler(sa_exc.DataError)
     @app.exception_handler(psycopg.errors.DataError)

@@ -26,6 +26,9 @@ def _serve(args: argparse.Namespace) -> int:
         port=args.port or s.port,
         workers=args.workers,
         log_level="warning" if args.quiet else "info",
+        # SIGTERM: in-flight requests get this long, then heavy workers are stopped
+        # (services.bounded) and the server exits
+        timeout_graceful_shutdown=10,
     )
     return 0
 

@@ -36,6 +36,17 @@ class Settings(BaseSettings):
     token_ttl_hours: float = Field(default=24.0 * 14, alias="FIELDRX_TOKEN_TTL_HOURS")
     frontend_dist: str = Field(default="", alias="FIELDRX_FRONTEND_DIST")
     heartbeat_timeout_s: float = Field(default=30.0, alias="FIELDRX_HEARTBEAT_TIMEOUT_S")
+    # hardening: cost bounds of one request (services.bounded, app middleware)
+    heavy_workers: int = Field(default=2, alias="FIELDRX_HEAVY_WORKERS")
+    plan_time_limit_s: float = Field(default=120.0, alias="FIELDRX_PLAN_TIME_LIMIT_S")
+    import_time_limit_s: float = Field(default=60.0, alias="FIELDRX_IMPORT_TIME_LIMIT_S")
+    max_body_bytes: int = Field(default=16 * 1024 * 1024, alias="FIELDRX_MAX_BODY_BYTES")
+    max_upload_bytes: int = Field(default=51 * 1024 * 1024, alias="FIELDRX_MAX_UPLOAD_BYTES")
+    login_max_failures_account: int = Field(default=10, alias="FIELDRX_LOGIN_MAX_FAILURES")
+    login_max_failures_ip: int = Field(default=100, alias="FIELDRX_LOGIN_MAX_FAILURES_IP")
+    login_window_s: float = Field(default=900.0, alias="FIELDRX_LOGIN_WINDOW_S")
+    live_token_check_s: float = Field(default=5.0, alias="FIELDRX_LIVE_TOKEN_CHECK_S")
+    device_token_ttl_days: float = Field(default=365.0, alias="FIELDRX_DEVICE_TOKEN_TTL_DAYS")
 
 
 @lru_cache

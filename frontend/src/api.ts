@@ -123,8 +123,13 @@ export function errorText(e: unknown): string {
   return e instanceof Error ? e.message : String(e);
 }
 
-/** WebSocket URL for live updates (token in the query: browsers cannot set WS headers). */
+/** WebSocket URL for live updates (no token: URLs end up in access logs). */
 export function liveUrl(): string {
   const proto = location.protocol === 'https:' ? 'wss:' : 'ws:';
-  return `${proto}//${location.host}${API}/live?token=${encodeURIComponent(getToken() ?? '')}`;
+  return `${proto}//${location.host}${API}/live`;
+}
+
+/** WebSocket subprotocols carrying the token (browsers cannot set WS headers). */
+export function liveProtocols(): string[] {
+  return ['fieldrx', getToken() || 'none'];
 }

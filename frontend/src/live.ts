@@ -1,5 +1,5 @@
 import { useEffect, useRef, useState } from 'react';
-import { liveUrl } from './api';
+import { liveProtocols, liveUrl } from './api';
 
 export interface LiveMessage {
   type: 'position' | 'status' | 'alert' | string;
@@ -22,7 +22,7 @@ export function useLive(onMessage: (m: LiveMessage) => void): 'connecting' | 'op
     let timer: ReturnType<typeof setTimeout> | undefined;
     const connect = () => {
       setState('connecting');
-      ws = new WebSocket(liveUrl());
+      ws = new WebSocket(liveUrl(), liveProtocols());
       ws.onopen = () => {
         delay = 500;
         setState('open');

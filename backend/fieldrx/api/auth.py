@@ -4,13 +4,14 @@ from __future__ import annotations
 
 import datetime as dt
 
-from fastapi import APIRouter, HTTPException, status
+from fastapi import APIRouter, HTTPException, Request, status
 from pydantic import BaseModel, Field
 from sqlalchemy import select
 
+from fieldrx.auth import throttle
 from fieldrx.auth.deps import SessionDep, UserDep
 from fieldrx.auth.mqtt import revoke_device_after
-from fieldrx.auth.security import verify_password
+from fieldrx.auth.security import verify_password_or_dummy
 from fieldrx.auth.service import issue_user_token
 from fieldrx.db.models import ROLES, ApiToken, Membership, Organisation, User
 
@@ -18,8 +19,8 @@ router = APIRouter(prefix="/auth", tags=["auth"])
 
 
 class LoginIn(BaseModel):
-    email: str
-    password: str
+    email: str = Field(max_length=320)
+    password: str = Field(max_length=1000)
     organisation_id: int | None = Field(
         default=None, description="organisation to sign in to (default: the first one)"
     )
@@ -79,12 +80,31 @@ def _login(session: SessionDep, user: User, organisation_id: int | None) -> Logi
     )
 
 
-@router.post("/login", response_model=LoginOut)
-def login(body: LoginIn, session: SessionDep) -> LoginOut:
-    """Exchange e-mail and password for a bearer token scoped to one organisation."""
+@router.post(
+    "/login",
+    response_model=LoginOut,
+    responses={401: {"description": "wrong e-mail or password"}, 429: {"description": "throttled"}},
+)
+def login(body: LoginIn, request: Request, session: SessionDep) -> LoginOut:
+    """Exchange e-mail and password for a bearer token scoped to one organisation.
+
+    Failed attempts are throttled per account and per client address (429 with
+    Retry-After, auth.throttle); an unknown e-mail costs the same password hashing
+    as a wrong password, so neither the answer nor its timing reveals accounts."""
+    address = request.client.host if request.client else None
+    wait = throttle.blocked_for_s(session, body.email, address)
+    if wait > 0:
+        raise HTTPException(
+            status.HTTP_429_TOO_MANY_REQUESTS,
+            f"too many failed sign-ins; try again in {int(wait) + 1} s",
+            headers={"Retry-After": str(int(wait) + 1)},
+        )
     user = session.scalar(select(User).where(User.email == body.email.lower()))
-    if user is None or not user.is_active or not verify_password(body.password, user.password_hash):
+    ok = verify_password_or_dummy(body.password, user.password_hash if user else None)
+    if user is None or not user.is_active or not ok:
+        throttle.record_failure(session, body.email, address)
         raise HTTPException(status.HTTP_401_UNAUTHORIZED, "wrong e-mail or password")
+    throttle.clear_account(session, body.email)
     return _login(session, user, body.organisation_id)
 
 

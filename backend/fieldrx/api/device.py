@@ -108,3 +108,19 @@ def device_state(
     change_state(session, job, body.state, machine_id=principal.machine_id, note=body.note)
     session.commit()
     return job_out(job)
+
+
+@router.post("/token", status_code=201)
+def rotate_token(principal: DeviceDep, session: SessionDep) -> dict[str, object]:
+    """Rotate the machine's own device token: a new one (shown once) with a fresh expiry;
+    the one used for this call is revoked. The agent stores the new token before using it."""
+    from fieldrx.auth.service import issue_device_token, token_expiry
+
+    assert principal.machine_id is not None
+    token = issue_device_token(session, principal.machine_id, principal.organisation_id)
+    session.commit()
+    return {
+        "machine_id": principal.machine_id,
+        "token": token,
+        "expires_at": token_expiry(session, token),
+    }

@@ -17,12 +17,12 @@ router = APIRouter(prefix="/farms", tags=["farms"])
 
 class FarmIn(BaseModel):
     name: str = Field(min_length=1, max_length=200)
-    notes: str = ""
+    notes: str = Field(default="", max_length=10_000)
 
 
 class FarmPatch(BaseModel):
     name: str | None = Field(default=None, min_length=1, max_length=200)
-    notes: str | None = None
+    notes: str | None = Field(default=None, max_length=10_000)
 
 
 class FarmOut(BaseModel):

@@ -15,7 +15,8 @@ from fieldrx.api.common import ApiError, geom_to_geojson, get_scoped, shape_to_d
 from fieldrx.auth.deps import Principal, SessionDep, UserDep, WriterDep
 from fieldrx.db.models import Farm
 from fieldrx.db.models import Field as FieldRow
-from fieldrx.geo.validate import BoundaryError, validate_boundary
+from fieldrx.geo.validate import BoundaryError, ValidBoundary, validate_boundary
+from fieldrx.services.evidence import refuse_if_evidence
 
 router = APIRouter(prefix="/fields", tags=["fields"])
 
@@ -26,7 +27,7 @@ class FieldProps(BaseModel):
     name: str = Field(default="", max_length=200)
     farm_id: int | None = None
     crop: str = Field(default="", max_length=100)
-    notes: str = ""
+    notes: str = Field(default="", max_length=10_000)
 
 
 class FieldFeatureIn(BaseModel):
@@ -79,7 +80,10 @@ def _check_farm(session: Session, farm_id: int | None, principal: Principal) -> 
 
 
 def _new_field(principal: Principal, geometry: dict[str, Any], props: FieldProps) -> FieldRow:
-    valid = validate_boundary(geometry)
+    return _valid_field(principal, validate_boundary(geometry), props)
+
+
+def _valid_field(principal: Principal, valid: ValidBoundary, props: FieldProps) -> FieldRow:
     return FieldRow(
         organisation_id=principal.organisation_id,
         farm_id=props.farm_id,
@@ -146,8 +150,25 @@ def create_field(body: FieldFeatureIn, principal: WriterDep, session: SessionDep
     return field_feature(row)
 
 
+def read_valid_fields(
+    filename: str, data: bytes
+) -> list[tuple[dict[str, Any], Any]] | tuple[int, BoundaryError]:
+    """Read and validate every boundary of an upload (run in a worker process, see
+    services.bounded): ``[(properties, ValidBoundary)]``, or ``(index, error)`` of the first
+    invalid one. Raises ``FormatError``."""
+    from fieldrx.formats.field_import import read_fields
+
+    out = []
+    for i, (props, geom) in enumerate(read_fields(filename, data)):
+        try:
+            out.append((props, validate_boundary(geom.__geo_interface__)))
+        except BoundaryError as exc:
+            return i, exc
+    return out
+
+
 @router.post("/import", status_code=201)
-async def import_fields(
+def import_fields(
     file: UploadFile,
     principal: WriterDep,
     session: SessionDep,
@@ -155,26 +176,32 @@ async def import_fields(
 ) -> JSONResponse:
     """Bulk import from a GeoJSON FeatureCollection, KML or zipped Shapefile: all fields or none."""
     from fieldrx.formats import FormatError
-    from fieldrx.formats.field_import import read_fields
+    from fieldrx.services.bounded import run_bounded
+    from fieldrx.settings import get_settings
 
-    data = await file.read(MAX_IMPORT_BYTES + 1)
+    data = file.file.read(MAX_IMPORT_BYTES + 1)  # a sync endpoint: runs in the thread pool
     if len(data) > MAX_IMPORT_BYTES:
         raise HTTPException(413, f"file larger than {MAX_IMPORT_BYTES // 1024 // 1024} MB")
     _check_farm(session, farm_id, principal)
     try:
-        items = read_fields(file.filename or "upload", data)
+        items = run_bounded(
+            read_valid_fields,
+            file.filename or "upload",
+            data,
+            time_limit_s=get_settings().import_time_limit_s,
+            what="the field import",
+        )
     except FormatError as exc:
         raise ApiError(422, str(exc), where=file.filename) from exc
+    if isinstance(items, tuple):
+        raise boundary_422(items[1], items[0])
     if not items:
         raise ApiError(422, "the file contains no field boundaries", where=file.filename)
     rows = []
-    for i, (props, geom) in enumerate(items):
+    for i, (props, valid) in enumerate(items):
         name = str(props.get("name") or props.get("Name") or props.get("NAME") or f"Field {i + 1}")
         fp = FieldProps(name=name[:200], farm_id=farm_id, crop=str(props.get("crop", ""))[:100])
-        try:
-            rows.append(_new_field(principal, geom.__geo_interface__, fp))
-        except BoundaryError as exc:
-            raise boundary_422(exc, i) from exc
+        rows.append(_valid_field(principal, valid, fp))
     session.add_all(rows)
     session.commit()
     return JSONResponse(
@@ -212,12 +239,17 @@ def update_field(
         row.utm_epsg = valid.utm_epsg
         row.area_m2 = valid.area_m2
     row.updated_at = func.now()
-    session.commit()
-    session.refresh(row)
-    return field_feature(row)
+    session.commit()  # StaleDataError (409, app.py) when a DELETE won the race before this
+    fresh = session.get(FieldRow, field_id, populate_existing=True)
+    if fresh is None:  # ... or after it
+        raise ApiError(409, f"field {field_id} was deleted by another request meanwhile")
+    return field_feature(fresh)
 
 
 @router.delete("/{field_id:int}", status_code=204)
 def delete_field(field_id: int, principal: WriterDep, session: SessionDep) -> None:
-    session.delete(get_scoped(session, FieldRow, field_id, principal))
+    """Delete the field, its plans and jobs; 409 while a job holds unarchived as-applied data."""
+    row = get_scoped(session, FieldRow, field_id, principal)
+    refuse_if_evidence(session, "field", row.id)
+    session.delete(row)
     session.commit()

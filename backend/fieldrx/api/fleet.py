@@ -30,7 +30,7 @@ def fleet_status(principal: UserDep, session: SessionDep) -> dict[str, Any]:
     """Every machine of the organisation: online (heartbeat), position, job, rates, backlog."""
     timeout = get_settings().heartbeat_timeout_s
     with raw_connection() as conn:
-        check_no_data(conn, timeout)
+        check_no_data(conn, timeout, wait=False)  # never queue a read behind a sweep
     return {
         "heartbeat_timeout_s": timeout,
         "server_time": dt.datetime.now(dt.UTC),
@@ -67,7 +67,7 @@ def list_alerts(
     offset: int = Query(default=0, ge=0),
 ) -> dict[str, Any]:
     with raw_connection() as conn:
-        check_no_data(conn, get_settings().heartbeat_timeout_s)
+        check_no_data(conn, get_settings().heartbeat_timeout_s, wait=False)
     stmt = select(Alert).where(Alert.organisation_id == principal.organisation_id)
     if active is not None:
         stmt = stmt.where(Alert.ended_at.is_(None) if active else Alert.ended_at.is_not(None))

@@ -14,8 +14,9 @@ from sqlalchemy import func, select
 from fieldrx.api.common import ApiError, get_scoped
 from fieldrx.auth.deps import AnyPrincipal, SessionDep, UserDep, WriterDep
 from fieldrx.auth.mqtt import revoke_device_after
-from fieldrx.auth.service import issue_device_token
+from fieldrx.auth.service import issue_device_token, token_expiry
 from fieldrx.db.models import Machine
+from fieldrx.services.evidence import refuse_if_evidence
 
 router = APIRouter(prefix="/machines", tags=["machines"])
 
@@ -89,7 +90,8 @@ def _calibration_dict(value: Any) -> Any:
 class MachineIn(BaseModel):
     name: str = Field(min_length=1, max_length=200)
     implement_type: str = Field(default="spreader", max_length=50)
-    width_m: float = Field(gt=0, le=60, description="working width, m")
+    # >= 5 cm: a narrower "implement" only makes rate = flow / (w v) overflow (ISSUE 20)
+    width_m: float = Field(ge=0.05, le=60, description="working width, m")
     lag_s: float = Field(ge=0, le=30, description="application lag T_lag, s (seed 001: 1.52)")
     calibration: CalibrationIn = Field(
         description="metering calibration, measured on this machine (no default)"
@@ -97,8 +99,8 @@ class MachineIn(BaseModel):
     controller: ControllerIn = Field(default_factory=ControllerIn)
     antenna_forward_m: float = 0.0
     antenna_lateral_m: float = 0.0
-    speed_min_m_s: float = Field(default=0.8, gt=0)
-    speed_max_m_s: float = Field(default=2.5, gt=0)
+    speed_min_m_s: float = Field(default=0.8, ge=0.01, le=30)
+    speed_max_m_s: float = Field(default=2.5, ge=0.01, le=30)
 
     @field_validator("calibration", mode="before")
     @classmethod
@@ -108,15 +110,15 @@ class MachineIn(BaseModel):
 
 class MachinePatch(BaseModel):
     name: str | None = Field(default=None, min_length=1, max_length=200)
-    implement_type: str | None = None
-    width_m: float | None = Field(default=None, gt=0, le=60)
+    implement_type: str | None = Field(default=None, max_length=50)
+    width_m: float | None = Field(default=None, ge=0.05, le=60)
     lag_s: float | None = Field(default=None, ge=0, le=30)
     calibration: CalibrationIn | None = None
     controller: ControllerIn | None = None
     antenna_forward_m: float | None = None
     antenna_lateral_m: float | None = None
-    speed_min_m_s: float | None = Field(default=None, gt=0)
-    speed_max_m_s: float | None = Field(default=None, gt=0)
+    speed_min_m_s: float | None = Field(default=None, ge=0.01, le=30)
+    speed_max_m_s: float | None = Field(default=None, ge=0.01, le=30)
 
     @field_validator("calibration", mode="before")
     @classmethod
@@ -150,6 +152,7 @@ class DeviceTokenOut(BaseModel):
     mqtt_username: str = Field(
         description="MQTT user name of the machine; its MQTT password is this token"
     )
+    expires_at: dt.datetime | None = None
 
 
 def _out(m: Machine) -> MachineOut:
@@ -214,7 +217,10 @@ def update_machine(
 
 @router.delete("/{machine_id:int}", status_code=204)
 def delete_machine(machine_id: int, principal: WriterDep, session: SessionDep) -> None:
-    session.delete(get_scoped(session, Machine, machine_id, principal))
+    """Delete the machine and its jobs; 409 while a job holds unarchived as-applied data."""
+    machine = get_scoped(session, Machine, machine_id, principal)
+    refuse_if_evidence(session, "machine", machine.id)
+    session.delete(machine)
     session.commit()
     revoke_device_after(machine_id, f"machine {machine_id} is deleted")  # and its MQTT user
 
@@ -225,4 +231,9 @@ def new_device_token(machine_id: int, principal: WriterDep, session: SessionDep)
     m = get_scoped(session, Machine, machine_id, principal)
     token = issue_device_token(session, m.id, m.organisation_id)
     session.commit()
-    return DeviceTokenOut(machine_id=m.id, token=token, mqtt_username=mqtt_username(m.id))
+    return DeviceTokenOut(
+        machine_id=m.id,
+        token=token,
+        mqtt_username=mqtt_username(m.id),
+        expires_at=token_expiry(session, token),
+    )

@@ -15,10 +15,11 @@ from fieldrx.auth.deps import SessionDep, UserDep, WriterDep
 from fieldrx.db.models import Field as FieldRow
 from fieldrx.db.models import Plan, Prescription
 from fieldrx.geo import PlanningError
+from fieldrx.services.evidence import refuse_if_evidence
 from fieldrx.services.plans import (
     PlanParams,
     cells_page,
-    create_plan,
+    create_plan_bounded,
     delete_plan,
     plan_summary,
 )
@@ -29,8 +30,12 @@ MAX_PAGE = 50_000
 
 
 class PlanIn(BaseModel):
-    swath_width_m: float = Field(default=2.3, description="implement working width w, m")
-    cell_length_m: float = Field(default=5.0, description="cell length L along the path, m")
+    swath_width_m: float = Field(
+        default=2.3, allow_inf_nan=False, description="implement working width w, m"
+    )
+    cell_length_m: float = Field(
+        default=5.0, allow_inf_nan=False, description="cell length L along the path, m"
+    )
     heading: Literal["longest_edge", "angle", "optimal"] = "longest_edge"
     angle_deg: float | None = Field(
         default=None, description="swath azimuth, degrees clockwise from north (heading=angle)"
@@ -46,15 +51,16 @@ def create(field_id: int, body: PlanIn, principal: WriterDep, session: SessionDe
     """Plan the coverage path, cut the grid and store both (one transaction).
 
     Bad parameters (w <= 0, w wider than the field, L < 0.5 m, > 5 million
-    cells, degenerate field) answer 422 with the planner's reason.
+    cells, degenerate field) answer 422 with the planner's reason; the cell count
+    is estimated before any work. Planning runs in a worker process with a time
+    limit (FIELDRX_PLAN_TIME_LIMIT_S, 422 when exceeded; 503 when all workers are busy).
     """
     field = get_scoped(session, FieldRow, field_id, principal)
+    params = PlanParams(**body.model_dump())
     try:
-        plan = create_plan(session, field, PlanParams(**body.model_dump()), field.organisation_id)
+        plan = create_plan_bounded(session, field, params, field.organisation_id)
     except PlanningError as exc:
-        session.rollback()
         raise ApiError(422, str(exc)) from exc
-    session.commit()
     return plan_summary(plan)
 
 
@@ -121,6 +127,7 @@ def list_plan_prescriptions(plan_id: int, principal: UserDep, session: SessionDe
 def remove_plan(plan_id: int, principal: WriterDep, session: SessionDep) -> None:
     """Delete the plan, its cells and the prescriptions made on it."""
     plan = get_scoped(session, Plan, plan_id, principal)
+    refuse_if_evidence(session, "plan", plan.id)
     try:
         delete_plan(session, plan)
     except OperationalError as exc:

@@ -19,6 +19,7 @@ from fieldrx.db.models import Machine, Plan, Prescription, PrescriptionVersion
 from fieldrx.formats import FormatError
 from fieldrx.services import exports
 from fieldrx.services import prescriptions as svc
+from fieldrx.services.evidence import refuse_if_evidence
 
 router = APIRouter(tags=["prescriptions"])
 
@@ -53,9 +54,10 @@ class PrescriptionIn(BaseModel):
     )
     fallback_rate_kg_ha: float | None = Field(default=None, ge=0)
     machine_id: int | None = None
-    speed_min_kmh: float | None = Field(default=None, gt=0)
-    speed_max_kmh: float | None = Field(default=None, gt=0)
-    width_m: float | None = Field(default=None, gt=0)
+    # physical bounds: degenerate values (5e-324 m) only make rate = flow / (w v) overflow
+    speed_min_kmh: float | None = Field(default=None, ge=0.036, le=108)
+    speed_max_kmh: float | None = Field(default=None, ge=0.036, le=108)
+    width_m: float | None = Field(default=None, ge=0.05, le=60)
     calibration: dict[str, Any] | None = None
 
 
@@ -68,7 +70,7 @@ class EditIn(BaseModel):
     cells: list[CellEdit] | None = None
     zone: dict[str, Any] | None = Field(default=None, description="GeoJSON Polygon (lon/lat)")
     rate_kg_ha: float | None = Field(default=None, ge=0, description="rate of the zone")
-    note: str = ""
+    note: str = Field(default="", max_length=2000)
 
     @model_validator(mode="after")
     def _one_kind(self) -> EditIn:
@@ -248,5 +250,8 @@ def export(
 
 @router.delete("/prescriptions/{rx_id:int}", status_code=204)
 def delete(rx_id: int, principal: WriterDep, session: SessionDep) -> None:
-    session.delete(get_scoped(session, Prescription, rx_id, principal))
+    """Delete the prescription and its jobs; 409 while a job holds unarchived as-applied data."""
+    rx = get_scoped(session, Prescription, rx_id, principal)
+    refuse_if_evidence(session, "prescription", rx.id)
+    session.delete(rx)
     session.commit()

@@ -12,14 +12,25 @@ from fieldrx.api.common import ApiError, get_scoped
 from fieldrx.auth.deps import SessionDep, UserDep, WriterDep
 from fieldrx.db.models import Field
 from fieldrx.services import soil as svc
+from fieldrx.services.bounded import run_bounded
+from fieldrx.settings import get_settings
 
 router = APIRouter(prefix="/fields", tags=["soil"])
 
 MAX_BYTES = 20 * 1024 * 1024
+MAX_ROWS = 50_000  # a 1 ha sampling grid on a 5,000 ha farm; more is abuse or a wrong file
+
+
+def count_rows(name: str, data: bytes) -> int:
+    """Upper bound on the rows (CSV lines, GeoJSON Features) of an upload, counted in C before
+    any parsing so a million-row file is refused in milliseconds."""
+    if name.lower().endswith((".geojson", ".json")):
+        return data.count(b'"Feature"')
+    return data.count(b"\n") + (0 if data.endswith(b"\n") else 1) - 1  # minus the header
 
 
 @router.post("/{field_id:int}/soil-samples", status_code=201)
-async def import_samples(
+def import_samples(
     field_id: int,
     file: UploadFile,
     principal: WriterDep,
@@ -35,12 +46,26 @@ async def import_samples(
     reported with their distance and stored only with ``include_outside``; the same file
     twice on one field is refused (409)."""
     field = get_scoped(session, Field, field_id, principal)
-    data = await file.read(MAX_BYTES + 1)
+    data = file.file.read(MAX_BYTES + 1)  # a sync endpoint: runs in the thread pool
     if len(data) > MAX_BYTES:
         raise HTTPException(413, f"file larger than {MAX_BYTES // 1024 // 1024} MB")
     name = file.filename or "upload.csv"
+    n_rows = count_rows(name, data)
+    if n_rows > MAX_ROWS:
+        raise ApiError(
+            422, f"the file has {n_rows} rows, more than {MAX_ROWS}; split it", where=name
+        )
     try:
-        result = svc.parse_for_field(field, name, data, epsg, skip_bad_rows)
+        result = run_bounded(
+            svc.parse_for_field,
+            field,
+            name,
+            data,
+            epsg,
+            skip_bad_rows,
+            time_limit_s=get_settings().import_time_limit_s,
+            what="the soil import",
+        )
     except SoilFormatError as exc:
         raise ApiError(422, str(exc), where=name) from exc
     report = result.summary()

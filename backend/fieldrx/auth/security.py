@@ -23,6 +23,22 @@ def hash_password(password: str) -> str:
     return _hasher.hash(password)
 
 
+_DUMMY_HASH: str | None = None
+
+
+def verify_password_or_dummy(password: str, password_hash: str | None) -> bool:
+    """``verify_password``, or the same Argon2 work against a dummy hash when there is no
+    account: an unknown e-mail then answers as slowly as a wrong password (no timing oracle
+    for which e-mails exist)."""
+    global _DUMMY_HASH
+    if password_hash is None:
+        if _DUMMY_HASH is None:
+            _DUMMY_HASH = _hasher.hash(secrets.token_urlsafe(16))
+        verify_password(password, _DUMMY_HASH)
+        return False
+    return verify_password(password, password_hash)
+
+
 def verify_password(password: str, password_hash: str) -> bool:
     try:
         return _hasher.verify(password_hash, password)

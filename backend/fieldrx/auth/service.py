@@ -62,8 +62,19 @@ def issue_user_token(
     return token, row
 
 
+def token_expiry(session: Session, token: str) -> dt.datetime | None:
+    """When a token (given as its text) expires."""
+    return session.scalar(
+        select(ApiToken.expires_at).where(ApiToken.token_hash == token_digest(token))
+    )
+
+
 def issue_device_token(session: Session, machine_id: int, organisation_id: int) -> str:
-    """A machine's token; issuing a new one revokes the previous ones."""
+    """A machine's token; issuing a new one revokes the previous ones.
+
+    It expires after ``FIELDRX_DEVICE_TOKEN_TTL_DAYS`` (a token copied off a tractor
+    does not work forever); the machine rotates it before then with
+    ``POST /device/token`` (api/device.py)."""
     now = dt.datetime.now(dt.UTC)
     for old in session.scalars(
         select(ApiToken).where(
@@ -82,6 +93,7 @@ def issue_device_token(session: Session, machine_id: int, organisation_id: int) 
             name=f"machine {machine_id}",
             token_hash=token_digest(token),
             prefix=token[:12],
+            expires_at=now + dt.timedelta(days=get_settings().device_token_ttl_days),
         )
     )
     session.flush()

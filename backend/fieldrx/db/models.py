@@ -431,3 +431,29 @@ class Alert(Base):
     ended_at: Mapped[dt.datetime | None] = mapped_column(DateTime(timezone=True))
     acknowledged_at: Mapped[dt.datetime | None] = mapped_column(DateTime(timezone=True))
     acknowledged_by: Mapped[int | None] = mapped_column(ForeignKey("users.id", ondelete="SET NULL"))
+
+
+class JobArchive(Base):
+    """A job's as-applied evidence kept after its machine, field, plan or prescription is
+    deleted (migration 0007): no foreign key to any of them, only to the organisation."""
+
+    __tablename__ = "job_archives"
+    job_id: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=False)
+    organisation_id: Mapped[int] = mapped_column(
+        ForeignKey("organisations.id", ondelete="CASCADE"), index=True
+    )
+    name: Mapped[str] = mapped_column(String(200), default="", server_default="")
+    archived_at: Mapped[dt.datetime] = _now()
+    archived_by: Mapped[int | None] = mapped_column(ForeignKey("users.id", ondelete="SET NULL"))
+    summary: Mapped[dict[str, Any]] = mapped_column(JSONB)
+    cells: Mapped[dict[str, Any]] = mapped_column(JSONB)
+
+
+class LoginFailure(Base):
+    """One failed sign-in, keyed by account (``email:...``) or address (``ip:...``)."""
+
+    __tablename__ = "login_failures"
+    __table_args__ = (Index("ix_login_failures_key_at", "key", "at"),)
+    id: Mapped[int] = mapped_column(BigInteger, primary_key=True)
+    key: Mapped[str] = mapped_column(String(400))
+    at: Mapped[dt.datetime] = _now()

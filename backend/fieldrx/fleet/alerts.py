@@ -245,15 +245,23 @@ def notify(cur: psycopg.Cursor[Any], messages: list[dict[str, Any]]) -> None:
         )
 
 
-def check_no_data(conn: psycopg.Connection[Any], timeout_s: float) -> int:
+def check_no_data(conn: psycopg.Connection[Any], timeout_s: float, wait: bool = True) -> int:
     """Open ``no_data`` alerts for machines running a job but silent beyond the timeout.
 
     Idempotent and safe from several processes at once (the insert re-checks
     that no open alert exists under a transaction-level advisory lock).
-    Returns the number of alerts opened.
+    Returns the number of alerts opened. ``wait=False`` (read requests) skips the sweep
+    when another one holds the lock instead of queueing behind it: that sweep does the
+    same work.
     """
     with conn.transaction(), conn.cursor() as cur:
-        cur.execute("SELECT pg_advisory_xact_lock(7002, 0)")
+        if wait:
+            cur.execute("SELECT pg_advisory_xact_lock(7002, 0)")
+        else:
+            cur.execute("SELECT pg_try_advisory_xact_lock(7002, 0)")
+            row = cur.fetchone()
+            if not (row and row[0]):
+                return 0
         cur.execute(
             """
             INSERT INTO alerts (organisation_id, machine_id, job_id, kind, message, value)

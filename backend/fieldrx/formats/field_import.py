@@ -27,6 +27,8 @@ from shapely.geometry import MultiPolygon, Polygon, shape
 from fieldrx.formats import FormatError
 
 MAX_FEATURES = 10_000
+MAX_INFLATED_BYTES = 256 * 1024 * 1024  # all members of one archive together, decompressed
+_CHUNK = 1024 * 1024
 _NAME_KEYS = ("name", "Name", "NAME", "field_name", "FIELD_NAME", "title")
 
 
@@ -181,6 +183,53 @@ def read_kml_fields(data: bytes) -> list[tuple[dict[str, Any], Any]]:
     return _finish(items)
 
 
+# Archives ---------------------------------------------------------------------
+
+
+class _Archive:
+    """A zip upload read with a budget on decompressed bytes.
+
+    A 1 MB zip can inflate to 1 GiB (a "zip bomb"): the sizes declared in the
+    central directory are checked first, and each member is then inflated in
+    1 MiB chunks counted against what is left of ``MAX_INFLATED_BYTES``
+    (zipfile itself stops at the declared size and checks the CRC, so a lying
+    header cannot get past the count either).
+    """
+
+    def __init__(self, data: bytes, what: str = "the zip") -> None:
+        try:
+            self.z = zipfile.ZipFile(io.BytesIO(data))
+        except zipfile.BadZipFile as exc:
+            raise FormatError(f"{what} is not a zip file") from exc
+        self.what = what
+        self.left = MAX_INFLATED_BYTES
+
+    def namelist(self) -> list[str]:
+        return self.z.namelist()
+
+    def read(self, name: str) -> bytes:
+        info = self.z.getinfo(name)
+        if info.file_size > self.left:
+            raise self._too_big(name)
+        buf = bytearray()
+        try:
+            with self.z.open(info) as f:
+                while chunk := f.read(_CHUNK):
+                    buf += chunk
+                    if len(buf) > self.left:
+                        raise self._too_big(name)
+        except (zipfile.BadZipFile, zipfile.LargeZipFile, NotImplementedError, OSError) as exc:
+            raise FormatError(f"cannot read {name} from {self.what}: {exc}") from exc
+        self.left -= len(buf)
+        return bytes(buf)
+
+    def _too_big(self, name: str) -> FormatError:
+        return FormatError(
+            f"{self.what} inflates to more than {MAX_INFLATED_BYTES // (1024 * 1024)} MiB "
+            f"(at member {name}); refused"
+        )
+
+
 # Shapefile ---------------------------------------------------------------------
 
 
@@ -192,10 +241,7 @@ def _xy_fn(tr: Transformer) -> Any:
 
 
 def read_shapefile_zip_fields(data: bytes) -> list[tuple[dict[str, Any], Any]]:
-    try:
-        z = zipfile.ZipFile(io.BytesIO(data))
-    except zipfile.BadZipFile as exc:
-        raise FormatError("not a zip file") from exc
+    z = _Archive(data, "the Shapefile upload")
     names = [n for n in z.namelist() if not n.startswith("__MACOSX") and not n.endswith("/")]
     shps = [n for n in names if n.lower().endswith(".shp")]
     if len(shps) != 1:
@@ -258,10 +304,7 @@ def read_fields(filename: str, data: bytes) -> list[tuple[dict[str, Any], Any]]:
     if name.endswith(".kml"):
         return read_kml_fields(data)
     if name.endswith(".kmz"):
-        try:
-            z = zipfile.ZipFile(io.BytesIO(data))
-        except zipfile.BadZipFile as exc:
-            raise FormatError("KMZ is not a zip file") from exc
+        z = _Archive(data, "the KMZ")
         kmls = [n for n in z.namelist() if n.lower().endswith(".kml")]
         if not kmls:
             raise FormatError("KMZ holds no .kml document")

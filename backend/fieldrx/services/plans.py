@@ -22,9 +22,10 @@ from sqlalchemy.orm import Session
 from fieldrx.agronomy.cells import CellTable
 from fieldrx.api.common import shape_to_db
 from fieldrx.db.models import Field, Plan
+from fieldrx.geo import PlanningError
 from fieldrx.geo.coverage import plan_coverage
 from fieldrx.geo.crs import to_utm, to_wgs84
-from fieldrx.geo.grid import Grid, build_grid, inside_centres
+from fieldrx.geo.grid import MAX_CELLS, MIN_CELL_LENGTH_M, Grid, build_grid, inside_centres
 from fieldrx.services import copy as pgcopy
 
 POLYGON = 3
@@ -312,9 +313,85 @@ def delete_plan(session: Session, plan: Plan) -> None:
     session.flush()
 
 
+def check_plan_cost(area_m2: float, params: PlanParams) -> None:
+    """Refuse, before any planning, a plan whose grid would exceed ``MAX_CELLS``.
+
+    Every cell is at most one swath wide and one cell long, so a field of area A
+    needs about A / (w L) cells; a 0.05 m swath on 500 ha would be ~20 million
+    cells and minutes of CPU before ``build_grid``'s own (exact) count could refuse
+    it. Non-finite or non-positive values are left to the planner's own messages.
+    """
+    w, length = float(params.swath_width_m), float(params.cell_length_m)
+    if not (np.isfinite(w) and np.isfinite(length) and w > 0 and length >= MIN_CELL_LENGTH_M):
+        return
+    n_est = float(area_m2) / (w * length)
+    if n_est > MAX_CELLS:
+        raise PlanningError(
+            f"swath width {w:g} m and cell length {length:g} m give about {n_est:,.0f} cells on "
+            f"this {area_m2 / 10_000:,.1f} ha field, more than {MAX_CELLS} (the limit): "
+            "use a wider swath or longer cells"
+        )
+
+
+def plan_in_worker(
+    database_url: str, field_id: int, params: PlanParams, organisation_id: int, time_limit_s: float
+) -> int:
+    """``create_plan`` and commit on a connection of its own (run by ``services.bounded``
+    in a child process); returns the new plan's id."""
+    from sqlalchemy.orm import Session as OrmSession
+
+    from fieldrx.db.session import make_engine
+
+    engine = make_engine(database_url)
+    try:
+        with OrmSession(engine) as session:
+            ms = max(1000, int(time_limit_s * 1000))
+            session.execute(text(f"SET statement_timeout = {ms}"))
+            field = session.get(Field, field_id)
+            if field is None:
+                raise PlanningError(f"field {field_id} was deleted while planning")
+            plan = create_plan(session, field, params, organisation_id)
+            session.commit()
+            return int(plan.id)
+    finally:
+        engine.dispose()
+
+
+def create_plan_bounded(
+    session: Session, field: Field, params: PlanParams, organisation_id: int
+) -> Plan:
+    """``create_plan`` with its cost checked first and run off the server process with the
+    ``FIELDRX_PLAN_TIME_LIMIT_S`` limit (services.bounded); commits in the worker.
+
+    The session's transaction is ended first: no transaction of the server stays open
+    while the worker plans."""
+    field_id, area_m2 = field.id, field.area_m2
+    session.rollback()
+    from fieldrx.services.bounded import run_bounded
+    from fieldrx.settings import get_settings
+
+    check_plan_cost(area_m2, params)
+    limit = get_settings().plan_time_limit_s
+    url = session.get_bind().url.render_as_string(hide_password=False)
+    plan_id = run_bounded(
+        plan_in_worker,
+        url,
+        field_id,
+        params,
+        organisation_id,
+        limit,
+        time_limit_s=limit,
+        what="planning",
+    )
+    plan = session.get(Plan, plan_id)
+    assert plan is not None
+    return plan
+
+
 def create_plan(session: Session, field: Field, params: PlanParams, organisation_id: int) -> Plan:
     """Plan + grid + store (flushes, does not commit). Raises ``PlanningError``."""
     t0 = time.perf_counter()
+    check_plan_cost(field.area_m2, params)
     boundary = field_utm(field)
     cov = plan_coverage(
         boundary,

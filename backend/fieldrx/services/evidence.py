@@ -1,0 +1,50 @@
+"""Evidence is never erased silently: deletions that would cascade to as-applied records.
+
+A machine, field, plan or prescription cascades (foreign keys) to its jobs,
+and a job to its as-applied records (``job_cells_applied``, telemetry). Before
+such a delete the API asks ``unarchived_jobs_with_data``; when any job would
+lose as-applied data that was not archived (``job_archives``, see
+api/archive.py) the delete is refused with ``Conflict`` naming the jobs.
+"""
+
+from __future__ import annotations
+
+from sqlalchemy import text
+from sqlalchemy.orm import Session
+
+from fieldrx.errors import Conflict
+
+_SCOPES = {
+    "machine": "j.machine_id = :id",
+    "prescription": "j.prescription_id = :id",
+    "plan": "j.prescription_id IN (SELECT id FROM prescriptions WHERE plan_id = :id)",
+    "field": (
+        "j.prescription_id IN (SELECT r.id FROM prescriptions r JOIN plans p ON p.id = r.plan_id"
+        " WHERE p.field_id = :id)"
+    ),
+}
+
+
+def unarchived_jobs_with_data(session: Session, kind: str, obj_id: int) -> list[int]:
+    """Ids of the jobs made from this machine/field/plan/prescription that hold as-applied
+    data and have no archive."""
+    sql = (
+        f"SELECT j.id FROM jobs j WHERE {_SCOPES[kind]}"
+        " AND (EXISTS (SELECT 1 FROM job_cells_applied a WHERE a.job_id = j.id)"
+        "      OR EXISTS (SELECT 1 FROM telemetry t WHERE t.job_id = j.id))"
+        " AND NOT EXISTS (SELECT 1 FROM job_archives x WHERE x.job_id = j.id)"
+        " ORDER BY j.id"
+    )
+    return [int(r[0]) for r in session.execute(text(sql), {"id": obj_id})]
+
+
+def refuse_if_evidence(session: Session, kind: str, obj_id: int) -> None:
+    """Raise ``Conflict`` (409) when deleting would erase unarchived as-applied data."""
+    jobs = unarchived_jobs_with_data(session, kind, obj_id)
+    if jobs:
+        shown = ", ".join(str(j) for j in jobs[:20]) + (" ..." if len(jobs) > 20 else "")
+        raise Conflict(
+            f"{kind} {obj_id} cannot be deleted: job(s) {shown} hold as-applied data that "
+            "would be erased; archive them first (POST /api/v1/jobs/{id}/archive)",
+            jobs=jobs,
+        )
