@@ -35,6 +35,7 @@ ROUTERS = (
     "fleet",
     "reports",
     "live",
+    "imports",
 )
 
 

@@ -1,0 +1,93 @@
+"""Imports of other software's files: ISO 11783-10 TASKDATA (preview, then confirm).
+
+``POST /imports/isoxml`` with multipart ``files`` (a TASKDATA zip, or the
+TASKDATA.XML with its .BIN/.XML files): without ``confirm`` it answers with
+a preview (what would be created, what is skipped and why) and the upload's
+SHA-256; nothing is stored. Sending the same files again with
+``confirm=<sha256>`` stores everything in one transaction, or nothing. The
+handler is a plain ``def`` so parsing runs in the threadpool, not on the
+event loop.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from typing import Any
+
+from fastapi import APIRouter, Query, UploadFile
+from fastapi.responses import JSONResponse
+
+from fieldrx.api.common import ApiError
+from fieldrx.auth.deps import SessionDep, WriterDep
+from fieldrx.formats import FormatError
+from fieldrx.formats.archive import read_zip
+from fieldrx.formats.isoxml_import import read_taskdata
+from fieldrx.geo import PlanningError
+from fieldrx.services import imports as svc
+from fieldrx.services.plans import PlanParams
+
+router = APIRouter(prefix="/imports", tags=["imports"])
+
+MAX_UPLOAD_BYTES = 100 * 1024 * 1024
+
+
+def _files(files: list[UploadFile]) -> tuple[dict[str, bytes], str, str]:
+    out: dict[str, bytes] = {}
+    digest = hashlib.sha256()
+    total = 0
+    for f in sorted(files, key=lambda u: u.filename or ""):
+        data = f.file.read(MAX_UPLOAD_BYTES + 1 - total)
+        total += len(data)
+        if total > MAX_UPLOAD_BYTES:
+            raise ApiError(413, f"upload larger than {MAX_UPLOAD_BYTES // 1024 // 1024} MB")
+        name = (f.filename or "upload").replace("\\", "/").rsplit("/", 1)[-1]
+        digest.update(name.encode() + b"\0" + hashlib.sha256(data).digest())
+        if name.lower().endswith(".zip"):
+            try:
+                members = read_zip(data)
+            except FormatError as exc:
+                raise ApiError(422, f"{name}: {exc}", where=name) from exc
+            out.update(members)
+        else:
+            out[name] = data
+    names = ", ".join(sorted(f.filename or "upload" for f in files))
+    return out, digest.hexdigest(), names
+
+
+@router.post("/isoxml")
+def import_isoxml(
+    files: list[UploadFile],
+    principal: WriterDep,
+    session: SessionDep,
+    confirm: str | None = Query(default=None, description="the preview's sha256"),
+    swath_width_m: float = Query(default=PlanParams.swath_width_m, gt=0, le=100),
+    cell_length_m: float = Query(default=PlanParams.cell_length_m, gt=0, le=500),
+    headland_passes: int = Query(default=0, ge=0, le=20),
+) -> JSONResponse:
+    """Preview (no ``confirm``) or store (``confirm`` = the preview's sha256) a TASKDATA set."""
+    data, sha, names = _files(files)
+    try:
+        ds = read_taskdata(data)
+        pre = svc.preview(ds)
+    except FormatError as exc:
+        raise ApiError(422, str(exc), where=names) from exc
+    body: dict[str, Any] = {"sha256": sha, "preview": pre}
+    if confirm is None:
+        body["stored"] = False
+        return JSONResponse(body)
+    if confirm != sha:
+        raise ApiError(409, "confirm does not match this upload's sha256: preview it again")
+    params = PlanParams(
+        swath_width_m=swath_width_m, cell_length_m=cell_length_m, headland_passes=headland_passes
+    )
+    try:
+        created = svc.commit(
+            session, ds, principal.organisation_id, principal.user_id, params, names
+        )
+    except (FormatError, PlanningError) as exc:
+        session.rollback()
+        raise ApiError(422, str(exc), where=names) from exc
+    session.commit()
+    body["stored"] = True
+    body["created"] = created
+    return JSONResponse(body, status_code=201)
