@@ -17,7 +17,8 @@ Two variants, both a zip holding ``TASKDATA/TASKDATA.XML`` (version 4.3):
 Coordinates carry at most 9 fraction digits (the XSD's limit; some commercial
 exports fail validation with more); polygons are snapped to that precision
 with GEOS so they are valid in the written coordinates (``zones.snap_valid``).
-The XML is written with ElementTree and checked against the ISO 11783-10 XSD in the tests (xmlschema) and read back
+The XML is written with ElementTree and checked against the ISO 11783-10 XSD
+in the tests (xmlschema) and read back
 with the ``isoxml`` package.
 """
 
@@ -57,13 +58,13 @@ def rate_to_mg_m2(rate_kg_ha: np.ndarray) -> np.ndarray:
     return np.rint(np.asarray(rate_kg_ha, dtype=float) * MG_M2_PER_KG_HA).astype(np.int64)
 
 
-def _deg(v: float) -> str:
+def deg(v: float) -> str:
     """Decimal degrees with 9 fraction digits (XSD fractionDigits 9)."""
     s = f"{v:.9f}"
     return "0.000000000" if s == "-0.000000000" else s
 
 
-def _root() -> ET.Element:
+def taskdata_root() -> ET.Element:
     return ET.Element(
         "ISO11783_TaskData",
         {
@@ -76,28 +77,30 @@ def _root() -> ET.Element:
     )
 
 
-def _lsg(parent: ET.Element, ring: Any, kind: str) -> None:
+def line_string_element(parent: ET.Element, ring: Any, kind: str) -> None:
     lsg = ET.SubElement(parent, "LSG", {"A": kind})
     coords = np.asarray(ring.coords)
     for lon, lat in coords[:, :2]:
-        ET.SubElement(lsg, "PNT", {"A": "2", "C": _deg(lat), "D": _deg(lon)})
+        ET.SubElement(lsg, "PNT", {"A": "2", "C": deg(lat), "D": deg(lon)})
 
 
-def _pln(parent: ET.Element, poly: Any, pln_type: str, designator: str | None = None) -> None:
+def polygon_element(
+    parent: ET.Element, poly: Any, pln_type: str, designator: str | None = None
+) -> None:
     attrs = {"A": pln_type}
     if designator:
         attrs["B"] = designator[:32]
     pln = ET.SubElement(parent, "PLN", attrs)
     p = shapely.orient_polygons(poly, exterior_cw=False)
-    _lsg(pln, p.exterior, "1")
+    line_string_element(pln, p.exterior, "1")
     for h in p.interiors:
-        _lsg(pln, h, "2")
+        line_string_element(pln, h, "2")
 
 
 def _common(
     field_name: str, field_area_m2: float, boundary_wgs84: Any, product_name: str
 ) -> tuple[ET.Element, ET.Element]:
-    root = _root()
+    root = taskdata_root()
     pfd = ET.SubElement(
         root,
         "PFD",
@@ -105,7 +108,7 @@ def _common(
     )
     if boundary_wgs84 is not None:
         for part in polygon_parts(snap_valid(boundary_wgs84)):
-            _pln(pfd, part, "1", field_name)
+            polygon_element(pfd, part, "1", field_name)
     ET.SubElement(root, "PDT", {"A": "PDT1", "B": (product_name or "fertilizer")[:32]})
     tsk = ET.SubElement(
         root,
@@ -135,12 +138,12 @@ def _pdv(tzn: ET.Element, value_mg_m2: int) -> None:
     )
 
 
-def _xml_bytes(root: ET.Element) -> bytes:
+def xml_bytes(root: ET.Element) -> bytes:
     ET.indent(root, space=" ")
     return b'<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="utf-8")
 
 
-def _zip(files: dict[str, bytes]) -> bytes:
+def taskdata_zip(files: dict[str, bytes]) -> bytes:
     out = io.BytesIO()
     with zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED) as z:
         for name, data in files.items():
@@ -247,8 +250,8 @@ def write_isoxml_grid(
         tsk,
         "GRD",
         {
-            "A": _deg(spec.south),
-            "B": _deg(spec.west),
+            "A": deg(spec.south),
+            "B": deg(spec.west),
             "C": np.format_float_positional(spec.cell_north_deg),
             "D": np.format_float_positional(spec.cell_east_deg),
             "E": str(spec.cols),
@@ -259,7 +262,7 @@ def write_isoxml_grid(
             "J": "1",
         },
     )
-    return _zip({"TASKDATA.XML": _xml_bytes(root), "GRD00001.BIN": binary})
+    return taskdata_zip({"TASKDATA.XML": xml_bytes(root), "GRD00001.BIN": binary})
 
 
 def write_isoxml_zones(
@@ -284,6 +287,6 @@ def write_isoxml_zones(
         value = int(rate_to_mg_m2(np.asarray([zone.rate_kg_ha]))[0])
         tzn = _tzn(tsk, code, f"{zone.rate_kg_ha:.2f} kg/ha")
         for part in zone.polygons:
-            _pln(tzn, part, "2")
+            polygon_element(tzn, part, "2")
         _pdv(tzn, value)
-    return _zip({"TASKDATA.XML": _xml_bytes(root)}), summary
+    return taskdata_zip({"TASKDATA.XML": xml_bytes(root)}), summary
