@@ -13,8 +13,9 @@ Read (V3 and V4; one TASKDATA.XML or split into XFR external files):
   of type 1 (boundary), each ring from ``LSG`` type 1 (exterior) and type 2
   (interior = hole). Other ``PLN`` types (obstacles, water, buildings ...)
   are listed as skipped annotations: FieldRx has nowhere to keep them yet;
-* ``GGP/GPN``: guidance lines (``LSG`` type 5) are listed with their point
-  count and skipped: FieldRx has no reference-line store;
+* ``GGP/GPN``: guidance patterns are listed with their line types and point
+  count and skipped: FieldRx has no reference-line store (nor for partfield
+  ``LSG``/``PNT`` such as sampling routes and entry points, also listed);
 * ``TSK``: a prescription per task whose treatment zones carry a supported
   rate DDI: type-1 grids (one byte = zone code), type-2 grids (int32 per
   zone PDV, row 0 south, ISO 11783-10 Annex), or zone polygons. Rates are
@@ -37,7 +38,7 @@ from typing import Any
 import numpy as np
 import shapely
 from isoxml.models.ddi_entities import DDEntity
-from shapely.geometry import LineString, MultiPolygon, Polygon
+from shapely.geometry import MultiPolygon, Polygon
 
 from fieldrx.formats import FormatError
 from fieldrx.formats.archive import parse_xml, read_zip, safe_member_name
@@ -242,15 +243,20 @@ def read_taskdata(files: dict[str, bytes]) -> TaskDataSet:
                 )
         for k, ggp in enumerate(pfd.findall("GGP")):
             for gpn in ggp.findall("GPN"):
-                for lsg in gpn.findall("LSG"):
-                    if lsg.get("A") == "5":
-                        line = LineString(_ring(lsg, f"{w}/GGP[{k}]")) if len(lsg) > 1 else None
-                        n = 0 if line is None else len(line.coords)
-                        ds.skip(
-                            f"{w}/GGP[{k}] guidance line {gpn.get('B') or gpn.get('A')} "
-                            f"({n} points)",
-                            "FieldRx has no reference-line store",
-                        )
+                kinds = sorted({lsg.get("A", "?") for lsg in gpn.findall("LSG")})
+                npts = sum(len(lsg.findall("PNT")) for lsg in gpn.findall("LSG"))
+                ds.skip(
+                    f"{w}/GGP[{k}] guidance pattern {gpn.get('B') or gpn.get('A')} "
+                    f"(line types {','.join(kinds) or 'none'}, {npts} points)",
+                    "FieldRx has no reference-line store",
+                )
+        for tag, label in (("LSG", "line"), ("PNT", "point")):
+            for k, el in enumerate(pfd.findall(tag)):
+                ds.skip(
+                    f"{w}/{tag}[{k}] {label} type {el.get('A')} {el.get('B') or ''}".strip(),
+                    "partfield lines and points (routes, flags, entries) have no place in "
+                    "FieldRx yet",
+                )
         if not polys:
             ds.skip(f"{w} {pfd.get('C') or ''}".strip(), "partfield without a boundary (PLN A=1)")
             continue
