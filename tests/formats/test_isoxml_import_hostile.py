@@ -159,3 +159,67 @@ def test_api_refuses_and_stores_nothing(client, org, files):
     assert r.status_code == 422
     assert "TASKDATA.XML" in r.json()["detail"]
     assert client.get(f"{API}/fields", headers=h).json()["total"] == before
+
+
+# -- variants that must read the same: V3, split XML (XFR), type-1 grid -------------------
+
+
+def _files_of(data: bytes) -> dict[str, bytes]:
+    z = zipfile.ZipFile(io.BytesIO(data))
+    return {n: z.read(n) for n in z.namelist()}
+
+
+def test_v3_and_split_files_read_like_v4():
+    files = _files_of(_grid_zip())
+    ref = read_taskdata(files)
+    v3 = dict(files)
+    v3["TASKDATA/TASKDATA.XML"] = files["TASKDATA/TASKDATA.XML"].replace(
+        b'VersionMajor="4" VersionMinor="3"', b'VersionMajor="3" VersionMinor="3"'
+    )
+    got3 = read_taskdata(v3)
+    assert got3.version == "3.3"
+    # split: the partfield moves to PFD00001.XML, TASKDATA.XML references it with XFR
+    import xml.etree.ElementTree as ET
+
+    root = ET.fromstring(files["TASKDATA/TASKDATA.XML"])
+    pfd = root.find("PFD")
+    root.remove(pfd)
+    ET.SubElement(root, "XFR", {"A": "PFD00001", "B": "1"})
+    xfc = ET.Element("XFC")
+    xfc.append(pfd)
+    split = dict(files)
+    split["TASKDATA/TASKDATA.XML"] = ET.tostring(root)
+    split["TASKDATA/PFD00001.XML"] = ET.tostring(xfc)
+    got_split = read_taskdata(split)
+    for got in (got3, got_split):
+        assert shapely.equals(got.fields[0].boundary, ref.fields[0].boundary)
+        (rx,) = got.prescriptions
+        np.testing.assert_array_equal(rx.grid["rates"], ref.prescriptions[0].grid["rates"])
+    with pytest.raises(FormatError, match=r"XFR\[0\]: file PFD00001.XML is missing"):
+        read_taskdata({k: v for k, v in split.items() if not k.endswith("PFD00001.XML")})
+
+
+def test_type1_grid_takes_zone_rates():
+    files = _files_of(_grid_zip())
+    import xml.etree.ElementTree as ET
+
+    root = ET.fromstring(files["TASKDATA/TASKDATA.XML"])
+    tsk = root.find("TSK")
+    grd = tsk.find("GRD")
+    rows, cols = int(grd.get("F")), int(grd.get("E"))
+    for code, mg in ((2, 12345), (3, 20000)):
+        z = ET.SubElement(tsk, "TZN", {"A": str(code)})
+        ET.SubElement(z, "PDV", {"A": "0006", "B": str(mg)})
+    tsk.remove(grd)
+    tsk.append(grd)
+    codes = np.zeros((rows, cols), dtype=np.uint8)
+    codes[: rows // 2] = 2
+    codes[rows // 2 :] = 3
+    grd.set("I", "1")
+    grd.set("H", str(codes.size))
+    del grd.attrib["J"]
+    ds = read_taskdata({"TASKDATA.XML": ET.tostring(root), "GRD00001.BIN": codes.tobytes()})
+    (rx,) = ds.prescriptions
+    assert rx.kind == "grid type 1"
+    assert rx.grid["rates"][0, 0] == pytest.approx(123.45)  # row 0 = south
+    assert rx.grid["rates"][-1, -1] == pytest.approx(200.0)
