@@ -91,3 +91,98 @@ def import_isoxml(
     body["stored"] = True
     body["created"] = created
     return JSONResponse(body, status_code=201)
+
+
+@router.post("/prescription-shapefile")
+def import_prescription_shapefile(
+    file: UploadFile,
+    principal: WriterDep,
+    session: SessionDep,
+    field_id: int = Query(description="the field the prescription is for"),
+    rate_column: str | None = Query(default=None, description="attribute holding the rate"),
+    unit: str = Query(default="kg/ha", description="unit of the rate column"),
+    default_rate_kg_ha: float = Query(default=0.0, ge=0, description="rate outside polygons"),
+    name: str = Query(default="", max_length=200),
+    product: str = Query(default="fertilizer", max_length=200),
+    confirm: str | None = Query(default=None, description="the preview's sha256"),
+    swath_width_m: float = Query(default=PlanParams.swath_width_m, gt=0, le=100),
+    cell_length_m: float = Query(default=PlanParams.cell_length_m, gt=0, le=500),
+    headland_passes: int = Query(default=0, ge=0, le=20),
+) -> JSONResponse:
+    """A zipped prescription Shapefile with an attribute-mapping step (preview, then confirm).
+
+    Without ``rate_column`` the preview lists the numeric columns and a
+    suggestion; with it, the rates in kg/ha. ``confirm`` (the preview's
+    sha256) builds a plan on the field and stores version 1.
+    """
+    from fieldrx.api.common import get_scoped
+    from fieldrx.db.models import Field as FieldRow
+    from fieldrx.formats.field_import import read_shapefile_zip_fields
+    from fieldrx.formats.rx_shapefile import (
+        UNITS,
+        numeric_columns,
+        rx_from_items,
+        suggest_rate_column,
+    )
+
+    fld = get_scoped(session, FieldRow, field_id, principal)
+    data = file.file.read(MAX_UPLOAD_BYTES + 1)
+    if len(data) > MAX_UPLOAD_BYTES:
+        raise ApiError(413, f"upload larger than {MAX_UPLOAD_BYTES // 1024 // 1024} MB")
+    fname = file.filename or "upload.zip"
+    try:
+        items = read_shapefile_zip_fields(data)
+    except FormatError as exc:
+        raise ApiError(422, f"{fname}: {exc}", where=fname) from exc
+    columns = numeric_columns(items)
+    sha = hashlib.sha256(data).hexdigest()
+    body: dict[str, Any] = {
+        "sha256": sha,
+        "features": len(items),
+        "numeric_columns": columns,
+        "suggested_rate_column": suggest_rate_column(columns),
+        "units": sorted(UNITS),
+        "stored": False,
+    }
+    if rate_column is None:
+        if confirm is not None:
+            raise ApiError(422, "confirm needs rate_column (the mapping step)", where="rate_column")
+        return JSONResponse(body)
+    try:
+        rx = rx_from_items(
+            items,
+            rate_column,
+            unit,
+            default_rate_kg_ha,
+            name or f"{fname} ({rate_column})",
+            product,
+        )
+    except FormatError as exc:
+        raise ApiError(422, f"{fname}: {exc}", where=rate_column) from exc
+    rates = [r for r, _ in rx.zones]
+    body["mapping"] = {
+        "rate_column": rate_column,
+        "unit": unit,
+        "min_rate_kg_ha": min(rates, default=0.0),
+        "max_rate_kg_ha": max(rates, default=0.0),
+        "default_rate_kg_ha": default_rate_kg_ha,
+    }
+    if confirm is None:
+        return JSONResponse(body)
+    if confirm != sha:
+        raise ApiError(409, "confirm does not match this upload's sha256: preview it again")
+    params = PlanParams(
+        swath_width_m=swath_width_m, cell_length_m=cell_length_m, headland_passes=headland_passes
+    )
+    source = {"file": fname, "kind": "shapefile", "rate_column": rate_column, "unit": unit}
+    try:
+        row, plan = svc.store_prescription(
+            session, rx, fld, params, principal.organisation_id, principal.user_id, source
+        )
+    except PlanningError as exc:
+        session.rollback()
+        raise ApiError(422, str(exc)) from exc
+    session.commit()
+    body["stored"] = True
+    body["created"] = {"prescription_id": row.id, "plan_id": plan.id, "field_id": fld.id}
+    return JSONResponse(body, status_code=201)

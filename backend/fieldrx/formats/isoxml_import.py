@@ -88,9 +88,15 @@ class RxIn:
             ok = (r >= 0) & (r < rows) & (c >= 0) & (c < cols)
             out[ok] = g["rates"][r[ok], c[ok]]
         else:
-            pts = shapely.points(lon, lat)
-            for rate, poly in self.zones:
-                out[shapely.intersects(poly, pts)] = rate
+            if self.zones:
+                tree = shapely.STRtree([poly for _, poly in self.zones])
+                rates = np.asarray([rate for rate, _ in self.zones], dtype=float)
+                pi, zi = tree.query(shapely.points(lon, lat), predicate="intersects")
+                order = np.lexsort((zi, pi))  # a point on a shared edge: the first zone
+                pi, zi = pi[order], zi[order]
+                first = np.ones(len(pi), dtype=bool)
+                first[1:] = pi[1:] != pi[:-1]
+                out[pi[first]] = rates[zi[first]]
         return out
 
     def grid_centres(self) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:

@@ -28,7 +28,7 @@ from sqlalchemy.orm import Session
 
 from fieldrx.agronomy.cells import CellTable
 from fieldrx.api.common import shape_to_db
-from fieldrx.db.models import Farm, Field, Prescription, PrescriptionVersion
+from fieldrx.db.models import Farm, Field, Plan, Prescription, PrescriptionVersion
 from fieldrx.formats import FormatError
 from fieldrx.formats.isoxml_import import RxIn, TaskDataSet
 from fieldrx.geo.validate import BoundaryError, validate_boundary
@@ -115,6 +115,48 @@ def cell_rates(rx: RxIn, cells: CellTable) -> np.ndarray:
     return np.round(rates, 2)
 
 
+def store_prescription(
+    session: Session,
+    rx: RxIn,
+    fld: Field,
+    params: PlanParams,
+    organisation_id: int,
+    user_id: int | None,
+    source: dict[str, Any],
+) -> tuple[Prescription, Plan]:
+    """A plan on ``fld`` and version 1 of an imported prescription on it (flush only)."""
+    plan = create_plan(session, fld, params, organisation_id)
+    cells = load_cell_table(session, plan, fld.utm_epsg)
+    rates = cell_rates(rx, cells)
+    row = Prescription(
+        organisation_id=organisation_id,
+        plan_id=plan.id,
+        name=rx.name[:200],
+        product=rx.product or "fertilizer",
+        model=IMPORTED_MODEL,
+        params={"imported": source},
+        current_version=1,
+    )
+    session.add(row)
+    session.flush()
+    area = cells.area_m2
+    summary = {
+        "source": source,
+        "n_cells": len(cells),
+        "min_rate_kg_ha": float(rates.min(initial=0.0)),
+        "max_rate_kg_ha": float(rates.max(initial=0.0)),
+        "mean_rate_kg_ha": float(np.sum(rates * area) / max(area.sum(), 1e-12)),
+        "total_kg": float(np.sum(rates * area) / 10_000.0),
+    }
+    ver = PrescriptionVersion(
+        prescription_id=row.id, version=1, note="imported", summary=summary, created_by=user_id
+    )
+    session.add(ver)
+    session.flush()
+    copy_rates(session, ver.id, cells.seq, rates, np.zeros(len(cells), np.uint16), None)
+    return row, plan
+
+
 def commit(
     session: Session,
     ds: TaskDataSet,
@@ -151,9 +193,6 @@ def commit(
     created_rx = []
     for rx in ds.prescriptions:
         fld = fields[rx.field_ref]
-        plan = create_plan(session, fld, params, organisation_id)
-        cells = load_cell_table(session, plan, fld.utm_epsg)
-        rates = cell_rates(rx, cells)
         source = {
             "file": source_name,
             "task": rx.ref,
@@ -162,32 +201,7 @@ def commit(
             "unit": rx.unit,
             "isoxml_version": ds.version,
         }
-        row = Prescription(
-            organisation_id=organisation_id,
-            plan_id=plan.id,
-            name=rx.name[:200],
-            product=rx.product or "fertilizer",
-            model=IMPORTED_MODEL,
-            params={"imported": source},
-            current_version=1,
-        )
-        session.add(row)
-        session.flush()
-        area = cells.area_m2
-        summary = {
-            "source": source,
-            "n_cells": len(cells),
-            "min_rate_kg_ha": float(rates.min(initial=0.0)),
-            "max_rate_kg_ha": float(rates.max(initial=0.0)),
-            "mean_rate_kg_ha": float(np.sum(rates * area) / max(area.sum(), 1e-12)),
-            "total_kg": float(np.sum(rates * area) / 10_000.0),
-        }
-        ver = PrescriptionVersion(
-            prescription_id=row.id, version=1, note="imported", summary=summary, created_by=user_id
-        )
-        session.add(ver)
-        session.flush()
-        copy_rates(session, ver.id, cells.seq, rates, np.zeros(len(cells), np.uint16), None)
+        row, plan = store_prescription(session, rx, fld, params, organisation_id, user_id, source)
         created_rx.append({"id": row.id, "plan_id": plan.id, "field_id": fld.id, "ref": rx.ref})
     return {
         "farms": sorted(farm_ids.values()),
