@@ -14,6 +14,7 @@ from __future__ import annotations
 import hashlib
 from typing import Any
 
+import numpy as np
 from fastapi import APIRouter, Query, UploadFile
 from fastapi.responses import JSONResponse
 
@@ -185,4 +186,85 @@ def import_prescription_shapefile(
     session.commit()
     body["stored"] = True
     body["created"] = {"prescription_id": row.id, "plan_id": plan.id, "field_id": fld.id}
+    return JSONResponse(body, status_code=201)
+
+
+@router.post("/timelog")
+def import_timelog(
+    files: list[UploadFile],
+    principal: WriterDep,
+    session: SessionDep,
+    prescription_id: int = Query(description="the prescription the as-applied data belongs to"),
+    width_m: float | None = Query(
+        default=None, gt=0, le=100, description="working width; default DDI 67 from the log"
+    ),
+    confirm: str | None = Query(default=None, description="the preview's sha256"),
+) -> JSONResponse:
+    """ISO 11783-10 TimeLogs (TLGxxxxx.XML + .BIN, zipped or loose) as a completed job.
+
+    The preview lists each log's records, time span, positions and the DDIs
+    used and ignored; ``confirm`` (the preview's sha256) stores the records as
+    a job on the prescription, so the report (target vs applied, eq. 18) works.
+    """
+    from fieldrx.api.common import get_scoped
+    from fieldrx.db.models import Prescription
+    from fieldrx.formats.timelog import read_timelog
+
+    rx = get_scoped(session, Prescription, prescription_id, principal)
+    data, sha, names = _files(files)
+    by_upper = {k.rsplit("/", 1)[-1].upper(): v for k, v in data.items()}
+    heads = sorted(k[:-4] for k in by_upper if k.startswith("TLG") and k.endswith(".XML"))
+    if not heads:
+        raise ApiError(422, f"no TLGxxxxx.XML time log header in the upload ({names})")
+    logs = []
+    try:
+        for h in heads:
+            if f"{h}.BIN" not in by_upper:
+                raise FormatError(f"{h}.XML: its binary {h}.BIN is missing from the upload")
+            logs.append(read_timelog(h, by_upper[f"{h}.XML"], by_upper[f"{h}.BIN"]))
+    except FormatError as exc:
+        raise ApiError(422, str(exc), where=names) from exc
+    preview = []
+    for log in logs:
+        pos = np.isfinite(log.lat) & np.isfinite(log.lon)
+        widths = log.series(67, 0.001)
+        preview.append(
+            {
+                "timelog": log.name,
+                "records": len(log),
+                "with_position": int(pos.sum()),
+                "first_t": None if not len(log) else float(log.t.min()),
+                "last_t": None if not len(log) else float(log.t.max()),
+                "ddis_used": sorted(d for d in log.values if d in (6, 7, 67, 141, 397)),
+                "ddis_ignored": log.ignored_ddis,
+                "mean_applied_rate_kg_ha": None
+                if not np.isfinite(log.series(7)).any()
+                else float(np.nanmean(log.series(7, 0.01))),
+                "logged_width_m": None
+                if not np.isfinite(widths).any()
+                else float(np.nanmedian(widths)),
+            }
+        )
+    body: dict[str, Any] = {"sha256": sha, "timelogs": preview, "stored": False}
+    width = width_m
+    if width is None:
+        logged = [p["logged_width_m"] for p in preview if p["logged_width_m"]]
+        width = float(np.median(logged)) if logged else None
+    body["width_m"] = width
+    if confirm is None:
+        return JSONResponse(body)
+    if confirm != sha:
+        raise ApiError(409, "confirm does not match this upload's sha256: preview it again")
+    if width is None:
+        raise ApiError(422, "the logs carry no working width (DDI 67): give width_m")
+    try:
+        created = svc.store_timelogs(
+            session, logs, rx, principal.organisation_id, principal.user_id, width, names
+        )
+    except FormatError as exc:
+        session.rollback()
+        raise ApiError(422, str(exc), where=names) from exc
+    session.commit()
+    body["stored"] = True
+    body["created"] = created
     return JSONResponse(body, status_code=201)

@@ -20,17 +20,29 @@ The version's summary records the source (file, task, DDI, unit, kind).
 
 from __future__ import annotations
 
+import datetime as dt
 from typing import Any
 
 import numpy as np
 import shapely
+from sqlalchemy import insert, text
 from sqlalchemy.orm import Session
 
 from fieldrx.agronomy.cells import CellTable
 from fieldrx.api.common import shape_to_db
-from fieldrx.db.models import Farm, Field, Plan, Prescription, PrescriptionVersion
+from fieldrx.db.models import (
+    Farm,
+    Field,
+    Job,
+    Machine,
+    Plan,
+    Prescription,
+    PrescriptionVersion,
+    Telemetry,
+)
 from fieldrx.formats import FormatError
 from fieldrx.formats.isoxml_import import RxIn, TaskDataSet
+from fieldrx.formats.timelog import TimeLog
 from fieldrx.geo.validate import BoundaryError, validate_boundary
 from fieldrx.services.plans import PlanParams, create_plan, load_cell_table
 from fieldrx.services.prescriptions import copy_rates
@@ -208,3 +220,94 @@ def commit(
         "fields": [{"id": r.id, "ref": ref, "name": r.name} for ref, r in fields.items()],
         "prescriptions": created_rx,
     }
+
+
+def store_timelogs(
+    session: Session,
+    logs: list[TimeLog],
+    rx: Prescription,
+    organisation_id: int,
+    user_id: int | None,
+    width_m: float,
+    source_name: str,
+) -> dict[str, Any]:
+    """As-applied records of other terminals as a completed job on ``rx`` (flush only).
+
+    The records go to a machine created for the import (named after the
+    file), never to a real machine: telemetry is deduplicated per machine and
+    sequence number, so imported rows must not share a tractor's sequence.
+    The machine has no calibration, so the report meters each record as
+    applied rate x width x speed (``fleet.reports``), and lag 0: logged
+    positions are where the terminal says product was applied.
+    """
+    machine = Machine(
+        organisation_id=organisation_id,
+        name=f"Imported: {source_name}"[:200],
+        implement_type="imported",
+        width_m=width_m,
+        lag_s=0.0,
+        calibration={},
+        antenna_forward_m=0.0,
+    )
+    session.add(machine)
+    session.flush()
+    job = Job(
+        organisation_id=organisation_id,
+        prescription_id=rx.id,
+        prescription_version=rx.current_version,
+        machine_id=machine.id,
+        name=f"As-applied {source_name}"[:200],
+        state="completed",
+        created_by=user_id,
+    )
+    session.add(job)
+    session.flush()
+    rows = []
+    seq = 0
+    for log in logs:
+        applied = log.series(7, 0.01)
+        target = log.series(6, 0.01)
+        speed = log.series(397, 0.001)
+        state = log.series(141)
+        down = np.where(np.isfinite(state), state == 1, np.nan_to_num(applied) > 0)
+        ok = np.isfinite(log.lat) & np.isfinite(log.lon) & (np.nan_to_num(log.status, nan=1) != 0)
+        for i in np.flatnonzero(ok).tolist():
+            seq += 1
+            rows.append(
+                {
+                    "machine_id": machine.id,
+                    "seq": seq,
+                    "t": dt.datetime.fromtimestamp(float(log.t[i]), dt.UTC),
+                    "job_id": job.id,
+                    "geom": f"SRID=4326;POINT({log.lon[i]:.9f} {log.lat[i]:.9f})",
+                    "fix_quality": 1,
+                    "speed_raw_m_s": None if not np.isfinite(speed[i]) else float(speed[i]),
+                    "target_rate_kg_ha": None if not np.isfinite(target[i]) else float(target[i]),
+                    "applied_rate_kg_ha": float(np.nan_to_num(applied[i])),
+                    "implement_down": bool(down[i]),
+                    "alarms": [],
+                }
+            )
+    if not rows:
+        raise FormatError(f"{source_name}: no time log record has a position")
+    session.execute(insert(Telemetry), rows)
+    plan_id = rx.plan_id
+    session.execute(
+        text(
+            "UPDATE telemetry t SET cell_seq = pc.seq FROM plan_cells pc"
+            " WHERE t.machine_id = :m AND pc.plan_id = :p AND ST_Intersects(pc.geom, t.geom)"
+        ),
+        {"m": machine.id, "p": plan_id},
+    )
+    session.execute(
+        text(
+            "INSERT INTO job_cells_applied (job_id, seq, n_records, target_rate_sum,"
+            " applied_rate_sum, first_t, last_t)"
+            " SELECT :j, cell_seq, count(*), sum(coalesce(target_rate_kg_ha, 0)),"
+            " sum(applied_rate_kg_ha), min(t), max(t) FROM telemetry"
+            " WHERE machine_id = :m AND cell_seq IS NOT NULL AND implement_down GROUP BY cell_seq"
+        ),
+        {"j": job.id, "m": machine.id},
+    )
+    session.flush()
+    return {"job_id": job.id, "machine_id": machine.id, "records": len(rows)}
