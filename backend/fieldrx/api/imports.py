@@ -268,3 +268,92 @@ def import_timelog(
     body["stored"] = True
     body["created"] = created
     return JSONResponse(body, status_code=201)
+
+
+@router.post("/as-applied-table")
+def import_asapplied_table(
+    file: UploadFile,
+    principal: WriterDep,
+    session: SessionDep,
+    prescription_id: int = Query(description="the prescription the as-applied data belongs to"),
+    width_m: float | None = Query(default=None, gt=0, le=100, description="working width"),
+    rate_column: str | None = Query(default=None, description="applied rate column"),
+    unit: str = Query(default="kg/ha"),
+    target_column: str | None = None,
+    speed_column: str | None = None,
+    speed_unit: str = Query(default="m/s"),
+    time_column: str | None = None,
+    work_state_column: str | None = None,
+    lon_column: str | None = None,
+    lat_column: str | None = None,
+    interval_s: float = Query(default=1.0, gt=0, le=3600),
+    confirm: str | None = Query(default=None, description="the preview's sha256"),
+) -> JSONResponse:
+    """Another terminal's as-applied Shapefile (zip) or CSV, with an attribute-mapping step.
+
+    Without ``rate_column`` the preview lists the columns and suggestions;
+    with the mapping it shows the decoded records; ``confirm`` (the preview's
+    sha256, plus ``width_m``) stores them as a completed job on the prescription.
+    """
+    import time
+
+    from fieldrx.api.common import get_scoped
+    from fieldrx.db.models import Prescription
+    from fieldrx.formats.asapplied_table import read_table, table_columns, to_timelog
+
+    rx = get_scoped(session, Prescription, prescription_id, principal)
+    data = file.file.read(MAX_UPLOAD_BYTES + 1)
+    if len(data) > MAX_UPLOAD_BYTES:
+        raise ApiError(413, f"upload larger than {MAX_UPLOAD_BYTES // 1024 // 1024} MB")
+    fname = file.filename or "upload"
+    sha = hashlib.sha256(data).hexdigest()
+    try:
+        table = read_table(fname, data)
+    except FormatError as exc:
+        raise ApiError(422, str(exc), where=fname) from exc
+    body: dict[str, Any] = {"sha256": sha, **table_columns(table), "stored": False}
+    if rate_column is None:
+        if confirm is not None:
+            raise ApiError(422, "confirm needs rate_column (the mapping step)", where="rate_column")
+        return JSONResponse(body)
+    try:
+        log = to_timelog(
+            table,
+            rate_column=rate_column,
+            unit=unit,
+            target_column=target_column,
+            speed_column=speed_column,
+            speed_unit=speed_unit,
+            time_column=time_column,
+            work_state_column=work_state_column,
+            lon_column=lon_column,
+            lat_column=lat_column,
+            interval_s=interval_s,
+            start_t=float(int(time.time())),
+        )
+    except FormatError as exc:
+        raise ApiError(422, f"{fname}: {exc}", where=fname) from exc
+    rates = log.series(7, 0.01)
+    body["mapping"] = {
+        "records": len(log),
+        "mean_applied_rate_kg_ha": float(np.mean(rates)),
+        "mean_speed_m_s": float(np.mean(log.series(397, 0.001))),
+        "times": "from " + time_column if time_column else f"every {interval_s} s in file order",
+    }
+    if confirm is None:
+        return JSONResponse(body)
+    if confirm != sha:
+        raise ApiError(409, "confirm does not match this upload's sha256: preview it again")
+    if width_m is None:
+        raise ApiError(422, "give the working width width_m", where="width_m")
+    try:
+        created = svc.store_timelogs(
+            session, [log], rx, principal.organisation_id, principal.user_id, width_m, fname
+        )
+    except FormatError as exc:
+        session.rollback()
+        raise ApiError(422, str(exc), where=fname) from exc
+    session.commit()
+    body["stored"] = True
+    body["created"] = created
+    return JSONResponse(body, status_code=201)
