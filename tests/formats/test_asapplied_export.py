@@ -149,3 +149,12 @@ def test_shapefile_as_applied_points_and_cells(client, org, driven):
         assert sr.record["APPLIED"] == pytest.approx(rec["applied_rate_kg_ha"], abs=0.005)
         assert sr.record["UNIT"] == "kg/ha" and sr.record["DOWN"] == int(rec["implement_down"])
     assert {f"{stem}_points.prj", f"{stem}.prj"} <= set(z.namelist())
+
+
+def test_isoxml_export_of_a_job_without_records_is_a_clear_422(client, org):
+    fx = make_job(org.id, state="running", lag_s=0.0)
+    r = client.get(f"/api/v1/jobs/{fx.job_id}/export?format=isoxml", headers=org.headers())
+    assert r.status_code == 422
+    assert "no as-applied records" in r.json()["detail"]
+    shp = client.get(f"/api/v1/jobs/{fx.job_id}/export?format=shapefile", headers=org.headers())
+    assert shp.status_code == 200  # cells with zero applied, no points

@@ -182,9 +182,13 @@ def export_report(
             media_type="text/csv",
             headers={"Content-Disposition": f'attachment; filename="{stem}.csv"'},
         )
+    from fieldrx.formats import FormatError
     from fieldrx.services.asapplied import export_job
 
-    data, media, filename = export_job(session, job, rep, format)
+    try:
+        data, media, filename = export_job(session, job, rep, format)
+    except FormatError as exc:
+        raise ApiError(422, f"job {job.id}: {exc}", where="format") from exc
     return Response(
         data,
         media_type=media,
