@@ -20,6 +20,7 @@ import io
 import stat
 import xml.etree.ElementTree as ET
 import zipfile
+import zlib
 from pyexpat import ExpatError, ParserCreate
 from typing import Any
 
@@ -83,16 +84,10 @@ def read_zip(
                             f"the archive inflates to more than {max_total_bytes} bytes "
                             f"(stopped in {info.filename})"
                         )
-        except (zipfile.BadZipFile, zlib_error(), EOFError, NotImplementedError) as exc:
+        except (zipfile.BadZipFile, zlib.error, EOFError, NotImplementedError) as exc:
             raise FormatError(f"{info.filename}: cannot be inflated ({exc})") from exc
         out[name] = bytes(buf)
     return out
-
-
-def zlib_error() -> type[Exception]:
-    import zlib
-
-    return zlib.error
 
 
 def parse_xml(data: bytes, where: str) -> ET.Element:
