@@ -41,6 +41,7 @@ ROUTERS = (
     "reports",
     "live",
     "archive",
+    "imports",
 )
 
 

@@ -103,7 +103,9 @@ export async function download(path: string, fallbackName: string): Promise<stri
   a.click();
   a.remove();
   setTimeout(() => URL.revokeObjectURL(a.href), 10_000);
-  return name;
+  // zone exports say how they simplified the prescription: show it with the file name
+  const note = res.headers.get('X-FieldRx-Export-Note');
+  return note ? `${name} (${note})` : name;
 }
 
 export async function login(email: string, password: string): Promise<SessionInfo> {

@@ -96,7 +96,9 @@ def test_grid_row_zero_is_south(schema, tmp_path):
 
 
 def test_zones_export_valid_and_reads_back(cells, field_wgs84, schema, tmp_path):
-    data = write_isoxml_zones(cells, "Test field", field_wgs84, "urea")
+    data, summary = write_isoxml_zones(
+        cells, "Test field", field_wgs84, "urea", n_classes=254, max_polygons=5000, min_patch_m2=0
+    )
     d = _unpack(data, tmp_path)
     schema.validate(str(d / "TASKDATA.XML"))
     text = (d / "TASKDATA.XML").read_text()
@@ -125,7 +127,7 @@ def test_zones_export_valid_and_reads_back(cells, field_wgs84, schema, tmp_path)
 
 def test_zones_quantised_when_too_many_rates(cells, schema, tmp_path):
     c = cells.with_rates(np.linspace(200.0, 800.0, len(cells)))
-    d = _unpack(write_isoxml_zones(c, "many", max_zones=8), tmp_path)
+    d = _unpack(write_isoxml_zones(c, "many", n_classes=8)[0], tmp_path)
     schema.validate(str(d / "TASKDATA.XML"))
     td, _ = isoxml_from_path(d)
     codes = [t.code for t in td.tasks[0].treatment_zones]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from typing import Any, Literal
 
 from fastapi import APIRouter, Query
@@ -230,22 +231,41 @@ def export(
     session: SessionDep,
     format: Literal["geojson", "csv", "shapefile", "isoxml", "isoxml-zones"] = "geojson",
     version: int | None = None,
+    profile: Literal["cells", "deere", "fieldview", "raven", "agleader", "trimble"] = "cells",
+    zone_classes: int | None = Query(default=None, ge=1, le=254),
+    max_polygons: int | None = Query(default=None, ge=1, le=100_000),
 ) -> Response:
-    """One version as a file download (GeoJSON, Table 1 CSV, zipped Shapefile, TASKDATA.zip)."""
+    """One version as a file download (GeoJSON, Table 1 CSV, zipped Shapefile, TASKDATA.zip).
+
+    ``profile`` (Shapefile) picks a terminal layout; zone exports (profiles
+    other than ``cells`` and ``isoxml-zones``) dissolve cells into
+    ``zone_classes`` rate classes within ``max_polygons``, and say how in the
+    ``X-FieldRx-Export-Note`` header (area moved, largest rate change).
+    """
     rx = get_scoped(session, Prescription, rx_id, principal)
     ver = _version(session, rx, version)
+    info: dict[str, Any] = {}
     try:
-        data, media, filename = exports.export_version(session, rx, ver, format)
+        data, media, filename = exports.export_version(
+            session,
+            rx,
+            ver,
+            format,
+            profile=profile,
+            zone_classes=zone_classes,
+            max_polygons=max_polygons,
+            info=info,
+        )
     except BAD_INPUT as exc:
         raise ApiError(422, str(exc)) from exc
-    return Response(
-        content=data,
-        media_type=media,
-        headers={
-            "Content-Disposition": f'attachment; filename="{filename}"',
-            "ETag": f'"rx-{ver.id}-{format}"',
-        },
-    )
+    headers = {
+        "Content-Disposition": f'attachment; filename="{filename}"',
+        "ETag": f'"rx-{ver.id}-{format}-{profile}-{zone_classes}-{max_polygons}"',
+    }
+    if "note" in info:
+        headers["X-FieldRx-Export-Note"] = info["note"]
+        headers["X-FieldRx-Zones"] = json.dumps(info["zones"], separators=(",", ":"))
+    return Response(content=data, media_type=media, headers=headers)
 
 
 @router.delete("/prescriptions/{rx_id:int}", status_code=204)

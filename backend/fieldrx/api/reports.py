@@ -13,11 +13,9 @@ from __future__ import annotations
 import csv
 import datetime as dt
 import io
-import zipfile
 from dataclasses import asdict
 from typing import Any, Literal
 
-import shapefile
 from fastapi import APIRouter, Query, Request
 from fastapi.responses import Response
 from geoalchemy2.shape import to_shape
@@ -30,11 +28,6 @@ from fieldrx.db.models import Field, Job, JobEvent, PlanCell, Prescription
 from fieldrx.fleet.reports import JobReport, build_report, job_plan
 
 router = APIRouter(tags=["reports"])
-
-WGS84_PRJ = (
-    'GEOGCS["GCS_WGS_1984",DATUM["D_WGS_1984",SPHEROID["WGS_1984",6378137.0,298.257223563]],'
-    'PRIMEM["Greenwich",0.0],UNIT["Degree",0.0174532925199433]]'
-)
 
 
 def _report(session: SessionDep, job_id: int, principal: Any) -> tuple[Job, JobReport]:
@@ -166,9 +159,10 @@ def export_report(
     job_id: int,
     principal: UserDep,
     session: SessionDep,
-    format: Literal["csv", "shapefile"] = "csv",  # noqa: A002
+    format: Literal["csv", "shapefile", "isoxml"] = "csv",  # noqa: A002
 ) -> Response:
-    """Per-cell as-applied table as CSV, or zipped Shapefile (WGS84 polygons + attributes)."""
+    """Per-cell as-applied table as CSV; zipped Shapefile (cell polygons + record points);
+    ISO 11783-10 TASKDATA.zip with a TimeLog (``formats.asapplied``)."""
     job, rep = _report(session, job_id, principal)
     stem = f"job{job.id}_as_applied"
     if format == "csv":
@@ -188,49 +182,17 @@ def export_report(
             media_type="text/csv",
             headers={"Content-Disposition": f'attachment; filename="{stem}.csv"'},
         )
-    geoms = _cell_geoms(session, rep.plan_id)
-    shp, shx, dbf = io.BytesIO(), io.BytesIO(), io.BytesIO()
-    with shapefile.Writer(shp=shp, shx=shx, dbf=dbf, shapeType=shapefile.POLYGON) as w:
-        for name in ("SEQ", "SWATH", "NREC"):
-            w.field(name, "N", 10, 0)
-        for name in ("AREA_M2", "TARGET", "APPLIED", "M1_G", "M2_G", "ACCURACY"):
-            w.field(name, "N", 16, 4)
-        w.field("UNIT", "C", 8)
-        for c in rep.cells:
-            g = geoms.get(c.seq)
-            if g is None or g.is_empty:
-                continue
-            polys = list(getattr(g, "geoms", [g]))
-            rings = []
-            for p in polys:
-                rings.append(
-                    [list(xy) for xy in reversed(p.exterior.coords)]
-                )  # shapefile: clockwise
-                rings.extend([list(xy) for xy in i.coords] for i in p.interiors)
-            w.poly(rings)
-            w.record(
-                c.seq,
-                c.swath,
-                c.n_records,
-                c.area_m2,
-                c.target_rate_kg_ha,
-                c.applied_rate_kg_ha,
-                c.m1_g,
-                c.m2_g,
-                c.accuracy_pct if c.accuracy_pct is not None else 0.0,
-                "kg/ha",
-            )
-    zbuf = io.BytesIO()
-    with zipfile.ZipFile(zbuf, "w", zipfile.ZIP_DEFLATED) as z:
-        z.writestr(f"{stem}.shp", shp.getvalue())
-        z.writestr(f"{stem}.shx", shx.getvalue())
-        z.writestr(f"{stem}.dbf", dbf.getvalue())
-        z.writestr(f"{stem}.prj", WGS84_PRJ)
-        z.writestr(f"{stem}.cpg", "UTF-8")
+    from fieldrx.formats import FormatError
+    from fieldrx.services.asapplied import export_job
+
+    try:
+        data, media, filename = export_job(session, job, rep, format)
+    except FormatError as exc:
+        raise ApiError(422, f"job {job.id}: {exc}", where="format") from exc
     return Response(
-        zbuf.getvalue(),
-        media_type="application/zip",
-        headers={"Content-Disposition": f'attachment; filename="{stem}.zip"'},
+        data,
+        media_type=media,
+        headers={"Content-Disposition": f'attachment; filename="{filename}"'},
     )
 
 

@@ -19,12 +19,24 @@ def export_prescription(
     product_name: str = "fertilizer",
     grid_cell_m: float | None = None,
     properties: dict[str, Any] | None = None,
+    profile: str = "cells",
+    zone_classes: int | None = None,
+    max_polygons: int | None = None,
+    info: dict[str, Any] | None = None,
 ) -> tuple[bytes, str, str]:
     """Return (file bytes, media type, suggested file name) for one export format.
 
     ``cells`` carries the rates and flags (``CellTable.with_rates``). The job
     package is not a file export: see ``formats.jobpackage.build_job_package``.
+    ``profile`` picks the Shapefile layout (``formats.shapefile.PROFILES``);
+    zone exports (``isoxml-zones`` and the terminal profiles) take the rate
+    class count and polygon limit, and put how they dissolved the cells into
+    ``info["zones"]`` (``ZoneSummary.to_dict``) when ``info`` is given.
     """
+    from fieldrx.formats.zones import DEFAULT_MAX_POLYGONS, DEFAULT_ZONE_CLASSES
+
+    n_classes = DEFAULT_ZONE_CLASSES if zone_classes is None else int(zone_classes)
+    summary = None
     if fmt == "geojson":
         from fieldrx.formats.geojson import write_geojson
 
@@ -34,9 +46,14 @@ def export_prescription(
 
         data = write_table1_csv(cells)
     elif fmt == "shapefile":
-        from fieldrx.formats.shapefile import write_shapefile_zip
+        from fieldrx.formats.shapefile import write_shapefile_zip, write_shapefile_zones_zip
 
-        data = write_shapefile_zip(cells, "prescription")
+        if profile == "cells":
+            data = write_shapefile_zip(cells, "prescription")
+        else:
+            data, summary = write_shapefile_zones_zip(
+                cells, "prescription", profile, n_classes, max_polygons
+            )
     elif fmt == "isoxml":
         from fieldrx.formats.isoxml import write_isoxml_grid
 
@@ -44,8 +61,18 @@ def export_prescription(
     elif fmt == "isoxml-zones":
         from fieldrx.formats.isoxml import write_isoxml_zones
 
-        data = write_isoxml_zones(cells, field_name, boundary_wgs84, product_name)
+        data, summary = write_isoxml_zones(
+            cells,
+            field_name,
+            boundary_wgs84,
+            product_name,
+            n_classes,
+            DEFAULT_MAX_POLYGONS if max_polygons is None else int(max_polygons),
+        )
     else:
         raise FormatError(f"unknown export format {fmt!r} (expected one of {list(FILE_FORMATS)})")
+    if summary is not None and info is not None:
+        info["zones"] = summary.to_dict()
+        info["note"] = summary.note()
     media, filename = MEDIA_TYPES[fmt]
     return data, media, filename

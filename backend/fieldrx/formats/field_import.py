@@ -244,6 +244,13 @@ def read_shapefile_zip_fields(data: bytes) -> list[tuple[dict[str, Any], Any]]:
     z = _Archive(data, "the Shapefile upload")
     names = [n for n in z.namelist() if not n.startswith("__MACOSX") and not n.endswith("/")]
     shps = [n for n in names if n.lower().endswith(".shp")]
+    if not shps and any(
+        n.replace("\\", "/").rsplit("/", 1)[-1].upper() == "TASKDATA.XML" for n in names
+    ):
+        raise FormatError(
+            "this is an ISO 11783-10 TASKDATA set, not a Shapefile: import it with "
+            "POST /api/v1/imports/isoxml (fields with holes, farms and prescriptions)"
+        )
     if len(shps) != 1:
         raise FormatError(f"the zip must hold exactly one .shp file, found {len(shps)}")
     base = shps[0][:-4]

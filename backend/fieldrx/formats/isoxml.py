@@ -9,13 +9,16 @@ Two variants, both a zip holding ``TASKDATA/TASKDATA.XML`` (version 4.3):
   row and each row runs west to east. The cell size in degrees comes from a
   size in metres at the field's latitude; each grid cell takes the rate of the
   prescription cell covering its centre, 0 outside the field.
-* ``write_isoxml_zones``: treatment zones (``TZN``) with ``PLN`` polygons, one
-  zone per distinct rate (or per rate class when there are more than fit in
-  the 1..254 zone codes).
+* ``write_isoxml_zones``: treatment zones (``TZN``) with ``PLN`` polygons:
+  the cells dissolved into rate classes (``formats.zones.dissolve_zones``:
+  a user-set class count, small patches merged, the polygon count bounded
+  for terminals), one zone per class.
 
 Coordinates carry at most 9 fraction digits (the XSD's limit; some commercial
-exports fail validation with more). The XML is written with ElementTree and
-checked against the ISO 11783-10 XSD in the tests (xmlschema) and read back
+exports fail validation with more); polygons are snapped to that precision
+with GEOS so they are valid in the written coordinates (``zones.snap_valid``).
+The XML is written with ElementTree and checked against the ISO 11783-10 XSD
+in the tests (xmlschema) and read back
 with the ``isoxml`` package.
 """
 
@@ -32,13 +35,20 @@ import numpy as np
 import shapely
 from pyproj import Geod
 
-from fieldrx.agronomy.cells import CellTable, round_coords, transform_geoms, transform_xy
+from fieldrx.agronomy.cells import CellTable, transform_xy
 from fieldrx.formats import FormatError
+from fieldrx.formats.zones import (
+    DEFAULT_MAX_POLYGONS,
+    DEFAULT_ZONE_CLASSES,
+    ZoneSummary,
+    dissolve_zones,
+    polygon_parts,
+    snap_valid,
+)
 
 DDI_SETPOINT_MASS_PER_AREA = 0x0006  # mg/m^2
 MG_M2_PER_KG_HA = 100.0
 MAX_GRID_CELLS = 25_000_000
-MAX_ZONE_CODE = 254
 SOFTWARE = ("FieldRx", "0.1.0")
 _GEOD = Geod(ellps="WGS84")
 
@@ -48,13 +58,13 @@ def rate_to_mg_m2(rate_kg_ha: np.ndarray) -> np.ndarray:
     return np.rint(np.asarray(rate_kg_ha, dtype=float) * MG_M2_PER_KG_HA).astype(np.int64)
 
 
-def _deg(v: float) -> str:
+def deg(v: float) -> str:
     """Decimal degrees with 9 fraction digits (XSD fractionDigits 9)."""
     s = f"{v:.9f}"
     return "0.000000000" if s == "-0.000000000" else s
 
 
-def _root() -> ET.Element:
+def taskdata_root() -> ET.Element:
     return ET.Element(
         "ISO11783_TaskData",
         {
@@ -67,43 +77,38 @@ def _root() -> ET.Element:
     )
 
 
-def _lsg(parent: ET.Element, ring: Any, kind: str) -> None:
+def line_string_element(parent: ET.Element, ring: Any, kind: str) -> None:
     lsg = ET.SubElement(parent, "LSG", {"A": kind})
     coords = np.asarray(ring.coords)
     for lon, lat in coords[:, :2]:
-        ET.SubElement(lsg, "PNT", {"A": "2", "C": _deg(lat), "D": _deg(lon)})
+        ET.SubElement(lsg, "PNT", {"A": "2", "C": deg(lat), "D": deg(lon)})
 
 
-def _pln(parent: ET.Element, poly: Any, pln_type: str, designator: str | None = None) -> None:
+def polygon_element(
+    parent: ET.Element, poly: Any, pln_type: str, designator: str | None = None
+) -> None:
     attrs = {"A": pln_type}
     if designator:
         attrs["B"] = designator[:32]
     pln = ET.SubElement(parent, "PLN", attrs)
     p = shapely.orient_polygons(poly, exterior_cw=False)
-    _lsg(pln, p.exterior, "1")
+    line_string_element(pln, p.exterior, "1")
     for h in p.interiors:
-        _lsg(pln, h, "2")
-
-
-def _polygon_parts(geom: Any) -> list[Any]:
-    if geom is None or geom.is_empty:
-        return []
-    if geom.geom_type == "Polygon":
-        return [geom]
-    return [g for g in getattr(geom, "geoms", []) if g.geom_type == "Polygon" and not g.is_empty]
+        line_string_element(pln, h, "2")
 
 
 def _common(
     field_name: str, field_area_m2: float, boundary_wgs84: Any, product_name: str
 ) -> tuple[ET.Element, ET.Element]:
-    root = _root()
+    root = taskdata_root()
     pfd = ET.SubElement(
         root,
         "PFD",
         {"A": "PFD1", "C": (field_name or "field")[:32], "D": str(int(round(field_area_m2)))},
     )
-    for part in _polygon_parts(boundary_wgs84):
-        _pln(pfd, round_coords(part, 9), "1", field_name)
+    if boundary_wgs84 is not None:
+        for part in polygon_parts(snap_valid(boundary_wgs84)):
+            polygon_element(pfd, part, "1", field_name)
     ET.SubElement(root, "PDT", {"A": "PDT1", "B": (product_name or "fertilizer")[:32]})
     tsk = ET.SubElement(
         root,
@@ -133,12 +138,12 @@ def _pdv(tzn: ET.Element, value_mg_m2: int) -> None:
     )
 
 
-def _xml_bytes(root: ET.Element) -> bytes:
+def xml_bytes(root: ET.Element) -> bytes:
     ET.indent(root, space=" ")
     return b'<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="utf-8")
 
 
-def _zip(files: dict[str, bytes]) -> bytes:
+def taskdata_zip(files: dict[str, bytes]) -> bytes:
     out = io.BytesIO()
     with zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED) as z:
         for name, data in files.items():
@@ -245,8 +250,8 @@ def write_isoxml_grid(
         tsk,
         "GRD",
         {
-            "A": _deg(spec.south),
-            "B": _deg(spec.west),
+            "A": deg(spec.south),
+            "B": deg(spec.west),
             "C": np.format_float_positional(spec.cell_north_deg),
             "D": np.format_float_positional(spec.cell_east_deg),
             "E": str(spec.cols),
@@ -257,31 +262,7 @@ def write_isoxml_grid(
             "J": "1",
         },
     )
-    return _zip({"TASKDATA.XML": _xml_bytes(root), "GRD00001.BIN": binary})
-
-
-def zone_classes(
-    rate_kg_ha: np.ndarray, area_m2: np.ndarray, max_zones: int = MAX_ZONE_CODE
-) -> tuple[np.ndarray, np.ndarray]:
-    """Zone index per cell (0..k-1) and each zone's setpoint in mg/m^2.
-
-    One zone per distinct setpoint when they fit; otherwise ``max_zones``
-    equal-width rate classes, each at the area-weighted mean of its cells.
-    """
-    if not 1 <= max_zones <= MAX_ZONE_CODE:
-        raise FormatError(f"max_zones must be in 1..{MAX_ZONE_CODE}, got {max_zones}")
-    mg = rate_to_mg_m2(rate_kg_ha)
-    uniq, inv = np.unique(mg, return_inverse=True)
-    if len(uniq) <= max_zones:
-        return inv.ravel(), uniq
-    lo, hi = float(mg.min()), float(mg.max())
-    k = np.minimum(((mg - lo) / (hi - lo) * max_zones).astype(np.int64), max_zones - 1)
-    used, kk = np.unique(k, return_inverse=True)
-    kk = kk.ravel()
-    w = np.asarray(area_m2, dtype=float) + 1e-12
-    sums = np.bincount(kk, weights=w * mg, minlength=len(used))
-    wsum = np.bincount(kk, weights=w, minlength=len(used))
-    return kk, np.rint(sums / wsum).astype(np.int64)
+    return taskdata_zip({"TASKDATA.XML": xml_bytes(root), "GRD00001.BIN": binary})
 
 
 def write_isoxml_zones(
@@ -289,24 +270,23 @@ def write_isoxml_zones(
     field_name: str = "",
     boundary_wgs84: Any = None,
     product_name: str = "fertilizer",
-    max_zones: int = MAX_ZONE_CODE,
-) -> bytes:
-    """TASKDATA.zip with one treatment zone (TZN + PLN polygons) per rate (class).
+    n_classes: int = DEFAULT_ZONE_CLASSES,
+    max_polygons: int = DEFAULT_MAX_POLYGONS,
+    min_patch_m2: float | None = None,
+) -> tuple[bytes, ZoneSummary]:
+    """TASKDATA.zip with one treatment zone (TZN + PLN polygons) per rate class.
 
     Zone 0 is "no rate" (default, position lost and out of field); zones
-    1..k carry the union of their cells' polygons and a DDI 0006 setpoint.
+    1..k carry their class's dissolved polygons and a DDI 0006 setpoint. The
+    summary says how the cells were simplified (the API shows it).
     """
-    if len(cells) == 0:
-        raise FormatError("prescription has no cells")
-    zone, setpoints = zone_classes(cells.rate_kg_ha, cells.area_m2, max_zones)
+    zones, summary = dissolve_zones(cells, n_classes, max_polygons, min_patch_m2)
     root, tsk = _common(field_name, cells.total_area_m2, boundary_wgs84, product_name)
     _pdv(_tzn(tsk, 0, "no rate"), 0)
-    for z, value in enumerate(setpoints.tolist()):
-        members = cells.polygons_utm[zone == z]
-        merged = shapely.union_all(members)
-        merged_wgs = round_coords(transform_geoms(merged, cells.epsg, 4326), 9)
-        tzn = _tzn(tsk, z + 1, f"{value / MG_M2_PER_KG_HA:.2f} kg/ha")
-        for part in _polygon_parts(merged_wgs):
-            _pln(tzn, part, "2")
+    for code, zone in enumerate(zones, start=1):
+        value = int(rate_to_mg_m2(np.asarray([zone.rate_kg_ha]))[0])
+        tzn = _tzn(tsk, code, f"{zone.rate_kg_ha:.2f} kg/ha")
+        for part in zone.polygons:
+            polygon_element(tzn, part, "2")
         _pdv(tzn, value)
-    return _zip({"TASKDATA.XML": _xml_bytes(root)})
+    return taskdata_zip({"TASKDATA.XML": xml_bytes(root)}), summary

@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 import re
+from typing import Any
 
 from geoalchemy2.shape import to_shape
 from sqlalchemy.orm import Session
 
 from fieldrx.db.models import Field, Plan, Prescription, PrescriptionVersion
-from fieldrx.formats import MEDIA_TYPES
 from fieldrx.services.prescriptions import RxError, version_cells
 
 FORMATS = ("geojson", "csv", "shapefile", "isoxml", "isoxml-zones")
@@ -20,37 +20,49 @@ def _stem(rx: Prescription, ver: PrescriptionVersion) -> str:
 
 
 def export_version(
-    session: Session, rx: Prescription, ver: PrescriptionVersion, fmt: str
+    session: Session,
+    rx: Prescription,
+    ver: PrescriptionVersion,
+    fmt: str,
+    *,
+    profile: str = "cells",
+    zone_classes: int | None = None,
+    max_polygons: int | None = None,
+    info: dict[str, Any] | None = None,
 ) -> tuple[bytes, str, str]:
-    """(bytes, media type, download file name) of one version in one format."""
+    """(bytes, media type, download file name) of one version in one format.
+
+    The writing itself is ``formats.export.export_prescription`` (one home);
+    this adds the field, product and a file name. Zone exports report how the
+    cells were dissolved in ``info`` (the API sends it as a header).
+    """
+    from fieldrx.formats.export import export_prescription
+
     if fmt not in FORMATS:
         raise RxError(f"unknown export format {fmt!r} (expected one of {list(FORMATS)})")
     cells = version_cells(session, rx, ver)
     plan = session.get(Plan, rx.plan_id)
     field = session.get(Field, plan.field_id) if plan is not None else None
     boundary = None if field is None else to_shape(field.boundary)
-    field_name = "" if field is None else field.name
-    product = rx.product or "fertilizer"
-    media, default_name = MEDIA_TYPES[fmt]
+    props = {"prescription_id": rx.id, "version": ver.version, "model": rx.model}
+    data, media, _ = export_prescription(
+        cells,
+        fmt,
+        field_name="" if field is None else field.name,
+        boundary_wgs84=boundary,
+        product_name=rx.product or "fertilizer",
+        properties=props,
+        profile=profile,
+        zone_classes=zone_classes,
+        max_polygons=max_polygons,
+        info=info,
+    )
     stem = _stem(rx, ver)
-    if fmt == "geojson":
-        from fieldrx.formats.geojson import write_geojson
-
-        props = {"prescription_id": rx.id, "version": ver.version, "model": rx.model}
-        return write_geojson(cells, props), media, f"{stem}.geojson"
-    if fmt == "csv":
-        from fieldrx.formats.csv_table import write_table1_csv
-
-        return write_table1_csv(cells), media, f"{stem}.csv"
-    if fmt == "shapefile":
-        from fieldrx.formats.shapefile import write_shapefile_zip
-
-        return write_shapefile_zip(cells, name=stem[:64]), media, f"{stem}_shp.zip"
-    from fieldrx.formats import isoxml
-
-    if fmt == "isoxml":
-        data = isoxml.write_isoxml_grid(cells, field_name, boundary, product)
-    else:
-        data = isoxml.write_isoxml_zones(cells, field_name, boundary, product)
-    suffix = "grid" if fmt == "isoxml" else "zones"
-    return data, media, f"{stem}_TASKDATA_{suffix}.zip"
+    if fmt == "isoxml" or fmt == "isoxml-zones":
+        suffix = "grid" if fmt == "isoxml" else "zones"
+        return data, media, f"{stem}_TASKDATA_{suffix}.zip"
+    ext = {"geojson": ".geojson", "csv": ".csv"}.get(fmt)
+    if ext is not None:
+        return data, media, f"{stem}{ext}"
+    tail = "_shp.zip" if profile == "cells" else f"_{profile}_shp.zip"
+    return data, media, f"{stem}{tail}"

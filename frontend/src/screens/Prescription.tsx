@@ -22,6 +22,11 @@ const EXPORTS: [string, string, string][] = [
   ['csv', 'CSV', 'csv'],
   ['shapefile', 'Shapefile', 'zip'],
   ['isoxml', 'ISOXML', 'zip'],
+  // terminal layouts: rate zones within the terminal's polygon limit (the server says what it merged)
+  ['isoxml-zones', 'ISOXML zones', 'zip'],
+  ['shapefile&profile=deere', 'John Deere (Rx/)', 'zip'],
+  ['shapefile&profile=fieldview', 'FieldView', 'zip'],
+  ['shapefile&profile=raven', 'Raven / Ag Leader / Trimble', 'zip'],
 ];
 
 interface CellInfo {
@@ -382,7 +387,7 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
           {EXPORTS.map(([fmt, label, ext]) => (
             <button
               key={fmt}
-              data-testid={`export-${fmt}`}
+              data-testid={`export-${fmt.replace('&profile=', '-')}`}
               onClick={async () => {
                 try {
                   const name = await download(

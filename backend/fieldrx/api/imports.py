@@ -1,0 +1,359 @@
+"""Imports of other software's files: ISO 11783-10 TASKDATA (preview, then confirm).
+
+``POST /imports/isoxml`` with multipart ``files`` (a TASKDATA zip, or the
+TASKDATA.XML with its .BIN/.XML files): without ``confirm`` it answers with
+a preview (what would be created, what is skipped and why) and the upload's
+SHA-256; nothing is stored. Sending the same files again with
+``confirm=<sha256>`` stores everything in one transaction, or nothing. The
+handler is a plain ``def`` so parsing runs in the threadpool, not on the
+event loop.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from typing import Any
+
+import numpy as np
+from fastapi import APIRouter, Query, UploadFile
+from fastapi.responses import JSONResponse
+
+from fieldrx.api.common import ApiError
+from fieldrx.auth.deps import SessionDep, WriterDep
+from fieldrx.formats import FormatError
+from fieldrx.formats.archive import read_zip
+from fieldrx.formats.isoxml_import import read_taskdata
+from fieldrx.geo import PlanningError
+from fieldrx.services import imports as svc
+from fieldrx.services.plans import PlanParams
+
+router = APIRouter(prefix="/imports", tags=["imports"])
+
+MAX_UPLOAD_BYTES = 100 * 1024 * 1024
+
+
+def _files(files: list[UploadFile]) -> tuple[dict[str, bytes], str, str]:
+    out: dict[str, bytes] = {}
+    digest = hashlib.sha256()
+    total = 0
+    for f in sorted(files, key=lambda u: u.filename or ""):
+        data = f.file.read(MAX_UPLOAD_BYTES + 1 - total)
+        total += len(data)
+        if total > MAX_UPLOAD_BYTES:
+            raise ApiError(413, f"upload larger than {MAX_UPLOAD_BYTES // 1024 // 1024} MB")
+        name = (f.filename or "upload").replace("\\", "/").rsplit("/", 1)[-1]
+        digest.update(name.encode() + b"\0" + hashlib.sha256(data).digest())
+        if name.lower().endswith(".zip"):
+            try:
+                members = read_zip(data)
+            except FormatError as exc:
+                raise ApiError(422, f"{name}: {exc}", where=name) from exc
+            out.update(members)
+        else:
+            out[name] = data
+    names = ", ".join(sorted(f.filename or "upload" for f in files))
+    return out, digest.hexdigest(), names
+
+
+@router.post("/isoxml")
+def import_isoxml(
+    files: list[UploadFile],
+    principal: WriterDep,
+    session: SessionDep,
+    confirm: str | None = Query(default=None, description="the preview's sha256"),
+    swath_width_m: float = Query(default=PlanParams.swath_width_m, gt=0, le=100),
+    cell_length_m: float = Query(default=PlanParams.cell_length_m, gt=0, le=500),
+    headland_passes: int = Query(default=0, ge=0, le=20),
+) -> JSONResponse:
+    """Preview (no ``confirm``) or store (``confirm`` = the preview's sha256) a TASKDATA set."""
+    data, sha, names = _files(files)
+    try:
+        ds = read_taskdata(data)
+        pre = svc.preview(ds)
+    except FormatError as exc:
+        raise ApiError(422, str(exc), where=names) from exc
+    body: dict[str, Any] = {"sha256": sha, "preview": pre}
+    if confirm is None:
+        body["stored"] = False
+        return JSONResponse(body)
+    if confirm != sha:
+        raise ApiError(409, "confirm does not match this upload's sha256: preview it again")
+    params = PlanParams(
+        swath_width_m=swath_width_m, cell_length_m=cell_length_m, headland_passes=headland_passes
+    )
+    try:
+        created = svc.commit(
+            session, ds, principal.organisation_id, principal.user_id, params, names
+        )
+    except (FormatError, PlanningError) as exc:
+        session.rollback()
+        raise ApiError(422, str(exc), where=names) from exc
+    session.commit()
+    body["stored"] = True
+    body["created"] = created
+    return JSONResponse(body, status_code=201)
+
+
+@router.post("/prescription-shapefile")
+def import_prescription_shapefile(
+    file: UploadFile,
+    principal: WriterDep,
+    session: SessionDep,
+    field_id: int = Query(description="the field the prescription is for"),
+    rate_column: str | None = Query(default=None, description="attribute holding the rate"),
+    unit: str = Query(default="kg/ha", description="unit of the rate column"),
+    default_rate_kg_ha: float = Query(default=0.0, ge=0, description="rate outside polygons"),
+    name: str = Query(default="", max_length=200),
+    product: str = Query(default="fertilizer", max_length=200),
+    confirm: str | None = Query(default=None, description="the preview's sha256"),
+    swath_width_m: float = Query(default=PlanParams.swath_width_m, gt=0, le=100),
+    cell_length_m: float = Query(default=PlanParams.cell_length_m, gt=0, le=500),
+    headland_passes: int = Query(default=0, ge=0, le=20),
+) -> JSONResponse:
+    """A zipped prescription Shapefile with an attribute-mapping step (preview, then confirm).
+
+    Without ``rate_column`` the preview lists the numeric columns and a
+    suggestion; with it, the rates in kg/ha. ``confirm`` (the preview's
+    sha256) builds a plan on the field and stores version 1.
+    """
+    from fieldrx.api.common import get_scoped
+    from fieldrx.db.models import Field as FieldRow
+    from fieldrx.formats.field_import import read_shapefile_zip_fields
+    from fieldrx.formats.rx_shapefile import (
+        UNITS,
+        numeric_columns,
+        rx_from_items,
+        suggest_rate_column,
+    )
+
+    fld = get_scoped(session, FieldRow, field_id, principal)
+    data = file.file.read(MAX_UPLOAD_BYTES + 1)
+    if len(data) > MAX_UPLOAD_BYTES:
+        raise ApiError(413, f"upload larger than {MAX_UPLOAD_BYTES // 1024 // 1024} MB")
+    fname = file.filename or "upload.zip"
+    try:
+        items = read_shapefile_zip_fields(data)
+    except FormatError as exc:
+        raise ApiError(422, f"{fname}: {exc}", where=fname) from exc
+    columns = numeric_columns(items)
+    sha = hashlib.sha256(data).hexdigest()
+    body: dict[str, Any] = {
+        "sha256": sha,
+        "features": len(items),
+        "numeric_columns": columns,
+        "suggested_rate_column": suggest_rate_column(columns),
+        "units": sorted(UNITS),
+        "stored": False,
+    }
+    if rate_column is None:
+        if confirm is not None:
+            raise ApiError(422, "confirm needs rate_column (the mapping step)", where="rate_column")
+        return JSONResponse(body)
+    try:
+        rx = rx_from_items(
+            items,
+            rate_column,
+            unit,
+            default_rate_kg_ha,
+            name or f"{fname} ({rate_column})",
+            product,
+        )
+    except FormatError as exc:
+        raise ApiError(422, f"{fname}: {exc}", where=rate_column) from exc
+    rates = [r for r, _ in rx.zones]
+    body["mapping"] = {
+        "rate_column": rate_column,
+        "unit": unit,
+        "min_rate_kg_ha": min(rates, default=0.0),
+        "max_rate_kg_ha": max(rates, default=0.0),
+        "default_rate_kg_ha": default_rate_kg_ha,
+    }
+    if confirm is None:
+        return JSONResponse(body)
+    if confirm != sha:
+        raise ApiError(409, "confirm does not match this upload's sha256: preview it again")
+    params = PlanParams(
+        swath_width_m=swath_width_m, cell_length_m=cell_length_m, headland_passes=headland_passes
+    )
+    source = {"file": fname, "kind": "shapefile", "rate_column": rate_column, "unit": unit}
+    try:
+        row, plan = svc.store_prescription(
+            session, rx, fld, params, principal.organisation_id, principal.user_id, source
+        )
+    except PlanningError as exc:
+        session.rollback()
+        raise ApiError(422, str(exc)) from exc
+    session.commit()
+    body["stored"] = True
+    body["created"] = {"prescription_id": row.id, "plan_id": plan.id, "field_id": fld.id}
+    return JSONResponse(body, status_code=201)
+
+
+@router.post("/timelog")
+def import_timelog(
+    files: list[UploadFile],
+    principal: WriterDep,
+    session: SessionDep,
+    prescription_id: int = Query(description="the prescription the as-applied data belongs to"),
+    width_m: float | None = Query(
+        default=None, gt=0, le=100, description="working width; default DDI 67 from the log"
+    ),
+    confirm: str | None = Query(default=None, description="the preview's sha256"),
+) -> JSONResponse:
+    """ISO 11783-10 TimeLogs (TLGxxxxx.XML + .BIN, zipped or loose) as a completed job.
+
+    The preview lists each log's records, time span, positions and the DDIs
+    used and ignored; ``confirm`` (the preview's sha256) stores the records as
+    a job on the prescription, so the report (target vs applied, eq. 18) works.
+    """
+    from fieldrx.api.common import get_scoped
+    from fieldrx.db.models import Prescription
+    from fieldrx.formats.timelog import read_timelog
+
+    rx = get_scoped(session, Prescription, prescription_id, principal)
+    data, sha, names = _files(files)
+    by_upper = {k.rsplit("/", 1)[-1].upper(): v for k, v in data.items()}
+    heads = sorted(k[:-4] for k in by_upper if k.startswith("TLG") and k.endswith(".XML"))
+    if not heads:
+        raise ApiError(422, f"no TLGxxxxx.XML time log header in the upload ({names})")
+    logs = []
+    try:
+        for h in heads:
+            if f"{h}.BIN" not in by_upper:
+                raise FormatError(f"{h}.XML: its binary {h}.BIN is missing from the upload")
+            logs.append(read_timelog(h, by_upper[f"{h}.XML"], by_upper[f"{h}.BIN"]))
+    except FormatError as exc:
+        raise ApiError(422, str(exc), where=names) from exc
+    preview = []
+    for log in logs:
+        pos = np.isfinite(log.lat) & np.isfinite(log.lon)
+        widths = log.series(67, 0.001)
+        preview.append(
+            {
+                "timelog": log.name,
+                "records": len(log),
+                "with_position": int(pos.sum()),
+                "first_t": None if not len(log) else float(log.t.min()),
+                "last_t": None if not len(log) else float(log.t.max()),
+                "ddis_used": sorted(d for d in log.values if d in (6, 7, 67, 141, 397)),
+                "ddis_ignored": log.ignored_ddis,
+                "mean_applied_rate_kg_ha": None
+                if not np.isfinite(log.series(7)).any()
+                else float(np.nanmean(log.series(7, 0.01))),
+                "logged_width_m": None
+                if not np.isfinite(widths).any()
+                else float(np.nanmedian(widths)),
+            }
+        )
+    body: dict[str, Any] = {"sha256": sha, "timelogs": preview, "stored": False}
+    width = width_m
+    if width is None:
+        logged = [p["logged_width_m"] for p in preview if p["logged_width_m"]]
+        width = float(np.median(logged)) if logged else None
+    body["width_m"] = width
+    if confirm is None:
+        return JSONResponse(body)
+    if confirm != sha:
+        raise ApiError(409, "confirm does not match this upload's sha256: preview it again")
+    if width is None:
+        raise ApiError(422, "the logs carry no working width (DDI 67): give width_m")
+    try:
+        created = svc.store_timelogs(
+            session, logs, rx, principal.organisation_id, principal.user_id, width, names
+        )
+    except FormatError as exc:
+        session.rollback()
+        raise ApiError(422, str(exc), where=names) from exc
+    session.commit()
+    body["stored"] = True
+    body["created"] = created
+    return JSONResponse(body, status_code=201)
+
+
+@router.post("/as-applied-table")
+def import_asapplied_table(
+    file: UploadFile,
+    principal: WriterDep,
+    session: SessionDep,
+    prescription_id: int = Query(description="the prescription the as-applied data belongs to"),
+    width_m: float | None = Query(default=None, gt=0, le=100, description="working width"),
+    rate_column: str | None = Query(default=None, description="applied rate column"),
+    unit: str = Query(default="kg/ha"),
+    target_column: str | None = None,
+    speed_column: str | None = None,
+    speed_unit: str = Query(default="m/s"),
+    time_column: str | None = None,
+    work_state_column: str | None = None,
+    lon_column: str | None = None,
+    lat_column: str | None = None,
+    interval_s: float = Query(default=1.0, gt=0, le=3600),
+    confirm: str | None = Query(default=None, description="the preview's sha256"),
+) -> JSONResponse:
+    """Another terminal's as-applied Shapefile (zip) or CSV, with an attribute-mapping step.
+
+    Without ``rate_column`` the preview lists the columns and suggestions;
+    with the mapping it shows the decoded records; ``confirm`` (the preview's
+    sha256, plus ``width_m``) stores them as a completed job on the prescription.
+    """
+    import time
+
+    from fieldrx.api.common import get_scoped
+    from fieldrx.db.models import Prescription
+    from fieldrx.formats.asapplied_table import read_table, table_columns, to_timelog
+
+    rx = get_scoped(session, Prescription, prescription_id, principal)
+    data = file.file.read(MAX_UPLOAD_BYTES + 1)
+    if len(data) > MAX_UPLOAD_BYTES:
+        raise ApiError(413, f"upload larger than {MAX_UPLOAD_BYTES // 1024 // 1024} MB")
+    fname = file.filename or "upload"
+    sha = hashlib.sha256(data).hexdigest()
+    try:
+        table = read_table(fname, data)
+    except FormatError as exc:
+        raise ApiError(422, str(exc), where=fname) from exc
+    body: dict[str, Any] = {"sha256": sha, **table_columns(table), "stored": False}
+    if rate_column is None:
+        if confirm is not None:
+            raise ApiError(422, "confirm needs rate_column (the mapping step)", where="rate_column")
+        return JSONResponse(body)
+    try:
+        log = to_timelog(
+            table,
+            rate_column=rate_column,
+            unit=unit,
+            target_column=target_column,
+            speed_column=speed_column,
+            speed_unit=speed_unit,
+            time_column=time_column,
+            work_state_column=work_state_column,
+            lon_column=lon_column,
+            lat_column=lat_column,
+            interval_s=interval_s,
+            start_t=float(int(time.time())),
+        )
+    except FormatError as exc:
+        raise ApiError(422, f"{fname}: {exc}", where=fname) from exc
+    rates = log.series(7, 0.01)
+    body["mapping"] = {
+        "records": len(log),
+        "mean_applied_rate_kg_ha": float(np.mean(rates)),
+        "mean_speed_m_s": float(np.mean(log.series(397, 0.001))),
+        "times": "from " + time_column if time_column else f"every {interval_s} s in file order",
+    }
+    if confirm is None:
+        return JSONResponse(body)
+    if confirm != sha:
+        raise ApiError(409, "confirm does not match this upload's sha256: preview it again")
+    if width_m is None:
+        raise ApiError(422, "give the working width width_m", where="width_m")
+    try:
+        created = svc.store_timelogs(
+            session, [log], rx, principal.organisation_id, principal.user_id, width_m, fname
+        )
+    except FormatError as exc:
+        session.rollback()
+        raise ApiError(422, str(exc), where=fname) from exc
+    session.commit()
+    body["stored"] = True
+    body["created"] = created
+    return JSONResponse(body, status_code=201)

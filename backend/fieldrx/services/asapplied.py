@@ -1,0 +1,102 @@
+"""A job's as-applied data as files: the report's per-cell figures and the records' points.
+
+Per-cell figures come from ``fleet.reports.build_report`` (seed 001 eq.
+17-18); the points are the job's telemetry records with a position. The
+writing is ``formats.asapplied``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from geoalchemy2.shape import to_shape
+from sqlalchemy import select, text
+from sqlalchemy.orm import Session
+
+from fieldrx.db.models import Field, Job, PlanCell, Prescription
+from fieldrx.fleet.reports import JobReport, job_plan
+from fieldrx.formats.asapplied import (
+    AsAppliedPoints,
+    AsAppliedTotals,
+    CellRow,
+    write_asapplied_isoxml,
+    write_asapplied_shapefile_zip,
+)
+
+POINTS_SQL = text(
+    "SELECT extract(epoch FROM t)::float8, ST_X(geom), ST_Y(geom), target_rate_kg_ha,"
+    " applied_rate_kg_ha, coalesce(speed_filtered_m_s, speed_raw_m_s), implement_down"
+    " FROM telemetry WHERE machine_id = :m AND job_id = :j AND geom IS NOT NULL"
+    " ORDER BY t, seq"
+)
+
+
+def job_points(session: Session, job: Job) -> AsAppliedPoints:
+    rows = session.execute(POINTS_SQL, {"m": job.machine_id, "j": job.id}).all()
+
+    def col(i: int) -> np.ndarray:
+        return np.asarray([np.nan if r[i] is None else r[i] for r in rows], dtype=float)
+
+    return AsAppliedPoints(
+        t=col(0),
+        lon=col(1),
+        lat=col(2),
+        target_kg_ha=col(3),
+        applied_kg_ha=col(4),
+        speed_m_s=col(5),
+        down=np.asarray([bool(r[6]) for r in rows], dtype=bool),
+    )
+
+
+def _cells(session: Session, rep: JobReport) -> list[CellRow]:
+    geoms = {
+        int(s): to_shape(g)
+        for s, g in session.execute(
+            select(PlanCell.seq, PlanCell.geom).where(PlanCell.plan_id == rep.plan_id)
+        ).all()
+    }
+    return [
+        CellRow(
+            c.seq,
+            c.swath,
+            c.n_records,
+            c.area_m2,
+            c.target_rate_kg_ha,
+            c.applied_rate_kg_ha,
+            c.m1_g,
+            c.m2_g,
+            c.accuracy_pct,
+            geoms.get(c.seq),
+        )
+        for c in rep.cells
+    ]
+
+
+def export_job(session: Session, job: Job, rep: JobReport, fmt: str) -> tuple[bytes, str, str]:
+    """(bytes, media type, file name) of the as-applied ``shapefile`` or ``isoxml``."""
+    stem = f"job{job.id}_as_applied"
+    points = job_points(session, job)
+    if fmt == "shapefile":
+        return (
+            write_asapplied_shapefile_zip(stem, _cells(session, rep), points),
+            ("application/zip"),
+            f"{stem}.zip",
+        )
+    plan = job_plan(session, job)
+    fld = session.get(Field, plan.field_id)
+    rx = session.get(Prescription, job.prescription_id)
+    totals = AsAppliedTotals(
+        applied_total_kg=rep.applied_total_kg,
+        area_applied_m2=float(sum(c.area_m2 for c in rep.cells if c.m2_g > 0)),
+        time_worked_s=rep.time_worked_s,
+        first_t=rep.first_t,
+        last_t=rep.last_t,
+    )
+    data = write_asapplied_isoxml(
+        points,
+        totals,
+        job_name=job.name,
+        field_name="" if fld is None else fld.name,
+        boundary_wgs84=None if fld is None else to_shape(fld.boundary),
+        product_name=(rx.product if rx is not None else "") or "fertilizer",
+    )
+    return data, "application/zip", f"{stem}_TASKDATA.zip"

@@ -1,0 +1,313 @@
+"""Store an ISOXML import: farms, fields, a plan per prescribed field and prescription versions.
+
+``preview`` validates everything the upload would create (boundaries like any
+field, ``geo.validate``) and lists it with what is skipped; ``commit`` does
+the same inside the request's transaction and flushes, so a failure anywhere
+leaves nothing behind (the API commits once at the end).
+
+An imported prescription needs FieldRx cells: a plan is built on the field
+with the caller's plan parameters, and each cell takes the imported rate:
+
+* grids: the most common rate of the grid cells whose centres fall in the
+  cell (a FieldRx grid export assigns each grid centre the rate of the cell
+  under it, so this gives each cell back its own rate); a cell no grid centre
+  falls in takes the rate at its inside point;
+* zones: the rate of the zone its inside point lies in, the task's default
+  zone (TSK H) elsewhere.
+
+The version's summary records the source (file, task, DDI, unit, kind).
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+from typing import Any
+
+import numpy as np
+import shapely
+from sqlalchemy import insert, text
+from sqlalchemy.orm import Session
+
+from fieldrx.agronomy.cells import CellTable
+from fieldrx.api.common import shape_to_db
+from fieldrx.db.models import (
+    Farm,
+    Field,
+    Job,
+    Machine,
+    Plan,
+    Prescription,
+    PrescriptionVersion,
+    Telemetry,
+)
+from fieldrx.formats import FormatError
+from fieldrx.formats.isoxml_import import RxIn, TaskDataSet
+from fieldrx.formats.timelog import TimeLog
+from fieldrx.geo.validate import BoundaryError, validate_boundary
+from fieldrx.services.plans import PlanParams, create_plan, load_cell_table
+from fieldrx.services.prescriptions import copy_rates
+
+IMPORTED_MODEL = "imported"
+
+
+def _validated(ds: TaskDataSet) -> list[Any]:
+    out = []
+    for f in ds.fields:
+        try:
+            out.append(validate_boundary(shapely.geometry.mapping(f.boundary)))
+        except BoundaryError as exc:
+            raise FormatError(f"partfield {f.ref} ({f.name}): {exc}") from exc
+    return out
+
+
+def preview(ds: TaskDataSet) -> dict[str, Any]:
+    """What a confirmed import creates and what it skips (nothing is stored)."""
+    valid = _validated(ds)
+    return {
+        "version": ds.version,
+        "farms": [{"ref": f.ref, "name": f.name} for f in ds.farms],
+        "fields": [
+            {
+                "ref": f.ref,
+                "name": f.name,
+                "farm_ref": f.farm_ref,
+                "area_m2": round(v.area_m2, 2),
+                "declared_area_m2": f.declared_area_m2,
+                "holes": sum(len(p.interiors) for p in getattr(f.boundary, "geoms", [f.boundary])),
+                "parts": len(getattr(f.boundary, "geoms", [f.boundary])),
+            }
+            for f, v in zip(ds.fields, valid, strict=True)
+        ],
+        "prescriptions": [
+            {
+                "ref": r.ref,
+                "name": r.name,
+                "field_ref": r.field_ref,
+                "kind": r.kind,
+                "ddi": r.ddi,
+                "unit": r.unit,
+                "product": r.product,
+                "default_rate_kg_ha": r.default_rate_kg_ha,
+                "zones": len(r.zones) if r.grid is None else None,
+                "grid": None
+                if r.grid is None
+                else {"rows": int(r.grid["rates"].shape[0]), "cols": int(r.grid["rates"].shape[1])},
+            }
+            for r in ds.prescriptions
+        ],
+        "skipped": ds.skipped,
+    }
+
+
+def cell_rates(rx: RxIn, cells: CellTable) -> np.ndarray:
+    """Imported rate per FieldRx cell (see module docstring)."""
+    polys = cells.polygons_wgs84()
+    inside = shapely.get_coordinates(shapely.point_on_surface(polys))
+    rates = rx.rates_at(inside[:, 0], inside[:, 1])
+    centres = rx.grid_centres()
+    if centres is not None:
+        lon, lat, val = centres
+        tree = shapely.STRtree(polys)
+        pi, ci = tree.query(shapely.points(lon, lat), predicate="intersects")
+        if len(pi):
+            v = np.rint(val[pi] * 100.0).astype(np.int64)
+            key = np.lexsort((v, ci))
+            ci, v = ci[key], v[key]
+            # per cell: the value with the longest run (mode) in the sorted pairs
+            new = np.ones(len(ci), dtype=bool)
+            new[1:] = (ci[1:] != ci[:-1]) | (v[1:] != v[:-1])
+            starts = np.flatnonzero(new)
+            counts = np.diff(np.append(starts, len(ci)))
+            run_cell, run_val = ci[starts], v[starts]
+            order = np.lexsort((-counts, run_cell))
+            run_cell, run_val = run_cell[order], run_val[order]
+            first = np.ones(len(run_cell), dtype=bool)
+            first[1:] = run_cell[1:] != run_cell[:-1]
+            rates[run_cell[first]] = run_val[first] / 100.0
+    return np.round(rates, 2)
+
+
+def store_prescription(
+    session: Session,
+    rx: RxIn,
+    fld: Field,
+    params: PlanParams,
+    organisation_id: int,
+    user_id: int | None,
+    source: dict[str, Any],
+) -> tuple[Prescription, Plan]:
+    """A plan on ``fld`` and version 1 of an imported prescription on it (flush only)."""
+    plan = create_plan(session, fld, params, organisation_id)
+    cells = load_cell_table(session, plan, fld.utm_epsg)
+    rates = cell_rates(rx, cells)
+    row = Prescription(
+        organisation_id=organisation_id,
+        plan_id=plan.id,
+        name=rx.name[:200],
+        product=rx.product or "fertilizer",
+        model=IMPORTED_MODEL,
+        params={"imported": source},
+        current_version=1,
+    )
+    session.add(row)
+    session.flush()
+    area = cells.area_m2
+    summary = {
+        "source": source,
+        "n_cells": len(cells),
+        "min_rate_kg_ha": float(rates.min(initial=0.0)),
+        "max_rate_kg_ha": float(rates.max(initial=0.0)),
+        "mean_rate_kg_ha": float(np.sum(rates * area) / max(area.sum(), 1e-12)),
+        "total_kg": float(np.sum(rates * area) / 10_000.0),
+    }
+    ver = PrescriptionVersion(
+        prescription_id=row.id, version=1, note="imported", summary=summary, created_by=user_id
+    )
+    session.add(ver)
+    session.flush()
+    copy_rates(session, ver.id, cells.seq, rates, np.zeros(len(cells), np.uint16), None)
+    return row, plan
+
+
+def commit(
+    session: Session,
+    ds: TaskDataSet,
+    organisation_id: int,
+    user_id: int | None,
+    params: PlanParams,
+    source_name: str,
+) -> dict[str, Any]:
+    """Create everything (flush only; the caller commits once). Returns the new ids."""
+    valid = _validated(ds)
+    farm_ids: dict[str, int] = {}
+    for f in ds.farms:
+        farm = Farm(
+            organisation_id=organisation_id, name=f.name[:200], notes="imported from ISOXML"
+        )
+        session.add(farm)
+        session.flush()
+        farm_ids[f.ref] = farm.id
+    fields: dict[str, Field] = {}
+    for f, v in zip(ds.fields, valid, strict=True):
+        row = Field(
+            organisation_id=organisation_id,
+            farm_id=farm_ids.get(f.farm_ref or ""),
+            name=f.name[:200],
+            crop="",
+            notes=f"imported from ISOXML partfield {f.ref}",
+            boundary=shape_to_db(v.geometry),
+            utm_epsg=v.utm_epsg,
+            area_m2=v.area_m2,
+        )
+        session.add(row)
+        session.flush()
+        fields[f.ref] = row
+    created_rx = []
+    for rx in ds.prescriptions:
+        fld = fields[rx.field_ref]
+        source = {
+            "file": source_name,
+            "task": rx.ref,
+            "kind": rx.kind,
+            "ddi": rx.ddi,
+            "unit": rx.unit,
+            "isoxml_version": ds.version,
+        }
+        row, plan = store_prescription(session, rx, fld, params, organisation_id, user_id, source)
+        created_rx.append({"id": row.id, "plan_id": plan.id, "field_id": fld.id, "ref": rx.ref})
+    return {
+        "farms": sorted(farm_ids.values()),
+        "fields": [{"id": r.id, "ref": ref, "name": r.name} for ref, r in fields.items()],
+        "prescriptions": created_rx,
+    }
+
+
+def store_timelogs(
+    session: Session,
+    logs: list[TimeLog],
+    rx: Prescription,
+    organisation_id: int,
+    user_id: int | None,
+    width_m: float,
+    source_name: str,
+) -> dict[str, Any]:
+    """As-applied records of other terminals as a completed job on ``rx`` (flush only).
+
+    The records go to a machine created for the import (named after the
+    file), never to a real machine: telemetry is deduplicated per machine and
+    sequence number, so imported rows must not share a tractor's sequence.
+    The machine has no calibration, so the report meters each record as
+    applied rate x width x speed (``fleet.reports``), and lag 0: logged
+    positions are where the terminal says product was applied.
+    """
+    machine = Machine(
+        organisation_id=organisation_id,
+        name=f"Imported: {source_name}"[:200],
+        implement_type="imported",
+        width_m=width_m,
+        lag_s=0.0,
+        calibration={},
+        antenna_forward_m=0.0,
+    )
+    session.add(machine)
+    session.flush()
+    job = Job(
+        organisation_id=organisation_id,
+        prescription_id=rx.id,
+        prescription_version=rx.current_version,
+        machine_id=machine.id,
+        name=f"As-applied {source_name}"[:200],
+        state="completed",
+        created_by=user_id,
+    )
+    session.add(job)
+    session.flush()
+    rows = []
+    seq = 0
+    for log in logs:
+        applied = log.series(7, 0.01)
+        target = log.series(6, 0.01)
+        speed = log.series(397, 0.001)
+        state = log.series(141)
+        down = np.where(np.isfinite(state), state == 1, np.nan_to_num(applied) > 0)
+        ok = np.isfinite(log.lat) & np.isfinite(log.lon) & (np.nan_to_num(log.status, nan=1) != 0)
+        for i in np.flatnonzero(ok).tolist():
+            seq += 1
+            rows.append(
+                {
+                    "machine_id": machine.id,
+                    "seq": seq,
+                    "t": dt.datetime.fromtimestamp(float(log.t[i]), dt.UTC),
+                    "job_id": job.id,
+                    "geom": f"SRID=4326;POINT({log.lon[i]:.9f} {log.lat[i]:.9f})",
+                    "fix_quality": 1,
+                    "speed_raw_m_s": None if not np.isfinite(speed[i]) else float(speed[i]),
+                    "target_rate_kg_ha": None if not np.isfinite(target[i]) else float(target[i]),
+                    "applied_rate_kg_ha": float(np.nan_to_num(applied[i])),
+                    "implement_down": bool(down[i]),
+                    "alarms": [],
+                }
+            )
+    if not rows:
+        raise FormatError(f"{source_name}: no time log record has a position")
+    session.execute(insert(Telemetry), rows)
+    plan_id = rx.plan_id
+    session.execute(
+        text(
+            "UPDATE telemetry t SET cell_seq = pc.seq FROM plan_cells pc"
+            " WHERE t.machine_id = :m AND pc.plan_id = :p AND ST_Intersects(pc.geom, t.geom)"
+        ),
+        {"m": machine.id, "p": plan_id},
+    )
+    session.execute(
+        text(
+            "INSERT INTO job_cells_applied (job_id, seq, n_records, target_rate_sum,"
+            " applied_rate_sum, first_t, last_t)"
+            " SELECT :j, cell_seq, count(*), sum(coalesce(target_rate_kg_ha, 0)),"
+            " sum(applied_rate_kg_ha), min(t), max(t) FROM telemetry"
+            " WHERE machine_id = :m AND cell_seq IS NOT NULL AND implement_down GROUP BY cell_seq"
+        ),
+        {"j": job.id, "m": machine.id},
+    )
+    session.flush()
+    return {"job_id": job.id, "machine_id": machine.id, "records": len(rows)}
