@@ -13,6 +13,7 @@ from tests.geo.cases import (
     irregular,
     l_shape,
     plot_35x23,
+    plot_35x23_rounded,
     pond_field,
     rect,
     u_shape,
@@ -171,3 +172,33 @@ def test_degenerate_fields():
         plan_coverage(bowtie, 2.3)
     with pytest.raises(PlanningError, match="Polygon"):
         plan_coverage(box(X0, Y0, X0 + 1, Y0 + 1).exterior, 2.3)
+
+
+@pytest.mark.parametrize("heading", ["longest_edge", "optimal"])
+def test_rounded_35x23_plot_plans_10_swaths_and_reports_the_strip(heading):
+    # issue 16: corners rounded to 1e-9 deg make the plot 23.00009 m wide; a strict
+    # ceil(H / w) planned 11 swaths (10 % of their area outside the field) for 0.09 mm
+    f = plot_35x23_rounded()
+    sides = np.hypot(*np.diff(np.asarray(f.exterior.coords), axis=0).T)
+    assert max(sides[[0, 2]]) > 23.00005  # the plot really is a hair over 10 w wide
+    p = plan_coverage(f, 2.3, heading)
+    assert p.n_swaths == 10
+    assert p.outside_pct < 0.01
+    assert 0 < p.uncovered_m2 < 35 * 0.001  # the strip, reported, not hidden
+    assert p.metrics()["uncovered_m2"] == pytest.approx(p.uncovered_m2, abs=1e-3)
+    assert p.strip_tolerance_m == pytest.approx(0.023)
+    # the tolerance is the mechanism: without it the 11th swath comes back
+    assert plan_coverage(f, 2.3, heading, strip_tolerance_m=0.0).n_swaths == 11
+
+
+def test_strip_tolerance_is_capped_at_5_cm():
+    from fieldrx.geo.coverage import default_strip_tolerance
+
+    assert default_strip_tolerance(2.3) == pytest.approx(0.023)
+    assert default_strip_tolerance(36.0) == pytest.approx(0.05)
+    f = rect(200, 36.0 * 3 + 0.049)  # 4.9 cm over three 36 m swaths: not worth a fourth
+    assert plan_coverage(f, 36.0, "longest_edge").n_swaths == 3
+    f = rect(200, 36.0 * 3 + 0.06)  # 6 cm is worth it
+    assert plan_coverage(f, 36.0, "longest_edge").n_swaths == 4
+    with pytest.raises(PlanningError, match="strip_tolerance_m"):
+        plan_coverage(f, 36.0, strip_tolerance_m=20.0)

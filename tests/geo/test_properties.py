@@ -12,7 +12,7 @@ from hypothesis import HealthCheck, assume, given, note, settings
 from hypothesis import strategies as st
 from shapely.geometry import MultiPoint, Polygon
 
-from tests.geo.cases import X0, Y0, check_grid, check_plan
+from tests.geo.cases import X0, Y0, check_cells_in_own_swath, check_grid, check_plan
 
 SETTINGS = settings(
     max_examples=18,
@@ -76,6 +76,7 @@ def _check_all(field, w, h, heading):
     # the working area: the part of the field the implement sweeps
     working = shapely.union_all(swath_footprints(plan)).intersection(field).area
     check_grid(grid, field, min_cover=0.995 * working / field.area)
+    check_cells_in_own_swath(grid, plan)
     assert working >= 0.9 * field.area
     return plan
 

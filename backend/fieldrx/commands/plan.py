@@ -105,6 +105,7 @@ def run(args: argparse.Namespace) -> int:
         return 2
     out: dict[str, Any] = dict(plan.metrics())
     out["n_cells"] = len(grid)
+    out["cells_uncovered_m2"] = round(grid.uncovered_m2, 3)
     out["epsg"] = epsg
     out["elapsed_s"] = round(time.perf_counter() - t0, 4)
     if args.out:

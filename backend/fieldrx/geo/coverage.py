@@ -6,7 +6,10 @@ boundary's longest edge) with a scan line. FieldRx generalises that (issue 3):
 * Everything is computed in the field's UTM metres, in a *frame* rotated so that the
   swaths run along +x. Strip ``i`` is the band ``y0 + i*w .. y0 + (i+1)*w`` of the
   (headland-reduced) region R; the swath is its centre line, so the first swath lies w/2
-  inside R and ``n = ceil(H / w)`` strips leave no uncovered strip at the far edge.
+  inside R and ``n = ceil((H - tol) / w)`` strips leave at most a ``tol`` wide strip at
+  the far edge (tol = 1 % of w, at most 5 cm: not worth a swath; it is reported as
+  ``uncovered_m2``). Strip pieces lower than tol that the centre line misses are left
+  uncovered the same way.
 * A strip may cross R several times: each connected piece of ``strip & R`` is its own
   swath, stretched over the piece's whole x-extent so the implement (w wide) covers it
   completely. Where the centre line itself crosses a hole or notch inside one piece the
@@ -48,6 +51,8 @@ Corner = Literal["sw", "se", "nw", "ne"]
 HEADINGS = ("longest_edge", "angle", "optimal")
 CORNERS = ("sw", "se", "nw", "ne")
 _N_EPS = 1e-9  # tolerance on H / w when counting strips
+STRIP_TOLERANCE_FRACTION = 0.01  # uncovered strip not worth a swath: 1 % of w ...
+STRIP_TOLERANCE_MAX_M = 0.05  # ... and never more than 5 cm (issue 16)
 _MAX_SWATHS = 200_000
 _ROUTED_ORDER_MAX_BLOCKS = 40
 _EXACT_ORDER_MAX_BLOCKS = 8
@@ -141,6 +146,8 @@ class CoveragePlan:
     outside_pct: float = 0.0
     route_outside_m: float = 0.0
     route_in_holes_m: float = 0.0
+    uncovered_m2: float = 0.0
+    strip_tolerance_m: float = 0.0
     timings_s: dict[str, float] = field(default_factory=dict)
 
     def route(self) -> LineString:
@@ -170,6 +177,8 @@ class CoveragePlan:
             "outside_pct": round(self.outside_pct, 4),
             "route_outside_m": round(self.route_outside_m, 3),
             "route_in_holes_m": round(self.route_in_holes_m, 3),
+            "uncovered_m2": round(self.uncovered_m2, 3),
+            "strip_tolerance_m": round(self.strip_tolerance_m, 4),
         }
 
 
@@ -227,6 +236,22 @@ def _simplified(fld: Polygon | MultiPolygon, tol: float) -> Polygon | MultiPolyg
     ):
         return fld
     return shapely.normalize(simp)
+
+
+def default_strip_tolerance(w: float) -> float:
+    """Widest uncovered strip that is not worth an extra swath: 1 % of w, at most 5 cm.
+
+    A rounded boundary (corners snapped to 1e-9 deg) makes a 23 m wide plot 23.00006 m
+    wide; at w = 2.3 m a strict ``ceil(H / w)`` adds an 11th swath, 10 % of whose area
+    lies outside the field, to cover a 0.06 mm strip. The strip is reported as uncovered
+    area instead (plan metric ``uncovered_m2``).
+    """
+    return min(STRIP_TOLERANCE_FRACTION * w, STRIP_TOLERANCE_MAX_M)
+
+
+def n_strips(extent: float, w: float, tol: float) -> int:
+    """Strips of width w for an extent H, leaving at most ``tol`` uncovered at the far edge."""
+    return max(1, math.ceil((extent - tol) / w - _N_EPS))
 
 
 def _parts(g: BaseGeometry) -> list[Polygon]:
@@ -288,11 +313,16 @@ def _cut_at_holes(
 
 
 def _strip_layout(
-    q: Polygon, w: float, part: int, with_full: bool, holes: BaseGeometry | None = None
+    q: Polygon,
+    w: float,
+    part: int,
+    with_full: bool,
+    holes: BaseGeometry | None = None,
+    tol: float = 0.0,
 ) -> list[_Sub]:
     """Swaths of one polygon in the rotated frame (see module docstring)."""
     xmin, ymin, xmax, ymax = q.bounds
-    n = max(1, math.ceil((ymax - ymin) / w - _N_EPS))
+    n = n_strips(ymax - ymin, w, tol)
     if n > _MAX_SWATHS:
         raise PlanningError(f"swath width {w} m gives more than {_MAX_SWATHS} swaths")
     edges = ymin + np.arange(n + 1) * w
@@ -318,6 +348,16 @@ def _strip_layout(
     ok = (shapely.get_type_id(comps) == 3) & (shapely.area(comps) > 1e-12)
     comps, cidx = comps[ok], cidx[ok]
     cb = shapely.bounds(comps)
+    # a strip piece lower than the tolerance that the centre line misses (a boundary
+    # vertex poking into the strip) is not worth a swath: it stays uncovered, reported.
+    # A strip keeps at least one piece.
+    if tol > 0 and len(comps):
+        yc = ys[cidx]
+        thin = ((cb[:, 3] - cb[:, 1]) < tol) & ((cb[:, 3] < yc) | (cb[:, 1] > yc))
+        per_strip = np.bincount(cidx, minlength=n)
+        thin_per_strip = np.bincount(cidx[thin], minlength=n)
+        thin &= (per_strip - thin_per_strip)[cidx] > 0
+        comps, cidx, cb = comps[~thin], cidx[~thin], cb[~thin]
     segs, sidx = shapely.get_parts(cli, return_index=True)
     ok = shapely.get_type_id(segs) == 1
     segs, sidx = segs[ok], sidx[ok]
@@ -500,7 +540,11 @@ def _blocks(subs: list[_Sub]) -> list[list[int]]:
 
 
 def _layout(
-    parts_rot: list[Polygon], w: float, with_full: bool, holes_rot: BaseGeometry | None = None
+    parts_rot: list[Polygon],
+    w: float,
+    with_full: bool,
+    holes_rot: BaseGeometry | None = None,
+    tol: float = 0.0,
 ) -> tuple[list[_Sub], list[list[int]]]:
     subs: list[_Sub] = []
     if holes_rot is not None and holes_rot.is_empty:
@@ -508,7 +552,7 @@ def _layout(
     if holes_rot is not None:
         shapely.prepare(holes_rot)
     for p, q in enumerate(parts_rot):
-        part_subs = _strip_layout(q, w, p, with_full, holes_rot)
+        part_subs = _strip_layout(q, w, p, with_full, holes_rot, tol)
         off = len(subs)
         for s in part_subs:
             s.links_up = [b + off for b in s.links_up]
@@ -668,7 +712,9 @@ def _longest_edge_phi(field_geom: Polygon | MultiPolygon) -> float:
     return float(math.atan2(e[k, 1], e[k, 0]) % math.pi)
 
 
-def _lower_bounds(parts: list[Polygon], w: float, phis: np.ndarray) -> np.ndarray:
+def _lower_bounds(
+    parts: list[Polygon], w: float, phis: np.ndarray, tol: float = 0.0
+) -> np.ndarray:
     """Swath-count lower bound per angle, from scan-line crossings (pure numpy).
 
     Every strip of a part holds at least one swath, and at least one per interval its
@@ -689,7 +735,7 @@ def _lower_bounds(parts: list[Polygon], w: float, phis: np.ndarray) -> np.ndarra
             yb = -b[:, 0] * sn + b[:, 1] * cs
             ye = -ext[:, 0] * sn + ext[:, 1] * cs
             y0 = ye.min()
-            n = max(1, math.ceil((ye.max() - y0) / w - _N_EPS))
+            n = n_strips(ye.max() - y0, w, tol)
             ys = y0 + (np.arange(n) + 0.5) * w
             lo = np.searchsorted(ys, np.minimum(ya, yb), side="left")
             hi = np.searchsorted(ys, np.maximum(ya, yb), side="left")
@@ -730,18 +776,27 @@ def swath_count(
     swath_width_m: float,
     phi: float,
     field_geom: BaseGeometry | None = None,
+    tol: float | None = None,
 ) -> int:
-    """Number of inner swaths FieldRx generates for region at math angle phi (the objective)."""
-    return _evaluate(region, swath_width_m, phi, field_geom)[0]
+    """Number of inner swaths FieldRx generates for region at math angle phi (the objective).
+
+    ``tol`` is the strip tolerance (default :func:`default_strip_tolerance`).
+    """
+    return _evaluate(region, swath_width_m, phi, field_geom, tol)[0]
 
 
 def _evaluate(
-    region: BaseGeometry, w: float, phi: float, field_geom: BaseGeometry | None = None
+    region: BaseGeometry,
+    w: float,
+    phi: float,
+    field_geom: BaseGeometry | None = None,
+    tol: float | None = None,
 ) -> tuple[int, float]:
+    tol = default_strip_tolerance(w) if tol is None else tol
     fr = _frame_for(region, phi)
     parts_rot = [fr.fwd_geom(p) for p in _parts(region)]
     holes = fr.fwd_geom(_holes(field_geom if field_geom is not None else region))
-    subs, blocks = _layout(parts_rot, w, with_full=False, holes_rot=holes)
+    subs, blocks = _layout(parts_rot, w, with_full=False, holes_rot=holes, tol=tol)
     return len(subs), _estimate_nonworking(subs, blocks)
 
 
@@ -750,6 +805,7 @@ def optimal_phi(
     field_geom: Polygon | MultiPolygon,
     w: float,
     check_integer_degrees: bool = True,
+    tol: float | None = None,
 ) -> tuple[float, dict[str, int]]:
     """Heading that minimises swaths, then turns, then (estimated) non-working distance.
 
@@ -761,27 +817,28 @@ def optimal_phi(
     best count is evaluated too, which guarantees never needing more swaths than a 1-degree
     brute-force scan (Fields2Cover's BruteForce with the swath-count objective).
     """
+    tol = default_strip_tolerance(w) if tol is None else tol
     parts = _parts(region)
     cands = np.unique(np.append(_edge_angles(region), round(_longest_edge_phi(field_geom), 9)))
-    lbs = _lower_bounds(parts, w, cands)
+    lbs = _lower_bounds(parts, w, cands, tol)
     order = np.lexsort((cands, lbs))
     best_n = math.inf
     results: dict[float, tuple[int, float]] = {}
     for k in order:
         if lbs[k] > best_n:
             break
-        res = _evaluate(region, w, float(cands[k]), field_geom)
+        res = _evaluate(region, w, float(cands[k]), field_geom, tol)
         results[float(cands[k])] = res
         best_n = min(best_n, res[0])
     extra = 0
     if check_integer_degrees:
         ints = np.radians(np.arange(180.0))
-        lbi = _lower_bounds(parts, w, ints)
+        lbi = _lower_bounds(parts, w, ints, tol)
         for k in np.flatnonzero(lbi < best_n):
             phi = float(ints[k])
             if phi in results:
                 continue
-            res = _evaluate(region, w, phi, field_geom)
+            res = _evaluate(region, w, phi, field_geom, tol)
             results[phi] = res
             extra += 1
             best_n = min(best_n, res[0])
@@ -841,8 +898,13 @@ def plan_coverage(
     start_corner: Corner = "sw",
     headland_order: Literal["first", "last"] = "first",
     simplify_tolerance_m: float | None = None,
+    strip_tolerance_m: float | None = None,
 ) -> CoveragePlan:
-    """Plan the coverage path of a field given in UTM metres (see module docstring)."""
+    """Plan the coverage path of a field given in UTM metres (see module docstring).
+
+    ``strip_tolerance_m``: widest uncovered strip not worth a swath (default
+    :func:`default_strip_tolerance`, 1 % of w and at most 5 cm).
+    """
     import time
 
     t0 = time.perf_counter()
@@ -858,6 +920,9 @@ def plan_coverage(
     if int(headland_passes) != headland_passes or headland_passes < 0:
         raise PlanningError(f"headland_passes must be an integer >= 0, got {headland_passes}")
     h = int(headland_passes)
+    tol = default_strip_tolerance(w) if strip_tolerance_m is None else float(strip_tolerance_m)
+    if not math.isfinite(tol) or not 0.0 <= tol < 0.5 * w:
+        raise PlanningError(f"strip_tolerance_m must be in [0, w/2), got {strip_tolerance_m}")
     if heading == "angle":
         if angle_deg is None or not math.isfinite(float(angle_deg)):
             raise PlanningError("heading 'angle' needs angle_deg (degrees clockwise from north)")
@@ -885,13 +950,15 @@ def plan_coverage(
     elif heading == "longest_edge":
         phi = _longest_edge_phi(fld)
     else:
-        phi, _ = optimal_phi(region, fld, w)
+        phi, _ = optimal_phi(region, fld, w, tol=tol)
     timings["heading"] = time.perf_counter() - t
 
     t = time.perf_counter()
     frame = _frame_for(region, phi)
     parts_rot = [frame.fwd_geom(p) for p in _parts(region)]
-    subs, blocks = _layout(parts_rot, w, with_full=True, holes_rot=frame.fwd_geom(_holes(fld)))
+    subs, blocks = _layout(
+        parts_rot, w, with_full=True, holes_rot=frame.fwd_geom(_holes(fld)), tol=tol
+    )
     rings = _headland_rings(fld, w, h)
     timings["swaths"] = time.perf_counter() - t
 
@@ -998,6 +1065,7 @@ def plan_coverage(
         input_field=fld_in,
         headland_passes=h,
         n_blocks=len(blocks),
+        strip_tolerance_m=tol,
     )
     t = time.perf_counter()
     _fill_metrics(plan)
@@ -1041,6 +1109,7 @@ def _fill_metrics(plan: CoveragePlan) -> None:
     plan.working_length_m = float(sum(s.line.length for s in plan.swaths))
     plan.nonworking_length_m = float(sum(c.length for c in plan.connections))
     plan.coverage_pct = 100.0 * inside / area
+    plan.uncovered_m2 = float(max(0.0, area - inside))
     clipped = shapely.area(shapely.intersection(fp, fld)).sum()
     plan.overlap_pct = float(100.0 * max(0.0, clipped - inside) / area)
     plan.outside_pct = 100.0 * max(0.0, union.area - inside) / area

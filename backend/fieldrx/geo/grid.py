@@ -25,7 +25,7 @@ from shapely.geometry import LineString, Polygon
 from shapely.geometry.base import BaseGeometry
 
 from . import PlanningError
-from .coverage import CoveragePlan, Frame, Swath, _polygonal
+from .coverage import CoveragePlan, Swath, _polygonal
 from .crs import utm_coords_to_lonlat
 
 MAX_CELLS = 5_000_000
@@ -46,6 +46,10 @@ class Grid:
     headland: np.ndarray
     cell_length_m: float
     swath_width_m: float
+    # field area no cell covers (thin peninsulas the headland offsets cannot reach,
+    # wedges where a swath stops at a hole or notch, the strip left by the tolerance):
+    # reported, never hidden in a neighbouring cell (issue 16)
+    uncovered_m2: float = 0.0
     timings_s: dict[str, float] = field(default_factory=dict)
 
     def __len__(self) -> int:
@@ -120,19 +124,10 @@ def build_grid(
     inner = [s for s in plan.swaths if s.kind == "inner"]
     t = time.perf_counter()
     inner_cells = _inner_cells(plan, inner, cell) if inner else None
-    if inner_cells is not None:
-        _absorb_inner_leftovers(plan.frame, inner, inner_cells)
     timings["inner_cells"] = time.perf_counter() - t
     t = time.perf_counter()
     head = [_ring_cells(s, w, cell) for s in plan.swaths if s.kind == "headland"]
     head_cells = _resolve_overlaps(head) if head else []
-    if head_cells:
-        bands: dict[int, list[int]] = {}
-        hs = [sw for sw in plan.swaths if sw.kind == "headland"]
-        for k, sw in enumerate(hs):
-            bands.setdefault(id(sw.band), []).append(k)
-        for ks in bands.values():
-            _absorb_leftovers(hs[ks[0]].band, [head_cells[k] for k in ks])
     timings["headland_cells"] = time.perf_counter() - t
 
     # put the pieces back into path order
@@ -162,6 +157,7 @@ def build_grid(
     if n == 0:
         raise PlanningError("the grid is empty (field smaller than one cell)")
     timings["total"] = time.perf_counter() - t0
+    field_area = plan.field.area  # the planned (possibly simplified) field
     return Grid(
         seq=np.arange(n, dtype=np.int64),
         swath=cat["swath"][keep].astype(np.int32),
@@ -173,6 +169,7 @@ def build_grid(
         headland=hl[keep],
         cell_length_m=cell,
         swath_width_m=w,
+        uncovered_m2=float(max(0.0, field_area - cat["area"][keep].sum())),
         timings_s=timings,
     )
 
@@ -450,72 +447,6 @@ def _offset_curve_cells(ring: LineString, cut_pts: np.ndarray, w: float) -> list
         poly = Polygon(ring_pts)
         polys.append(poly if poly.is_valid else shapely.make_valid(poly))
     return polys
-
-
-def _absorb_leftovers(area: BaseGeometry, groups: list[_Cells]) -> None:
-    """Give every bit of ``area`` no cell covers to the nearest cell (in place).
-
-    Headland offsets cannot reach into thin peninsulas and the swath split at a notch
-    leaves small wedges; their fertiliser still has to be planned, so they join the
-    nearest cell instead of falling out of the grid.
-    """
-    polys = np.concatenate([g.polys for g in groups])
-    if shapely.area(polys).sum() >= area.area * (1.0 - 1e-9):
-        return  # cells do not overlap, so equal area means nothing is left over
-    left = shapely.difference(area, shapely.union_all(polys))
-    pieces = [q for q in shapely.get_parts(left) if shapely.get_type_id(q) == 3 and q.area > 1e-6]
-    if not pieces:
-        return
-    tree = shapely.STRtree(polys)
-    targets = tree.query_nearest(np.array(pieces, dtype=object), return_distance=False)[1]
-    grown: dict[int, list] = {}
-    for piece, t in zip(pieces, targets, strict=False):
-        grown.setdefault(int(t), []).append(piece)
-    offs = np.cumsum([0] + [len(g.polys) for g in groups])
-    for t, add in grown.items():
-        gi = int(np.searchsorted(offs, t, side="right") - 1)
-        g, k = groups[gi], t - offs[gi]
-        merged = _only_polygons(np.array([shapely.union_all([g.polys[k], *add])]))[0]
-        g.polys[k] = merged
-        g.area[k] = shapely.area(merged)
-        g.cent[k] = inside_centres(np.array([merged], dtype=object))[0]
-
-
-def _absorb_inner_leftovers(frame: Frame, inner: list[Swath], cells: _Cells) -> None:
-    """Strip pieces whose swaths do not span them (split at a notch or hole) join cells."""
-    by_comp: dict[int, list[int]] = {}
-    for m, sw in enumerate(inner):
-        by_comp.setdefault(id(sw.clip), []).append(m)
-    swath_rows: dict[int, np.ndarray] = {}
-    for ms in by_comp.values():
-        comp = inner[ms[0]].clip
-        if comp is None:
-            continue
-        span = sum(inner[m].x1 - inner[m].x0 for m in ms)
-        x0, _, x1, _ = comp.bounds
-        if span >= (x1 - x0) - 1e-9:
-            continue
-        if not swath_rows:
-            order = np.argsort(cells.swath, kind="stable")
-            sw_sorted = cells.swath[order]
-            for m, sw in enumerate(inner):
-                lo = np.searchsorted(sw_sorted, sw.index)
-                hi = np.searchsorted(sw_sorted, sw.index, side="right")
-                swath_rows[m] = order[lo:hi]
-        rows = np.concatenate([swath_rows[m] for m in ms])
-        sub = _Cells(
-            cells.swath[rows],
-            cells.idx[rows],
-            cells.corners[rows],
-            cells.polys[rows].copy(),
-            cells.area[rows].copy(),
-            cells.cent[rows].copy(),
-            False,
-        )
-        _absorb_leftovers(frame.inv_geom(comp), [sub])  # comp is in the planning frame
-        cells.polys[rows] = sub.polys
-        cells.area[rows] = sub.area
-        cells.cent[rows] = sub.cent
 
 
 def _resolve_overlaps(rings: list[_Cells]) -> list[_Cells]:

@@ -335,6 +335,7 @@ def create_plan(session: Session, field: Field, params: PlanParams, organisation
     t_grid = time.perf_counter()
     metrics: dict[str, Any] = dict(cov.metrics())
     metrics["n_cells"] = len(grid)
+    metrics["cells_uncovered_m2"] = round(grid.uncovered_m2, 3)
     metrics["epsg"] = field.utm_epsg
     route = to_wgs84(cov.route(), field.utm_epsg)
     plan = Plan(
