@@ -712,9 +712,7 @@ def _longest_edge_phi(field_geom: Polygon | MultiPolygon) -> float:
     return float(math.atan2(e[k, 1], e[k, 0]) % math.pi)
 
 
-def _lower_bounds(
-    parts: list[Polygon], w: float, phis: np.ndarray, tol: float = 0.0
-) -> np.ndarray:
+def _lower_bounds(parts: list[Polygon], w: float, phis: np.ndarray, tol: float = 0.0) -> np.ndarray:
     """Swath-count lower bound per angle, from scan-line crossings (pure numpy).
 
     Every strip of a part holds at least one swath, and at least one per interval its
