@@ -96,7 +96,8 @@ def check_plan(plan: CoveragePlan, field: Polygon) -> None:
         core = hole.buffer(-(w / 2 + 1e-6))
         for c in plan.connections:
             assert c.intersection(core).length < 1e-9, "a connection crosses a hole"
-    if plan.headland_passes >= 1:
+    # with enough headland passes for the turns (issue 16), nothing leaves the field
+    if plan.headland_passes >= max(1, plan.required_headland_passes):
         route = plan.route()
         assert route.difference(field.buffer(1e-6)).length < 1e-6, "route leaves the field"
         assert plan.route_outside_m < 1e-3 and plan.route_in_holes_m < 1e-3
@@ -124,7 +125,34 @@ def check_cells_in_own_swath(grid: Grid, plan: CoveragePlan) -> None:
     )
 
 
-def check_grid(grid: Grid, field: Polygon, min_cover: float = 0.995) -> None:
+def min_turn_radius(coords: np.ndarray, min_step_m: float = 1e-3) -> float:
+    """Smallest radius of curvature along a polyline: turning angle at each vertex over
+    the mean length of its two edges (exact on a sampled circle up to 0.04 % at 5 degree
+    steps). Cusps (a reversal, angle > 175 deg) are where a fishtail changes direction,
+    not a turn, and are skipped; vertices closer than ``min_step_m`` are merged."""
+    c = np.asarray(coords, float)
+    keep = [0]
+    for i in range(1, len(c)):
+        if np.hypot(*(c[i] - c[keep[-1]])) >= min_step_m:
+            keep.append(i)
+    c = c[keep]
+    if len(c) < 3:
+        return math.inf
+    e = np.diff(c, axis=0)
+    ln = np.hypot(e[:, 0], e[:, 1])
+    ang = np.abs(
+        (np.arctan2(e[1:, 1], e[1:, 0]) - np.arctan2(e[:-1, 1], e[:-1, 0]) + math.pi)
+        % (2 * math.pi)
+        - math.pi
+    )
+    turn = ang < math.radians(175.0)
+    kappa = ang[turn] / (0.5 * (ln[1:] + ln[:-1]))[turn]
+    return math.inf if not len(kappa) or kappa.max() == 0 else float(1.0 / kappa.max())
+
+
+def check_grid(
+    grid: Grid, field: Polygon, min_cover: float = 0.995, ring_breaks: float = 0.02
+) -> None:
     """Cells: no overlap, cover the field, centres inside, one walk, CCW corners, the
     uncovered area reported."""
     n = len(grid)
@@ -159,7 +187,7 @@ def check_grid(grid: Grid, field: Polygon, min_cover: float = 0.995) -> None:
     assert ok[~hl].all(), f"{(~ok[~hl]).sum()} consecutive swath cells share no edge"
     # headland rings in places narrower than the offsets (known limitation, see grid.py):
     # allow a few cut-line pairs that only touch through a neighbour
-    assert (~ok[hl]).sum() <= max(1, 0.02 * hl.sum()), "headland cells do not follow the ring"
+    assert (~ok[hl]).sum() <= max(1, ring_breaks * hl.sum()), "headland cells do not follow ring"
     assert (grid.index_in_swath[i + 1] == grid.index_in_swath[i] + 1).all()
     assert (np.diff(grid.swath) >= 0).all()
     # nominal corners counter-clockwise (seed 001 Table 1)

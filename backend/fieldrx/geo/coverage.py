@@ -34,7 +34,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 import shapely
@@ -44,6 +44,10 @@ from shapely.geometry.polygon import orient
 from shapely.ops import substring
 
 from . import PlanningError
+from .planning.boundary import max_extent, min_width, polygonal, simplified, snapped
+from .planning.boundary import parts as _parts
+from .planning.kinematics import DEFAULT_TURN_RADIUS_M, Machine
+from .planning.turns import connect
 from .route import FieldRouter
 
 Heading = Literal["longest_edge", "angle", "optimal"]
@@ -146,6 +150,15 @@ class CoveragePlan:
     outside_pct: float = 0.0
     route_outside_m: float = 0.0
     route_in_holes_m: float = 0.0
+    warnings: list[str] = field(default_factory=list)
+    machine: Machine = field(default_factory=Machine)
+    turn_kinds: dict[str, int] = field(default_factory=dict)
+    # per connection: "u_turn", "bulb", "fishtail", "transfer" or "routed" (not drivable)
+    connection_kinds: list[str] = field(default_factory=list)
+    turn_time_s: float = 0.0
+    reverse_m: float = 0.0
+    required_headland_m: float = 0.0
+    undrivable_connections: int = 0
     uncovered_m2: float = 0.0
     strip_tolerance_m: float = 0.0
     timings_s: dict[str, float] = field(default_factory=dict)
@@ -165,7 +178,7 @@ class CoveragePlan:
             coords = np.vstack([coords, coords])
         return LineString(coords)
 
-    def metrics(self) -> dict[str, float | int]:
+    def metrics(self) -> dict[str, Any]:
         return {
             "n_swaths": self.n_swaths,
             "n_turns": self.n_turns,
@@ -179,63 +192,24 @@ class CoveragePlan:
             "route_in_holes_m": round(self.route_in_holes_m, 3),
             "uncovered_m2": round(self.uncovered_m2, 3),
             "strip_tolerance_m": round(self.strip_tolerance_m, 4),
+            "turn_radius_m": self.machine.turn_radius_m,
+            "reverse": self.machine.reverse,
+            "turn_kinds": dict(self.turn_kinds),
+            "turn_time_s": round(self.turn_time_s, 1),
+            "reverse_m": round(self.reverse_m, 2),
+            "required_headland_m": round(self.required_headland_m, 2),
+            "required_headland_passes": self.required_headland_passes,
+            "undrivable_connections": self.undrivable_connections,
+            "warnings": list(self.warnings),
         }
 
-
-# --------------------------------------------------------------------------- validation
-
-
-def _polygonal(geom: BaseGeometry) -> Polygon | MultiPolygon:
-    if geom is None or geom.is_empty:
-        raise PlanningError("the field boundary is empty")
-    if not isinstance(geom, Polygon | MultiPolygon):
-        raise PlanningError(f"the field must be a Polygon or MultiPolygon, got {geom.geom_type}")
-    if not geom.is_valid:
-        fixed = shapely.make_valid(geom)
-        polys = [g for g in shapely.get_parts(fixed) if isinstance(g, Polygon) and g.area > 0]
-        if not polys:
-            raise PlanningError(
-                f"the field boundary is degenerate ({shapely.is_valid_reason(geom)})"
-            )
-        fixed = shapely.union_all(polys)
-        if abs(fixed.area - abs(geom.area)) > 0.01 * max(fixed.area, 1e-9):
-            raise PlanningError(f"the field boundary is invalid: {shapely.is_valid_reason(geom)}")
-        geom = fixed
-    geom = shapely.normalize(geom)
-    if geom.area <= 0:
-        raise PlanningError("the field has no area (degenerate boundary)")
-    return geom
+    @property
+    def required_headland_passes(self) -> int:
+        """Headland passes whose width holds the turns (0 when there are no turns)."""
+        return math.ceil(self.required_headland_m / self.swath_width_m - 1e-9)
 
 
-def _simplified(fld: Polygon | MultiPolygon, tol: float) -> Polygon | MultiPolygon:
-    """Boundary without detail finer than ``tol`` (digitising / GNSS noise).
-
-    A jagged boundary makes strips split into teeth: many tiny swaths and blocks for
-    detail the implement cannot follow anyway. Douglas-Peucker at a quarter of the
-    working width (at most 1 m) removes that noise; corners of real fields stay. Only
-    dense (traced / GNSS-recorded) boundaries are touched: median edge shorter than
-    ``8 * tol``; a drawn polygon keeps its exact vertices.
-    """
-    if tol <= 0:
-        return fld
-    lens = np.concatenate(
-        [
-            np.hypot(*np.diff(np.asarray(r.coords), axis=0).T)
-            for p in _parts(fld)
-            for r in [p.exterior, *p.interiors]
-        ]
-    )
-    if np.median(lens) >= 8 * tol:
-        return fld
-    simp = fld.simplify(tol, preserve_topology=True)
-    if (
-        simp.is_empty
-        or not simp.is_valid
-        or not isinstance(simp, Polygon | MultiPolygon)
-        or abs(simp.area - fld.area) > 0.01 * fld.area
-    ):
-        return fld
-    return shapely.normalize(simp)
+# --------------------------------------------------------------------------- strips
 
 
 def default_strip_tolerance(w: float) -> float:
@@ -252,23 +226,6 @@ def default_strip_tolerance(w: float) -> float:
 def n_strips(extent: float, w: float, tol: float) -> int:
     """Strips of width w for an extent H, leaving at most ``tol`` uncovered at the far edge."""
     return max(1, math.ceil((extent - tol) / w - _N_EPS))
-
-
-def _parts(g: BaseGeometry) -> list[Polygon]:
-    return [p for p in shapely.get_parts(g) if isinstance(p, Polygon) and p.area > 0]
-
-
-def _min_width(geom: BaseGeometry) -> float:
-    """Narrowest width of the convex hull (rotating calipers: one side lies on a hull edge)."""
-    hull = np.asarray(geom.convex_hull.exterior.coords) if geom.convex_hull.area > 0 else None
-    if hull is None:
-        return 0.0
-    e = np.diff(hull, axis=0)
-    lengths = np.hypot(e[:, 0], e[:, 1])
-    e = e[lengths > 0] / lengths[lengths > 0, None]
-    normal = np.stack([-e[:, 1], e[:, 0]], axis=1)
-    proj = hull @ normal.T
-    return float(np.min(proj.max(axis=0) - proj.min(axis=0)))
 
 
 # --------------------------------------------------------------------------- layout
@@ -798,6 +755,35 @@ def _evaluate(
     return len(subs), _estimate_nonworking(subs, blocks)
 
 
+def heading_objective(
+    region: BaseGeometry,
+    w: float,
+    phi: float,
+    field_geom: BaseGeometry | None = None,
+    tol: float | None = None,
+) -> tuple[int, float]:
+    """The objective ``optimal`` minimises at math angle phi, lexicographically: the
+    number of inner swaths (each costs a turn), then the estimated non-working distance."""
+    n, nonwork = _evaluate(region, w, phi, field_geom, tol)
+    return n, round(nonwork, 6)
+
+
+def _extent_lower_bounds(
+    parts: list[Polygon], w: float, phis: np.ndarray, tol: float
+) -> np.ndarray:
+    """Swath-count lower bound for many angles at once: every strip of a part holds at
+    least one swath, so sum over parts of ``n_strips(width across phi)`` (one matrix
+    product over the hull vertices; ~100x cheaper than one layout)."""
+    lb = np.zeros(len(phis), dtype=np.int64)
+    nrm = np.stack([-np.sin(phis), np.cos(phis)])
+    for p in parts:
+        hull = np.asarray(p.convex_hull.exterior.coords)
+        y = hull @ nrm
+        ext = y.max(axis=0) - y.min(axis=0)
+        lb += np.maximum(1, np.ceil((ext - tol) / w - _N_EPS)).astype(np.int64)
+    return lb
+
+
 def optimal_phi(
     region: Polygon | MultiPolygon,
     field_geom: Polygon | MultiPolygon,
@@ -805,46 +791,51 @@ def optimal_phi(
     check_integer_degrees: bool = True,
     tol: float | None = None,
 ) -> tuple[float, dict[str, int]]:
-    """Heading that minimises swaths, then turns, then (estimated) non-working distance.
+    """Heading that minimises :func:`heading_objective` (swaths, then non-working distance).
 
-    Candidates come from the geometry: every edge direction of the headland-reduced
-    region and of its convex hull (the rotating-calipers minimum-width direction is one
-    of them) plus the field's longest edge. They are evaluated in order of a cheap lower
-    bound (sum of ceil(extent / w)) and pruned by branch and bound. With
-    ``check_integer_degrees`` every whole degree whose lower bound could still beat the
-    best count is evaluated too, which guarantees never needing more swaths than a 1-degree
-    brute-force scan (Fields2Cover's BruteForce with the swath-count objective).
+    Candidates are the geometry's own directions (every edge of the region and of its
+    convex hull -- the rotating-calipers minimum-width direction is one of them -- and
+    the field's longest edge) and, with ``check_integer_degrees``, every whole degree,
+    which guarantees never needing more swaths than a 1-degree brute-force scan
+    (Fields2Cover's BruteForce with the swath-count objective).
+
+    Branch and bound (issue 16: >= 100x faster than the scan): all candidates get the
+    strip-count lower bound in one matrix product; they are visited in bound order (the
+    longest edge first among equals) and a full layout is paid for only when the finer
+    scan-line-crossing bound (:func:`_lower_bounds`) still says the angle could beat the
+    best count. An angle whose bound equals the best count is not evaluated, except the
+    longest edge: so ``optimal`` is never worse than ``longest_edge`` by this objective,
+    while ties between other angles are not searched further.
     """
     tol = default_strip_tolerance(w) if tol is None else tol
     parts = _parts(region)
-    cands = np.unique(np.append(_edge_angles(region), round(_longest_edge_phi(field_geom), 9)))
-    lbs = _lower_bounds(parts, w, cands, tol)
-    order = np.lexsort((cands, lbs))
-    best_n = math.inf
-    results: dict[float, tuple[int, float]] = {}
-    for k in order:
-        if lbs[k] > best_n:
+    le = _longest_edge_phi(field_geom)
+    geo = _edge_angles(region)
+    geo = np.r_[le, geo[np.abs((geo - le + math.pi / 2) % math.pi - math.pi / 2) > 1e-9]]
+    ints = np.radians(np.arange(180.0)) if check_integer_degrees else np.zeros(0)
+    near = np.abs((ints[:, None] - geo[None, :] + math.pi / 2) % math.pi - math.pi / 2)
+    ints = ints[(near > 1e-9).all(axis=1)] if len(geo) else ints
+    angles = np.r_[geo, ints]
+    lb = _extent_lower_bounds(parts, w, angles, tol)
+    results = {le: heading_objective(region, w, le, field_geom, tol)}
+    best_n = results[le][0]
+    # only angles whose strip-count bound is below the best count can beat it; the
+    # finer crossing bound orders and prunes them before any layout is paid for
+    open_ = np.flatnonzero(lb[1:] < best_n) + 1
+    lbc = _lower_bounds(parts, w, angles[open_], tol) if len(open_) else np.zeros(0, int)
+    refined = len(open_)
+    for j in np.lexsort((angles[open_], lbc)):
+        if lbc[j] >= best_n:
             break
-        res = _evaluate(region, w, float(cands[k]), field_geom, tol)
-        results[float(cands[k])] = res
-        best_n = min(best_n, res[0])
-    extra = 0
-    if check_integer_degrees:
-        ints = np.radians(np.arange(180.0))
-        lbi = _lower_bounds(parts, w, ints, tol)
-        for k in np.flatnonzero(lbi < best_n):
-            phi = float(ints[k])
-            if phi in results:
-                continue
-            res = _evaluate(region, w, phi, field_geom, tol)
-            results[phi] = res
-            extra += 1
-            best_n = min(best_n, res[0])
-    best = min(results.items(), key=lambda kv: (kv[1][0], round(kv[1][1], 6), kv[0]))
+        phi = float(angles[open_[j]])
+        results[phi] = heading_objective(region, w, phi, field_geom, tol)
+        best_n = min(best_n, results[phi][0])
+    best = min(results.items(), key=lambda kv: (kv[1][0], kv[1][1], kv[0] != le, kv[0]))
     return best[0], {
         "evaluated": len(results),
-        "integer_degree_checks": extra,
-        "candidates": len(cands),
+        "refined": refined,
+        "integer_degree_checks": sum(1 for phi in results if phi in set(ints.tolist())),
+        "candidates": len(geo),
     }
 
 
@@ -869,9 +860,13 @@ def _headland_rings(
     return out
 
 
-def _rotate_ring(ring: LineString, pt: np.ndarray) -> LineString:
-    """Closed ring re-started at the ring point nearest to pt."""
-    d = ring.project(Point(pt))
+def _rotate_ring(ring: LineString, pt: np.ndarray, lead: float = 0.0) -> LineString:
+    """Closed ring re-started ``lead`` metres after the ring point nearest to pt.
+
+    The lead (2 turning radii) gives the machine room to swing over from the previous
+    ring with an S-curve instead of a loop.
+    """
+    d = (ring.project(Point(pt)) + lead) % ring.length if lead < ring.length else 0.0
     if d <= 1e-9 or d >= ring.length - 1e-9:
         return ring
     a = substring(ring, d, ring.length)
@@ -897,15 +892,21 @@ def plan_coverage(
     headland_order: Literal["first", "last"] = "first",
     simplify_tolerance_m: float | None = None,
     strip_tolerance_m: float | None = None,
+    turn_radius_m: float = DEFAULT_TURN_RADIUS_M,
+    reverse: bool = False,
 ) -> CoveragePlan:
     """Plan the coverage path of a field given in UTM metres (see module docstring).
 
     ``strip_tolerance_m``: widest uncovered strip not worth a swath (default
-    :func:`default_strip_tolerance`, 1 % of w and at most 5 cm).
-    """
-    import time
+    :func:`default_strip_tolerance`, 1 % of w and at most 5 cm). ``turn_radius_m`` and
+    ``reverse`` describe the machine (:class:`~.planning.kinematics.Machine`): turns
+    between swaths are drivable paths (:mod:`.planning.turns`).
 
-    t0 = time.perf_counter()
+    No GEOS exception reaches the caller: when the geometry engine fails on a boundary
+    (a TopologyException on a real traced field), the boundary is snap-rounded to a
+    1 mm grid and planned again, with a warning in the plan; if that fails too, the
+    answer is a PlanningError saying so.
+    """
     w = float(swath_width_m)
     if not math.isfinite(w) or w <= 0:
         raise PlanningError(f"swath_width_m must be > 0, got {swath_width_m}")
@@ -924,35 +925,115 @@ def plan_coverage(
     if heading == "angle":
         if angle_deg is None or not math.isfinite(float(angle_deg)):
             raise PlanningError("heading 'angle' needs angle_deg (degrees clockwise from north)")
-    fld_in = _polygonal(boundary_utm)
-    fld = _simplified(
-        fld_in, min(0.25 * w, 1.0) if simplify_tolerance_m is None else float(simplify_tolerance_m)
+    machine = Machine(turn_radius_m=turn_radius_m, reverse=bool(reverse))
+    st = _Settings(
+        w,
+        heading,
+        None if angle_deg is None else float(angle_deg),
+        h,
+        start_corner,
+        headland_order,
+        min(0.25 * w, 1.0) if simplify_tolerance_m is None else float(simplify_tolerance_m),
+        tol,
+        machine,
     )
-    narrow = _min_width(fld)
-    if narrow < w:
-        raise PlanningError(
-            f"swath width {w} m is wider than the field (narrowest width {narrow:.2f} m)"
+    warnings: list[str] = []
+    fld_in = polygonal(boundary_utm, warnings)
+    try:
+        plan = _plan_field(fld_in, st, list(warnings))
+    except shapely.errors.GEOSException as exc:
+        warnings.append(
+            f"the geometry engine failed on this boundary ({exc}); it was snapped to a "
+            "1 mm grid and planned again"
         )
-    if h:
-        region = fld.buffer(-h * w, join_style="mitre", mitre_limit=5.0)
-        if region.is_empty or region.area < 1e-6:
-            raise PlanningError(f"{h} headland passes of {w} m leave no inner area in this field")
-        region = shapely.union_all(_parts(region))
-    else:
-        region = fld
+        try:
+            plan = _plan_field(snapped(fld_in), st, warnings)
+        except shapely.errors.GEOSException as exc2:
+            raise PlanningError(
+                "the geometry engine cannot process this boundary, even snapped to a 1 mm "
+                f"grid ({exc2}); simplify or redraw it"
+            ) from exc2
+    plan.input_field = fld_in
+    return plan
+
+
+@dataclass(frozen=True)
+class _Settings:
+    w: float
+    heading: str
+    angle_deg: float | None
+    h: int
+    start_corner: str
+    headland_order: str
+    simplify_tol: float
+    tol: float
+    machine: Machine
+
+
+def _region(
+    fld: Polygon | MultiPolygon, w: float, h: int, warnings: list[str]
+) -> tuple[BaseGeometry, int]:
+    """The area left for inner swaths inside ``h`` headland passes, and the passes used.
+
+    Narrow fields get a plan instead of an error (issue 16): a field narrower than the
+    implement is covered by one pass; passes that leave no inner area give a
+    headland-only plan; a field too narrow for even one headland ring gets one pass.
+    Each adjustment is a warning in the plan.
+    """
+    extent = max_extent(fld)
+    if w > extent:
+        raise PlanningError(
+            f"swath width {w} m is wider than the field in every direction "
+            f"(longest extent {extent:.2f} m): nothing to plan"
+        )
+    narrow = min_width(fld)
+    if narrow < w:
+        warnings.append(
+            f"the field is narrower than the implement ({narrow:.2f} m < {w} m): one pass"
+        )
+    if not h:
+        return fld, 0
+    region = fld.buffer(-h * w, join_style="mitre", mitre_limit=5.0)
+    if not region.is_empty and region.area >= 1e-6:
+        return shapely.union_all(_parts(region)), h
+    if _headland_rings(fld, w, h):
+        warnings.append(
+            f"{h} headland passes of {w} m leave no inner area in this field: headland-only plan"
+        )
+        return Polygon(), h
+    warnings.append(
+        f"the field is too narrow for a headland pass of {w} m: planned without headland"
+    )
+    return fld, 0
+
+
+def _plan_field(fld_in: Polygon | MultiPolygon, st: _Settings, warnings: list[str]) -> CoveragePlan:
+    """Plan one (clean) field; GEOS errors propagate to :func:`plan_coverage`."""
+    import time
+
+    t0 = time.perf_counter()
+    w, tol = st.w, st.tol
+    heading, angle_deg, start_corner, headland_order = (
+        st.heading,
+        st.angle_deg,
+        st.start_corner,
+        st.headland_order,
+    )
+    fld = simplified(fld_in, st.simplify_tol, warnings)
+    region, h = _region(fld, w, st.h, warnings)
     timings: dict[str, float] = {"validate": time.perf_counter() - t0}
 
     t = time.perf_counter()
     if heading == "angle":
         phi = azimuth_to_phi(float(angle_deg))  # type: ignore[arg-type]
-    elif heading == "longest_edge":
+    elif heading == "longest_edge" or region.is_empty:
         phi = _longest_edge_phi(fld)
     else:
         phi, _ = optimal_phi(region, fld, w, tol=tol)
     timings["heading"] = time.perf_counter() - t
 
     t = time.perf_counter()
-    frame = _frame_for(region, phi)
+    frame = _frame_for(fld if region.is_empty else region, phi)
     parts_rot = [frame.fwd_geom(p) for p in _parts(region)]
     subs, blocks = _layout(
         parts_rot, w, with_full=True, holes_rot=frame.fwd_geom(_holes(fld)), tol=tol
@@ -978,7 +1059,7 @@ def plan_coverage(
             k = min(left, key=lambda k: (rings[k][1].distance(pt), rings[k][0]))
             left.remove(k)
             k_pass, ring, band = rings[k]
-            ring = _rotate_ring(ring, pos)
+            ring = _rotate_ring(ring, pos, 2.0 * st.machine.turn_radius_m)
             swaths.append(
                 Swath(len(swaths), ring, "headland", -1 - k, 1, band=band, ring_pass=k_pass)
             )
@@ -1046,11 +1127,12 @@ def plan_coverage(
     else:
         add_blocks()
         add_rings()
-    connections = [
-        router.path(np.asarray(a.line.coords[-1]), np.asarray(b.line.coords[0]))
-        for a, b in zip(swaths[:-1], swaths[1:], strict=True)
-    ]
     timings["order_route"] = time.perf_counter() - t
+    t = time.perf_counter()
+    turns = connect(swaths, router.path, st.machine, fld, region, h * w, w)
+    connections = [c.line for c in turns.connections]
+    _turn_warnings(turns, st.machine, w, h, warnings)
+    timings["turns"] = time.perf_counter() - t
 
     plan = CoveragePlan(
         heading_deg=phi_to_azimuth(phi),
@@ -1064,12 +1146,41 @@ def plan_coverage(
         headland_passes=h,
         n_blocks=len(blocks),
         strip_tolerance_m=tol,
+        warnings=warnings,
+        machine=st.machine,
+        turn_kinds=dict(turns.kinds),
+        connection_kinds=[c.kind for c in turns.connections],
+        turn_time_s=sum(
+            st.machine.time_s(c.line.length - c.reverse_m, c.reverse_m, c.cusps)
+            for c in turns.connections
+        ),
+        reverse_m=sum(c.reverse_m for c in turns.connections),
+        required_headland_m=turns.required_headland_m,
+        undrivable_connections=turns.undrivable,
     )
     t = time.perf_counter()
     _fill_metrics(plan)
     timings["metrics"] = time.perf_counter() - t
     plan.timings_s = timings
     return plan
+
+
+def _turn_warnings(turns: Any, m: Machine, w: float, h: int, warnings: list[str]) -> None:
+    """Tell the user when the turns do not fit the headland or could not be driven."""
+    need = turns.required_headland_m
+    if need > h * w + 1e-6:
+        k = math.ceil(need / w - 1e-9)
+        where = "outside the field" if h == 0 else "beyond the headland"
+        warnings.append(
+            f"turns with a {m.turn_radius_m:g} m radius reach {need:.1f} m {where}: "
+            f"{k} headland passes of {w:g} m hold them (the plan has {h})"
+        )
+    if turns.undrivable:
+        warnings.append(
+            f"{turns.undrivable} connections could not be made drivable with a "
+            f"{m.turn_radius_m:g} m radius inside the field; they follow the shortest "
+            "path with sharp corners"
+        )
 
 
 def swath_footprints(plan: CoveragePlan) -> np.ndarray:
@@ -1111,7 +1222,13 @@ def _fill_metrics(plan: CoveragePlan) -> None:
     clipped = shapely.area(shapely.intersection(fp, fld)).sum()
     plan.overlap_pct = float(100.0 * max(0.0, clipped - inside) / area)
     plan.outside_pct = 100.0 * max(0.0, union.area - inside) / area
-    route = plan.route()
-    plan.route_outside_m = float(route.difference(fld).length)
+    # per piece (swaths and connections), overlays only for pieces not inside the field:
+    # one overlay of the whole route (100k+ turn vertices on 1,000 ha) cost seconds
+    pieces = np.array([s.line for s in plan.swaths] + list(plan.connections), dtype=object)
+    out = ~shapely.covers(fld, pieces)
+    plan.route_outside_m = float(shapely.length(shapely.difference(pieces[out], fld)).sum())
     holes = [Polygon(r) for p in _parts(fld) for r in p.interiors]
-    plan.route_in_holes_m = float(sum(route.intersection(hp).length for hp in holes))
+    plan.route_in_holes_m = 0.0
+    for hp in holes:
+        hit = shapely.intersects(hp, pieces)
+        plan.route_in_holes_m += float(shapely.length(shapely.intersection(pieces[hit], hp)).sum())

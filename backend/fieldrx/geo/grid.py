@@ -25,8 +25,9 @@ from shapely.geometry import LineString, Polygon
 from shapely.geometry.base import BaseGeometry
 
 from . import PlanningError
-from .coverage import CoveragePlan, Swath, _polygonal
+from .coverage import CoveragePlan, Swath
 from .crs import utm_coords_to_lonlat
+from .planning.boundary import polygonal
 
 MAX_CELLS = 5_000_000
 MIN_CELL_LENGTH_M = 0.5
@@ -62,7 +63,9 @@ class Grid:
     def to_geojson(self, epsg: int, rates_kg_ha: np.ndarray | None = None) -> dict:
         """RFC 7946 FeatureCollection of the clipped cells in lon/lat, in path order."""
         polys = shapely.transform(self.polygons, lambda c: utm_coords_to_lonlat(c, epsg))
-        geoms = shapely.to_geojson(shapely.set_precision(polys, 1e-9))
+        # pointwise rounding: no overlay, so it cannot raise a GEOS TopologyException
+        # (the grid-snapping default did on a real 6.5 ha field, issue 16)
+        geoms = shapely.to_geojson(shapely.set_precision(polys, 1e-9, mode="pointwise"))
         feats = []
         for i in range(len(self)):
             props = {
@@ -99,7 +102,26 @@ def build_grid(
     cell_length_m: float = 5.0,
     min_cell_fraction: float = 0.1,
 ) -> Grid:
-    """Cut the plan's path into cells (see module docstring)."""
+    """Cut the plan's path into cells (see module docstring).
+
+    A GEOS exception while clipping cells becomes a PlanningError that says so; it never
+    reaches the user as a TopologyException.
+    """
+    try:
+        return _build_grid(plan, boundary_utm, cell_length_m, min_cell_fraction)
+    except shapely.errors.GEOSException as exc:
+        raise PlanningError(
+            f"the geometry engine failed while cutting cells ({exc}); try another cell "
+            "length or heading, or simplify the boundary"
+        ) from exc
+
+
+def _build_grid(
+    plan: CoveragePlan,
+    boundary_utm: BaseGeometry | None,
+    cell_length_m: float,
+    min_cell_fraction: float,
+) -> Grid:
     import time
 
     t0 = time.perf_counter()
@@ -109,7 +131,7 @@ def build_grid(
     if not (0.0 <= min_cell_fraction < 1.0):
         raise PlanningError(f"min_cell_fraction must be in [0, 1), got {min_cell_fraction}")
     if boundary_utm is not None:
-        fld = _polygonal(boundary_utm)
+        fld = polygonal(boundary_utm)
         ref = plan.input_field if plan.input_field is not None else plan.field
         if abs(fld.symmetric_difference(ref).area) > 1e-6 * ref.area:
             raise PlanningError("boundary_utm is not the field this plan was made for")

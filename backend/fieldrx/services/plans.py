@@ -40,6 +40,8 @@ class PlanParams:
     start_corner: str = "sw"
     headland_order: str = "first"
     min_cell_fraction: float = 0.1
+    turn_radius_m: float = 6.0
+    reverse: bool = False
 
 
 def driver_connection(session: Session) -> Any:
@@ -324,6 +326,8 @@ def create_plan(session: Session, field: Field, params: PlanParams, organisation
         headland_passes=params.headland_passes,
         start_corner=params.start_corner,  # type: ignore[arg-type]
         headland_order=params.headland_order,  # type: ignore[arg-type]
+        turn_radius_m=params.turn_radius_m,
+        reverse=params.reverse,
     )
     t_plan = time.perf_counter()
     grid = build_grid(
