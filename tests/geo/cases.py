@@ -117,7 +117,7 @@ def check_cells_in_own_swath(grid: Grid, plan: CoveragePlan) -> None:
     own[inner] = fp[: len(inner)]
     for s in plan.swaths:
         if s.kind == "headland":
-            own[s.index] = s.band
+            own[s.index] = s.strip.band
     outside = shapely.area(shapely.difference(grid.polygons, own[grid.swath]))
     tol = 1e-6 * grid.swath_width_m * grid.cell_length_m + 1e-6
     assert (outside <= tol).all(), (

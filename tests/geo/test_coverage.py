@@ -232,9 +232,9 @@ def test_narrow_fields_get_a_one_pass_or_headland_only_plan():
 def test_geos_failure_is_retried_on_a_snapped_boundary(monkeypatch):
     # no GEOS exception reaches the user: the first failure snaps the boundary to 1 mm
     import shapely
-    from fieldrx.geo import coverage
+    from fieldrx.geo.planning import planner
 
-    real = coverage._headland_rings
+    real = planner.headland_rings
     calls = []
 
     def flaky(fld, w, h):
@@ -243,7 +243,7 @@ def test_geos_failure_is_retried_on_a_snapped_boundary(monkeypatch):
             raise shapely.errors.GEOSException("TopologyException: side location conflict")
         return real(fld, w, h)
 
-    monkeypatch.setattr(coverage, "_headland_rings", flaky)
+    monkeypatch.setattr(planner, "headland_rings", flaky)
     p = plan_coverage(pond_field(), 2.3, "optimal", headland_passes=1)
     assert any("snapped to a 1 mm grid" in m for m in p.warnings)
     assert p.coverage_pct > 99.0
@@ -251,7 +251,7 @@ def test_geos_failure_is_retried_on_a_snapped_boundary(monkeypatch):
     def broken(fld, w, h):
         raise shapely.errors.GEOSException("TopologyException: found non-noded intersection")
 
-    monkeypatch.setattr(coverage, "_headland_rings", broken)
+    monkeypatch.setattr(planner, "headland_rings", broken)
     with pytest.raises(PlanningError, match="geometry engine cannot process"):
         plan_coverage(pond_field(), 2.3, "optimal", headland_passes=1)
 

@@ -6,7 +6,11 @@ terminal can follow the path and drop finished cells. Here the corners of every 
 listed rear-right, front-right, front-left, rear-left relative to the driving direction,
 which is counter-clockwise. ``corners_utm`` is the nominal (unclipped) implement footprint
 of the cell; ``polygons`` is the cell clipped to the field (partial cells at the
-boundary, slivers merged into their neighbour along the swath).
+boundary, slivers merged into their neighbour along the same swath). Field area no
+swath covers is never merged into a cell; it is reported as ``Grid.uncovered_m2``.
+
+The grid reads only the documented strip geometry of each swath
+(:class:`fieldrx.geo.planning.model.StripGeometry`) and the plan's frame.
 
 Inner swaths are cut in the planner's rotated frame with numpy; only cells that reach a
 boundary (decided exactly from the strip-column intervals the planner computed) are
@@ -210,9 +214,9 @@ def _inner_cells(plan: CoveragePlan, inner: list[Swath], cell: float) -> _Cells:
     w = plan.swath_width_m
     fr = plan.frame
     sidx = np.array([s.index for s in inner], np.int64)
-    x0 = np.array([s.x0 for s in inner])
-    x1 = np.array([s.x1 for s in inner])
-    y = np.array([s.y for s in inner])
+    x0 = np.array([s.strip.x0 for s in inner])
+    x1 = np.array([s.strip.x1 for s in inner])
+    y = np.array([s.strip.y for s in inner])
     d = np.array([s.direction for s in inner], np.float64)
     k = np.maximum(1, np.ceil((x1 - x0) / cell - 1e-9)).astype(np.int64)
     rep = np.repeat(np.arange(len(inner)), k)
@@ -235,7 +239,7 @@ def _inner_cells(plan: CoveragePlan, inner: list[Swath], cell: float) -> _Cells:
     inside = np.zeros(len(j), bool)
     for m, s in enumerate(inner):
         sl = slice(offs[m], offs[m] + k[m])
-        full = s.full
+        full = s.strip.full
         if full is None or len(full) == 0:
             continue
         q = np.searchsorted(full[:, 0], lo[sl] + 1e-9, side="right") - 1
@@ -249,7 +253,7 @@ def _inner_cells(plan: CoveragePlan, inner: list[Swath], cell: float) -> _Cells:
     polys[inside] = _rectangles(corners[inside])
     part = np.flatnonzero(~inside)
     if len(part):
-        clips = np.array([inner[m].clip for m in rep[part]], dtype=object)
+        clips = np.array([inner[m].strip.clip for m in rep[part]], dtype=object)
         raw = shapely.polygons(cf[part])
         cut = shapely.intersection(raw, clips)
         cut = shapely.transform(_only_polygons(cut), fr.inv)
@@ -372,7 +376,7 @@ def _ring_cells(s: Swath, w: float, cell: float) -> _Cells:
     if better is not None:
         polys = better
     cells = _only_polygons(
-        shapely.intersection(np.array(polys, dtype=object), s.band), snap=better is None
+        shapely.intersection(np.array(polys, dtype=object), s.strip.band), snap=better is None
     )
     return _Cells(
         np.full(k, s.index, np.int64),
