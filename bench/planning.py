@@ -195,11 +195,21 @@ def main() -> None:
     print("\nturn length on the 10 ha rectangle (108 turns, w = 2.3 m) vs Fields2Cover")
     f2c = 3660.0  # Fields2Cover Dubins turns, r = 5 m (issue 16's measurement)
     turn_cmp = {}
-    for radius, reverse in ((5.0, False), (5.0, True)):
-        p = plan_coverage(rect(), 2.3, "longest_edge", turn_radius_m=radius, reverse=reverse)
-        turn_cmp[f"r{radius:g}{'_reverse' if reverse else ''}"] = round(p.nonworking_length_m, 1)
+    for radius, reverse, pattern in (
+        (5.0, False, "boustrophedon"),
+        (5.0, True, "boustrophedon"),
+        (5.0, False, "skip"),
+        (6.0, False, "boustrophedon"),
+        (6.0, False, "skip"),
+    ):
+        p = plan_coverage(
+            rect(), 2.3, "longest_edge", turn_radius_m=radius, reverse=reverse, pattern=pattern
+        )
+        key = f"r{radius:g}{'_reverse' if reverse else ''}_{pattern}"
+        turn_cmp[key] = round(p.nonworking_length_m, 1)
         print(
-            f"  r = {radius:g} m reverse={reverse!s:5s}: FieldRx {p.nonworking_length_m:7.0f} m "
+            f"  r = {radius:g} m reverse={reverse!s:5s} {pattern:13s}: FieldRx "
+            f"{p.nonworking_length_m:7.0f} m "
             f"{p.turn_kinds}  turn time {p.turn_time_s:6.0f} s  headland needed "
             f"{p.required_headland_m:.1f} m;  Fields2Cover Dubins {f2c:.0f} m"
         )

@@ -304,3 +304,31 @@ def test_required_headland_is_computed_and_enough_passes_keep_the_route_inside()
     assert ok.route_outside_m < 1e-3 and ok.route_in_holes_m < 1e-3
     assert not any("headland passes" in m for m in ok.warnings)
     check_plan(ok, f)
+
+
+def test_skip_row_pattern_turns_are_u_turns_and_auto_picks_the_faster():
+    # issue 16: with 2r > w a skip-row order (swaths s = ceil(2r / w) apart) replaces the
+    # bulb turns by U-turns; "auto" keeps whichever turns take less time
+    from fieldrx.geo.grid import build_grid
+    from fieldrx.geo.planning.order import skip_sequence
+
+    seq = skip_sequence(12, 3)
+    assert sorted(seq) == list(range(12))
+    assert all(abs(b - a) >= 3 for a, b in zip(seq, seq[1:], strict=False))
+    f = rect()
+    bou = plan_coverage(f, 2.3, "longest_edge", turn_radius_m=6.0)
+    skip = plan_coverage(f, 2.3, "longest_edge", turn_radius_m=6.0, pattern="skip")
+    auto = plan_coverage(f, 2.3, "longest_edge", turn_radius_m=6.0, pattern="auto")
+    assert skip.turn_kinds == {"u_turn": 108} and bou.turn_kinds == {"bulb": 108}
+    assert skip.turn_time_s < 0.6 * bou.turn_time_s
+    assert skip.required_headland_m == pytest.approx(6.0, abs=1e-6)  # r, not ~2.6 r
+    assert auto.turn_time_s == pytest.approx(skip.turn_time_s)
+    assert skip.coverage_pct == pytest.approx(100.0)
+    check_plan(skip, f)
+    grid = build_grid(skip, f, 5.0)
+    assert len(grid) == len(build_grid(bou, f, 5.0))
+    # wide implements need no skipping: auto keeps the plain back-and-forth
+    wide = plan_coverage(f, 12.0, "longest_edge", turn_radius_m=6.0, pattern="auto")
+    assert wide.turn_kinds == {"u_turn": wide.n_swaths - 1}
+    with pytest.raises(PlanningError, match="pattern"):
+        plan_coverage(f, 2.3, pattern="spiral")

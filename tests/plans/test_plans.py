@@ -216,5 +216,7 @@ def test_plan_takes_the_turning_radius_and_plans_narrow_fields(client, org) -> N
     assert m["required_headland_passes"] >= 1 and m["warnings"]
     r = client.post(f"{API}/fields/{fid}/plans", headers=h, json={"turn_radius_m": 0})
     assert r.status_code == 422
+    skip = make_plan(client, h, fid, pattern="auto", turn_radius_m=4.0)
+    assert skip["params"]["pattern"] == "auto"
     ring = make_plan(client, h, fid, headland_passes=6)
     assert any("headland-only" in w for w in ring["metrics"]["warnings"])

@@ -43,6 +43,10 @@ class PlanIn(BaseModel):
         default=6.0, gt=0, le=50, description="minimum turning radius of the machine, m"
     )
     reverse: bool = Field(default=False, description="the machine may reverse (fishtail turns)")
+    pattern: Literal["boustrophedon", "skip", "auto"] = Field(
+        default="boustrophedon",
+        description="swath order in a block: neighbours, skip-row (U-turns), or the faster",
+    )
 
 
 @router.post("/fields/{field_id:int}/plans", status_code=201)

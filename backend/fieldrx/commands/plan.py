@@ -90,6 +90,12 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     p.add_argument(
         "--reverse", action="store_true", help="the machine may reverse (fishtail turns)"
     )
+    p.add_argument(
+        "--pattern",
+        choices=("boustrophedon", "skip", "auto"),
+        default="boustrophedon",
+        help="swath order in a block: neighbours, skip-row (U-turns only), or the faster",
+    )
     p.add_argument("--out", help="write the cells as a GeoJSON FeatureCollection")
     p.add_argument("--route-out", help="write the whole route as a GeoJSON LineString")
     p.add_argument("--json", action="store_true", help="print one JSON object")
@@ -113,6 +119,7 @@ def run(args: argparse.Namespace) -> int:
             headland_order=args.headland_order,
             turn_radius_m=args.turn_radius,
             reverse=args.reverse,
+            pattern=args.pattern,
         )
         grid = build_grid(
             plan,

@@ -42,6 +42,7 @@ class PlanParams:
     min_cell_fraction: float = 0.1
     turn_radius_m: float = 6.0
     reverse: bool = False
+    pattern: str = "boustrophedon"
 
 
 def driver_connection(session: Session) -> Any:
@@ -328,6 +329,7 @@ def create_plan(session: Session, field: Field, params: PlanParams, organisation
         headland_order=params.headland_order,  # type: ignore[arg-type]
         turn_radius_m=params.turn_radius_m,
         reverse=params.reverse,
+        pattern=params.pattern,
     )
     t_plan = time.perf_counter()
     grid = build_grid(

@@ -21,13 +21,16 @@ from shapely.geometry.base import BaseGeometry
 
 from .frame import Frame
 from .headland import rotate_ring
+from .kinematics import Machine
 from .model import StripGeometry, Swath
 from .swaths import StripPiece
+from .turns import TurnKey, turn_between
 
 ROUTED_ORDER_MAX_BLOCKS = 40
 EXACT_ORDER_MAX_BLOCKS = 8
 Dist = Callable[[np.ndarray, np.ndarray], float]
 Step = tuple[int, list[int], int]  # block, swath order, first direction
+PATTERNS = ("boustrophedon", "skip", "auto")
 
 
 def block_configs(subs: list[StripPiece], block: list[int]) -> list[tuple[list[int], int]]:
@@ -284,3 +287,66 @@ def order_swaths(
     for part in (rings_part, blocks_part) if headland_first else (blocks_part, rings_part):
         part()
     return swaths
+
+
+def skip_sequence(m: int, s: int) -> list[int]:
+    """Visiting order of m neighbouring swaths in which consecutive swaths are s or s+1
+    apart (skip-row / set pattern): groups of 2s swaths driven s-1, 2s-1, s-2, 2s-2, ...,
+    0, s, the next group entered 2s-1 swaths further on; a remainder shorter than a
+    group is driven back and forth. With s w >= 2r every turn is a U-turn."""
+    out: list[int] = []
+    g = 0
+    while g + 2 * s <= m:
+        for i in range(s - 1, -1, -1):
+            out += [g + i, g + s + i]
+        g += 2 * s
+    return out + list(range(g, m))
+
+
+def _sequence_time(
+    subs: list[StripPiece],
+    seq: list[int],
+    m: Machine,
+    room: float,
+    cache: dict[TurnKey, object],
+) -> float:
+    """Turn time of driving ``seq`` back and forth (in the frame: headings 0 / pi)."""
+    total, d = 0.0, 1
+    for a, b in zip(seq[:-1], seq[1:], strict=True):
+        sa, sb = subs[a], subs[b]
+        p0 = np.array([sa.x1 if d > 0 else sa.x0, sa.y])
+        p1 = np.array([sb.x1 if d > 0 else sb.x0, sb.y])
+        th0 = 0.0 if d > 0 else math.pi
+        c = turn_between(p0, th0, p1, th0 + math.pi, m, room, cache)  # type: ignore[arg-type]
+        total += m.time_s(c.line.length - c.reverse_m, c.reverse_m, c.cusps)
+        d = -d
+    return total
+
+
+def block_sequences(
+    subs: list[StripPiece],
+    blocks: list[list[int]],
+    w: float,
+    m: Machine,
+    room: float,
+    pattern: str,
+) -> list[list[int]]:
+    """Each block's swath sequence: boustrophedon, skip-row, or (``auto``) the one whose
+    turns take less time with this machine (issue 16: the objective picks the pattern)."""
+    if pattern == "boustrophedon":
+        return blocks
+    s = max(2, math.ceil(2.0 * m.turn_radius_m / w - 1e-9))
+    cache: dict[TurnKey, object] = {}
+    out = []
+    for blk in blocks:
+        if len(blk) < 2 * s:
+            out.append(blk)
+            continue
+        skip = [blk[i] for i in skip_sequence(len(blk), s)]
+        if pattern == "skip" or _sequence_time(subs, skip, m, room, cache) < _sequence_time(
+            subs, blk, m, room, cache
+        ):
+            out.append(skip)
+        else:
+            out.append(blk)
+    return out

@@ -29,7 +29,7 @@ from .headland import headland_rings, inner_region
 from .kinematics import DEFAULT_TURN_RADIUS_M, Machine
 from .metrics import fill_metrics, turn_warnings
 from .model import CORNERS, HEADINGS, Corner, CoveragePlan, Heading
-from .order import order_swaths
+from .order import PATTERNS, block_sequences, order_swaths
 from .swaths import default_strip_tolerance, holes_of
 from .turns import connect
 
@@ -46,13 +46,17 @@ def plan_coverage(
     strip_tolerance_m: float | None = None,
     turn_radius_m: float = DEFAULT_TURN_RADIUS_M,
     reverse: bool = False,
+    pattern: str = "boustrophedon",
 ) -> CoveragePlan:
     """Plan the coverage path of a field given in UTM metres (see module docstring).
 
     ``strip_tolerance_m``: widest uncovered strip not worth a swath (default
     :func:`default_strip_tolerance`, 1 % of w and at most 5 cm). ``turn_radius_m`` and
     ``reverse`` describe the machine (:class:`~.planning.kinematics.Machine`): turns
-    between swaths are drivable paths (:mod:`.planning.turns`).
+    between swaths are drivable paths (:mod:`.planning.turns`). ``pattern``:
+    ``boustrophedon`` (neighbouring swaths in turn), ``skip`` (skip-row: swaths s apart,
+    s = ceil(2r / w), so every turn is a U-turn) or ``auto`` (per block, the one whose
+    turns take less time).
 
     No GEOS exception reaches the caller: when the geometry engine fails on a boundary
     (a TopologyException on a real traced field), the boundary is snap-rounded to a
@@ -69,6 +73,7 @@ def plan_coverage(
         simplify_tolerance_m,
         strip_tolerance_m,
         Machine(turn_radius_m=turn_radius_m, reverse=bool(reverse)),
+        pattern,
     )
     warnings: list[str] = []
     fld_in = polygonal(boundary_utm, warnings)
@@ -101,6 +106,7 @@ class _Settings:
     simplify_tol: float
     tol: float
     machine: Machine
+    pattern: str
 
 
 def _settings(
@@ -113,6 +119,7 @@ def _settings(
     simplify_tolerance_m: float | None,
     strip_tolerance_m: float | None,
     machine: Machine,
+    pattern: str,
 ) -> _Settings:
     """The validated parameters (PlanningError says which one is wrong and why)."""
     w = float(swath_width_m)
@@ -133,6 +140,8 @@ def _settings(
     if heading == "angle":
         if angle_deg is None or not math.isfinite(float(angle_deg)):
             raise PlanningError("heading 'angle' needs angle_deg (degrees clockwise from north)")
+    if pattern not in PATTERNS:
+        raise PlanningError(f"pattern must be one of {PATTERNS}, got {pattern!r}")
     return _Settings(
         w,
         heading,
@@ -143,6 +152,7 @@ def _settings(
         min(0.25 * w, 1.0) if simplify_tolerance_m is None else float(simplify_tolerance_m),
         tol,
         machine,
+        pattern,
     )
 
 
@@ -179,6 +189,7 @@ def _plan_field(fld_in: Polygon | MultiPolygon, st: _Settings, warnings: list[st
         parts_rot = [frame.fwd_geom(p) for p in parts(region)]
         holes_rot = frame.fwd_geom(holes_of(fld))
         subs, blocks = layout(parts_rot, w, with_full=True, holes_rot=holes_rot, tol=st.tol)
+        blocks = block_sequences(subs, blocks, w, st.machine, h * w, st.pattern)
         rings = headland_rings(fld, w, h)
     with _timed(timings, "order_route"):
         router = FieldRouter(fld, avoid=region if h else None)

@@ -200,17 +200,17 @@ def _reach(coords: np.ndarray, p0: np.ndarray, th0: float, p1: np.ndarray) -> fl
     return float(((coords - p0) @ u).max() - max(0.0, float((p1 - p0) @ u)))
 
 
-_TurnKey = tuple[float, float, float, float, bool, float]
+TurnKey = tuple[float, float, float, float, bool, float]
 
 
-def _turn(
+def turn_between(
     p0: np.ndarray,
     th0: float,
     p1: np.ndarray,
     th1: float,
     m: Machine,
     room: float,
-    cache: dict[_TurnKey, Connection] | None = None,
+    cache: dict[TurnKey, Connection] | None = None,
 ) -> Connection:
     """:func:`_turn_local` in the frame of the first swath's end, memoised: the turns of
     a block repeat (same gap, same stagger), so a 1,000 ha field computes a few."""
@@ -328,14 +328,14 @@ def connect(
     if env.field_ok is not None:
         shapely.prepare(env.field_ok)
     cons: list[Connection] = []
-    cache: dict[_TurnKey, Connection] = {}
+    cache: dict[TurnKey, Connection] = {}
     is_turn = np.zeros(max(0, len(swaths) - 1), bool)
     for k, (a, b) in enumerate(zip(swaths[:-1], swaths[1:], strict=True)):
         p0, p1 = np.asarray(a.line.coords[-1]), np.asarray(b.line.coords[0])
         th0, th1 = _end_heading(a.line, True), _end_heading(b.line, False)
         if a.kind == "inner" and b.kind == "inner" and a.block == b.block:
             is_turn[k] = True
-            cons.append(_turn(p0, th0, p1, th1, machine, room, cache))
+            cons.append(turn_between(p0, th0, p1, th1, machine, room, cache))
         else:
             path = route(p0, p1)
             tr = _transfer(np.asarray(path.coords), th0, th1, machine.turn_radius_m)
