@@ -8,6 +8,12 @@ the same run: a brute-force scan at 1-degree steps with the swath-count objectiv
 Fields2Cover's BruteForce + NSwath does), using FieldRx's own swath generator so both
 count the same thing. The last line is one JSON object with the key figures.
 
+Turns are drivable (issue 16): every plan uses a machine with a 6 m turning radius
+(Dubins U / bulb turns), so ``nonwork_m`` and ``turn_s`` are real turn lengths and
+times; the heading table prints the speed-up of ``optimal`` over the 1-degree scan
+(target >= 100x), and the last table compares the 10 ha rectangle's turn length at
+r = 5 m with Fields2Cover's recorded Dubins figure (3.66 km for 108 turns, issue 16).
+
 Run: .venv/bin/python bench/planning.py [--quick]
 """
 
@@ -84,7 +90,8 @@ def main() -> None:
     hdr = (
         f"{'field':15s} {'w':>5s} {'h':>2s} {'heading':>12s} {'az':>7s} {'swaths':>6s} "
         f"{'turns':>5s} {'blocks':>6s} {'work_m':>9s} {'nonwork_m':>9s} {'cov%':>8s} "
-        f"{'ovl%':>6s} {'out%':>6s} {'rt_out':>6s} {'cells':>7s}  stages(s)"
+        f"{'ovl%':>6s} {'out%':>6s} {'rt_out':>6s} {'turn_s':>7s} {'hl_need':>7s} "
+        f"{'cells':>7s}  stages(s)"
     )
     print(hdr)
     for name, make in {} if args.big_only else FIELDS.items():
@@ -104,7 +111,8 @@ def main() -> None:
                     f"{p.n_swaths:6d} {p.n_turns:5d} {p.n_blocks:6d} "
                     f"{p.working_length_m:9.0f} {p.nonworking_length_m:9.0f} "
                     f"{p.coverage_pct:8.4f} {p.overlap_pct:6.3f} {p.outside_pct:6.3f} "
-                    f"{p.route_outside_m:6.1f} {len(g):7d}  {st}"
+                    f"{p.route_outside_m:6.1f} {p.turn_time_s:7.0f} "
+                    f"{p.required_headland_passes:7d} {len(g):7d}  {st}"
                 )
                 rows.append(
                     {
@@ -113,6 +121,9 @@ def main() -> None:
                         "h": h,
                         "heading": heading,
                         "n_swaths": p.n_swaths,
+                        "coverage_pct": round(p.coverage_pct, 4),
+                        "nonworking_m": round(p.nonworking_length_m, 1),
+                        "turn_time_s": round(p.turn_time_s, 1),
                         "total_s": st["total"],
                     }
                 )
@@ -181,6 +192,28 @@ def main() -> None:
             f"{'OK' if best[0] < 5 else 'MISSED'}"
         )
 
+    print("\nturn length on the 10 ha rectangle (108 turns, w = 2.3 m) vs Fields2Cover")
+    f2c = 3660.0  # Fields2Cover Dubins turns, r = 5 m (issue 16's measurement)
+    turn_cmp = {}
+    for radius, reverse, pattern in (
+        (5.0, False, "boustrophedon"),
+        (5.0, True, "boustrophedon"),
+        (5.0, False, "skip"),
+        (6.0, False, "boustrophedon"),
+        (6.0, False, "skip"),
+    ):
+        p = plan_coverage(
+            rect(), 2.3, "longest_edge", turn_radius_m=radius, reverse=reverse, pattern=pattern
+        )
+        key = f"r{radius:g}{'_reverse' if reverse else ''}_{pattern}"
+        turn_cmp[key] = round(p.nonworking_length_m, 1)
+        print(
+            f"  r = {radius:g} m reverse={reverse!s:5s} {pattern:13s}: FieldRx "
+            f"{p.nonworking_length_m:7.0f} m "
+            f"{p.turn_kinds}  turn time {p.turn_time_s:6.0f} s  headland needed "
+            f"{p.required_headland_m:.1f} m;  Fields2Cover Dubins {f2c:.0f} m"
+        )
+
     never_worse = all(c["ours_n"] <= c["brute_n"] for c in cmp)
     speedups = [c["speedup"] for c in cmp]
     load = [round(x, 2) for x in os.getloadavg()]
@@ -196,6 +229,9 @@ def main() -> None:
         "swaths_saved_vs_brute_force": int(sum(c["brute_n"] - c["ours_n"] for c in cmp)),
         "heading_search_speedup_median": statistics.median(speedups) if speedups else None,
         "heading_search_speedup_min": min(speedups) if speedups else None,
+        "turn_length_10ha_m": turn_cmp,
+        "fields2cover_dubins_10ha_m": f2c,
+        "plans": rows,
         "comparisons": cmp,
     }
     print(json.dumps(summary))

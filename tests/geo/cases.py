@@ -56,6 +56,21 @@ def plot_35x23() -> Polygon:
     return box(X0, Y0, X0 + 35, Y0 + 23)
 
 
+def plot_35x23_rounded() -> Polygon:
+    """The 35 m x 23 m plot with its lon/lat corners rounded to 1e-9 deg (issue 16).
+
+    Rounding makes the short sides 23.00009 m and 22.99998 m, so a strict ceil(H / w)
+    at w = 2.3 m gives 11 swaths for a 0.09 mm strip; the strip tolerance gives 10.
+    """
+    from fieldrx.geo.crs import to_utm, to_wgs84
+
+    epsg = 32649  # UTM 49N, the demo farm near (112.32 E, 32.13 N)
+    x0, y0 = 624509.637, 3555608.237
+    ll = to_wgs84(box(x0, y0, x0 + 35, y0 + 23), epsg)
+    ll = Polygon(np.round(np.asarray(ll.exterior.coords), 9))
+    return to_utm(ll, epsg)
+
+
 def irregular(n: int = 40, seed: int = 7, radius: float = 300.0) -> Polygon:
     """Star-shaped (so simple) irregular field with n vertices."""
     rng = np.random.default_rng(seed)
@@ -81,16 +96,71 @@ def check_plan(plan: CoveragePlan, field: Polygon) -> None:
         core = hole.buffer(-(w / 2 + 1e-6))
         for c in plan.connections:
             assert c.intersection(core).length < 1e-9, "a connection crosses a hole"
-    if plan.headland_passes >= 1:
+    # with enough headland passes for the turns (issue 16), nothing leaves the field
+    if plan.headland_passes >= max(1, plan.required_headland_passes):
         route = plan.route()
         assert route.difference(field.buffer(1e-6)).length < 1e-6, "route leaves the field"
         assert plan.route_outside_m < 1e-3 and plan.route_in_holes_m < 1e-3
 
 
-def check_grid(grid: Grid, field: Polygon, min_cover: float = 0.995) -> None:
-    """Cells: no overlap, cover the field, centres inside, one walk, CCW corners."""
+def check_cells_in_own_swath(grid: Grid, plan: CoveragePlan) -> None:
+    """No cell is larger than its nominal size plus the clipped remainder of its own swath:
+    every inner cell lies inside the footprint its own swath sweeps, and every headland
+    cell inside its own pass's band. Field area no swath covers stays out of the cells
+    and is reported as ``uncovered_m2`` (issue 16: one cell was 8.1x nominal, 1,442 m2
+    of it never driven)."""
+    from fieldrx.geo.coverage import swath_footprints
+
+    fp = swath_footprints(plan)
+    inner = [s.index for s in plan.swaths if s.kind == "inner"]
+    own = np.empty(len(plan.swaths), dtype=object)
+    own[inner] = fp[: len(inner)]
+    for s in plan.swaths:
+        if s.kind == "headland":
+            own[s.index] = s.strip.band
+    outside = shapely.area(shapely.difference(grid.polygons, own[grid.swath]))
+    tol = 1e-6 * grid.swath_width_m * grid.cell_length_m + 1e-6
+    assert (outside <= tol).all(), (
+        f"{(outside > tol).sum()} cells reach beyond their own swath, max {outside.max():.2f} m2"
+    )
+
+
+def min_turn_radius(coords: np.ndarray, min_step_m: float = 1e-3) -> float:
+    """Smallest radius of curvature along a polyline: turning angle at each vertex over
+    the mean length of its two edges (exact on a sampled circle up to 0.04 % at 5 degree
+    steps). Cusps (a reversal, angle > 175 deg) are where a fishtail changes direction,
+    not a turn, and are skipped; vertices closer than ``min_step_m`` are merged."""
+    c = np.asarray(coords, float)
+    keep = [0]
+    for i in range(1, len(c)):
+        if np.hypot(*(c[i] - c[keep[-1]])) >= min_step_m:
+            keep.append(i)
+    c = c[keep]
+    if len(c) < 3:
+        return math.inf
+    e = np.diff(c, axis=0)
+    ln = np.hypot(e[:, 0], e[:, 1])
+    ang = np.abs(
+        (np.arctan2(e[1:, 1], e[1:, 0]) - np.arctan2(e[:-1, 1], e[:-1, 0]) + math.pi)
+        % (2 * math.pi)
+        - math.pi
+    )
+    turn = ang < math.radians(175.0)
+    kappa = ang[turn] / (0.5 * (ln[1:] + ln[:-1]))[turn]
+    return math.inf if not len(kappa) or kappa.max() == 0 else float(1.0 / kappa.max())
+
+
+def check_grid(
+    grid: Grid, field: Polygon, min_cover: float = 0.995, ring_breaks: float = 0.02
+) -> None:
+    """Cells: no overlap, cover the field, centres inside, one walk, CCW corners, the
+    uncovered area reported."""
     n = len(grid)
     assert n > 0
+    # uncovered area is relative to the planned field (a traced boundary is simplified
+    # by < 1 % of its area first)
+    assert grid.uncovered_m2 >= 0
+    assert abs(grid.uncovered_m2 - (field.area - grid.area_m2.sum())) <= 0.01 * field.area
     assert np.array_equal(grid.seq, np.arange(n))
     polys = grid.polygons
     assert not shapely.is_empty(polys).any()
@@ -117,7 +187,7 @@ def check_grid(grid: Grid, field: Polygon, min_cover: float = 0.995) -> None:
     assert ok[~hl].all(), f"{(~ok[~hl]).sum()} consecutive swath cells share no edge"
     # headland rings in places narrower than the offsets (known limitation, see grid.py):
     # allow a few cut-line pairs that only touch through a neighbour
-    assert (~ok[hl]).sum() <= max(1, 0.02 * hl.sum()), "headland cells do not follow the ring"
+    assert (~ok[hl]).sum() <= max(1, ring_breaks * hl.sum()), "headland cells do not follow ring"
     assert (grid.index_in_swath[i + 1] == grid.index_in_swath[i] + 1).all()
     assert (np.diff(grid.swath) >= 0).all()
     # nominal corners counter-clockwise (seed 001 Table 1)

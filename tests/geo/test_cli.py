@@ -71,6 +71,8 @@ def test_cli_plan_json_and_outputs(tmp_path):
         "optimal",
         "--headland-passes",
         1,
+        "--turn-radius",
+        1.0,
         "--out",
         cells,
         "--route-out",
@@ -106,7 +108,7 @@ def test_cli_bare_geometry_and_fixed_angle(tmp_path):
     [
         (["--swath-width", 0], "swath_width_m must be > 0"),
         (["--cell-length", 0.2], "cell_length_m must be >= 0.5"),
-        (["--swath-width", 500], "wider than the field"),
+        (["--swath-width", 500], "wider than the field in every direction"),
     ],
 )
 def test_cli_bad_parameters(tmp_path, args, reason):
@@ -132,3 +134,48 @@ def test_cli_rejects_projected_coordinates(tmp_path):
     )
     r = _run(src, "--json")
     assert r.returncode == 2 and "lon/lat" in r.stderr
+
+
+def test_cli_validates_the_boundary_like_the_api(tmp_path):
+    # issue 16: the CLI never validated; a self-intersecting traced boundary ran past
+    # 300 s (or was planned silently at 80-99.8 % coverage) while the API answered 422
+    import time
+
+    from fieldrx.geo.validate import BoundaryError, validate_boundary
+
+    ring = [[11.0, 48.0], [11.004, 48.0025], [11.004, 48.0], [11.0, 48.0025], [11.0, 48.0]]
+    geom = {"type": "Polygon", "coordinates": [ring]}
+    with pytest.raises(BoundaryError) as api:
+        validate_boundary(geom)  # what the API's field endpoints call
+    src = tmp_path / "bowtie.geojson"
+    src.write_text(json.dumps(geom))
+    t = time.perf_counter()
+    r = _run(src, "--json")
+    assert time.perf_counter() - t < 30
+    assert r.returncode == 2
+    err = json.loads(r.stdout)["error"]
+    assert api.value.message in err and "Self-intersection" in err
+
+
+@pytest.mark.parametrize("radius", [5.0, 8.0])
+def test_cli_route_geojson_has_no_turn_tighter_than_the_radius(tmp_path, radius):
+    # issue 16 acceptance: `fieldrx plan --turn-radius R [--reverse]`; the route GeoJSON
+    # is measured back in UTM metres, vertex by vertex
+    import numpy as np
+    import shapely
+    from fieldrx.geo.crs import to_utm
+
+    from tests.geo.cases import min_turn_radius
+
+    geom = {"type": "Polygon", "coordinates": [FIELD["features"][0]["geometry"]["coordinates"][0]]}
+    src, route = tmp_path / "f.geojson", tmp_path / "route.geojson"
+    src.write_text(json.dumps(geom))
+    for extra in ([], ["--reverse"]):
+        r = _run(src, "--turn-radius", radius, *extra, "--route-out", route, "--json")
+        assert r.returncode == 0, r.stderr
+        out = json.loads(r.stdout)
+        assert out["turn_radius_m"] == radius and out["undrivable_connections"] == 0
+        ll = shapely.from_geojson(json.dumps(json.loads(route.read_text())["geometry"]))
+        utm = to_utm(ll, out["epsg"])
+        assert min_turn_radius(np.asarray(utm.coords)) >= 0.99 * radius
+        assert (out["reverse_m"] > 0) == bool(extra)

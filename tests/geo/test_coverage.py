@@ -13,6 +13,7 @@ from tests.geo.cases import (
     irregular,
     l_shape,
     plot_35x23,
+    plot_35x23_rounded,
     pond_field,
     rect,
     u_shape,
@@ -78,8 +79,13 @@ def test_pond_route_never_crosses_the_pond():
 
 def test_small_plot_route_stays_inside_with_headland():
     # Fields2Cover's boustrophedon + Dubins route leaves this plot by over 100 m
+    # (a plot tractor turning on 1 m: one 2.3 m headland pass holds its U-turns)
     f = plot_35x23()
-    p = plan_coverage(f, 2.3, "optimal", headland_passes=1)
+    p = plan_coverage(f, 2.3, "optimal", headland_passes=1, turn_radius_m=1.0)
+    assert p.required_headland_passes == 1
+    # the turns are all drivable; the hop from the ring's end onto the first swath (which
+    # starts behind the machine in a 23 m plot) is the one routed connection, reported
+    assert p.turn_kinds.get("u_turn", 0) == p.n_swaths - 2 and p.undrivable_connections <= 1
     assert p.route_outside_m == 0.0
     assert p.route().difference(f.buffer(1e-6)).length < 1e-9
     check_plan(p, f)
@@ -147,11 +153,10 @@ def test_rotated_field_optimal_aligns_with_edges():
         ({"swath_width_m": 0}, "swath_width_m must be > 0"),
         ({"swath_width_m": -2}, "swath_width_m must be > 0"),
         ({"swath_width_m": float("nan")}, "swath_width_m must be > 0"),
-        ({"swath_width_m": 30}, "wider than the field"),
+        ({"swath_width_m": 50}, "wider than the field in every direction"),
         ({"heading": "diagonal"}, "heading must be one of"),
         ({"heading": "angle"}, "needs angle_deg"),
         ({"headland_passes": -1}, "headland_passes"),
-        ({"headland_passes": 6}, "leave no inner area"),
         ({"start_corner": "middle"}, "start_corner"),
         ({"headland_order": "sometimes"}, "headland_order"),
     ],
@@ -171,3 +176,159 @@ def test_degenerate_fields():
         plan_coverage(bowtie, 2.3)
     with pytest.raises(PlanningError, match="Polygon"):
         plan_coverage(box(X0, Y0, X0 + 1, Y0 + 1).exterior, 2.3)
+
+
+@pytest.mark.parametrize("heading", ["longest_edge", "optimal"])
+def test_rounded_35x23_plot_plans_10_swaths_and_reports_the_strip(heading):
+    # issue 16: corners rounded to 1e-9 deg make the plot 23.00009 m wide; a strict
+    # ceil(H / w) planned 11 swaths (10 % of their area outside the field) for 0.09 mm
+    f = plot_35x23_rounded()
+    sides = np.hypot(*np.diff(np.asarray(f.exterior.coords), axis=0).T)
+    assert max(sides[[0, 2]]) > 23.00005  # the plot really is a hair over 10 w wide
+    p = plan_coverage(f, 2.3, heading)
+    assert p.n_swaths == 10
+    assert p.outside_pct < 0.01
+    assert 0 < p.uncovered_m2 < 35 * 0.001  # the strip, reported, not hidden
+    assert p.metrics()["uncovered_m2"] == pytest.approx(p.uncovered_m2, abs=1e-3)
+    assert p.strip_tolerance_m == pytest.approx(0.023)
+    # the tolerance is the mechanism: without it the 11th swath comes back
+    assert plan_coverage(f, 2.3, heading, strip_tolerance_m=0.0).n_swaths == 11
+
+
+def test_strip_tolerance_is_capped_at_5_cm():
+    from fieldrx.geo.coverage import default_strip_tolerance
+
+    assert default_strip_tolerance(2.3) == pytest.approx(0.023)
+    assert default_strip_tolerance(36.0) == pytest.approx(0.05)
+    f = rect(200, 36.0 * 3 + 0.049)  # 4.9 cm over three 36 m swaths: not worth a fourth
+    assert plan_coverage(f, 36.0, "longest_edge").n_swaths == 3
+    f = rect(200, 36.0 * 3 + 0.06)  # 6 cm is worth it
+    assert plan_coverage(f, 36.0, "longest_edge").n_swaths == 4
+    with pytest.raises(PlanningError, match="strip_tolerance_m"):
+        plan_coverage(f, 36.0, strip_tolerance_m=20.0)
+
+
+def test_narrow_fields_get_a_one_pass_or_headland_only_plan():
+    # issue 16: small or narrow fields at 12-36 m got an error
+    from fieldrx.geo.grid import build_grid
+
+    f = plot_35x23()
+    one = plan_coverage(f, 30.0, "optimal")  # 30 m implement on a 23 m wide plot
+    assert one.n_swaths == 1 and one.coverage_pct == pytest.approx(100.0)
+    assert any("narrower than the implement" in m for m in one.warnings)
+    assert one.metrics()["warnings"] == one.warnings
+    ring = plan_coverage(f, 2.3, "optimal", headland_passes=6)
+    assert {s.kind for s in ring.swaths} == {"headland"}
+    assert any("headland-only" in m for m in ring.warnings)
+    assert ring.coverage_pct > 99.0
+    none = plan_coverage(f, 36.0, "optimal", headland_passes=1)
+    assert none.n_swaths == 1 and none.headland_passes == 0
+    assert any("without headland" in m for m in none.warnings)
+    for p in (one, ring, none):
+        grid = build_grid(p, f, 5.0)
+        assert len(grid) > 0 and grid.uncovered_m2 < 0.01 * f.area
+
+
+def test_geos_failure_is_retried_on_a_snapped_boundary(monkeypatch):
+    # no GEOS exception reaches the user: the first failure snaps the boundary to 1 mm
+    import shapely
+    from fieldrx.geo.planning import planner
+
+    real = planner.headland_rings
+    calls = []
+
+    def flaky(fld, w, h):
+        calls.append(1)
+        if len(calls) == 1:
+            raise shapely.errors.GEOSException("TopologyException: side location conflict")
+        return real(fld, w, h)
+
+    monkeypatch.setattr(planner, "headland_rings", flaky)
+    p = plan_coverage(pond_field(), 2.3, "optimal", headland_passes=1)
+    assert any("snapped to a 1 mm grid" in m for m in p.warnings)
+    assert p.coverage_pct > 99.0
+
+    def broken(fld, w, h):
+        raise shapely.errors.GEOSException("TopologyException: found non-noded intersection")
+
+    monkeypatch.setattr(planner, "headland_rings", broken)
+    with pytest.raises(PlanningError, match="geometry engine cannot process"):
+        plan_coverage(pond_field(), 2.3, "optimal", headland_passes=1)
+
+
+def test_traced_boundary_simplification_is_reported():
+    rng = np.random.default_rng(1)
+    ang = np.linspace(0, 2 * math.pi, 600, endpoint=False)
+    r = 120 * (1 + 0.05 * np.sin(5 * ang)) + rng.normal(0, 0.3, 600)
+    f = Polygon(np.stack([X0 + 1.5 * r * np.cos(ang), Y0 + r * np.sin(ang)], 1))
+    p = plan_coverage(f, 2.3, "longest_edge")
+    assert any("simplified" in m for m in p.warnings)
+    assert not any("simplified" in m for m in plan_coverage(rect(), 2.3).warnings)
+
+
+@pytest.mark.parametrize("radius", [4.0, 6.0, 8.0])
+@pytest.mark.parametrize("reverse", [False, True])
+@pytest.mark.parametrize("field", [rect(), l_shape(), u_shape(), irregular(40)])
+def test_turns_are_drivable_curvature_never_tighter_than_r(field, radius, reverse):
+    # issue 16: swath ends were joined by a 2.3 m sideways jump; every connection is now
+    # a path of curvature <= 1/r (Dubins U / bulb, fishtail with reverse, transfers)
+    from tests.geo.cases import min_turn_radius
+
+    p = plan_coverage(field, 2.3, "optimal", turn_radius_m=radius, reverse=reverse)
+    assert p.undrivable_connections == 0
+    assert min_turn_radius(np.asarray(p.route().coords)) >= 0.999 * radius
+    kinds = p.turn_kinds
+    assert kinds.get("fishtail", 0) > 0 if reverse else kinds.get("bulb", 0) > 0
+    # real turn lengths: a bulb turn at gap 2.3 m and r is at least a 3/2 circle of r
+    if not reverse:
+        assert p.nonworking_length_m >= kinds["bulb"] * 1.5 * math.pi * radius
+    assert p.turn_time_s > 0 and (p.reverse_m > 0) == reverse
+    check_plan(p, field)
+
+
+def test_u_turn_when_the_gap_allows_it():
+    # 12 m swaths, r = 6 m: neighbours are 2r apart, a plain U of two quarter circles
+    p = plan_coverage(rect(400, 240), 12.0, "longest_edge", turn_radius_m=6.0)
+    assert p.turn_kinds == {"u_turn": p.n_swaths - 1}
+    assert p.nonworking_length_m == pytest.approx((p.n_swaths - 1) * math.pi * 6.0, rel=1e-3)
+    assert p.required_headland_m == pytest.approx(6.0, abs=1e-3)
+
+
+def test_required_headland_is_computed_and_enough_passes_keep_the_route_inside():
+    f = pond_field()
+    few = plan_coverage(f, 2.3, "optimal", headland_passes=1, turn_radius_m=6.0)
+    need = few.required_headland_passes
+    assert need > 1 and any("headland passes" in m for m in few.warnings)
+    assert few.route_outside_m > 0  # the turns do leave a 1-pass headland: said, not hidden
+    ok = plan_coverage(f, 2.3, "optimal", headland_passes=need, turn_radius_m=6.0)
+    assert ok.route_outside_m < 1e-3 and ok.route_in_holes_m < 1e-3
+    assert not any("headland passes" in m for m in ok.warnings)
+    check_plan(ok, f)
+
+
+def test_skip_row_pattern_turns_are_u_turns_and_auto_picks_the_faster():
+    # issue 16: with 2r > w a skip-row order (swaths s = ceil(2r / w) apart) replaces the
+    # bulb turns by U-turns; "auto" keeps whichever turns take less time
+    from fieldrx.geo.grid import build_grid
+    from fieldrx.geo.planning.order import skip_sequence
+
+    seq = skip_sequence(12, 3)
+    assert sorted(seq) == list(range(12))
+    assert all(abs(b - a) >= 3 for a, b in zip(seq, seq[1:], strict=False))
+    f = rect()
+    bou = plan_coverage(f, 2.3, "longest_edge", turn_radius_m=6.0)
+    skip = plan_coverage(f, 2.3, "longest_edge", turn_radius_m=6.0, pattern="skip")
+    auto = plan_coverage(f, 2.3, "longest_edge", turn_radius_m=6.0, pattern="auto")
+    assert skip.turn_kinds == {"u_turn": 108} and bou.turn_kinds == {"bulb": 108}
+    assert skip.turn_time_s < 0.6 * bou.turn_time_s
+    assert skip.required_headland_m == pytest.approx(6.0, abs=1e-6)  # r, not ~2.6 r
+    assert auto.turn_time_s == pytest.approx(skip.turn_time_s)
+    assert skip.coverage_pct == pytest.approx(100.0)
+    check_plan(skip, f)
+    grid = build_grid(skip, f, 5.0)
+    assert len(grid) == len(build_grid(bou, f, 5.0))
+    # wide implements need no skipping: auto keeps the plain back-and-forth
+    wide = plan_coverage(f, 12.0, "longest_edge", turn_radius_m=6.0, pattern="auto")
+    assert wide.turn_kinds == {"u_turn": wide.n_swaths - 1}
+    with pytest.raises(PlanningError, match="pattern"):
+        plan_coverage(f, 2.3, pattern="spiral")

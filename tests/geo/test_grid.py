@@ -12,10 +12,12 @@ from shapely.geometry import box
 from tests.geo.cases import (
     X0,
     Y0,
+    check_cells_in_own_swath,
     check_grid,
     irregular,
     l_shape,
     plot_35x23,
+    plot_35x23_rounded,
     pond_field,
     rect,
     u_shape,
@@ -27,6 +29,7 @@ FIELDS = {
     "U": u_shape,
     "pond": pond_field,
     "plot": plot_35x23,
+    "plot_rounded": plot_35x23_rounded,
     "irregular": irregular,
 }
 
@@ -38,6 +41,7 @@ def test_fixed_fields_grid_invariants(name, h):
     plan = plan_coverage(f, 2.3, "optimal", headland_passes=h)
     grid = build_grid(plan, f, 5.0)
     check_grid(grid, f)
+    check_cells_in_own_swath(grid, plan)
     # headland cells come first (headland_order "first"), then inner cells
     if h:
         first_inner = np.argmin(grid.headland)

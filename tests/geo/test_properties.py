@@ -12,7 +12,7 @@ from hypothesis import HealthCheck, assume, given, note, settings
 from hypothesis import strategies as st
 from shapely.geometry import MultiPoint, Polygon
 
-from tests.geo.cases import X0, Y0, check_grid, check_plan
+from tests.geo.cases import X0, Y0, check_cells_in_own_swath, check_grid, check_plan
 
 SETTINGS = settings(
     max_examples=18,
@@ -63,8 +63,8 @@ def _plan_or_skip(field, w, **kw):
     try:
         return plan_coverage(field, w, **kw)
     except PlanningError as exc:
-        # only legitimate refusals: too narrow for the implement or no inner area
-        assert "wider than the field" in str(exc) or "no inner area" in str(exc), str(exc)
+        # the only legitimate refusal: the implement is wider than the whole field
+        assert "wider than the field in every direction" in str(exc), str(exc)
         assume(False)
 
 
@@ -75,8 +75,14 @@ def _check_all(field, w, h, heading):
     grid = build_grid(plan, field, 5.0)
     # the working area: the part of the field the implement sweeps
     working = shapely.union_all(swath_footprints(plan)).intersection(field).area
-    check_grid(grid, field, min_cover=0.995 * working / field.area)
-    assert working >= 0.9 * field.area
+    # a headland-only plan (passes leave no inner area: a small field, issue 16) has
+    # rings in places narrower than their offsets: looser ring and coverage checks
+    ring_only = plan.region.is_empty
+    check_grid(
+        grid, field, min_cover=0.995 * working / field.area, ring_breaks=0.3 if ring_only else 0.02
+    )
+    check_cells_in_own_swath(grid, plan)
+    assert working >= (0.8 if ring_only else 0.9) * field.area
     return plan
 
 
@@ -105,3 +111,96 @@ def test_concave_fields(fw, h):
 def test_fields_with_holes(fw, h):
     field, w = fw
     _check_all(field, w, h, "longest_edge")
+
+
+def _objective(plan):
+    from fieldrx.geo.coverage import heading_objective
+
+    if plan.region.is_empty:
+        return (0, 0.0)
+    return heading_objective(
+        plan.region, plan.swath_width_m, plan.frame.phi, plan.field, plan.strip_tolerance_m
+    )
+
+
+@SETTINGS
+@given(fields(concave=True, max_holes=2), st.sampled_from([0, 1]))
+def test_optimal_never_worse_than_longest_edge_by_its_objective(fw, h):
+    # issue 16: optimal lost to longest_edge by its own objective in 8 of 90 real pairs
+    field, w = fw
+    op = _plan_or_skip(field, w, heading="optimal", headland_passes=h)
+    le = _plan_or_skip(field, w, heading="longest_edge", headland_passes=h)
+    assert _objective(op) <= _objective(le)
+
+
+@SETTINGS
+@given(
+    fields(concave=True, max_holes=2),
+    st.sampled_from([1.5, 3.0, 6.0]),
+    st.booleans(),
+    st.sampled_from(["boustrophedon", "auto"]),
+)
+def test_enough_headland_keeps_drivable_turns_inside_the_field(fw, radius, reverse, pattern):
+    # with the headland passes the planner says the turns need, no part of the route
+    # leaves the field or enters a hole (issue 16 acceptance, the issue 3 property
+    # now with turns of radius r)
+    from tests.geo.cases import min_turn_radius
+
+    field, w = fw
+    kw = {"turn_radius_m": radius, "reverse": reverse, "pattern": pattern}
+    first = _plan_or_skip(field, w, heading="optimal", **kw)
+    k = max(1, first.required_headland_passes)
+    note(f"field={field.wkt} w={w} r={radius} reverse={reverse} passes={k}")
+    plan = _plan_or_skip(field, w, heading="optimal", headland_passes=k, **kw)
+    # the turns of the headland-reduced region can reach a little further (other swath
+    # ends, bulb instead of fishtail once the bulb fits): follow the advice again
+    for _ in range(3):
+        if plan.headland_passes >= plan.required_headland_passes or not plan.headland_passes:
+            break
+        k = plan.required_headland_passes
+        plan = _plan_or_skip(field, w, heading="optimal", headland_passes=k, **kw)
+    assert plan.headland_passes >= plan.required_headland_passes or plan.headland_passes == 0
+    if plan.headland_passes:
+        check_plan(plan, field)
+        assert plan.route_outside_m < 1e-3 and plan.route_in_holes_m < 1e-3
+    for c, kind in zip(plan.connections, _kinds(plan), strict=True):
+        if kind != "routed":
+            assert min_turn_radius(np.asarray(c.coords)) >= 0.99 * radius
+
+
+def _kinds(plan):
+    return plan.connection_kinds
+
+
+def _traced(rng: np.random.Generator, n: int, r: float, noise: float) -> Polygon:
+    """A GNSS-traced boundary: thousands of vertices, jitter, narrow near-touching necks."""
+    ang = np.linspace(0, 2 * math.pi, n, endpoint=False)
+    k = rng.integers(2, 7)
+    rad = r * (1 + 0.25 * np.sin(k * ang + rng.uniform(0, 6)))
+    rad *= 1 - 0.45 * np.exp(-(((ang - rng.uniform(0.5, 5.5)) / 0.05) ** 2))  # a neck
+    rad += rng.normal(0, noise, n)
+    return Polygon(np.stack([X0 + rad * np.cos(ang), Y0 + rad * np.sin(ang)], 1))
+
+
+@settings(max_examples=6, deadline=None, derandomize=True)
+@given(
+    st.integers(0, 2**31 - 1),
+    st.integers(1000, 4000),
+    st.sampled_from([2.3, 12.0, 36.0]),
+    st.sampled_from(["optimal", "longest_edge"]),
+    st.sampled_from([0, 1]),
+)
+def test_traced_boundaries_plan_within_a_time_bound(seed, n, w, heading, h):
+    # issue 16: real traced boundaries (thousands of vertices, jitter, near-self-touching
+    # rings) -- no exception, no cell over its bound, every plan finishes in time
+    import time
+
+    rng = np.random.default_rng(seed)
+    field = _traced(rng, n, float(rng.uniform(60, 250)), 0.3)
+    assume(field.is_valid)
+    t = time.perf_counter()
+    plan = _plan_or_skip(field, w, heading=heading, headland_passes=h)
+    grid = build_grid(plan, field, 5.0)
+    assert time.perf_counter() - t < 60.0
+    check_cells_in_own_swath(grid, plan)
+    assert grid.uncovered_m2 >= 0 and len(grid) > 0

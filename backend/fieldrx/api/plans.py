@@ -44,6 +44,14 @@ class PlanIn(BaseModel):
     start_corner: Literal["sw", "se", "nw", "ne"] = "sw"
     headland_order: Literal["first", "last"] = "first"
     min_cell_fraction: float = Field(default=0.1, ge=0, lt=1)
+    turn_radius_m: float = Field(
+        default=6.0, gt=0, le=50, description="minimum turning radius of the machine, m"
+    )
+    reverse: bool = Field(default=False, description="the machine may reverse (fishtail turns)")
+    pattern: Literal["boustrophedon", "skip", "auto"] = Field(
+        default="boustrophedon",
+        description="swath order in a block: neighbours, skip-row (U-turns), or the faster",
+    )
 
 
 @router.post("/fields/{field_id:int}/plans", status_code=201)

@@ -21,10 +21,17 @@ from fieldrx.geo import PlanningError
 from fieldrx.geo.coverage import CORNERS, HEADINGS, plan_coverage
 from fieldrx.geo.crs import epsg_for_geometry, to_utm, to_wgs84
 from fieldrx.geo.grid import build_grid
+from fieldrx.geo.planning.kinematics import DEFAULT_TURN_RADIUS_M
+from fieldrx.geo.validate import BoundaryError, validate_boundary
 
 
 def load_field(path: str | Path) -> Polygon | MultiPolygon:
-    """Field boundary (lon/lat) from a GeoJSON Feature, FeatureCollection (first) or geometry."""
+    """Field boundary (lon/lat) from a GeoJSON Feature, FeatureCollection (first) or geometry.
+
+    The boundary goes through the same validation as the API's fields
+    (:func:`fieldrx.geo.validate.validate_boundary`): a self-intersecting traced boundary
+    is refused with where it crosses itself instead of being planned (issue 16).
+    """
     try:
         doc: Any = json.loads(Path(path).read_text())
     except (OSError, ValueError) as exc:
@@ -46,7 +53,11 @@ def load_field(path: str | Path) -> Polygon | MultiPolygon:
     x0, y0, x1, y1 = geom.bounds
     if not (-180 <= x0 <= x1 <= 180 and -90 <= y0 <= y1 <= 90):
         raise PlanningError(f"{path}: coordinates are not WGS84 lon/lat (bounds {geom.bounds})")
-    return geom
+    try:
+        valid = validate_boundary(doc)
+    except BoundaryError as exc:
+        raise PlanningError(f"{path}: {exc.where}: {exc.message}") from exc
+    return valid.geometry
 
 
 def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -70,6 +81,21 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     p.add_argument("--headland-order", choices=("first", "last"), default="first")
     p.add_argument("--start-corner", choices=CORNERS, default="sw")
     p.add_argument("--min-cell-fraction", type=float, default=0.1)
+    p.add_argument(
+        "--turn-radius",
+        type=float,
+        default=DEFAULT_TURN_RADIUS_M,
+        help="minimum turning radius of the machine, m (turns are drivable paths)",
+    )
+    p.add_argument(
+        "--reverse", action="store_true", help="the machine may reverse (fishtail turns)"
+    )
+    p.add_argument(
+        "--pattern",
+        choices=("boustrophedon", "skip", "auto"),
+        default="boustrophedon",
+        help="swath order in a block: neighbours, skip-row (U-turns only), or the faster",
+    )
     p.add_argument("--out", help="write the cells as a GeoJSON FeatureCollection")
     p.add_argument("--route-out", help="write the whole route as a GeoJSON LineString")
     p.add_argument("--json", action="store_true", help="print one JSON object")
@@ -91,6 +117,9 @@ def run(args: argparse.Namespace) -> int:
             headland_passes=args.headland_passes,
             start_corner=args.start_corner,
             headland_order=args.headland_order,
+            turn_radius_m=args.turn_radius,
+            reverse=args.reverse,
+            pattern=args.pattern,
         )
         grid = build_grid(
             plan,
@@ -105,6 +134,7 @@ def run(args: argparse.Namespace) -> int:
         return 2
     out: dict[str, Any] = dict(plan.metrics())
     out["n_cells"] = len(grid)
+    out["cells_uncovered_m2"] = round(grid.uncovered_m2, 3)
     out["epsg"] = epsg
     out["elapsed_s"] = round(time.perf_counter() - t0, 4)
     if args.out:
@@ -114,7 +144,10 @@ def run(args: argparse.Namespace) -> int:
         feat = {
             "type": "Feature",
             "geometry": json.loads(shapely.to_geojson(route)),
-            "properties": {k: out[k] for k in ("n_swaths", "n_turns", "heading_deg")},
+            "properties": {
+                k: out[k]
+                for k in ("n_swaths", "n_turns", "heading_deg", "turn_radius_m", "turn_kinds")
+            },
         }
         Path(args.route_out).write_text(json.dumps(feat))
     if args.json:

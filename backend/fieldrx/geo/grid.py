@@ -6,7 +6,11 @@ terminal can follow the path and drop finished cells. Here the corners of every 
 listed rear-right, front-right, front-left, rear-left relative to the driving direction,
 which is counter-clockwise. ``corners_utm`` is the nominal (unclipped) implement footprint
 of the cell; ``polygons`` is the cell clipped to the field (partial cells at the
-boundary, slivers merged into their neighbour along the swath).
+boundary, slivers merged into their neighbour along the same swath). Field area no
+swath covers is never merged into a cell; it is reported as ``Grid.uncovered_m2``.
+
+The grid reads only the documented strip geometry of each swath
+(:class:`fieldrx.geo.planning.model.StripGeometry`) and the plan's frame.
 
 Inner swaths are cut in the planner's rotated frame with numpy; only cells that reach a
 boundary (decided exactly from the strip-column intervals the planner computed) are
@@ -25,8 +29,9 @@ from shapely.geometry import LineString, Polygon
 from shapely.geometry.base import BaseGeometry
 
 from . import PlanningError
-from .coverage import CoveragePlan, Frame, Swath, _polygonal
+from .coverage import CoveragePlan, Swath
 from .crs import utm_coords_to_lonlat
+from .planning.boundary import polygonal
 
 MAX_CELLS = 5_000_000
 MIN_CELL_LENGTH_M = 0.5
@@ -46,6 +51,10 @@ class Grid:
     headland: np.ndarray
     cell_length_m: float
     swath_width_m: float
+    # field area no cell covers (thin peninsulas the headland offsets cannot reach,
+    # wedges where a swath stops at a hole or notch, the strip left by the tolerance):
+    # reported, never hidden in a neighbouring cell (issue 16)
+    uncovered_m2: float = 0.0
     timings_s: dict[str, float] = field(default_factory=dict)
 
     def __len__(self) -> int:
@@ -58,7 +67,9 @@ class Grid:
     def to_geojson(self, epsg: int, rates_kg_ha: np.ndarray | None = None) -> dict:
         """RFC 7946 FeatureCollection of the clipped cells in lon/lat, in path order."""
         polys = shapely.transform(self.polygons, lambda c: utm_coords_to_lonlat(c, epsg))
-        geoms = shapely.to_geojson(shapely.set_precision(polys, 1e-9))
+        # pointwise rounding: no overlay, so it cannot raise a GEOS TopologyException
+        # (the grid-snapping default did on a real 6.5 ha field, issue 16)
+        geoms = shapely.to_geojson(shapely.set_precision(polys, 1e-9, mode="pointwise"))
         feats = []
         for i in range(len(self)):
             props = {
@@ -95,7 +106,26 @@ def build_grid(
     cell_length_m: float = 5.0,
     min_cell_fraction: float = 0.1,
 ) -> Grid:
-    """Cut the plan's path into cells (see module docstring)."""
+    """Cut the plan's path into cells (see module docstring).
+
+    A GEOS exception while clipping cells becomes a PlanningError that says so; it never
+    reaches the user as a TopologyException.
+    """
+    try:
+        return _build_grid(plan, boundary_utm, cell_length_m, min_cell_fraction)
+    except shapely.errors.GEOSException as exc:
+        raise PlanningError(
+            f"the geometry engine failed while cutting cells ({exc}); try another cell "
+            "length or heading, or simplify the boundary"
+        ) from exc
+
+
+def _build_grid(
+    plan: CoveragePlan,
+    boundary_utm: BaseGeometry | None,
+    cell_length_m: float,
+    min_cell_fraction: float,
+) -> Grid:
     import time
 
     t0 = time.perf_counter()
@@ -105,7 +135,7 @@ def build_grid(
     if not (0.0 <= min_cell_fraction < 1.0):
         raise PlanningError(f"min_cell_fraction must be in [0, 1), got {min_cell_fraction}")
     if boundary_utm is not None:
-        fld = _polygonal(boundary_utm)
+        fld = polygonal(boundary_utm)
         ref = plan.input_field if plan.input_field is not None else plan.field
         if abs(fld.symmetric_difference(ref).area) > 1e-6 * ref.area:
             raise PlanningError("boundary_utm is not the field this plan was made for")
@@ -120,19 +150,10 @@ def build_grid(
     inner = [s for s in plan.swaths if s.kind == "inner"]
     t = time.perf_counter()
     inner_cells = _inner_cells(plan, inner, cell) if inner else None
-    if inner_cells is not None:
-        _absorb_inner_leftovers(plan.frame, inner, inner_cells)
     timings["inner_cells"] = time.perf_counter() - t
     t = time.perf_counter()
     head = [_ring_cells(s, w, cell) for s in plan.swaths if s.kind == "headland"]
     head_cells = _resolve_overlaps(head) if head else []
-    if head_cells:
-        bands: dict[int, list[int]] = {}
-        hs = [sw for sw in plan.swaths if sw.kind == "headland"]
-        for k, sw in enumerate(hs):
-            bands.setdefault(id(sw.band), []).append(k)
-        for ks in bands.values():
-            _absorb_leftovers(hs[ks[0]].band, [head_cells[k] for k in ks])
     timings["headland_cells"] = time.perf_counter() - t
 
     # put the pieces back into path order
@@ -162,6 +183,7 @@ def build_grid(
     if n == 0:
         raise PlanningError("the grid is empty (field smaller than one cell)")
     timings["total"] = time.perf_counter() - t0
+    field_area = plan.field.area  # the planned (possibly simplified) field
     return Grid(
         seq=np.arange(n, dtype=np.int64),
         swath=cat["swath"][keep].astype(np.int32),
@@ -173,6 +195,7 @@ def build_grid(
         headland=hl[keep],
         cell_length_m=cell,
         swath_width_m=w,
+        uncovered_m2=float(max(0.0, field_area - cat["area"][keep].sum())),
         timings_s=timings,
     )
 
@@ -191,9 +214,9 @@ def _inner_cells(plan: CoveragePlan, inner: list[Swath], cell: float) -> _Cells:
     w = plan.swath_width_m
     fr = plan.frame
     sidx = np.array([s.index for s in inner], np.int64)
-    x0 = np.array([s.x0 for s in inner])
-    x1 = np.array([s.x1 for s in inner])
-    y = np.array([s.y for s in inner])
+    x0 = np.array([s.strip.x0 for s in inner])
+    x1 = np.array([s.strip.x1 for s in inner])
+    y = np.array([s.strip.y for s in inner])
     d = np.array([s.direction for s in inner], np.float64)
     k = np.maximum(1, np.ceil((x1 - x0) / cell - 1e-9)).astype(np.int64)
     rep = np.repeat(np.arange(len(inner)), k)
@@ -216,7 +239,7 @@ def _inner_cells(plan: CoveragePlan, inner: list[Swath], cell: float) -> _Cells:
     inside = np.zeros(len(j), bool)
     for m, s in enumerate(inner):
         sl = slice(offs[m], offs[m] + k[m])
-        full = s.full
+        full = s.strip.full
         if full is None or len(full) == 0:
             continue
         q = np.searchsorted(full[:, 0], lo[sl] + 1e-9, side="right") - 1
@@ -230,7 +253,7 @@ def _inner_cells(plan: CoveragePlan, inner: list[Swath], cell: float) -> _Cells:
     polys[inside] = _rectangles(corners[inside])
     part = np.flatnonzero(~inside)
     if len(part):
-        clips = np.array([inner[m].clip for m in rep[part]], dtype=object)
+        clips = np.array([inner[m].strip.clip for m in rep[part]], dtype=object)
         raw = shapely.polygons(cf[part])
         cut = shapely.intersection(raw, clips)
         cut = shapely.transform(_only_polygons(cut), fr.inv)
@@ -353,7 +376,7 @@ def _ring_cells(s: Swath, w: float, cell: float) -> _Cells:
     if better is not None:
         polys = better
     cells = _only_polygons(
-        shapely.intersection(np.array(polys, dtype=object), s.band), snap=better is None
+        shapely.intersection(np.array(polys, dtype=object), s.strip.band), snap=better is None
     )
     return _Cells(
         np.full(k, s.index, np.int64),
@@ -450,72 +473,6 @@ def _offset_curve_cells(ring: LineString, cut_pts: np.ndarray, w: float) -> list
         poly = Polygon(ring_pts)
         polys.append(poly if poly.is_valid else shapely.make_valid(poly))
     return polys
-
-
-def _absorb_leftovers(area: BaseGeometry, groups: list[_Cells]) -> None:
-    """Give every bit of ``area`` no cell covers to the nearest cell (in place).
-
-    Headland offsets cannot reach into thin peninsulas and the swath split at a notch
-    leaves small wedges; their fertiliser still has to be planned, so they join the
-    nearest cell instead of falling out of the grid.
-    """
-    polys = np.concatenate([g.polys for g in groups])
-    if shapely.area(polys).sum() >= area.area * (1.0 - 1e-9):
-        return  # cells do not overlap, so equal area means nothing is left over
-    left = shapely.difference(area, shapely.union_all(polys))
-    pieces = [q for q in shapely.get_parts(left) if shapely.get_type_id(q) == 3 and q.area > 1e-6]
-    if not pieces:
-        return
-    tree = shapely.STRtree(polys)
-    targets = tree.query_nearest(np.array(pieces, dtype=object), return_distance=False)[1]
-    grown: dict[int, list] = {}
-    for piece, t in zip(pieces, targets, strict=False):
-        grown.setdefault(int(t), []).append(piece)
-    offs = np.cumsum([0] + [len(g.polys) for g in groups])
-    for t, add in grown.items():
-        gi = int(np.searchsorted(offs, t, side="right") - 1)
-        g, k = groups[gi], t - offs[gi]
-        merged = _only_polygons(np.array([shapely.union_all([g.polys[k], *add])]))[0]
-        g.polys[k] = merged
-        g.area[k] = shapely.area(merged)
-        g.cent[k] = inside_centres(np.array([merged], dtype=object))[0]
-
-
-def _absorb_inner_leftovers(frame: Frame, inner: list[Swath], cells: _Cells) -> None:
-    """Strip pieces whose swaths do not span them (split at a notch or hole) join cells."""
-    by_comp: dict[int, list[int]] = {}
-    for m, sw in enumerate(inner):
-        by_comp.setdefault(id(sw.clip), []).append(m)
-    swath_rows: dict[int, np.ndarray] = {}
-    for ms in by_comp.values():
-        comp = inner[ms[0]].clip
-        if comp is None:
-            continue
-        span = sum(inner[m].x1 - inner[m].x0 for m in ms)
-        x0, _, x1, _ = comp.bounds
-        if span >= (x1 - x0) - 1e-9:
-            continue
-        if not swath_rows:
-            order = np.argsort(cells.swath, kind="stable")
-            sw_sorted = cells.swath[order]
-            for m, sw in enumerate(inner):
-                lo = np.searchsorted(sw_sorted, sw.index)
-                hi = np.searchsorted(sw_sorted, sw.index, side="right")
-                swath_rows[m] = order[lo:hi]
-        rows = np.concatenate([swath_rows[m] for m in ms])
-        sub = _Cells(
-            cells.swath[rows],
-            cells.idx[rows],
-            cells.corners[rows],
-            cells.polys[rows].copy(),
-            cells.area[rows].copy(),
-            cells.cent[rows].copy(),
-            False,
-        )
-        _absorb_leftovers(frame.inv_geom(comp), [sub])  # comp is in the planning frame
-        cells.polys[rows] = sub.polys
-        cells.area[rows] = sub.area
-        cells.cent[rows] = sub.cent
 
 
 def _resolve_overlaps(rings: list[_Cells]) -> list[_Cells]:

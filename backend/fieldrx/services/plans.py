@@ -41,6 +41,9 @@ class PlanParams:
     start_corner: str = "sw"
     headland_order: str = "first"
     min_cell_fraction: float = 0.1
+    turn_radius_m: float = 6.0
+    reverse: bool = False
+    pattern: str = "boustrophedon"
 
 
 def driver_connection(session: Session) -> Any:
@@ -401,6 +404,9 @@ def create_plan(session: Session, field: Field, params: PlanParams, organisation
         headland_passes=params.headland_passes,
         start_corner=params.start_corner,  # type: ignore[arg-type]
         headland_order=params.headland_order,  # type: ignore[arg-type]
+        turn_radius_m=params.turn_radius_m,
+        reverse=params.reverse,
+        pattern=params.pattern,
     )
     t_plan = time.perf_counter()
     grid = build_grid(
@@ -412,6 +418,7 @@ def create_plan(session: Session, field: Field, params: PlanParams, organisation
     t_grid = time.perf_counter()
     metrics: dict[str, Any] = dict(cov.metrics())
     metrics["n_cells"] = len(grid)
+    metrics["cells_uncovered_m2"] = round(grid.uncovered_m2, 3)
     metrics["epsg"] = field.utm_epsg
     route = to_wgs84(cov.route(), field.utm_epsg)
     plan = Plan(
