@@ -7,6 +7,8 @@ import statistics
 import time
 import uuid
 
+from tests.support import machine_body
+
 LOGIN = "/api/v1/auth/login"
 
 
@@ -85,7 +87,7 @@ def test_device_tokens_expire(client, org, db) -> None:  # noqa: ANN001
 
     from sqlalchemy import text
 
-    m = client.post("/api/v1/machines", headers=org.headers(), json={"name": "t", "width_m": 3})
+    m = client.post("/api/v1/machines", headers=org.headers(), json=machine_body("t", 3.0))
     r = client.post(f"/api/v1/machines/{m.json()['id']}/device-token", headers=org.headers())
     assert r.status_code == 201, r.text
     body = r.json()
@@ -103,7 +105,7 @@ def test_device_tokens_expire(client, org, db) -> None:  # noqa: ANN001
 
 
 def test_device_rotates_its_own_token(client, org) -> None:  # noqa: ANN001
-    m = client.post("/api/v1/machines", headers=org.headers(), json={"name": "t", "width_m": 3})
+    m = client.post("/api/v1/machines", headers=org.headers(), json=machine_body("t", 3.0))
     old = client.post(f"/api/v1/machines/{m.json()['id']}/device-token", headers=org.headers())
     old_h = {"Authorization": f"Bearer {old.json()['token']}"}
     r = client.post("/api/v1/device/token", headers=old_h)
