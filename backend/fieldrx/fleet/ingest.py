@@ -36,6 +36,7 @@ from fieldrx_edge.protocol import (
     _FIELD_SET,
     _FLOAT_FIELDS,
     ALARMS,
+    EXTRA_FIELDS,
     TELEMETRY_FIELDS,
     TelemetryAck,
     TelemetryRecord,
@@ -65,6 +66,7 @@ COLUMNS = (
     "implement_down",
     "alarms",
     "queue_backlog",
+    *EXTRA_FIELDS,  # optional sensor-job fields (issue 13), last so row indexes stay put
 )
 # t goes as int8 microseconds since 2000-01-01: the binary form of timestamptz, without
 # building a datetime per record; geom goes as raw EWKB bytes (geometry_recv reads EWKB).
@@ -90,6 +92,7 @@ COPY_TYPES = (
     "bool",
     "varchar[]",
     "int4",
+    *("float8",) * len(EXTRA_FIELDS),
 )
 COPY_SQL = f"COPY telemetry ({', '.join(COLUMNS)}) FROM STDIN (FORMAT BINARY)"
 
@@ -141,6 +144,7 @@ def parse_body(body: bytes | str) -> list[Any]:
 _GET_ALL = operator.itemgetter(*TELEMETRY_FIELDS)
 _N_FIELDS = len(TELEMETRY_FIELDS)
 _FLOAT_TYPES = frozenset({float, type(None)})
+_NO_EXTRAS = (None,) * len(EXTRA_FIELDS)  # records with extras take the general path
 assert TELEMETRY_FIELDS == (
     "machine_id", "seq", "t", "lon", "lat", "fix_quality", "hdop", "speed_raw_m_s",
     "speed_filtered_m_s", "heading_deg", "job_id", "cell_seq", "target_rate_kg_ha",
@@ -194,7 +198,7 @@ def _fast_row(d: Any, machine_id: int) -> tuple[Any, ...] | None:
         geom = _EWKB_POINT.pack(1, 0x20000001, 4326, lon, lat)
     return (
         m, s, int((t - PG_EPOCH) * 1e6), job, geom, fq, hdop, sraw, sfil, head, cell, trate,
-        arate, trpm, arpm, duty, ndvi, depth, down, alarms, backlog,
+        arate, trpm, arpm, duty, ndvi, depth, down, alarms, backlog, *_NO_EXTRAS,
     )  # fmt: skip
 
 
@@ -240,10 +244,11 @@ def _slow_row(d: Any, machine_id: int) -> tuple[Any, ...] | str:
         fq,
         *f[:4],
         cell,
-        *f[4:],
+        *f[4:11],
         rec.implement_down,
         list(rec.alarms),
         backlog,
+        *f[11:],
     )
 
 
