@@ -49,7 +49,14 @@ def job_report(
     session: SessionDep,
     cells: bool = Query(default=True, description="include the per-cell rows"),
 ) -> dict[str, Any]:
-    """Per-cell target vs applied rate and accuracy theta, coverage, totals, time worked."""
+    """Per-cell target vs applied rate and accuracy theta, coverage, totals, time worked.
+    Sensor kinds get their own report (fieldrx.fleet.seed_reports: NDVI / depth maps and the
+    papers' Table 3)."""
+    job = get_scoped(session, Job, job_id, principal)
+    if job.kind != "prescription_map":
+        from fieldrx.fleet.seed_reports import kind_report
+
+        return kind_report(session, job, cells=cells)
     _, rep = _report(session, job_id, principal)
     out = rep.summary()
     if cells:

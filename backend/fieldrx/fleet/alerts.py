@@ -24,6 +24,7 @@ ALERT_KINDS = (
     "fix_lost",
     "no_data",
     "cells_not_applied",
+    "depth_qualified_low",  # seeding job: qualified depth share fell below the job's threshold
 )
 LIVE_CHANNEL = "fieldrx_live"
 # kinds opened and closed by records; a machine gone silent leaves them unobservable

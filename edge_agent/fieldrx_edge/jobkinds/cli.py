@@ -1,0 +1,144 @@
+"""``fieldrx-edge simulate`` and ``fieldrx-edge run`` for the sensor job kinds.
+
+``simulate``: drives the kind's simulator over the job's field; with ``--server`` the
+records go through the durable queue and the HTTP uplink exactly as ``run``'s, and the job
+is reported running, then completed. The last stdout line is the simulator's own figures
+(JSON), which the server's report must reproduce.
+
+``run``: the tractor. GNSS from ``--source`` (speed, position; a thread), the kind's sensor
+from ``--sensor`` (``serial:/dev/ttyUSB1@38400`` or ``file:log``, see ``sensors``); one
+record per sensor line. A rejected line holds the last good value for the job's
+``sensor_hold_s`` (alarm ``sensor_fault``), then the output stops (alarm ``sensor_lost``:
+shaft target 0 / cylinder held still) until good lines return. The motor / cylinder here is
+simulated (``--motor sim``); drivers for real hardware plug in where the loop writes.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import tempfile
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+from fieldrx_edge.protocol import JobPackage
+
+
+def simulate_kind(a: argparse.Namespace, job: JobPackage) -> int:
+    from fieldrx_edge.jobkinds.seeding import simulate_seeding
+    from fieldrx_edge.jobkinds.topdress import simulate_topdress
+
+    sink = sender = queue = None
+    if a.server:
+        from fieldrx_edge.jobs import post_state
+        from fieldrx_edge.uplink import HttpSender, TelemetryQueue
+
+        if not a.token:
+            raise SystemExit("--server needs --token")
+        qdir = Path(a.state_dir) if a.state_dir else Path(tempfile.mkdtemp(prefix="fieldrx-sim-"))
+        queue = TelemetryQueue(qdir / "queue.sqlite", job.machine_id)
+        sender = HttpSender(queue, a.server, a.token)
+        sink = queue.put_many
+        post_state(a.server, a.token, job.job_id, "running")
+    stop = threading.Event()
+    th = None
+    if sender is not None:
+        th = threading.Thread(target=sender.run, args=(stop,), daemon=True)
+        th.start()
+    ctl = None
+    if a.controller:
+        from fieldrx_edge.jobkinds.settings import validate_settings
+
+        ctl = validate_settings(job.kind, {"controller": {"name": a.controller}})["controller"]
+    fault = tuple(a.sensor_fault) if getattr(a, "sensor_fault", None) else None
+    if job.kind == "ndvi_topdress":
+        out = simulate_topdress(job, seed=a.seed, sink=sink, controller=ctl, fault_at_s=fault)
+    else:
+        out = simulate_seeding(job, seed=a.seed, sink=sink, controller=ctl, fault_at_s=fault)
+    stop.set()
+    if th is not None:
+        th.join(timeout=15.0)
+    if sender is not None and queue is not None:
+        from fieldrx_edge.jobs import post_state
+
+        out["telemetry_drained"] = sender.drain(a.drain_timeout)
+        out["telemetry"] = queue.stats()
+        sender.close()
+        out["job_state_reported"] = post_state(a.server, a.token, job.job_id, "completed")
+    print(json.dumps(out))
+    return 0
+
+
+def run_kind(a: argparse.Namespace, job: JobPackage, store: Any, make_sender: Any) -> int:
+    """The agent's loop for a sensor kind (see the module doc); ``make_sender(a, store,
+    queue)`` is ``run``'s uplink factory (HTTP / MQTT / none)."""
+    from fieldrx_edge.gnss.sources import open_source
+    from fieldrx_edge.jobkinds.sensors import SensorError, parse_ndvi
+    from fieldrx_edge.ndvi import GnssSpeed
+    from fieldrx_edge.protocol import TelemetryRecord
+    from fieldrx_edge.uplink import TelemetryQueue
+
+    if not a.sensor:
+        raise SystemExit(f"a {job.kind} job needs --sensor (serial:DEV@BAUD or file:PATH)")
+    queue = TelemetryQueue(store.queue_path(), job.machine_id)
+    gnss = GnssSpeed(open_source(a.source, a.replay_speed or None))
+    speed = a.replay_speed if a.replay_speed > 0 else None
+    sender = None
+    if not a.offline:
+        sender = make_sender(a, store, queue)
+    stop = threading.Event()
+    if sender is not None:
+        threading.Thread(target=sender.run, args=(stop,), daemon=True).start()
+    n = 0
+    errors: dict[str, int] = {}
+    t0 = time.monotonic()
+    if job.kind == "ndvi_topdress":
+        from fieldrx_edge.jobkinds.topdress import TopdressLoop
+
+        loop = TopdressLoop(job)
+        n_s = int(job.kind_settings["sensors"]["count"])
+        for line in open_source(a.sensor, speed):
+            now = time.monotonic() - t0
+            vals = None
+            try:
+                _, vals = parse_ndvi(line, n_s)
+            except SensorError as exc:
+                loop.guard.bad(exc.reason)
+                errors[exc.reason] = errors.get(exc.reason, 0) + 1
+            v = gnss.speed_m_s or 0.0
+            d = loop.on_sample(now, vals, v)
+            rec = TelemetryRecord(
+                machine_id=job.machine_id, seq=1, t=time.time(), lon=gnss.lon, lat=gnss.lat,
+                fix_quality=gnss.fix_quality, speed_filtered_m_s=v, job_id=job.job_id,
+                target_rate_kg_ha=d.rate_kg_ha, target_shaft_rpm=d.target_rpm,
+                ndvi=d.ndvi, ndvi_raw=d.ndvi_raw, implement_down=True,
+                alarms=sorted(set(d.alarms)),
+            )  # fmt: skip
+            queue.put(rec.to_dict())
+            n += 1
+    else:
+        from fieldrx_edge.jobkinds.seeding import DepthJobLoop
+
+        dl = DepthJobLoop(job)
+        for line in open_source(a.sensor, speed):
+            now = time.monotonic() - t0
+            dl.on_line(now, line)
+            depth, alarms = dl.depth(now)
+            rec = TelemetryRecord(
+                machine_id=job.machine_id, seq=1, t=time.time(), lon=gnss.lon, lat=gnss.lat,
+                fix_quality=gnss.fix_quality, speed_filtered_m_s=gnss.speed_m_s,
+                job_id=job.job_id, depth_mm=depth, implement_down=True, alarms=sorted(set(alarms)),
+            )  # fmt: skip
+            queue.put(rec.to_dict())
+            n += 1
+        errors = dict(dl.guard.errors)
+    drained = True
+    if sender is not None:
+        stop.set()
+        drained = sender.drain(a.drain_timeout)
+        sender.close()
+    print(json.dumps({"job_id": job.job_id, "kind": job.kind, "records": n,
+                      "sensor_errors": errors, "drained": drained}))  # fmt: skip
+    return 0
