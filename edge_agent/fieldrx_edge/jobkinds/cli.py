@@ -7,10 +7,12 @@ is reported running, then completed. The last stdout line is the simulator's own
 
 ``run``: the tractor. GNSS from ``--source`` (speed, position; a thread), the kind's sensor
 from ``--sensor`` (``serial:/dev/ttyUSB1@38400`` or ``file:log``, see ``sensors``); one
-record per sensor line. A rejected line holds the last good value for the job's
-``sensor_hold_s`` (alarm ``sensor_fault``), then the output stops (alarm ``sensor_lost``:
-shaft target 0 / cylinder held still) until good lines return. The motor / cylinder here is
-simulated (``--motor sim``); drivers for real hardware plug in where the loop writes.
+record per sensor line. The sensor clock is the line's own time when it has one, else one
+sample period after the previous line (a rejected line has no trustworthy time). A rejected
+line holds the last good value for the job's ``sensor_hold_s`` (alarm ``sensor_fault``),
+then the output stops (alarm ``sensor_lost``: shaft target 0) until good lines return.
+Not yet: a watchdog for a serial sensor that falls silent without sending anything (the
+loop waits on the next line), and the hardware drivers (motor, cylinder) for these kinds.
 """
 
 from __future__ import annotations
@@ -93,22 +95,31 @@ def run_kind(a: argparse.Namespace, job: JobPackage, store: Any, make_sender: An
         threading.Thread(target=sender.run, args=(stop,), daemon=True).start()
     n = 0
     errors: dict[str, int] = {}
-    t0 = time.monotonic()
     if job.kind == "ndvi_topdress":
+        from fieldrx_edge.gnss.utm import UtmProjection
         from fieldrx_edge.jobkinds.topdress import TopdressLoop
 
         loop = TopdressLoop(job)
+        proj = UtmProjection(job.utm_epsg)
         n_s = int(job.kind_settings["sensors"]["count"])
+        period = 1.0 / float(job.kind_settings["sensors"]["sample_hz"])
+        now = 0.0
         for line in open_source(a.sensor, speed):
-            now = time.monotonic() - t0
             vals = None
+            now += period
             try:
-                _, vals = parse_ndvi(line, n_s)
+                tl, vals = parse_ndvi(line, n_s)
+                now = tl if tl is not None else now
             except SensorError as exc:
                 loop.guard.bad(exc.reason)
                 errors[exc.reason] = errors.get(exc.reason, 0) + 1
             v = gnss.speed_m_s or 0.0
-            d = loop.on_sample(now, vals, v)
+            inside = True
+            if loop.boundary is not None:  # no fix: no position to keep inside the field
+                inside = gnss.lon is not None and loop.boundary.contains(
+                    *proj.forward(gnss.lon, gnss.lat)  # type: ignore[arg-type]
+                )
+            d = loop.on_sample(now, vals, v, inside)
             rec = TelemetryRecord(
                 machine_id=job.machine_id, seq=1, t=time.time(), lon=gnss.lon, lat=gnss.lat,
                 fix_quality=gnss.fix_quality, speed_filtered_m_s=v, job_id=job.job_id,
@@ -122,9 +133,9 @@ def run_kind(a: argparse.Namespace, job: JobPackage, store: Any, make_sender: An
         from fieldrx_edge.jobkinds.seeding import DepthJobLoop
 
         dl = DepthJobLoop(job)
+        now = 0.0
         for line in open_source(a.sensor, speed):
-            now = time.monotonic() - t0
-            dl.on_line(now, line)
+            now = dl.on_line(now + 0.1, line)
             depth, alarms = dl.depth(now)
             rec = TelemetryRecord(
                 machine_id=job.machine_id, seq=1, t=time.time(), lon=gnss.lon, lat=gnss.lat,

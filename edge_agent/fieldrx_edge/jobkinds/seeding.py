@@ -79,13 +79,16 @@ class DepthJobLoop:
         self.guard = SensorGuard(float(s["sensor_hold_s"]))
         self.target_mm = float(s["target_depth_mm"])
 
-    def on_line(self, t: float, line: str) -> None:
+    def on_line(self, t: float, line: str) -> float:
+        """Take one sensor line; returns its time (the line's own, else ``t``)."""
         try:
-            _, mv = parse_depth_mv(line, self.min_mv, self.max_mv)
+            tl, mv = parse_depth_mv(line, self.min_mv, self.max_mv)
         except SensorError as exc:
             self.guard.bad(exc.reason)
-            return
+            return t
+        t = tl if tl is not None else t
         self.guard.good(t, self.cal.depth_mm(mv))
+        return t
 
     def on_mv(self, t: float, mv: float | None) -> None:
         if mv is None:

@@ -130,7 +130,8 @@ class TopdressLoop:
         if values is not None:
             self.guard.good(t, sum(values) / len(values))
         raw, alarms = self.guard.value(t)
-        if raw is None:
+        if raw is None:  # lost: stop; the window restarts with fresh readings, not stale ones
+            self.mode.filter.reset()
             return Decision(None, None, 0.0, 0.0, alarms)
         d = self.mode.on_sample(NdviSample(t, (raw,)), speed_m_s)
         alarms = alarms + d.alarms
