@@ -200,3 +200,39 @@ def test_run_ndvi_job_from_files_holds_then_stops(tmp_path: Path) -> None:
     assert "sensor_lost" in recs[-2]["alarms"] and recs[-2]["target_rate_kg_ha"] == 0.0
     assert recs[-2]["target_shaft_rpm"] == 0.0
     assert recs[-1]["alarms"] == [] and recs[-1]["target_rate_kg_ha"] < 300.0
+
+
+def test_run_depth_job_from_files(tmp_path: Path) -> None:
+    from fieldrx_edge.jobkinds.seeding import DepthJobLoop
+    from fieldrx_edge.sim.drive import write_nmea_log
+
+    job = kind_job("seeding_depth")
+    pkg = tmp_path / "job.json"
+    pkg.write_bytes(job.to_json())
+    write_nmea_log(job, tmp_path / "gnss.nmea", max_s=10.0)
+    cal = DepthJobLoop(job).cal
+    lines = [depth_line(0.1 * i, cal.signal_mv(33.0)) for i in range(1, 11)]  # 3 mm deep
+    lines += [depth_line(1.1, 5000.0), depth_line(1.2, 1000.0)]  # out of range: held
+    lines += ["$DEPTH,1.3,3700*00"] + ["x"] * 6  # checksum, format: beyond 0.5 s -> lost
+    lines += [depth_line(2.5, cal.signal_mv(30.0))]
+    (tmp_path / "depth.log").write_text("\n".join(lines) + "\n")
+    out = subprocess.run(
+        [str(BIN / "fieldrx-edge"), "run", str(pkg), "--source", f"file:{tmp_path / 'gnss.nmea'}",
+         "--sensor", f"file:{tmp_path / 'depth.log'}", "--offline",
+         "--state-dir", str(tmp_path / "state")],
+        cwd=ROOT, capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert out.returncode == 0, out.stderr[-2000:]
+    res = json.loads(out.stdout.strip().splitlines()[-1])
+    assert res["sensor_errors"] == {"range": 2, "checksum": 1, "format": 6}
+    recs = _queued(tmp_path / "state")
+    assert recs[0]["depth_mm"] == pytest.approx(33.0, abs=0.01)
+    assert recs[9]["duty"] < 0  # too deep: the loop drives the roller to shallower
+    assert recs[10]["alarms"] == ["sensor_fault"] and recs[10]["depth_mm"] == recs[9]["depth_mm"]
+    lost = [r for r in recs if "sensor_lost" in r["alarms"]]
+    assert lost and all(r["depth_mm"] is None and r["duty"] == 0.0 for r in lost)
+    # command 0: the cylinder coasts to a stop (seed 002's 0.592 s mechanism), never pushed
+    pos = [r["actuator_mm"] for r in lost]
+    steps = [abs(b - a) for a, b in zip(pos, pos[1:], strict=False)]
+    assert all(b < a for a, b in zip(steps, steps[1:], strict=False))
+    assert recs[-1]["alarms"] == [] and recs[-1]["depth_mm"] == pytest.approx(30.0, abs=0.01)

@@ -10,9 +10,11 @@ from ``--sensor`` (``serial:/dev/ttyUSB1@38400`` or ``file:log``, see ``sensors`
 record per sensor line. The sensor clock is the line's own time when it has one, else one
 sample period after the previous line (a rejected line has no trustworthy time). A rejected
 line holds the last good value for the job's ``sensor_hold_s`` (alarm ``sensor_fault``),
-then the output stops (alarm ``sensor_lost``: shaft target 0) until good lines return.
+then the output stops (alarm ``sensor_lost``: shaft target 0 / cylinder command 0, held
+still) until good lines return.
 Not yet: a watchdog for a serial sensor that falls silent without sending anything (the
-loop waits on the next line), and the hardware drivers (motor, cylinder) for these kinds.
+loop waits on the next line), and hardware drivers for the shaft motor and the cylinder of
+these kinds (both are the papers' models here, as ``--motor sim``).
 """
 
 from __future__ import annotations
@@ -130,17 +132,29 @@ def run_kind(a: argparse.Namespace, job: JobPackage, store: Any, make_sender: An
             queue.put(rec.to_dict())
             n += 1
     else:
-        from fieldrx_edge.jobkinds.seeding import DepthJobLoop
+        from fieldrx_edge.jobkinds.seeding import DepthJobLoop, build_depth_controller
+        from fieldrx_edge.plants import seed002_depth
 
         dl = DepthJobLoop(job)
+        ks = job.kind_settings
+        ctrl = build_depth_controller(ks["controller"], float(ks["actuator_speed_mm_s"]))
+        period = 0.1  # one command per sensor line here (the 1 ms loop belongs to the drive)
+        cylinder = seed002_depth(period)  # --motor sim: the adjusting mechanism's model
         now = 0.0
         for line in open_source(a.sensor, speed):
-            now = dl.on_line(now + 0.1, line)
+            now = dl.on_line(now + period, line)
             depth, alarms = dl.depth(now)
+            # sensor lost: command 0, the cylinder holds where it is (seed 002's mechanism
+            # integrates the command); held value: the loop goes on with it
+            u = 0.0 if depth is None else ctrl.step(dl.target_mm, depth, period)
+            pos = cylinder.step(u)
+            gains = getattr(ctrl, "gains", (ctrl.kp, ctrl.ki, ctrl.kd))
             rec = TelemetryRecord(
                 machine_id=job.machine_id, seq=1, t=time.time(), lon=gnss.lon, lat=gnss.lat,
                 fix_quality=gnss.fix_quality, speed_filtered_m_s=gnss.speed_m_s,
                 job_id=job.job_id, depth_mm=depth, implement_down=True, alarms=sorted(set(alarms)),
+                duty=u, actuator_mm=pos, gain_kp=float(gains[0]), gain_ki=float(gains[1]),
+                gain_kd=float(gains[2]),
             )  # fmt: skip
             queue.put(rec.to_dict())
             n += 1
