@@ -135,10 +135,14 @@ def test_seeding_depth_job_end_to_end(database_url, org, tmp_path: Path, fault: 
             assert _rel(a[k], b[k]) < 0.005, (k, a, b)
     assert rep["qualified_alert"]["triggered"] == sim["qualified_alert"]["triggered"]
     assert all(15.0 < x["depth_mm"] < 45.0 for x in rep["cells"])
+    low = [a for a in alerts.get("items", alerts) if a["kind"] == "depth_qualified_low"]
+    if not fault:  # the default 90 % over 50 m holds on this field
+        assert not low and not rep["qualified_alert"]["triggered"]
     if fault:
         # 4 s silent: 0.5 s held (sensor_fault), then stopped and alarmed (sensor_lost)
         assert rep["sensor_alarm_records"]["sensor_fault"] >= 4
         assert rep["sensor_alarm_records"]["sensor_lost"] >= 30
         assert sim["sensor_errors"]["silent"] >= 30
-        kinds = [a["kind"] for a in alerts.get("items", alerts)]
-        assert "depth_qualified_low" in kinds
+        # raised live by ingest (trailing 50 m below the 99.9 % asked for), ended with the job
+        assert low and all(a["job_id"] == job["id"] and a["ended_at"] for a in low)
+        assert "over the last 50 m" in low[0]["message"]

@@ -367,6 +367,14 @@ def ingest(conn: psycopg.Connection[Any], machine_id: int, raw: list[Any]) -> In
                     info.open_alerts,
                 )
             )
+        if new and any(r[17] is not None for r in new):  # depths: seeding job (issue 13)
+            from fieldrx.fleet.seed_alerts import check_depth_window
+
+            messages.extend(
+                check_depth_window(
+                    cur, machine_id, info.organisation_id, latest[3], info.open_alerts
+                )
+            )
         alert_rules.notify(cur, messages)
     return result
 

@@ -119,11 +119,23 @@ def kind_report(session: Session, job: Job, cells: bool = True) -> dict[str, Any
 
 
 def alert_kind_job_end(session: Session, job: Job) -> Alert | None:
-    """Seeding job ended: an alert when the qualified share over the trailing window fell
-    below the job's threshold somewhere (where and how low in the message)."""
+    """Seeding job ended: the live ``depth_qualified_low`` alert (fleet.seed_alerts) ends with
+    the job; when none was raised live (records replayed late, or a window the live check
+    never saw whole), the whole job's records are checked once and an alert says where the
+    qualified share over the trailing window fell below the job's threshold."""
     if job.kind != "seeding_depth":
         return None
     session.flush()
+    now = dt.datetime.now(dt.UTC)
+    raised = session.execute(
+        text(
+            "UPDATE alerts SET ended_at = coalesce(ended_at, :now)"
+            " WHERE job_id = :j AND kind = 'depth_qualified_low' RETURNING id"
+        ),
+        {"j": job.id, "now": now},
+    ).all()
+    if raised:
+        return None
     s = job.settings
     from fieldrx_edge.depth import qualified_band_mm
 
@@ -137,7 +149,6 @@ def alert_kind_job_end(session: Session, job: Job) -> Alert | None:
         return None
     lo, hi = qualified_band_mm(float(s["target_depth_mm"]))
     f = qa["first"]
-    now = dt.datetime.now(dt.UTC)
     a = Alert(
         organisation_id=job.organisation_id,
         machine_id=job.machine_id,
