@@ -501,6 +501,8 @@ def _position(org: int, r: tuple[Any, ...], result: IngestResult) -> dict[str, A
         "cell_seq": r[10],
         "target_rate_kg_ha": r[11],
         "applied_rate_kg_ha": r[12],
+        "ndvi": r[16],  # sensor jobs (issue 13): the fleet view shows the kind's own figure
+        "depth_mm": r[17],
         "implement_down": r[18],
         "alarms": r[19],
         "queue_backlog": r[20],
