@@ -80,7 +80,10 @@ def test_ndvi_topdress_job_end_to_end(database_url, org, tmp_path: Path) -> None
         assert s["controller"]["params"]["eps"] == 0.7 and s["sensors"]["height_m"] == 0.88
         sim = _drive(c, url, job, token, tmp_path)
         rep = c.get(f"/api/v1/jobs/{job['id']}/report").json()
-        assert c.get(f"/api/v1/jobs/{job['id']}").json()["state"] == "completed"
+        done = c.get(f"/api/v1/jobs/{job['id']}").json()
+        assert done["state"] == "completed"
+        # records name the plan cell under the tractor: progress as for a prescription job
+        assert done["cells_applied"] >= 0.8 * plan["n_cells"]
     finally:
         log = api.stop()
         if "Traceback" in log:

@@ -11,7 +11,7 @@ import numpy as np
 
 from fieldrx_edge.estimate import KalmanSpeedFilter
 from fieldrx_edge.gnss.utm import UtmProjection
-from fieldrx_edge.locate import FieldBoundary
+from fieldrx_edge.locate import FieldBoundary, locator_for_job
 from fieldrx_edge.protocol import JobPackage
 from fieldrx_edge.sim.simulator import SimConfig, build_path, speed_profile
 
@@ -33,6 +33,7 @@ class Drive:
     lat: np.ndarray
     run: np.ndarray
     tbase: float
+    cell_seq: list[int | None]  # plan cell under the antenna (job progress, maps)
 
 
 def drive(
@@ -75,8 +76,13 @@ def drive(
     proj = UtmProjection(job.utm_epsg)
     ll = np.array([proj.inverse(a, b) for a, b in zip(xn.tolist(), yn.tolist(), strict=True)])
     tbase = t0 if t0 is not None else time.time() - float(t[-1]) - 1.0
+    loc, _ = locator_for_job(job)
+    cells: list[int | None] = []
+    for a, b, dn in zip(x.tolist(), y.tolist(), (run >= 0).tolist(), strict=True):
+        k = loc.locate(a, b) if dn else -1
+        cells.append(int(job.seq[k]) if k >= 0 else None)
     return Drive(
-        t, x, y, heading, v, v_raw, v_filt, run >= 0, inside, ll[:, 0], ll[:, 1], run, tbase
+        t, x, y, heading, v, v_raw, v_filt, run >= 0, inside, ll[:, 0], ll[:, 1], run, tbase, cells
     )
 
 
@@ -96,6 +102,7 @@ def record(job: JobPackage, d: Drive, i: int, **fields: Any) -> dict[str, Any]:
         speed_filtered_m_s=float(d.v_filt[i]),
         heading_deg=float(np.degrees(d.heading[i]) % 360.0),
         job_id=job.job_id,
+        cell_seq=d.cell_seq[i],
         implement_down=bool(d.down[i]),
         **fields,
     )
