@@ -97,12 +97,31 @@ def run_kind(a: argparse.Namespace, job: JobPackage, store: Any, make_sender: An
         threading.Thread(target=sender.run, args=(stop,), daemon=True).start()
     n = 0
     errors: dict[str, int] = {}
+    from fieldrx_edge.gnss.utm import UtmProjection
+    from fieldrx_edge.locate import locator_for_job
+
+    proj = UtmProjection(job.utm_epsg)
+    loc, _ = locator_for_job(job)
+
+    def where() -> tuple[tuple[float, float] | None, int | None]:
+        """(UTM position, plan cell seq) of the latest fix; None without a fix."""
+        if gnss.lon is None or gnss.lat is None:
+            return None, None
+        xy = proj.forward(gnss.lon, gnss.lat)
+        k = loc.locate(*xy)
+        return xy, (int(job.seq[k]) if k >= 0 else None)
+
     if job.kind == "ndvi_topdress":
-        from fieldrx_edge.gnss.utm import UtmProjection
-        from fieldrx_edge.jobkinds.topdress import TopdressLoop
+        from fieldrx_edge.jobkinds.topdress import PLANT_DT, TopdressLoop, build_shaft_controller
+        from fieldrx_edge.metering import rate_for_shaft_rpm
+        from fieldrx_edge.plants import seed000_shaft
 
         loop = TopdressLoop(job)
-        proj = UtmProjection(job.utm_epsg)
+        ctl = job.kind_settings["controller"]
+        shaft_ctrl, fscale = build_shaft_controller(ctl)
+        shaft = seed000_shaft(PLANT_DT)  # --motor sim: seed 000's shaft chain
+        ratio = max(1, round(float(ctl["period_s"]) / PLANT_DT))
+        u = y = 0.0
         n_s = int(job.kind_settings["sensors"]["count"])
         period = 1.0 / float(job.kind_settings["sensors"]["sample_hz"])
         now = 0.0
@@ -116,17 +135,25 @@ def run_kind(a: argparse.Namespace, job: JobPackage, store: Any, make_sender: An
                 loop.guard.bad(exc.reason)
                 errors[exc.reason] = errors.get(exc.reason, 0) + 1
             v = gnss.speed_m_s or 0.0
+            xy, cell = where()
             inside = True
             if loop.boundary is not None:  # no fix: no position to keep inside the field
-                inside = gnss.lon is not None and loop.boundary.contains(
-                    *proj.forward(gnss.lon, gnss.lat)  # type: ignore[arg-type]
-                )
+                inside = xy is not None and loop.boundary.contains(*xy)
             d = loop.on_sample(now, vals, v, inside)
+            for k in range(max(1, round(period / PLANT_DT))):  # the shaft until the next line
+                if k % ratio == 0:
+                    u = shaft_ctrl.step(d.target_rpm * fscale, y * fscale, float(ctl["period_s"]))
+                    if d.target_rpm <= 0.0:
+                        u = 0.0
+                        shaft_ctrl.reset()
+                y = max(0.0, shaft.step(u))
+            applied = rate_for_shaft_rpm(loop.cal, y, loop.width_m, v) if v > 0.05 else 0.0
             rec = TelemetryRecord(
                 machine_id=job.machine_id, seq=1, t=time.time(), lon=gnss.lon, lat=gnss.lat,
                 fix_quality=gnss.fix_quality, speed_filtered_m_s=v, job_id=job.job_id,
-                target_rate_kg_ha=d.rate_kg_ha, target_shaft_rpm=d.target_rpm,
-                ndvi=d.ndvi, ndvi_raw=d.ndvi_raw, implement_down=True,
+                cell_seq=cell, target_rate_kg_ha=d.rate_kg_ha, target_shaft_rpm=d.target_rpm,
+                actual_shaft_rpm=y, applied_rate_kg_ha=applied if d.target_rpm > 0 else 0.0,
+                duty=100.0 * u / 5.0, ndvi=d.ndvi, ndvi_raw=d.ndvi_raw, implement_down=True,
                 alarms=sorted(set(d.alarms)),
             )  # fmt: skip
             queue.put(rec.to_dict())
@@ -152,7 +179,8 @@ def run_kind(a: argparse.Namespace, job: JobPackage, store: Any, make_sender: An
             rec = TelemetryRecord(
                 machine_id=job.machine_id, seq=1, t=time.time(), lon=gnss.lon, lat=gnss.lat,
                 fix_quality=gnss.fix_quality, speed_filtered_m_s=gnss.speed_m_s,
-                job_id=job.job_id, depth_mm=depth, implement_down=True, alarms=sorted(set(alarms)),
+                job_id=job.job_id, cell_seq=where()[1], depth_mm=depth, implement_down=True,
+                alarms=sorted(set(alarms)),
                 duty=u, actuator_mm=pos, gain_kp=float(gains[0]), gain_ki=float(gains[1]),
                 gain_kd=float(gains[2]),
             )  # fmt: skip
