@@ -71,3 +71,9 @@ def test_kind_job_validation_and_defaults(client, org, make_org) -> None:  # noq
                                           headers=dev).content)  # fmt: skip
     assert pkg.kind == "ndvi_topdress" and pkg.kind_settings == job["settings"]
     assert pkg.n_cells == job["n_cells"] and set(pkg.rate_kg_ha) == {0.0}
+    # seed 001's per-cell as-applied views point to the kind's own report (no 500)
+    for path in ("summary", "as-applied/cells", "export"):
+        r = client.get(f"/api/v1/jobs/{job['id']}/{path}", headers=h)
+        assert r.status_code == 409 and f"/jobs/{job['id']}/report" in r.json()["detail"], path
+    r = client.get(f"/api/v1/jobs/{job['id']}/report", headers=h)
+    assert r.status_code == 200 and r.json()["n_records"] == 0 and r.json()["cells"] == []

@@ -13,6 +13,7 @@ from fieldrx.api.common import ApiError, get_scoped
 from fieldrx.api.jobkinds import CONTROLLERS, DEFAULTS, KINDS, create_kind_job
 from fieldrx.auth.deps import SessionDep, UserDep, WriterDep
 from fieldrx.db.models import (
+    JOB_KINDS,
     JOB_STATES,
     Job,
     JobEvent,
@@ -279,3 +280,4 @@ def set_state(job_id: int, body: StateIn, principal: WriterDep, session: Session
 
 
 assert set(JOB_STATES) == set(State.__args__)  # type: ignore[attr-defined]
+assert set(JOB_KINDS) == set(Kind.__args__) == set(KINDS)  # type: ignore[attr-defined]
