@@ -10,6 +10,8 @@ describe('job kinds', () => {
       controller: { name: 'ladrc' },
     });
     expect(settingsBody('seeding_depth', { target_depth_mm: '25' })).toEqual({ target_depth_mm: 25 });
+    expect(settingsBody('ndvi_topdress', { restrict_to_boundary: 'true' })).toEqual({});
+    expect(settingsBody('ndvi_topdress', { restrict_to_boundary: 'false' })).toEqual({ restrict_to_boundary: false });
   });
 
   it('builds the body of each kind', () => {

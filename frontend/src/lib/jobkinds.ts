@@ -35,6 +35,7 @@ export const NDVI_FIELDS: SettingField[] = [
   { path: 'window', label: 'Sliding window', unit: 'samples', paper: 15, source: 'seed 000' },
   { path: 'controller.name', label: 'Shaft controller', unit: '', paper: 'isp', source: 'seed 000 eq. 11-12', options: ['isp', 'incremental_pid', 'ladrc'] },
   { path: 'sensor_hold_s', label: 'Hold last good reading', unit: 's', paper: 1.0, source: 'FieldRx', step: 0.1 },
+  { path: 'restrict_to_boundary', label: 'Only inside the field boundary', unit: '', paper: true, source: 'FieldRx', options: ['true', 'false'] },
 ];
 
 export const DEPTH_FIELDS: SettingField[] = [
@@ -63,7 +64,7 @@ export function settingsBody(kind: JobKind, values: Record<string, string>): Rec
   for (const f of fieldsOf(kind)) {
     const raw = values[f.path];
     if (raw == null || raw === '' || raw === String(f.paper)) continue;
-    const v: unknown = typeof f.paper === 'number' ? Number(raw) : raw;
+    const v: unknown = typeof f.paper === 'number' ? Number(raw) : typeof f.paper === 'boolean' ? raw === 'true' : raw;
     const parts = f.path.split('.');
     let obj = out;
     for (const p of parts.slice(0, -1)) obj = (obj[p] ??= {}) as Record<string, unknown>;

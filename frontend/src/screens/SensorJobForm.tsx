@@ -104,7 +104,8 @@ export function SensorJobForm({
           {ndviPreview(values)
             .map((p) => `NDVI ${p.ndvi.toFixed(1)} → ${formatRate(p.rate, 0)}`)
             .join(' · ')}
-          . Width and metering calibration are the machine&apos;s; no fertilizer outside the field boundary.
+          . Width and metering calibration are the machine&apos;s;{' '}
+          {values.restrict_to_boundary === 'false' ? 'meters wherever it drives.' : 'no fertilizer outside the field boundary.'}
         </p>
       ) : (
         <p className="muted small" data-testid="depth-band">
