@@ -241,3 +241,18 @@ def test_run_depth_job_from_files(tmp_path: Path) -> None:
     steps = [abs(b - a) for a, b in zip(pos, pos[1:], strict=False)]
     assert all(b < a for a, b in zip(steps, steps[1:], strict=False))
     assert recs[-1]["alarms"] == [] and recs[-1]["depth_mm"] == pytest.approx(30.0, abs=0.01)
+
+
+def test_simulation_paced_for_the_live_view() -> None:
+    import time
+
+    from fieldrx_edge.jobkinds.topdress import simulate_topdress
+
+    got: list[dict] = []
+    t0 = time.time()
+    out = simulate_topdress(kind_job("ndvi_topdress"), seed=1, sink=got.extend, realtime=400.0)
+    wall = time.time() - t0
+    assert len(got) == out["records"]
+    assert wall >= 0.9 * out["duration_s"] / 400.0  # paced, not as fast as possible
+    ts = [r["t"] for r in got]
+    assert ts == sorted(ts) and t0 - 0.01 <= ts[0] and ts[-1] <= time.time() + 0.01  # wall stamps

@@ -58,9 +58,13 @@ def simulate_kind(a: argparse.Namespace, job: JobPackage) -> int:
         ctl = validate_settings(job.kind, {"controller": {"name": a.controller}})["controller"]
     fault = tuple(a.sensor_fault) if getattr(a, "sensor_fault", None) else None
     if job.kind == "ndvi_topdress":
-        out = simulate_topdress(job, seed=a.seed, sink=sink, controller=ctl, fault_at_s=fault)
+        out = simulate_topdress(
+            job, seed=a.seed, sink=sink, controller=ctl, fault_at_s=fault, realtime=a.realtime
+        )
     else:
-        out = simulate_seeding(job, seed=a.seed, sink=sink, controller=ctl, fault_at_s=fault)
+        out = simulate_seeding(
+            job, seed=a.seed, sink=sink, controller=ctl, fault_at_s=fault, realtime=a.realtime
+        )
     stop.set()
     if th is not None:
         th.join(timeout=15.0)

@@ -107,3 +107,36 @@ def record(job: JobPackage, d: Drive, i: int, **fields: Any) -> dict[str, Any]:
         **fields,
     )
     return rec.to_dict()
+
+
+class Feed:
+    """Records to ``sink`` (queue.put_many): batches of 200 as fast as possible, or, with
+    ``realtime`` > 0, one at a time paced at that multiple of real time and stamped with the
+    wall clock when sent (so the fleet view watches the drive live, as ``simulate``'s
+    ``--realtime`` does for prescription jobs)."""
+
+    def __init__(self, sink: Any | None, realtime: float = 0.0) -> None:
+        self.sink = sink
+        self.realtime = realtime
+        self.batch: list[dict[str, Any]] = []
+        self.wall0 = time.time()
+
+    def put(self, rec: dict[str, Any], t_sim: float) -> None:
+        if self.sink is None:
+            return
+        if self.realtime > 0:
+            ahead = self.wall0 + t_sim / self.realtime - time.time()
+            if ahead > 0:
+                time.sleep(ahead)
+            rec["t"] = round(time.time(), 3)
+            self.sink([rec])
+            return
+        self.batch.append(rec)
+        if len(self.batch) >= 200:
+            self.sink(self.batch)
+            self.batch = []
+
+    def close(self) -> None:
+        if self.sink is not None and self.batch:
+            self.sink(self.batch)
+            self.batch = []

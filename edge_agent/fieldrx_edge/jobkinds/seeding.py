@@ -41,7 +41,7 @@ import numpy as np
 
 from fieldrx_edge.control import PID, FuzzyPID
 from fieldrx_edge.depth import DEPTH_FUZZY_FACTORS, DEPTH_PID_GAINS, DepthSensorCalibration
-from fieldrx_edge.jobkinds.common import drive, record
+from fieldrx_edge.jobkinds.common import Feed, drive, record
 from fieldrx_edge.jobkinds.figures import depth_table, qualified_alert
 from fieldrx_edge.jobkinds.sensors import SensorError, SensorGuard, parse_depth_mv
 from fieldrx_edge.jobkinds.topdress import figure_rows
@@ -129,6 +129,7 @@ def simulate_seeding(
     controller: dict[str, Any] | None = None,
     fault_at_s: tuple[float, float] | None = None,
     hz: float = 10.0,
+    realtime: float = 0.0,
 ) -> dict[str, Any]:
     """Drive the job; records (10 Hz) go to ``sink``. Returns the simulator's own Table 3."""
     s = job.kind_settings
@@ -151,7 +152,7 @@ def simulate_seeding(
     u = 0.0
     noise = 0.0
     recs: list[dict[str, Any]] = []
-    batch: list[dict[str, Any]] = []
+    feed = Feed(sink, realtime)
     for i in range(len(d.t)):
         t = float(d.t[i])
         working = bool(d.down[i])
@@ -178,11 +179,7 @@ def simulate_seeding(
             alarms=sorted(set(alarms)) if working else [],
         )
         recs.append(rec)
-        if sink is not None:
-            batch.append(rec)
-            if len(batch) >= 200:
-                sink(batch)
-                batch = []
+        feed.put(rec, t)
         # the loop between samples: the sensor is read every period (1 ms); the path moves on
         v = float(d.v_true[i])
         for k in range(sub):
@@ -197,8 +194,7 @@ def simulate_seeding(
                     noise = float(rng.normal(0.0, ADC_NOISE_MV * abs(loop.cal.slope_mm_per_mv)))
                 u = ctrl.step(target, dep + noise, period)
             y = plant.step(u)
-    if sink is not None and batch:
-        sink(batch)
+    feed.close()
     rows = figure_rows(recs)
     table = depth_table(rows, s["speed_bands_kmh"], target)
     alert = qualified_alert(rows, target, s["alert_window_m"], s["alert_min_qualified_pct"])

@@ -40,7 +40,7 @@ from typing import Any
 import numpy as np
 
 from fieldrx_edge.control import LADRC, IncrementalPID
-from fieldrx_edge.jobkinds.common import drive, record
+from fieldrx_edge.jobkinds.common import Feed, drive, record
 from fieldrx_edge.jobkinds.figures import shaft_table
 from fieldrx_edge.jobkinds.sensors import SensorGuard
 from fieldrx_edge.locate import FieldBoundary
@@ -156,6 +156,7 @@ def simulate_topdress(
     controller: dict[str, Any] | None = None,
     layout: str | None = None,
     fault_at_s: tuple[float, float] | None = None,
+    realtime: float = 0.0,
 ) -> dict[str, Any]:
     """Drive the job; records go to ``sink`` (queue.put_many) in batches. Returns the
     simulator's own figures: shaft table (seed 000 Table 3), NDVI sigma, applied mass."""
@@ -179,7 +180,7 @@ def simulate_topdress(
     u = 0.0
     y = 0.0
     k_global = 0
-    batch: list[dict[str, Any]] = []
+    feed = Feed(sink, realtime)
     recs: list[dict[str, Any]] = []
     raw_dev: list[float] = []
     for i in range(len(d.t)):
@@ -223,11 +224,7 @@ def simulate_topdress(
             gain_kd=gains[2],
         )
         recs.append(rec)
-        if sink is not None:
-            batch.append(rec)
-            if len(batch) >= 200:
-                sink(batch)
-                batch = []
+        feed.put(rec, t)
         # the shaft between samples: controller at its period, plant at 5 ms
         for _ in range(sub):
             if k_global % 200 == 0:
@@ -240,8 +237,7 @@ def simulate_topdress(
                     ctrl.reset()
             y = max(0.0, plant.step(u))
             k_global += 1
-    if sink is not None and batch:
-        sink(batch)
+    feed.close()
     table = shaft_table(figure_rows(recs), list(s["speed_bands_kmh"]))
     dev = np.asarray(raw_dev)
     return {
