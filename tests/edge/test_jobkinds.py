@@ -256,3 +256,58 @@ def test_simulation_paced_for_the_live_view() -> None:
     assert wall >= 0.9 * out["duration_s"] / 400.0  # paced, not as fast as possible
     ts = [r["t"] for r in got]
     assert ts == sorted(ts) and t0 - 0.01 <= ts[0] and ts[-1] <= time.time() + 0.01  # wall stamps
+
+
+def test_run_notices_a_silent_sensor(tmp_path: Path) -> None:
+    """A live sensor (TCP here, like a serial link) sends 8 good lines and then nothing:
+    the loop holds the last value for the job's hold time, then stops and alarms, on its own."""
+    import signal
+    import socket
+    import threading
+    import time
+
+    from fieldrx_edge.sim.drive import write_nmea_log
+
+    job = kind_job("ndvi_topdress", restrict_to_boundary=False, sensor_hold_s=0.5)
+    pkg = tmp_path / "job.json"
+    pkg.write_bytes(job.to_json())
+    write_nmea_log(job, tmp_path / "gnss.nmea", max_s=5.0)
+    srv = socket.create_server(("127.0.0.1", 0))
+    port = srv.getsockname()[1]
+    done = threading.Event()
+
+    def serve() -> None:
+        conn, _ = srv.accept()
+        for i in range(8):
+            conn.sendall((ndvi_line(0.1 * i, [0.4, 0.41, 0.42, 0.43]) + "\n").encode())
+            time.sleep(0.1)
+        done.wait(10)  # then silent, connection open: a dead sensor on a live link
+        conn.close()
+
+    threading.Thread(target=serve, daemon=True).start()
+    p = subprocess.Popen(
+        [str(BIN / "fieldrx-edge"), "run", str(pkg), "--source", f"file:{tmp_path / 'gnss.nmea'}",
+         "--sensor", f"tcp:127.0.0.1:{port}", "--offline", "--state-dir", str(tmp_path / "state")],
+        cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+    )  # fmt: skip
+    try:
+        deadline = time.monotonic() + 8  # silence noticed on the wall clock, not per read timeout
+        recs: list[dict] = []
+        while time.monotonic() < deadline:
+            time.sleep(0.5)
+            if (tmp_path / "state" / "queue.sqlite").exists():
+                recs = _queued(tmp_path / "state")
+                if any("sensor_lost" in r["alarms"] for r in recs):
+                    break
+    finally:
+        done.set()
+        p.send_signal(signal.SIGTERM)
+        p.wait(10)
+        srv.close()
+    good = [r for r in recs if not r["alarms"]]
+    held = [r for r in recs if r["alarms"] == ["sensor_fault"]]
+    lost = [r for r in recs if "sensor_lost" in r["alarms"]]
+    assert len(good) == 8 and held and lost, [r["alarms"] for r in recs]
+    assert all(r["ndvi"] is not None and r["target_rate_kg_ha"] > 0 for r in held)
+    assert all(r["target_shaft_rpm"] == 0.0 and r["target_rate_kg_ha"] == 0.0 for r in lost)
+    assert recs.index(held[0]) < recs.index(lost[0])

@@ -12,9 +12,11 @@ sample period after the previous line (a rejected line has no trustworthy time).
 line holds the last good value for the job's ``sensor_hold_s`` (alarm ``sensor_fault``),
 then the output stops (alarm ``sensor_lost``: shaft target 0 / cylinder command 0, held
 still) until good lines return.
-Not yet: a watchdog for a serial sensor that falls silent without sending anything (the
-loop waits on the next line), and hardware drivers for the shaft motor and the cylinder of
-these kinds (both are the papers' models here, as ``--motor sim``).
+A sensor that falls silent is noticed on the wall clock: with no line for two sample periods
+the loop ticks on its own (reason ``silent``), the sensor clock advancing by the time that
+passed, so a dead serial link holds, then stops, like bad lines do. Not yet: hardware
+drivers for the shaft motor and the cylinder of these kinds (both are the papers' models
+here, as ``--motor sim``).
 """
 
 from __future__ import annotations
@@ -79,6 +81,37 @@ def simulate_kind(a: argparse.Namespace, job: JobPackage) -> int:
     return 0
 
 
+SILENT = None  # what ``sensor_lines`` yields when the sensor said nothing for two periods
+
+
+def sensor_lines(source: Any, period_s: float) -> Any:
+    """Lines of a sensor source (read in a thread), or ``SILENT`` every two sample periods
+    without a line; ends when the source ends. Empty lines (a TCP read timeout) are silence."""
+    import queue as queue_mod
+
+    q: queue_mod.Queue[Any] = queue_mod.Queue(maxsize=10_000)
+    end = object()
+
+    def reader() -> None:
+        try:
+            for ln in source:
+                if ln:
+                    q.put(ln)
+        finally:
+            q.put(end)
+
+    threading.Thread(target=reader, daemon=True).start()
+    while True:
+        try:
+            item = q.get(timeout=2.0 * period_s)
+        except queue_mod.Empty:
+            yield SILENT
+            continue
+        if item is end:
+            return
+        yield item
+
+
 def run_kind(a: argparse.Namespace, job: JobPackage, store: Any, make_sender: Any) -> int:
     """The agent's loop for a sensor kind (see the module doc); ``make_sender(a, store,
     queue)`` is ``run``'s uplink factory (HTTP / MQTT / none)."""
@@ -129,15 +162,22 @@ def run_kind(a: argparse.Namespace, job: JobPackage, store: Any, make_sender: An
         n_s = int(job.kind_settings["sensors"]["count"])
         period = 1.0 / float(job.kind_settings["sensors"]["sample_hz"])
         now = 0.0
-        for line in open_source(a.sensor, speed):
+        mono = time.monotonic()
+        for line in sensor_lines(open_source(a.sensor, speed), period):
             vals = None
-            now += period
-            try:
-                tl, vals = parse_ndvi(line, n_s)
-                now = tl if tl is not None else now
-            except SensorError as exc:
-                loop.guard.bad(exc.reason)
-                errors[exc.reason] = errors.get(exc.reason, 0) + 1
+            wall, mono = time.monotonic() - mono, time.monotonic()
+            if line is SILENT:  # the clock moves by the time that passed without a line
+                now += wall
+                loop.guard.bad("silent")
+                errors["silent"] = errors.get("silent", 0) + 1
+            else:
+                now += period
+                try:
+                    tl, vals = parse_ndvi(line, n_s)
+                    now = tl if tl is not None else now
+                except SensorError as exc:
+                    loop.guard.bad(exc.reason)
+                    errors[exc.reason] = errors.get(exc.reason, 0) + 1
             v = gnss.speed_m_s or 0.0
             xy, cell = where()
             inside = True
@@ -172,8 +212,14 @@ def run_kind(a: argparse.Namespace, job: JobPackage, store: Any, make_sender: An
         period = 0.1  # one command per sensor line here (the 1 ms loop belongs to the drive)
         cylinder = seed002_depth(period)  # --motor sim: the adjusting mechanism's model
         now = 0.0
-        for line in open_source(a.sensor, speed):
-            now = dl.on_line(now + period, line)
+        mono = time.monotonic()
+        for line in sensor_lines(open_source(a.sensor, speed), period):
+            wall, mono = time.monotonic() - mono, time.monotonic()
+            if line is SILENT:
+                now += wall
+                dl.guard.bad("silent")
+            else:
+                now = dl.on_line(now + period, line)
             depth, alarms = dl.depth(now)
             # sensor lost: command 0, the cylinder holds where it is (seed 002's mechanism
             # integrates the command); held value: the loop goes on with it
