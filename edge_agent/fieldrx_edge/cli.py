@@ -126,6 +126,10 @@ def cmd_run(a: argparse.Namespace) -> int:
     job = _load_job(a.job, store)
     if not (store.root / "jobs" / f"{job.job_id}.json").exists():
         store.save_package(job.to_json())
+    if job.kind != "prescription_map":  # issue 13: seed 000 / 002 jobs
+        from fieldrx_edge.jobkinds.cli import run_kind
+
+        return run_kind(a, job, store, _make_sender)
     progress = store.load_progress(job.job_id)
     queue = TelemetryQueue(store.queue_path(), job.machine_id)
     settings = job.controller
@@ -353,6 +357,10 @@ def cmd_simulate(a: argparse.Namespace) -> int:
     from fieldrx_edge.sim.simulator import SimConfig, simulate, summary
 
     job = _load_job(a.job)
+    if job.kind != "prescription_map":  # issue 13: seed 000 / 002 jobs
+        from fieldrx_edge.jobkinds.cli import simulate_kind
+
+        return simulate_kind(a, job)
     lo, hi = a.speed
     cfg = SimConfig(
         speed_min_kmh=lo,
@@ -665,6 +673,7 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument(
         "--density", type=float, help="kg/l: lets volume-rate implements (DDI 1) be driven"
     )
+    sp.add_argument("--sensor", help="sensor jobs: NDVI / depth sensor source (serial: or file:)")
     sp.set_defaults(func=cmd_run)
 
     sp = sub.add_parser("ecu", help="rate ECU: the motor loop as an ISOBUS TC client")
@@ -698,6 +707,10 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--state-dir")
     sp.add_argument("--drain-timeout", type=float, default=60.0)
     sp.add_argument("--realtime", type=float, default=0.0, help="pace: 1 = real time, 10 = 10x")
+    sp.add_argument(
+        "--sensor-fault", type=float, nargs=2, metavar=("FROM_S", "TO_S"),
+        help="sensor jobs: the sensor falls silent between these drive times",
+    )  # fmt: skip
     sp.add_argument("--cells-out")
     sp.add_argument("--json", action="store_true")
     sp.add_argument("--verbose", action="store_true")

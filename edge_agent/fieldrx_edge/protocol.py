@@ -112,6 +112,12 @@ class JobPackage:
     shape_ring_offsets: list[int] = field(default_factory=list)
     shape_offsets: list[int] = field(default_factory=list)
     shape_xy_utm: list[float] = field(default_factory=list)
+    # job kind (issue 13): prescription_map (seed 001, the cells' rates), ndvi_topdress
+    # (seed 000, rates from canopy sensors) or seeding_depth (seed 002); kind_settings are
+    # the kind's validated settings (fieldrx_edge.jobkinds). Both are left out of the
+    # canonical JSON when default, so prescription-map packages keep their bytes and checksum.
+    kind: str = "prescription_map"
+    kind_settings: dict[str, Any] = field(default_factory=dict)
     format_version: int = FORMAT_VERSION
     checksum: str = ""
 
@@ -127,6 +133,8 @@ class JobPackage:
         if not self.shape_seq:  # optional: absent shapes keep older packages' bytes and checksum
             for name in SHAPE_FIELDS:
                 del body[name]
+        if self.kind == "prescription_map" and not self.kind_settings:
+            del body["kind"], body["kind_settings"]
         return body
 
     def cell_shapes(self) -> dict[int, list[list[float]]]:
@@ -160,6 +168,10 @@ class JobPackage:
             if got != want:
                 raise ProtocolError(f"job package: {name} has {got} values, expected {want}")
         self._validate_shapes()
+        if self.kind not in JOB_KINDS:
+            raise ProtocolError(f"job package: kind {self.kind!r} is not one of {list(JOB_KINDS)}")
+        if not isinstance(self.kind_settings, dict):
+            raise ProtocolError("job package: kind_settings must be an object")
         if self.implement_width_m <= 0:
             raise ProtocolError("job package: implement_width_m must be positive")
         if self.lag_s < 0:
@@ -228,6 +240,7 @@ class JobPackage:
         return pkg
 
 
+JOB_KINDS = ("prescription_map", "ndvi_topdress", "seeding_depth")
 SHAPE_FIELDS = ("shape_seq", "shape_ring_offsets", "shape_offsets", "shape_xy_utm")
 
 # Telemetry -----------------------------------------------------------------
@@ -250,6 +263,8 @@ ALARMS = (
     "isobus_address_lost",  # our address was taken by a higher-priority NAME
     "isobus_address_conflict",  # another node transmitted with our address
     "invalid_value",  # the agent nulled or clamped a field that broke the protocol (sanitize)
+    "sensor_fault",  # crop / depth sensor reading rejected (format, checksum, range): holding
+    "sensor_lost",  # no good sensor reading for longer than the hold time: output stopped
 )
 
 
@@ -293,16 +308,28 @@ class TelemetryRecord:
     alarms: list[str] = field(default_factory=list)
     queue_backlog: int = 0
     fix_period_s: float | None = None  # format 2; absent in format 1 records
+    # optional fields of the sensor job kinds (issue 13); sent only when set, so records of
+    # prescription-map jobs keep their exact shape (see EXTRA_FIELDS)
+    ndvi_raw: float | None = None  # mean of the canopy sensors before the window filter
+    actuator_mm: float | None = None  # press-roller cylinder position (seed 002)
+    gain_kp: float | None = None  # controller gains in force (fuzzy PID retunes them)
+    gain_ki: float | None = None
+    gain_kd: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
-        return {f: getattr(self, f) for f in TELEMETRY_FIELDS}
+        d = {f: getattr(self, f) for f in TELEMETRY_FIELDS}
+        for f in EXTRA_FIELDS:
+            v = getattr(self, f)
+            if v is not None:
+                d[f] = v
+        return d
 
     @classmethod
     def from_dict(cls, obj: dict[str, Any]) -> TelemetryRecord:
         """Parse and validate one record; ``ProtocolError`` names the offending field."""
         if not isinstance(obj, dict):
             raise ProtocolError("record is not a JSON object")
-        unknown = set(obj) - _FIELD_SET
+        unknown = set(obj) - _ALL_FIELD_SET
         if unknown:
             raise ProtocolError(f"unknown fields {sorted(unknown)}")
         for name in ("machine_id", "seq", "t"):
@@ -345,8 +372,12 @@ class TelemetryRecord:
             )
 
 
-TELEMETRY_FIELDS: tuple[str, ...] = tuple(f.name for f in fields(TelemetryRecord))
+EXTRA_FIELDS: tuple[str, ...] = ("ndvi_raw", "actuator_mm", "gain_kp", "gain_ki", "gain_kd")
+TELEMETRY_FIELDS: tuple[str, ...] = tuple(
+    f.name for f in fields(TelemetryRecord) if f.name not in EXTRA_FIELDS
+)
 FIELD_SET = _FIELD_SET = frozenset(TELEMETRY_FIELDS)
+_ALL_FIELD_SET = frozenset(TELEMETRY_FIELDS + EXTRA_FIELDS)
 FLOAT_FIELDS = _FLOAT_FIELDS = (
     "hdop",
     "speed_raw_m_s",
@@ -359,6 +390,7 @@ FLOAT_FIELDS = _FLOAT_FIELDS = (
     "duty",
     "ndvi",
     "depth_mm",
+    *EXTRA_FIELDS,
 )
 
 

@@ -81,6 +81,10 @@ export interface Job {
   /** cells with no data / outside the meter range when the job was made, and the sender's confirmation */
   flagged_cells?: number;
   flagged_confirmed?: boolean;
+  /** issue 13: prescription_map | ndvi_topdress | seeding_depth; sensor kinds drive plan_id */
+  kind?: string;
+  plan_id?: number | null;
+  settings?: Record<string, unknown>;
   [k: string]: unknown;
 }
 

@@ -3,15 +3,17 @@
 from __future__ import annotations
 
 import datetime as dt
-from typing import Literal
+from typing import Any, Literal
 
 from fastapi import APIRouter, Query
 from pydantic import BaseModel, Field
 from sqlalchemy import func, select
 
 from fieldrx.api.common import ApiError, get_scoped
+from fieldrx.api.jobkinds import CONTROLLERS, DEFAULTS, KINDS, create_kind_job
 from fieldrx.auth.deps import SessionDep, UserDep, WriterDep
 from fieldrx.db.models import (
+    JOB_KINDS,
     JOB_STATES,
     Job,
     JobEvent,
@@ -29,9 +31,25 @@ router = APIRouter(prefix="/jobs", tags=["jobs"])
 State = Literal["planned", "sent", "downloaded", "running", "paused", "completed", "aborted"]
 
 
+Kind = Literal["prescription_map", "ndvi_topdress", "seeding_depth"]
+
+
 class JobIn(BaseModel):
-    prescription_id: int
+    kind: Kind = Field(
+        default="prescription_map",
+        description="prescription_map (seed 001: the prescription's cell rates), ndvi_topdress "
+        "(seed 000: canopy sensors decide the rate) or seeding_depth (seed 002: sowing-depth "
+        "control); GET /jobs/kinds lists each kind's settings, units and the papers' defaults",
+    )
+    prescription_id: int | None = Field(default=None, description="prescription_map jobs")
     version: int | None = Field(default=None, description="prescription version; default current")
+    plan_id: int | None = Field(
+        default=None, description="sensor kinds: the planned path (field, swaths) to drive"
+    )
+    settings: dict[str, Any] | None = Field(
+        default=None,
+        description="sensor kinds: settings to change from the papers' defaults (partial)",
+    )
     machine_id: int
     name: str = Field(default="", max_length=200)
     confirm_flagged: bool = Field(
@@ -58,8 +76,11 @@ class JobOut(BaseModel):
     id: int
     name: str
     state: str
-    prescription_id: int
-    prescription_version: int
+    kind: str = "prescription_map"
+    prescription_id: int | None
+    prescription_version: int | None
+    plan_id: int | None = None
+    settings: dict[str, Any] = Field(default_factory=dict)
     machine_id: int
     n_cells: int
     cells_applied: int
@@ -83,8 +104,11 @@ def job_out(job: Job, events: list[JobEvent] | None = None) -> JobOut:
         id=job.id,
         name=job.name,
         state=job.state,
+        kind=job.kind,
         prescription_id=job.prescription_id,
         prescription_version=job.prescription_version,
+        plan_id=job.plan_id,
+        settings=dict(job.settings or {}),
         machine_id=job.machine_id,
         n_cells=job.n_cells,
         cells_applied=job.cells_applied,
@@ -131,6 +155,18 @@ def _attention(
 
 @router.post("", response_model=JobOut, status_code=201)
 def create_job(body: JobIn, principal: WriterDep, session: SessionDep) -> JobOut:
+    if body.kind != "prescription_map":
+        job = create_kind_job(session, principal, body)
+        return job_out(job, _events(session, job.id))
+    if body.prescription_id is None:
+        raise ApiError(422, "a prescription_map job needs prescription_id", where="prescription_id")
+    if body.plan_id is not None or body.settings:
+        raise ApiError(
+            422,
+            "a prescription_map job takes its path and rates from the prescription: "
+            "leave plan_id and settings out",
+            where="settings" if body.settings else "plan_id",
+        )
     rx = session.get(Prescription, body.prescription_id)
     if rx is None or rx.organisation_id != principal.organisation_id:
         raise ApiError(
@@ -195,6 +231,16 @@ def create_job(body: JobIn, principal: WriterDep, session: SessionDep) -> JobOut
     return job_out(job, _events(session, job.id))
 
 
+@router.get("/kinds")
+def job_kinds(principal: UserDep) -> dict[str, Any]:
+    """Each kind's default settings (the papers' values), units in the names, controllers."""
+    return {
+        "kinds": {
+            k: {"defaults": DEFAULTS[k], "controllers": list(CONTROLLERS.get(k, ()))} for k in KINDS
+        }
+    }
+
+
 @router.get("", response_model=JobList)
 def list_jobs(
     principal: UserDep,
@@ -233,3 +279,4 @@ def set_state(job_id: int, body: StateIn, principal: WriterDep, session: Session
 
 
 assert set(JOB_STATES) == set(State.__args__)  # type: ignore[attr-defined]
+assert set(JOB_KINDS) == set(Kind.__args__) == set(KINDS)  # type: ignore[attr-defined]

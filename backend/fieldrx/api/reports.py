@@ -32,7 +32,19 @@ router = APIRouter(tags=["reports"])
 
 def _report(session: SessionDep, job_id: int, principal: Any) -> tuple[Job, JobReport]:
     job = get_scoped(session, Job, job_id, principal)
+    _prescription_job(job)
     return job, build_report(session, job)
+
+
+def _prescription_job(job: Job) -> None:
+    """The per-cell as-applied views are seed 001's (prescribed vs applied rate); a sensor
+    job (issue 13) has its own report."""
+    if job.kind != "prescription_map":
+        raise ApiError(
+            409,
+            f"job {job.id} is a {job.kind} job: its figures are in GET /jobs/{job.id}/report",
+            where="job_id",
+        )
 
 
 @router.get("/jobs/{job_id:int}/report")
@@ -42,7 +54,14 @@ def job_report(
     session: SessionDep,
     cells: bool = Query(default=True, description="include the per-cell rows"),
 ) -> dict[str, Any]:
-    """Per-cell target vs applied rate and accuracy theta, coverage, totals, time worked."""
+    """Per-cell target vs applied rate and accuracy theta, coverage, totals, time worked.
+    Sensor kinds get their own report (fieldrx.fleet.seed_reports: NDVI / depth maps and the
+    papers' Table 3)."""
+    job = get_scoped(session, Job, job_id, principal)
+    if job.kind != "prescription_map":
+        from fieldrx.fleet.seed_reports import kind_report
+
+        return kind_report(session, job, cells=cells)
     _, rep = _report(session, job_id, principal)
     out = rep.summary()
     if cells:
@@ -232,6 +251,7 @@ def job_tile(
     if not 0 <= z <= 24 or not (0 <= x < (1 << z) and 0 <= y < (1 << z)):
         raise ApiError(422, f"tile {z}/{x}/{y} does not exist", where="z/x/y")
     job = get_scoped(session, Job, job_id, principal)
+    _prescription_job(job)
     plan = job_plan(session, job)
     data = session.execute(
         TILE_SQL,

@@ -27,12 +27,14 @@ from sqlalchemy import (
     Text,
     UniqueConstraint,
     func,
+    text,
 )
 from sqlalchemy.dialects.postgresql import JSONB
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
 
 ROLES = ("admin", "agronomist", "viewer")
 JOB_STATES = ("planned", "sent", "downloaded", "running", "paused", "completed", "aborted")
+JOB_KINDS = ("prescription_map", "ndvi_topdress", "seeding_depth")  # issue 13, revision 0012
 
 
 def _now() -> Any:
@@ -273,13 +275,32 @@ class PrescriptionRate(Base):
 
 class Job(Base):
     __tablename__ = "jobs"
-    __table_args__ = (CheckConstraint(f"state IN {JOB_STATES}", name="ck_job_state"),)
+    __table_args__ = (
+        CheckConstraint(f"state IN {JOB_STATES}", name="ck_job_state"),
+        CheckConstraint(f"kind IN {JOB_KINDS}", name="ck_job_kind"),
+        CheckConstraint(
+            "(kind = 'prescription_map' AND prescription_id IS NOT NULL"
+            " AND prescription_version IS NOT NULL)"
+            " OR (kind <> 'prescription_map' AND plan_id IS NOT NULL)",
+            name="ck_job_source",
+        ),
+    )
     id: Mapped[int] = mapped_column(primary_key=True)
     organisation_id: Mapped[int] = mapped_column(
         ForeignKey("organisations.id", ondelete="CASCADE"), index=True
     )
-    prescription_id: Mapped[int] = mapped_column(ForeignKey("prescriptions.id", ondelete="CASCADE"))
-    prescription_version: Mapped[int] = mapped_column(Integer)
+    # null for the sensor kinds, which drive a plan's path with sensor-decided rates
+    prescription_id: Mapped[int | None] = mapped_column(
+        ForeignKey("prescriptions.id", ondelete="CASCADE")
+    )
+    prescription_version: Mapped[int | None] = mapped_column(Integer)
+    kind: Mapped[str] = mapped_column(
+        String(32), default="prescription_map", server_default="prescription_map"
+    )
+    settings: Mapped[dict[str, Any]] = mapped_column(
+        JSONB, default=dict, server_default=text("'{}'")
+    )
+    plan_id: Mapped[int | None] = mapped_column(ForeignKey("plans.id", ondelete="CASCADE"))
     machine_id: Mapped[int] = mapped_column(
         ForeignKey("machines.id", ondelete="CASCADE"), index=True
     )
@@ -365,6 +386,12 @@ class Telemetry(Base):
     implement_down: Mapped[bool] = mapped_column(Boolean, default=False)
     alarms: Mapped[list[str]] = mapped_column(ARRAY(String(32)), default=list)
     queue_backlog: Mapped[int] = mapped_column(Integer, default=0)
+    # sensor job kinds (issue 13): raw NDVI, actuator position, controller gains in force
+    ndvi_raw: Mapped[float | None] = mapped_column(Double)
+    actuator_mm: Mapped[float | None] = mapped_column(Double)
+    gain_kp: Mapped[float | None] = mapped_column(Double)
+    gain_ki: Mapped[float | None] = mapped_column(Double)
+    gain_kd: Mapped[float | None] = mapped_column(Double)
 
 
 class TelemetryStream(Base):

@@ -26,6 +26,7 @@ ALERT_KINDS = (
     "fix_lost",
     "no_data",
     "cells_not_applied",
+    "depth_qualified_low",  # seeding job: qualified depth share fell below the job's threshold
     *EVENT_KINDS,
 )
 LIVE_CHANNEL = "fieldrx_live"

@@ -50,6 +50,7 @@ import orjson
 import psycopg
 from fieldrx_edge.protocol import (
     ALARMS,
+    EXTRA_FIELDS,
     FIELD_SET,
     FLOAT_FIELDS,
     MAX_FIX_PERIOD_S,
@@ -86,6 +87,7 @@ COLUMNS = (
     "queue_backlog",
     "fix_period_s",
     "stream",
+    *EXTRA_FIELDS,  # optional sensor-job fields (issue 13), last so row indexes stay put
 )
 # t goes as int8 microseconds since 2000-01-01: the binary form of timestamptz, without
 # building a datetime per record; geom goes as raw EWKB bytes (geometry_recv reads EWKB).
@@ -113,6 +115,7 @@ COPY_TYPES = (
     "int4",
     "float8",
     "varchar",
+    *("float8",) * len(EXTRA_FIELDS),
 )
 COPY_SQL = f"COPY telemetry ({', '.join(COLUMNS)}) FROM STDIN (FORMAT BINARY)"
 
@@ -213,6 +216,7 @@ _GET_ALL = operator.itemgetter(*TELEMETRY_FIELDS)
 _GET_V1 = operator.itemgetter(*TELEMETRY_FIELDS[:-1])  # format 1: no fix_period_s
 _N_FIELDS = len(TELEMETRY_FIELDS)
 _FLOAT_TYPES = frozenset({float, type(None)})
+_NO_EXTRAS = (None,) * len(EXTRA_FIELDS)  # records with extras take the general path
 assert TELEMETRY_FIELDS == (
     "machine_id", "seq", "t", "lon", "lat", "fix_quality", "hdop", "speed_raw_m_s",
     "speed_filtered_m_s", "heading_deg", "job_id", "cell_seq", "target_rate_kg_ha",
@@ -274,7 +278,7 @@ def _fast_row(d: Any, machine_id: int, t_max: float, stream: str) -> tuple[Any, 
         geom = _EWKB_POINT.pack(1, 0x20000001, 4326, lon, lat)
     return (
         m, s, int((t - PG_EPOCH) * 1e6), job, geom, fq, hdop, sraw, sfil, head, cell, trate,
-        arate, trpm, arpm, duty, ndvi, depth, down, alarms, backlog, period, stream,
+        arate, trpm, arpm, duty, ndvi, depth, down, alarms, backlog, period, stream, *_NO_EXTRAS,
     )  # fmt: skip
 
 
@@ -327,12 +331,13 @@ def _slow_row(d: Any, machine_id: int, now: float, stream: str) -> tuple[Any, ..
         fq,
         *f[:4],
         cell,
-        *f[4:],
+        *f[4:11],
         rec.implement_down,
         list(rec.alarms),
         backlog,
         period,
         stream,
+        *f[11:],
     )
 
 
@@ -506,6 +511,14 @@ def ingest(
                     info.speed_min_m_s,
                     info.speed_max_m_s,
                     info.open_alerts,
+                )
+            )
+        if new and any(r[17] is not None for r in new):  # depths: seeding job (issue 13)
+            from fieldrx.fleet.seed_alerts import check_depth_window
+
+            messages.extend(
+                check_depth_window(
+                    cur, machine_id, info.organisation_id, latest[3], info.open_alerts
                 )
             )
         alert_rules.notify(cur, messages)
@@ -705,6 +718,8 @@ def _position(org: int, r: tuple[Any, ...], result: IngestResult) -> dict[str, A
         "cell_seq": r[10],
         "target_rate_kg_ha": r[11],
         "applied_rate_kg_ha": r[12],
+        "ndvi": r[16],  # sensor jobs (issue 13): the fleet view shows the kind's own figure
+        "depth_mm": r[17],
         "implement_down": r[18],
         "alarms": r[19],
         "queue_backlog": r[20],

@@ -67,7 +67,11 @@ def change_state(
         )
     )
     notify_job(session, job)
-    if state == "completed":
+    if state == "completed" and job.kind != "prescription_map":
+        from fieldrx.fleet.seed_reports import alert_kind_job_end
+
+        alert_kind_job_end(session, job)
+    elif state == "completed":
         alert_cells_not_applied(session, job)
     return True
 

@@ -250,6 +250,10 @@ def _landing_cells(
 
 
 def job_plan(session: Session, job: Job) -> Plan:
+    if job.plan_id is not None:  # sensor kinds (issue 13) drive a plan directly
+        plan = session.get(Plan, job.plan_id)
+        assert plan is not None
+        return plan
     rx = session.get(Prescription, job.prescription_id)
     assert rx is not None
     plan = session.get(Plan, rx.plan_id)

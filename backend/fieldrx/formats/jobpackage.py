@@ -166,6 +166,8 @@ def build_job_package(
     utm_decimals: int = 3,
     wgs84_decimals: int = 8,
     shape_decimals: int = 6,
+    kind: str = "prescription_map",
+    kind_settings: dict[str, Any] | None = None,
 ) -> JobPackage:
     """A sealed (validated, checksummed) JobPackage; ``ProtocolError`` names a bad field.
 
@@ -212,6 +214,8 @@ def build_job_package(
         speed_max_m_s=float(speed_max_m_s),
         product=str(product),
         **_shape_fields(cells, shape_decimals),
+        kind=kind,
+        kind_settings=dict(kind_settings or {}),
     )
     return pkg.seal()
 

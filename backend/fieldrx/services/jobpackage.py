@@ -22,7 +22,7 @@ from fieldrx_edge.protocol import JobPackage
 from sqlalchemy.orm import Session
 
 from fieldrx.db.models import Field, Job, Machine, Plan, Prescription
-from fieldrx.services.plans import field_utm
+from fieldrx.services.plans import field_utm, load_cell_table
 from fieldrx.services.prescriptions import get_version, version_cells
 
 
@@ -65,11 +65,46 @@ def build_package(
     )
 
 
+def build_kind_package(session: Session, job: Job, machine: Machine) -> JobPackage:
+    """Sealed JobPackage of a sensor-kind job (issue 13): the plan's cells in path order
+    (the path the tractor drives; rates 0, the sensors decide them), the field boundary,
+    and the kind with its validated settings."""
+    from fieldrx.formats.jobpackage import build_job_package as build
+
+    plan = session.get(Plan, job.plan_id)
+    field = session.get(Field, plan.field_id) if plan is not None else None
+    if plan is None or field is None:
+        raise LookupError(f"job {job.id}: plan {job.plan_id} or its field is gone")
+    cells = load_cell_table(session, plan, field.utm_epsg)
+    return build(
+        cells,
+        field_utm(field),
+        job_id=job.id,
+        machine_id=machine.id,
+        prescription_id=0,
+        prescription_version=0,
+        field_name=field.name,
+        implement_width_m=machine.width_m,
+        lag_s=machine.lag_s,
+        calibration=dict(machine.calibration),
+        controller=dict(machine.controller or {}) or None,
+        antenna_forward_m=machine.antenna_forward_m,
+        antenna_lateral_m=machine.antenna_lateral_m,
+        speed_min_m_s=machine.speed_min_m_s,
+        speed_max_m_s=machine.speed_max_m_s,
+        kind=job.kind,
+        kind_settings=dict(job.settings or {}),
+    )
+
+
 def build_job_package(session: Session, job: Job) -> JobPackage:
-    """Sealed JobPackage of a job row (its prescription version and machine)."""
+    """Sealed JobPackage of a job row (its prescription version, or its plan and kind, and
+    machine)."""
     machine = session.get(Machine, job.machine_id)
     if machine is None:
         raise LookupError(f"job {job.id}: machine {job.machine_id} not found")
+    if job.kind != "prescription_map":
+        return build_kind_package(session, job, machine)
     return build_package(
         session, job.prescription_id, job.prescription_version, machine, job_id=job.id
     )

@@ -66,3 +66,15 @@ describe('live messages', () => {
     expect(applyLive(start, { type: 'position' })).toBe(start);
   });
 });
+
+describe('sensor jobs on the fleet view', () => {
+  it('keeps the latest NDVI, rate and depth of a position message', () => {
+    let f: Fleet = new Map();
+    f = applyLive(f, { type: 'position', machine_id: 4, lon: 1, lat: 2, ndvi: 0.45, applied_rate_kg_ha: 277, depth_mm: null });
+    expect(f.get(4)?.ndvi).toBe(0.45);
+    expect(f.get(4)?.applied_rate_kg_ha).toBe(277);
+    f = applyLive(f, { type: 'position', machine_id: 4, lon: 1, lat: 2, depth_mm: 30.5 });
+    expect(f.get(4)?.depth_mm).toBe(30.5);
+    expect(f.get(4)?.ndvi).toBeNull(); // a record without NDVI: no stale figure
+  });
+});

@@ -19,6 +19,10 @@ export interface FleetMachine {
   active_alerts?: number;
   alarms?: string[];
   t?: number | string | null;
+  /** sensor jobs (issue 13): latest filtered NDVI and applied rate (seed 000), depth (seed 002) */
+  ndvi?: number | null;
+  applied_rate_kg_ha?: number | null;
+  depth_mm?: number | null;
   status: 'working' | 'moving' | 'idle' | 'alarm' | 'offline';
 }
 
@@ -98,6 +102,9 @@ export function applyLive(fleet: Fleet, msg: LiveMsg): Fleet {
       implement_down: typeof msg.implement_down === 'boolean' ? msg.implement_down : prev.implement_down,
       alarms: Array.isArray(msg.alarms) ? (msg.alarms as string[]) : prev.alarms,
       t: (msg.t as number) ?? prev.t,
+      ndvi: num(msg.ndvi),
+      applied_rate_kg_ha: num(msg.applied_rate_kg_ha),
+      depth_mm: num(msg.depth_mm),
     };
   } else if (msg.type === 'job') {
     upd = {

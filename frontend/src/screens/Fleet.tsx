@@ -5,7 +5,7 @@ import { ErrorBox, isMissingEndpoint } from '../components/Status';
 import { statusColor } from '../lib/colors';
 import { applyLive, fromStatusItem, type Fleet } from '../lib/fleet';
 import { bboxOf } from '../lib/geo';
-import { compass, formatPercent, formatSpeed } from '../lib/units';
+import { compass, formatPercent, formatRate, formatSpeed } from '../lib/units';
 import { useLive } from '../live';
 import { MapView } from '../map/MapView';
 import { fitTo, setGeoJSON } from '../map/setup';
@@ -187,6 +187,12 @@ export function FleetScreen() {
               </div>
               {m.progress != null && (
                 <progress max={1} value={m.progress} style={{ width: '100%' }} data-testid={`machine-progressbar-${m.machine_id}`} />
+              )}
+              {(m.ndvi != null || m.depth_mm != null) && (
+                <div className="small" data-testid={`machine-sensor-${m.machine_id}`}>
+                  {m.ndvi != null && `NDVI ${m.ndvi.toFixed(2)} · ${formatRate(m.applied_rate_kg_ha, 0)}`}
+                  {m.depth_mm != null && `depth ${m.depth_mm.toFixed(1)} mm`}
+                </div>
               )}
               <div className="muted small" data-testid={`machine-pos-${m.machine_id}`}>
                 {m.lon != null && m.lat != null ? `${Number(m.lon).toFixed(6)}, ${Number(m.lat).toFixed(6)}` : 'no position'}

@@ -12,6 +12,7 @@ import { absoluteApiUrl, fitTo, setGeoJSON } from '../map/setup';
 import { replaceVectorSource } from '../map/grid';
 import type { FieldFeature, Job, Plan, Prescription } from '../types';
 import { pick } from '../types';
+import { KindReport } from './KindReport';
 
 type View = 'applied' | 'accuracy';
 const EMPTY: GeoJSON.FeatureCollection = { type: 'FeatureCollection', features: [] };
@@ -20,6 +21,20 @@ const MAX_POINTS = 200_000;
 
 /** As-applied map (job vector tiles), per-cell accuracy, totals, and a replay of the records. */
 export function JobReport({ jobId }: { jobId: number }) {
+  const [kindJob, setKindJob] = useState<Job | null | undefined>(undefined);
+  useEffect(() => {
+    api
+      .get<Job>(`/jobs/${jobId}`)
+      .then((j) => setKindJob(j.kind && j.kind !== 'prescription_map' ? j : null))
+      .catch(() => setKindJob(null));
+  }, [jobId]);
+  if (kindJob === undefined) return <p className="muted">Loading…</p>;
+  if (kindJob) return <KindReport job={kindJob} />;
+  return <PrescriptionJobReport jobId={jobId} />;
+}
+
+/** The prescription-map (seed 001) job report. */
+function PrescriptionJobReport({ jobId }: { jobId: number }) {
   const [job, setJob] = useState<Job | null>(null);
   const [rx, setRx] = useState<Prescription | null>(null);
   const [field, setField] = useState<FieldFeature | null>(null);

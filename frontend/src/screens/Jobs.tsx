@@ -1,10 +1,12 @@
 import { useCallback, useEffect, useState } from 'react';
 import { api } from '../api';
 import { ErrorBox, isMissingEndpoint } from '../components/Status';
+import { KIND_LABELS, type JobKind } from '../lib/jobkinds';
 import { formatPercent } from '../lib/units';
 import { hashQuery } from '../router';
 import type { Job, Machine } from '../types';
 import { listOf } from '../types';
+import { SensorJobForm } from './SensorJobForm';
 
 /** What a user may do from each state (server: fleet/jobstate.TRANSITIONS). */
 const NEXT_STATES: Record<string, string[]> = {
@@ -29,6 +31,7 @@ export function JobsScreen() {
   const [rxId, setRxId] = useState('');
   const [version, setVersion] = useState('');
   const [machineId, setMachineId] = useState('');
+  const [kind, setKind] = useState<JobKind>('prescription_map');
   const [error, setError] = useState<unknown>(null);
   const [missing, setMissing] = useState(false);
   const created = hashQuery().get('created');
@@ -67,7 +70,26 @@ export function JobsScreen() {
         </p>
       )}
       <ErrorBox error={error} testid="jobs-error" />
-      <form
+      <label>
+        Kind{' '}
+        <select data-testid="job-kind" value={kind} onChange={(e) => setKind(e.target.value as JobKind)}>
+          {(Object.keys(KIND_LABELS) as JobKind[]).map((k) => (
+            <option key={k} value={k}>
+              {KIND_LABELS[k]}
+            </option>
+          ))}
+        </select>
+      </label>
+      {kind !== 'prescription_map' && (
+        <SensorJobForm
+          key={kind}
+          kind={kind}
+          machines={machines}
+          onError={setError}
+          onCreated={() => void load()}
+        />
+      )}
+      {kind === 'prescription_map' && <form
         className="row"
         data-testid="job-form" data-write=""
         onSubmit={async (e) => {
@@ -96,12 +118,12 @@ export function JobsScreen() {
           ))}
         </select>
         <button data-testid="job-form-submit">Send</button>
-      </form>
+      </form>}
       <table className="table" data-testid="job-table">
         <thead>
           <tr>
             <th>Job</th>
-            <th>Prescription</th>
+            <th>Prescription / kind</th>
             <th>Machine</th>
             <th>State</th>
             <th>Progress</th>
@@ -115,10 +137,14 @@ export function JobsScreen() {
               <td>
                 <a href={`#/jobs/${j.id}`}>#{j.id}</a>
               </td>
-              <td>
-                <a href={`#/prescriptions/${j.prescription_id}`}>
-                  #{j.prescription_id} v{j.version ?? j.prescription_version ?? '?'}
-                </a>
+              <td data-testid={`job-source-${j.id}`}>
+                {j.kind && j.kind !== 'prescription_map' ? (
+                  <a href={`#/plans/${String(j.plan_id)}`}>{KIND_LABELS[j.kind as JobKind] ?? String(j.kind)}</a>
+                ) : (
+                  <a href={`#/prescriptions/${j.prescription_id}`}>
+                    #{j.prescription_id} v{j.version ?? j.prescription_version ?? '?'}
+                  </a>
+                )}
               </td>
               <td>
                 <a href={`#/machines/${j.machine_id}`}>{mName(j.machine_id)}</a>

@@ -1,0 +1,118 @@
+import { useState } from 'react';
+import { api } from '../api';
+import { fieldsOf, jobBody, KIND_LABELS, ndviPreview, qualifiedBand, type JobKind } from '../lib/jobkinds';
+import { formatRate } from '../lib/units';
+import type { Machine } from '../types';
+
+/**
+ * The form of a sensor job kind (seed 000 / 002): the plan to drive, the machine, and the
+ * kind's settings, each with its unit and the paper's value named as such. Only changed
+ * values are sent; the server fills in the rest and names any bad input.
+ */
+export function SensorJobForm({
+  kind,
+  machines,
+  onCreated,
+  onError,
+}: {
+  kind: Exclude<JobKind, 'prescription_map'>;
+  machines: Machine[];
+  onCreated: (id: number) => void;
+  onError: (e: unknown) => void;
+}) {
+  const [planId, setPlanId] = useState('');
+  const [machineId, setMachineId] = useState(machines[0] ? String(machines[0].id) : '');
+  const [values, setValues] = useState<Record<string, string>>({});
+  const fields = fieldsOf(kind);
+  const val = (p: string, paper: unknown) => values[p] ?? String(paper);
+  const target = Number(val('target_depth_mm', 30));
+  const band = qualifiedBand(Number.isFinite(target) ? target : 30);
+  return (
+    <form
+      className="stack"
+      data-testid={`job-form-${kind}`}
+      data-write=""
+      onSubmit={async (e) => {
+        e.preventDefault();
+        onError(null);
+        try {
+          const mid = machineId || (machines[0] ? String(machines[0].id) : '');
+          const j = await api.post<{ id: number }>('/jobs', jobBody(kind, { planId, machineId: mid }, values));
+          await api.post(`/jobs/${j.id}/state`, { state: 'sent' });
+          onCreated(j.id);
+        } catch (err) {
+          onError(err);
+        }
+      }}
+    >
+      <h3>{KIND_LABELS[kind]}</h3>
+      <div className="row">
+        <label>
+          Plan #{' '}
+          <input data-testid="job-plan" value={planId} onChange={(e) => setPlanId(e.target.value)} required placeholder="plan id" />
+        </label>
+        <label>
+          Machine{' '}
+          <select data-testid="job-kind-machine" value={machineId} onChange={(e) => setMachineId(e.target.value)}>
+            {machines.map((m) => (
+              <option key={m.id} value={m.id}>
+                {m.name}
+              </option>
+            ))}
+          </select>
+        </label>
+      </div>
+      <table className="table small">
+        <tbody>
+          {fields.map((f) => (
+            <tr key={f.path}>
+              <td>{f.label}</td>
+              <td>
+                {f.options ? (
+                  <select
+                    data-testid={`set-${f.path}`}
+                    value={val(f.path, f.paper)}
+                    onChange={(e) => setValues({ ...values, [f.path]: e.target.value })}
+                  >
+                    {f.options.map((o) => (
+                      <option key={o} value={o}>
+                        {o}
+                      </option>
+                    ))}
+                  </select>
+                ) : (
+                  <input
+                    data-testid={`set-${f.path}`}
+                    type="number"
+                    step={f.step ?? 'any'}
+                    value={val(f.path, f.paper)}
+                    onChange={(e) => setValues({ ...values, [f.path]: e.target.value })}
+                  />
+                )}{' '}
+                {f.unit}
+              </td>
+              <td className="muted small">
+                paper default: {String(f.paper)} {f.unit} ({f.source})
+              </td>
+            </tr>
+          ))}
+        </tbody>
+      </table>
+      {kind === 'ndvi_topdress' ? (
+        <p className="muted small" data-testid="ndvi-preview">
+          Rate preview:{' '}
+          {ndviPreview(values)
+            .map((p) => `NDVI ${p.ndvi.toFixed(1)} → ${formatRate(p.rate, 0)}`)
+            .join(' · ')}
+          . Width and metering calibration are the machine&apos;s;{' '}
+          {values.restrict_to_boundary === 'false' ? 'meters wherever it drives.' : 'no fertilizer outside the field boundary.'}
+        </p>
+      ) : (
+        <p className="muted small" data-testid="depth-band">
+          Qualified (GB/T 20865): {band[0]}–{band[1]} mm.
+        </p>
+      )}
+      <button data-testid="job-kind-submit">Send</button>
+    </form>
+  );
+}
