@@ -408,7 +408,14 @@ _CLAMP = {
     "duty": (-100.0, 100.0),
     "ndvi": (-1.0, 1.0),
     "depth_mm": (-1.0e4, 1.0e4),
+    # optional fields of the sensor job kinds (EXTRA_FIELDS)
+    "ndvi_raw": (-1.0, 1.0),
+    "actuator_mm": (-1.0e4, 1.0e4),
+    "gain_kp": (-1.0e6, 1.0e6),
+    "gain_ki": (-1.0e6, 1.0e6),
+    "gain_kd": (-1.0e6, 1.0e6),
 }
+assert set(_CLAMP) | {"heading_deg"} == set(_FLOAT_FIELDS), "every float field has a range"
 
 
 def _finite(v: Any) -> bool:
