@@ -27,6 +27,7 @@ ROUTERS = (
     "machines",
     "plans",
     "tiles",
+    "imagery",
     "soil",
     "prescriptions",
     "jobs",

@@ -23,6 +23,14 @@ class Settings(BaseSettings):
     token_ttl_hours: float = Field(default=24.0 * 14, alias="FIELDRX_TOKEN_TTL_HOURS")
     frontend_dist: str = Field(default="", alias="FIELDRX_FRONTEND_DIST")
     heartbeat_timeout_s: float = Field(default=30.0, alias="FIELDRX_HEARTBEAT_TIMEOUT_S")
+    # Imagery (issue 14): where Cloud-Optimized GeoTIFFs live ("" = ./var/imagery beside the
+    # checkout), the largest upload and raster accepted, and the conversion's time limit.
+    imagery_dir: str = Field(default="", alias="FIELDRX_IMAGERY_DIR")
+    imagery_max_upload_bytes: int = Field(
+        default=4 * 1024**3, alias="FIELDRX_IMAGERY_MAX_UPLOAD_BYTES"
+    )
+    imagery_max_pixels: int = Field(default=2_000_000_000, alias="FIELDRX_IMAGERY_MAX_PIXELS")
+    imagery_timeout_s: float = Field(default=900.0, alias="FIELDRX_IMAGERY_TIMEOUT_S")
 
 
 @lru_cache
