@@ -248,7 +248,7 @@ export function FieldDetail({ fieldId }: { fieldId: number }) {
           </>
         )}
       </aside>
-      <MapView name="field" onReady={onReady} />
+      <MapView name="field" onReady={onReady} fieldId={fieldId} />
     </div>
   );
 }

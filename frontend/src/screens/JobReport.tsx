@@ -253,7 +253,7 @@ export function JobReport({ jobId }: { jobId: number }) {
           {points.length} as-applied records
         </p>
       </aside>
-      <MapView name="report" onReady={onReady} />
+      <MapView name="report" onReady={onReady} fieldId={field?.id} />
     </div>
   );
 }

@@ -122,7 +122,7 @@ export function PlanScreen({ planId }: { planId: number }) {
         </ul>
         <RxForm planId={planId} onCreated={(r) => navigate(`/prescriptions/${r.id}`)} />
       </aside>
-      <MapView name="plan" onReady={onReady} />
+      <MapView name="plan" onReady={onReady} fieldId={field?.id} />
     </div>
   );
 }

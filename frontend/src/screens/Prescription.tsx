@@ -362,7 +362,7 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
           </button>
         </div>
       </aside>
-      <MapView name="rx" onReady={onReady} />
+      <MapView name="rx" onReady={onReady} fieldId={field?.id} />
     </div>
   );
 }
