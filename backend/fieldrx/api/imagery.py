@@ -11,17 +11,22 @@ from __future__ import annotations
 import datetime as dt
 from typing import Any, Literal
 
+import numpy as np
 from fastapi import APIRouter, File, Form, Request, Response, UploadFile
 from geoalchemy2.shape import from_shape, to_shape
+from pydantic import BaseModel, Field
 from shapely import wkb
 from sqlalchemy import select
 
+from fieldrx.agronomy.cells import CellTable
 from fieldrx.api.common import ApiError, geom_to_geojson, get_scoped
+from fieldrx.api.prescriptions import BAD_INPUT
 from fieldrx.auth.deps import SessionDep, UserDep, WriterDep
 from fieldrx.db.models import Field as FieldRow
-from fieldrx.db.models import Imagery
+from fieldrx.db.models import Imagery, Machine, Plan
 from fieldrx.imagery import ImageryError, storage
 from fieldrx.imagery.ingest import IngestSpec, ingest
+from fieldrx.services import prescriptions as rx_svc
 from fieldrx.settings import get_settings
 
 router = APIRouter(tags=["imagery"])
@@ -240,3 +245,99 @@ def imagery_tile(
     if data is None:
         return Response(status_code=204, headers=headers)
     return Response(content=data, media_type="image/png", headers=headers)
+
+
+class ImageryRxIn(BaseModel):
+    """An NDVI prescription whose per-cell NDVI comes from an image (not from samples)."""
+
+    plan_id: int
+    name: str = Field(default="", max_length=200)
+    product: str = Field(default="", max_length=200)
+    params: dict[str, Any] = Field(
+        default_factory=dict,
+        description="seed 000 NDVI curve: ndvi_low, rate_at_low_kg_ha, ndvi_high, "
+        "rate_at_high_kg_ha (defaults 0.24 -> 375, 0.65 -> 180 kg/ha)",
+    )
+    min_valid_share: float = Field(
+        default=0.5, ge=0, le=1, description="cells with fewer valid pixels have no data"
+    )
+    fallback_rate_kg_ha: float | None = Field(default=None, ge=0)
+    machine_id: int | None = None
+    speed_min_kmh: float | None = Field(default=None, gt=0)
+    speed_max_kmh: float | None = Field(default=None, gt=0)
+    width_m: float | None = Field(default=None, gt=0)
+    calibration: dict[str, Any] | None = None
+
+
+@router.post("/imagery/{imagery_id:int}/prescriptions", status_code=201)
+def prescription_from_imagery(
+    imagery_id: int, body: ImageryRxIn, principal: WriterDep, session: SessionDep
+) -> dict[str, Any]:
+    """Per-cell NDVI (area-weighted mean, share of valid pixels) from an ``ndvi`` or
+    ``multispectral`` image into seed 000's NDVI rate model, stored as version 1 of a
+    prescription like any other (cells without enough valid pixels get the fallback rate
+    and the ``no_data`` flag)."""
+    from fieldrx.imagery.stats import cell_ndvi
+
+    img = get_scoped(session, Imagery, imagery_id, principal)
+    if img.kind not in ("ndvi", "multispectral"):
+        raise ApiError(
+            422,
+            f"imagery {img.id} is an {img.kind}: NDVI needs an 'ndvi' or 'multispectral' image",
+            where="imagery_id",
+        )
+    plan = session.get(Plan, body.plan_id)
+    if plan is None or plan.organisation_id != principal.organisation_id:
+        raise ApiError(422, f"plan {body.plan_id} not found", where="plan_id")
+    field = session.get(FieldRow, plan.field_id)
+    assert field is not None
+    machine = None
+    if body.machine_id is not None:
+        machine = session.get(Machine, body.machine_id)
+        if machine is None or machine.organisation_id != principal.organisation_id:
+            raise ApiError(422, f"machine {body.machine_id} not found", where="machine_id")
+    path = storage.path_for(img.storage_key)
+    kind, bands = img.kind, dict(img.bands)
+
+    def ndvi_of(cells: CellTable) -> tuple[np.ndarray, dict[str, Any]]:
+        stats = cell_ndvi(
+            path,
+            kind,
+            bands,
+            cells.polygons_utm,
+            cells.epsg,
+            min_valid_share=body.min_valid_share,
+        )
+        return stats.mean, {**stats.info, "imagery_id": img.id}
+
+    try:
+        meter = rx_svc.meter_spec(
+            machine, plan, body.speed_min_kmh, body.speed_max_kmh, body.width_m, body.calibration
+        )
+        rx = rx_svc.create_prescription(
+            session,
+            plan,
+            field,
+            name=body.name or f"NDVI from imagery {img.id} on plan {plan.id}",
+            product=body.product,
+            model="ndvi",
+            params=body.params,
+            interpolation="imagery",
+            interpolation_params={"min_valid_share": body.min_valid_share},
+            fallback_rate_kg_ha=body.fallback_rate_kg_ha,
+            meter=meter,
+            machine_id=body.machine_id,
+            user_id=principal.user_id,
+            organisation_id=principal.organisation_id,
+            cell_source=ndvi_of,
+            source={
+                "imagery_id": img.id,
+                "kind": img.kind,
+                "acquired_on": (img.acquired_on.isoformat() if img.acquired_on else None),
+            },
+        )
+    except (ImageryError, *BAD_INPUT) as exc:
+        session.rollback()
+        raise ApiError(422, str(exc)) from exc
+    session.commit()
+    return rx_svc.prescription_summary(session, rx)
