@@ -48,7 +48,7 @@ def test_orthophoto_utm_becomes_cog(client, org, field_id, imagery_dir, tmp_path
     with rasterio.open(files[0]) as cog:
         assert cog.profile["tiled"]
         assert cog.tags(ns="IMAGE_STRUCTURE").get("LAYOUT") == "COG"
-        assert cog.crs.to_epsg() == UTM
+        assert cog.crs.to_epsg() == 3857  # orthophotos: stored on the web-map tile grid
     listed = client.get(f"/api/v1/fields/{field_id}/imagery", headers=org.headers()).json()
     assert [i["id"] for i in listed["items"]] == [item["id"]]
     assert _rows(db, org) == 1
@@ -67,6 +67,9 @@ def test_ndvi_in_wgs84_with_given_date(client, org, field_id, imagery_dir, tmp_p
     assert r.status_code == 201, r.text
     item = r.json()
     assert item["source_crs"] == "EPSG:4326" and item["acquired_on"] == "2026-06-01"
+    (cog,) = stored_files(imagery_dir)
+    with rasterio.open(cog) as ds:  # analysis imagery keeps its own pixel grid
+        assert ds.crs.to_epsg() == 4326 and (ds.width, ds.height) == (item["width"], item["height"])
     assert 0.3 < item["resolution_m"] < 0.8
     lon, lat = tr.transform(X0 + 100, Y0 + 50)
     b = item["bounds"]

@@ -2,11 +2,11 @@
 
 Method (issue 14 scope 3). The cells' polygons are moved into the raster's CRS and burnt
 into a label grid (GDAL rasterize, one label per cell, a sample belongs to the cell that
-contains its centre) laid over the cells' extent at a sampling step of about a tenth of a
-typical cell's side (finer than that when the raster is finer, coarser only to stay under
-``max_samples``). The raster is read onto the same grid (nearest neighbour when the step
-is finer than the pixels, so each pixel contributes in proportion to the part of it inside
-the cell; GDAL's average over overviews when coarser). Every sample covers the same area,
+contains its centre) laid over the cells' extent at a sampling step of a tenth of a
+typical cell's side (coarser only to stay under ``max_samples``). The raster is read onto
+the same grid: nearest neighbour when its pixels are coarser than the step, so each pixel
+contributes in proportion to the part of it inside the cell; GDAL's average (over
+overviews where they exist) when they are finer. Every sample covers the same area,
 so a cell's plain mean over its samples is the area-weighted mean of the pixels under it,
 to within one sampling step along the cell's edge.
 
@@ -60,25 +60,68 @@ def _ndvi(
     src: Any, kind: str, bands: dict[str, int], window: Any, shape: tuple[int, int], resampling: Any
 ) -> np.ndarray:
     """NDVI on the sampling grid as float32, NaN where invalid."""
+    from rasterio.windows import Window
+
     idx = [bands["ndvi"]] if kind == "ndvi" else [bands["red"], bands["nir"]]
-    data = src.read(
-        idx,
-        window=window,
-        out_shape=(len(idx), *shape),
-        boundless=True,
-        masked=True,
-        resampling=resampling,
+    inside = (
+        window.intersection(Window(0, 0, src.width, src.height)) if _overlaps(window, src) else None
     )
-    arr = np.ma.filled(data.astype("float64"), np.nan)
+    out = np.full(shape, np.nan, dtype="float32")
+    if inside is None:
+        return out
+    # Read only the part of the grid the raster covers (a boundless read goes through a
+    # warped VRT and is several times slower); the rest stays NaN.
+    sy = shape[0] / window.height
+    sx = shape[1] / window.width
+    r0 = int(round((inside.row_off - window.row_off) * sy))
+    c0 = int(round((inside.col_off - window.col_off) * sx))
+    h = min(shape[0] - r0, max(1, int(round(inside.height * sy))))
+    w = min(shape[1] - c0, max(1, int(round(inside.width * sx))))
+    data = src.read(
+        idx, window=inside, out_shape=(len(idx), h, w), masked=True, resampling=resampling
+    )
+    mask = np.ma.getmaskarray(data).any(axis=0)
+    arr = np.asarray(data.data, dtype="float32")
     if kind == "ndvi":
-        out = arr[0]
+        val = arr[0]
     else:
         red, nir = arr
         den = nir + red
         with np.errstate(divide="ignore", invalid="ignore"):
-            out = np.where(den > 0, (nir - red) / den, np.nan)
-    out = np.where(np.isfinite(out) & (out >= -1.0) & (out <= 1.0), out, np.nan)
-    return out.astype("float32")
+            val = (nir - red) / den
+        mask |= ~(den > 0)
+    with np.errstate(invalid="ignore"):
+        mask |= ~((val >= -1.0) & (val <= 1.0))  # also catches NaN and inf
+    val[mask] = np.nan
+    out[r0 : r0 + h, c0 : c0 + w] = val
+    return out
+
+
+def _overlaps(window: Any, src: Any) -> bool:
+    return (
+        window.col_off < src.width
+        and window.row_off < src.height
+        and window.col_off + window.width > 0
+        and window.row_off + window.height > 0
+    )
+
+
+def _shapes(polys: np.ndarray) -> list[Any]:
+    """GeoJSON-like shapes for GDAL rasterize, built from packed coordinates (shapely's
+    per-object ``__geo_interface__`` costs ~50 us per cell); polygons with holes and
+    multipolygons keep their own interface."""
+    import shapely
+
+    simple = (shapely.get_type_id(polys) == 3) & (shapely.get_num_interior_rings(polys) == 0)
+    coords = shapely.get_coordinates(polys).tolist()  # one conversion, then list slices
+    counts = shapely.get_num_coordinates(polys)
+    ends = np.cumsum(counts).tolist()
+    starts = (np.cumsum(counts) - counts).tolist()
+    flags = simple.tolist()
+    return [
+        {"type": "Polygon", "coordinates": [coords[a:b]]} if ok else g
+        for a, b, ok, g in zip(starts, ends, flags, polys, strict=True)
+    ]
 
 
 def cell_ndvi(
@@ -115,7 +158,7 @@ def cell_ndvi(
         # Sampling step in raster units: typical side / 10 measured in the raster's CRS.
         scale = math.sqrt(float(shapely.area(polys).sum()) / max(float(areas.sum()), 1e-12))
         native = min(abs(src.res[0]), abs(src.res[1]))
-        step = min(native, typical_side * scale / SAMPLES_PER_SIDE)
+        step = typical_side * scale / SAMPLES_PER_SIDE
         extent_area = (maxx - minx) * (maxy - miny)
         step = max(step, math.sqrt(extent_area / max_samples))
         width = max(1, math.ceil((maxx - minx) / step))
@@ -125,7 +168,7 @@ def cell_ndvi(
         resampling = Resampling.nearest if step <= native else Resampling.average
         ndvi = _ndvi(src, kind, bands, window, (height, width), resampling)
     labels = rasterize(
-        zip(polys, range(1, n + 1), strict=True),
+        zip(_shapes(polys), range(1, n + 1), strict=True),
         out_shape=(height, width),
         transform=grid,
         fill=0,

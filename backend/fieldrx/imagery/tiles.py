@@ -15,6 +15,9 @@ import numpy as np
 TILESIZE = 256
 NDVI_RANGE = (0.0, 1.0)
 NDVI_COLORMAP = "rdylgn"
+# zlib level 1: photo tiles barely compress further at level 6 but take ~4x longer to encode
+# (bench/imagery.py measures the difference).
+PNG_OPTIONS = {"ZLEVEL": 1}
 
 
 def ndvi_expression(bands: dict[str, int]) -> str:
@@ -38,7 +41,7 @@ def render_tile(
                 img = src.tile(
                     x, y, z, tilesize=TILESIZE, indexes=(bands["r"], bands["g"], bands["b"])
                 )
-                return img.render(img_format="PNG")
+                return img.render(img_format="PNG", **PNG_OPTIONS)
             if kind == "ndvi":
                 img = src.tile(x, y, z, tilesize=TILESIZE, indexes=bands["ndvi"])
             else:
@@ -51,4 +54,4 @@ def render_tile(
         np.nan_to_num(np.asarray(data), nan=0.0), mask=np.ma.getmaskarray(data) | bad
     )
     img = img.rescale(in_range=(NDVI_RANGE,))
-    return img.render(img_format="PNG", colormap=cmap.get(NDVI_COLORMAP))
+    return img.render(img_format="PNG", colormap=cmap.get(NDVI_COLORMAP), **PNG_OPTIONS)
