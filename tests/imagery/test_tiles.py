@@ -102,3 +102,16 @@ def test_ndvi_and_multispectral_tiles_colour_ramp(
         assert west[0] > west[1] and east[1] > east[0], (west, east)  # red west, green east
         pngs.append(img)
     assert np.abs(pngs[0] - pngs[1])[..., :3].mean() < 8  # same NDVI, same picture
+
+
+def test_tiler_imported_with_the_router() -> None:
+    """Regression: rio_tiler imported lazily inside the tile endpoint raced between thread-pool
+    workers on a map's first concurrent tile requests (ImportError: partially initialised
+    module rio_tiler.io -> 500). The router must import it up front."""
+    import os
+    import subprocess
+    import sys
+
+    code = "import sys, fieldrx.api.imagery; sys.exit(0 if 'rio_tiler.io' in sys.modules else 1)"
+    r = subprocess.run([sys.executable, "-c", code], env=os.environ.copy(), check=False)
+    assert r.returncode == 0, "fieldrx.api.imagery does not import rio_tiler at load time"

@@ -26,6 +26,8 @@ from fieldrx.db.models import Field as FieldRow
 from fieldrx.db.models import Imagery, Machine, Plan
 from fieldrx.imagery import ImageryError, storage
 from fieldrx.imagery.ingest import IngestSpec, ingest
+from fieldrx.imagery.stats import cell_ndvi
+from fieldrx.imagery.tiles import render_tile
 from fieldrx.services import prescriptions as rx_svc
 from fieldrx.settings import get_settings
 
@@ -225,8 +227,6 @@ def imagery_tile(
     Images never change once stored (a new upload is a new id), so tiles carry a strong
     ETag and a day of private caching.
     """
-    from fieldrx.imagery.tiles import render_tile
-
     row = get_scoped(session, Imagery, imagery_id, principal)
     if not 0 <= z <= MAX_ZOOM:
         raise ApiError(422, f"zoom must be 0..{MAX_ZOOM}, got {z}")
@@ -277,8 +277,6 @@ def prescription_from_imagery(
     ``multispectral`` image into seed 000's NDVI rate model, stored as version 1 of a
     prescription like any other (cells without enough valid pixels get the fallback rate
     and the ``no_data`` flag)."""
-    from fieldrx.imagery.stats import cell_ndvi
-
     img = get_scoped(session, Imagery, imagery_id, principal)
     if img.kind not in ("ndvi", "multispectral"):
         raise ApiError(

@@ -11,6 +11,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from rio_tiler.colormap import cmap
+from rio_tiler.errors import TileOutsideBounds
+from rio_tiler.io import Reader
 
 TILESIZE = 256
 NDVI_RANGE = (0.0, 1.0)
@@ -28,11 +31,12 @@ def ndvi_expression(bands: dict[str, int]) -> str:
 def render_tile(
     path: Path, kind: str, bands: dict[str, Any], z: int, x: int, y: int
 ) -> bytes | None:
-    """PNG bytes of tile z/x/y, or None when the raster does not reach the tile."""
-    from rio_tiler.colormap import cmap
-    from rio_tiler.errors import TileOutsideBounds
-    from rio_tiler.io import Reader
+    """PNG bytes of tile z/x/y, or None when the raster does not reach the tile.
 
+    rio-tiler is imported with this module, never lazily inside a request: the endpoint
+    runs in a thread pool, and concurrent first imports of rio_tiler race into a
+    circular-import error (500s on a map's first tiles).
+    """
     with Reader(str(path)) as src:
         if not src.tile_exists(x, y, z):
             return None

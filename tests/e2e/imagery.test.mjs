@@ -1,0 +1,108 @@
+// Imagery in the browser: upload an orthophoto on a field, see it under the field's
+// boundary (tiles served and drawn below the data layers), pick it and change its opacity,
+// and find it under the boundary editor's map; maps open fitted to the fields.
+import { after, before, describe, it } from 'node:test';
+import assert from 'node:assert/strict';
+import { execFileSync } from 'node:child_process';
+import { writeFileSync } from 'node:fs';
+import { join } from 'node:path';
+import { ARTIFACTS, BASE_URL, EMAIL, PASSWORD, ROOT, api, apiLogin, hasRoute, launch, mapIdle, serverUp, shot, uiServed } from './lib.mjs';
+
+const up = (await serverUp()) && (await uiServed());
+const SKIP = !up
+  ? `no FieldRx server with the UI at ${BASE_URL}`
+  : !(await hasRoute('POST', '/fields/{}/imagery'))
+    ? 'no imagery upload on this server'
+    : false;
+
+/** An RGB GeoTIFF (rasterio, EPSG:4326) covering bbox plus a margin: magenta/green stripes. */
+function writeOrthophoto(file, bbox) {
+  const py = `
+import sys, numpy as np, rasterio
+from rasterio.transform import from_bounds
+w, s, e, n = map(float, sys.argv[2:6])
+mx, my = (e - w) * 0.2, (n - s) * 0.2
+W = H = 512
+stripes = ((np.arange(W)[None, :] // 32) % 2).repeat(H, 0)
+rgb = np.stack([np.where(stripes, 230, 40), np.where(stripes, 20, 200), np.where(stripes, 230, 40)]).astype('uint8')
+with rasterio.open(sys.argv[1], 'w', driver='GTiff', width=W, height=H, count=3, dtype='uint8', crs='EPSG:4326',
+                   transform=from_bounds(w - mx, s - my, e + mx, n + my, W, H), tiled=True) as d:
+    d.write(rgb)
+`;
+  execFileSync(join(ROOT, '.venv', 'bin', 'python'), ['-c', py, file, ...bbox.map(String)]);
+}
+
+describe('imagery under the maps', { skip: SKIP }, () => {
+  let B;
+  let page;
+  let token;
+  let field;
+  const tileStatus = [];
+  before(async () => {
+    token = await apiLogin();
+    const fc = (await api(token, 'GET', '/fields?limit=500')).data;
+    field = fc.features.find((f) => f.bbox);
+    B = await launch();
+    page = B.page;
+    page.on('response', (r) => {
+      if (r.url().includes('/api/v1/tiles/imagery/')) tileStatus.push(r.status());
+    });
+  });
+  after(async () => {
+    if (B) writeFileSync(join(ARTIFACTS, 'imagery-browser-console.log'), B.logs.join('\n'));
+    await B?.close();
+  });
+
+  it('opens the fields map fitted to the fields, not the world', async () => {
+    await page.goto(`${BASE_URL}/#/login`);
+    await page.fill('[data-testid=login-email]', EMAIL);
+    await page.fill('[data-testid=login-password]', PASSWORD);
+    await page.click('[data-testid=login-submit]');
+    await page.waitForSelector('[data-testid=field-list]');
+    await mapIdle(page, 'fields');
+    const zoom = await page.evaluate(() => window.__fieldrxMaps.fields.getZoom());
+    assert.ok(zoom > 8, `fields map zoom ${zoom} is not at field scale`);
+  });
+
+  it('uploads an orthophoto on a field and draws it under the boundary', async () => {
+    assert.ok(field, 'the demo organisation has a field');
+    const file = join(ARTIFACTS, 'orthophoto.tif');
+    writeOrthophoto(file, field.bbox);
+    await page.goto(`${BASE_URL}/#/fields/${field.id}`);
+    await mapIdle(page, 'field');
+    await page.click('[data-testid=imagery-toggle]');
+    await page.setInputFiles('[data-testid=imagery-file]', file);
+    await page.selectOption('[data-testid=imagery-kind]', 'orthophoto');
+    await page.click('[data-testid=imagery-upload]');
+    await page.waitForSelector('[data-testid=imagery-msg]:has-text("Stored")', { timeout: 60_000 });
+    await page.waitForFunction(() => Boolean(window.__fieldrxMaps.field.getLayer('imagery')));
+    await mapIdle(page, 'field');
+    const order = await page.evaluate(() => window.__fieldrxMaps.field.getStyle().layers.map((l) => l.id));
+    const at = order.indexOf('imagery');
+    assert.ok(at >= 0, 'imagery layer added');
+    assert.ok(order.length > at + 1, `data layers drawn above the imagery: ${order.join(', ')}`);
+    assert.ok(tileStatus.includes(200), `imagery tiles served (statuses ${tileStatus.join(',')})`);
+    assert.ok(!tileStatus.some((s) => s >= 400), `no failed imagery tile (statuses ${tileStatus.join(',')})`);
+    await shot(page, 'imagery-under-field');
+  });
+
+  it('picker and opacity control the layer', async () => {
+    await page.locator('[data-testid=imagery-opacity]').fill('40');
+    const op = await page.evaluate(() => window.__fieldrxMaps.field.getPaintProperty('imagery', 'raster-opacity'));
+    assert.equal(op, 0.4);
+    await page.selectOption('[data-testid=imagery-select]', '');
+    await page.waitForFunction(() => !window.__fieldrxMaps.field.getLayer('imagery'));
+    const items = (await api(token, 'GET', `/fields/${field.id}/imagery`)).data.items;
+    await page.selectOption('[data-testid=imagery-select]', String(items[0].id));
+    await page.waitForFunction(() => Boolean(window.__fieldrxMaps.field.getLayer('imagery')));
+  });
+
+  it('the boundary editor draws on the imagery', async () => {
+    await page.goto(`${BASE_URL}/#/fields/${field.id}/edit`);
+    await page.waitForSelector('[data-testid=map-draw]');
+    await shot(page, 'editor-before-imagery');
+    await page.waitForFunction(() => Boolean(window.__fieldrxMaps?.draw?.getLayer('imagery')), null, { timeout: 20_000 });
+    await mapIdle(page, 'draw');
+    await shot(page, 'imagery-under-editor');
+  });
+});
