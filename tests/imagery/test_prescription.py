@@ -105,3 +105,39 @@ def test_orthophoto_and_other_org_refused(
         json={"plan_id": plan["id"]},
     )
     assert r.status_code == 404
+
+
+def test_four_zone_prescription_and_isoxml_zones(
+    client, org, field_id, imagery_dir, tmp_path
+) -> None:
+    """NDVI 0.2 -> 0.8 west -> east: 4 zones in west -> east order, one rate per zone from
+    seed 000's curve at the zone's mean NDVI; exported as ISOXML treatment zones."""
+    img = _upload(client, org, field_id, write_tiff(tmp_path / "n.tif", "ndvi"), "ndvi")
+    plan = _plan(client, org, field_id)
+    r = client.post(
+        f"/api/v1/imagery/{img['id']}/zones",
+        headers=org.headers(),
+        json={"plan_id": plan["id"], "k": 4, "min_area_m2": 200},
+    )
+    assert r.status_code == 201, r.text
+    rx = r.json()
+    zones = rx["summary"]["interpolation"]["zones"]
+    assert [z["zone"] for z in zones] == [1, 2, 3, 4]
+    means = [z["mean_ndvi"] for z in zones]
+    assert means == sorted(means)
+    cells = all_cells(client, org.headers(), rx["id"])
+    rates = {round(c["properties"]["rate_kg_ha"], 6) for c in cells}
+    assert len(rates) == 4
+    expected = {round(float(ndvi_linear_rate(m)), 6) for m in means}
+    assert rates == expected
+    assert sum(z["cells"] for z in zones) == len(cells)
+    r = client.get(
+        f"/api/v1/prescriptions/{rx['id']}/export?format=isoxml-zones", headers=org.headers()
+    )
+    assert r.status_code == 200 and r.content[:2] == b"PK"
+    r = client.post(
+        f"/api/v1/imagery/{img['id']}/zones",
+        headers=org.headers(),
+        json={"plan_id": plan["id"], "k": 1},
+    )
+    assert r.status_code == 422

@@ -19,6 +19,7 @@ from shapely import wkb
 from sqlalchemy import select
 
 from fieldrx.agronomy.cells import CellTable
+from fieldrx.agronomy.zones import ZoneError, classify_zones, zone_means
 from fieldrx.api.common import ApiError, geom_to_geojson, get_scoped
 from fieldrx.api.prescriptions import BAD_INPUT
 from fieldrx.auth.deps import SessionDep, UserDep, WriterDep
@@ -277,6 +278,38 @@ def prescription_from_imagery(
     ``multispectral`` image into seed 000's NDVI rate model, stored as version 1 of a
     prescription like any other (cells without enough valid pixels get the fallback rate
     and the ``no_data`` flag)."""
+    img, plan, field, machine = _rx_inputs(session, principal, imagery_id, body)
+    path = storage.path_for(img.storage_key)
+    kind, bands = img.kind, dict(img.bands)
+
+    def ndvi_of(cells: CellTable) -> tuple[np.ndarray, dict[str, Any]]:
+        stats = cell_ndvi(
+            path,
+            kind,
+            bands,
+            cells.polygons_utm,
+            cells.epsg,
+            min_valid_share=body.min_valid_share,
+        )
+        return stats.mean, {**stats.info, "imagery_id": img.id}
+
+    return _create_rx(
+        session,
+        principal,
+        img,
+        plan,
+        field,
+        machine,
+        body,
+        ndvi_of,
+        body.name or f"NDVI from imagery {img.id} on plan {plan.id}",
+        {},
+    )
+
+
+def _rx_inputs(
+    session: SessionDep, principal: WriterDep, imagery_id: int, body: ImageryRxIn
+) -> tuple[Imagery, Plan, FieldRow, Machine | None]:
     img = get_scoped(session, Imagery, imagery_id, principal)
     if img.kind not in ("ndvi", "multispectral"):
         raise ApiError(
@@ -294,20 +327,21 @@ def prescription_from_imagery(
         machine = session.get(Machine, body.machine_id)
         if machine is None or machine.organisation_id != principal.organisation_id:
             raise ApiError(422, f"machine {body.machine_id} not found", where="machine_id")
-    path = storage.path_for(img.storage_key)
-    kind, bands = img.kind, dict(img.bands)
+    return img, plan, field, machine
 
-    def ndvi_of(cells: CellTable) -> tuple[np.ndarray, dict[str, Any]]:
-        stats = cell_ndvi(
-            path,
-            kind,
-            bands,
-            cells.polygons_utm,
-            cells.epsg,
-            min_valid_share=body.min_valid_share,
-        )
-        return stats.mean, {**stats.info, "imagery_id": img.id}
 
+def _create_rx(
+    session: SessionDep,
+    principal: WriterDep,
+    img: Imagery,
+    plan: Plan,
+    field: FieldRow,
+    machine: Machine | None,
+    body: ImageryRxIn,
+    cell_source: Any,
+    name: str,
+    extra_source: dict[str, Any],
+) -> dict[str, Any]:
     try:
         meter = rx_svc.meter_spec(
             machine, plan, body.speed_min_kmh, body.speed_max_kmh, body.width_m, body.calibration
@@ -316,7 +350,7 @@ def prescription_from_imagery(
             session,
             plan,
             field,
-            name=body.name or f"NDVI from imagery {img.id} on plan {plan.id}",
+            name=name,
             product=body.product,
             model="ndvi",
             params=body.params,
@@ -327,15 +361,89 @@ def prescription_from_imagery(
             machine_id=body.machine_id,
             user_id=principal.user_id,
             organisation_id=principal.organisation_id,
-            cell_source=ndvi_of,
+            cell_source=cell_source,
             source={
                 "imagery_id": img.id,
                 "kind": img.kind,
-                "acquired_on": (img.acquired_on.isoformat() if img.acquired_on else None),
+                "acquired_on": img.acquired_on.isoformat() if img.acquired_on else None,
+                **extra_source,
             },
         )
-    except (ImageryError, *BAD_INPUT) as exc:
+    except (ImageryError, ZoneError, *BAD_INPUT) as exc:
         session.rollback()
         raise ApiError(422, str(exc)) from exc
     session.commit()
     return rx_svc.prescription_summary(session, rx)
+
+
+class ZonesIn(ImageryRxIn):
+    k: int = Field(default=4, ge=2, le=12, description="number of zones")
+    min_area_m2: float = Field(
+        default=0.0, ge=0, description="patches of a zone smaller than this join a neighbour"
+    )
+
+
+@router.post("/imagery/{imagery_id:int}/zones", status_code=201)
+def zones_from_imagery(
+    imagery_id: int, body: ZonesIn, principal: WriterDep, session: SessionDep
+) -> dict[str, Any]:
+    """A zone prescription: per-cell NDVI from the image, k-means into ``k`` zones (zone 1
+    lowest NDVI), patches under ``min_area_m2`` merged into their main neighbour, and each
+    zone's rate from seed 000's NDVI curve at the zone's area-weighted mean NDVI. Stored as
+    a versioned prescription (edits, ISOXML treatment zones and Shapefile export as usual);
+    the zone table is in ``summary.interpolation.zones``."""
+    img, plan, field, machine = _rx_inputs(session, principal, imagery_id, body)
+    path = storage.path_for(img.storage_key)
+    kind, bands = img.kind, dict(img.bands)
+
+    def zone_ndvi(cells: CellTable) -> tuple[np.ndarray, dict[str, Any]]:
+        stats = cell_ndvi(
+            path,
+            kind,
+            bands,
+            cells.polygons_utm,
+            cells.epsg,
+            min_valid_share=body.min_valid_share,
+        )
+        z = classify_zones(
+            stats.mean,
+            body.k,
+            polygons=cells.polygons_utm,
+            area_m2=cells.area_m2,
+            min_area_m2=body.min_area_m2,
+        )
+        means = zone_means(stats.mean, z.labels, cells.area_m2, body.k)
+        values = np.where(z.labels > 0, means[np.maximum(z.labels, 1) - 1], np.nan)
+        table = [
+            {
+                "zone": k + 1,
+                "ndvi_from": z.breaks[k],
+                "mean_ndvi": None if np.isnan(means[k]) else float(means[k]),
+                "cells": int((z.labels == k + 1).sum()),
+                "area_m2": float(cells.area_m2[z.labels == k + 1].sum()),
+            }
+            for k in range(body.k)
+        ]
+        info = {
+            **stats.info,
+            "imagery_id": img.id,
+            "classifier": "kmeans_1d",
+            "k": body.k,
+            "min_area_m2": body.min_area_m2,
+            "merged_patches": z.merged_patches,
+            "zones": table,
+        }
+        return values, info
+
+    return _create_rx(
+        session,
+        principal,
+        img,
+        plan,
+        field,
+        machine,
+        body,
+        zone_ndvi,
+        body.name or f"{body.k} NDVI zones from imagery {img.id} on plan {plan.id}",
+        {"zones": {"k": body.k, "min_area_m2": body.min_area_m2, "classifier": "kmeans_1d"}},
+    )
