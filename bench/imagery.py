@@ -1,6 +1,6 @@
 """Imagery figures (issue 14): tile latency, large-GeoTIFF ingest, per-cell NDVI.
 
-Run: .venv/bin/python bench/imagery.py [--ingest-mb 512] [--tiles 300] [--cells 100000]
+Run: .venv/bin/python bench/imagery.py [--ingest-mb 256] [--tiles 300] [--cells 100000]
 
 1. Tiles: a 10,000 x 10,000 px RGB orthophoto (0.1 m, 1 km x 1 km, UTM 49N) is converted to
    a COG, then ``imagery.tiles.render_tile`` (what GET /tiles/imagery/... runs after its
@@ -221,7 +221,7 @@ def bench_cells(tmp: Path, n_cells: int) -> dict:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--ingest-mb", type=int, default=512)
+    ap.add_argument("--ingest-mb", type=int, default=256)
     ap.add_argument("--tiles", type=int, default=300)
     ap.add_argument("--cells", type=int, default=100_000)
     args = ap.parse_args()
