@@ -170,3 +170,14 @@ def test_other_org_cannot_upload(client, org, make_org, field_id, imagery_dir, t
     r = _upload(client, other, field_id, src, "orthophoto")
     assert r.status_code == 404
     assert stored_files(imagery_dir) == []
+
+
+def test_deleting_the_field_removes_its_cogs(
+    client, org, field_id, imagery_dir, tmp_path, db
+) -> None:
+    """Regression: imagery rows went with the field (ON DELETE CASCADE) but their COG files
+    stayed in storage forever."""
+    _upload(client, org, field_id, write_tiff(tmp_path / "o.tif"), "orthophoto")
+    assert len(stored_files(imagery_dir)) == 1
+    assert client.delete(f"/api/v1/fields/{field_id}", headers=org.headers()).status_code == 204
+    assert stored_files(imagery_dir) == [] and _rows(db, org) == 0

@@ -5,6 +5,7 @@ rename into place never crosses a file system. Object storage can replace this m
 from __future__ import annotations
 
 import uuid
+from collections.abc import Iterable
 from pathlib import Path
 
 from fieldrx.settings import get_settings
@@ -36,3 +37,9 @@ def incoming_path() -> Path:
     d = root() / ".incoming"
     d.mkdir(parents=True, exist_ok=True)
     return d / f"{uuid.uuid4().hex}.upload"
+
+
+def remove(keys: Iterable[str]) -> None:
+    """Delete the COGs of rows that are gone (missing files are fine)."""
+    for key in keys:
+        path_for(key).unlink(missing_ok=True)
