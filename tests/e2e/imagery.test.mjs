@@ -32,6 +32,22 @@ with rasterio.open(sys.argv[1], 'w', driver='GTiff', width=W, height=H, count=3,
   execFileSync(join(ROOT, '.venv', 'bin', 'python'), ['-c', py, file, ...bbox.map(String)]);
 }
 
+/** A float32 NDVI GeoTIFF (EPSG:4326) over bbox plus a margin: NDVI 0.2 -> 0.8 west -> east. */
+function writeNdvi(file, bbox) {
+  const py = `
+import sys, numpy as np, rasterio
+from rasterio.transform import from_bounds
+w, s, e, n = map(float, sys.argv[2:6])
+mx, my = (e - w) * 0.2, (n - s) * 0.2
+W = H = 400
+nd = np.tile(np.linspace(0.2, 0.8, W, dtype='float32'), (H, 1))
+with rasterio.open(sys.argv[1], 'w', driver='GTiff', width=W, height=H, count=1, dtype='float32', crs='EPSG:4326',
+                   transform=from_bounds(w - mx, s - my, e + mx, n + my, W, H), tiled=True) as d:
+    d.write(nd, 1)
+`;
+  execFileSync(join(ROOT, '.venv', 'bin', 'python'), ['-c', py, file, ...bbox.map(String)]);
+}
+
 describe('imagery under the maps', { skip: SKIP }, () => {
   let B;
   let page;
@@ -104,5 +120,49 @@ describe('imagery under the maps', { skip: SKIP }, () => {
     await page.waitForFunction(() => Boolean(window.__fieldrxMaps?.draw?.getLayer('imagery')), null, { timeout: 20_000 });
     await mapIdle(page, 'draw');
     await shot(page, 'imagery-under-editor');
+  });
+
+  it('uploads an NDVI raster, builds an NDVI prescription and a 4-zone prescription', async () => {
+    const file = join(ARTIFACTS, 'ndvi.tif');
+    writeNdvi(file, field.bbox);
+    await page.goto(`${BASE_URL}/#/fields/${field.id}`);
+    await mapIdle(page, 'field');
+    await page.click('[data-testid=imagery-toggle]');
+    await page.setInputFiles('[data-testid=imagery-file]', file);
+    await page.selectOption('[data-testid=imagery-kind]', 'ndvi');
+    await page.click('[data-testid=imagery-upload]');
+    await page.waitForSelector('[data-testid=imagery-msg]:has-text("Stored ndvi")', { timeout: 60_000 });
+    const plan = await api(token, 'POST', `/fields/${field.id}/plans`, { swath_width_m: 2.3, cell_length_m: 5 });
+    assert.equal(plan.status, 201, JSON.stringify(plan.data));
+
+    await page.goto(`${BASE_URL}/#/plans/${plan.data.id}`);
+    await page.waitForSelector('[data-testid=imagery-rx-form]');
+    await page.selectOption('[data-testid=imagery-rx-mode]', 'ndvi');
+    await page.click('[data-testid=imagery-rx-submit]');
+    await page.waitForURL(/#\/prescriptions\/\d+/, { timeout: 60_000 });
+    const ndviRx = (await api(token, 'GET', `/prescriptions/${page.url().split('/').pop()}`)).data;
+    assert.equal(ndviRx.model, 'ndvi');
+    assert.equal(ndviRx.interpolation, 'imagery');
+    await mapIdle(page, 'rx');
+    await shot(page, 'ndvi-prescription-from-imagery');
+
+    await page.goto(`${BASE_URL}/#/plans/${plan.data.id}`);
+    await page.waitForSelector('[data-testid=imagery-rx-form]');
+    await page.selectOption('[data-testid=imagery-rx-mode]', 'zones');
+    await page.fill('[data-testid=imagery-rx-k]', '4');
+    await page.click('[data-testid=imagery-rx-submit]');
+    await page.waitForURL((u) => /#\/prescriptions\/\d+/.test(u.toString()) && !u.toString().endsWith(`/${ndviRx.id}`), {
+      timeout: 60_000,
+    });
+    const zoneId = page.url().split('/').pop();
+    const zoneRx = (await api(token, 'GET', `/prescriptions/${zoneId}`)).data;
+    assert.equal(zoneRx.summary.interpolation.zones.length, 4);
+    await mapIdle(page, 'rx');
+    await shot(page, 'zone-prescription-from-imagery');
+    const r = await fetch(`${BASE_URL}/api/v1/prescriptions/${zoneId}/export?format=isoxml-zones`, {
+      headers: { Authorization: `Bearer ${token}` },
+    });
+    assert.equal(r.status, 200);
+    assert.equal(Buffer.from(await r.arrayBuffer()).subarray(0, 2).toString(), 'PK');
   });
 });

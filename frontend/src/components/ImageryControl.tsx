@@ -3,7 +3,6 @@ import type * as maplibregl from 'maplibre-gl';
 import { api, errorText } from '../api';
 import { defaultImagery, imageryLabel, opacityFromPercent, sortNewest, type ImageryItem } from '../lib/imagery';
 import { showImagery } from '../map/imagery';
-import { whenLoaded } from '../map/setup';
 
 /**
  * Imagery picker, opacity and (for a field) GeoTIFF upload, floating over a map. Shows the
@@ -39,7 +38,10 @@ export function ImageryControl(props: { map: maplibregl.Map | null; fieldId?: nu
   useEffect(() => {
     if (!map) return;
     const item = items.find((i) => i.id === selected) ?? null;
-    whenLoaded(map, () => showImagery(map, item, opacityFromPercent(opacityPct)));
+    // MapView hands the map over from its 'load' event, so the style is there. Not
+    // whenLoaded(): while a source is still loading, loaded() and isStyleLoaded() are both
+    // false and it waits for a 'load' event that has already fired (the image never showed).
+    showImagery(map, item, opacityFromPercent(opacityPct));
   }, [map, items, selected, opacityPct]);
 
   const upload = async (form: HTMLFormElement) => {
