@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import importlib
+import re
 from pathlib import Path
 
 import psycopg
@@ -32,6 +33,7 @@ ROUTERS = (
     "machines",
     "plans",
     "tiles",
+    "imagery",
     "soil",
     "prescriptions",
     "jobs",
@@ -66,7 +68,12 @@ def create_app() -> FastAPI:
 
     settings = get_settings()
     app.add_middleware(
-        LimitsAndHeaders, max_body=settings.max_body_bytes, max_upload=settings.max_upload_bytes
+        LimitsAndHeaders,
+        max_body=settings.max_body_bytes,
+        max_upload=settings.max_upload_bytes,
+        upload_limits=(
+            (re.compile(rf"^{API_PREFIX}/fields/\d+/imagery$"), settings.imagery_max_upload_bytes),
+        ),
     )
     install_log_redaction()
     bounded.warm_up()

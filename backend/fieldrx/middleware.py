@@ -54,10 +54,19 @@ class LimitsAndHeaders:
     otherwise) before it is read, by Content-Length, or while it streams in; security
     headers and the CSP on every HTTP response."""
 
-    def __init__(self, app: ASGIApp, max_body: int, max_upload: int) -> None:
+    def __init__(
+        self,
+        app: ASGIApp,
+        max_body: int,
+        max_upload: int,
+        upload_limits: tuple[tuple[re.Pattern[str], int], ...] = (),
+    ) -> None:
         self.app = app
         self.max_body = max_body
         self.max_upload = max_upload
+        # routes whose uploads have their own limit (imagery: GeoTIFFs of several GB that the
+        # endpoint streams to disk in chunks); first matching path pattern wins
+        self.upload_limits = upload_limits
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         if scope["type"] != "http":
@@ -65,9 +74,11 @@ class LimitsAndHeaders:
             return
         headers = dict(scope["headers"])
         multipart = headers.get(b"content-type", b"").lower().startswith(b"multipart/")
-        limit = self.max_upload if multipart else self.max_body
-        started = False
         path = scope.get("path", "")
+        limit = self.max_upload if multipart else self.max_body
+        if multipart:
+            limit = next((n for pat, n in self.upload_limits if pat.match(path)), limit)
+        started = False
 
         async def send_with_headers(message: Message) -> None:
             nonlocal started

@@ -47,6 +47,14 @@ class Settings(BaseSettings):
     login_window_s: float = Field(default=900.0, alias="FIELDRX_LOGIN_WINDOW_S")
     live_token_check_s: float = Field(default=5.0, alias="FIELDRX_LIVE_TOKEN_CHECK_S")
     device_token_ttl_days: float = Field(default=365.0, alias="FIELDRX_DEVICE_TOKEN_TTL_DAYS")
+    # Imagery (issue 14): where Cloud-Optimized GeoTIFFs live ("" = ./var/imagery beside the
+    # checkout), the largest upload and raster accepted, and the conversion's time limit.
+    imagery_dir: str = Field(default="", alias="FIELDRX_IMAGERY_DIR")
+    imagery_max_upload_bytes: int = Field(
+        default=4 * 1024**3, alias="FIELDRX_IMAGERY_MAX_UPLOAD_BYTES"
+    )
+    imagery_max_pixels: int = Field(default=2_000_000_000, alias="FIELDRX_IMAGERY_MAX_PIXELS")
+    imagery_timeout_s: float = Field(default=900.0, alias="FIELDRX_IMAGERY_TIMEOUT_S")
 
 
 @lru_cache

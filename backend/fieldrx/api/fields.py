@@ -13,9 +13,10 @@ from sqlalchemy.orm import Session
 
 from fieldrx.api.common import ApiError, geom_to_geojson, get_scoped, shape_to_db
 from fieldrx.auth.deps import Principal, SessionDep, UserDep, WriterDep
-from fieldrx.db.models import Farm
+from fieldrx.db.models import Farm, Imagery
 from fieldrx.db.models import Field as FieldRow
 from fieldrx.geo.validate import BoundaryError, ValidBoundary, validate_boundary
+from fieldrx.imagery import storage as imagery_storage
 from fieldrx.services.evidence import refuse_if_evidence
 
 router = APIRouter(prefix="/fields", tags=["fields"])
@@ -249,7 +250,9 @@ def update_field(
 @router.delete("/{field_id:int}", status_code=204)
 def delete_field(field_id: int, principal: WriterDep, session: SessionDep) -> None:
     """Delete the field, its plans and jobs; 409 while a job holds unarchived as-applied data."""
-    row = get_scoped(session, FieldRow, field_id, principal)
-    refuse_if_evidence(session, "field", row.id)
-    session.delete(row)
+    field = get_scoped(session, FieldRow, field_id, principal)
+    refuse_if_evidence(session, "field", field.id)
+    cogs = session.scalars(select(Imagery.storage_key).where(Imagery.field_id == field.id)).all()
+    session.delete(field)
     session.commit()
+    imagery_storage.remove(cogs)  # the rows went with the field (cascade); now their files

@@ -17,6 +17,7 @@ from sqlalchemy import (
     BigInteger,
     Boolean,
     CheckConstraint,
+    Date,
     DateTime,
     Double,
     ForeignKey,
@@ -484,3 +485,43 @@ class LoginFailure(Base):
     id: Mapped[int] = mapped_column(BigInteger, primary_key=True)
     key: Mapped[str] = mapped_column(String(400))
     at: Mapped[dt.datetime] = _now()
+
+
+IMAGERY_KINDS = ("orthophoto", "ndvi", "multispectral")
+
+
+class Imagery(Base):
+    """An uploaded raster of a field, stored as a Cloud-Optimized GeoTIFF (issue 14).
+
+    ``storage_key`` is the COG's path relative to the imagery directory; ``bands`` maps
+    roles to 1-based band numbers (``{"red": 3, "nir": 4}``, ``{"ndvi": 1}``,
+    ``{"r": 1, "g": 2, "b": 3}``); ``footprint`` is the raster's outline in WGS84.
+    """
+
+    __tablename__ = "imagery"
+    __table_args__ = (
+        CheckConstraint("kind IN ('orthophoto', 'ndvi', 'multispectral')", name="ck_imagery_kind"),
+        Index("ix_imagery_field_created", "field_id", "created_at"),
+    )
+    id: Mapped[int] = mapped_column(primary_key=True)
+    organisation_id: Mapped[int] = mapped_column(
+        ForeignKey("organisations.id", ondelete="CASCADE"), index=True
+    )
+    field_id: Mapped[int] = mapped_column(ForeignKey("fields.id", ondelete="CASCADE"))
+    kind: Mapped[str] = mapped_column(String(20))
+    name: Mapped[str] = mapped_column(String(200), default="")
+    filename: Mapped[str] = mapped_column(String(255), default="")
+    storage_key: Mapped[str] = mapped_column(String(255), unique=True)
+    acquired_on: Mapped[dt.date | None] = mapped_column(Date)
+    source_crs: Mapped[str] = mapped_column(Text, default="")
+    resolution_m: Mapped[float] = mapped_column(Double)
+    width: Mapped[int] = mapped_column(Integer)
+    height: Mapped[int] = mapped_column(Integer)
+    band_count: Mapped[int] = mapped_column(SmallInteger)
+    dtype: Mapped[str] = mapped_column(String(20))
+    bands: Mapped[dict[str, Any]] = mapped_column(JSONB, default=dict)
+    nodata: Mapped[float | None] = mapped_column(Double)
+    size_bytes: Mapped[int] = mapped_column(BigInteger)
+    footprint: Mapped[Any] = mapped_column(Geometry("MULTIPOLYGON", srid=4326, spatial_index=True))
+    created_by: Mapped[int | None] = mapped_column(ForeignKey("users.id", ondelete="SET NULL"))
+    created_at: Mapped[dt.datetime] = _now()

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import struct
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -420,8 +421,15 @@ def create_prescription(
     machine_id: int | None,
     user_id: int | None,
     organisation_id: int,
+    cell_source: Callable[[CellTable], tuple[np.ndarray, dict[str, Any]]] | None = None,
+    source: dict[str, Any] | None = None,
 ) -> Prescription:
-    """Interpolate, rate, clamp and store version 1 (flush only). Raises ValueError subclasses."""
+    """Interpolate, rate, clamp and store version 1 (flush only). Raises ValueError subclasses.
+
+    ``cell_source`` replaces the soil-sample interpolation: it gets the plan's cells and
+    returns the model's per-cell input (NaN = no data) and a description for the summary
+    (imagery NDVI uses it); ``source`` is recorded in the prescription's params.
+    """
     model, params = canonical_model(model, params)
     if model not in MODEL_INPUT:
         raise RxError(f"unknown model {model!r} (expected one of {sorted(MODEL_INPUT)})")
@@ -437,7 +445,13 @@ def create_prescription(
     check = None if meter is None else meter.check()
     values = no_data = None
     interp_info: dict[str, Any] | None = None
-    if cells is not None and column is not None:
+    if cells is not None and column is not None and cell_source is not None:
+        values, interp_info = cell_source(cells)
+        values = np.asarray(values, dtype=float)
+        no_data = np.isnan(values)
+        if no_data.all():
+            raise RxError(f"the {model!r} input source has no data for any cell of plan {plan.id}")
+    elif cells is not None and column is not None:
         xy, z = field_samples(session, field.id, column, field.utm_epsg)
         if len(z) == 0:
             what = "soil samples with n_mg_kg" if column == "n_mg_kg" else "samples with ndvi"
@@ -479,6 +493,7 @@ def create_prescription(
             "interpolation_params": interpolation_params,
             "fallback_rate_kg_ha": fallback_rate_kg_ha,
             "meter": None if meter is None else meter.to_dict(),
+            **({"source": source} if source else {}),
         },
         current_version=1,
     )

@@ -374,7 +374,7 @@ export function FieldDetail({ fieldId }: { fieldId: number }) {
           </>
         )}
       </aside>
-      <MapView name="field" onReady={onReady} />
+      <MapView name="field" onReady={onReady} fieldId={fieldId} />
     </div>
   );
 }

@@ -328,7 +328,7 @@ export function FieldEditor({ fieldId }: { fieldId?: number }) {
         </div>
         <ErrorBox error={error} testid="field-error" />
       </aside>
-      <MapView name="draw" onReady={onReady} />
+      <MapView name="draw" onReady={onReady} fieldId={fieldId} />
     </div>
   );
 }

@@ -273,7 +273,7 @@ function PrescriptionJobReport({ jobId }: { jobId: number }) {
           {points.length} as-applied records
         </p>
       </aside>
-      <MapView name="report" onReady={onReady} />
+      <MapView name="report" onReady={onReady} fieldId={field?.id} />
     </div>
   );
 }

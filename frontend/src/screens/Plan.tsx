@@ -4,6 +4,7 @@ import { api } from '../api';
 import { ErrorBox, isMissingEndpoint, Kv } from '../components/Status';
 import { bboxOf } from '../lib/geo';
 import { formatDistance, formatPercent } from '../lib/units';
+import { ImageryRxForm } from '../components/ImageryRxForm';
 import { MapView } from '../map/MapView';
 import { addRouteLayers, planGridLayers, planTilesUrl, replaceVectorSource } from '../map/grid';
 import { fitTo, setGeoJSON } from '../map/setup';
@@ -128,8 +129,11 @@ export function PlanScreen({ planId }: { planId: number }) {
           ))}
         </ul>
         <RxForm planId={planId} onCreated={(r) => navigate(`/prescriptions/${r.id}`)} />
+        {field?.id !== undefined && (
+          <ImageryRxForm planId={planId} fieldId={field.id} onCreated={(r) => navigate(`/prescriptions/${r.id}`)} />
+        )}
       </aside>
-      <MapView name="plan" onReady={onReady} />
+      <MapView name="plan" onReady={onReady} fieldId={field?.id} />
     </div>
   );
 }

@@ -440,7 +440,7 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
           </div>
         )}
       </aside>
-      <MapView name="rx" onReady={onReady} />
+      <MapView name="rx" onReady={onReady} fieldId={field?.id} />
     </div>
   );
 }

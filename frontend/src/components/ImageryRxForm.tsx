@@ -1,0 +1,86 @@
+import { useEffect, useState } from 'react';
+import { api } from '../api';
+import { imageryLabel, sortNewest, type ImageryItem } from '../lib/imagery';
+import type { Prescription } from '../types';
+import { ErrorBox } from './Status';
+
+/**
+ * NDVI prescription or management zones from an NDVI / multispectral image of the field
+ * (seed 000's NDVI curve; per-cell NDVI is the area-weighted mean of the image's pixels).
+ */
+export function ImageryRxForm(props: { planId: number; fieldId: number; onCreated: (r: Prescription) => void }) {
+  const { planId, fieldId, onCreated } = props;
+  const [items, setItems] = useState<ImageryItem[]>([]);
+  const [imageId, setImageId] = useState('');
+  const [mode, setMode] = useState<'ndvi' | 'zones'>('ndvi');
+  const [k, setK] = useState(4);
+  const [minArea, setMinArea] = useState(0);
+  const [busy, setBusy] = useState(false);
+  const [error, setError] = useState<unknown>(null);
+  useEffect(() => {
+    api
+      .get<{ items: ImageryItem[] }>(`/fields/${fieldId}/imagery`)
+      .then((r) => {
+        const list = sortNewest((r?.items ?? []).filter((i) => i.kind !== 'orthophoto'));
+        setItems(list);
+        if (list[0]) setImageId(String(list[0].id));
+      })
+      .catch(() => setItems([]));
+  }, [fieldId]);
+  if (!items.length) return null;
+  return (
+    <form
+      className="form"
+      data-testid="imagery-rx-form"
+      data-write=""
+      onSubmit={async (e) => {
+        e.preventDefault();
+        setBusy(true);
+        setError(null);
+        try {
+          const body = mode === 'zones' ? { plan_id: planId, k, min_area_m2: minArea } : { plan_id: planId };
+          onCreated(await api.post<Prescription>(`/imagery/${imageId}/${mode === 'zones' ? 'zones' : 'prescriptions'}`, body));
+        } catch (err) {
+          setError(err);
+        } finally {
+          setBusy(false);
+        }
+      }}
+    >
+      <h4>From imagery NDVI</h4>
+      <label>
+        Image
+        <select data-testid="imagery-rx-image" value={imageId} onChange={(e) => setImageId(e.target.value)}>
+          {items.map((i) => (
+            <option key={i.id} value={i.id}>
+              {imageryLabel(i)}
+            </option>
+          ))}
+        </select>
+      </label>
+      <label>
+        Build
+        <select data-testid="imagery-rx-mode" value={mode} onChange={(e) => setMode(e.target.value as 'ndvi' | 'zones')}>
+          <option value="ndvi">NDVI rate per cell</option>
+          <option value="zones">Management zones</option>
+        </select>
+      </label>
+      {mode === 'zones' && (
+        <div className="row wrap">
+          <label>
+            Zones
+            <input data-testid="imagery-rx-k" type="number" min={2} max={12} value={k} onChange={(e) => setK(Number(e.target.value))} />
+          </label>
+          <label>
+            Min zone area (m²)
+            <input type="number" min={0} value={minArea} onChange={(e) => setMinArea(Number(e.target.value))} />
+          </label>
+        </div>
+      )}
+      <button data-testid="imagery-rx-submit" disabled={busy}>
+        {busy ? 'Computing…' : mode === 'zones' ? 'Build zone prescription' : 'Build NDVI prescription'}
+      </button>
+      <ErrorBox error={error} testid="imagery-rx-error" />
+    </form>
+  );
+}
