@@ -1,4 +1,9 @@
-"""MQTT credentials bound to device tokens; reserved revision.
+"""MQTT credentials bound to device tokens: no schema change.
+
+Reserved while the work was planned in parallel; the broker's dynamic-security
+plugin holds the machine users (a salted hash of the device token), so the
+database needed nothing. Kept (empty) because databases already stamped with
+this revision must keep upgrading.
 
 Revision ID: 0008_mqtt_credentials
 Revises: 0007_hardening

@@ -1,4 +1,9 @@
-"""Interchange: imports, reference lines, external as-applied; reserved revision.
+"""Interchange (ISOXML / Shapefile imports, as-applied export): no schema change.
+
+Reserved while the work was planned in parallel; imports reuse farms, fields,
+plans, prescriptions and jobs, and the preview/confirm step re-posts the same
+files with their sha256, so nothing new is stored. Kept (empty) because
+databases already stamped with this revision must keep upgrading.
 
 Revision ID: 0009_interchange
 Revises: 0008_mqtt_credentials

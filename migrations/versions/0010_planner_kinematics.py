@@ -1,4 +1,8 @@
-"""Planner: machine kinematics (turning radius, reverse) on plans; reserved revision.
+"""Planner kinematics (turning radius, reverse): no schema change.
+
+Reserved while the work was planned in parallel; the radius and pattern live
+in the plan's existing JSON parameters and summary. Kept (empty) because
+databases already stamped with this revision must keep upgrading.
 
 Revision ID: 0010_planner_kinematics
 Revises: 0009_interchange
