@@ -35,6 +35,11 @@ class Drive:
     tbase: float
     cell_seq: list[int | None]  # plan cell under the antenna (job progress, maps)
 
+    @property
+    def period_s(self) -> float | None:
+        """The fix period every record carries (``fix_period_s``): 1 / hz."""
+        return round(float(self.t[1] - self.t[0]), 6) if len(self.t) > 1 else None
+
 
 def drive(
     job: JobPackage,
@@ -104,6 +109,7 @@ def record(job: JobPackage, d: Drive, i: int, **fields: Any) -> dict[str, Any]:
         job_id=job.job_id,
         cell_seq=d.cell_seq[i],
         implement_down=bool(d.down[i]),
+        fix_period_s=d.period_s,
         **fields,
     )
     return rec.to_dict()
@@ -111,15 +117,24 @@ def record(job: JobPackage, d: Drive, i: int, **fields: Any) -> dict[str, Any]:
 
 class Feed:
     """Records to ``sink`` (queue.put_many): batches of 200 as fast as possible, or, with
-    ``realtime`` > 0, one at a time paced at that multiple of real time and stamped with the
-    wall clock when sent (so the fleet view watches the drive live, as ``simulate``'s
-    ``--realtime`` does for prescription jobs)."""
+    ``realtime`` > 0, one at a time paced at that multiple of real time (so the fleet view
+    watches the drive live, as ``simulate``'s ``--realtime`` does for prescription jobs).
 
-    def __init__(self, sink: Any | None, realtime: float = 0.0) -> None:
+    A record's time is its fix time (``protocol.TelemetryRecord``), paced or not: fixes
+    0.1 s apart in simulated time stay 0.1 s apart in record time. A paced run moves the
+    drive's time base so that the drive ends when the paced run will end, so no record is
+    stamped after the moment it is sent (the rule of ``sim.simulator``; stamping the wall
+    clock made every time-integrated figure 1 / realtime too small: issue 11)."""
+
+    def __init__(self, sink: Any | None, realtime: float = 0.0, drive: Drive | None = None) -> None:
         self.sink = sink
         self.realtime = realtime
         self.batch: list[dict[str, Any]] = []
         self.wall0 = time.time()
+        self.shift = 0.0  # seconds added to each record's t (the drive's time base moves)
+        if realtime > 0 and drive is not None and len(drive.t):
+            t_end = float(drive.t[-1])
+            self.shift = (self.wall0 + t_end / realtime - t_end) - drive.tbase
 
     def put(self, rec: dict[str, Any], t_sim: float) -> None:
         if self.sink is None:
@@ -128,7 +143,7 @@ class Feed:
             ahead = self.wall0 + t_sim / self.realtime - time.time()
             if ahead > 0:
                 time.sleep(ahead)
-            rec["t"] = round(time.time(), 3)
+            rec["t"] = round(rec["t"] + self.shift, 3)
             self.sink([rec])
             return
         self.batch.append(rec)

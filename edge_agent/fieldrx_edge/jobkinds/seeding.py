@@ -152,7 +152,7 @@ def simulate_seeding(
     u = 0.0
     noise = 0.0
     recs: list[dict[str, Any]] = []
-    feed = Feed(sink, realtime)
+    feed = Feed(sink, realtime, d)
     for i in range(len(d.t)):
         t = float(d.t[i])
         working = bool(d.down[i])

@@ -180,7 +180,7 @@ def simulate_topdress(
     u = 0.0
     y = 0.0
     k_global = 0
-    feed = Feed(sink, realtime)
+    feed = Feed(sink, realtime, d)
     recs: list[dict[str, Any]] = []
     raw_dev: list[float] = []
     for i in range(len(d.t)):
