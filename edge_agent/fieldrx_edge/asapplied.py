@@ -303,9 +303,7 @@ def records_applied(
     y = np.asarray(y, dtype=float)
     have = np.isfinite(x) & np.isfinite(y)
     hd = np.nan_to_num(np.asarray(heading_deg, dtype=float))
-    p0, p1, known = landing_segments(
-        t, dts, t[have], x[have], y[have], hd[have], lag_s, forward_m
-    )
+    p0, p1, known = landing_segments(t, dts, t[have], x[have], y[have], hd[have], lag_s, forward_m)
     m2, _ = landed_mass(cells, np.where(known & have, mass, 0.0), p0, p1, own)
     nopos = ~have & (own >= 0) & (own < cells.n)
     if nopos.any():

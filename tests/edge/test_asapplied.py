@@ -52,9 +52,7 @@ def test_missed_fixes_extend_a_record_but_jitter_does_not() -> None:
 def _two_cells() -> tuple[Cells, np.ndarray]:
     # two 2 m x 5 m cells of one swath driving north; corners rear-right, front-right,
     # front-left, rear-left (the grid's order)
-    corners = np.array(
-        [[1, 0, 1, 5, -1, 5, -1, 0], [1, 5, 1, 10, -1, 10, -1, 5]], dtype=float
-    )
+    corners = np.array([[1, 0, 1, 5, -1, 5, -1, 0], [1, 5, 1, 10, -1, 10, -1, 5]], dtype=float)
     return Cells.build(corners, [0, 0]), corners
 
 
