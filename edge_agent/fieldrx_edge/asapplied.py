@@ -38,7 +38,7 @@ from typing import Any
 import numpy as np
 
 from fieldrx_edge.metering import Calibration, flow_g_min_many
-from fieldrx_edge.planar import GridHash, Polygons, lengths_in_polygons, split_segments
+from fieldrx_edge.planar import GridHash, Polygons, Region, split_segments
 
 MISSED_FIX = 1.5  # a gap beyond this many fix periods means fixes were missed
 
@@ -96,20 +96,49 @@ def flow_g_s(cal: Calibration | None, rpm: np.ndarray, fallback_g_s: np.ndarray)
 
 @dataclass
 class Cells:
-    """The cells of a job in path order: rectangles (n, 8) UTM, swath, optional real shapes."""
+    """The cells of a job in path order: rectangles (n, 8) UTM, swath, optional real shapes,
+    and the field (its rings, UTM): nothing counts outside it (the agent never applies there,
+    and a plan's edge cells may keep a rectangle reaching past it)."""
 
     corners: np.ndarray
     swath: np.ndarray
     polygons: Polygons
     index: GridHash
+    field: Region | None = None
 
     @classmethod
     def build(
-        cls, corners: Any, swath: Any, shapes: dict[int, list[list[float]]] | None = None
+        cls,
+        corners: Any,
+        swath: Any,
+        shapes: dict[int, list[list[float]]] | None = None,
+        field_rings: list[Any] | None = None,
     ) -> Cells:
         c = np.asarray(corners, dtype=float).reshape(-1, 8)
         polys = Polygons.from_cells(c, shapes)
-        return cls(c, np.asarray(swath, dtype=np.int64), polys, GridHash(polys.bbox))
+        fld = Region(field_rings) if field_rings else None
+        return cls(c, np.asarray(swath, dtype=np.int64), polys, GridHash(polys.bbox), fld)
+
+    def pieces(
+        self, cell: np.ndarray, p0: np.ndarray, p1: np.ndarray, seg_of: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Cut segments p0-p1 at the edges of the paired cells (pair i: segment seg_of[i],
+        cell cell[i]) and of the field: (segment, t0, t1) of every piece inside the field."""
+        n_seg = len(p0)
+        if seg_of is None:
+            seg_of = np.arange(len(cell))
+        pair, t = self.polygons.segment_crossings(cell, p0[seg_of], p1[seg_of])
+        seg, cut = seg_of[pair], t
+        if self.field is not None:
+            fs, ft = self.field.segment_crossings(p0, p1)
+            seg, cut = np.concatenate([seg, fs]), np.concatenate([cut, ft])
+        ps, t0, t1 = split_segments(n_seg, seg, cut)
+        if self.field is not None:
+            tm = 0.5 * (t0 + t1)
+            d = p1[ps] - p0[ps]
+            ok = self.field.contains(p0[ps, 0] + tm * d[:, 0], p0[ps, 1] + tm * d[:, 1])
+            ps, t0, t1 = ps[ok], t0[ok], t1[ok]
+        return ps, t0, t1
 
     @property
     def n(self) -> int:
@@ -136,8 +165,6 @@ def driving_lines(cells: Cells) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         return np.zeros(0, dtype=np.int64), z, z
     rear = (c[:, 3] + c[:, 0]) / 2
     front = (c[:, 1] + c[:, 2]) / 2
-    d = front - rear
-    u = d / np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-9)[:, None]
     sw = cells.swath
     prev_same = np.zeros(n, dtype=bool)
     prev_same[1:] = sw[1:] == sw[:-1]
@@ -145,6 +172,16 @@ def driving_lines(cells: Cells) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     next_same[:-1] = sw[:-1] == sw[1:]
     idx = np.arange(n)
     im, ip = np.maximum(idx - 1, 0), np.minimum(idx + 1, n - 1)
+    # a grid whose corners do not follow the travel direction: orient each centre line
+    # along the path (from the previous same-swath cell's centre to the next one's)
+    cent = c.mean(axis=1)
+    along = np.where(next_same[:, None], cent[ip], cent) - np.where(
+        prev_same[:, None], cent[im], cent
+    )
+    back = np.einsum("ij,ij->i", front - rear, along) < 0
+    rear, front = np.where(back[:, None], front, rear), np.where(back[:, None], rear, front)
+    d = front - rear
+    u = d / np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-9)[:, None]
     # polyline: [rear[i-1]] front[i-1] | rear[i] front[i] | rear[i+1] [front[i+1]]
     a0 = np.where(prev_same[:, None], rear[im], rear - EDGE_RUN_M * u)
     a1 = np.where(prev_same[:, None], front[im], rear - EDGE_RUN_M * u)
@@ -158,11 +195,16 @@ def driving_lines(cells: Cells) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def driven_length(cells: Cells) -> np.ndarray:
-    """Length (m) of each cell's driving line inside the cell's polygon (eq. 17's v t)."""
+    """Length (m) of each cell's driving line inside the cell's polygon and the field
+    (eq. 17's v t)."""
     cell, p0, p1 = driving_lines(cells)
-    frac = lengths_in_polygons(cells.polygons, cell, p0, p1)
-    seg_len = np.hypot(*(p1 - p0).T) if len(p0) else np.zeros(0)
-    return np.bincount(cell, weights=frac * seg_len, minlength=cells.n)
+    ps, t0, t1 = cells.pieces(cell, p0, p1)
+    tm = 0.5 * (t0 + t1)
+    d = p1[ps] - p0[ps]
+    inside = cells.polygons.contains(cell[ps], p0[ps, 0] + tm * d[:, 0], p0[ps, 1] + tm * d[:, 1])
+    seg_len = np.hypot(d[:, 0], d[:, 1])
+    w = ((t1 - t0) * seg_len)[inside]
+    return np.bincount(cell[ps][inside], weights=w, minlength=cells.n)
 
 
 def landing_segments(
@@ -228,9 +270,9 @@ def landed_mass(
     q, c = cells.index.pairs(boxes, cells.polygons.bbox)
     if len(q) == 0:
         return np.zeros(n), total
-    # cut each segment at every edge of every candidate cell, then place each piece
-    pair, t = cells.polygons.segment_crossings(c, a[q], b[q])
-    ps, t0, t1 = split_segments(len(sel), q[pair], t)
+    # cut each segment at every edge of every candidate cell (and of the field), then
+    # place each piece
+    ps, t0, t1 = cells.pieces(c, a, b, q)
     # candidate cells of each piece's segment (pairs are sorted by segment)
     first = np.searchsorted(q, ps, side="left")
     cnt = np.searchsorted(q, ps, side="right") - first

@@ -34,7 +34,7 @@ class Where(IntEnum):
     HOLE = 2
 
 
-def _rings(boundary: dict) -> list[tuple[list[list[float]], bool]]:
+def boundary_rings(boundary: dict) -> list[tuple[list[list[float]], bool]]:
     """(ring, is_hole) for a GeoJSON Polygon/MultiPolygon (or bare coordinates)."""
     if "coordinates" in boundary:
         coords = boundary["coordinates"]
@@ -54,7 +54,7 @@ class FieldBoundary:
 
     def __init__(self, boundary_utm: dict, band_m: float | None = None) -> None:
         edges = []
-        for ring, hole in _rings(boundary_utm):
+        for ring, hole in boundary_rings(boundary_utm):
             pts = [(float(p[0]), float(p[1])) for p in ring]
             if len(pts) > 1 and pts[0] == pts[-1]:
                 pts = pts[:-1]

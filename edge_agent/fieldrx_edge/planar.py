@@ -53,21 +53,69 @@ def ring_edges(ring: Any) -> np.ndarray:
     return e[(e[:, 0] != e[:, 2]) | (e[:, 1] != e[:, 3])]
 
 
-def points_in_edges(
-    edges: np.ndarray, x: np.ndarray, y: np.ndarray, chunk: int = 200_000
-) -> np.ndarray:
-    """Vectorised even-odd test of many points against one polygon given as an edge table."""
+def points_in_edges(edges: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Vectorised even-odd test of many points against one polygon given as an edge table.
+
+    Only the (edge, point) pairs whose y-band matches are formed (points sorted by
+    y, one searchsorted per edge), so a 1000-edge boundary costs a few pairs per point.
+    """
     x = np.asarray(x, dtype=float)
     y = np.asarray(y, dtype=float)
     out = np.zeros(len(x), dtype=bool)
-    if len(edges) == 0:
+    if len(edges) == 0 or len(x) == 0:
         return out
-    step = max(1, chunk // max(len(edges), 1))
-    x0, y0, x1, y1 = edges[:, 0], edges[:, 1], edges[:, 2], edges[:, 3]
-    for s in range(0, len(x), step):
-        px, py = x[s : s + step, None], y[s : s + step, None]
-        out[s : s + step] = crosses(x0, y0, x1, y1, px, py).sum(axis=1) % 2 == 1
-    return out
+    order = np.argsort(y, kind="stable")
+    ys = y[order]
+    lo = np.searchsorted(ys, np.minimum(edges[:, 1], edges[:, 3]), side="left")
+    hi = np.searchsorted(ys, np.maximum(edges[:, 1], edges[:, 3]), side="left")
+    cnt = np.maximum(hi - lo, 0)
+    e = np.repeat(np.arange(len(edges)), cnt)
+    k = np.repeat(lo, cnt) + np.arange(int(cnt.sum())) - np.repeat(np.cumsum(cnt) - cnt, cnt)
+    pt = order[k]
+    ed = edges[e]
+    hit = crosses(ed[:, 0], ed[:, 1], ed[:, 2], ed[:, 3], x[pt], y[pt])
+    return np.bincount(pt[hit], minlength=len(x)) % 2 == 1
+
+
+class Region:
+    """One polygon (a field: outer rings and holes, even-odd) with an index of its edges,
+    for bulk point tests and segment cuts."""
+
+    def __init__(self, rings: Sequence[Any]) -> None:
+        self.edges = np.vstack([ring_edges(r) for r in rings]) if len(rings) else np.zeros((0, 4))
+        e = self.edges
+        self.bbox = np.column_stack(
+            [np.minimum(e[:, 0], e[:, 2]), np.minimum(e[:, 1], e[:, 3]),
+             np.maximum(e[:, 0], e[:, 2]), np.maximum(e[:, 1], e[:, 3])]
+        )  # fmt: skip
+        self.index = GridHash(self.bbox)
+
+    def contains(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        return points_in_edges(self.edges, x, y)
+
+    def segment_crossings(self, p0: np.ndarray, p1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(segment index, t) where segment p0[i]-p1[i] crosses an edge, 0 < t < 1."""
+        boxes = np.column_stack(
+            [np.minimum(p0[:, 0], p1[:, 0]), np.minimum(p0[:, 1], p1[:, 1]),
+             np.maximum(p0[:, 0], p1[:, 0]), np.maximum(p0[:, 1], p1[:, 1])]
+        )  # fmt: skip
+        q, k = self.index.pairs(boxes, self.bbox)
+        return _crossings(self.edges[k], p0[q], p1[q], q)
+
+
+def _crossings(
+    e: np.ndarray, a: np.ndarray, b: np.ndarray, who: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Segment a[i]-b[i] against edge e[i]: (who[i], t) of the proper crossings, 0 < t < 1."""
+    d = b - a
+    f = e[:, 2:4] - e[:, 0:2]
+    den = d[:, 0] * f[:, 1] - d[:, 1] * f[:, 0]
+    w = e[:, 0:2] - a
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = (w[:, 0] * f[:, 1] - w[:, 1] * f[:, 0]) / den
+        u = (w[:, 0] * d[:, 1] - w[:, 1] * d[:, 0]) / den
+    ok = (np.abs(den) > 1e-12) & (t > 0) & (t < 1) & (u >= 0) & (u <= 1)
+    return who[ok], t[ok]
 
 
 def points_in_rings(rings: Sequence[Any], x: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -133,16 +181,7 @@ class Polygons:
         """(pair index, t) where segment p0[i]-p1[i] crosses an edge of polygon poly[i], 0<t<1."""
         poly = np.asarray(poly, dtype=np.int64)
         pair, row = self._pair_edges(poly)
-        e = self.edges[row]
-        a, d = p0[pair], p1[pair] - p0[pair]
-        f = e[:, 2:4] - e[:, 0:2]
-        den = d[:, 0] * f[:, 1] - d[:, 1] * f[:, 0]
-        w = e[:, 0:2] - a
-        with np.errstate(divide="ignore", invalid="ignore"):
-            t = (w[:, 0] * f[:, 1] - w[:, 1] * f[:, 0]) / den
-            u = (w[:, 0] * d[:, 1] - w[:, 1] * d[:, 0]) / den
-        ok = (np.abs(den) > 1e-12) & (t > 0) & (t < 1) & (u >= 0) & (u <= 1)
-        return pair[ok], t[ok]
+        return _crossings(self.edges[row], p0[pair], p1[pair], pair)
 
 
 def split_segments(

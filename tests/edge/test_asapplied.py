@@ -105,3 +105,15 @@ def test_m1_theta_and_vectorised_flow_match_the_scalar_calibration() -> None:
         r = np.array([-1.0, 0.0, 1.0, 3.0, 12.5, 30.0, 55.0, 90.0])
         want = [max(0.0, cal.flow_g_min(v)) if v > 0 else 0.0 for v in r]
         np.testing.assert_allclose(flow_g_min_many(cal, r), want)
+
+
+def test_nothing_counts_outside_the_field() -> None:
+    # the field ends at y = 8 and has a hole y 1..2: a rectangle reaching past the edge
+    # (a plan's edge cell may keep its rectangle) is driven, and receives, only inside
+    _, corners = _two_cells()
+    field = [[[-5, 0], [5, 0], [5, 8], [-5, 8]], [[-5, 1], [5, 1], [5, 2], [-5, 2]]]
+    cells = Cells.build(corners, [0, 0], None, field)
+    np.testing.assert_allclose(driven_length(cells), [4.0, 3.0])
+    m2, out = landed_mass(cells, np.array([10.0]), np.array([[0.0, 7.0]]), np.array([[0.0, 9.0]]))
+    np.testing.assert_allclose(m2, [0.0, 5.0])
+    assert np.isclose(out, 5.0)
