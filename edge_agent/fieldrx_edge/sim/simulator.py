@@ -282,11 +282,15 @@ def speed_profile(path: SimPath, cfg: SimConfig, rng: np.random.Generator) -> tu
     return sg, v, t
 
 
-def _interp_path(path: SimPath, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def interp_path(path: SimPath, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Position and heading (rad clockwise from north) at path distances ``s``."""
     x = np.interp(s, path.s, path.x)
     y = np.interp(s, path.s, path.y)
     seg = np.clip(np.searchsorted(path.s, s, side="right") - 1, 0, len(path.s) - 1)
     return x, y, path.heading[seg]
+
+
+_interp_path = interp_path  # old private name, kept for callers not yet moved
 
 
 def simulate(
@@ -321,7 +325,7 @@ def simulate(
     fk = np.arange(0, n_steps, ratio)
     t_fix = fk * dt
     s_fix = np.interp(t_fix, tg, sg)
-    fx, fy, fh = _interp_path(path, s_fix)
+    fx, fy, fh = interp_path(path, s_fix)
     # the implement is lowered shortly before a run's first cell (so the look-ahead
     # can start metering) and raised after its last; turns and run-ins are driven raised
     fseg = np.clip(np.searchsorted(path.s, s_fix, side="right") - 1, 0, len(path.s) - 1)
@@ -439,7 +443,7 @@ def simulate(
     used = np.zeros(n, dtype=bool)
     used[:n_cells_used] = True
     used &= m1 > 0
-    gx, gy, gh = _interp_path(path, sg)
+    gx, gy, gh = interp_path(path, sg)
     own_fix = np.asarray(log_own, dtype=np.int64)
     p0, p1, known = landing_segments(
         tk - dt / 2, np.full(n_steps, dt), tg, gx, gy, np.degrees(gh),
