@@ -23,6 +23,9 @@ Coverage = cells that received fertilizer / cells with a planned rate > 0.
 from __future__ import annotations
 
 import datetime as dt
+import json
+import threading
+from collections import OrderedDict
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -270,3 +273,47 @@ def build_report(session: Session, job: Job, max_gap_s: float = MAX_GAP_S) -> Jo
         not_applied_seqs=[int(v) for v in seqs[prescribed & ~done]],
         cells=out_cells,
     )
+
+
+CACHE_JOBS = 16
+_cache: OrderedDict[tuple[str, int], tuple[tuple[Any, ...], JobReport]] = OrderedDict()
+_cache_lock = threading.Lock()
+
+
+def report_key(session: Session, job: Job) -> tuple[Any, ...]:
+    """What a job's report depends on that can change: its telemetry (records are only
+    ever added), its state and prescription version, the machine's settings."""
+    n, t_max = session.execute(
+        text("SELECT count(*), max(t) FROM telemetry WHERE job_id = :j AND machine_id = :m"),
+        {"j": job.id, "m": job.machine_id},
+    ).one()
+    m = session.get(Machine, job.machine_id)
+    machine = (
+        None
+        if m is None
+        else (m.width_m, m.lag_s, m.antenna_forward_m, json.dumps(m.calibration, sort_keys=True))
+    )
+    return (n, t_max, job.state, job.prescription_id, job.prescription_version, machine)
+
+
+def cached_report(session: Session, job: Job) -> JobReport:
+    """``build_report``, kept per job until ``report_key`` changes.
+
+    The job map asks for many tiles of one job at once and again on every refresh
+    while the job runs; each tile shows the report's per-cell figures (one kernel,
+    one definition), computed once per change of the job's telemetry.
+    """
+    ck = (str(session.get_bind().url), job.id)
+    key = report_key(session, job)
+    with _cache_lock:
+        hit = _cache.get(ck)
+        if hit is not None and hit[0] == key:
+            _cache.move_to_end(ck)
+            return hit[1]
+    rep = build_report(session, job)
+    with _cache_lock:
+        _cache[ck] = (key, rep)
+        _cache.move_to_end(ck)
+        while len(_cache) > CACHE_JOBS:
+            _cache.popitem(last=False)
+    return rep
