@@ -6,9 +6,12 @@ the requested range. At the GNSS rate it feeds noisy fixes to the agent's own
 ``runtime.Pipeline``; the named controller drives the seed 001 motor plant at
 the motor rate. Fertilizer metered at time t lands at t + lag_s at the outlet
 position of that moment (seed 001 sec. 2.3). What landed where is then
-computed with numpy: per-cell mass against the theoretical mass (seed 001
-eq. 17-18), the lag distance at every cell border with a rate step, and the
-mass that fell outside the field.
+computed with the one as-applied kernel (``fieldrx_edge.asapplied``, also the
+server's): per-cell mass against the theoretical mass (seed 001 eq. 17-18),
+and the mass that fell outside the cells and the field; plus the lag distance
+at every cell border with a rate step. The same kernel over the agent's own
+records (``extra["logged_accuracy_pct"]``) is what the server's report will
+compute from that telemetry.
 """
 
 from __future__ import annotations
