@@ -27,7 +27,7 @@ from enum import IntEnum
 
 import numpy as np
 
-from fieldrx_edge.planar import GridHash, Polygons, crosses, in_flat_rings, points_in_edges
+from fieldrx_edge.planar import GridHash, Polygons, in_flat_rings, points_in_edges
 from fieldrx_edge.protocol import JobPackage
 
 
@@ -92,7 +92,8 @@ class FieldBoundary:
             b = len(self._bands) - 1
         outer = hole = False
         for x0, y0, x1, y1, is_hole in self._bands[b]:
-            if crosses(x0, y0, x1, y1, x, y):
+            # planar.crosses, inlined: this runs for every fix
+            if (y0 > y) != (y1 > y) and x < x0 + (y - y0) * (x1 - x0) / (y1 - y0):
                 if is_hole:
                     hole = not hole
                 else:
@@ -108,11 +109,6 @@ class FieldBoundary:
         """Vectorised even-odd test for many points (simulator bookkeeping)."""
         xy = np.asarray(xy, dtype=float).reshape(-1, 2)
         return points_in_edges(self._edges[:, :4], xy[:, 0], xy[:, 1])
-
-
-def _in_quad(q: tuple[float, ...], x: float, y: float) -> bool:
-    """Point in a quadrilateral (any vertex order, convex or not): even-odd."""
-    return in_flat_rings((q,), x, y)
 
 
 Shape = tuple[tuple[float, float, float, float], tuple[tuple[float, ...], ...]]
@@ -156,7 +152,8 @@ class CellLocator:
         c = np.asarray(corners_utm, dtype=float).reshape(-1, 8)
         self.n = len(c)
         self.corners = c
-        self._quads: list[tuple[float, ...]] = [tuple(row) for row in c.tolist()]
+        # each rectangle as a one-ring tuple, ready for planar.in_flat_rings
+        self._quads: list[tuple[tuple[float, ...]]] = [(tuple(row),) for row in c.tolist()]
         self._shapes: list[Shape | None] = [None] * self.n
         for k, rings in (shapes or {}).items():
             self._shapes[k] = _make_shape(rings)
@@ -196,7 +193,7 @@ class CellLocator:
     def contains(self, k: int, x: float, y: float) -> bool:
         """Is (x, y) in cell k (its shape if it has one, else its rectangle)?"""
         sh = self._shapes[k]
-        return _in_quad(self._quads[k], x, y) if sh is None else _in_shape(sh, x, y)
+        return in_flat_rings(self._quads[k], x, y) if sh is None else _in_shape(sh, x, y)
 
     def locate(self, x: float, y: float) -> int:
         """Cell under (x, y), searching forward in path order first."""
@@ -207,13 +204,13 @@ class CellLocator:
             return -1
         if not fin[cur]:
             sh = shapes[cur]
-            if _in_quad(quads[cur], x, y) if sh is None else _in_shape(sh, x, y):
+            if in_flat_rings(quads[cur], x, y) if sh is None else _in_shape(sh, x, y):
                 return cur
         end = min(n, cur + 1 + self.window)
         for k in range(cur + 1, end):
             if not fin[k]:
                 sh = shapes[k]
-                if _in_quad(quads[k], x, y) if sh is None else _in_shape(sh, x, y):
+                if in_flat_rings(quads[k], x, y) if sh is None else _in_shape(sh, x, y):
                     self.current = k
                     return k
         # off the path: spatial fallback; prefer an unfinished cell, lowest path index
@@ -221,7 +218,7 @@ class CellLocator:
         best = -1
         for k in self.candidates(x, y):
             sh = shapes[k]
-            if _in_quad(quads[k], x, y) if sh is None else _in_shape(sh, x, y):
+            if in_flat_rings(quads[k], x, y) if sh is None else _in_shape(sh, x, y):
                 if not fin[k]:
                     self.current = k
                     return k
@@ -234,7 +231,7 @@ class CellLocator:
         if self.contains(idx, x, y):
             return 0.0
         sh = self._shapes[idx]
-        rings = (self._quads[idx],) if sh is None else sh[1]
+        rings = self._quads[idx] if sh is None else sh[1]
         best = math.inf
         for q in rings:
             x0, y0 = q[-2], q[-1]
