@@ -27,7 +27,7 @@ from enum import IntEnum
 
 import numpy as np
 
-from fieldrx_edge.planar import GridHash, Polygons, in_flat_rings, points_in_edges
+from fieldrx_edge.planar import GridHash, Polygons, crosses, in_flat_rings, points_in_edges
 from fieldrx_edge.protocol import JobPackage
 
 
@@ -216,7 +216,7 @@ class CellLocator:
         # off the path: spatial fallback; prefer an unfinished cell, lowest path index
         self.fallbacks += 1
         best = -1
-        for k in self.candidates(x, y):
+        for k in self.grid.candidates(x, y):
             sh = shapes[k]
             if in_flat_rings(quads[k], x, y) if sh is None else _in_shape(sh, x, y):
                 if not fin[k]:
@@ -248,12 +248,22 @@ class CellLocator:
         """Baseline: test every cell (vectorised numpy). For benchmarks and tests only."""
         if self.n == 0:
             return -1
-        if not hasattr(self, "_polygons"):
-            self._polygons = Polygons.from_cells(self.corners, self._shapes_rings)
-        k = np.arange(self.n)
-        hits = np.flatnonzero(
-            self._polygons.contains(k, np.full(self.n, float(x)), np.full(self.n, float(y)))
-        )
+        c = self.corners
+        inside = np.zeros(self.n, dtype=bool)
+        for a in range(0, 8, 2):
+            b = (a + 2) % 8
+            inside ^= crosses(c[:, a], c[:, a + 1], c[:, b], c[:, b + 1], x, y)
+        if self.n_shapes:
+            if not hasattr(self, "_polygons"):
+                self._shaped = np.flatnonzero(self.shaped_mask())
+                self._polygons = Polygons.from_cells(
+                    c[self._shaped], {i: self._shapes_rings[k] for i, k in enumerate(self._shaped)}
+                )
+            m = len(self._shaped)
+            inside[self._shaped] = self._polygons.contains(
+                np.arange(m), np.full(m, float(x)), np.full(m, float(y))
+            )
+        hits = np.flatnonzero(inside)
         return int(hits[0]) if len(hits) else -1
 
 

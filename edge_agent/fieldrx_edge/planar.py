@@ -266,10 +266,11 @@ class GridHash:
 
     def candidates(self, x: float, y: float) -> list[int]:
         """Items whose box touches the bucket of (x, y) (scalar, the agent's per-fix path)."""
-        i = int((x - self.x0) // self.b)
-        j = int((y - self.y0) // self.b)
-        if not (0 <= i < self.nx and 0 <= j < self.ny):
+        fx = (x - self.x0) / self.b
+        fy = (y - self.y0) / self.b
+        if not (0.0 <= fx < self.nx and 0.0 <= fy < self.ny):
             return []
+        i, j = int(fx), int(fy)
         k = j * self.nx + i
         return self._itemlist[self._startlist[k] : self._startlist[k + 1]]
 
