@@ -26,7 +26,7 @@ from sqlalchemy import select, text
 from fieldrx.api.common import ApiError, get_scoped, point_page
 from fieldrx.auth.deps import SessionDep, UserDep
 from fieldrx.db.models import Field, Job, JobEvent, PlanCell, Prescription
-from fieldrx.fleet.reports import JobReport, build_report, cached_report, job_plan
+from fieldrx.fleet.reports import JobReport, cached_report, job_plan
 
 router = APIRouter(tags=["reports"])
 
@@ -38,7 +38,7 @@ WGS84_PRJ = (
 
 def _report(session: SessionDep, job_id: int, principal: Any) -> tuple[Job, JobReport]:
     job = get_scoped(session, Job, job_id, principal)
-    return job, build_report(session, job)
+    return job, cached_report(session, job)
 
 
 @router.get("/jobs/{job_id:int}/report")

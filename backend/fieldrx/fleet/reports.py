@@ -293,7 +293,10 @@ def report_key(session: Session, job: Job) -> tuple[Any, ...]:
         if m is None
         else (m.width_m, m.lag_s, m.antenna_forward_m, json.dumps(m.calibration, sort_keys=True))
     )
-    return (n, t_max, job.state, job.prescription_id, job.prescription_version, machine)
+    return (
+        n, t_max, job.state, job.name, job.updated_at, job.prescription_id,
+        job.prescription_version, machine,
+    )  # fmt: skip
 
 
 def cached_report(session: Session, job: Job) -> JobReport:
