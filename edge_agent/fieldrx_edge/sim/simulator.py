@@ -541,6 +541,10 @@ def summary(
         "mean_accuracy_pct": round(float(acc.mean()), 3) if len(acc) else None,
         "min_accuracy_pct": round(float(acc.min()), 3) if len(acc) else None,
         "p05_accuracy_pct": round(float(np.percentile(acc, 5)), 3) if len(acc) else None,
+        # the as-applied kernel over the agent's records: what the server's report shows
+        "logged_mean_accuracy_pct": round(float(res.extra["logged_accuracy_pct"].mean()), 3)
+        if len(acc)
+        else None,
         "mean_lag_m": round(float(lag.mean()), 4) if len(lag) else None,
         "mean_signed_lag_m": round(float(res.lag_m.mean()), 4) if len(lag) else None,
         "lag_borders": int(len(lag)),
