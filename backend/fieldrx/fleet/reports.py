@@ -5,8 +5,8 @@ as-applied kernel, ``fieldrx_edge.asapplied`` (seed 001 eq. 16-18; the edge
 simulator uses the same functions, so the two agree to rounding):
 
 * theoretical mass M1 = M * l * d / 10 g (eq. 17, SCIENCE.md erratum: grams),
-  l the implement width, d the cell's driving line inside the cell's polygon
-  (``asapplied.driven_length``);
+  l the implement width, d the cell's driving line inside the cell's polygon and
+  the field (``asapplied.driven_length``);
 * applied mass M2: each record's fix period meters flow(actual shaft speed)
   * dt grams (the machine's calibration, ``asapplied.records_applied``), landing
   T_lag later (eq. 16) along the track, ``antenna_forward_m`` ahead, split among
@@ -14,7 +14,7 @@ simulator uses the same functions, so the two agree to rounding):
   ``plan_cells.geom`` for the cells whose polygon differs from it:
   ``formats.jobpackage.shaped_cells``, the cells that carry their shape in the
   job package); where cells overlap, the record's own cell wins; mass landing in
-  no cell is "outside";
+  no cell or off the field (outside its ring, in a hole) is "outside";
 * accuracy theta = (1 - |M1 - M2| / M1) * 100 % (eq. 18).
 
 Coverage = cells that received fertilizer / cells with a planned rate > 0.
