@@ -28,7 +28,7 @@ from sqlalchemy import text
 
 from tests.fleet.helpers import JobFixture, make_job, record
 from tests.fleet.procs import BIN, ROOT, start_api, start_worker
-from tests.support import SMALL_PLOT, feature
+from tests.support import SEED001_CAL, SMALL_PLOT, feature, machine_body
 
 
 @pytest.fixture(scope="module")
@@ -44,7 +44,8 @@ def _plan_jobs(c: httpx.Client, n_jobs: int) -> tuple[str, list[int]]:
     """One machine, one planned small plot with a varying prescription, ``n_jobs`` jobs
     of it for that machine (sent). Returns the device token and the job ids."""
     field = c.post("/api/v1/fields", json=feature(SMALL_PLOT, name="plot")).json()
-    m = c.post("/api/v1/machines", json={"name": "sim", "width_m": 2.3}).json()
+    cal = {**SEED001_CAL, "min_rpm": 10.0}  # a machine needs its measured calibration
+    m = c.post("/api/v1/machines", json=machine_body("sim", 2.3, calibration=cal)).json()
     token = c.post(f"/api/v1/machines/{m['id']}/device-token").json()["token"]
     plan = c.post(
         f"/api/v1/fields/{field['id']}/plans", json={"swath_width_m": 2.3, "cell_length_m": 5.0}
