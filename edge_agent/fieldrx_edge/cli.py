@@ -433,22 +433,31 @@ def cmd_simulate(a: argparse.Namespace) -> int:
     if a.cells_out:
         with open(a.cells_out, "w", newline="") as fh:
             w = csv.writer(fh)
-            w.writerow(["seq", "rate_kg_ha", "m1_g", "m2_g", "accuracy_pct"])
-            for s, r, m1, m2, acc in zip(
+            # m2/accuracy: what physically landed (the simulated truth); logged_*: the
+            # as-applied kernel over the records the agent sent (the server's report)
+            w.writerow(
+                ["seq", "rate_kg_ha", "m1_g", "m2_g", "accuracy_pct", "logged_m2_g",
+                 "logged_accuracy_pct"]
+            )  # fmt: skip
+            for s, r, m1, m2, acc, lm2, lacc in zip(
                 seqs,
                 res.extra["rate"],
                 res.cell_m1_g,
                 res.cell_m2_g,
                 res.cell_accuracy_pct,
+                res.extra["logged_m2_g"],
+                res.extra["logged_accuracy_pct"],
                 strict=True,
             ):
                 w.writerow(
                     [
                         int(s),
                         float(r),
-                        round(float(m1), 2),
-                        round(float(m2), 2),
-                        round(float(acc), 3),
+                        round(float(m1), 4),
+                        round(float(m2), 4),
+                        round(float(acc), 4),
+                        round(float(lm2), 4),
+                        round(float(lacc), 4),
                     ]
                 )
     if not a.json or a.verbose:

@@ -16,6 +16,8 @@ the package gives a cell's real shape (field edge, holes, headland rings:
 ``JobPackage.shape_*``): there a point is in the cell only if it is in the
 shape (even-odd over its rings, behind a bounding-box test), so overlapping
 rectangles of neighbouring headland cells no longer claim each other's points.
+
+Every even-odd test and the grid hash are ``fieldrx_edge.planar``'s (one home).
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ from enum import IntEnum
 
 import numpy as np
 
+from fieldrx_edge.planar import GridHash, Polygons, crosses, in_flat_rings, points_in_edges
 from fieldrx_edge.protocol import JobPackage
 
 
@@ -34,7 +37,7 @@ class Where(IntEnum):
     HOLE = 2
 
 
-def _rings(boundary: dict) -> list[tuple[list[list[float]], bool]]:
+def boundary_rings(boundary: dict) -> list[tuple[list[list[float]], bool]]:
     """(ring, is_hole) for a GeoJSON Polygon/MultiPolygon (or bare coordinates)."""
     if "coordinates" in boundary:
         coords = boundary["coordinates"]
@@ -54,7 +57,7 @@ class FieldBoundary:
 
     def __init__(self, boundary_utm: dict, band_m: float | None = None) -> None:
         edges = []
-        for ring, hole in _rings(boundary_utm):
+        for ring, hole in boundary_rings(boundary_utm):
             pts = [(float(p[0]), float(p[1])) for p in ring]
             if len(pts) > 1 and pts[0] == pts[-1]:
                 pts = pts[:-1]
@@ -89,6 +92,7 @@ class FieldBoundary:
             b = len(self._bands) - 1
         outer = hole = False
         for x0, y0, x1, y1, is_hole in self._bands[b]:
+            # planar.crosses, inlined: this runs for every fix
             if (y0 > y) != (y1 > y) and x < x0 + (y - y0) * (x1 - x0) / (y1 - y0):
                 if is_hole:
                     hole = not hole
@@ -101,32 +105,10 @@ class FieldBoundary:
     def contains(self, x: float, y: float) -> bool:
         return self.where(x, y) == Where.INSIDE
 
-    def contains_many(self, xy: np.ndarray, chunk: int = 200_000) -> np.ndarray:
+    def contains_many(self, xy: np.ndarray) -> np.ndarray:
         """Vectorised even-odd test for many points (simulator bookkeeping)."""
-        e = self._edges
-        out = np.zeros(len(xy), dtype=bool)
-        for s in range(0, len(xy), chunk):
-            px = xy[s : s + chunk, 0:1]
-            py = xy[s : s + chunk, 1:2]
-            x0, y0, x1, y1 = e[:, 0], e[:, 1], e[:, 2], e[:, 3]
-            cond = (y0 > py) != (y1 > py)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                xint = x0 + (py - y0) * (x1 - x0) / (y1 - y0)
-            cross = cond & (px < xint)
-            out[s : s + chunk] = (cross.sum(axis=1) % 2) == 1
-        return out
-
-
-def _in_quad(q: tuple[float, ...], x: float, y: float) -> bool:
-    """Point in a quadrilateral (any vertex order, convex or not): even-odd ray casting."""
-    inside = False
-    x0, y0 = q[6], q[7]
-    for i in range(0, 8, 2):
-        x1, y1 = q[i], q[i + 1]
-        if (y0 > y) != (y1 > y) and x < x0 + (y - y0) * (x1 - x0) / (y1 - y0):
-            inside = not inside
-        x0, y0 = x1, y1
-    return inside
+        xy = np.asarray(xy, dtype=float).reshape(-1, 2)
+        return points_in_edges(self._edges[:, :4], xy[:, 0], xy[:, 1])
 
 
 Shape = tuple[tuple[float, float, float, float], tuple[tuple[float, ...], ...]]
@@ -137,29 +119,7 @@ def _in_shape(sh: Shape, x: float, y: float) -> bool:
     bx0, by0, bx1, by1 = sh[0]
     if x < bx0 or x > bx1 or y < by0 or y > by1:
         return False
-    inside = False
-    for ring in sh[1]:
-        x0, y0 = ring[-2], ring[-1]
-        for i in range(0, len(ring), 2):
-            x1, y1 = ring[i], ring[i + 1]
-            if (y0 > y) != (y1 > y) and x < x0 + (y - y0) * (x1 - x0) / (y1 - y0):
-                inside = not inside
-            x0, y0 = x1, y1
-    return inside
-
-
-def points_in_rings(rings: list[list[float]], x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Vectorised even-odd test of many points against one cell shape (simulator)."""
-    inside = np.zeros(len(x), dtype=bool)
-    for r in rings:
-        p = np.asarray(r, dtype=float).reshape(-1, 2)
-        q = np.roll(p, -1, axis=0)
-        for (x0, y0), (x1, y1) in zip(p.tolist(), q.tolist(), strict=True):
-            if y0 == y1:
-                continue
-            cond = (y0 > y) != (y1 > y)
-            inside ^= cond & (x < x0 + (y - y0) * (x1 - x0) / (y1 - y0))
-    return inside
+    return in_flat_rings(sh[1], x, y)
 
 
 def _make_shape(rings: list[list[float]]) -> Shape:
@@ -192,7 +152,8 @@ class CellLocator:
         c = np.asarray(corners_utm, dtype=float).reshape(-1, 8)
         self.n = len(c)
         self.corners = c
-        self._quads: list[tuple[float, ...]] = [tuple(row) for row in c.tolist()]
+        # each rectangle as a one-ring tuple, ready for planar.in_flat_rings
+        self._quads: list[tuple[tuple[float, ...]]] = [(tuple(row),) for row in c.tolist()]
         self._shapes: list[Shape | None] = [None] * self.n
         for k, rings in (shapes or {}).items():
             self._shapes[k] = _make_shape(rings)
@@ -203,57 +164,36 @@ class CellLocator:
         self.current = 0
         self.fallbacks = 0
         xs, ys = c[:, 0::2], c[:, 1::2]
-        bx0, bx1, by0, by1 = xs.min(1), xs.max(1), ys.min(1), ys.max(1)
+        bbox = np.column_stack([xs.min(1), ys.min(1), xs.max(1), ys.max(1)])
         for k, sh in enumerate(self._shapes):
             if sh is not None:
-                bx0[k], by0[k], bx1[k], by1[k] = sh[0]
-        if self.n == 0:
-            self.x0 = self.y0 = 0.0
-            self.b = 1.0
-            self.nx = self.ny = 1
-            self._keys = np.zeros(0, dtype=np.int64)
-            self._start = np.zeros(1, dtype=np.int64)
-            self._items = np.zeros(0, dtype=np.int64)
-            return
-        size = bucket_m or float(np.median(np.maximum(bx1 - bx0, by1 - by0)))
-        self.b = max(size, 1e-3)
-        self.x0, self.y0 = float(bx0.min()), float(by0.min())
-        self.nx = int((bx1.max() - self.x0) / self.b) + 1
-        self.ny = int((by1.max() - self.y0) / self.b) + 1
-        i0 = ((bx0 - self.x0) / self.b).astype(np.int64)
-        i1 = ((bx1 - self.x0) / self.b).astype(np.int64)
-        j0 = ((by0 - self.y0) / self.b).astype(np.int64)
-        j1 = ((by1 - self.y0) / self.b).astype(np.int64)
-        # every (bucket, cell) pair over each cell's bbox, built without a Python loop
-        ni, nj = i1 - i0 + 1, j1 - j0 + 1
-        cnt = ni * nj
-        cell = np.repeat(np.arange(self.n), cnt)
-        k = np.arange(cnt.sum()) - np.repeat(np.cumsum(cnt) - cnt, cnt)
-        ii = np.repeat(i0, cnt) + k % np.repeat(ni, cnt)
-        jj = np.repeat(j0, cnt) + k // np.repeat(ni, cnt)
-        key = jj * self.nx + ii
-        order = np.lexsort((cell, key))
-        key, cell = key[order], cell[order]
-        self._items = cell
-        self._start = np.searchsorted(key, np.arange(self.nx * self.ny + 1))
-        self._itemlist: list[int] = cell.tolist()
-        self._startlist: list[int] = self._start.tolist()
+                bbox[k] = sh[0]
+        self.grid = GridHash(bbox, bucket_m)
+        self._shapes_rings = shapes or {}
 
     def reset(self, current: int = 0) -> None:
         self.current = max(0, min(current, self.n - 1)) if self.n else 0
 
     def candidates(self, x: float, y: float) -> list[int]:
-        i = int((x - self.x0) / self.b)
-        j = int((y - self.y0) / self.b)
-        if not (0 <= i < self.nx and 0 <= j < self.ny):
-            return []
-        k = j * self.nx + i
-        return self._itemlist[self._startlist[k] : self._startlist[k + 1]]
+        """Cells whose bounding box touches the grid-hash bucket of (x, y)."""
+        return self.grid.candidates(x, y)
+
+    def is_shaped(self, k: int) -> bool:
+        """Does cell k carry its real shape (else it is its rectangle)?"""
+        return self._shapes[k] is not None
+
+    def shaped_mask(self) -> np.ndarray:
+        """Per cell: does it carry its real shape?"""
+        return np.array([sh is not None for sh in self._shapes], dtype=bool)
+
+    def near_shaped(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """Per point: is a shaped cell among its grid-hash candidates (needs the exact test)?"""
+        return self.grid.bucket_flags(self.shaped_mask(), x, y)
 
     def contains(self, k: int, x: float, y: float) -> bool:
         """Is (x, y) in cell k (its shape if it has one, else its rectangle)?"""
         sh = self._shapes[k]
-        return _in_quad(self._quads[k], x, y) if sh is None else _in_shape(sh, x, y)
+        return in_flat_rings(self._quads[k], x, y) if sh is None else _in_shape(sh, x, y)
 
     def locate(self, x: float, y: float) -> int:
         """Cell under (x, y), searching forward in path order first."""
@@ -264,21 +204,21 @@ class CellLocator:
             return -1
         if not fin[cur]:
             sh = shapes[cur]
-            if _in_quad(quads[cur], x, y) if sh is None else _in_shape(sh, x, y):
+            if in_flat_rings(quads[cur], x, y) if sh is None else _in_shape(sh, x, y):
                 return cur
         end = min(n, cur + 1 + self.window)
         for k in range(cur + 1, end):
             if not fin[k]:
                 sh = shapes[k]
-                if _in_quad(quads[k], x, y) if sh is None else _in_shape(sh, x, y):
+                if in_flat_rings(quads[k], x, y) if sh is None else _in_shape(sh, x, y):
                     self.current = k
                     return k
         # off the path: spatial fallback; prefer an unfinished cell, lowest path index
         self.fallbacks += 1
         best = -1
-        for k in self.candidates(x, y):
+        for k in self.grid.candidates(x, y):
             sh = shapes[k]
-            if _in_quad(quads[k], x, y) if sh is None else _in_shape(sh, x, y):
+            if in_flat_rings(quads[k], x, y) if sh is None else _in_shape(sh, x, y):
                 if not fin[k]:
                     self.current = k
                     return k
@@ -291,7 +231,7 @@ class CellLocator:
         if self.contains(idx, x, y):
             return 0.0
         sh = self._shapes[idx]
-        rings = (self._quads[idx],) if sh is None else sh[1]
+        rings = self._quads[idx] if sh is None else sh[1]
         best = math.inf
         for q in rings:
             x0, y0 = q[-2], q[-1]
@@ -306,33 +246,23 @@ class CellLocator:
 
     def locate_naive(self, x: float, y: float) -> int:
         """Baseline: test every cell (vectorised numpy). For benchmarks and tests only."""
+        if self.n == 0:
+            return -1
         c = self.corners
         inside = np.zeros(self.n, dtype=bool)
         for a in range(0, 8, 2):
             b = (a + 2) % 8
-            x0, y0, x1, y1 = c[:, a], c[:, a + 1], c[:, b], c[:, b + 1]
-            cond = (y0 > y) != (y1 > y)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                xi = x0 + (y - y0) * (x1 - x0) / (y1 - y0)
-            inside ^= cond & (x < xi)
+            inside ^= crosses(c[:, a], c[:, a + 1], c[:, b], c[:, b + 1], x, y)
         if self.n_shapes:
-            if not hasattr(self, "_shape_edges"):
-                rows = []
-                for k, sh in enumerate(self._shapes):
-                    if sh is None:
-                        continue
-                    for r in sh[1]:
-                        a = np.asarray(r).reshape(-1, 2)
-                        b = np.roll(a, -1, axis=0)
-                        rows.append(np.column_stack([a, b, np.full(len(a), k)]))
-                self._shape_edges = np.vstack(rows)
-                self._shaped_mask = np.array([sh is not None for sh in self._shapes])
-            e = self._shape_edges
-            cond = (e[:, 1] > y) != (e[:, 3] > y)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                xi = e[:, 0] + (y - e[:, 1]) * (e[:, 2] - e[:, 0]) / (e[:, 3] - e[:, 1])
-            cross = np.bincount(e[cond & (x < xi), 4].astype(np.int64), minlength=self.n)
-            inside = np.where(self._shaped_mask, cross % 2 == 1, inside)
+            if not hasattr(self, "_polygons"):
+                self._shaped = np.flatnonzero(self.shaped_mask())
+                self._polygons = Polygons.from_cells(
+                    c[self._shaped], {i: self._shapes_rings[k] for i, k in enumerate(self._shaped)}
+                )
+            m = len(self._shaped)
+            inside[self._shaped] = self._polygons.contains(
+                np.arange(m), np.full(m, float(x)), np.full(m, float(y))
+            )
         hits = np.flatnonzero(inside)
         return int(hits[0]) if len(hits) else -1
 

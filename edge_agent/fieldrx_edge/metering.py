@@ -23,6 +23,8 @@ import bisect
 from dataclasses import dataclass, field
 from typing import Literal, Protocol
 
+import numpy as np
+
 
 def rate_to_flow_g_min(rate_kg_ha: float, width_m: float, speed_m_s: float) -> float:
     """Mass flow the meter must deliver for a rate at a speed (seed 001 eq. 2 inverted)."""
@@ -203,3 +205,17 @@ def meterable_rate_range_kg_ha(
     lo = rate_range_kg_ha(cal, width_m, speed_min_m_s)[0]
     hi = rate_range_kg_ha(cal, width_m, speed_max_m_s)[1]
     return lo, hi
+
+
+def flow_g_min_many(cal: Calibration, shaft_rpm: np.ndarray) -> np.ndarray:
+    """Vectorised ``cal.flow_g_min`` for an array of shaft speeds (g/min, >= 0; 0 at rest).
+
+    Seed 001 eq. 1 for a linear calibration, g_per_rev interpolated and held beyond the
+    table for a table calibration (seed 000), exactly as the scalar methods compute it.
+    """
+    r = np.asarray(shaft_rpm, dtype=float)
+    if isinstance(cal, TableCalibration):
+        q = np.interp(r, np.asarray(cal.rpm), np.asarray(cal.g_per_rev)) * r
+    else:
+        q = cal.slope_g_min_per_rpm * r + cal.intercept_g_min
+    return np.where(r > 0, np.maximum(q, 0.0), 0.0)

@@ -1,4 +1,10 @@
-"""As-applied per-cell figures kept by ingest (one as-applied kernel); reserved revision.
+"""As-applied per-cell figures (one as-applied kernel): no schema change.
+
+The job tiles take the report's per-cell figures from the kernel at report time
+(``fleet.reports.cached_report``) instead of a table kept by ingest: the landing
+place of a record's mass depends on the records after it (T_lag later), which an
+incremental per-batch aggregate cannot know. This revision stays empty so the chain
+keeps its numbering.
 
 Revision ID: 0013_asapplied_cells
 Revises: 0012_job_kinds

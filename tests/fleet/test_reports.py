@@ -134,3 +134,38 @@ def test_as_applied_geojson_tiles_and_exports(client, org, make_org, driven) -> 
         ).status_code
         == 404
     )
+
+
+def test_job_tiles_show_the_reports_accuracy_for_every_cell(client, org, driven) -> None:  # noqa: ANN001
+    """Issue 12: the map colours each cell by the accuracy the report (side panel) shows."""
+    from tests.plans.mvt import decode
+
+    h = org.headers("viewer")
+    rep = client.get(f"/api/v1/jobs/{driven.job_id}/report", headers=h).json()
+    z = 18
+    tiles = {_tile_xy(c["lon"], c["lat"], z) for c in driven.cells}
+    shown: dict[int, dict] = {}
+    for x, y in tiles:
+        r = client.get(f"/api/v1/tiles/jobs/{driven.job_id}/{z}/{x}/{y}.mvt", headers=h)
+        assert r.status_code == 200
+        for f in decode(r.content)["cells"]["features"]:
+            shown[int(f["properties"]["seq"])] = f["properties"]
+    assert len(shown) == len(rep["cells"]) == 8
+    for cell in rep["cells"]:
+        props = shown[cell["seq"]]
+        assert props.get("accuracy") == cell["accuracy_pct"] or props.get("accuracy") == approx(
+            cell["accuracy_pct"]
+        ), (cell["seq"], props, cell)
+        assert props["applied_rate"] == approx(cell["applied_rate_kg_ha"])
+        assert props["n_records"] == cell["n_records"]
+    # more telemetry: the tile follows the report (the cache notices the new records)
+    more = [record(driven, s, t=T0 + 60 + s * 0.1, cell=3) for s in range(86, 96)]
+    r = client.post("/api/v1/telemetry", json={"records": more}, headers=driven.device_headers)
+    assert r.json()["acked_seq"] == 95
+    rep2 = client.get(f"/api/v1/jobs/{driven.job_id}/report", headers=h).json()
+    c3 = next(c for c in rep2["cells"] if c["seq"] == 3)
+    assert c3["m2_g"] > 0
+    x, y = _tile_xy(driven.cells[3]["lon"], driven.cells[3]["lat"], z)
+    r = client.get(f"/api/v1/tiles/jobs/{driven.job_id}/{z}/{x}/{y}.mvt", headers=h)
+    f3 = next(f for f in decode(r.content)["cells"]["features"] if f["properties"]["seq"] == 3)
+    assert f3["properties"]["accuracy"] == approx(c3["accuracy_pct"])

@@ -1,9 +1,13 @@
-"""Issue 7 acceptance: a job driven by `fieldrx-edge simulate --server` is reported per cell
-as the simulator itself reports it (seed 001 eq. 17-18).
+"""Issue 7 / issue 12 acceptance: a job driven by `fieldrx-edge simulate --server` is reported
+per cell as the simulator itself reports it (seed 001 eq. 16-18).
 
-With a headland pass both sides attribute landed mass to the real cell polygons (the job
-package's shapes on the tractor, plan_cells.geom on the server), so the headland ring must
-agree as closely as the plain grid."""
+Both sides compute with the one as-applied kernel (``fieldrx_edge.asapplied``): the
+simulator over the records its agent sent (``logged_accuracy_pct``), the server over the
+same records after ingest and storage; they must agree to 0.1 percentage points on every
+cell, on a plain grid, with a headland pass (real cell polygons: the job package's shapes
+on the tractor, plan_cells.geom on the server) and on a field with a hole. The simulated
+truth (what physically landed, from the 100 Hz motor and the exact track) differs from any
+log by GNSS noise and the 10 Hz sampling; it is held to the looser bounds below."""
 
 from __future__ import annotations
 
@@ -19,18 +23,40 @@ import pytest
 from tests.fleet.procs import BIN, ROOT, start_api
 from tests.support import SEED001_CAL, SMALL_PLOT, feature, machine_body
 
+# the trial plot with a 6.6 m x 5.5 m hole (a pond) off-centre
+HOLED_PLOT = {
+    "type": "Polygon",
+    "coordinates": [
+        SMALL_PLOT["coordinates"][0],
+        [
+            [112.32015, 32.13008],
+            [112.32015, 32.13013],
+            [112.32022, 32.13013],
+            [112.32022, 32.13008],
+            [112.32015, 32.13008],
+        ],
+    ],
+}
 
-@pytest.mark.parametrize("headland_passes", [0, 1])
+
+@pytest.mark.parametrize(
+    ("boundary", "headland_passes"),
+    [(SMALL_PLOT, 0), (SMALL_PLOT, 1), (HOLED_PLOT, 0)],
+    ids=["plain", "headland", "hole"],
+)
 def test_simulated_job_report_matches_simulator(
-    database_url,
-    org,
+    database_url,  # noqa: ANN001
+    org,  # noqa: ANN001
     tmp_path: Path,
-    headland_passes: int,  # noqa: ANN001
+    boundary: dict,
+    headland_passes: int,
 ) -> None:
     api, url = start_api(database_url)
     try:
         c = httpx.Client(base_url=url, headers=org.headers(), timeout=60)
-        field = c.post("/api/v1/fields", json=feature(SMALL_PLOT, name="trial plot")).json()
+        field = c.post("/api/v1/fields", json=feature(boundary, name="trial plot"))
+        assert field.status_code == 201, field.text
+        field = field.json()
         # floor 10 r/min: the 220..340 kg/ha edits below are meterable at 0.8..2.5 m/s
         # (seed 001's 30 r/min floor is 608 kg/ha at 0.8 m/s, and edits it cannot meter are refused)
         cal = {**SEED001_CAL, "min_rpm": 10.0}
@@ -86,12 +112,22 @@ def test_simulated_job_report_matches_simulator(
     m1_sim = np.array([float(sim_cells[s]["m1_g"]) for s in seqs])
     m1_srv = np.array([ours[s]["m1_g"] for s in seqs])
     acc_sim = np.array([float(sim_cells[s]["accuracy_pct"]) for s in seqs])
+    acc_log = np.array([float(sim_cells[s]["logged_accuracy_pct"]) for s in seqs])
     acc_srv = np.array([ours[s]["accuracy_pct"] for s in seqs])
-    # the planned mass is the same definition (eq. 17, driven length x width)
-    np.testing.assert_allclose(m1_srv, m1_sim, rtol=0.01, atol=0.5)
-    # per-cell accuracy from telemetry vs the simulator's own landing model (measured, plain
-    # grid: mean 98.67 vs 99.18 %, per-cell |diff| mean 0.67, max 2.9; headland: 0.79, max 4.24)
-    assert abs(acc_srv.mean() - sim["mean_accuracy_pct"]) < 1.0
-    assert np.mean(np.abs(acc_srv - acc_sim)) < 1.0
-    assert np.max(np.abs(acc_srv - acc_sim)) < 5.0
+    diff_log = np.abs(acc_srv - acc_log)
+    diff_true = np.abs(acc_srv - acc_sim)
+    print(
+        f"cells {len(seqs)}: server vs simulator's log max {diff_log.max():.4f} pp;"
+        f" server vs truth mean {diff_true.mean():.3f} max {diff_true.max():.3f} pp,"
+        f" means {acc_srv.mean():.3f} vs {sim['mean_accuracy_pct']:.3f} %"
+    )
+    # the planned mass is one definition (eq. 17, driven length x width)
+    np.testing.assert_allclose(m1_srv, m1_sim, rtol=1e-3, atol=0.01)
+    # the same records through the same kernel: the same accuracy on every cell
+    assert diff_log.max() < 0.1, [(s, acc_log[i], acc_srv[i]) for i, s in enumerate(seqs)
+                                  if diff_log[i] >= 0.1]  # fmt: skip
+    # the log against the simulated truth: GNSS noise (2 cm) and 10 Hz shaft-speed samples
+    assert abs(acc_srv.mean() - sim["mean_accuracy_pct"]) < 0.5
+    assert diff_true.mean() < 0.5
+    assert diff_true.max() < 2.5
     assert rep["n_records"] == sim["telemetry"]["last_seq"]

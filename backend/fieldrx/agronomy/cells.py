@@ -135,6 +135,12 @@ class CellTable:
         out._wgs84_polys = self._wgs84_polys
         return out
 
+    def set_polygons_wgs84(self, polys: np.ndarray) -> None:
+        """Adopt lon/lat polygons the caller already has (the planner), saving a transform."""
+        if len(polys) != len(self.seq):
+            raise ValueError(f"CellTable: {len(polys)} lon/lat polygons for {len(self.seq)} cells")
+        self._wgs84_polys = np.asarray(polys, dtype=object)
+
     def polygons_wgs84(self) -> np.ndarray:
         """Clipped cell polygons in lon/lat (computed once)."""
         if self._wgs84_polys is None:

@@ -1,11 +1,10 @@
 """As-applied reports of a job: per-cell accuracy, GeoJSON, vector tiles, CSV/Shapefile, summary.
 
 The figures come from ``fieldrx.fleet.reports`` (seed 001 eq. 17-18). The
-vector tiles use the incrementally kept per-cell aggregates
-(``job_cells_applied``), so a map can refresh them cheaply while the job runs:
-their ``applied_rate`` is the mean of the records' applied rate and their
-``accuracy`` eq. 18 with that rate (M2 = applied rate * area / 10); the report
-uses the metered mass per record instead.
+vector tiles carry the report's own per-cell figures (``applied_rate`` = M2 over
+the cell's area, ``accuracy`` = eq. 18, ``n_records``), from
+``fleet.reports.cached_report``: computed once per change of the job's
+telemetry, so the map colours a cell by the accuracy the side panel shows.
 """
 
 from __future__ import annotations
@@ -25,7 +24,7 @@ from sqlalchemy import select, text
 from fieldrx.api.common import ApiError, get_scoped, point_page
 from fieldrx.auth.deps import SessionDep, UserDep
 from fieldrx.db.models import Field, Job, JobEvent, PlanCell, Prescription
-from fieldrx.fleet.reports import JobReport, build_report, job_plan
+from fieldrx.fleet.reports import JobReport, cached_report, job_plan
 
 router = APIRouter(tags=["reports"])
 
@@ -33,7 +32,7 @@ router = APIRouter(tags=["reports"])
 def _report(session: SessionDep, job_id: int, principal: Any) -> tuple[Job, JobReport]:
     job = get_scoped(session, Job, job_id, principal)
     _prescription_job(job)
-    return job, build_report(session, job)
+    return job, cached_report(session, job)
 
 
 def _prescription_job(job: Job) -> None:
@@ -220,24 +219,20 @@ TILE_SQL = text(
     WITH env AS (
         SELECT ST_TileEnvelope(:z, :x, :y) AS e,
                ST_Transform(ST_TileEnvelope(:z, :x, :y, margin => 0.0156), 4326) AS e4326
-    ), c AS (
-        SELECT pc.seq, pc.swath, pc.geom, coalesce(r.rate_kg_ha, 0) AS target_rate,
-               a.n_records,
-               a.applied_rate_sum / nullif(a.n_records, 0) AS applied_rate
-        FROM env
-        JOIN plan_cells pc ON pc.plan_id = :plan AND pc.geom && env.e4326
-        LEFT JOIN prescription_versions v ON v.prescription_id = :rx AND v.version = :ver
-        LEFT JOIN prescription_rates r ON r.version_id = v.id AND r.seq = pc.seq
-        LEFT JOIN job_cells_applied a ON a.job_id = :job AND a.seq = pc.seq
+    ), a AS (
+        SELECT * FROM unnest(CAST(:seqs AS int[]), CAST(:target AS float8[]),
+                             CAST(:applied AS float8[]), CAST(:acc AS float8[]),
+                             CAST(:nrec AS int[]))
+            AS a(seq, target_rate, applied_rate, accuracy, n_records)
     )
     SELECT ST_AsMVT(q, 'cells', 4096, 'geom') FROM (
-        SELECT c.seq, c.swath, c.target_rate, coalesce(c.applied_rate, 0) AS applied_rate,
-               coalesce(c.n_records, 0) AS n_records,
-               CASE WHEN c.target_rate > 0 THEN
-                   (1 - abs(c.target_rate - coalesce(c.applied_rate, 0)) / c.target_rate) * 100
-               END AS accuracy,
-               ST_AsMVTGeom(ST_Transform(c.geom, 3857), env.e, 4096, 64, true) AS geom
-        FROM c, env
+        SELECT pc.seq, pc.swath, coalesce(a.target_rate, 0) AS target_rate,
+               coalesce(a.applied_rate, 0) AS applied_rate,
+               coalesce(a.n_records, 0) AS n_records, a.accuracy,
+               ST_AsMVTGeom(ST_Transform(pc.geom, 3857), env.e, 4096, 64, true) AS geom
+        FROM env
+        JOIN plan_cells pc ON pc.plan_id = :plan AND pc.geom && env.e4326
+        LEFT JOIN a ON a.seq = pc.seq
     ) q WHERE q.geom IS NOT NULL
     """
 )
@@ -253,16 +248,19 @@ def job_tile(
     job = get_scoped(session, Job, job_id, principal)
     _prescription_job(job)
     plan = job_plan(session, job)
+    cells = cached_report(session, job).cells  # the report's figures, not a second formula
     data = session.execute(
         TILE_SQL,
         {
             "z": z,
             "x": x,
             "y": y,
-            "rx": job.prescription_id,
-            "ver": job.prescription_version,
-            "job": job.id,
             "plan": plan.id,
+            "seqs": [c.seq for c in cells],
+            "target": [c.target_rate_kg_ha for c in cells],
+            "applied": [c.applied_rate_kg_ha for c in cells],
+            "acc": [c.accuracy_pct for c in cells],
+            "nrec": [c.n_records for c in cells],
         },
     ).scalar()
     return Response(

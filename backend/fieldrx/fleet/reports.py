@@ -1,30 +1,21 @@
 """As-applied report of a job: per-cell mass, accuracy (seed 001 eq. 17-18), coverage, totals.
 
-Per cell (path order, planned rate M in kg/ha):
+Per cell (path order, planned rate M in kg/ha) the figures come from the one
+as-applied kernel, ``fieldrx_edge.asapplied`` (seed 001 eq. 16-18; the edge
+simulator uses the same functions, so the two agree to rounding):
 
-* theoretical mass M1 = M v t l / 36 g (seed 001 eq. 17; SCIENCE.md erratum:
-  grams) with v t the distance driven in the cell and l the implement width:
-  M1 = M * l * d / 10 g, d = the cell's centre line (between the midpoints of
-  its two cut edges) inside the field, as the edge simulator counts it; for a
-  whole cell this is M * area / 10;
-* applied mass M2: what landed in the cell. Each record's fix period dt (the
-  ``fix_period_s`` it carries; records without one: to the next record, 0
-  across a gap longer than ``max_gap_s``; ``fieldrx_edge.asapplied.fix_periods``)
-  meters flow(actual shaft speed) * dt grams (the machine's calibration, trapezoid
-  between this record and the next); that mass lands T_lag later (seed 001
-  eq. 16) at the outlet, i.e. where the track is at t + dt/2 + T_lag, moved
-  ``antenna_forward_m`` along the heading. The landing point is located in the
-  cells' quadrilaterals, or in the real cell polygon (``plan_cells.geom``) for
-  the cells whose polygon differs from the rectangle (field edge, holes,
-  headland rings: ``formats.jobpackage.shaped_cells``, the cells that carry
-  their shape in the job package); where cells overlap, the record's own cell
-  wins; mass landing off the field or outside every cell is "outside". Records
-  without positions fall back to their own ``cell_seq`` (the lag-compensated cell
-  the agent metered for);
-* for those shaped cells d is the length inside the real polygon of the centre
-  lines of the cell and its same-swath neighbours, joined (5 m straight on at a
-  swath's end), as the edge simulator's ``shape_drive_len`` counts it;
-* accuracy theta = (1 - |M1 - M2| / M1) * 100 % (seed 001 eq. 18).
+* theoretical mass M1 = M * l * d / 10 g (eq. 17, SCIENCE.md erratum: grams),
+  l the implement width, d the cell's driving line inside the cell's polygon and
+  the field (``asapplied.driven_length``);
+* applied mass M2: each record's fix period meters flow(actual shaft speed)
+  * dt grams (the machine's calibration, ``asapplied.records_applied``), landing
+  T_lag later (eq. 16) along the track, ``antenna_forward_m`` ahead, split among
+  the cells' polygons (the 4-corner rectangle, or the real polygon
+  ``plan_cells.geom`` for the cells whose polygon differs from it:
+  ``formats.jobpackage.shaped_cells``, the cells that carry their shape in the
+  job package); where cells overlap, the record's own cell wins; mass landing in
+  no cell or off the field (outside its ring, in a hole) is "outside";
+* accuracy theta = (1 - |M1 - M2| / M1) * 100 % (eq. 18).
 
 Coverage = cells that received fertilizer / cells with a planned rate > 0.
 """
@@ -32,12 +23,15 @@ Coverage = cells that received fertilizer / cells with a planned rate > 0.
 from __future__ import annotations
 
 import datetime as dt
+import json
+import threading
+from collections import OrderedDict
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 import shapely
-from fieldrx_edge.asapplied import fix_periods, metered_mass_g
+from fieldrx_edge.asapplied import Cells, driven_length, m1_g, records_applied, theta_pct
 from fieldrx_edge.metering import calibration_from_dict
 from geoalchemy2.shape import to_shape
 from sqlalchemy import text
@@ -104,149 +98,18 @@ def _iso(t: float | None) -> str | None:
     return None if t is None else dt.datetime.fromtimestamp(t, dt.UTC).isoformat()
 
 
-def quad_area(corners: np.ndarray) -> np.ndarray:
-    """Shoelace area of n quadrilaterals given as (n, 8) x0 y0 ... x3 y3."""
-    c = corners.reshape(-1, 4, 2)
-    x, y = c[..., 0], c[..., 1]
-    return 0.5 * np.abs(np.sum(x * np.roll(y, -1, axis=1) - np.roll(x, -1, axis=1) * y, axis=1))
-
-
-def driven_length(corners: np.ndarray, swath_width_m: float, boundary_utm: Any) -> np.ndarray:
-    """Length of each cell's centre line inside the field (m).
-
-    The centre line joins the midpoints of the two opposite edges whose length
-    is nearest the swath width (the cut edges); corners are (n, 8) in UTM.
-    """
-    c = corners.reshape(-1, 4, 2)
-    if len(c) == 0:
-        return np.zeros(0)
-    e01 = np.linalg.norm(c[:, 1] - c[:, 0], axis=1)
-    e12 = np.linalg.norm(c[:, 2] - c[:, 1], axis=1)
-    cut01 = np.abs(e01 - swath_width_m) <= np.abs(e12 - swath_width_m)
-    a = np.where(cut01[:, None], (c[:, 0] + c[:, 1]) / 2, (c[:, 1] + c[:, 2]) / 2)
-    b = np.where(cut01[:, None], (c[:, 2] + c[:, 3]) / 2, (c[:, 3] + c[:, 0]) / 2)
-    lines = shapely.linestrings(np.stack([a, b], axis=1))
-    if boundary_utm is None:
-        return shapely.length(lines)
-    shapely.prepare(boundary_utm)
-    inside = shapely.contains_properly(boundary_utm, lines)
-    out = shapely.length(lines)
-    part = ~inside
-    if part.any():
-        out[part] = shapely.length(shapely.intersection(lines[part], boundary_utm))
-    return out
-
-
-def shaped_driven_length(
-    corners: np.ndarray, swath: np.ndarray, polys: np.ndarray, which: np.ndarray
-) -> np.ndarray:
-    """Driving-line length inside the real polygon of each cell in ``which``.
-
-    The line joins the centre lines (rear -> front cut-edge midpoints; corners are
-    rear-right, front-right, front-left, rear-left) of the cell and of its neighbours
-    in the same swath, 5 m straight on where the swath starts or ends: the same line
-    the edge simulator measures (``fieldrx_edge.sim.simulator.shape_drive_len``).
-    """
-    c = corners.reshape(-1, 4, 2)
-    n = len(c)
-    rear = (c[:, 3] + c[:, 0]) / 2
-    front = (c[:, 1] + c[:, 2]) / 2
-    out = np.zeros(n)
-    lines = []
-    for i in which:
-        d = front[i] - rear[i]
-        u = d / max(float(np.hypot(*d)), 1e-9)
-        pts = (
-            [rear[i - 1], front[i - 1]] if i > 0 and swath[i - 1] == swath[i] else [rear[i] - 5 * u]
-        )
-        pts += [rear[i], front[i]]
-        if i + 1 < n and swath[i + 1] == swath[i]:
-            pts += [rear[i + 1], front[i + 1]]
-        else:
-            pts.append(front[i] + 5 * u)
-        lines.append(shapely.linestrings(np.asarray(pts)))
-    if len(lines):
-        out[which] = shapely.length(shapely.intersection(np.asarray(lines), polys[which]))
-    return out
-
-
-def _metered_g(
-    machine: Machine | None,
-    rpm: np.ndarray,
-    applied: np.ndarray,
-    width: float,
-    v: np.ndarray,
-    dts: np.ndarray,
-) -> np.ndarray:
-    """Grams metered in each record's fix period (trapezoid over the shaft speed)."""
-    flow = np.full(len(rpm), np.nan)
-    if machine is not None and machine.calibration:
-        cal = calibration_from_dict(machine.calibration)
-        ok = np.isfinite(rpm)
-        flow[ok] = [max(0.0, cal.flow_g_min(r)) if r > 0 else 0.0 for r in rpm[ok]]
-    # records without a shaft speed: the applied rate over the strip driven
-    fallback = applied * width * v * 6.0  # kg/ha * m * m/s -> g/min
-    flow = np.where(np.isfinite(flow), flow, fallback) / 60.0  # g/s
-    return metered_mass_g(flow, dts)
-
-
-def _landing_cells(
-    t: np.ndarray,
-    dts: np.ndarray,
-    x: np.ndarray,
-    y: np.ndarray,
-    heading_deg: np.ndarray,
-    cell: np.ndarray,
-    seqs: np.ndarray,
-    cell_geoms: np.ndarray,
-    boundary: Any,
-    lag_s: float,
-    forward_m: float,
-) -> np.ndarray:
-    """Index (into seqs) of the cell where each record's metered mass lands; -1 outside."""
-    n = len(t)
-    out = np.full(n, -1, dtype=np.int64)
-    have = np.isfinite(x) & np.isfinite(y)
-    if have.sum() >= 2 and len(seqs):
-        tl = t + dts / 2 + lag_s
-        xl = np.interp(tl, t[have], x[have])
-        yl = np.interp(tl, t[have], y[have])
-        hl = np.radians(
-            np.interp(
-                tl,
-                t[have],
-                np.unwrap(np.radians(heading_deg[have]), period=2 * np.pi) * 180 / np.pi,
-            )
-        )
-        xl = xl + forward_m * np.sin(hl)
-        yl = yl + forward_m * np.cos(hl)
-        tree = shapely.STRtree(cell_geoms)
-        pts = shapely.points(xl, yl)
-        pi, ci = tree.query(pts, predicate="intersects")
-        if len(pi):
-            # where cells overlap (a swath's footprint over the headland ring it overlaps,
-            # ``formats.jobpackage.shaped_cells``), the cell the agent metered for wins, as
-            # its path-ordered locator prefers the cell being driven; else the lowest index
-            pos = np.searchsorted(seqs, cell)
-            own = np.where((pos < len(seqs)) & (seqs[np.minimum(pos, len(seqs) - 1)] == cell),
-                           pos, -1)  # fmt: skip
-            order = np.lexsort((ci, ci != own[pi], pi))
-            pi, ci = pi[order], ci[order]
-            first, at = np.unique(pi, return_index=True)
-            out[first] = ci[at]
-        if boundary is not None:
-            off = ~shapely.contains_xy(boundary, xl, yl)
-            out[off] = -1
-        # records before the track starts or after it ends land somewhere unknown
-        outside_track = (tl < t[have][0]) | (tl > t[have][-1] + 1.0)
-        out[outside_track] = -1
-    none = ~have
-    if none.any():
-        pos = np.searchsorted(seqs, cell[none])
-        ok = (cell[none] >= 0) & (pos < len(seqs))
-        ok[ok] = seqs[pos[ok]] == cell[none][ok]
-        out[np.flatnonzero(none)[ok]] = pos[ok]
-    return out
+def _rings(poly: Any) -> list[list[float]]:
+    """Rings of a (Multi)Polygon as open flat x y lists (the job package's shape encoding)."""
+    parts = list(poly.geoms) if poly.geom_type == "MultiPolygon" else [poly]
+    rings: list[list[float]] = []
+    for p in parts:
+        if p.geom_type != "Polygon" or p.is_empty:
+            continue
+        for ring in (p.exterior, *p.interiors):
+            pts = np.asarray(ring.coords, dtype=float)[:-1, :2]
+            if len(pts) >= 3:
+                rings.append(pts.ravel().tolist())
+    return rings
 
 
 def job_plan(session: Session, job: Job) -> Plan:
@@ -287,63 +150,72 @@ def build_report(session: Session, job: Job, max_gap_s: float = MAX_GAP_S) -> Jo
     swath = np.asarray([c.swath for c in cells], dtype=np.int64)
     rate = np.asarray([c.rate for c in cells], dtype=float)
     corners = np.asarray([c.corners_utm for c in cells], dtype=float).reshape(n, 8)
-    area = quad_area(corners) if n else np.zeros(0)
-    boundary = to_utm(to_shape(fld.boundary), fld.utm_epsg) if fld is not None else None
-    swath_w = float((plan.params or {}).get("swath_width_m") or width or 1.0)
-    drive = driven_length(corners, swath_w, boundary)
     # real cells where they differ from the rectangle (edge, holes, headland rings)
-    quads = shapely.polygons(corners.reshape(-1, 4, 2)) if n else np.zeros(0, dtype=object)
     polys = shapely.from_wkb(np.asarray([bytes(c.geom) for c in cells], dtype=object))
     shaped = shaped_cells(polys, corners) if n else np.zeros(0, dtype=bool)
-    which = np.flatnonzero(shaped)
-    cell_geoms = np.where(shaped, polys, quads) if n else quads
-    if len(which):
-        drive[which] = shaped_driven_length(corners, swath, polys, which)[which]
-    m1 = rate * width * drive / 10.0  # seed 001 eq. 17: M v t l / 36 g, v t = driven length
+    boundary = to_utm(to_shape(fld.boundary), fld.utm_epsg) if fld is not None else None
+    geo = Cells.build(
+        corners,
+        swath,
+        {int(i): _rings(polys[i]) for i in np.flatnonzero(shaped)},
+        _rings(boundary) if boundary is not None else None,
+    )
+    area = geo.area_m2
+    m1 = m1_g(rate, width, driven_length(geo))
 
     recs = session.execute(
         text(
-            "SELECT extract(epoch FROM t)::float8, cell_seq, applied_rate_kg_ha,"
-            " target_rate_kg_ha, coalesce(speed_filtered_m_s, speed_raw_m_s), implement_down,"
-            " actual_shaft_rpm, heading_deg,"
-            " ST_X(ST_Transform(geom, :epsg)), ST_Y(ST_Transform(geom, :epsg)), fix_period_s"
+            "SELECT extract(epoch FROM t)::float8 AS t_s, cell_seq, applied_rate_kg_ha,"
+            " target_rate_kg_ha, coalesce(speed_filtered_m_s, speed_raw_m_s) AS speed,"
+            " implement_down, actual_shaft_rpm, heading_deg,"
+            " ST_X(ST_Transform(geom, :epsg)) AS x, ST_Y(ST_Transform(geom, :epsg)) AS y,"
+            " fix_period_s"
             " FROM telemetry WHERE machine_id = :m AND job_id = :j ORDER BY t, stream, seq"
         ),
         {"m": job.machine_id, "j": job.id, "epsg": fld.utm_epsg if fld is not None else 4326},
     ).all()
     nr = len(recs)
     if nr:
-        col = list(zip(*recs, strict=True))
 
-        def arr(i: int, default: float = np.nan) -> np.ndarray:
-            return np.asarray([default if v is None else v for v in col[i]], dtype=float)
+        def arr(name: str, default: float = np.nan) -> np.ndarray:
+            return np.asarray([default if (v := getattr(r, name)) is None else v for r in recs],
+                              dtype=float)  # fmt: skip
 
-        t = arr(0)
-        cell = np.asarray([-1 if v is None else v for v in col[1]], dtype=np.int64)
-        applied, target, v, rpm = arr(2, 0.0), arr(3), arr(4, 0.0), arr(6)
-        down = np.asarray(col[5], dtype=bool)
-        heading, x, y = arr(7, 0.0), arr(8), arr(9)
-        dts = fix_periods(t, arr(10), max_gap_s)
-        mass = _metered_g(machine, rpm, applied, width, v, dts)
-        time_worked = float(dts[down].sum())
-        idx = _landing_cells(
-            t, dts, x, y, heading, cell, seqs, cell_geoms, boundary,
-            machine.lag_s if machine else 0.0, machine.antenna_forward_m if machine else 0.0,
-        )  # fmt: skip
-        in_cell = idx >= 0
-        m2 = np.bincount(idx[in_cell], weights=mass[in_cell], minlength=n)
-        outside_g = float(mass[~in_cell].sum())
-        # per-cell record statistics use the cell the agent metered for
+        t = arr("t_s")
+        cell = np.asarray([-1 if r.cell_seq is None else r.cell_seq for r in recs], dtype=np.int64)
+        applied, target, v = (
+            arr("applied_rate_kg_ha", 0.0),
+            arr("target_rate_kg_ha"),
+            arr("speed", 0.0),
+        )
+        down = np.asarray([bool(r.implement_down) for r in recs], dtype=bool)
+        # each record's own cell as an index into the path-ordered cells (-1: none)
         pos = np.searchsorted(seqs, cell)
-        sel = (cell >= 0) & (pos < n) & down
-        sel[sel] = seqs[pos[sel]] == cell[sel]
-        cnt = np.bincount(pos[sel], minlength=n)
-        asum = np.bincount(pos[sel], weights=applied[sel], minlength=n)
-        tsum = np.bincount(pos[sel], weights=np.nan_to_num(target[sel]), minlength=n)
+        ok = (cell >= 0) & (pos < n)
+        ok[ok] = seqs[pos[ok]] == cell[ok]
+        own = np.where(ok, pos, -1)
+        cal = (
+            calibration_from_dict(machine.calibration) if machine and machine.calibration else None
+        )
+        applied_ka = records_applied(
+            geo, t, arr("fix_period_s"), arr("x"), arr("y"), arr("heading_deg", 0.0),
+            arr("actual_shaft_rpm"), own, cal,
+            applied * width * v * 6.0 / 60.0,  # no shaft speed: the applied rate over the strip
+            machine.lag_s if machine else 0.0, machine.antenna_forward_m if machine else 0.0,
+            max_gap_s,
+        )  # fmt: skip
+        m2 = applied_ka.m2_g
+        outside_g = applied_ka.outside_g
+        time_worked = float(applied_ka.dts[down].sum())
+        # per-cell record statistics use the cell the agent metered for
+        sel = (own >= 0) & down
+        cnt = np.bincount(own[sel], minlength=n)
+        asum = np.bincount(own[sel], weights=applied[sel], minlength=n)
+        tsum = np.bincount(own[sel], weights=np.nan_to_num(target[sel]), minlength=n)
         first = np.full(n, np.inf)
         last = np.full(n, -np.inf)
-        np.minimum.at(first, pos[sel], t[sel])
-        np.maximum.at(last, pos[sel], t[sel])
+        np.minimum.at(first, own[sel], t[sel])
+        np.maximum.at(last, own[sel], t[sel])
         first_t, last_t = float(t[0]), float(t[-1])
     else:
         m2 = np.zeros(n)
@@ -354,8 +226,8 @@ def build_report(session: Session, job: Job, max_gap_s: float = MAX_GAP_S) -> Jo
         outside_g = 0.0
         time_worked = 0.0
         first_t = last_t = None
+    acc = theta_pct(m1, m2)  # seed 001 eq. 18
     with np.errstate(divide="ignore", invalid="ignore"):
-        acc = np.where(m1 > 0, (1.0 - np.abs(m1 - m2) / m1) * 100.0, np.nan)  # seed 001 eq. 18
         applied_rate = np.where(area > 0, m2 * 10.0 / area, 0.0)
     out_cells = [
         CellReport(
@@ -405,3 +277,50 @@ def build_report(session: Session, job: Job, max_gap_s: float = MAX_GAP_S) -> Jo
         not_applied_seqs=[int(v) for v in seqs[prescribed & ~done]],
         cells=out_cells,
     )
+
+
+CACHE_JOBS = 16
+_cache: OrderedDict[tuple[str, int], tuple[tuple[Any, ...], JobReport]] = OrderedDict()
+_cache_lock = threading.Lock()
+
+
+def report_key(session: Session, job: Job) -> tuple[Any, ...]:
+    """What a job's report depends on that can change: its telemetry (records are only
+    ever added), its state and prescription version, the machine's settings."""
+    n, t_max = session.execute(
+        text("SELECT count(*), max(t) FROM telemetry WHERE job_id = :j AND machine_id = :m"),
+        {"j": job.id, "m": job.machine_id},
+    ).one()
+    m = session.get(Machine, job.machine_id)
+    machine = (
+        None
+        if m is None
+        else (m.width_m, m.lag_s, m.antenna_forward_m, json.dumps(m.calibration, sort_keys=True))
+    )
+    return (
+        n, t_max, job.state, job.name, job.updated_at, job.prescription_id,
+        job.prescription_version, machine,
+    )  # fmt: skip
+
+
+def cached_report(session: Session, job: Job) -> JobReport:
+    """``build_report``, kept per job until ``report_key`` changes.
+
+    The job map asks for many tiles of one job at once and again on every refresh
+    while the job runs; each tile shows the report's per-cell figures (one kernel,
+    one definition), computed once per change of the job's telemetry.
+    """
+    ck = (str(session.get_bind().url), job.id)
+    key = report_key(session, job)
+    with _cache_lock:
+        hit = _cache.get(ck)
+        if hit is not None and hit[0] == key:
+            _cache.move_to_end(ck)
+            return hit[1]
+    rep = build_report(session, job)
+    with _cache_lock:
+        _cache[ck] = (key, rep)
+        _cache.move_to_end(ck)
+        while len(_cache) > CACHE_JOBS:
+            _cache.popitem(last=False)
+    return rep

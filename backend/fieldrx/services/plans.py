@@ -648,7 +648,7 @@ def _load_cell_table(session: Session, plan: Plan, epsg: int) -> CellTable:
         corners_wgs84=_to_lonlat(cutm.reshape(-1, 2), epsg).reshape(n, 4, 2),
         area_m2=area,
     )
-    table._wgs84_polys = polys_wgs
+    table.set_polygons_wgs84(polys_wgs)
     return table
 
 

@@ -8,7 +8,7 @@ import numpy as np
 from fieldrx_edge.gnss.utm import UtmProjection
 from fieldrx_edge.protocol import JobPackage
 from fieldrx_edge.sim import nmea
-from fieldrx_edge.sim.simulator import SimConfig, _interp_path, build_path, speed_profile
+from fieldrx_edge.sim.simulator import SimConfig, build_path, interp_path, speed_profile
 
 
 def drive_fixes(
@@ -21,7 +21,7 @@ def drive_fixes(
     t_end = float(tg[-1]) if max_s is None else min(float(tg[-1]), max_s)
     t = np.arange(0.0, t_end, 1.0 / cfg.gnss_hz)
     s = np.interp(t, tg, sg)
-    x, y, h = _interp_path(path, s)
+    x, y, h = interp_path(path, s)
     n = len(t)
     x = x + rng.normal(0, cfg.gnss_noise_m, n)
     y = y + rng.normal(0, cfg.gnss_noise_m, n)

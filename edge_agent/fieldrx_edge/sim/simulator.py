@@ -6,9 +6,12 @@ the requested range. At the GNSS rate it feeds noisy fixes to the agent's own
 ``runtime.Pipeline``; the named controller drives the seed 001 motor plant at
 the motor rate. Fertilizer metered at time t lands at t + lag_s at the outlet
 position of that moment (seed 001 sec. 2.3). What landed where is then
-computed with numpy: per-cell mass against the theoretical mass (seed 001
-eq. 17-18), the lag distance at every cell border with a rate step, and the
-mass that fell outside the field.
+computed with the one as-applied kernel (``fieldrx_edge.asapplied``, also the
+server's): per-cell mass against the theoretical mass (seed 001 eq. 17-18),
+and the mass that fell outside the cells and the field; plus the lag distance
+at every cell border with a rate step. The same kernel over the agent's own
+records (``extra["logged_accuracy_pct"]``) is what the server's report will
+compute from that telemetry.
 """
 
 from __future__ import annotations
@@ -18,8 +21,17 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from fieldrx_edge.locate import CellLocator, FieldBoundary, points_in_rings
-from fieldrx_edge.metering import calibration_from_dict
+from fieldrx_edge.asapplied import (
+    Cells,
+    driven_length,
+    landed_mass,
+    landing_segments,
+    m1_g,
+    records_applied,
+    theta_pct,
+)
+from fieldrx_edge.locate import boundary_rings
+from fieldrx_edge.metering import calibration_from_dict, flow_g_min_many
 from fieldrx_edge.motor import build_controller, closed_loop_t50_s
 from fieldrx_edge.protocol import ControllerSettings, JobPackage
 from fieldrx_edge.runtime import Pipeline, RuntimeConfig, make_record
@@ -273,80 +285,15 @@ def speed_profile(path: SimPath, cfg: SimConfig, rng: np.random.Generator) -> tu
     return sg, v, t
 
 
-def _interp_path(path: SimPath, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def interp_path(path: SimPath, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Position and heading (rad clockwise from north) at path distances ``s``."""
     x = np.interp(s, path.s, path.x)
     y = np.interp(s, path.s, path.y)
     seg = np.clip(np.searchsorted(path.s, s, side="right") - 1, 0, len(path.s) - 1)
     return x, y, path.heading[seg]
 
 
-def _flow_g_min(cal: Any, rpm: np.ndarray) -> np.ndarray:
-    if getattr(cal, "kind", "linear") == "table":
-        gpr = np.interp(rpm, np.asarray(cal.rpm), np.asarray(cal.g_per_rev))
-        return np.maximum(gpr * rpm, 0.0)
-    return np.maximum(cal.slope_g_min_per_rpm * rpm + cal.intercept_g_min, 0.0)
-
-
-def _near_shapes(loc: CellLocator, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Points whose grid-hash bucket holds a shaped cell (they need the exact test)."""
-    flag = np.zeros(loc.nx * loc.ny, dtype=bool)
-    items, start = loc._items, loc._start
-    owner = np.repeat(np.arange(loc.nx * loc.ny), np.diff(start))
-    shaped_cells = np.array([sh is not None for sh in loc._shapes], dtype=bool)
-    flag[owner[shaped_cells[items]]] = True
-    i = np.floor((x - loc.x0) / loc.b).astype(np.int64)
-    j = np.floor((y - loc.y0) / loc.b).astype(np.int64)
-    ok = (i >= 0) & (i < loc.nx) & (j >= 0) & (j < loc.ny)
-    out = np.zeros(len(x), dtype=bool)
-    out[ok] = flag[j[ok] * loc.nx + i[ok]]
-    return out
-
-
-def _segment_inside(sh: list[list[float]], p: np.ndarray, q: np.ndarray) -> float:
-    """Exact length of segment p-q inside a shape (even-odd rings): split at every edge
-    crossing, keep the pieces whose midpoint is inside."""
-    d = q - p
-    ts = [0.0, 1.0]
-    for r in sh:
-        e = np.asarray(r, dtype=float).reshape(-1, 2)
-        f = np.roll(e, -1, axis=0) - e
-        den = d[0] * f[:, 1] - d[1] * f[:, 0]
-        ok = np.abs(den) > 1e-12
-        w = e[ok] - p
-        t = (w[:, 0] * f[ok, 1] - w[:, 1] * f[ok, 0]) / den[ok]
-        u = (w[:, 0] * d[1] - w[:, 1] * d[0]) / den[ok]
-        ts.extend(t[(t > 0) & (t < 1) & (u >= 0) & (u <= 1)].tolist())
-    ts = np.unique(ts)
-    mid = (ts[:-1] + ts[1:]) / 2
-    inside = points_in_rings(sh, p[0] + mid * d[0], p[1] + mid * d[1])
-    return float(np.hypot(*d) * (np.diff(ts) * inside).sum())
-
-
-def shape_drive_len(job: JobPackage, shapes: dict[int, list[list[float]]]) -> np.ndarray:
-    """Planned driving-line length inside each shaped cell (seed 001 eq. 17's v t).
-
-    The line joins the centre lines (rear -> front cut-edge midpoints, corners in
-    the grid's rear-right, front-right, front-left, rear-left order) of the cell and
-    of its neighbours in the same swath, 5 m straight on where the swath starts or
-    ends, so a real cell reaching past its rectangle is counted whole. The server's
-    report (fleet.reports) uses the same definition.
-    """
-    c = np.asarray(job.corners_utm, dtype=float).reshape(-1, 4, 2)
-    sw = np.asarray(job.swath)
-    n = len(c)
-    rear = (c[:, 3] + c[:, 0]) / 2
-    front = (c[:, 1] + c[:, 2]) / 2
-    out = np.zeros(n)
-    for i, rings in shapes.items():
-        u = _unit(front[i] - rear[i])
-        pts = [rear[i - 1], front[i - 1]] if i > 0 and sw[i - 1] == sw[i] else [rear[i] - 5 * u]
-        pts += [rear[i], front[i]]
-        if i + 1 < n and sw[i + 1] == sw[i]:
-            pts += [rear[i + 1], front[i + 1]]
-        else:
-            pts.append(front[i] + 5 * u)
-        out[i] = sum(_segment_inside(rings, p, q) for p, q in zip(pts, pts[1:], strict=False))
-    return out
+_interp_path = interp_path  # old private name, kept for callers not yet moved
 
 
 def simulate(
@@ -381,7 +328,7 @@ def simulate(
     fk = np.arange(0, n_steps, ratio)
     t_fix = fk * dt
     s_fix = np.interp(t_fix, tg, sg)
-    fx, fy, fh = _interp_path(path, s_fix)
+    fx, fy, fh = interp_path(path, s_fix)
     # the implement is lowered shortly before a run's first cell (so the look-ahead
     # can start metering) and raised after its last; turns and run-ins are driven raised
     fseg = np.clip(np.searchsorted(path.s, s_fix, side="right") - 1, 0, len(path.s) - 1)
@@ -435,10 +382,25 @@ def simulate(
     tbase = t0 if t0 is not None else wall_start + (t_end / pace if pace > 0 else 0.0) - t_end
     period = 1.0 / cfg.gnss_hz
     batch_n = 1 if pace > 0 else 200
+    # the agent's log as the server will see it (one row per fix): the as-applied kernel
+    # over it is what the server's report computes from the records (``logged`` figures)
+    index_of = {int(sq): i for i, sq in enumerate(job.seq)}
+    log_xyh: list[tuple[float, float, float]] = []
+    log_rpm: list[float] = []
+    log_own: list[int] = []
     j = 0
     for k0 in range(0, n_steps, ratio):
         down = fdown[j]
         d = pos(k0 * dt, fxl[j], fyl[j], fvl[j], fcl[j], down)
+        log_xyh.append(
+            (
+                np.nan if d.x is None else d.x,
+                np.nan if d.y is None else d.y,
+                0.0 if d.heading_deg is None else d.heading_deg,
+            )
+        )
+        log_rpm.append(y)
+        log_own.append(-1 if d.cell_seq is None else index_of.get(int(d.cell_seq), -1))
         sp = d.target_rpm if d.metering else 0.0
         if cfg.implement is not None:
             sp = cfg.implement.step(k0 * dt, d, y)
@@ -465,77 +427,55 @@ def simulate(
     if sink is not None and batch:
         sink(batch)
     loop_wall = time.perf_counter() - wall0
-    # where the fertilizer landed: metered at tk, lands at tk + lag at the outlet
+    # what landed where (seed 001 eq. 16-18), with the one as-applied kernel: metered
+    # during motor step k ([k dt, (k+1) dt]) at the calibration's flow, landing T_lag later
+    # along the exact track, antenna_forward_m ahead, split among the cells' polygons
     cal = calibration_from_dict(job.calibration)
-    mass_g = _flow_g_min(cal, rpm) / 60.0 * dt
-    s_land = np.interp(tk + job.lag_s, tg, sg) + job.antenna_forward_m
-    v_land = np.interp(s_land, sg, vg)
+    flow_g_min = flow_g_min_many(cal, rpm)
+    mass_g = flow_g_min / 60.0 * dt
     n = job.n_cells
     a, b = path.cell_a, path.cell_b
-    ci = np.searchsorted(a, s_land, side="right") - 1
-    ok = (ci >= 0) & (s_land < b[np.maximum(ci, 0)])
-    seg = np.clip(np.searchsorted(path.s, s_land, side="right") - 1, 0, len(path.s) - 1)
-    ok &= path.run_id[seg] >= 0
-    corners = np.asarray(job.corners_utm, dtype=float).reshape(-1, 8)
     rates = np.asarray(job.rate_kg_ha)
-    shapes = job.cell_shapes()
-    shaped = np.zeros(n, dtype=bool)
-    shaped[list(shapes)] = True
-    # outside the field: test landing points not inside a cell that lies fully inside
-    boundary = FieldBoundary(job.boundary_utm)
-    cxy = corners.reshape(-1, 4, 2)
-    shrink = cxy + 0.01 * (cxy.mean(axis=1, keepdims=True) - cxy)
-    cell_in = boundary.contains_many(shrink.reshape(-1, 2)).reshape(-1, 4).all(axis=1)
-    cell_in &= ~shaped  # shaped cells are counted by their real polygon below
-    # seed 001 eq. 17: M1 = M v t l / 36 g, v t the distance driven in the cell: the
-    # driving line's length inside the cell and inside the field (the agent never
-    # applies outside it); for a whole 5 m x 2.3 m cell this is rate * area / 10
-    drive_len = b - a
-    part = np.flatnonzero(~cell_in & ~shaped)
-    if len(part):
-        step = 0.05
-        ss = np.concatenate([np.arange(a[i] + step / 2, b[i], step) for i in part])
-        own = np.concatenate(
-            [np.full(len(np.arange(a[i] + step / 2, b[i], step)), i) for i in part]
-        )
-        px, py, _ = _interp_path(path, ss)
-        ins = boundary.contains_many(np.column_stack([px, py]))
-        drive_len[part] = np.bincount(own, weights=ins * step, minlength=n)[part]
-    if shapes:
-        drive_len[shaped] = shape_drive_len(job, shapes)[shaped]
-    m1 = rates * job.implement_width_m * drive_len / 10.0
+    cells = Cells.build(
+        job.corners_utm,
+        job.swath,
+        job.cell_shapes(),
+        [ring for ring, _ in boundary_rings(job.boundary_utm)],
+    )
+    m1 = m1_g(rates, job.implement_width_m, driven_length(cells))
     used = np.zeros(n, dtype=bool)
     used[:n_cells_used] = True
     used &= m1 > 0
-    has_mass = mass_g > 0
-    check = has_mass & ~(ok & cell_in[np.maximum(ci, 0)])
-    lx, ly, _ = _interp_path(path, s_land[check])
-    inside = boundary.contains_many(np.column_stack([lx, ly]))
-    outside_g = float(mass_g[check][~inside].sum())
-    landed_in = ok.copy()
-    landed_in[np.flatnonzero(check)[~inside]] = False  # in a cell's quad but off the field
-    cell_of = ci.copy()
-    if shapes:
-        # where shapes exist, the landing point's cell is decided geometrically (real
-        # polygons, rectangles elsewhere), as the tractor and the server's report do
-        loc = CellLocator(job.corners_utm, shapes=shapes)
-        cand = np.flatnonzero(check)[inside]
-        cand = cand[
-            shaped[np.maximum(ci[cand], 0)] | ~ok[cand] | _near_shapes(loc, lx[inside], ly[inside])
-        ]
-        cx_, cy_, _ = _interp_path(path, s_land[cand])
-        found = np.array(
-            [loc.locate(x, y) for x, y in zip(cx_.tolist(), cy_.tolist(), strict=True)],
-            dtype=np.int64,
-        )
-        cell_of[cand] = found
-        landed_in[cand] = found >= 0
-    m2 = np.bincount(cell_of[landed_in], weights=mass_g[landed_in], minlength=n)
-    acc = (1.0 - np.abs(m1 - m2) / np.where(m1 > 0, m1, 1.0)) * 100.0  # eq. 18
-    # lag distance at cell borders with a real rate step, inside one run
-    rate_land = np.where(
-        v_land > 0.05, _flow_g_min(cal, rpm) / (6.0 * job.implement_width_m * v_land), 0
+    gx, gy, gh = interp_path(path, sg)
+    own_fix = np.asarray(log_own, dtype=np.int64)
+    # the motor's mass summed per fix period (its 10 motor steps), spread along that
+    # period's landing segment (0.1 s, <= 0.25 m at 9 km/h): the 100 Hz flow's shape inside
+    # a period is below the kernel's resolution, and this keeps the cost of the drive's
+    # bookkeeping at the log's (a 20 ha job: ~1.2 M motor steps)
+    n_per = len(own_fix)
+    per = np.minimum(np.arange(n_steps) // ratio, n_per - 1)
+    mass_per = np.bincount(per, weights=mass_g, minlength=n_per)
+    t_per = np.arange(n_per) * ratio * dt
+    dt_per = np.bincount(per, minlength=n_per) * dt
+    p0, p1, known = landing_segments(
+        t_per, dt_per, tg, gx, gy, np.degrees(gh), job.lag_s, job.antenna_forward_m
     )
+    m2, outside_g = landed_mass(cells, np.where(known, mass_per, 0.0), p0, p1, own_fix)
+    outside_g += float(mass_per[~known].sum())
+    acc = theta_pct(m1, m2)  # eq. 18
+    # the same kernel over the agent's log (fix time, position, heading, shaft speed)
+    t_fix_log = np.arange(0, n_steps, ratio) * dt
+    lxyh = np.asarray(log_xyh, dtype=float).reshape(-1, 3)
+    logged = records_applied(
+        cells, t_fix_log, np.full(len(t_fix_log), 1.0 / cfg.gnss_hz), lxyh[:, 0], lxyh[:, 1],
+        lxyh[:, 2], np.asarray(log_rpm), own_fix, cal, np.zeros(len(t_fix_log)),
+        job.lag_s, job.antenna_forward_m,
+    )  # fmt: skip
+    logged_acc = theta_pct(m1, logged.m2_g)
+    s_land = np.interp(tk + job.lag_s, tg, sg) + job.antenna_forward_m
+    v_land = np.interp(s_land, sg, vg)
+    # lag distance at cell borders with a real rate step, inside one run
+    rate_land = np.where(v_land > 0.05, flow_g_min / (6.0 * job.implement_width_m * v_land), 0)
     lags = []
     same_run = path.run_of_cell[1:] == path.run_of_cell[:-1]
     adjacent = np.abs(a[1:] - b[:-1]) < 1e-6
@@ -579,6 +519,9 @@ def simulate(
             "seq": np.asarray(job.seq)[used],
             "rate": rates[used],
             "motor_steps": n_steps,
+            # the kernel over the agent's records (what the server's report computes)
+            "logged_m2_g": logged.m2_g[used],
+            "logged_accuracy_pct": logged_acc[used],
             "duty_max": float(duty.max()) if n_steps else 0.0,
         },
     )
@@ -598,6 +541,10 @@ def summary(
         "mean_accuracy_pct": round(float(acc.mean()), 3) if len(acc) else None,
         "min_accuracy_pct": round(float(acc.min()), 3) if len(acc) else None,
         "p05_accuracy_pct": round(float(np.percentile(acc, 5)), 3) if len(acc) else None,
+        # the as-applied kernel over the agent's records: what the server's report shows
+        "logged_mean_accuracy_pct": round(float(res.extra["logged_accuracy_pct"].mean()), 3)
+        if len(acc)
+        else None,
         "mean_lag_m": round(float(lag.mean()), 4) if len(lag) else None,
         "mean_signed_lag_m": round(float(res.lag_m.mean()), 4) if len(lag) else None,
         "lag_borders": int(len(lag)),
