@@ -125,6 +125,9 @@ _PG_EPOCH_DT = dt.datetime(2000, 1, 1, tzinfo=dt.UTC)
 # become the machine's latest state until real time caught up (issue 20)
 FUTURE_TOLERANCE_S = 300.0
 CONCURRENT_WINDOW_S = 60.0  # two streams both sending within this: a duplicate_stream alert
+# job kinds whose progress counts the cells the implement worked in, not the cells that got
+# a positive applied rate (seed 000 topdressing, seed 002 seeding; issue 13): see ``_cells``
+PROGRESS_BY_WORK = ("ndvi_topdress", "seeding_depth")
 INT4_MAX = 2**31 - 1
 INT8_MAX = 2**63 - 1
 _EWKB_POINT = struct.Struct("<BIIdd")  # little endian, Point with SRID flag, SRID, x, y
@@ -734,8 +737,15 @@ def _cells(
 ) -> list[dict[str, Any]]:
     """Add the batch to the per-cell aggregates of this machine's jobs; update job progress.
 
-    Only records with a job, a cell and the implement down count. A cell counts
-    as applied once it has received a positive applied rate.
+    Only records with a job, a cell and the implement down count. When a cell
+    counts as done (``jobs.cells_applied``) depends on the job's kind:
+    a prescription-map job (seed 001) once the cell has received a positive
+    applied rate; a sensor kind (``PROGRESS_BY_WORK``: seed 000 topdressing,
+    seed 002 seeding) once the implement has worked in it, i.e. its first
+    implement-down record -- a seeding job reports no fertilizer rate at all
+    and stayed at 0 % (issue 13), and a topdressing cell whose sensor said
+    "no fertilizer" has still been driven. One statement per batch: the kind
+    comes from the same join that checks the job belongs to this machine.
     """
     agg: dict[tuple[int, int], list[Any]] = {}
     for r in new:
@@ -765,10 +775,11 @@ def _cells(
     cur.execute(
         """
         WITH new AS (
-            SELECT * FROM unnest(%s::int[], %s::int[], %s::int[], %s::float8[], %s::float8[],
-                                 %s::timestamptz[], %s::timestamptz[])
+            SELECT n.*, j.kind = ANY(%s::text[]) AS by_work
+            FROM unnest(%s::int[], %s::int[], %s::int[], %s::float8[], %s::float8[],
+                        %s::timestamptz[], %s::timestamptz[])
                 AS n(job_id, seq, n, ts, aps, ft, lt)
-            WHERE n.job_id IN (SELECT id FROM jobs WHERE machine_id = %s)  -- this machine's jobs
+            JOIN jobs j ON j.id = n.job_id AND j.machine_id = %s  -- this machine's jobs
         ), old AS (
             SELECT c.job_id, c.seq, c.applied_rate_sum FROM job_cells_applied c
             JOIN new USING (job_id, seq)
@@ -784,8 +795,11 @@ def _cells(
                 last_t = greatest(c.last_t, excluded.last_t)
             RETURNING c.job_id, c.seq, c.applied_rate_sum
         ), gained AS (
-            SELECT up.job_id, count(*) AS k FROM up LEFT JOIN old USING (job_id, seq)
-            WHERE up.applied_rate_sum > 0 AND coalesce(old.applied_rate_sum, 0) <= 0
+            SELECT up.job_id, count(*) AS k
+            FROM up JOIN new USING (job_id, seq) LEFT JOIN old USING (job_id, seq)
+            WHERE CASE WHEN new.by_work THEN old.seq IS NULL  -- first record worked in the cell
+                       ELSE up.applied_rate_sum > 0 AND coalesce(old.applied_rate_sum, 0) <= 0
+                  END
             GROUP BY up.job_id
         )
         UPDATE jobs j SET cells_applied = j.cells_applied + gained.k, updated_at = now()
@@ -793,6 +807,7 @@ def _cells(
         RETURNING j.id, j.state, j.cells_applied, j.n_cells
         """,
         (
+            list(PROGRESS_BY_WORK),
             [k[0] for k, _ in items],
             [k[1] for k, _ in items],
             [v[0] for _, v in items],
