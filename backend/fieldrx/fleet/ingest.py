@@ -744,8 +744,8 @@ def _cells(
     seed 002 seeding) once the implement has worked in it, i.e. its first
     implement-down record -- a seeding job reports no fertilizer rate at all
     and stayed at 0 % (issue 13), and a topdressing cell whose sensor said
-    "no fertilizer" has still been driven. One statement per batch: the kind
-    comes from the same join that checks the job belongs to this machine.
+    "no fertilizer" has still been driven. One statement per batch: both counts
+    are taken per job and the job's kind picks one.
     """
     agg: dict[tuple[int, int], list[Any]] = {}
     for r in new:
@@ -775,11 +775,10 @@ def _cells(
     cur.execute(
         """
         WITH new AS (
-            SELECT n.*, j.kind = ANY(%s::text[]) AS by_work
-            FROM unnest(%s::int[], %s::int[], %s::int[], %s::float8[], %s::float8[],
-                        %s::timestamptz[], %s::timestamptz[])
+            SELECT * FROM unnest(%s::int[], %s::int[], %s::int[], %s::float8[], %s::float8[],
+                                 %s::timestamptz[], %s::timestamptz[])
                 AS n(job_id, seq, n, ts, aps, ft, lt)
-            JOIN jobs j ON j.id = n.job_id AND j.machine_id = %s  -- this machine's jobs
+            WHERE n.job_id IN (SELECT id FROM jobs WHERE machine_id = %s)  -- this machine's jobs
         ), old AS (
             SELECT c.job_id, c.seq, c.applied_rate_sum FROM job_cells_applied c
             JOIN new USING (job_id, seq)
@@ -795,19 +794,21 @@ def _cells(
                 last_t = greatest(c.last_t, excluded.last_t)
             RETURNING c.job_id, c.seq, c.applied_rate_sum
         ), gained AS (
-            SELECT up.job_id, count(*) AS k
-            FROM up JOIN new USING (job_id, seq) LEFT JOIN old USING (job_id, seq)
-            WHERE CASE WHEN new.by_work THEN old.seq IS NULL  -- first record worked in the cell
-                       ELSE up.applied_rate_sum > 0 AND coalesce(old.applied_rate_sum, 0) <= 0
-                  END
+            SELECT up.job_id,
+                count(*) FILTER (WHERE old.seq IS NULL) AS worked,  -- first record in the cell
+                count(*) FILTER (WHERE up.applied_rate_sum > 0
+                                 AND coalesce(old.applied_rate_sum, 0) <= 0) AS applied
+            FROM up LEFT JOIN old USING (job_id, seq)
             GROUP BY up.job_id
         )
-        UPDATE jobs j SET cells_applied = j.cells_applied + gained.k, updated_at = now()
-        FROM gained WHERE j.id = gained.job_id
+        UPDATE jobs j SET cells_applied = j.cells_applied + g.k, updated_at = now()
+        FROM (SELECT g.job_id, CASE WHEN jk.kind = ANY(%s::text[]) THEN g.worked
+                                    ELSE g.applied END AS k
+              FROM gained g JOIN jobs jk ON jk.id = g.job_id) g
+        WHERE j.id = g.job_id AND g.k > 0
         RETURNING j.id, j.state, j.cells_applied, j.n_cells
         """,
         (
-            list(PROGRESS_BY_WORK),
             [k[0] for k, _ in items],
             [k[1] for k, _ in items],
             [v[0] for _, v in items],
@@ -816,6 +817,7 @@ def _cells(
             [ts(v[3]) for _, v in items],
             [ts(v[4]) for _, v in items],
             machine_id,
+            list(PROGRESS_BY_WORK),
         ),
     )
     return [
