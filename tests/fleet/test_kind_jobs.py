@@ -82,8 +82,8 @@ def test_ndvi_topdress_job_end_to_end(database_url, org, tmp_path: Path) -> None
         rep = c.get(f"/api/v1/jobs/{job['id']}/report").json()
         done = c.get(f"/api/v1/jobs/{job['id']}").json()
         assert done["state"] == "completed"
-        # records name the plan cell under the tractor: progress as for a prescription job
-        assert done["cells_applied"] >= 0.8 * plan["n_cells"]
+        # records name the plan cell under the tractor: progress counts the cells worked
+        assert done["cells_applied"] == sim["cells_worked"] >= 0.8 * plan["n_cells"]
     finally:
         log = api.stop()
         if "Traceback" in log:
@@ -123,11 +123,17 @@ def test_seeding_depth_job_end_to_end(database_url, org, tmp_path: Path, fault: 
         sim = _drive(c, url, job, token, tmp_path, *extra)
         rep = c.get(f"/api/v1/jobs/{job['id']}/report").json()
         alerts = c.get(f"/api/v1/alerts?job_id={job['id']}").json()
+        done = c.get(f"/api/v1/jobs/{job['id']}").json()
     finally:
         log = api.stop()
         if "Traceback" in log:
             print(log[-4000:])
     assert rep["n_records"] == sim["records"]
+    # progress counts the cells the drill worked in (it reports no fertilizer rate: issue 13,
+    # progress stayed at 0 %), the share of the plan's cells the simulator drove
+    assert done["state"] == "completed"
+    assert done["cells_applied"] == sim["cells_worked"] >= 0.8 * plan["n_cells"]
+    assert done["progress"] == pytest.approx(sim["cells_worked"] / plan["n_cells"])
     for a, b in zip(
         [*rep["depth_table"]["bands"], rep["depth_table"]["all"]],
         [*sim["depth_table"]["bands"], sim["depth_table"]["all"]],
@@ -146,6 +152,10 @@ def test_seeding_depth_job_end_to_end(database_url, org, tmp_path: Path, fault: 
         assert rep["sensor_alarm_records"]["sensor_fault"] >= 4
         assert rep["sensor_alarm_records"]["sensor_lost"] >= 30
         assert sim["sensor_errors"]["silent"] >= 30
-        # raised live by ingest (trailing 50 m below the 99.9 % asked for), ended with the job
+        # raised (trailing 50 m below the 99.9 % asked for), ended with the job. Live by ingest
+        # when a batch ends inside a low window (fleet.seed_alerts checks the window ending at
+        # each batch's last record, and the sender's batch boundaries vary run to run), else
+        # once at the job's end over all its records (seed_reports.alert_kind_job_end)
         assert low and all(a["job_id"] == job["id"] and a["ended_at"] for a in low)
-        assert "over the last 50 m" in low[0]["message"]
+        msg = low[0]["message"]
+        assert "over the last 50 m" in msg or ("over 50 m at record" in msg and "99.9 %" in msg)

@@ -6,6 +6,7 @@ import json
 import time
 
 import pytest
+from fieldrx_edge.jobkinds.settings import validate_settings
 from sqlalchemy import text
 
 from tests.fleet.helpers import make_job, record
@@ -133,6 +134,42 @@ def test_status_cells_and_progress(client, db, job) -> None:  # noqa: ANN001
     ).one()
     assert st.acked_seq == 21 and st.cell_seq == 3
     assert abs(st.lon - job.cells[3]["lon"]) < 1e-9
+
+
+def _cells_applied(db, job_id: int) -> int:  # noqa: ANN001
+    db.expire_all()
+    return db.execute(
+        text("SELECT cells_applied FROM jobs WHERE id = :j"), {"j": job_id}
+    ).scalar_one()
+
+
+def test_progress_counts_cells_by_kind(client, db, org) -> None:  # noqa: ANN001
+    """Issue 13: a seeding job reports no fertilizer rate, so progress stayed at 0 %. A sensor
+    kind counts a cell once the implement has worked in it; a prescription job still needs a
+    positive applied rate."""
+    rx = make_job(org.id, state="running")
+    _post(client, rx, [record(rx, 1, cell=0, applied_rate_kg_ha=0.0)])
+    assert _cells_applied(db, rx.job_id) == 0  # driven, nothing landed: not applied
+    _post(client, rx, [record(rx, 2, cell=0), record(rx, 3, cell=1, applied_rate_kg_ha=0.0)])
+    assert _cells_applied(db, rx.job_id) == 1
+
+    sd = make_job(org.id, state="running")
+    db.execute(
+        text(
+            "UPDATE jobs SET kind = 'seeding_depth', settings = CAST(:s AS jsonb), plan_id ="
+            " (SELECT plan_id FROM prescriptions p WHERE p.id = jobs.prescription_id)"
+            " WHERE id = :j"
+        ),
+        {"j": sd.job_id, "s": json.dumps(validate_settings("seeding_depth", {}))},
+    )
+    db.commit()
+    seeding = {"target_rate_kg_ha": None, "applied_rate_kg_ha": None, "depth_mm": 30.0}
+    _post(client, sd, [record(sd, i, cell=i // 3, **seeding) for i in range(6)])  # cells 0, 1
+    assert _cells_applied(db, sd.job_id) == 2
+    batch = [record(sd, 6, cell=1, **seeding), record(sd, 7, cell=2, **seeding)]
+    batch.append(record(sd, 8, cell=3, implement_down=False, **seeding))  # raised: not worked
+    _post(client, sd, batch)
+    assert _cells_applied(db, sd.job_id) == 3  # cell 1 once, cell 2 new, cell 3 not worked
 
 
 # issue 20 item 2 / issue 11: poison records, future times, streams --------------------------

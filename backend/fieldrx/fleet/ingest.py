@@ -125,6 +125,9 @@ _PG_EPOCH_DT = dt.datetime(2000, 1, 1, tzinfo=dt.UTC)
 # become the machine's latest state until real time caught up (issue 20)
 FUTURE_TOLERANCE_S = 300.0
 CONCURRENT_WINDOW_S = 60.0  # two streams both sending within this: a duplicate_stream alert
+# job kinds whose progress counts the cells the implement worked in, not the cells that got
+# a positive applied rate (seed 000 topdressing, seed 002 seeding; issue 13): see ``_cells``
+PROGRESS_BY_WORK = ("ndvi_topdress", "seeding_depth")
 INT4_MAX = 2**31 - 1
 INT8_MAX = 2**63 - 1
 _EWKB_POINT = struct.Struct("<BIIdd")  # little endian, Point with SRID flag, SRID, x, y
@@ -734,8 +737,15 @@ def _cells(
 ) -> list[dict[str, Any]]:
     """Add the batch to the per-cell aggregates of this machine's jobs; update job progress.
 
-    Only records with a job, a cell and the implement down count. A cell counts
-    as applied once it has received a positive applied rate.
+    Only records with a job, a cell and the implement down count. When a cell
+    counts as done (``jobs.cells_applied``) depends on the job's kind:
+    a prescription-map job (seed 001) once the cell has received a positive
+    applied rate; a sensor kind (``PROGRESS_BY_WORK``: seed 000 topdressing,
+    seed 002 seeding) once the implement has worked in it, i.e. its first
+    implement-down record -- a seeding job reports no fertilizer rate at all
+    and stayed at 0 % (issue 13), and a topdressing cell whose sensor said
+    "no fertilizer" has still been driven. One statement per batch: both counts
+    are taken per job and the job's kind picks one.
     """
     agg: dict[tuple[int, int], list[Any]] = {}
     for r in new:
@@ -784,12 +794,18 @@ def _cells(
                 last_t = greatest(c.last_t, excluded.last_t)
             RETURNING c.job_id, c.seq, c.applied_rate_sum
         ), gained AS (
-            SELECT up.job_id, count(*) AS k FROM up LEFT JOIN old USING (job_id, seq)
-            WHERE up.applied_rate_sum > 0 AND coalesce(old.applied_rate_sum, 0) <= 0
+            SELECT up.job_id,
+                count(*) FILTER (WHERE old.seq IS NULL) AS worked,  -- first record in the cell
+                count(*) FILTER (WHERE up.applied_rate_sum > 0
+                                 AND coalesce(old.applied_rate_sum, 0) <= 0) AS applied
+            FROM up LEFT JOIN old USING (job_id, seq)
             GROUP BY up.job_id
         )
-        UPDATE jobs j SET cells_applied = j.cells_applied + gained.k, updated_at = now()
-        FROM gained WHERE j.id = gained.job_id
+        UPDATE jobs j SET cells_applied = j.cells_applied + g.k, updated_at = now()
+        FROM (SELECT g.job_id, CASE WHEN jk.kind = ANY(%s::text[]) THEN g.worked
+                                    ELSE g.applied END AS k
+              FROM gained g JOIN jobs jk ON jk.id = g.job_id) g
+        WHERE j.id = g.job_id AND g.k > 0
         RETURNING j.id, j.state, j.cells_applied, j.n_cells
         """,
         (
@@ -801,6 +817,7 @@ def _cells(
             [ts(v[3]) for _, v in items],
             [ts(v[4]) for _, v in items],
             machine_id,
+            list(PROGRESS_BY_WORK),
         ),
     )
     return [

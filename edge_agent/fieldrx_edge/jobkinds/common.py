@@ -115,6 +115,13 @@ def record(job: JobPackage, d: Drive, i: int, **fields: Any) -> dict[str, Any]:
     return rec.to_dict()
 
 
+def cells_worked(recs: list[dict[str, Any]]) -> int:
+    """Plan cells the implement worked in (a record with the implement down names the cell):
+    what the server's job progress counts for a sensor kind (``fleet.ingest``, issue 13)."""
+    worked = {r.get("cell_seq") for r in recs if r.get("implement_down")}
+    return len(worked - {None})
+
+
 class Feed:
     """Records to ``sink`` (queue.put_many): batches of 200 as fast as possible, or, with
     ``realtime`` > 0, one at a time paced at that multiple of real time (so the fleet view

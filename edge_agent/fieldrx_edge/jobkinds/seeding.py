@@ -31,6 +31,32 @@ the sub-metre roughness the 50 mm/s cylinder through a 0.592 s mechanism cannot 
 the sensor noise, which no retuning of the gains removes (a grid of fuzzy factors, k_e 0.03-1,
 k_ec 0.1-1, k_dkp 0.3-6, k_dkd 0-0.5, moved the SD by under 2 %). Our CV is above the
 paper's 2.93 % for the same reason; the paper's SD of 0.18 mm is inconsistent with its own CV.
+
+Why the fuzzy PID cannot beat the fixed PID here (checked again for issue 13, seeds 0-2, SD mm
+in the 1-3 / 3-5 / 5-7 km/h bands; qualified 99.9-100 % for every controller):
+
+* The paper prints no fixed-PID gains: K'p, K'i, K'd of eq. 10 are "preset values" and it
+  compares no fixed PID in the field. Our fixed PID (``DEPTH_PID_GAINS``) is the grid-search
+  optimum of the corrected loop and is also the fuzzy PID's K', so the fuzzy PID can only
+  move the gains away from an optimum. On this disturbance the optimum is flat: fixed PID Kp
+  6 / 12 / 24 / 48 gives 1.28 / 1.25 / 1.29 / 1.43 mm at 1-3 km/h (seed 0), and the fuzzy
+  correction is at most dKp 0.9 (Table 2), 7.5 % of Kp.
+* The loop is limited by the cylinder, not the gains: 50 mm/s over the loop gain 2.6091 caps
+  the controller output at 19.2, reached by Kp 12 at a 1.6 mm error, and what remains
+  (sub-metre roughness through the 0.592 s mechanism, 0.33 mm sensor noise) is beyond any
+  gain schedule.
+* Table 2's factors put every error the disturbance makes inside E's ZE set (k_e 0.03: a
+  4 mm error is E 0.12 of the [-6, 6] universe), so the rule tables act almost only through
+  Ec, the noisiest signal in the loop (largely the filtered derivative of sensor noise and
+  roughness): the gains wander with it, which costs a little variance.
+* Measured (bench/seeds.py, mean of seeds 0-2): fixed PID 1.210 / 1.215 / 1.717; fuzzy PID
+  with the job's default factors (``DEPTH_FUZZY_FACTORS``, tuned: k_ec 1.0, k_dkp 3.0,
+  k_dkd 0.05) 1.225 / 1.225 / 1.728; fuzzy PID with Table 2's factors exactly
+  (``TABLE2_FACTORS``) 1.217 / 1.224 / 1.738. Fuzzy is 0.1-1.3 % worse in every band with
+  either set of factors (per seed up to 2 %): the goal "fuzzy at least as good as fixed in
+  every band" is not met honestly, and neither weakening the baseline nor a disturbance the
+  paper does not describe (large steps, where the fuzzy PID's step-response advantage of
+  sec. 4.3 would show) is used to meet it. Qualified >= 95 % is met by both.
 """
 
 from __future__ import annotations
@@ -41,7 +67,7 @@ import numpy as np
 
 from fieldrx_edge.control import PID, FuzzyPID
 from fieldrx_edge.depth import DEPTH_FUZZY_FACTORS, DEPTH_PID_GAINS, DepthSensorCalibration
-from fieldrx_edge.jobkinds.common import Feed, drive, record
+from fieldrx_edge.jobkinds.common import Feed, cells_worked, drive, record
 from fieldrx_edge.jobkinds.figures import depth_table, qualified_alert
 from fieldrx_edge.jobkinds.sensors import SensorError, SensorGuard, parse_depth_mv
 from fieldrx_edge.jobkinds.topdress import figure_rows
@@ -202,6 +228,7 @@ def simulate_seeding(
         "kind": "seeding_depth",
         "controller": ctl_cfg["name"],
         "records": len(recs),
+        "cells_worked": cells_worked(recs),
         "depth_table": table,
         "qualified_alert": alert,
         "sensor_errors": dict(loop.guard.errors),

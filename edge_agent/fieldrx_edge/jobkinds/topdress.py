@@ -40,7 +40,7 @@ from typing import Any
 import numpy as np
 
 from fieldrx_edge.control import LADRC, IncrementalPID
-from fieldrx_edge.jobkinds.common import Feed, drive, record
+from fieldrx_edge.jobkinds.common import Feed, cells_worked, drive, record
 from fieldrx_edge.jobkinds.figures import shaft_table
 from fieldrx_edge.jobkinds.sensors import SensorGuard
 from fieldrx_edge.locate import FieldBoundary
@@ -244,6 +244,7 @@ def simulate_topdress(
         "kind": "ndvi_topdress",
         "controller": ctl_cfg["name"],
         "records": len(recs),
+        "cells_worked": cells_worked(recs),
         "shaft_table": table,
         "mean_relative_error_pct": table["mean_relative_error_pct"],
         "ndvi_raw_sigma": float(dev.std()) if len(dev) else None,
