@@ -184,7 +184,12 @@ def test_deleting_the_field_removes_its_cogs(
 
 
 def test_imagery_uploads_are_not_capped_at_the_generic_upload_limit(
-    client, org, field_id, imagery_dir, tmp_path, db  # noqa: ANN001
+    client,
+    org,
+    field_id,
+    imagery_dir,
+    tmp_path,
+    db,  # noqa: ANN001
 ) -> None:
     """An orthophoto is often larger than the 51 MiB cap of other uploads: the imagery route
     has its own limit (FIELDRX_IMAGERY_MAX_UPLOAD_BYTES), so a 60 MiB file reaches the
