@@ -35,7 +35,7 @@ from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
 
 ROLES = ("admin", "agronomist", "viewer")
 JOB_STATES = ("planned", "sent", "downloaded", "running", "paused", "completed", "aborted")
-JOB_KINDS = ("prescription_map", "ndvi_topdress", "seeding_depth")  # issue 13, revision 0012
+JOB_KINDS = ("prescription_map", "ndvi_topdress", "seeding_depth")  # issue 13, revision 0009
 
 
 def _now() -> Any:

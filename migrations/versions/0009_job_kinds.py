@@ -8,8 +8,8 @@ come from the sensors, not from a prescription), so ``prescription_id`` is null 
 Telemetry gets the sensor kinds' optional fields: raw NDVI, actuator position and the
 controller gains in force.
 
-Revision ID: 0012_job_kinds
-Revises: 0011_imagery
+Revision ID: 0009_job_kinds
+Revises: 0008_imagery
 """
 
 from __future__ import annotations
@@ -20,8 +20,8 @@ import sqlalchemy as sa
 from alembic import op
 from sqlalchemy.dialects.postgresql import JSONB
 
-revision: str = "0012_job_kinds"
-down_revision: str | Sequence[str] | None = "0011_imagery"
+revision: str = "0009_job_kinds"
+down_revision: str | Sequence[str] | None = "0008_imagery"
 branch_labels: str | Sequence[str] | None = None
 depends_on: str | Sequence[str] | None = None
 

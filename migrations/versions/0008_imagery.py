@@ -6,8 +6,8 @@ what the API and the tiler need without opening it (kind, band roles, resolution
 acquisition date, footprint). ``ix_imagery_field_created`` serves "the field's newest
 orthophoto"; the footprint's GiST index serves overlap queries.
 
-Revision ID: 0011_imagery
-Revises: 0010_planner_kinematics
+Revision ID: 0008_imagery
+Revises: 0007_hardening
 """
 
 from __future__ import annotations
@@ -19,8 +19,8 @@ from alembic import op
 from geoalchemy2 import Geometry
 from sqlalchemy.dialects import postgresql
 
-revision: str = "0011_imagery"
-down_revision: str | Sequence[str] | None = "0010_planner_kinematics"
+revision: str = "0008_imagery"
+down_revision: str | Sequence[str] | None = "0007_hardening"
 branch_labels: str | Sequence[str] | None = None
 depends_on: str | Sequence[str] | None = None
 
