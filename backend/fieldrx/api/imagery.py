@@ -270,6 +270,15 @@ class ImageryRxIn(BaseModel):
     calibration: dict[str, Any] | None = None
 
 
+def _cell_ndvi(
+    path: Any, kind: str, bands: dict[str, Any], cells: CellTable, min_valid_share: float
+) -> Any:
+    """Per-cell NDVI of a plan's cells from one image (both imagery prescriptions use it)."""
+    return cell_ndvi(
+        path, kind, bands, cells.polygons_utm, cells.epsg, min_valid_share=min_valid_share
+    )
+
+
 @router.post("/imagery/{imagery_id:int}/prescriptions", status_code=201)
 def prescription_from_imagery(
     imagery_id: int, body: ImageryRxIn, principal: WriterDep, session: SessionDep
@@ -283,14 +292,7 @@ def prescription_from_imagery(
     kind, bands = img.kind, dict(img.bands)
 
     def ndvi_of(cells: CellTable) -> tuple[np.ndarray, dict[str, Any]]:
-        stats = cell_ndvi(
-            path,
-            kind,
-            bands,
-            cells.polygons_utm,
-            cells.epsg,
-            min_valid_share=body.min_valid_share,
-        )
+        stats = _cell_ndvi(path, kind, bands, cells, body.min_valid_share)
         return stats.mean, {**stats.info, "imagery_id": img.id}
 
     return _create_rx(
@@ -397,14 +399,7 @@ def zones_from_imagery(
     kind, bands = img.kind, dict(img.bands)
 
     def zone_ndvi(cells: CellTable) -> tuple[np.ndarray, dict[str, Any]]:
-        stats = cell_ndvi(
-            path,
-            kind,
-            bands,
-            cells.polygons_utm,
-            cells.epsg,
-            min_valid_share=body.min_valid_share,
-        )
+        stats = _cell_ndvi(path, kind, bands, cells, body.min_valid_share)
         z = classify_zones(
             stats.mean,
             body.k,

@@ -18,12 +18,29 @@ Raises ``LookupError`` when the prescription, version, plan or field is missing.
 
 from __future__ import annotations
 
+from typing import Any
+
 from fieldrx_edge.protocol import JobPackage
 from sqlalchemy.orm import Session
 
 from fieldrx.db.models import Field, Job, Machine, Plan, Prescription
 from fieldrx.services.plans import field_utm, load_cell_table
 from fieldrx.services.prescriptions import get_version, version_cells
+
+
+def machine_fields(machine: Machine) -> dict[str, Any]:
+    """The machine's part of a job package (width, lag, calibration, controller, antenna
+    offset, speed range): one list for every job kind."""
+    return {
+        "implement_width_m": machine.width_m,
+        "lag_s": machine.lag_s,
+        "calibration": dict(machine.calibration),
+        "controller": dict(machine.controller or {}) or None,
+        "antenna_forward_m": machine.antenna_forward_m,
+        "antenna_lateral_m": machine.antenna_lateral_m,
+        "speed_min_m_s": machine.speed_min_m_s,
+        "speed_max_m_s": machine.speed_max_m_s,
+    }
 
 
 def build_package(
@@ -53,14 +70,7 @@ def build_package(
         prescription_id=rx.id,
         prescription_version=ver.version,
         field_name=field.name,
-        implement_width_m=machine.width_m,
-        lag_s=machine.lag_s,
-        calibration=dict(machine.calibration),
-        controller=dict(machine.controller or {}) or None,
-        antenna_forward_m=machine.antenna_forward_m,
-        antenna_lateral_m=machine.antenna_lateral_m,
-        speed_min_m_s=machine.speed_min_m_s,
-        speed_max_m_s=machine.speed_max_m_s,
+        **machine_fields(machine),
         product=rx.product,
     )
 
@@ -84,14 +94,7 @@ def build_kind_package(session: Session, job: Job, machine: Machine) -> JobPacka
         prescription_id=0,
         prescription_version=0,
         field_name=field.name,
-        implement_width_m=machine.width_m,
-        lag_s=machine.lag_s,
-        calibration=dict(machine.calibration),
-        controller=dict(machine.controller or {}) or None,
-        antenna_forward_m=machine.antenna_forward_m,
-        antenna_lateral_m=machine.antenna_lateral_m,
-        speed_min_m_s=machine.speed_min_m_s,
-        speed_max_m_s=machine.speed_max_m_s,
+        **machine_fields(machine),
         kind=job.kind,
         kind_settings=dict(job.settings or {}),
     )
