@@ -67,8 +67,13 @@ def _load_job(spec: str, store: JobStore | None = None) -> JobPackage:
     if p.exists():
         return JobPackage.from_json(p.read_bytes(), verify=True)
     if spec.isdigit() and store is not None:
-        return store.load(int(spec))
-    raise SystemExit(f"job {spec!r}: no such file or cached job id")
+        if int(spec) in store.job_ids():
+            return store.load(int(spec))
+        raise SystemExit(
+            f"job {spec}: not cached in {store.root} (cached: {store.job_ids() or 'none'});"
+            " run `fieldrx-edge pull` with the same --state-dir first"
+        )
+    raise SystemExit(f"job {spec!r}: no such file, demo: spec or cached job id")
 
 
 # -- pull -----------------------------------------------------------------
@@ -356,7 +361,8 @@ def cmd_simulate(a: argparse.Namespace) -> int:
 
     from fieldrx_edge.sim.simulator import SimConfig, simulate, summary
 
-    job = _load_job(a.job)
+    # a cached job id works as with `run` (pulled into --state-dir or the default one)
+    job = _load_job(a.job, JobStore(a.state_dir) if a.job.isdigit() else None)
     if job.kind != "prescription_map":  # issue 13: seed 000 / 002 jobs
         from fieldrx_edge.jobkinds.cli import simulate_kind
 
