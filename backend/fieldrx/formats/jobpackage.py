@@ -23,8 +23,9 @@ import shapely
 from fieldrx_edge.metering import Calibration, calibration_from_dict
 from fieldrx_edge.protocol import ControllerSettings, JobPackage
 
-from fieldrx.agronomy.cells import CellTable, round_coords
+from fieldrx.agronomy.cells import CellTable
 from fieldrx.formats import FormatError
+from fieldrx.geo.cells import round_coords
 
 
 def _round_list(a: np.ndarray, decimals: int) -> list[float]:
