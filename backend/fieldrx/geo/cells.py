@@ -44,9 +44,8 @@ def cell_centres(polys: np.ndarray) -> np.ndarray:
     """(n, 2) centre of every cell polygon: its area centroid, or a point on its surface
     where the centroid falls outside it (an L-shaped or split cell). NaN for empty cells.
 
-    One-ring polygons (nearly all cells) use the shoelace formula in numpy on
-    coordinates relative to their first vertex (UTM magnitudes would cost digits);
-    the rest use GEOS. The inside test is the same for both.
+    One-ring polygons (nearly all cells) use the shoelace formula in numpy, grouped
+    by vertex count; the rest use GEOS. The inside test is the same for both.
     """
     polys = np.asarray(polys, dtype=object)
     n = len(polys)
@@ -57,33 +56,11 @@ def cell_centres(polys: np.ndarray) -> np.ndarray:
     simple = (
         ~empty & (shapely.get_type_id(polys) == 3) & (shapely.get_num_interior_rings(polys) == 0)
     )
-    idx = np.flatnonzero(simple)
-    if len(idx):
-        rings = shapely.get_exterior_ring(polys[idx])
-        xy = shapely.get_coordinates(rings)
-        k = shapely.get_num_coordinates(rings)
-        start = np.r_[0, np.cumsum(k)[:-1]]
-        o = np.repeat(xy[start], k, axis=0)
-        r = xy - o
-        # segment j of ring i runs from point j to j+1; the last point of a ring has none
-        last = np.zeros(len(xy), bool)
-        last[start + k - 1] = True
-        x0, y0 = r[:-1, 0], r[:-1, 1]
-        x1, y1 = r[1:, 0], r[1:, 1]
-        cr = np.where(last[:-1], 0.0, x0 * y1 - x1 * y0)
-        cr = np.r_[cr, 0.0]
-        cx_t = np.r_[(x0 + x1), 0.0] * cr
-        cy_t = np.r_[(y0 + y1), 0.0] * cr
-        a = np.add.reduceat(cr, start) / 2.0
-        sx = np.add.reduceat(cx_t, start)
-        sy = np.add.reduceat(cy_t, start)
-        flat = np.abs(a) <= 1e-12
-        safe = np.where(flat, 1.0, a)
-        c = np.stack([sx / (6.0 * safe), sy / (6.0 * safe)], axis=1) + xy[start]
-        if flat.any():  # degenerate: the vertex mean
-            mean = np.add.reduceat(xy, start, axis=0) / k[:, None]
-            c[flat] = mean[flat]
-        out[idx] = c
+    nc = shapely.get_num_coordinates(polys)
+    for k in np.unique(nc[simple]):
+        rows = np.flatnonzero(simple & (nc == k))
+        # one ring each: the polygon's coordinates are its ring's (no ring objects made)
+        out[rows] = _ring_centroids(shapely.get_coordinates(polys[rows]).reshape(len(rows), k, 2))
     other = np.flatnonzero(~simple & ~empty)
     if len(other):
         out[other] = shapely.get_coordinates(shapely.centroid(polys[other]))
@@ -97,6 +74,25 @@ def cell_centres(polys: np.ndarray) -> np.ndarray:
         if len(bad):
             out[bad] = shapely.get_coordinates(shapely.point_on_surface(polys[bad]))
     return out
+
+
+def _ring_centroids(xy: np.ndarray) -> np.ndarray:
+    """Area centroids of closed rings (m, k, 2) by the shoelace formula, on coordinates
+    relative to each ring's first vertex (UTM magnitudes would cost digits); the vertex
+    mean for a ring without area."""
+    o = xy[:, :1, :]
+    r = xy - o
+    x0, y0 = r[:, :-1, 0], r[:, :-1, 1]
+    x1, y1 = r[:, 1:, 0], r[:, 1:, 1]
+    cr = x0 * y1 - x1 * y0
+    a = cr.sum(axis=1) / 2.0
+    flat = np.abs(a) <= 1e-12
+    safe = np.where(flat, 1.0, a)
+    c = np.stack([((x0 + x1) * cr).sum(axis=1), ((y0 + y1) * cr).sum(axis=1)], axis=1)
+    c = c / (6.0 * safe)[:, None] + o[:, 0, :]
+    if flat.any():
+        c[flat] = xy[flat, :-1].mean(axis=1)
+    return c
 
 
 def cut_edge_midpoints(corners: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

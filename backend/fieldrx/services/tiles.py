@@ -19,6 +19,9 @@ module decides the level of detail.
 from __future__ import annotations
 
 import math
+from typing import Any
+
+from sqlalchemy.orm import Session
 
 from fieldrx.store import tiles as cell_tiles
 from fieldrx.store.tiles import BINS, MERC_HALF
@@ -46,5 +49,9 @@ def strides(z: int, swath_width_m: float, cell_length_m: float, lat_deg: float) 
 
 
 # the tile SQL reads the cell tables: the store's
-plan_tile = cell_tiles.plan_tile
-prescription_tile = cell_tiles.prescription_tile
+prescription_tile = cell_tiles.cells_tile
+
+
+def plan_tile(session: Session, plan_id: int, *tile: Any) -> bytes:
+    """``cells_tile`` of the plan's grid alone (z, x, y, overview[, stride])."""
+    return cell_tiles.cells_tile(session, plan_id, None, *tile)

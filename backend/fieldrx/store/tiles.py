@@ -104,35 +104,29 @@ SELECT ST_AsMVT(t.*, '{LAYER}', {EXTENT}, 'geom') FROM t WHERE geom IS NOT NULL
 """
 
 
-def plan_tile(
+def _tile(session: Session, sql: str, z: int, x: int, y: int, **params: object) -> bytes:
+    """One MVT of ``sql`` for tile z/x/y (the envelope margin is the tile buffer)."""
+    params.update(z=z, x=x, y=y, m=BUFFER / EXTENT)
+    return bytes(session.scalar(text(sql), params) or b"")
+
+
+def cells_tile(
     session: Session,
     plan_id: int,
+    version_id: int | None,
     z: int,
     x: int,
     y: int,
     overview: bool,
     stride: tuple[int, int] = (1, 1),
 ) -> bytes:
-    sql = PLAN_OVERVIEW if overview else PLAN_DETAIL
-    params = {"pid": plan_id, "z": z, "x": x, "y": y, "m": BUFFER / EXTENT}
-    params.update(sa=stride[0], sx=stride[1])
-    return bytes(session.scalar(text(sql), params) or b"")
-
-
-def prescription_tile(
-    session: Session,
-    plan_id: int,
-    version_id: int,
-    z: int,
-    x: int,
-    y: int,
-    overview: bool,
-    stride: tuple[int, int] = (1, 1),
-) -> bytes:
-    sql = RX_OVERVIEW if overview else RX_DETAIL
-    params = {"pid": plan_id, "vid": version_id, "z": z, "x": x, "y": y, "m": BUFFER / EXTENT}
-    params.update(sa=stride[0], sx=stride[1])
-    return bytes(session.scalar(text(sql), params) or b"")
+    """The plan's grid (``version_id`` None) or a version's rates and flags per cell: every
+    cell (detail) or overview bins of sampled cells (area-weighted mean rate per bin)."""
+    if version_id is None:
+        sql = PLAN_OVERVIEW if overview else PLAN_DETAIL
+    else:
+        sql = RX_OVERVIEW if overview else RX_DETAIL
+    return _tile(session, sql, z, x, y, pid=plan_id, vid=version_id, sa=stride[0], sx=stride[1])
 
 
 JOB_SQL = f"""
@@ -169,9 +163,7 @@ def job_tile(
 ) -> bytes:
     """The plan's cells in the tile with a job's per-cell figures (given per seq:
     the as-applied report's, so map and report show the same numbers)."""
-    params = {
-        "pid": plan_id, "z": z, "x": x, "y": y, "m": BUFFER / EXTENT, "seqs": list(seq),
-        "target": list(target_rate), "applied": list(applied_rate), "acc": list(accuracy),
-        "nrec": list(n_records),
-    }  # fmt: skip
-    return bytes(session.scalar(text(JOB_SQL), params) or b"")
+    return _tile(
+        session, JOB_SQL, z, x, y, pid=plan_id, seqs=list(seq), target=list(target_rate),
+        applied=list(applied_rate), acc=list(accuracy), nrec=list(n_records),
+    )  # fmt: skip
