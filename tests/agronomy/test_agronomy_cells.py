@@ -1,13 +1,15 @@
-"""CellTable constructors: from the real geo grid, from stored WGS84 rows, test rectangles."""
+"""The one cell type (CellTable = geo.cells.Cells): the real geo grid, WGS84 round trip,
+test rectangles."""
 
 import numpy as np
 import pytest
 import shapely
-from fieldrx.agronomy.cells import CellTable, transform_geoms
+from fieldrx.agronomy.cells import CellTable
 from fieldrx.agronomy.interpolate import cell_mean
 from fieldrx.formats import FormatError
 from fieldrx.formats.export import export_prescription
 from fieldrx.geo.coverage import plan_coverage
+from fieldrx.geo.crs import to_utm, to_wgs84
 from fieldrx.geo.grid import build_grid
 
 EPSG = 32649
@@ -17,8 +19,8 @@ X0, Y0 = 624000.0, 3556000.0
 def _real_cells():
     field = shapely.Polygon([(X0, Y0), (X0 + 60, Y0 + 5), (X0 + 55, Y0 + 40), (X0, Y0 + 35)])
     plan = plan_coverage(field, swath_width_m=2.3, heading="longest_edge")
-    grid = build_grid(plan, field, cell_length_m=5.0)
-    return field, grid, CellTable.from_grid(grid, EPSG)
+    grid = build_grid(plan, field, cell_length_m=5.0, epsg=EPSG)
+    return field, grid, grid
 
 
 def test_from_real_grid_keeps_path_order_and_area():
@@ -45,15 +47,17 @@ def test_five_point_sampling_on_real_grid():
 
 def test_from_polygons_wgs84_roundtrip():
     ref = CellTable.rectangle(EPSG, X0, Y0, 3, 4, 2.3, 5.0)
-    wgs = transform_geoms(ref.polygons_utm, EPSG, 4326)
-    back = CellTable.from_polygons_wgs84(EPSG, ref.seq, ref.swath, wgs)
+    wgs = to_wgs84(ref.polygons_utm, EPSG)
+    back = CellTable.from_polygons_utm(EPSG, ref.seq, ref.swath, to_utm(wgs, EPSG))
     np.testing.assert_allclose(back.area_m2, ref.area_m2, rtol=1e-6)
     np.testing.assert_allclose(back.centroids_utm, ref.centroids_utm, atol=1e-6)
     # corners recovered from the polygon (oriented envelope), as a set per cell
     for a, b in zip(back.corners_utm, ref.corners_utm, strict=True):
         d = np.linalg.norm(a[:, None, :] - b[None, :, :], axis=2)
         assert (d.min(axis=1) < 1e-3).all() and (d.min(axis=0) < 1e-3).all()
-    with_corners = CellTable.from_polygons_wgs84(EPSG, ref.seq, ref.swath, wgs, ref.corners_wgs84)
+    with_corners = CellTable.from_polygons_utm(
+        EPSG, ref.seq, ref.swath, to_utm(wgs, EPSG), ref.corners_utm
+    )
     np.testing.assert_allclose(with_corners.corners_utm, ref.corners_utm, atol=1e-6)
 
 

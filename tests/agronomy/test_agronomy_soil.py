@@ -5,13 +5,13 @@ import json
 import numpy as np
 import pytest
 import shapely
-from fieldrx.agronomy.cells import transform_xy
 from fieldrx.agronomy.soil import (
     SoilFormatError,
     parse_soil_csv,
     parse_soil_geojson,
     read_soil_samples,
 )
+from fieldrx.geo.crs import transform_xy
 
 FIELD = shapely.box(112.3230, 32.1340, 112.3250, 32.1355)
 

@@ -22,10 +22,10 @@ def planned_job(
 ) -> tuple[JobPackage, CellTable]:
     """Plan width_m x 5 m, rates alternating 600/850 kg/ha in bands period_m wide, package it."""
     plan = plan_coverage(field, width_m, headland_passes=headland_passes)
-    grid = build_grid(plan, field, 5.0)
+    grid = build_grid(plan, field, 5.0, epsg=32633)
     cx = grid.centroids_utm[:, 0]
     rates = np.round(600 + 250 * (0.5 + 0.5 * np.sign(np.sin((cx - X0) / period_m))), 0)
-    cells = CellTable.from_grid(grid, 32633).with_rates(rates)
+    cells = grid.with_rates(rates)
     pkg = build_job_package(
         cells,
         field,

@@ -1,7 +1,8 @@
 import numpy as np
 import pytest
 import shapely
-from fieldrx.agronomy.cells import FLAG_BITS, CellTable, transform_geoms
+from fieldrx.agronomy.cells import FLAG_BITS, CellTable
+from fieldrx.geo.crs import to_wgs84
 
 EPSG = 32649  # UTM 49N: seed 001's field near 112.32 E, 32.13 N
 X0, Y0 = 624000.0, 3556000.0
@@ -21,7 +22,7 @@ def field_utm():
 
 @pytest.fixture
 def field_wgs84():
-    return transform_geoms(make_field_utm(), EPSG, 4326)
+    return to_wgs84(make_field_utm(), EPSG)
 
 
 @pytest.fixture

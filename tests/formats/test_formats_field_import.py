@@ -7,9 +7,9 @@ import zipfile
 import pytest
 import shapefile as pyshp
 import shapely
-from fieldrx.agronomy.cells import transform_geoms
 from fieldrx.formats import FormatError
 from fieldrx.formats.field_import import read_fields
+from fieldrx.geo.crs import to_utm
 
 SQ = shapely.Polygon(
     [(112.3230, 32.1340), (112.3250, 32.1340), (112.3250, 32.1355), (112.3230, 32.1355)],
@@ -53,7 +53,7 @@ def test_geojson_errors_name_feature_index():
     }
     with pytest.raises(FormatError, match="feature 1: geometry type Point"):
         read_fields("f.json", json.dumps(fc).encode())
-    projected = transform_geoms(SQ, 4326, 32649)
+    projected = to_utm(SQ, 32649)
     bad = {"type": "Feature", "geometry": shapely.geometry.mapping(projected), "properties": {}}
     with pytest.raises(FormatError, match="feature 0: coordinates are not longitude/latitude"):
         read_fields("f.geojson", json.dumps(bad).encode())
@@ -127,7 +127,7 @@ def test_shapefile_zip_wgs84_and_projected():
     )
     from pyproj import CRS
 
-    utm = transform_geoms(SQ, 4326, 32649)
+    utm = to_utm(SQ, 32649)
     data = _shp_zip(
         [utm], ["B"], prj=CRS.from_epsg(32649).to_wkt(version="WKT1_ESRI"), folder="sub/"
     )

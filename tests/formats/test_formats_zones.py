@@ -9,11 +9,12 @@ import pytest
 import shapefile as pyshp
 import shapely
 import xmlschema
-from fieldrx.agronomy.cells import CellTable, round_coords
+from fieldrx.agronomy.cells import CellTable
 from fieldrx.formats.export import export_prescription
 from fieldrx.formats.isoxml import write_isoxml_zones
 from fieldrx.formats.shapefile import PROFILES, write_shapefile_zip, write_shapefile_zones_zip
 from fieldrx.formats.zones import dissolve_zones
+from fieldrx.geo.cells import round_coords
 from fieldrx.geo.coverage import plan_coverage
 from fieldrx.geo.grid import build_grid
 from isoxml.converter.shapely_geom import ShapelyConverterV4
@@ -36,8 +37,8 @@ def wavy_field(scale: float = 0.5) -> shapely.Polygon:
 
 def field_cells(kind: str = "smooth") -> CellTable:
     f = wavy_field()
-    grid = build_grid(plan_coverage(f, swath_width_m=2.3, headland_passes=2), f, cell_length_m=5.0)
-    c = CellTable.from_grid(grid, EPSG)
+    plan = plan_coverage(f, swath_width_m=2.3, headland_passes=2)
+    c = build_grid(plan, f, cell_length_m=5.0, epsg=EPSG)
     xy = c.centroids_utm
     if kind == "smooth":
         r = 200 + 80 * np.sin((xy[:, 0] - X0) / 60) * np.cos((xy[:, 1] - Y0) / 45)

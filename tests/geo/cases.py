@@ -118,7 +118,7 @@ def check_cells_in_own_swath(grid: Grid, plan: CoveragePlan) -> None:
     for s in plan.swaths:
         if s.kind == "headland":
             own[s.index] = s.strip.band
-    outside = shapely.area(shapely.difference(grid.polygons, own[grid.swath]))
+    outside = shapely.area(shapely.difference(grid.polygons_utm, own[grid.swath]))
     tol = 1e-6 * grid.swath_width_m * grid.cell_length_m + 1e-6
     assert (outside <= tol).all(), (
         f"{(outside > tol).sum()} cells reach beyond their own swath, max {outside.max():.2f} m2"
@@ -162,7 +162,7 @@ def check_grid(
     assert grid.uncovered_m2 >= 0
     assert abs(grid.uncovered_m2 - (field.area - grid.area_m2.sum())) <= 0.01 * field.area
     assert np.array_equal(grid.seq, np.arange(n))
-    polys = grid.polygons
+    polys = grid.polygons_utm
     assert not shapely.is_empty(polys).any()
     assert np.allclose(shapely.area(polys), grid.area_m2)
     tree = shapely.STRtree(polys)

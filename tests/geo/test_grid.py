@@ -84,13 +84,13 @@ def test_wgs84_corners_and_geojson():
     ll = box(11.0, 48.0, 11.002, 48.001)
     epsg = utm_epsg_for(11.001, 48.0005)
     f = to_utm(ll, epsg)
-    grid = build_grid(plan_coverage(f, 2.3, "optimal", headland_passes=1), f, 5.0)
-    c = grid.corners_wgs84(epsg)
+    grid = build_grid(plan_coverage(f, 2.3, "optimal", headland_passes=1), f, 5.0, epsg=epsg)
+    c = grid.corners_wgs84
     assert c.shape == (len(grid), 4, 2)
     assert (np.abs(c[..., 0] - 11.001) < 0.002).all() and (
         np.abs(c[..., 1] - 48.0005) < 0.001
     ).all()
-    fc = grid.to_geojson(epsg)
+    fc = grid.to_geojson()
     assert fc["type"] == "FeatureCollection" and len(fc["features"]) == len(grid)
     assert [ft["properties"]["seq"] for ft in fc["features"]] == list(range(len(grid)))
     cells = shapely.from_geojson(

@@ -32,8 +32,7 @@ import shapely
 from pyproj import CRS
 from pyproj.exceptions import CRSError
 
-from fieldrx.agronomy.cells import transform_xy
-from fieldrx.geo.crs import epsg_for_geometry, lonlat_to_utm_xy, to_utm
+from fieldrx.geo.crs import epsg_for_geometry, lonlat_to_utm_xy, to_utm, transform_xy
 
 COLUMN_ALIASES: dict[str, tuple[str, ...]] = {
     "sample_id": ("sample_id", "id", "sample", "name"),

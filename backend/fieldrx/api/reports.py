@@ -12,19 +12,20 @@ from __future__ import annotations
 import csv
 import datetime as dt
 import io
-from dataclasses import asdict
+import json
+from dataclasses import asdict, fields
 from typing import Any, Literal
 
 from fastapi import APIRouter, Query, Request
 from fastapi.responses import Response
-from geoalchemy2.shape import to_shape
-from shapely.geometry import mapping
 from sqlalchemy import select, text
 
 from fieldrx.api.common import ApiError, get_scoped, point_page
 from fieldrx.auth.deps import SessionDep, UserDep
-from fieldrx.db.models import Field, Job, JobEvent, PlanCell, Prescription
-from fieldrx.fleet.reports import JobReport, cached_report, job_plan
+from fieldrx.db.models import Field, Job, JobEvent, Prescription
+from fieldrx.fleet.reports import CellReport, JobReport, cached_report, job_plan
+from fieldrx.store import load_cells
+from fieldrx.store import tiles as cell_tiles
 
 router = APIRouter(tags=["reports"])
 
@@ -134,27 +135,18 @@ def as_applied_points(
     return point_page(rows, total or 0, limit, offset)
 
 
-def _cell_geoms(session: SessionDep, plan_id: int) -> dict[int, Any]:
-    rows = session.execute(
-        select(PlanCell.seq, PlanCell.geom).where(PlanCell.plan_id == plan_id)
-    ).all()
-    return {int(s): to_shape(g) for s, g in rows}
-
-
 @router.get("/jobs/{job_id:int}/as-applied/cells")
 def as_applied_cells(job_id: int, principal: UserDep, session: SessionDep) -> dict[str, Any]:
     """Per-cell GeoJSON: planned vs applied rate, masses and accuracy."""
     job, rep = _report(session, job_id, principal)
-    geoms = _cell_geoms(session, rep.plan_id)
-    feats = [
-        {
-            "type": "Feature",
-            "id": c.seq,
-            "geometry": mapping(geoms[c.seq]) if c.seq in geoms else None,
-            "properties": asdict(c),
-        }
-        for c in rep.cells
-    ]
+    plan = job_plan(session, job)
+    fld = session.get(Field, plan.field_id)
+    cells = load_cells(session, rep.plan_id, fld.utm_epsg if fld is not None else 0)
+    by_seq = {c.seq: c for c in rep.cells}
+    rows = [by_seq.get(int(q)) for q in cells.seq]
+    names = [f.name for f in fields(CellReport)]
+    columns = {k: [None if r is None else getattr(r, k) for r in rows] for k in names}
+    feats = [json.loads(f) for f in cells.geojson_features(columns)]
     return {"type": "FeatureCollection", "features": feats, "summary": rep.summary()}
 
 
@@ -214,30 +206,6 @@ def export_report(
     )
 
 
-TILE_SQL = text(
-    """
-    WITH env AS (
-        SELECT ST_TileEnvelope(:z, :x, :y) AS e,
-               ST_Transform(ST_TileEnvelope(:z, :x, :y, margin => 0.0156), 4326) AS e4326
-    ), a AS (
-        SELECT * FROM unnest(CAST(:seqs AS int[]), CAST(:target AS float8[]),
-                             CAST(:applied AS float8[]), CAST(:acc AS float8[]),
-                             CAST(:nrec AS int[]))
-            AS a(seq, target_rate, applied_rate, accuracy, n_records)
-    )
-    SELECT ST_AsMVT(q, 'cells', 4096, 'geom') FROM (
-        SELECT pc.seq, pc.swath, coalesce(a.target_rate, 0) AS target_rate,
-               coalesce(a.applied_rate, 0) AS applied_rate,
-               coalesce(a.n_records, 0) AS n_records, a.accuracy,
-               ST_AsMVTGeom(ST_Transform(pc.geom, 3857), env.e, 4096, 64, true) AS geom
-        FROM env
-        JOIN plan_cells pc ON pc.plan_id = :plan AND pc.geom && env.e4326
-        LEFT JOIN a ON a.seq = pc.seq
-    ) q WHERE q.geom IS NOT NULL
-    """
-)
-
-
 @router.get("/tiles/jobs/{job_id:int}/{z:int}/{x:int}/{y:int}.mvt")
 def job_tile(
     job_id: int, z: int, x: int, y: int, request: Request, principal: UserDep, session: SessionDep
@@ -249,22 +217,20 @@ def job_tile(
     _prescription_job(job)
     plan = job_plan(session, job)
     cells = cached_report(session, job).cells  # the report's figures, not a second formula
-    data = session.execute(
-        TILE_SQL,
-        {
-            "z": z,
-            "x": x,
-            "y": y,
-            "plan": plan.id,
-            "seqs": [c.seq for c in cells],
-            "target": [c.target_rate_kg_ha for c in cells],
-            "applied": [c.applied_rate_kg_ha for c in cells],
-            "acc": [c.accuracy_pct for c in cells],
-            "nrec": [c.n_records for c in cells],
-        },
-    ).scalar()
+    data = cell_tiles.job_tile(
+        session,
+        plan.id,
+        z,
+        x,
+        y,
+        [c.seq for c in cells],
+        [c.target_rate_kg_ha for c in cells],
+        [c.applied_rate_kg_ha for c in cells],
+        [c.accuracy_pct for c in cells],
+        [c.n_records for c in cells],
+    )
     return Response(
-        bytes(data or b""),
+        data,
         media_type="application/vnd.mapbox-vector-tile",
         headers={"Cache-Control": "no-cache", "Last-Modified": _http_date(job.updated_at)},
     )

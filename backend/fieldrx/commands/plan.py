@@ -126,6 +126,7 @@ def run(args: argparse.Namespace) -> int:
             field_utm,
             cell_length_m=args.cell_length,
             min_cell_fraction=args.min_cell_fraction,
+            epsg=epsg,
         )
     except PlanningError as exc:
         if args.json:
@@ -138,7 +139,7 @@ def run(args: argparse.Namespace) -> int:
     out["epsg"] = epsg
     out["elapsed_s"] = round(time.perf_counter() - t0, 4)
     if args.out:
-        Path(args.out).write_text(json.dumps(grid.to_geojson(epsg)))
+        Path(args.out).write_text(json.dumps(grid.to_geojson()))
     if args.route_out:
         route = to_wgs84(plan.route(), epsg)
         feat = {

@@ -124,13 +124,12 @@ def build(args: argparse.Namespace) -> tuple[bytes, dict[str, Any]]:
     """Run the whole pipeline; returns (file bytes, summary)."""
     from fieldrx_edge.metering import SEED001_CALIBRATION, calibration_from_dict
 
-    from fieldrx.agronomy.cells import CellTable, transform_xy
     from fieldrx.agronomy.prescription import prescribe
     from fieldrx.agronomy.rates import MeterCheck
     from fieldrx.agronomy.soil import read_soil_samples
     from fieldrx.formats.field_import import read_fields
     from fieldrx.geo.coverage import plan_coverage
-    from fieldrx.geo.crs import epsg_for_geometry, to_utm
+    from fieldrx.geo.crs import epsg_for_geometry, lonlat_to_utm_xy, to_utm
     from fieldrx.geo.grid import build_grid
 
     timings: dict[str, float] = {}
@@ -153,8 +152,7 @@ def build(args: argparse.Namespace) -> tuple[bytes, dict[str, Any]]:
         headland_passes=args.headland_passes,
         start_corner=args.start_corner,
     )
-    grid = build_grid(plan, field_utm, cell_length_m=args.cell_length)
-    cells = CellTable.from_grid(grid, epsg)
+    cells = build_grid(plan, field_utm, cell_length_m=args.cell_length, epsg=epsg)
     timings["plan_grid_s"] = time.perf_counter() - t
 
     summary: dict[str, Any] = {
@@ -186,7 +184,7 @@ def build(args: argparse.Namespace) -> tuple[bytes, dict[str, Any]]:
         if imp.rejected:
             raise RxError(f"sample import rejected: {len(imp.errors)} error(s)", summary)
         ll = imp.lonlat()
-        x, y = transform_xy(ll[:, 0], ll[:, 1], 4326, epsg)
+        x, y = lonlat_to_utm_xy(ll[:, 0], ll[:, 1], epsg)
         xy = np.column_stack([x, y])
         vals = imp.values(column)
     timings["samples_s"] = time.perf_counter() - t

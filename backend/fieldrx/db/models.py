@@ -185,7 +185,9 @@ class PlanCell(Base):
     index_in_swath: Mapped[int] = mapped_column(Integer)
     area_m2: Mapped[float] = mapped_column(Double)
     corners_utm: Mapped[list[float]] = mapped_column(ARRAY(Double))
-    geom: Mapped[Any] = mapped_column(Geometry("POLYGON", srid=4326, spatial_index=True))
+    geom: Mapped[Any] = mapped_column(
+        Geometry("GEOMETRY", srid=4326, spatial_index=True)
+    )  # Polygon or MultiPolygon (a split cell stays whole, migration 0013_cells)
 
 
 class SoilImport(Base):

@@ -40,7 +40,6 @@ from __future__ import annotations
 import datetime as dt
 import json
 import operator
-import struct
 import time
 from collections.abc import Iterable
 from dataclasses import asdict, dataclass, field
@@ -62,64 +61,19 @@ from fieldrx_edge.protocol import (
 )
 
 from fieldrx.fleet import alerts as alert_rules
-
-COLUMNS = (
-    "machine_id",
-    "seq",
-    "t",
-    "job_id",
-    "geom",
-    "fix_quality",
-    "hdop",
-    "speed_raw_m_s",
-    "speed_filtered_m_s",
-    "heading_deg",
-    "cell_seq",
-    "target_rate_kg_ha",
-    "applied_rate_kg_ha",
-    "target_shaft_rpm",
-    "actual_shaft_rpm",
-    "duty",
-    "ndvi",
-    "depth_mm",
-    "implement_down",
-    "alarms",
-    "queue_backlog",
-    "fix_period_s",
-    "stream",
-    *EXTRA_FIELDS,  # optional sensor-job fields (issue 13), last so row indexes stay put
+from fieldrx.fleet.telemetry_row import (
+    PG_EPOCH,
+    TELEMETRY_COPY,
+    TelemetryRow,
+    ewkb_point,
+    make_row,
 )
-# t goes as int8 microseconds since 2000-01-01: the binary form of timestamptz, without
-# building a datetime per record; geom goes as raw EWKB bytes (geometry_recv reads EWKB).
-COPY_TYPES = (
-    "int4",
-    "int8",
-    "int8",
-    "int4",
-    "bytea",
-    "int2",
-    "float8",
-    "float8",
-    "float8",
-    "float8",
-    "int4",
-    "float8",
-    "float8",
-    "float8",
-    "float8",
-    "float8",
-    "float8",
-    "float8",
-    "bool",
-    "varchar[]",
-    "int4",
-    "float8",
-    "varchar",
-    *("float8",) * len(EXTRA_FIELDS),
-)
-COPY_SQL = f"COPY telemetry ({', '.join(COLUMNS)}) FROM STDIN (FORMAT BINARY)"
 
-PG_EPOCH = 946684800.0  # 2000-01-01T00:00:00Z
+# the telemetry columns and their COPY types: one list (fleet.telemetry_row)
+COLUMNS = TELEMETRY_COPY.columns
+COPY_TYPES = TELEMETRY_COPY.types
+COPY_SQL = TELEMETRY_COPY.sql()
+
 _PG_EPOCH_DT = dt.datetime(2000, 1, 1, tzinfo=dt.UTC)
 # a record time this far ahead of the server clock is a clock error: stored, it would
 # become the machine's latest state until real time caught up (issue 20)
@@ -130,7 +84,6 @@ CONCURRENT_WINDOW_S = 60.0  # two streams both sending within this: a duplicate_
 PROGRESS_BY_WORK = ("ndvi_topdress", "seeding_depth")
 INT4_MAX = 2**31 - 1
 INT8_MAX = 2**63 - 1
-_EWKB_POINT = struct.Struct("<BIIdd")  # little endian, Point with SRID flag, SRID, x, y
 _ALARM_SET = frozenset(ALARMS)
 _LOCK_NS = 7001  # advisory lock namespace for per-machine ingest
 
@@ -228,7 +181,7 @@ assert TELEMETRY_FIELDS == (
 )  # fmt: skip
 
 
-def _fast_row(d: Any, machine_id: int, t_max: float, stream: str) -> tuple[Any, ...] | None:
+def _fast_row(d: Any, machine_id: int, t_max: float, stream: str) -> TelemetryRow | None:
     """A complete, plainly typed record (what agents send) -> COPY row; else None.
 
     None means "not sure": the general path decides. Floats must be floats here
@@ -278,8 +231,8 @@ def _fast_row(d: Any, machine_id: int, t_max: float, stream: str) -> tuple[Any, 
             return None
         if not (-180.0 <= lon <= 180.0 and -90.0 <= lat <= 90.0):
             return None
-        geom = _EWKB_POINT.pack(1, 0x20000001, 4326, lon, lat)
-    return (
+        geom = ewkb_point(lon, lat)
+    return make_row(
         m, s, int((t - PG_EPOCH) * 1e6), job, geom, fq, hdop, sraw, sfil, head, cell, trate,
         arate, trpm, arpm, duty, ndvi, depth, down, alarms, backlog, period, stream, *_NO_EXTRAS,
     )  # fmt: skip
@@ -288,7 +241,7 @@ def _fast_row(d: Any, machine_id: int, t_max: float, stream: str) -> tuple[Any, 
 assert MAX_FIX_PERIOD_S == 60.0  # the fast path's literal
 
 
-def _slow_row(d: Any, machine_id: int, now: float, stream: str) -> tuple[Any, ...] | str:
+def _slow_row(d: Any, machine_id: int, now: float, stream: str) -> TelemetryRow | str:
     """Any record: the protocol's own validation, then the column ranges. Row or reason."""
     try:
         rec = TelemetryRecord.from_dict(d)
@@ -324,8 +277,8 @@ def _slow_row(d: Any, machine_id: int, now: float, stream: str) -> tuple[Any, ..
         return "a number is too large"
     geom = None
     if rec.lon is not None and rec.lat is not None:
-        geom = _EWKB_POINT.pack(1, 0x20000001, 4326, float(rec.lon), float(rec.lat))
-    return (
+        geom = ewkb_point(float(rec.lon), float(rec.lat))
+    return make_row(
         rec.machine_id,
         rec.seq,
         int((rec.t - PG_EPOCH) * 1e6),
@@ -346,7 +299,7 @@ def _slow_row(d: Any, machine_id: int, now: float, stream: str) -> tuple[Any, ..
 
 def validate(
     raw: Iterable[Any], machine_id: int, stream: str = "", now: float | None = None
-) -> tuple[dict[int, tuple[Any, ...]], list[dict[str, Any]], set[int], int]:
+) -> tuple[dict[int, TelemetryRow], list[dict[str, Any]], set[int], int]:
     """Split records into valid rows by seq, rejects, rejected-for-good seqs and in-batch repeats.
 
     The fast path takes complete, plainly typed records; everything else goes
@@ -356,7 +309,7 @@ def validate(
     """
     now = time.time() if now is None else now
     t_max = now + FUTURE_TOLERANCE_S
-    rows: dict[int, tuple[Any, ...]] = {}
+    rows: dict[int, TelemetryRow] = {}
     rejected: list[dict[str, Any]] = []
     dead: set[int] = set()
     repeats = 0
@@ -373,10 +326,10 @@ def validate(
                 if seq is not None and (mid is None or mid == machine_id):
                     dead.add(seq)
                 continue
-        if r[1] in rows:
+        if r.seq in rows:
             repeats += 1
         else:
-            rows[r[1]] = r
+            rows[r.seq] = r
     return rows, rejected, dead, repeats
 
 
@@ -446,7 +399,7 @@ def ingest(
             machine_id, acked0, rejected=rejected, duplicates=repeats, stream=stream,
             streamed=bool(stream) if streamed is None else streamed,
         )  # fmt: skip
-        new: list[tuple[Any, ...]] = []
+        new: list[TelemetryRow] = []
         conflict: int | None = None
         if rows:
             lo, hi = min(rows), max(rows)
@@ -459,9 +412,9 @@ def ingest(
                 )
                 existing = {seq: _t_us(t) for seq, t in cur.fetchall()}
             if existing:
-                same = [q for q, t_us in existing.items() if q in rows and rows[q][2] == t_us]
+                same = [q for q, t_us in existing.items() if q in rows and rows[q].t == t_us]
                 result.duplicates += len(same)
-                clash = [q for q in existing if q in rows and rows[q][2] != existing[q]]
+                clash = [q for q in existing if q in rows and rows[q].t != existing[q]]
                 if clash:
                     conflict = min(clash)
                     result.stream_conflict = True
@@ -473,11 +426,7 @@ def ingest(
                     dead = {q for q in dead if q < conflict}
             new = [rows[s] for s in sorted(rows) if s not in existing]
         if new:
-            with cur.copy(COPY_SQL) as copy:
-                copy.set_types(COPY_TYPES)
-                write = copy.write_row
-                for r in new:
-                    write(r)
+            TELEMETRY_COPY.write_rows(cur, new)
         result.stored = len(new)
         result.acked_seq = _advance(cur, machine_id, stream, acked0, set(rows) | dead)
         messages: list[dict[str, Any]] = []
@@ -487,41 +436,41 @@ def ingest(
             result.acked_seq = min(result.acked_seq, conflict - 1)
         _status(cur, machine_id, info, new, result.acked_seq, now)
         if new:
-            latest = max(new, key=lambda r: r[2])
+            latest = max(new, key=lambda r: r.t)
             messages.append(_position(info.organisation_id, latest, result))
             messages.extend(_cells(cur, machine_id, info.organisation_id, new))
         messages.extend(_streams_alert(cur, machine_id, stream, info, new, now))
         if new and _may_alert(new, info):
             samples = [
                 alert_rules.Sample(
-                    r[2] / 1e6 + PG_EPOCH,
-                    r[5],
-                    r[8] if r[8] is not None else r[7],
-                    r[11],
-                    r[12],
-                    r[18],
-                    r[19],
+                    r.t_s,
+                    r.fix_quality,
+                    r.speed_m_s,
+                    r.target_rate_kg_ha,
+                    r.applied_rate_kg_ha,
+                    r.implement_down,
+                    r.alarms,
                 )
-                for r in sorted(new, key=lambda r: r[2])
+                for r in sorted(new, key=lambda r: r.t)
             ]
             messages.extend(
                 alert_rules.evaluate(
                     cur,
                     machine_id,
                     info.organisation_id,
-                    latest[3],
+                    latest.job_id,
                     samples,
                     info.speed_min_m_s,
                     info.speed_max_m_s,
                     info.open_alerts,
                 )
             )
-        if new and any(r[17] is not None for r in new):  # depths: seeding job (issue 13)
+        if new and any(r.depth_mm is not None for r in new):  # depths: seeding job (issue 13)
             from fieldrx.fleet.seed_alerts import check_depth_window
 
             messages.extend(
                 check_depth_window(
-                    cur, machine_id, info.organisation_id, latest[3], info.open_alerts
+                    cur, machine_id, info.organisation_id, latest.job_id, info.open_alerts
                 )
             )
         alert_rules.notify(cur, messages)
@@ -542,13 +491,13 @@ def _stream_row(
     stream: str,
     stream_start: int,
     acked: int,
-    new: list[tuple[Any, ...]],
+    new: list[TelemetryRow],
     info: MachineInfo,
 ) -> None:
     """Upsert the stream's acknowledged seq, last batch time, record count and time span."""
     t0 = t1 = None
     if new:
-        us = [r[2] for r in new]
+        us = [r.t for r in new]
         t0 = dt.datetime.fromtimestamp(min(us) / 1e6 + PG_EPOCH, dt.UTC)
         t1 = dt.datetime.fromtimestamp(max(us) / 1e6 + PG_EPOCH, dt.UTC)
     cur.execute(
@@ -567,7 +516,7 @@ def _streams_alert(
     machine_id: int,
     stream: str,
     info: MachineInfo,
-    new: list[tuple[Any, ...]],
+    new: list[TelemetryRow],
     now: float,
 ) -> list[dict[str, Any]]:
     """``duplicate_stream``: another stream of this machine sent a batch since this stream's
@@ -581,7 +530,7 @@ def _streams_alert(
         if kind in info.event_alerts:
             return []
         return alert_rules.open_event(
-            cur, info.organisation_id, machine_id, new[-1][3] if new else None, kind,
+            cur, info.organisation_id, machine_id, new[-1].job_id if new else None, kind,
             "two telemetry streams are sending for this machine at once (two agents with one"
             " device token?); both are stored",
             None,
@@ -593,20 +542,20 @@ def _streams_alert(
     return []
 
 
-def _may_alert(new: list[tuple[Any, ...]], info: MachineInfo) -> bool:
+def _may_alert(new: list[TelemetryRow], info: MachineInfo) -> bool:
     """Cheap pre-check: could any alert open or close with this batch? (Most batches: no.)"""
     if info.open_alerts:
         return True
     lo, hi = info.speed_min_m_s, info.speed_max_m_s
     tol = alert_rules.RULES.rate_tolerance
     for r in new:
-        if r[5] == 0 or r[19]:  # no fix, or any alarm from the agent
+        if r.fix_quality == 0 or r.alarms:  # no fix, or any alarm from the agent
             return True
-        if r[18]:
-            v = r[8] if r[8] is not None else r[7]
+        if r.implement_down:
+            v = r.speed_m_s
             if v is not None and (v < lo or v > hi):
                 return True
-            tr, ar = r[11], r[12]
+            tr, ar = r.target_rate_kg_ha, r.applied_rate_kg_ha
             if tr is not None and ar is not None and tr > 0 and abs(ar - tr) > tol * tr:
                 return True
     return False
@@ -642,7 +591,7 @@ def _status(
     cur: psycopg.Cursor[Any],
     machine_id: int,
     info: MachineInfo,
-    new: list[tuple[Any, ...]],
+    new: list[TelemetryRow],
     acked: int,
     now: float,
 ) -> None:
@@ -657,17 +606,15 @@ def _status(
             (machine_id, acked),
         )
         return
-    r = max(new, key=lambda r: r[2])
-    t = r[2] / 1e6 + PG_EPOCH
+    r = max(new, key=lambda r: r.t)
+    t = r.t_s
     if info.last_t is not None and t < info.last_t <= now + FUTURE_TOLERANCE_S:
         cur.execute(
             "UPDATE machine_status SET last_seen_at = now(), acked_seq = %s WHERE machine_id = %s",
             (acked, machine_id),
         )
         return
-    lon = lat = None
-    if r[4] is not None:
-        _, _, _, lon, lat = _EWKB_POINT.unpack(r[4])
+    lon, lat = r.lonlat
     cur.execute(
         """
         INSERT INTO machine_status (machine_id, last_seen_at, last_t, acked_seq, lon, lat,
@@ -690,42 +637,40 @@ def _status(
             acked,
             lon,
             lat,
-            r[8] if r[8] is not None else r[7],
-            r[9],
-            r[3],
-            r[10],
-            r[11],
-            r[12],
-            r[20],
-            r[19],
+            r.speed_m_s,
+            r.heading_deg,
+            r.job_id,
+            r.cell_seq,
+            r.target_rate_kg_ha,
+            r.applied_rate_kg_ha,
+            r.queue_backlog,
+            r.alarms,
         ),
     )
 
 
-def _position(org: int, r: tuple[Any, ...], result: IngestResult) -> dict[str, Any]:
-    lon = lat = None
-    if r[4] is not None:
-        _, _, _, lon, lat = _EWKB_POINT.unpack(r[4])
+def _position(org: int, r: TelemetryRow, result: IngestResult) -> dict[str, Any]:
+    lon, lat = r.lonlat
     return {
         "type": "position",
         "org": org,
-        "machine_id": r[0],
-        "seq": r[1],
-        "t": r[2] / 1e6 + PG_EPOCH,
+        "machine_id": r.machine_id,
+        "seq": r.seq,
+        "t": r.t_s,
         "lon": lon,
         "lat": lat,
-        "fix_quality": r[5],
-        "speed_m_s": r[8] if r[8] is not None else r[7],
-        "heading_deg": r[9],
-        "job_id": r[3],
-        "cell_seq": r[10],
-        "target_rate_kg_ha": r[11],
-        "applied_rate_kg_ha": r[12],
-        "ndvi": r[16],  # sensor jobs (issue 13): the fleet view shows the kind's own figure
-        "depth_mm": r[17],
-        "implement_down": r[18],
-        "alarms": r[19],
-        "queue_backlog": r[20],
+        "fix_quality": r.fix_quality,
+        "speed_m_s": r.speed_m_s,
+        "heading_deg": r.heading_deg,
+        "job_id": r.job_id,
+        "cell_seq": r.cell_seq,
+        "target_rate_kg_ha": r.target_rate_kg_ha,
+        "applied_rate_kg_ha": r.applied_rate_kg_ha,
+        "ndvi": r.ndvi,  # sensor jobs (issue 13): the fleet view shows the kind's own figure
+        "depth_mm": r.depth_mm,
+        "implement_down": r.implement_down,
+        "alarms": r.alarms,
+        "queue_backlog": r.queue_backlog,
         "acked_seq": result.acked_seq,
         "stored": result.stored,
         "sent_at": time.time(),
@@ -733,7 +678,7 @@ def _position(org: int, r: tuple[Any, ...], result: IngestResult) -> dict[str, A
 
 
 def _cells(
-    cur: psycopg.Cursor[Any], machine_id: int, org: int, new: list[tuple[Any, ...]]
+    cur: psycopg.Cursor[Any], machine_id: int, org: int, new: list[TelemetryRow]
 ) -> list[dict[str, Any]]:
     """Add the batch to the per-cell aggregates of this machine's jobs; update job progress.
 
@@ -749,22 +694,22 @@ def _cells(
     """
     agg: dict[tuple[int, int], list[Any]] = {}
     for r in new:
-        if r[3] is None or r[10] is None or not r[18]:
+        if r.job_id is None or r.cell_seq is None or not r.implement_down:
             continue
-        key = (r[3], r[10])
+        key = (r.job_id, r.cell_seq)
         a = agg.get(key)
-        tr = r[11] or 0.0
-        ar = r[12] or 0.0
+        tr = r.target_rate_kg_ha or 0.0
+        ar = r.applied_rate_kg_ha or 0.0
         if a is None:
-            agg[key] = [1, tr, ar, r[2], r[2]]
+            agg[key] = [1, tr, ar, r.t, r.t]
         else:
             a[0] += 1
             a[1] += tr
             a[2] += ar
-            if r[2] < a[3]:
-                a[3] = r[2]
-            if r[2] > a[4]:
-                a[4] = r[2]
+            if r.t < a[3]:
+                a[3] = r.t
+            if r.t > a[4]:
+                a[4] = r.t
     if not agg:
         return []
     items = list(agg.items())
@@ -835,9 +780,7 @@ def _cells(
     ]
 
 
-def raw_copy(conn: psycopg.Connection[Any], rows: list[tuple[Any, ...]]) -> None:
+def raw_copy(conn: psycopg.Connection[Any], rows: list[TelemetryRow]) -> None:
     """Plain COPY BINARY of prepared rows into ``telemetry``: the benchmark's baseline."""
-    with conn.transaction(), conn.cursor() as cur, cur.copy(COPY_SQL) as copy:
-        copy.set_types(COPY_TYPES)
-        for r in rows:
-            copy.write_row(r)
+    with conn.transaction(), conn.cursor() as cur:
+        TELEMETRY_COPY.write_rows(cur, rows)

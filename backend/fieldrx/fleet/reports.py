@@ -10,8 +10,8 @@ simulator uses the same functions, so the two agree to rounding):
 * applied mass M2: each record's fix period meters flow(actual shaft speed)
   * dt grams (the machine's calibration, ``asapplied.records_applied``), landing
   T_lag later (eq. 16) along the track, ``antenna_forward_m`` ahead, split among
-  the cells' polygons (the 4-corner rectangle, or the real polygon
-  ``plan_cells.geom`` for the cells whose polygon differs from it:
+  the cells' polygons (the 4-corner rectangle, or the real polygon from the
+  cell store, ``fieldrx.store.load_cells``, for the cells whose polygon differs from it:
   ``formats.jobpackage.shaped_cells``, the cells that carry their shape in the
   job package); where cells overlap, the record's own cell wins; mass landing in
   no cell or off the field (outside its ring, in a hole) is "outside";
@@ -30,16 +30,16 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-import shapely
 from fieldrx_edge.asapplied import Cells, driven_length, m1_g, records_applied, theta_pct
 from fieldrx_edge.metering import calibration_from_dict
 from geoalchemy2.shape import to_shape
-from sqlalchemy import text
+from sqlalchemy import select, text
 from sqlalchemy.orm import Session
 
-from fieldrx.db.models import Field, Job, Machine, Plan, Prescription
+from fieldrx.db.models import Field, Job, Machine, Plan, Prescription, PrescriptionVersion
 from fieldrx.formats.jobpackage import shaped_cells
 from fieldrx.geo.crs import to_utm
+from fieldrx.store import load_cells, load_rates
 
 MAX_GAP_S = 2.0
 
@@ -124,34 +124,37 @@ def job_plan(session: Session, job: Job) -> Plan:
     return plan
 
 
+def _version_id(session: Session, job: Job) -> int | None:
+    """Id of the prescription version the job applies (None: a sensor kind, no rates)."""
+    if job.prescription_id is None:
+        return None
+    return session.scalar(
+        select(PrescriptionVersion.id).where(
+            PrescriptionVersion.prescription_id == job.prescription_id,
+            PrescriptionVersion.version == job.prescription_version,
+        )
+    )
+
+
 def build_report(session: Session, job: Job, max_gap_s: float = MAX_GAP_S) -> JobReport:
     machine = session.get(Machine, job.machine_id)
     width = machine.width_m if machine is not None else 0.0
     plan = job_plan(session, job)
     fld = session.get(Field, plan.field_id)
-    cells = session.execute(
-        text(
-            "SELECT pc.seq, pc.swath, pc.corners_utm, coalesce(r.rate_kg_ha, 0) AS rate,"
-            " ST_AsBinary(ST_Transform(pc.geom, :epsg)) AS geom"
-            " FROM plan_cells pc"
-            " LEFT JOIN prescription_versions v ON v.prescription_id = :rx AND v.version = :ver"
-            " LEFT JOIN prescription_rates r ON r.version_id = v.id AND r.seq = pc.seq"
-            " WHERE pc.plan_id = :plan ORDER BY pc.seq"
-        ),
-        {
-            "rx": job.prescription_id,
-            "ver": job.prescription_version,
-            "plan": plan.id,
-            "epsg": fld.utm_epsg if fld is not None else 4326,
-        },
-    ).all()
+    epsg = fld.utm_epsg if fld is not None else 0
+    cells = load_cells(session, plan.id, epsg)
     n = len(cells)
-    seqs = np.asarray([c.seq for c in cells], dtype=np.int64)
-    swath = np.asarray([c.swath for c in cells], dtype=np.int64)
-    rate = np.asarray([c.rate for c in cells], dtype=float)
-    corners = np.asarray([c.corners_utm for c in cells], dtype=float).reshape(n, 8)
+    seqs, swath, polys = cells.seq, cells.swath, cells.polygons_utm
+    corners = cells.corners_utm.reshape(n, 8)
+    rate = np.zeros(n)  # planned rate per cell; 0 where the version has none (sensor kinds)
+    ver = _version_id(session, job)
+    if ver is not None:
+        rseq, rrate, _, _ = load_rates(session, ver)
+        pos = np.searchsorted(seqs, rseq)
+        hit = pos < n
+        hit[hit] = seqs[pos[hit]] == rseq[hit]
+        rate[pos[hit]] = rrate[hit]
     # real cells where they differ from the rectangle (edge, holes, headland rings)
-    polys = shapely.from_wkb(np.asarray([bytes(c.geom) for c in cells], dtype=object))
     shaped = shaped_cells(polys, corners) if n else np.zeros(0, dtype=bool)
     boundary = to_utm(to_shape(fld.boundary), fld.utm_epsg) if fld is not None else None
     geo = Cells.build(

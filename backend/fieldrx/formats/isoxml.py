@@ -35,7 +35,7 @@ import numpy as np
 import shapely
 from pyproj import Geod
 
-from fieldrx.agronomy.cells import CellTable, transform_xy
+from fieldrx.agronomy.cells import CellTable
 from fieldrx.formats import FormatError
 from fieldrx.formats.zones import (
     DEFAULT_MAX_POLYGONS,
@@ -45,6 +45,7 @@ from fieldrx.formats.zones import (
     polygon_parts,
     snap_valid,
 )
+from fieldrx.geo.crs import lonlat_to_utm_xy
 
 DDI_SETPOINT_MASS_PER_AREA = 0x0006  # mg/m^2
 MG_M2_PER_KG_HA = 100.0
@@ -208,7 +209,7 @@ def rasterise_rates(cells: CellTable, spec: GridSpec) -> np.ndarray:
     centre on a shared edge takes the cell earliest in path order.
     """
     lon, lat = spec.centres()
-    x, y = transform_xy(lon.ravel(), lat.ravel(), 4326, cells.epsg)
+    x, y = lonlat_to_utm_xy(lon.ravel(), lat.ravel(), cells.epsg)
     out = np.zeros(lon.size)
     if len(cells):
         tree = shapely.STRtree(cells.polygons_utm)

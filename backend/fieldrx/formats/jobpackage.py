@@ -23,8 +23,9 @@ import shapely
 from fieldrx_edge.metering import Calibration, calibration_from_dict
 from fieldrx_edge.protocol import ControllerSettings, JobPackage
 
-from fieldrx.agronomy.cells import CellTable, round_coords
+from fieldrx.agronomy.cells import CellTable
 from fieldrx.formats import FormatError
+from fieldrx.geo.cells import cut_edge_midpoints, round_coords
 
 
 def _round_list(a: np.ndarray, decimals: int) -> list[float]:
@@ -101,8 +102,7 @@ def beside_line_cells(polys: Any, c: np.ndarray, shaped: np.ndarray) -> np.ndarr
     if len(idx) == 0:
         return out
     cc = c[idx]
-    rear = (cc[:, 3] + cc[:, 0]) / 2  # corners: rear-right, front-right, front-left, rear-left
-    front = (cc[:, 1] + cc[:, 2]) / 2
+    rear, front = cut_edge_midpoints(cc)  # the one driving-line rule
     lines = shapely.linestrings(np.stack([rear, front], axis=1))
     real = shapely.make_valid(polys[idx])
     on_line = shapely.length(shapely.intersection(lines, real))

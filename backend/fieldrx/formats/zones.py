@@ -30,8 +30,9 @@ import shapely
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from fieldrx.agronomy.cells import CellTable, transform_geoms
+from fieldrx.agronomy.cells import CellTable
 from fieldrx.formats import FormatError
+from fieldrx.geo.crs import to_wgs84
 
 DEGREE_DECIMALS = 9
 DEFAULT_ZONE_CLASSES = 8
@@ -183,7 +184,7 @@ def _dissolve(cells: CellTable, cls: np.ndarray, decimals: int) -> list[tuple[in
     out = []
     for c in np.unique(cls).tolist():
         merged = shapely.union_all(cells.polygons_utm[cls == c])
-        wgs = transform_geoms(merged, cells.epsg, 4326)
+        wgs = to_wgs84(merged, cells.epsg)
         out.append((int(c), snap_valid(wgs, decimals)))
     return out
 

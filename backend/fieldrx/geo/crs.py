@@ -43,16 +43,47 @@ def _transformer(src: int, dst: int) -> Transformer:
     return Transformer.from_crs(src, dst, always_xy=True)
 
 
+# above this many points a conversion is split over two threads (pyproj frees the GIL):
+# a 870k-cell grid has ~4.5 million vertices
+PARALLEL_POINTS = 200_000
+
+
+def transform_xy(
+    x: np.ndarray, y: np.ndarray, src_epsg: int, dst_epsg: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Vectorised coordinate conversion between two EPSG codes (x/lon first, always).
+
+    The one place FieldRx calls pyproj for points; large arrays run on two threads,
+    each with its own Transformer (a Transformer is not thread-safe).
+    """
+    x = np.ascontiguousarray(x, dtype=float)
+    y = np.ascontiguousarray(y, dtype=float)
+    n = x.size
+    if n < PARALLEL_POINTS:
+        tx, ty = _transformer(src_epsg, dst_epsg).transform(x, y)
+        return np.asarray(tx, float), np.asarray(ty, float)
+    from concurrent.futures import ThreadPoolExecutor
+
+    xf, yf = x.ravel(), y.ravel()
+    ox, oy = np.empty(n), np.empty(n)
+
+    def work(sl: slice) -> None:
+        tr = Transformer.from_crs(src_epsg, dst_epsg, always_xy=True)
+        ox[sl], oy[sl] = tr.transform(xf[sl], yf[sl])
+
+    with ThreadPoolExecutor(2) as ex:
+        list(ex.map(work, [slice(0, n // 2), slice(n // 2, n)]))
+    return ox.reshape(x.shape), oy.reshape(y.shape)
+
+
 def lonlat_to_utm_xy(lon: np.ndarray, lat: np.ndarray, epsg: int) -> tuple[np.ndarray, np.ndarray]:
     """Vectorised lon/lat -> UTM easting/northing (metres)."""
-    x, y = _transformer(4326, epsg).transform(np.asarray(lon, float), np.asarray(lat, float))
-    return np.asarray(x, float), np.asarray(y, float)
+    return transform_xy(lon, lat, 4326, epsg)
 
 
 def utm_xy_to_lonlat(x: np.ndarray, y: np.ndarray, epsg: int) -> tuple[np.ndarray, np.ndarray]:
     """Vectorised UTM easting/northing -> lon/lat (degrees)."""
-    lon, lat = _transformer(epsg, 4326).transform(np.asarray(x, float), np.asarray(y, float))
-    return np.asarray(lon, float), np.asarray(lat, float)
+    return transform_xy(x, y, epsg, 4326)
 
 
 def lonlat_to_utm_coords(coords: np.ndarray, epsg: int) -> np.ndarray:

@@ -5,9 +5,11 @@ each cell four corners numbered counter-clockwise (Table 1), stored in path orde
 terminal can follow the path and drop finished cells. Here the corners of every cell are
 listed rear-right, front-right, front-left, rear-left relative to the driving direction,
 which is counter-clockwise. ``corners_utm`` is the nominal (unclipped) implement footprint
-of the cell; ``polygons`` is the cell clipped to the field (partial cells at the
-boundary, slivers merged into their neighbour along the same swath). Field area no
-swath covers is never merged into a cell; it is reported as ``Grid.uncovered_m2``.
+of the cell; ``polygons_utm`` is the cell clipped to the field (partial cells at the
+boundary, slivers merged into their neighbour along the same swath; a cell split by a
+notch or hole stays one MultiPolygon). Field area no swath covers is never merged into a
+cell; it is reported as ``uncovered_m2``. The result is the one cell type,
+:class:`fieldrx.geo.cells.Cells` (``Grid`` is its name here).
 
 The grid reads only the documented strip geometry of each swath
 (:class:`fieldrx.geo.planning.model.StripGeometry`) and the plan's frame.
@@ -19,9 +21,8 @@ clipped with shapely, so a 1,000 ha field (~870k cells) takes seconds.
 
 from __future__ import annotations
 
-import json
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 import shapely
@@ -29,60 +30,16 @@ from shapely.geometry import LineString, Polygon
 from shapely.geometry.base import BaseGeometry
 
 from . import PlanningError
+from .cells import Cells, index_in_swath, rectangles
 from .coverage import CoveragePlan, Swath
-from .crs import utm_coords_to_lonlat
 from .planning.boundary import polygonal
 
 MAX_CELLS = 5_000_000
 MIN_CELL_LENGTH_M = 0.5
 
 
-@dataclass
-class Grid:
-    """Cells in path order; all arrays have one row per cell."""
-
-    seq: np.ndarray
-    swath: np.ndarray
-    index_in_swath: np.ndarray
-    area_m2: np.ndarray
-    corners_utm: np.ndarray
-    polygons: np.ndarray
-    centroids_utm: np.ndarray
-    headland: np.ndarray
-    cell_length_m: float
-    swath_width_m: float
-    # field area no cell covers (thin peninsulas the headland offsets cannot reach,
-    # wedges where a swath stops at a hole or notch, the strip left by the tolerance):
-    # reported, never hidden in a neighbouring cell (issue 16)
-    uncovered_m2: float = 0.0
-    timings_s: dict[str, float] = field(default_factory=dict)
-
-    def __len__(self) -> int:
-        return len(self.seq)
-
-    def corners_wgs84(self, epsg: int) -> np.ndarray:
-        """(n, 4, 2) lon/lat corners, same order as ``corners_utm`` (seed 001 Table 1)."""
-        return utm_coords_to_lonlat(self.corners_utm, epsg)
-
-    def to_geojson(self, epsg: int, rates_kg_ha: np.ndarray | None = None) -> dict:
-        """RFC 7946 FeatureCollection of the clipped cells in lon/lat, in path order."""
-        polys = shapely.transform(self.polygons, lambda c: utm_coords_to_lonlat(c, epsg))
-        # pointwise rounding: no overlay, so it cannot raise a GEOS TopologyException
-        # (the grid-snapping default did on a real 6.5 ha field, issue 16)
-        geoms = shapely.to_geojson(shapely.set_precision(polys, 1e-9, mode="pointwise"))
-        feats = []
-        for i in range(len(self)):
-            props = {
-                "seq": int(self.seq[i]),
-                "swath": int(self.swath[i]),
-                "index_in_swath": int(self.index_in_swath[i]),
-                "area_m2": round(float(self.area_m2[i]), 3),
-                "headland": bool(self.headland[i]),
-            }
-            if rates_kg_ha is not None:
-                props["rate_kg_ha"] = float(rates_kg_ha[i])
-            feats.append({"type": "Feature", "geometry": json.loads(geoms[i]), "properties": props})
-        return {"type": "FeatureCollection", "features": feats}
+# The grid is the one cell type (``geo.cells.Cells``) with the builder's metadata filled in
+Grid = Cells
 
 
 @dataclass
@@ -92,7 +49,6 @@ class _Cells:
     corners: np.ndarray
     polys: np.ndarray
     area: np.ndarray
-    cent: np.ndarray
     headland: bool
 
 
@@ -105,14 +61,16 @@ def build_grid(
     boundary_utm: BaseGeometry | None = None,
     cell_length_m: float = 5.0,
     min_cell_fraction: float = 0.1,
-) -> Grid:
-    """Cut the plan's path into cells (see module docstring).
+    epsg: int = 0,
+) -> Cells:
+    """Cut the plan's path into cells (see module docstring); ``epsg`` (the field's UTM
+    zone, 0 unknown) gives the cells their WGS84 views.
 
     A GEOS exception while clipping cells becomes a PlanningError that says so; it never
     reaches the user as a TopologyException.
     """
     try:
-        return _build_grid(plan, boundary_utm, cell_length_m, min_cell_fraction)
+        return _build_grid(plan, boundary_utm, cell_length_m, min_cell_fraction, epsg)
     except shapely.errors.GEOSException as exc:
         raise PlanningError(
             f"the geometry engine failed while cutting cells ({exc}); try another cell "
@@ -125,7 +83,8 @@ def _build_grid(
     boundary_utm: BaseGeometry | None,
     cell_length_m: float,
     min_cell_fraction: float,
-) -> Grid:
+    epsg: int,
+) -> Cells:
     import time
 
     t0 = time.perf_counter()
@@ -170,7 +129,7 @@ def _build_grid(
     order = None if (np.diff(key) > 0).all() else np.argsort(key, kind="stable")
     cat = {
         k: np.concatenate([getattr(p, k) for p in parts])
-        for k in ("swath", "idx", "corners", "polys", "area", "cent")
+        for k in ("swath", "idx", "corners", "polys", "area")
     }
     hl = np.concatenate([np.full(len(p.swath), p.headland) for p in parts])
     if order is not None:
@@ -184,30 +143,20 @@ def _build_grid(
         raise PlanningError("the grid is empty (field smaller than one cell)")
     timings["total"] = time.perf_counter() - t0
     field_area = plan.field.area  # the planned (possibly simplified) field
-    return Grid(
+    return Cells(
+        epsg=epsg,
         seq=np.arange(n, dtype=np.int64),
-        swath=cat["swath"][keep].astype(np.int32),
-        index_in_swath=_reindex(cat["swath"][keep]),
+        swath=cat["swath"][keep],
+        index_in_swath=index_in_swath(cat["swath"][keep]),
         area_m2=cat["area"][keep],
         corners_utm=cat["corners"][keep],
-        polygons=cat["polys"][keep],
-        centroids_utm=cat["cent"][keep],
+        polygons_utm=cat["polys"][keep],
         headland=hl[keep],
         cell_length_m=cell,
         swath_width_m=w,
         uncovered_m2=float(max(0.0, field_area - cat["area"][keep].sum())),
         timings_s=timings,
     )
-
-
-def _reindex(swath: np.ndarray) -> np.ndarray:
-    """0.. index within each swath after slivers were merged away."""
-    n = len(swath)
-    if n == 0:
-        return np.zeros(0, np.int32)
-    start = np.r_[True, swath[1:] != swath[:-1]]
-    first = np.maximum.accumulate(np.where(start, np.arange(n), 0))
-    return (np.arange(n) - first).astype(np.int32)
 
 
 def _inner_cells(plan: CoveragePlan, inner: list[Swath], cell: float) -> _Cells:
@@ -249,8 +198,7 @@ def _inner_cells(plan: CoveragePlan, inner: list[Swath], cell: float) -> _Cells:
     corners = fr.inv(cf)
     polys = np.empty(len(j), dtype=object)
     area = (hi - lo) * w
-    cent = fr.inv(np.stack([(lo + hi) / 2.0, Y], axis=1))
-    polys[inside] = _rectangles(corners[inside])
+    polys[inside] = rectangles(corners[inside])
     part = np.flatnonzero(~inside)
     if len(part):
         clips = np.array([inner[m].strip.clip for m in rep[part]], dtype=object)
@@ -259,8 +207,7 @@ def _inner_cells(plan: CoveragePlan, inner: list[Swath], cell: float) -> _Cells:
         cut = shapely.transform(_only_polygons(cut), fr.inv)
         polys[part] = cut
         area[part] = shapely.area(cut)
-        cent[part] = inside_centres(cut)
-    return _Cells(sidx[rep], j, corners, polys, area, cent, False)
+    return _Cells(sidx[rep], j, corners, polys, area, False)
 
 
 def _only_polygons(geoms: np.ndarray, min_part_m2: float = 1e-4, snap: bool = True) -> np.ndarray:
@@ -290,28 +237,6 @@ def _only_polygons(geoms: np.ndarray, min_part_m2: float = 1e-4, snap: bool = Tr
         else:
             geoms[k] = shapely.multipolygons(polys)
     return geoms
-
-
-def _rectangles(corners: np.ndarray) -> np.ndarray:
-    """(n, 4, 2) corners -> polygons; the ragged-array path is ~2x faster than polygons()."""
-    n = len(corners)
-    if n == 0:
-        return np.zeros(0, dtype=object)
-    closed = np.concatenate([corners, corners[:, :1]], axis=1).reshape(-1, 2)
-    offsets = (np.arange(0, 5 * n + 1, 5), np.arange(n + 1))
-    return shapely.from_ragged_array(shapely.GeometryType.POLYGON, closed, offsets)
-
-
-def inside_centres(polys: np.ndarray) -> np.ndarray:
-    """Centroid, or a point on the surface where the centroid falls outside the cell."""
-    c = shapely.centroid(polys)
-    bad = ~shapely.within(c, polys) & ~shapely.is_empty(polys)
-    if bad.any():
-        c[bad] = shapely.point_on_surface(polys[bad])
-    xy = np.full((len(polys), 2), np.nan)
-    ok = ~shapely.is_empty(c)
-    xy[ok] = shapely.get_coordinates(c[ok])
-    return xy
 
 
 def _ring_cells(s: Swath, w: float, cell: float) -> _Cells:
@@ -384,7 +309,6 @@ def _ring_cells(s: Swath, w: float, cell: float) -> _Cells:
         corners,
         cells,
         shapely.area(cells),
-        np.zeros((k, 2)),
         True,
     )
 
@@ -491,16 +415,11 @@ def _resolve_overlaps(rings: list[_Cells]) -> list[_Cells]:
                 np.array([shapely.difference(allp[a], shapely.union_all(allp[earlier]))])
             )[0]
     area = shapely.area(allp)
-    cent = inside_centres(allp)
     out = []
     o = 0
     for r in rings:
         n = len(r.polys)
-        out.append(
-            _Cells(
-                r.swath, r.idx, r.corners, allp[o : o + n], area[o : o + n], cent[o : o + n], True
-            )
-        )
+        out.append(_Cells(r.swath, r.idx, r.corners, allp[o : o + n], area[o : o + n], True))
         o += n
     return out
 
@@ -529,7 +448,6 @@ def _merge_slivers(cat: dict[str, np.ndarray], min_area: float) -> np.ndarray:
         merged = _only_polygons(np.array([shapely.union(cat["polys"][target], cat["polys"][i])]))[0]
         cat["polys"][target] = merged
         cat["area"][target] = shapely.area(merged)
-        cat["cent"][target] = inside_centres(np.array([merged], dtype=object))[0]
         cr = cat["corners"]
         if target < i:  # the sliver extends the target forward
             cr[target, 1], cr[target, 2] = cr[i, 1], cr[i, 2]

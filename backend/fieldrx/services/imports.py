@@ -44,8 +44,8 @@ from fieldrx.formats import FormatError
 from fieldrx.formats.isoxml_import import RxIn, TaskDataSet
 from fieldrx.formats.timelog import TimeLog
 from fieldrx.geo.validate import BoundaryError, validate_boundary
-from fieldrx.services.plans import PlanParams, create_plan, load_cell_table
-from fieldrx.services.prescriptions import copy_rates
+from fieldrx.services.plans import PlanParams, create_plan
+from fieldrx.store import load_cells, write_rates
 
 IMPORTED_MODEL = "imported"
 
@@ -138,7 +138,7 @@ def store_prescription(
 ) -> tuple[Prescription, Plan]:
     """A plan on ``fld`` and version 1 of an imported prescription on it (flush only)."""
     plan = create_plan(session, fld, params, organisation_id)
-    cells = load_cell_table(session, plan, fld.utm_epsg)
+    cells = load_cells(session, plan.id, fld.utm_epsg)
     rates = cell_rates(rx, cells)
     row = Prescription(
         organisation_id=organisation_id,
@@ -165,7 +165,7 @@ def store_prescription(
     )
     session.add(ver)
     session.flush()
-    copy_rates(session, ver.id, cells.seq, rates, np.zeros(len(cells), np.uint16), None)
+    write_rates(session, ver.id, cells.seq, rates, np.zeros(len(cells), np.uint16), None)
     return row, plan
 
 

@@ -9,8 +9,8 @@ Cells come from ``plan_cells`` in path order (UTM corners straight from
 ``plan_cells.corners_utm``, WGS84 corners through fieldrx.geo.crs), rates from
 ``prescription_rates`` of that version, the boundary in the field's UTM zone.
 The real cell shapes of edge, hole and headland cells (``JobPackage.shape_*``)
-come from ``plan_cells.geom`` (WGS84, the largest piece of a split cell), which
-``load_cell_table`` brings back to UTM; ``build_job_package`` keeps those that
+come from the cell store (``fieldrx.store.load_cells``: a split cell whole, as a
+MultiPolygon), back in UTM; ``build_job_package`` keeps those that
 differ from their rectangle.
 The serialising (rounding, checksum) is fieldrx.formats.jobpackage's.
 Raises ``LookupError`` when the prescription, version, plan or field is missing.
@@ -24,8 +24,9 @@ from fieldrx_edge.protocol import JobPackage
 from sqlalchemy.orm import Session
 
 from fieldrx.db.models import Field, Job, Machine, Plan, Prescription
-from fieldrx.services.plans import field_utm, load_cell_table
+from fieldrx.services.plans import field_utm
 from fieldrx.services.prescriptions import get_version, version_cells
+from fieldrx.store import load_cells
 
 
 def machine_fields(machine: Machine) -> dict[str, Any]:
@@ -85,7 +86,7 @@ def build_kind_package(session: Session, job: Job, machine: Machine) -> JobPacka
     field = session.get(Field, plan.field_id) if plan is not None else None
     if plan is None or field is None:
         raise LookupError(f"job {job.id}: plan {job.plan_id} or its field is gone")
-    cells = load_cell_table(session, plan, field.utm_epsg)
+    cells = load_cells(session, plan.id, field.utm_epsg)
     return build(
         cells,
         field_utm(field),

@@ -11,7 +11,6 @@ outside it are refused (422 naming the limit and the speed).
 from __future__ import annotations
 
 import json
-import struct
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -19,7 +18,7 @@ from typing import Any
 import numpy as np
 from fieldrx_edge.metering import calibration_from_dict
 from geoalchemy2.shape import to_shape
-from sqlalchemy import func, select, text
+from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
 from fieldrx.agronomy.cells import FLAG_BITS, CellTable, flag_names
@@ -43,9 +42,8 @@ from fieldrx.db.models import (
     PrescriptionVersion,
     SoilSample,
 )
-from fieldrx.geo.crs import lonlat_to_utm_coords, lonlat_to_utm_xy, to_utm
-from fieldrx.services import copy as pgcopy
-from fieldrx.services.plans import driver_connection, load_cell_table, load_seq_area
+from fieldrx.geo.crs import lonlat_to_utm_xy, to_utm
+from fieldrx.store import load_cells, load_rates, load_seq_area, write_rates
 
 MODEL_ALIASES = {"constant": "uniform", "ndvi_linear": "ndvi"}
 PARAM_ALIASES = {
@@ -180,119 +178,6 @@ def field_samples(
     return np.column_stack([x, y]), a[:, 2]
 
 
-# --------------------------------------------------------------------------- rates COPY
-
-
-def _flags_literal(mask: int, cache: dict[int, str]) -> str:
-    s = cache.get(mask)
-    if s is None:
-        s = cache[mask] = "{" + ",".join(flag_names(mask)) + "}"
-    return s
-
-
-VARCHAR_OID = 1043
-
-
-def _flags_array_bytes(mask: int) -> bytes:
-    """Binary COPY form of a varchar[] holding the flag names of ``mask``."""
-    names = [n.encode() for n in flag_names(mask)]
-    if not names:
-        return struct.pack(">iiI", 0, 0, VARCHAR_OID)
-    body = struct.pack(">iiIii", 1, 0, VARCHAR_OID, len(names), 1)
-    body += b"".join(struct.pack(">i", len(b)) + b for b in names)
-    return body
-
-
-def copy_rates(
-    session: Session,
-    version_id: int,
-    seq: np.ndarray,
-    rate_kg_ha: np.ndarray,
-    flags: np.ndarray,
-    source_value: np.ndarray | None,
-) -> None:
-    """All rates of one version with one binary COPY (in the session's transaction).
-
-    Rows are grouped by (flag mask, source present): within a group every row
-    has the same layout, so each group is one numpy structured array.
-    """
-    n = len(seq)
-    src = np.full(n, np.nan) if source_value is None else np.asarray(source_value, float)
-    has_src = ~np.isnan(src)
-    masks = np.asarray(flags, np.int64)
-    key = masks * 2 + has_src
-    conn = driver_connection(session)
-    with (
-        conn.cursor() as cur,
-        cur.copy(
-            "COPY prescription_rates (version_id, seq, rate_kg_ha, source_value, flags) "
-            "FROM STDIN (FORMAT BINARY)"
-        ) as cp,
-    ):
-        cp.write(pgcopy.HEADER)
-        for k in np.unique(key):
-            rows = np.flatnonzero(key == k)
-            fl = _flags_array_bytes(int(k) // 2)
-            with_src = bool(k % 2)
-            fields: list[tuple[str, Any]] = [
-                ("nf", ">i2"),
-                ("l_v", ">i4"),
-                ("v", ">i4"),
-                ("l_s", ">i4"),
-                ("s", ">i4"),
-                ("l_r", ">i4"),
-                ("r", ">f8"),
-                ("l_src", ">i4"),
-            ]
-            if with_src:
-                fields.append(("src", ">f8"))
-            fields += [("l_fl", ">i4"), ("fl", f"V{len(fl)}")]
-            a = np.zeros(len(rows), dtype=np.dtype(fields))
-            a["nf"] = 5
-            a["l_v"], a["v"] = 4, version_id
-            a["l_s"], a["s"] = 4, np.asarray(seq)[rows]
-            a["l_r"], a["r"] = 8, np.asarray(rate_kg_ha, float)[rows]
-            if with_src:
-                a["l_src"], a["src"] = 8, src[rows]
-            else:
-                a["l_src"] = -1  # NULL
-            a["l_fl"] = len(fl)
-            a["fl"] = np.frombuffer(fl, dtype=f"V{len(fl)}")[0]
-            cp.write(a.tobytes())
-        cp.write(pgcopy.TRAILER)
-
-
-_MASK_SQL = " | ".join(
-    f"(CASE WHEN '{name}' = ANY(flags) THEN {bit} ELSE 0 END)" for name, bit in FLAG_BITS.items()
-)
-_RATES_SQL = f"""
-SELECT string_agg(int4send(seq), ''::bytea), string_agg(float8send(rate_kg_ha), ''::bytea),
-       string_agg(float8send(coalesce(source_value, 'NaN'::float8)), ''::bytea),
-       string_agg(int4send({_MASK_SQL}), ''::bytea)
-FROM (SELECT * FROM prescription_rates WHERE version_id = %s ORDER BY seq) r
-"""
-
-
-def load_rates(
-    session: Session, version_id: int
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """(seq, rate_kg_ha, flag bits, source_value) of one version in path order (packed fetch)."""
-    conn = driver_connection(session)
-    with conn.cursor(binary=True) as cur:
-        cur.execute(_RATES_SQL, (version_id,))
-        row = cur.fetchone()
-    if row is None or row[0] is None:
-        return np.zeros(0, np.int64), np.zeros(0), np.zeros(0, np.uint16), np.zeros(0)
-    seq = np.frombuffer(bytes(row[0]), ">i4").astype(np.int64)
-    rate = np.frombuffer(bytes(row[1]), ">f8").astype(float)
-    src = np.frombuffer(bytes(row[2]), ">f8").astype(float)
-    masks = np.frombuffer(bytes(row[3]), ">i4").astype(np.uint16)
-    order = np.argsort(seq, kind="stable")
-    if not np.array_equal(order, np.arange(len(seq))):
-        seq, rate, src, masks = seq[order], rate[order], src[order], masks[order]
-    return seq, rate, masks, src
-
-
 # --------------------------------------------------------------------------- versions
 
 
@@ -390,7 +275,7 @@ def _new_version(
     )
     session.add(ver)
     session.flush()
-    copy_rates(session, ver.id, seq, rates, flags, source)
+    write_rates(session, ver.id, seq, rates, flags, source)
     rx.current_version = version
     session.flush()
     return ver
@@ -435,10 +320,10 @@ def create_prescription(
         raise RxError(f"unknown model {model!r} (expected one of {sorted(MODEL_INPUT)})")
     column = MODEL_INPUT[model]
     if column is None:  # uniform: no geometry needed
-        seq, area = load_seq_area(session, plan)
+        seq, area = load_seq_area(session, plan.id)
         cells = None
     else:
-        cells = load_cell_table(session, plan, field.utm_epsg)
+        cells = load_cells(session, plan.id, field.utm_epsg)
         seq, area = cells.seq, cells.area_m2
     if len(seq) == 0:
         raise RxError(f"plan {plan.id} has no cells")
@@ -508,20 +393,6 @@ def _meter_of(rx: Prescription) -> MeterCheck | None:
     return None if not m else MeterSpec(**m).check()
 
 
-def cell_centroids_utm(session: Session, plan_id: int, epsg: int) -> tuple[np.ndarray, np.ndarray]:
-    """(seq, UTM centroid) of every cell: what zone painting needs, without the polygons."""
-    rows = session.execute(
-        text(
-            "SELECT seq, ST_X(p), ST_Y(p) FROM (SELECT seq, CASE WHEN ST_Within(ST_Centroid(geom),"
-            " geom) THEN ST_Centroid(geom) ELSE ST_PointOnSurface(geom) END AS p "
-            "FROM plan_cells WHERE plan_id = :p) s ORDER BY seq"
-        ),
-        {"p": plan_id},
-    ).all()
-    a = np.asarray(rows, dtype=float).reshape(-1, 3)
-    return a[:, 0].astype(np.int64), lonlat_to_utm_coords(a[:, 1:], epsg)
-
-
 def edit_prescription(
     session: Session,
     rx: Prescription,
@@ -556,7 +427,8 @@ def edit_prescription(
         except (ValueError, TypeError, AttributeError, KeyError, IndexError) as exc:
             raise RxError(f"zone is not a GeoJSON Polygon: {exc}") from exc
         zone_utm = to_utm(geom, field.utm_epsg)
-        cseq, cent = cell_centroids_utm(session, plan.id, field.utm_epsg)
+        plan_cells = load_cells(session, plan.id, field.utm_epsg)
+        cseq, cent = plan_cells.seq, plan_cells.centroids_utm  # the one centre rule
         if not np.array_equal(cseq, seq):
             raise RxError("the plan's cells do not match the prescription's rates")
         new_rates, new_flags, changed = paint_zone(
@@ -564,7 +436,7 @@ def edit_prescription(
         )
         if changed == 0:
             raise RxError("the zone covers no cell centre of this plan")
-    aseq, area = load_seq_area(session, plan)
+    aseq, area = load_seq_area(session, plan.id)
     if not np.array_equal(aseq, seq):
         raise RxError("the plan's cells do not match the prescription's rates")
     summary = summarize(new_rates, new_flags, area, seq=seq)
@@ -610,41 +482,37 @@ def _max_version(session: Session, rx: Prescription) -> int:
 def rates_page(
     session: Session, plan_id: int, version_id: int, limit: int, offset: int
 ) -> list[dict[str, Any]]:
-    rows = session.execute(
-        text(
-            "SELECT c.seq, c.swath, c.area_m2, r.rate_kg_ha, r.flags, r.source_value, "
-            "ST_AsGeoJSON(c.geom, 9) FROM plan_cells c JOIN prescription_rates r "
-            "ON r.version_id = :v AND r.seq = c.seq "
-            "WHERE c.plan_id = :p AND c.seq >= :a AND c.seq < :b ORDER BY c.seq"
-        ),
-        {"p": plan_id, "v": version_id, "a": offset, "b": offset + limit},
+    """GeoJSON features of cells offset .. offset+limit-1 with this version's rates."""
+    plan = session.get(Plan, plan_id)
+    field = session.get(Field, plan.field_id) if plan is not None else None
+    if plan is None or field is None:
+        raise LookupError(f"plan {plan_id} or its field is gone")
+    cells = load_cells(session, plan_id, field.utm_epsg, offset, offset + limit)
+    seq, rate, masks, src = load_rates(session, version_id, offset, offset + limit)
+    keep = np.isin(cells.seq, seq)  # a cell without a rate row is not listed
+    cells = cells.take(keep)
+    pos = np.searchsorted(seq, cells.seq)
+    rate, masks, src = rate[pos], masks[pos], src[pos]
+    names = [flag_names(int(m)) for m in masks]
+    meter = (masks & (FLAG_BITS["below_meter_range"] | FLAG_BITS["above_meter_range"])) != 0
+    feats = cells.geojson_features(
+        {
+            "seq": cells.seq,
+            "swath": cells.swath,
+            "area_m2": np.round(cells.area_m2, 3),
+            "rate_kg_ha": rate,
+            "flags": names,
+            "flag": [",".join(f) for f in names],
+            # outside what the machine meters at the planned speeds (stored as
+            # asked); "clamped" is the same flag under the tiles' older name
+            "out_of_meter_range": meter,
+            "clamped": meter,
+            # no sample near enough: the rate is the prescription's fallback rate
+            "fallback": (masks & FLAG_BITS["no_data"]) != 0,
+            "source_value": src,
+        }
     )
-    out = []
-    for seq, swath, area, rate, flags, src, gj in rows:
-        fl = list(flags or [])
-        out.append(
-            {
-                "type": "Feature",
-                "id": seq,
-                "geometry": json.loads(gj),
-                "properties": {
-                    "seq": seq,
-                    "swath": swath,
-                    "area_m2": round(area, 3),
-                    "rate_kg_ha": rate,
-                    "flags": fl,
-                    "flag": ",".join(fl),
-                    # outside what the machine meters at the planned speeds (stored as
-                    # asked); "clamped" is the same flag under the tiles' older name
-                    "out_of_meter_range": "below_meter_range" in fl or "above_meter_range" in fl,
-                    "clamped": "below_meter_range" in fl or "above_meter_range" in fl,
-                    # no sample near enough: the rate is the prescription's fallback rate
-                    "fallback": "no_data" in fl,
-                    "source_value": src,
-                },
-            }
-        )
-    return out
+    return [json.loads(f) for f in feats]
 
 
 def job_attention(
@@ -661,7 +529,7 @@ def job_attention(
     plan = session.get(Plan, rx.plan_id)
     if plan is None:
         raise LookupError(f"prescription {rx.id}: plan is gone")
-    aseq, area = load_seq_area(session, plan)
+    aseq, area = load_seq_area(session, plan.id)
     if not np.array_equal(aseq, seq):
         raise RxError("the plan's cells do not match the prescription's rates")
     spec = MeterSpec(
@@ -690,7 +558,7 @@ def version_cells(session: Session, rx: Prescription, ver: PrescriptionVersion) 
     field = session.get(Field, plan.field_id) if plan is not None else None
     if plan is None or field is None:
         raise LookupError(f"prescription {rx.id}: plan or field is gone")
-    cells = load_cell_table(session, plan, field.utm_epsg)
+    cells = load_cells(session, plan.id, field.utm_epsg)
     seq, rates, flags, _ = load_rates(session, ver.id)
     if not np.array_equal(seq, cells.seq):
         raise RxError("the plan's cells do not match the prescription's rates")

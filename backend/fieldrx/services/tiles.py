@@ -11,23 +11,22 @@ Two levels of detail keep tiles small for huge grids:
   grid then never puts more than 16k features in a tile.
 
 The bin centre uses the spherical-mercator formula in SQL instead of
-``ST_Transform`` per cell (cheap arithmetic on the indexed bbox).
+``ST_Transform`` per cell (cheap arithmetic on the indexed bbox). The SQL reads
+the cell tables, so it lives in the cell store (``fieldrx.store.tiles``); this
+module decides the level of detail.
 """
 
 from __future__ import annotations
 
 import math
+from typing import Any
 
-from sqlalchemy import text
 from sqlalchemy.orm import Session
 
-EXTENT = 4096
-BUFFER = 64
-BINS = 64
+from fieldrx.store import tiles as cell_tiles
+from fieldrx.store.tiles import BINS, MERC_HALF
+
 DETAIL_PX = 128  # detail once a cell is at least 1/128 of the tile wide
-MERC_HALF = 20037508.342789244
-EARTH_R = 6378137.0
-LAYER = "cells"
 
 
 def tile_width_m(z: int) -> float:
@@ -49,117 +48,10 @@ def strides(z: int, swath_width_m: float, cell_length_m: float, lat_deg: float) 
     return along, across
 
 
-_ENV = (
-    "env AS (SELECT ST_TileEnvelope(:z, :x, :y) AS e, "
-    "ST_Transform(ST_TileEnvelope(:z, :x, :y, margin => :m), 4326) AS e4326)"
-)
-
-_MERC_X = f"(((ST_XMin(c.geom) + ST_XMax(c.geom)) / 2) * {MERC_HALF / 180.0!r})"
-_MERC_Y = f"(ln(tan(radians(90 + (ST_YMin(c.geom) + ST_YMax(c.geom)) / 2) / 2)) * {EARTH_R!r})"
-_BIN = (
-    f"floor(({_MERC_X} - ST_XMin(env.e)) / (ST_XMax(env.e) - ST_XMin(env.e)) * {BINS})::int AS bi, "
-    f"floor(({_MERC_Y} - ST_YMin(env.e)) / (ST_YMax(env.e) - ST_YMin(env.e)) * {BINS})::int AS bj"
-)
-_BIN_GEOM = (
-    "ST_AsMVTGeom(ST_MakeEnvelope("
-    f"ST_XMin(env.e) + bi * (ST_XMax(env.e) - ST_XMin(env.e)) / {BINS}, "
-    f"ST_YMin(env.e) + bj * (ST_YMax(env.e) - ST_YMin(env.e)) / {BINS}, "
-    f"ST_XMin(env.e) + (bi + 1) * (ST_XMax(env.e) - ST_XMin(env.e)) / {BINS}, "
-    f"ST_YMin(env.e) + (bj + 1) * (ST_YMax(env.e) - ST_YMin(env.e)) / {BINS}, 3857), "
-    f"env.e, {EXTENT}, 0, false)"
-)
-
-PLAN_DETAIL = f"""
-WITH {_ENV},
-t AS (
-  SELECT c.seq, c.swath,
-         ST_AsMVTGeom(ST_Transform(c.geom, 3857), env.e, {EXTENT}, {BUFFER}, true) AS geom
-  FROM plan_cells c, env
-  WHERE c.plan_id = :pid AND c.geom && env.e4326
-)
-SELECT ST_AsMVT(t.*, '{LAYER}', {EXTENT}, 'geom') FROM t WHERE geom IS NOT NULL
-"""
-
-PLAN_OVERVIEW = f"""
-WITH {_ENV},
-b AS (
-  SELECT c.seq, c.swath, {_BIN}
-  FROM plan_cells c, env
-  WHERE c.plan_id = :pid AND c.geom && env.e4326
-    AND c.index_in_swath % :sa = 0 AND c.swath % :sx = 0
-),
-g AS (
-  SELECT min(seq) AS seq, min(swath) AS swath, (count(*) * :sa * :sx)::int AS n_cells, bi, bj
-  FROM b WHERE bi BETWEEN 0 AND {BINS - 1} AND bj BETWEEN 0 AND {BINS - 1}
-  GROUP BY bi, bj
-),
-t AS (SELECT seq, swath, n_cells, {_BIN_GEOM} AS geom FROM g, env)
-SELECT ST_AsMVT(t.*, '{LAYER}', {EXTENT}, 'geom') FROM t WHERE geom IS NOT NULL
-"""
-
-_CLAMPED = "(r.flags && ARRAY['below_meter_range','above_meter_range']::varchar[])"
-
-RX_DETAIL = f"""
-WITH {_ENV},
-t AS (
-  SELECT c.seq, c.swath, r.rate_kg_ha, array_to_string(r.flags, ',') AS flags,
-         {_CLAMPED} AS clamped,
-         ST_AsMVTGeom(ST_Transform(c.geom, 3857), env.e, {EXTENT}, {BUFFER}, true) AS geom
-  FROM plan_cells c JOIN prescription_rates r ON r.version_id = :vid AND r.seq = c.seq, env
-  WHERE c.plan_id = :pid AND c.geom && env.e4326
-)
-SELECT ST_AsMVT(t.*, '{LAYER}', {EXTENT}, 'geom') FROM t WHERE geom IS NOT NULL
-"""
-
-RX_OVERVIEW = f"""
-WITH {_ENV},
-b AS (
-  SELECT c.seq, c.swath, c.area_m2, r.rate_kg_ha, array_to_string(r.flags, ',') AS flags,
-         {_CLAMPED} AS clamped, {_BIN}
-  FROM plan_cells c JOIN prescription_rates r ON r.version_id = :vid AND r.seq = c.seq, env
-  WHERE c.plan_id = :pid AND c.geom && env.e4326
-    AND c.index_in_swath % :sa = 0 AND c.swath % :sx = 0
-),
-g AS (
-  SELECT min(seq) AS seq, min(swath) AS swath, (count(*) * :sa * :sx)::int AS n_cells,
-         round((sum(rate_kg_ha * area_m2) / nullif(sum(area_m2), 0))::numeric, 1)::float8
-           AS rate_kg_ha,
-         max(flags) AS flags, bool_or(clamped) AS clamped, bi, bj
-  FROM b WHERE bi BETWEEN 0 AND {BINS - 1} AND bj BETWEEN 0 AND {BINS - 1}
-  GROUP BY bi, bj
-),
-t AS (SELECT seq, swath, n_cells, coalesce(rate_kg_ha, 0) AS rate_kg_ha, flags, clamped,
-             {_BIN_GEOM} AS geom FROM g, env)
-SELECT ST_AsMVT(t.*, '{LAYER}', {EXTENT}, 'geom') FROM t WHERE geom IS NOT NULL
-"""
+# the tile SQL reads the cell tables: the store's
+prescription_tile = cell_tiles.cells_tile
 
 
-def plan_tile(
-    session: Session,
-    plan_id: int,
-    z: int,
-    x: int,
-    y: int,
-    overview: bool,
-    stride: tuple[int, int] = (1, 1),
-) -> bytes:
-    sql = PLAN_OVERVIEW if overview else PLAN_DETAIL
-    params = {"pid": plan_id, "z": z, "x": x, "y": y, "m": BUFFER / EXTENT}
-    params.update(sa=stride[0], sx=stride[1])
-    return bytes(session.scalar(text(sql), params) or b"")
-
-
-def prescription_tile(
-    session: Session,
-    plan_id: int,
-    version_id: int,
-    z: int,
-    x: int,
-    y: int,
-    overview: bool,
-    stride: tuple[int, int] = (1, 1),
-) -> bytes:
-    sql = RX_OVERVIEW if overview else RX_DETAIL
-    params = {"pid": plan_id, "vid": version_id, "z": z, "x": x, "y": y, "m": BUFFER / EXTENT}
-    params.update(sa=stride[0], sx=stride[1])
-    return bytes(session.scalar(text(sql), params) or b"")
+def plan_tile(session: Session, plan_id: int, *tile: Any) -> bytes:
+    """``cells_tile`` of the plan's grid alone (z, x, y, overview[, stride])."""
+    return cell_tiles.cells_tile(session, plan_id, None, *tile)
