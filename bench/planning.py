@@ -4,9 +4,14 @@ For a rectangle, an L, a U, a field with a pond, an irregular 40-vertex field an
 500 ha field, at w = 2.3 m and 12 m: swaths, turns, lengths, coverage, overlap and the
 time of each stage. Then the time to plan and grid a 1,000 ha field at 5 m x 2.3 m
 (~870,000 cells; target < 5 s), and the heading search against the baseline measured in
-the same run: a brute-force scan at 1-degree steps with the swath-count objective (what
-Fields2Cover's BruteForce + NSwath does), using FieldRx's own swath generator so both
-count the same thing. The last line is one JSON object with the key figures.
+the same run: a brute-force scan at 1-degree steps of the objective ``optimal``
+minimises (swath count, then the non-working estimate; what Fields2Cover's BruteForce +
+NSwath does), using FieldRx's own swath generator so both count the same thing. Both are
+timed the same way (fastest of ``--repeats`` runs in this process; the machine is shared,
+so the fastest run is the least disturbed one). The table also prints the coverage of
+both headings' plans (the acceptance: never more swaths than the brute force at coverage
+at least min(99.9 %, the brute force's own)). The last line is one JSON object with the
+key figures.
 
 Turns are drivable (issue 16): every plan uses a machine with a 6 m turning radius
 (Dubins U / bulb turns), so ``nonwork_m`` and ``turn_s`` are real turn lengths and
@@ -14,7 +19,7 @@ times; the heading table prints the speed-up of ``optimal`` over the 1-degree sc
 (target >= 100x), and the last table compares the 10 ha rectangle's turn length at
 r = 5 m with Fields2Cover's recorded Dubins figure (3.66 km for 108 turns, issue 16).
 
-Run: .venv/bin/python bench/planning.py [--quick]
+Run: .venv/bin/python bench/planning.py [--quick] [--repeats N]
 """
 
 from __future__ import annotations
@@ -29,7 +34,13 @@ import time
 from pathlib import Path
 
 import shapely.affinity
-from fieldrx.geo.coverage import optimal_phi, plan_coverage, swath_count
+from fieldrx.geo.coverage import (
+    heading_objective,
+    optimal_phi,
+    phi_to_azimuth,
+    plan_coverage,
+    swath_count,
+)
 from fieldrx.geo.grid import build_grid
 from shapely.geometry import Polygon, box
 
@@ -74,16 +85,36 @@ FIELDS = {
 }
 
 
-def brute_force(field: Polygon, w: float) -> tuple[int, float]:
-    t = time.perf_counter()
-    best = min(swath_count(field, w, math.radians(a), field) for a in range(180))
-    return best, time.perf_counter() - t
+def brute_force(field: Polygon, w: float, repeats: int) -> tuple[int, float, float]:
+    """The baseline: the heading objective ``optimal`` minimises (swath count, then the
+    non-working estimate; :func:`heading_objective`, one swath layout per angle) at every
+    whole degree, the lexicographic minimum kept. Returns (swaths, azimuth, seconds):
+    the fastest of ``repeats`` full scans, timed exactly like ``optimal``."""
+    best_t = math.inf
+    for _ in range(repeats):
+        t = time.perf_counter()
+        vals = [(heading_objective(field, w, math.radians(a), field), a) for a in range(180)]
+        best_t = min(best_t, time.perf_counter() - t)
+    (n, _), a = min(vals)
+    return n, phi_to_azimuth(math.radians(a)), best_t
+
+
+def optimal_timed(field: Polygon, w: float, repeats: int) -> tuple[float, dict, float]:
+    best_t = math.inf
+    for _ in range(repeats):
+        t = time.perf_counter()
+        phi, info = optimal_phi(field, field, w)
+        best_t = min(best_t, time.perf_counter() - t)
+    return phi, info, best_t
 
 
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true", help="skip the 500 ha brute force at 2.3 m")
     ap.add_argument("--big-only", action="store_true", help="only the 1,000 ha timing")
+    ap.add_argument(
+        "--repeats", type=int, default=3, help="timing runs of the brute force and of optimal"
+    )
     args = ap.parse_args()
     print(f"load average at start: {[round(x, 2) for x in os.getloadavg()]}")
     rows = []
@@ -128,10 +159,14 @@ def main() -> None:
                     }
                 )
 
-    print("\nheading search: FieldRx 'optimal' vs brute force at 1 degree (swath count)")
     print(
-        f"{'field':15s} {'w':>5s} {'brute_n':>7s} {'brute_s':>8s} {'ours_n':>6s} "
-        f"{'ours_s':>7s} {'evals':>5s} {'speedup':>7s} {'longest_edge_n':>14s}"
+        "\nheading search: FieldRx 'optimal' vs the 1-degree brute-force scan of the same "
+        f"objective (fastest of {args.repeats} runs each, same process)"
+    )
+    print(
+        f"{'field':15s} {'w':>5s} {'brute_n':>7s} {'brute_az':>8s} {'brute_cov':>9s} "
+        f"{'brute_s':>8s} {'ours_n':>6s} {'ours_az':>7s} {'ours_cov':>8s} {'ours_s':>7s} "
+        f"{'evals':>5s} {'speedup':>7s} {'longest_edge_n':>14s}"
     )
     cmp = []
     for name, make in {} if args.big_only else FIELDS.items():
@@ -139,27 +174,31 @@ def main() -> None:
         for w in (2.3, 12.0):
             if args.quick and name == "field_500ha" and w == 2.3:
                 continue
-            bn, bt = brute_force(f, w)
-            t = time.perf_counter()
-            phi, info = optimal_phi(f, f, w)
-            ot = time.perf_counter() - t
+            bn, baz, bt = brute_force(f, w, args.repeats)
+            phi, info, ot = optimal_timed(f, w, args.repeats)
             on = swath_count(f, w, phi, f)
+            bcov = plan_coverage(f, w, "angle", angle_deg=baz).coverage_pct
+            ocov = plan_coverage(f, w, "optimal").coverage_pct
             le = plan_coverage(f, w, "longest_edge").n_swaths
             cmp.append(
                 {
                     "field": name,
                     "w": w,
                     "brute_n": bn,
+                    "brute_coverage_pct": round(bcov, 4),
                     "brute_s": round(bt, 3),
                     "ours_n": on,
+                    "ours_coverage_pct": round(ocov, 4),
                     "ours_s": round(ot, 4),
+                    "evaluated": info["evaluated"],
                     "speedup": round(bt / ot, 1),
                     "longest_edge_n": le,
                 }
             )
             print(
-                f"{name:15s} {w:5.1f} {bn:7d} {bt:8.3f} {on:6d} {ot:7.4f} "
-                f"{info['evaluated']:5d} {bt / ot:7.1f} {le:14d}"
+                f"{name:15s} {w:5.1f} {bn:7d} {baz:8.2f} {bcov:9.4f} {bt:8.3f} {on:6d} "
+                f"{phi_to_azimuth(phi):7.2f} {ocov:8.4f} {ot:7.4f} {info['evaluated']:5d} "
+                f"{bt / ot:7.1f} {le:14d}"
             )
 
     print("\n1,000 ha field, 5 m x 2.3 m cells (plan + grid), best and median of 3 runs")
@@ -214,7 +253,11 @@ def main() -> None:
             f"{p.required_headland_m:.1f} m;  Fields2Cover Dubins {f2c:.0f} m"
         )
 
-    never_worse = all(c["ours_n"] <= c["brute_n"] for c in cmp)
+    never_worse = all(
+        c["ours_n"] <= c["brute_n"]
+        and c["ours_coverage_pct"] >= min(99.9, c["brute_coverage_pct"]) - 1e-9
+        for c in cmp
+    )
     speedups = [c["speedup"] for c in cmp]
     load = [round(x, 2) for x in os.getloadavg()]
     print(f"load average (1/5/15 min) at the end: {load} on {os.cpu_count()} cores")
@@ -229,6 +272,7 @@ def main() -> None:
         "swaths_saved_vs_brute_force": int(sum(c["brute_n"] - c["ours_n"] for c in cmp)),
         "heading_search_speedup_median": statistics.median(speedups) if speedups else None,
         "heading_search_speedup_min": min(speedups) if speedups else None,
+        "heading_search_all_at_least_100x": bool(speedups) and min(speedups) >= 100,
         "turn_length_10ha_m": turn_cmp,
         "fields2cover_dubins_10ha_m": f2c,
         "plans": rows,

@@ -332,3 +332,15 @@ def test_skip_row_pattern_turns_are_u_turns_and_auto_picks_the_faster():
     assert wide.turn_kinds == {"u_turn": wide.n_swaths - 1}
     with pytest.raises(PlanningError, match="pattern"):
         plan_coverage(f, 2.3, pattern="spiral")
+
+
+@pytest.mark.parametrize("field", [rect(), l_shape(), u_shape(), pond_field(), irregular(40)])
+@pytest.mark.parametrize("w", [2.3, 12.0])
+def test_optimal_heading_needs_one_layout_on_the_bench_fields(field, w):
+    # issue 16 (100x): the analytic bound is exact at the optimum of these fields, so
+    # the search pays for one swath layout instead of 180 -- and still matches the
+    # 1-degree brute force of the same objective
+    phi, info = optimal_phi(field, field, w)
+    assert info["evaluated"] == 1
+    brute = min(swath_count(field, w, math.radians(a), field) for a in range(0, 180, 3))
+    assert swath_count(field, w, phi, field) <= brute

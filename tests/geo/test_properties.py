@@ -204,3 +204,25 @@ def test_traced_boundaries_plan_within_a_time_bound(seed, n, w, heading, h):
     assert time.perf_counter() - t < 60.0
     check_cells_in_own_swath(grid, plan)
     assert grid.uncovered_m2 >= 0 and len(grid) > 0
+
+
+@settings(max_examples=12, deadline=None, derandomize=True)
+@given(fields(concave=True, max_holes=2), st.sampled_from([0, 1]))
+def test_analytic_heading_bound_never_exceeds_the_swath_count(fw, h):
+    # issue 16 (speed): optimal skips every angle whose analytic bound is not below the
+    # best count found; a bound above the true count would lose the optimum
+    from fieldrx.geo.planning.boundary import parts
+    from fieldrx.geo.planning.bounds import analytic_lower_bounds
+    from fieldrx.geo.planning.headings import swath_count
+    from fieldrx.geo.planning.headland import inner_region
+    from fieldrx.geo.planning.swaths import default_strip_tolerance, holes_of
+
+    field, w = fw
+    region, _ = inner_region(field, w, h, [])
+    assume(not region.is_empty)
+    phis = np.radians(np.arange(0.0, 180.0, 4.0))
+    tol = default_strip_tolerance(w)
+    lb = analytic_lower_bounds(parts(region), w, phis, tol, holes_of(field))
+    n = np.array([swath_count(region, w, float(a), field, tol) for a in phis])
+    note(f"field={field.wkt} w={w} h={h}")
+    assert (lb <= n).all(), np.degrees(phis[lb > n])
