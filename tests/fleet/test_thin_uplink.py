@@ -12,12 +12,14 @@ from __future__ import annotations
 
 import json
 import subprocess
+import time
 from pathlib import Path
 
 import httpx
 import numpy as np
 import psycopg
 import pytest
+from sqlalchemy import text
 
 from tests.fleet.procs import BIN, ROOT, start_api
 from tests.support import SEED001_CAL, SMALL_PLOT, feature, machine_body
@@ -129,3 +131,59 @@ def test_thin_report_equals_full(
     assert nt * 8 < nf and with_cell == 0
     assert dup == 0 and nc == acked == jobs["thin"][2]["uplink"]["cells"]["last_seq"]
     assert len(fc) * 0.5 < nc < len(fc) * 3
+
+
+def _cell(job, seq: int, cell: int | None, t: float, mass: float = 10.0) -> dict:  # noqa: ANN001
+    return {
+        "machine_id": job.machine_id, "seq": seq, "job_id": job.job_id, "cell_seq": cell,
+        "t_entry": t, "t_exit": t + 1.5, "n_fixes": 15, "worked_s": 1.5, "mass_g": mass,
+        "driven_m": 5.0, "mean_speed_m_s": 1.8, "mean_target_rate_kg_ha": 300.0,
+        "mean_applied_rate_kg_ha": 298.0, "flags": [],
+    }  # fmt: skip
+
+
+def _post_cells(client, job, records: list[dict], stream: str = "cellsA") -> dict:  # noqa: ANN001
+    body = {"format": 3, "kind": "cells", "stream": stream, "stream_start": 1, "records": records}
+    r = client.post("/api/v1/telemetry", json=body, headers=job.device_headers)
+    assert r.status_code == 200, r.text
+    return r.json()
+
+
+def test_cell_batches_dedup_and_ack_like_telemetry(client, db, job) -> None:  # noqa: ANN001
+    t = time.time() - 100
+    batch = [_cell(job, i, (i - 1) % 8, t + 2 * i) for i in range(1, 11)]
+    a = _post_cells(client, job, batch)
+    assert (a["acked_seq"], a["stored"], a["duplicates"], a["stream"]) == (10, 10, 0, "cellsA")
+    a = _post_cells(client, job, batch)  # a resend (the ack was lost)
+    assert (a["acked_seq"], a["stored"], a["duplicates"]) == (10, 0, 10)
+    # a gap stops the ack until filled; a bad record is rejected alone and acked past
+    a = _post_cells(
+        client, job, [_cell(job, 12, 1, t + 40), {**_cell(job, 13, 2, t), "mass_g": -1}]
+    )
+    assert (a["acked_seq"], a["stored"]) == (10, 1)
+    assert a["rejected"][0]["seq"] == 13 and "mass_g" in a["rejected"][0]["reason"]
+    a = _post_cells(client, job, [_cell(job, 11, 1, t + 38)])
+    assert a["acked_seq"] == 12  # as telemetry: 13 is acked past when resent behind no gap
+    a = _post_cells(client, job, [{**_cell(job, 13, 2, t), "mass_g": -1}])
+    assert (a["acked_seq"], a["stored"]) == (13, 0)
+    # another record under a stored seq: the numbering went backwards
+    a = _post_cells(client, job, [_cell(job, 5, 3, t + 60), _cell(job, 14, 3, t + 50)])
+    assert (a["stream_conflict"], a["stored"], a["acked_seq"]) == (True, 0, 4), a
+    # a job of another machine is refused
+    a = _post_cells(client, job, [{**_cell(job, 1, 1, t), "job_id": job.job_id + 999}], "cellsB")
+    assert a["stored"] == 0 and "not this machine's job" in a["rejected"][0]["reason"]
+    n, distinct, mass = db.execute(
+        text(
+            "SELECT count(*), count(DISTINCT seq), sum(mass_g) FROM job_cell_records"
+            " WHERE machine_id = :m"
+        ),
+        {"m": job.machine_id},
+    ).one()
+    assert (n, distinct, mass) == (12, 12, 120.0)
+    # the cell records move the job's progress (cells 0..7 got a positive applied rate)
+    applied = db.execute(
+        text("SELECT cells_applied FROM jobs WHERE id = :j"), {"j": job.job_id}
+    ).scalar_one()
+    assert applied == 8
+    # cell streams are not telemetry streams (a thin agent is not two agents)
+    assert db.execute(text("SELECT count(*) FROM telemetry_streams")).scalar_one() == 0
