@@ -534,6 +534,49 @@ def cmd_simulate(a: argparse.Namespace) -> int:
     return 0
 
 
+# -- upload-log -------------------------------------------------------------
+
+
+def cmd_upload_log(a: argparse.Namespace) -> int:
+    """Upload thin-profile jobs' full 10 Hz logs, one gzip file per job: the jobs named, or
+    those the office requested (``GET /device/raw-logs/requested``)."""
+    import httpx
+
+    from fieldrx_edge.uplink.thin import pack_raw_log, raw_log_path
+
+    store = JobStore(a.state_dir)
+    cfg = store.config()
+    server = a.server or cfg.get("server")
+    token = a.token or cfg.get("token")
+    if not server or not token:
+        raise SystemExit("upload-log needs --server and --token (or a saved config: pull)")
+    base = server.rstrip("/") + "/api/v1/device"
+    headers = {"Authorization": f"Bearer {token}"}
+    with httpx.Client(headers=headers, timeout=a.timeout) as c:
+        ids = a.job
+        if not ids:
+            r = c.get(base + "/raw-logs/requested")
+            r.raise_for_status()
+            ids = r.json()["job_ids"]
+        out: dict[str, Any] = {"uploaded": {}, "missing": [], "failed": {}}
+        for jid in ids:
+            path = raw_log_path(store.root, jid)
+            if not path.exists():
+                out["missing"].append(jid)  # not run thin on this tractor
+                continue
+            r = c.put(
+                f"{base}/jobs/{jid}/raw-log",
+                content=pack_raw_log(path),
+                headers={"Content-Type": "application/gzip"},
+            )
+            if r.status_code >= 400:
+                out["failed"][str(jid)] = f"HTTP {r.status_code}: {r.text[:200]}"
+            else:
+                out["uploaded"][str(jid)] = r.json()["records"]
+    print(json.dumps(out))
+    return 1 if out["failed"] else 0
+
+
 # -- replay-nmea ------------------------------------------------------------
 
 
@@ -786,6 +829,16 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sp.add_argument("--sections", type=int, default=1, help="isobus: sections of the rate ECU")
     sp.set_defaults(func=cmd_simulate)
+
+    sp = sub.add_parser(
+        "upload-log", help="upload thin jobs' 10 Hz logs (given, else those requested)"
+    )
+    sp.add_argument("job", nargs="*", type=int, help="job ids (default: the requested ones)")
+    sp.add_argument("--state-dir")
+    sp.add_argument("--server")
+    sp.add_argument("--token")
+    sp.add_argument("--timeout", type=float, default=300.0)
+    sp.set_defaults(func=cmd_upload_log)
 
     sp = sub.add_parser("replay-nmea", help="parse a receiver log and report")
     sp.add_argument("log")

@@ -10,6 +10,7 @@ their own table, acknowledged and deduplicated like telemetry.
 
 from __future__ import annotations
 
+import gzip
 import json
 import subprocess
 import time
@@ -55,7 +56,7 @@ def test_thin_report_equals_full(
     tmp_path: Path,
     headland_passes: int,
 ) -> None:
-    api, url = start_api(database_url)
+    api, url = start_api(database_url, env={"FIELDRX_RAW_LOG_DIR": str(tmp_path / "rawlogs")})
     try:
         c = httpx.Client(base_url=url, headers=org.headers(), timeout=60)
         field = c.post("/api/v1/fields", json=feature(SMALL_PLOT, name="trial plot")).json()
@@ -63,7 +64,8 @@ def test_thin_report_equals_full(
             f"/api/v1/fields/{field['id']}/plans",
             json={"swath_width_m": 2.3, "cell_length_m": 5.0, "headland_passes": headland_passes},
         ).json()
-        jobs = {}
+        jobs: dict[str, tuple] = {}
+        tokens: dict[str, str] = {}
         for uplink in ("full", "thin"):
             mid, token = _job(c, 0, f"sim-{uplink}")
             rx = c.post(
@@ -81,11 +83,39 @@ def test_thin_report_equals_full(
             assert sim["telemetry_drained"] is True
             assert sim["uplink"]["profile"] == uplink
             jobs[uplink] = (job["id"], mid, sim)
+            tokens[uplink] = token
         reps = {u: c.get(f"/api/v1/jobs/{j[0]}/report").json() for u, j in jobs.items()}
         tiles = {
             u: c.get(f"/api/v1/jobs/{j[0]}/report?cells=true").json()["cells"]
             for u, j in jobs.items()
         }
+        if not headland_passes:  # the 10 Hz log, kept on the tractor, uploaded on request
+            jt = jobs["thin"][0]
+            assert c.get(f"/api/v1/jobs/{jt}/raw-log").status_code == 404
+            r = c.post(f"/api/v1/jobs/{jt}/raw-log/request")
+            assert (r.status_code, r.json()["state"]) == (202, "requested")
+            up = subprocess.run(
+                [str(BIN / "fieldrx-edge"), "upload-log", "--state-dir",
+                 str(tmp_path / "state-thin"), "--server", url, "--token", tokens["thin"]],
+                cwd=ROOT, capture_output=True, text=True, timeout=60,
+            )  # fmt: skip
+            assert up.returncode == 0, up.stderr[-2000:]
+            assert json.loads(up.stdout)["uploaded"] == {str(jt): reps["full"]["n_records"]}
+            raw = c.get(f"/api/v1/jobs/{jt}/raw-log")
+            assert raw.status_code == 200
+            lines = gzip.decompress(raw.content).decode().splitlines()
+            assert len(lines) == reps["full"]["n_records"]  # every fix, as the full job sent
+            assert json.loads(lines[0])["job_id"] == jt
+            # a device cannot upload a broken file, nor another machine's job's log
+            dev = {"Authorization": f"Bearer {tokens['thin']}"}
+            bad = httpx.put(f"{url}/api/v1/device/jobs/{jt}/raw-log", content=b"xx", headers=dev)
+            assert bad.status_code == 422 and "gzip" in bad.text
+            other = httpx.put(
+                f"{url}/api/v1/device/jobs/{jobs['full'][0]}/raw-log",
+                content=gzip.compress(b"{}\n"),
+                headers=dev,
+            )
+            assert other.status_code == 404
     finally:
         api.stop()
     full, thin = reps["full"], reps["thin"]
@@ -186,4 +216,8 @@ def test_cell_batches_dedup_and_ack_like_telemetry(client, db, job) -> None:  # 
     ).scalar_one()
     assert applied == 8
     # cell streams are not telemetry streams (a thin agent is not two agents)
-    assert db.execute(text("SELECT count(*) FROM telemetry_streams")).scalar_one() == 0
+    n = db.execute(
+        text("SELECT count(*) FROM telemetry_streams WHERE machine_id = :m"),
+        {"m": job.machine_id},
+    ).scalar_one()
+    assert n == 0
