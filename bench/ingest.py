@@ -18,8 +18,14 @@ Baseline, same run: a raw COPY BINARY of the same rows (prepared tuples,
 10,000 rows per COPY) into a copy of the telemetry table with the same
 indexes. Ratio = our records/s / raw COPY records/s.
 
+HTTP, then the same machine-hours with uplink profile ``thin`` (issue 18: a
+1 Hz track plus one cell record per cell left, on two streams, as
+``fieldrx_edge.uplink.thin`` sends them): the server's CPU (API processes and
+the PostgreSQL backends of the bench database, process CPU time) per
+machine-hour of both, and their ratio (``thin``; ``--no-thin`` skips it).
+
 Last line: one JSON object (records_per_s, raw_copy_records_per_s,
-ratio_to_copy, p50_latency_s, p99_latency_s, lost, duplicated, ...).
+ratio_to_copy, p50_latency_s, p99_latency_s, lost, duplicated, thin, ...).
 """
 
 from __future__ import annotations
@@ -417,6 +423,76 @@ async def drive_http(
     return elapsed, latencies, stored
 
 
+def thin_bodies(fleet: Fleet, k: int, batch: int, t_now: float) -> list[str]:
+    """Machine k's same drive as the thin profile sends it (fieldrx_edge.uplink.thin): every
+    10th fix as its 1 Hz track (no cell: the cell records count the cells), then one cell
+    record per cell left (the bench's cells last 3 s), each on its own stream, in batches
+    of ``batch`` as the agent's two queues send them. Stamped ``t_now`` like the full
+    profile's records (a backlog being replayed)."""
+    mid, jid, _ = fleet.machines[k]
+    full = fleet.records(k, 1, fleet.n, t_now)
+    step = max(1, int(round(fleet.hz)))
+    track = []
+    for i, r in enumerate(full[::step], start=1):
+        track.append({**r, "seq": i, "cell_seq": None, "fix_period_s": step / fleet.hz})
+    cells: dict[int, list[dict[str, Any]]] = {}
+    for r in full:
+        cells.setdefault(r["cell_seq"], []).append(r)
+    cell_recs = []
+    for i, (cell, rs) in enumerate(cells.items(), start=1):
+        n = len(rs)
+        cell_recs.append(
+            {
+                "machine_id": mid, "seq": i, "job_id": jid, "cell_seq": cell,
+                "t_entry": rs[0]["t"], "t_exit": rs[-1]["t"], "n_fixes": n,
+                "worked_s": n / fleet.hz, "mass_g": 300.0 * 2.3 * 1.7 * n / fleet.hz / 10.0,
+                "driven_m": 1.7 * n / fleet.hz, "mean_speed_m_s": 1.7,
+                "mean_target_rate_kg_ha": 300.0, "mean_applied_rate_kg_ha": 300.0,
+                "flags": [],
+            }
+        )  # fmt: skip
+    out = []
+    for recs, head in ((track, f'"format":2,"stream":"thin{k}"'),
+                       (cell_recs, f'"format":3,"kind":"cells","stream":"cells{k}"')):  # fmt: skip
+        for i in range(0, len(recs), batch):
+            part = recs[i : i + batch]
+            out.append(
+                f'{{{head},"stream_start":1,"records":{json.dumps(part, separators=(",", ":"))}}}'
+            )
+    return out
+
+
+async def drive_http_thin(
+    base: str, fleet: Fleet, batch: int, concurrency: int
+) -> tuple[float, int, int]:
+    """The same machine-hours as the thin profile sends them (``thin_bodies``): elapsed s,
+    records sent, records stored."""
+    sem = asyncio.Semaphore(concurrency)
+    sent = stored = 0
+    async with LeanHttp(base, concurrency) as client:
+        start = time.time()
+
+        async def machine(k: int) -> None:
+            nonlocal sent, stored
+            token = fleet.machines[k][2]
+            for body in thin_bodies(fleet, k, batch, time.time()):
+                async with sem:
+                    while True:
+                        status, payload = await client.post("/api/v1/telemetry", body, token)
+                        if status == 200:
+                            break
+                        print(f"HTTP {status}: {payload[:200]!r}", file=sys.stderr)
+                        await asyncio.sleep(0.5)
+                ack = json.loads(payload)
+                assert not ack["rejected"], ack["rejected"][:3]
+                sent += body.count('"machine_id"')
+                stored += ack["stored"]
+
+        await asyncio.gather(*(machine(k) for k in range(len(fleet.machines))))
+        elapsed = time.time() - start
+    return elapsed, sent, stored
+
+
 # MQTT --------------------------------------------------------------------------------
 def drive_mqtt(
     port: int, fleet: Fleet, batch: int, max_inflight: int, realtime: bool
@@ -596,6 +672,12 @@ def main() -> int:
         "--send-every", type=float, default=1.0, help="realtime: seconds between uploads"
     )
     ap.add_argument("--keep-db", action="store_true")
+    ap.add_argument(
+        "--thin",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="http: also send the same machine-hours with the thin profile (server CPU ratio)",
+    )
     args = ap.parse_args()
     workers = args.workers or 2
     batch = args.batch or (500 if args.transport == "http" else 200)
@@ -694,19 +776,68 @@ def main() -> int:
             cpu1 = cpu_seconds(db_name)
         cpu_us = {k: round((cpu1[k] - cpu0[k]) / total * 1e6, 1) for k in cpu0}
         print(f"CPU per record (us): {cpu_us}")
+        machine_h = len(machines) * args.seconds / 3600.0
+        thin: dict[str, Any] = {}
+        if args.transport == "http" and args.thin:
+            # the same machine-hours, thin profile (issue 18): server CPU per machine-hour.
+            # First the maintenance the full phase left behind (autovacuum / autoanalyze of
+            # its 120,000 rows), outside both windows: else it lands in the thin window
+            import psycopg
+            from fieldrx.db.session import raw_dsn
+
+            with psycopg.connect(raw_dsn(url), autocommit=True) as conn:
+                conn.execute("VACUUM (ANALYZE)")
+            t0 = cpu_seconds(db_name)
+            t_el, t_sent, t_stored = asyncio.run(
+                drive_http_thin(base, fleet, batch, args.concurrency)
+            )
+            t1 = cpu_seconds(db_name)
+            srv_full = (cpu1["server"] - cpu0["server"]) + (cpu1["postgres"] - cpu0["postgres"])
+            srv_thin = (t1["server"] - t0["server"]) + (t1["postgres"] - t0["postgres"])
+            api_full, api_thin = cpu1["server"] - cpu0["server"], t1["server"] - t0["server"]
+            thin = {
+                "machine_hours": round(machine_h, 3),
+                "records": t_sent,
+                "stored": t_stored,
+                "elapsed_s": round(t_el, 3),
+                "server_cpu_s_per_machine_hour_full": round(srv_full / machine_h, 3),
+                "server_cpu_s_per_machine_hour_thin": round(srv_thin / machine_h, 3),
+                "cpu_ratio_full_to_thin": round(srv_full / max(srv_thin, 1e-9), 2),
+                "api_cpu_ratio_full_to_thin": round(api_full / max(api_thin, 1e-9), 2),
+            }
+            print(
+                f"thin profile: {t_sent} records for the same {machine_h:.2f} machine-hours,"
+                f" server CPU (API + PostgreSQL) {thin['server_cpu_s_per_machine_hour_full']}"
+                f" s/machine-hour full vs {thin['server_cpu_s_per_machine_hour_thin']} thin:"
+                f" {thin['cpu_ratio_full_to_thin']} x lower (API processes alone"
+                f" {thin['api_cpu_ratio_full_to_thin']} x)"
+            )
         import psycopg
         from fieldrx.db.session import raw_dsn
 
         with psycopg.connect(raw_dsn(url)) as conn:
             rows, distinct = conn.execute(
                 "SELECT count(*), count(DISTINCT (machine_id, stream, seq)) FROM telemetry"
+                " WHERE stream NOT LIKE 'thin%'"
             ).fetchone()
+            if thin:
+                t_rows, t_distinct = conn.execute(
+                    "SELECT (SELECT count(*) FROM telemetry WHERE stream LIKE 'thin%')"
+                    " + (SELECT count(*) FROM job_cell_records),"
+                    " (SELECT count(DISTINCT (machine_id, stream, seq)) FROM telemetry"
+                    "  WHERE stream LIKE 'thin%')"
+                    " + (SELECT count(DISTINCT (machine_id, stream, seq)) FROM job_cell_records)"
+                ).fetchone()
+                thin["lost"] = int(thin["records"] - t_distinct)
+                thin["duplicated"] = int(t_rows - t_distinct + max(0, thin["stored"] - t_distinct))
             acked = conn.execute(
-                "SELECT coalesce(sum(acked_seq), 0) FROM machine_status"
+                "SELECT coalesce(sum(acked_seq), 0) FROM telemetry_streams"
+                " WHERE stream NOT LIKE 'thin%'"
             ).fetchone()[0]
+            # per-cell aggregates: the full phase's fixes plus the thin phase's cell records'
             cells = conn.execute(
                 "SELECT coalesce(sum(n_records), 0) FROM job_cells_applied"
-            ).fetchone()[0]
+            ).fetchone()[0] - (total if thin else 0)
         lost = total - distinct
         duplicated = (rows - distinct) + max(0, stored - distinct)
         rps = total / elapsed
@@ -730,6 +861,7 @@ def main() -> int:
             "duplicated": int(duplicated),
             "acked_total": int(acked),
             "cell_records": int(cells),
+            "thin": thin,
             "cpu_us_per_record": cpu_us,
             "worker_stored": worker_records,
         }
@@ -739,8 +871,16 @@ def main() -> int:
             f" p99 {out['p99_latency_s']} s; "
             f"lost {lost}, duplicated {duplicated}"
         )
+        if thin:
+            print(
+                f"thin: lost {thin['lost']}, duplicated {thin['duplicated']};"
+                f" CPU per machine-hour {thin['cpu_ratio_full_to_thin']} x lower"
+            )
         print(json.dumps(out))
-        return 0 if lost == 0 and duplicated == 0 else 1
+        ok = lost == 0 and duplicated == 0
+        if thin:
+            ok = ok and thin["lost"] == 0 and thin["duplicated"] == 0
+        return 0 if ok else 1
     finally:
         for p in reversed(procs):
             err = stop(p)

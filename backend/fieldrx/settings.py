@@ -55,6 +55,10 @@ class Settings(BaseSettings):
     )
     imagery_max_pixels: int = Field(default=2_000_000_000, alias="FIELDRX_IMAGERY_MAX_PIXELS")
     imagery_timeout_s: float = Field(default=900.0, alias="FIELDRX_IMAGERY_TIMEOUT_S")
+    # Thin uplink (issue 18): where the 10 Hz logs tractors upload on request live
+    # ("" = ./var/rawlogs beside the checkout), and the largest accepted (gzip bytes).
+    raw_log_dir: str = Field(default="", alias="FIELDRX_RAW_LOG_DIR")
+    raw_log_max_bytes: int = Field(default=512 * 1024**2, alias="FIELDRX_RAW_LOG_MAX_BYTES")
 
 
 @lru_cache

@@ -332,11 +332,19 @@ def records_applied(
     lag_s: float,
     forward_m: float,
     max_gap_s: float = 2.0,
+    count: np.ndarray | None = None,
 ) -> RecordsApplied:
     """Seed 001 eq. 16-17 over telemetry records sorted by time (the agent's log).
 
     ``own`` is each record's cell (index in path order, -1 none): preferred where
     cells overlap, and where the record has no position its mass goes there.
+
+    ``count`` (bool per record, default all): only these records' mass is placed
+    (``m2_g``, ``outside_g``); the others are context. The thin uplink
+    (``fieldrx_edge.uplink.thin``) runs the kernel over a window of the log this
+    way: a record's figures depend only on itself, the next record and the
+    track up to its landing time, so a window holding those gives the counted
+    records exactly what the whole log gives them.
     """
     t = np.asarray(t, dtype=float)
     dts = fix_periods(t, fix_period_s, max_gap_s)
@@ -346,8 +354,11 @@ def records_applied(
     have = np.isfinite(x) & np.isfinite(y)
     hd = np.nan_to_num(np.asarray(heading_deg, dtype=float))
     p0, p1, known = landing_segments(t, dts, t[have], x[have], y[have], hd[have], lag_s, forward_m)
-    m2, _ = landed_mass(cells, np.where(known & have, mass, 0.0), p0, p1, own)
+    counted = mass if count is None else np.where(count, mass, 0.0)
+    m2, _ = landed_mass(cells, np.where(known & have, counted, 0.0), p0, p1, own)
     nopos = ~have & (own >= 0) & (own < cells.n)
+    if count is not None:
+        nopos &= count
     if nopos.any():
         m2 += np.bincount(own[nopos], weights=mass[nopos], minlength=cells.n)
-    return RecordsApplied(dts, mass, m2, float(mass.sum() - m2.sum()))
+    return RecordsApplied(dts, mass, m2, float(counted.sum() - m2.sum()))

@@ -31,7 +31,14 @@ from pathlib import Path
 from typing import Any
 
 from fieldrx_edge.jobs import JobStore, pull, report_state
-from fieldrx_edge.protocol import JobPackage, mqtt_username
+from fieldrx_edge.protocol import UPLINK_PROFILES, JobPackage, mqtt_username
+
+log = logging.getLogger("fieldrx_edge")
+UPLINK_HELP = (
+    "telemetry profile: full (every fix) or thin (1 Hz track + one record per cell left; the"
+    " 10 Hz log stays in the state dir, `upload-log` sends it). Default: the config's"
+    ' "uplink" (set by `pull --uplink`), else full'
+)
 
 
 def _on_off(v: str) -> bool:
@@ -86,6 +93,8 @@ def cmd_pull(a: argparse.Namespace) -> int:
     token = a.token or cfg.get("token")
     if not server or not token:
         raise SystemExit("pull needs --server and --token (saved for later runs)")
+    if getattr(a, "uplink", None):
+        store.set_config(uplink=a.uplink)  # the profile of the jobs this machine starts
     out = pull(store, server, token)
     print(json.dumps(out))
     return 1 if out["failed"] else 0
@@ -94,7 +103,31 @@ def cmd_pull(a: argparse.Namespace) -> int:
 # -- run ------------------------------------------------------------------
 
 
-def _make_sender(a: argparse.Namespace, store: JobStore, queue: Any) -> Any:
+def _uplink_profile(a: argparse.Namespace, store: JobStore, progress: dict[str, Any]) -> str:
+    """The job's uplink profile: fixed when the job first runs (its report is built from one
+    kind of records), else --uplink, else the saved config's "uplink", else full."""
+    from fieldrx_edge.uplink.thin import check_profile
+
+    asked = check_profile(getattr(a, "uplink", None) or store.config().get("uplink") or "full")
+    kept = progress.get("uplink")
+    if kept and kept != asked:
+        log.warning("job keeps uplink profile %s (it started with it), not %s", kept, asked)
+        return str(kept)
+    return asked
+
+
+def _thin_uplink(job: JobPackage, root: Path, queue: Any) -> tuple[Any, Any]:
+    """(ThinUplink the agent writes to, its cell queue) in state dir ``root``."""
+    from fieldrx_edge.uplink import TelemetryQueue
+    from fieldrx_edge.uplink.thin import ThinUplink, raw_log_path
+
+    cells = TelemetryQueue(root / "cells.sqlite", job.machine_id, kind="cells")
+    return ThinUplink(job, queue, cells, raw_log_path(root, job.job_id)), cells
+
+
+def _make_sender(
+    a: argparse.Namespace, store: JobStore, queue: Any, extra: tuple[Any, ...] = ()
+) -> Any:
     cfg = store.config()
     server = a.server or cfg.get("server")
     token = a.token or cfg.get("token")
@@ -113,11 +146,12 @@ def _make_sender(a: argparse.Namespace, store: JobStore, queue: Any) -> Any:
             username=mqtt_username(queue.machine_id),
             password=token,
             tls_ca=ca,
+            extra_queues=extra,
         )
     if server and token and not a.offline:
         from fieldrx_edge.uplink import HttpSender
 
-        return HttpSender(queue, server, token)
+        return HttpSender(queue, server, token, extra_queues=extra)
     return None
 
 
@@ -177,8 +211,15 @@ def cmd_run(a: argparse.Namespace) -> int:
         min_fix_quality=a.min_fix_quality,
         max_hdop=a.max_hdop if a.max_hdop > 0 else None,
     )
-    agent = Agent(job, queue, motor, rcfg, progress.get("finished", []), save_progress)
-    sender = _make_sender(a, store, queue)
+    profile = _uplink_profile(a, store, progress)
+    progress["uplink"] = profile
+    sink: Any = queue
+    extra: tuple[Any, ...] = ()
+    if profile == "thin":  # 1 Hz track + one record per cell; the 10 Hz log stays here
+        sink, cells = _thin_uplink(job, store.root, queue)
+        extra = (cells,)
+    agent = Agent(job, sink, motor, rcfg, progress.get("finished", []), save_progress)
+    sender = _make_sender(a, store, queue, extra)
     stop = threading.Event()
     th = None
     if sender is not None:
@@ -207,6 +248,8 @@ def cmd_run(a: argparse.Namespace) -> int:
         motor_stop.set()
         mth.join(timeout=2.0)
     done = len(set(progress.get("finished", []))) >= job.n_cells
+    if profile == "thin":
+        sink.flush()  # the cells of this run's last seconds, before the job can end
     if done:
         progress["state"] = "completed"
     save_progress()
@@ -225,6 +268,7 @@ def cmd_run(a: argparse.Namespace) -> int:
         "records": agent.records,
         "finished_cells": len(progress.get("finished", [])),
         "queue": queue.stats(),
+        "uplink": sink.stats() if profile == "thin" else {"profile": "full"},
         "drained": drained,
         "parse": agent.parser.stats.to_dict(),
         "wall_s": round(time.monotonic() - t0, 2),
@@ -387,7 +431,7 @@ def cmd_simulate(a: argparse.Namespace) -> int:
         pair.connect()
         cfg = dataclasses.replace(cfg, implement=pair)
     sink = None
-    sender = queue = None
+    sender = queue = thin = None
     if a.server:
         import tempfile
 
@@ -397,8 +441,13 @@ def cmd_simulate(a: argparse.Namespace) -> int:
             raise SystemExit("--server needs --token")
         qdir = Path(a.state_dir) if a.state_dir else Path(tempfile.mkdtemp(prefix="fieldrx-sim-"))
         queue = TelemetryQueue(qdir / "queue.sqlite", job.machine_id)
-        sender = HttpSender(queue, a.server, a.token)
+        extra: tuple[Any, ...] = ()
         sink = queue.put_many
+        if a.uplink == "thin":  # 1 Hz track + one record per cell (the agent's thin profile)
+            thin, cells = _thin_uplink(job, qdir, queue)
+            extra = (cells,)
+            sink = thin.put_many
+        sender = HttpSender(queue, a.server, a.token, extra_queues=extra)
     stop = threading.Event()
     sth = None
     if sender is not None:  # sends while the tractor drives, exactly like `run`
@@ -409,6 +458,8 @@ def cmd_simulate(a: argparse.Namespace) -> int:
 
         post_state(a.server, a.token, job.job_id, "running")
     res = simulate(job, cfg, sink=sink)
+    if thin is not None:
+        thin.flush()
     stop.set()
     if sth is not None:
         sth.join(timeout=15.0)
@@ -430,6 +481,7 @@ def cmd_simulate(a: argparse.Namespace) -> int:
     if sender is not None and queue is not None:
         out["telemetry_drained"] = sender.drain(a.drain_timeout)
         out["telemetry"] = queue.stats()
+        out["uplink"] = thin.stats() if thin is not None else {"profile": "full"}
         sender.close()
         from fieldrx_edge.jobs import post_state
 
@@ -486,6 +538,49 @@ def cmd_simulate(a: argparse.Namespace) -> int:
     if a.json:
         print(json.dumps(out))
     return 0
+
+
+# -- upload-log -------------------------------------------------------------
+
+
+def cmd_upload_log(a: argparse.Namespace) -> int:
+    """Upload thin-profile jobs' full 10 Hz logs, one gzip file per job: the jobs named, or
+    those the office requested (``GET /device/raw-logs/requested``)."""
+    import httpx
+
+    from fieldrx_edge.uplink.thin import pack_raw_log, raw_log_path
+
+    store = JobStore(a.state_dir)
+    cfg = store.config()
+    server = a.server or cfg.get("server")
+    token = a.token or cfg.get("token")
+    if not server or not token:
+        raise SystemExit("upload-log needs --server and --token (or a saved config: pull)")
+    base = server.rstrip("/") + "/api/v1/device"
+    headers = {"Authorization": f"Bearer {token}"}
+    with httpx.Client(headers=headers, timeout=a.timeout) as c:
+        ids = a.job
+        if not ids:
+            r = c.get(base + "/raw-logs/requested")
+            r.raise_for_status()
+            ids = r.json()["job_ids"]
+        out: dict[str, Any] = {"uploaded": {}, "missing": [], "failed": {}}
+        for jid in ids:
+            path = raw_log_path(store.root, jid)
+            if not path.exists():
+                out["missing"].append(jid)  # not run thin on this tractor
+                continue
+            r = c.put(
+                f"{base}/jobs/{jid}/raw-log",
+                content=pack_raw_log(path),
+                headers={"Content-Type": "application/gzip"},
+            )
+            if r.status_code >= 400:
+                out["failed"][str(jid)] = f"HTTP {r.status_code}: {r.text[:200]}"
+            else:
+                out["uploaded"][str(jid)] = r.json()["records"]
+    print(json.dumps(out))
+    return 1 if out["failed"] else 0
 
 
 # -- replay-nmea ------------------------------------------------------------
@@ -649,6 +744,7 @@ def build_parser() -> argparse.ArgumentParser:
     sp = sub.add_parser("pull", help="download this machine's jobs (device token)")
     sp.add_argument("--server")
     sp.add_argument("--token")
+    sp.add_argument("--uplink", choices=UPLINK_PROFILES, help="save the default uplink profile")
     sp.add_argument("--state-dir")
     sp.set_defaults(func=cmd_pull)
 
@@ -675,6 +771,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sp.add_argument("--mqtt-ca", help="CA certificate file: connect to the broker over TLS")
     sp.add_argument("--offline", action="store_true", help="queue telemetry only")
+    sp.add_argument("--uplink", choices=UPLINK_PROFILES, help=UPLINK_HELP)
     sp.add_argument("--motor", default="sim", help="sim or serial:DEV")
     sp.add_argument("--controller")
     sp.add_argument("--lag-compensation", type=_on_off, default=True)
@@ -721,6 +818,7 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--token")
     sp.add_argument("--state-dir")
     sp.add_argument("--drain-timeout", type=float, default=60.0)
+    sp.add_argument("--uplink", choices=UPLINK_PROFILES, default="full", help=UPLINK_HELP)
     sp.add_argument("--realtime", type=float, default=0.0, help="pace: 1 = real time, 10 = 10x")
     sp.add_argument(
         "--sensor-fault", type=float, nargs=2, metavar=("FROM_S", "TO_S"),
@@ -737,6 +835,16 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sp.add_argument("--sections", type=int, default=1, help="isobus: sections of the rate ECU")
     sp.set_defaults(func=cmd_simulate)
+
+    sp = sub.add_parser(
+        "upload-log", help="upload thin jobs' 10 Hz logs (given, else those requested)"
+    )
+    sp.add_argument("job", nargs="*", type=int, help="job ids (default: the requested ones)")
+    sp.add_argument("--state-dir")
+    sp.add_argument("--server")
+    sp.add_argument("--token")
+    sp.add_argument("--timeout", type=float, default=300.0)
+    sp.set_defaults(func=cmd_upload_log)
 
     sp = sub.add_parser("replay-nmea", help="parse a receiver log and report")
     sp.add_argument("log")

@@ -55,7 +55,11 @@ class JobStore:
 
     # config ---------------------------------------------------------------
     def save_config(self, server: str, token: str) -> None:
-        body = json.dumps({"server": server, "token": token}).encode()
+        self.set_config(server=server, token=token)
+
+    def set_config(self, **values: Any) -> None:
+        """Set keys of config.json (server, token, uplink), keeping the others."""
+        body = json.dumps({**self.config(), **values}).encode()
         atomic_write(self.root / "config.json", body, mode=0o600)
 
     def config(self) -> dict[str, Any]:

@@ -110,6 +110,45 @@ def device_state(
     return job_out(job)
 
 
+@router.get("/raw-logs/requested")
+def raw_logs_requested(principal: DeviceDep, session: SessionDep) -> dict[str, list[int]]:
+    """Jobs of this machine whose full 10 Hz log the office asked for (thin uplink; the agent
+    answers with ``PUT /device/jobs/{id}/raw-log``: ``fieldrx-edge upload-log``)."""
+    from fieldrx.fleet import rawlogs
+
+    ids = session.scalars(
+        select(Job.id).where(
+            Job.machine_id == principal.machine_id,
+            Job.organisation_id == principal.organisation_id,
+        )
+    )
+    return {"job_ids": [j for j in ids if rawlogs.requested(principal.organisation_id, j)]}
+
+
+@router.put("/jobs/{job_id:int}/raw-log")
+async def upload_raw_log(
+    job_id: int, request: Request, principal: DeviceDep, session: SessionDep
+) -> dict[str, object]:
+    """The job's full 10 Hz log (gzip of JSON lines, one record per fix) from the tractor."""
+    from starlette.concurrency import run_in_threadpool
+
+    from fieldrx.fleet import rawlogs
+    from fieldrx.settings import get_settings
+
+    job = _my_job(session, job_id, principal)
+    limit = get_settings().raw_log_max_bytes
+    body = bytearray()
+    async for chunk in request.stream():
+        body.extend(chunk)
+        if len(body) > limit:
+            raise ApiError(413, f"raw log larger than {limit} bytes (FIELDRX_RAW_LOG_MAX_BYTES)")
+    try:
+        lines = await run_in_threadpool(rawlogs.store, job.organisation_id, job.id, bytes(body))
+    except ValueError as exc:
+        raise ApiError(422, f"job {job_id}: {exc}") from exc
+    return {"job_id": job.id, "bytes": len(body), "records": lines}
+
+
 @router.post("/token", status_code=201)
 def rotate_token(principal: DeviceDep, session: SessionDep) -> dict[str, object]:
     """Rotate the machine's own device token: a new one (shown once) with a fresh expiry;

@@ -17,7 +17,7 @@ from dataclasses import asdict, fields
 from typing import Any, Literal
 
 from fastapi import APIRouter, Query, Request
-from fastapi.responses import Response
+from fastapi.responses import FileResponse, Response
 from sqlalchemy import select, text
 
 from fieldrx.api.common import ApiError, get_scoped, point_page
@@ -67,6 +67,41 @@ def job_report(
     if cells:
         out["cells"] = [asdict(c) for c in rep.cells]
     return out
+
+
+@router.post("/jobs/{job_id:int}/raw-log/request", status_code=202)
+def request_raw_log(job_id: int, principal: UserDep, session: SessionDep) -> dict[str, Any]:
+    """Ask the job's tractor for its full 10 Hz log (a thin-profile job keeps it on board);
+    it arrives with the agent's next ``upload-log`` and is then served by GET below."""
+    from fieldrx.fleet import rawlogs
+
+    job = get_scoped(session, Job, job_id, principal)
+    if not rawlogs.log_path(job.organisation_id, job.id).exists():
+        rawlogs.request(job.organisation_id, job.id)
+    return {"job_id": job.id, "state": _raw_log_state(job)}
+
+
+def _raw_log_state(job: Job) -> str:
+    from fieldrx.fleet import rawlogs
+
+    if rawlogs.log_path(job.organisation_id, job.id).exists():
+        return "uploaded"
+    return "requested" if rawlogs.requested(job.organisation_id, job.id) else "not requested"
+
+
+@router.get(
+    "/jobs/{job_id:int}/raw-log",
+    responses={200: {"content": {"application/gzip": {}}}, 404: {"description": "not uploaded"}},
+)
+def get_raw_log(job_id: int, principal: UserDep, session: SessionDep) -> Response:
+    """The job's full 10 Hz log as the tractor uploaded it (gzip of JSON lines)."""
+    from fieldrx.fleet import rawlogs
+
+    job = get_scoped(session, Job, job_id, principal)
+    path = rawlogs.log_path(job.organisation_id, job.id)
+    if not path.exists():
+        raise ApiError(404, f"job {job_id}: raw log {_raw_log_state(job)}, not uploaded")
+    return FileResponse(path, media_type="application/gzip", filename=f"job-{job.id}-raw.jsonl.gz")
 
 
 @router.get("/jobs/{job_id:int}/summary")

@@ -6,7 +6,8 @@ rejected on its own with a reason, the rest is stored (fieldrx.fleet.ingest).
 Records naming another machine than the device token's are rejected one by one.
 The batch names its stream (telemetry format 2: ``{"format": 2, "stream": id,
 "stream_start": n, "records": [...]}``); a batch without one (format 1) is the
-machine's legacy stream.
+machine's legacy stream. A thin-profile agent's cell records come as cell
+batches (format 3, ``"kind": "cells"``) on their own stream: ``fleet.cellrecords``.
 
 Authentication: ``Authorization: Bearer <device token>`` with the same rules
 as every endpoint (401 unknown/revoked/expired, 403 for a person's token),
@@ -27,6 +28,7 @@ from fieldrx.api.common import ApiError, get_scoped
 from fieldrx.auth.deps import SessionDep, UserDep
 from fieldrx.db.models import Machine, TelemetryStream
 from fieldrx.fleet.auth import device_of
+from fieldrx.fleet.cellrecords import ingest_cells
 from fieldrx.fleet.db import raw_connection
 from fieldrx.fleet.ingest import IngestError, IngestResult, ingest, parse_batch
 
@@ -65,6 +67,8 @@ def _ingest(token: str, body: bytes) -> IngestResult:
         n = len(batch.records)
         if n > MAX_RECORDS:
             raise ApiError(413, f"at most {MAX_RECORDS} records per request, got {n}")
+        if batch.kind == "cells":  # uplink profile thin: its cell records
+            return ingest_cells(conn, machine_id, batch.records, batch.stream, batch.stream_start)
         return ingest(
             conn, machine_id, batch.records, batch.stream, batch.stream_start, batch.streamed
         )

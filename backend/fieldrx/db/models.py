@@ -349,6 +349,55 @@ class JobCellApplied(Base):
     last_t: Mapped[dt.datetime | None] = mapped_column(DateTime(timezone=True))
 
 
+class JobCellRecord(Base):
+    """Uplink profile ``thin``: one cell's as-applied figures as the tractor computed them
+    (``fieldrx_edge.protocol.CellRecord``), kept forever (migration 0011). Deduplicated by
+    (machine, stream, seq) like telemetry; a thin job's report sums them per cell."""
+
+    __tablename__ = "job_cell_records"
+    __table_args__ = (Index("ix_job_cell_records_job_cell", "job_id", "cell_seq"),)
+    machine_id: Mapped[int] = mapped_column(
+        ForeignKey("machines.id", ondelete="CASCADE"), primary_key=True
+    )
+    stream: Mapped[str] = mapped_column(String(32), primary_key=True)
+    seq: Mapped[int] = mapped_column(BigInteger, primary_key=True)
+    job_id: Mapped[int] = mapped_column(ForeignKey("jobs.id", ondelete="CASCADE"))
+    cell_seq: Mapped[int | None] = mapped_column(Integer)
+    t_entry: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True))
+    t_exit: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True))
+    n_fixes: Mapped[int] = mapped_column(Integer)
+    worked_s: Mapped[float] = mapped_column(Double)
+    mass_g: Mapped[float] = mapped_column(Double)
+    driven_m: Mapped[float | None] = mapped_column(Double)
+    mean_speed_m_s: Mapped[float | None] = mapped_column(Double)
+    mean_target_rate_kg_ha: Mapped[float | None] = mapped_column(Double)
+    mean_applied_rate_kg_ha: Mapped[float | None] = mapped_column(Double)
+    flags: Mapped[list[str]] = mapped_column(ARRAY(String(32)), server_default="{}")
+    received_at: Mapped[dt.datetime] = mapped_column(
+        DateTime(timezone=True), server_default=func.now()
+    )
+
+
+class CellRecordStream(Base):
+    """A thin agent's cell-record stream: its acknowledged seq (``TelemetryStream`` for
+    cell records; migration 0011)."""
+
+    __tablename__ = "cell_record_streams"
+    machine_id: Mapped[int] = mapped_column(
+        ForeignKey("machines.id", ondelete="CASCADE"), primary_key=True
+    )
+    stream: Mapped[str] = mapped_column(String(32), primary_key=True)
+    first_seq: Mapped[int] = mapped_column(BigInteger)
+    acked_seq: Mapped[int] = mapped_column(BigInteger)
+    n_records: Mapped[int] = mapped_column(BigInteger)
+    first_seen_at: Mapped[dt.datetime] = mapped_column(
+        DateTime(timezone=True), server_default=func.now()
+    )
+    last_seen_at: Mapped[dt.datetime] = mapped_column(
+        DateTime(timezone=True), server_default=func.now()
+    )
+
+
 class Telemetry(Base):
     """One record per fix. (machine_id, stream, seq) is the deduplication key (stream ''
     is the legacy stream of agents that send none); rows arrive by COPY."""

@@ -49,6 +49,7 @@ import orjson
 import psycopg
 from fieldrx_edge.protocol import (
     ALARMS,
+    CELL_FORMAT_VERSION,
     EXTRA_FIELDS,
     FIELD_SET,
     FLOAT_FIELDS,
@@ -127,6 +128,7 @@ class Batch:
     stream: str = ""
     stream_start: int = 1
     streamed: bool = False
+    kind: str = "telemetry"  # "cells": uplink profile thin's cell records (fleet.cellrecords)
 
 
 def _loads(body: bytes | str) -> Any:
@@ -148,19 +150,27 @@ def parse_batch(body: bytes | str) -> Batch:
     if not isinstance(obj, dict) or not isinstance(obj.get("records"), list):
         raise IngestError('body must be a JSON object {"records": [TelemetryRecord, ...]}')
     fmt = obj.get("format", 1)
-    if type(fmt) is not int or not 1 <= fmt <= TELEMETRY_FORMAT_VERSION:
+    kind = obj.get("kind", "telemetry")
+    if kind == "cells":  # thin profile (format 3): same stream rules, fleet.cellrecords stores
+        if fmt != CELL_FORMAT_VERSION:
+            raise IngestError(f"a cells batch must be format {CELL_FORMAT_VERSION}, got {fmt!r}")
+    elif kind != "telemetry":
+        raise IngestError(f"kind {kind!r} is not 'telemetry' or 'cells'")
+    elif type(fmt) is not int or not 1 <= fmt <= TELEMETRY_FORMAT_VERSION:
         raise IngestError(
             f"format {fmt!r} not supported (1..{TELEMETRY_FORMAT_VERSION}): upgrade the server"
         )
     stream = obj.get("stream")
     if stream is None:
+        if kind == "cells":
+            raise IngestError("a cells batch must name its stream")
         return Batch(obj["records"])
     if not isinstance(stream, str) or not STREAM_RE.match(stream):
         raise IngestError(f"stream must be 1-32 characters [0-9A-Za-z_-], got {stream!r}")
     start = obj.get("stream_start", 1)
     if type(start) is not int or not 1 <= start <= INT8_MAX:
         raise IngestError(f"stream_start must be a positive integer, got {start!r}")
-    return Batch(obj["records"], stream, start, True)
+    return Batch(obj["records"], stream, start, True, kind)
 
 
 def parse_body(body: bytes | str) -> list[Any]:
@@ -692,7 +702,7 @@ def _cells(
     "no fertilizer" has still been driven. One statement per batch: both counts
     are taken per job and the job's kind picks one.
     """
-    agg: dict[tuple[int, int], list[Any]] = {}
+    agg: dict[tuple[int, int], list[Any]] = {}  # (job, cell) -> [n, target, applied, t0, t1]
     for r in new:
         if r.job_id is None or r.cell_seq is None or not r.implement_down:
             continue
@@ -710,6 +720,17 @@ def _cells(
                 a[3] = r.t
             if r.t > a[4]:
                 a[4] = r.t
+    return cell_progress(cur, machine_id, org, agg)
+
+
+def cell_progress(
+    cur: psycopg.Cursor[Any], machine_id: int, org: int, agg: dict[tuple[int, int], list[Any]]
+) -> list[dict[str, Any]]:
+    """Add per-cell sums ((job, cell) -> [records, target rate sum, applied rate sum,
+    first t, last t], times as COPY microseconds) of this machine's jobs to
+    ``job_cells_applied`` and move job progress (``_cells`` for the rules); the job
+    messages for the live view. Shared with the thin profile's cell records
+    (``fleet.cellrecords``)."""
     if not agg:
         return []
     items = list(agg.items())

@@ -18,6 +18,14 @@ simulator uses the same functions, so the two agree to rounding):
 * accuracy theta = (1 - |M1 - M2| / M1) * 100 % (eq. 18).
 
 Coverage = cells that received fertilizer / cells with a planned rate > 0.
+
+A job run with uplink profile ``thin`` (issue 18) has no 10 Hz records here:
+its tractor ran the same kernel over its own log and sent one record per cell
+(``fleet.cellrecords``, ``fieldrx_edge.uplink.thin``). Its report sums those
+per cell (M2, fixes, worked time, mean rates, first/last fix) instead of
+integrating records, and takes M1 and everything else as above; its 1 Hz
+track only gives the job's first and last time. A job that has cell records
+is reported from them (an agent keeps a job's profile from its start).
 """
 
 from __future__ import annotations
@@ -37,6 +45,7 @@ from sqlalchemy import select, text
 from sqlalchemy.orm import Session
 
 from fieldrx.db.models import Field, Job, Machine, Plan, Prescription, PrescriptionVersion
+from fieldrx.fleet.cellrecords import job_cell_totals
 from fieldrx.formats.jobpackage import shaped_cells
 from fieldrx.geo.crs import to_utm
 from fieldrx.store import load_cells, load_rates
@@ -85,6 +94,7 @@ class JobReport:
     last_t: float | None
     # prescribed cells (rate > 0) where nothing landed, path order (the job-end alert's list)
     not_applied_seqs: list[int] = field(default_factory=list)
+    uplink: str = "full"  # the profile the job's figures came from: full | thin (cell records)
     cells: list[CellReport] = field(default_factory=list)
 
     def summary(self) -> dict[str, Any]:
@@ -166,19 +176,27 @@ def build_report(session: Session, job: Job, max_gap_s: float = MAX_GAP_S) -> Jo
     area = geo.area_m2
     m1 = m1_g(rate, width, driven_length(geo))
 
-    recs = session.execute(
-        text(
-            "SELECT extract(epoch FROM t)::float8 AS t_s, cell_seq, applied_rate_kg_ha,"
-            " target_rate_kg_ha, coalesce(speed_filtered_m_s, speed_raw_m_s) AS speed,"
-            " implement_down, actual_shaft_rpm, heading_deg,"
-            " ST_X(ST_Transform(geom, :epsg)) AS x, ST_Y(ST_Transform(geom, :epsg)) AS y,"
-            " fix_period_s"
-            " FROM telemetry WHERE machine_id = :m AND job_id = :j ORDER BY t, stream, seq"
-        ),
-        {"m": job.machine_id, "j": job.id, "epsg": fld.utm_epsg if fld is not None else 4326},
-    ).all()
+    thin = job_cell_totals(session, job.id, job.machine_id)
+    recs = (
+        []
+        if thin
+        else session.execute(
+            text(
+                "SELECT extract(epoch FROM t)::float8 AS t_s, cell_seq, applied_rate_kg_ha,"
+                " target_rate_kg_ha, coalesce(speed_filtered_m_s, speed_raw_m_s) AS speed,"
+                " implement_down, actual_shaft_rpm, heading_deg,"
+                " ST_X(ST_Transform(geom, :epsg)) AS x, ST_Y(ST_Transform(geom, :epsg)) AS y,"
+                " fix_period_s"
+                " FROM telemetry WHERE machine_id = :m AND job_id = :j ORDER BY t, stream, seq"
+            ),
+            {"m": job.machine_id, "j": job.id, "epsg": fld.utm_epsg if fld is not None else 4326},
+        ).all()
+    )
     nr = len(recs)
-    if nr:
+    if thin:
+        m2, cnt, asum, tsum, first, last, outside_g, time_worked = _thin_cells(thin, seqs)
+        nr, first_t, last_t = _thin_span(session, job, thin, first, last)
+    elif nr:
 
         def arr(name: str, default: float = np.nan) -> np.ndarray:
             return np.asarray([default if (v := getattr(r, name)) is None else v for r in recs],
@@ -278,8 +296,56 @@ def build_report(session: Session, job: Job, max_gap_s: float = MAX_GAP_S) -> Jo
         first_t=first_t,
         last_t=last_t,
         not_applied_seqs=[int(v) for v in seqs[prescribed & ~done]],
+        uplink="thin" if thin else "full",
         cells=out_cells,
     )
+
+
+def _thin_cells(thin: list[Any], seqs: np.ndarray) -> tuple[Any, ...]:
+    """Per-cell arrays (path order) from a thin job's cell records summed per cell
+    (``cellrecords.job_cell_totals``): M2, fixes, applied/target rate sums, first/last fix,
+    mass in no cell, time worked."""
+    n = len(seqs)
+    m2, asum, tsum = np.zeros(n), np.zeros(n), np.zeros(n)
+    cnt = np.zeros(n, dtype=np.int64)
+    first, last = np.full(n, np.inf), np.full(n, -np.inf)
+    outside_g = time_worked = 0.0
+    for cell, fixes, worked, mass, t_sum, a_sum, t0, t1 in thin:
+        time_worked += float(worked or 0.0)
+        i = int(np.searchsorted(seqs, cell)) if cell is not None else n
+        if i >= n or seqs[i] != cell:  # no cell, or one this plan does not have
+            outside_g += float(mass or 0.0)
+            continue
+        m2[i] += float(mass or 0.0)
+        cnt[i] += int(fixes or 0)
+        tsum[i] += float(t_sum or 0.0)
+        asum[i] += float(a_sum or 0.0)
+        if t0 is not None:
+            first[i] = min(first[i], t0)
+            last[i] = max(last[i], t1)
+    return m2, cnt, asum, tsum, first, last, outside_g, time_worked
+
+
+def _thin_span(
+    session: Session, job: Job, thin: list[Any], first: np.ndarray, last: np.ndarray
+) -> tuple[int, float | None, float | None]:
+    """Records behind a thin job's report (track + cell records) and its first/last time."""
+    n, t0, t1 = session.execute(
+        text(
+            "SELECT (SELECT count(*) FROM telemetry WHERE machine_id = :m AND job_id = :j)"
+            " + (SELECT count(*) FROM job_cell_records WHERE machine_id = :m AND job_id = :j),"
+            " least((SELECT extract(epoch FROM min(t))::float8 FROM telemetry"
+            "        WHERE machine_id = :m AND job_id = :j),"
+            "       (SELECT extract(epoch FROM min(t_entry))::float8 FROM job_cell_records"
+            "        WHERE machine_id = :m AND job_id = :j)),"
+            " greatest((SELECT extract(epoch FROM max(t))::float8 FROM telemetry"
+            "           WHERE machine_id = :m AND job_id = :j),"
+            "          (SELECT extract(epoch FROM max(t_exit))::float8 FROM job_cell_records"
+            "           WHERE machine_id = :m AND job_id = :j))"
+        ),
+        {"m": job.machine_id, "j": job.id},
+    ).one()
+    return int(n), t0, t1
 
 
 CACHE_JOBS = 16
@@ -288,10 +354,15 @@ _cache_lock = threading.Lock()
 
 
 def report_key(session: Session, job: Job) -> tuple[Any, ...]:
-    """What a job's report depends on that can change: its telemetry (records are only
+    """What a job's report depends on that can change: its telemetry and cell records (only
     ever added), its state and prescription version, the machine's settings."""
-    n, t_max = session.execute(
-        text("SELECT count(*), max(t) FROM telemetry WHERE job_id = :j AND machine_id = :m"),
+    n, t_max, n_cells, cells_at = session.execute(
+        text(
+            "SELECT count(*), max(t),"
+            " (SELECT count(*) FROM job_cell_records WHERE job_id = :j AND machine_id = :m),"
+            " (SELECT max(received_at) FROM job_cell_records WHERE job_id = :j AND machine_id = :m)"
+            " FROM telemetry WHERE job_id = :j AND machine_id = :m"
+        ),
         {"j": job.id, "m": job.machine_id},
     ).one()
     m = session.get(Machine, job.machine_id)
@@ -301,7 +372,7 @@ def report_key(session: Session, job: Job) -> tuple[Any, ...]:
         else (m.width_m, m.lag_s, m.antenna_forward_m, json.dumps(m.calibration, sort_keys=True))
     )
     return (
-        n, t_max, job.state, job.name, job.updated_at, job.prescription_id,
+        n, t_max, n_cells, cells_at, job.state, job.name, job.updated_at, job.prescription_id,
         job.prescription_version, machine,
     )  # fmt: skip
 

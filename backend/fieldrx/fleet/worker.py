@@ -48,6 +48,7 @@ from paho.mqtt.properties import Properties
 from fieldrx.auth.mqtt import WORKER_USER, Broker
 from fieldrx.db.session import raw_dsn
 from fieldrx.fleet.alerts import check_no_data
+from fieldrx.fleet.cellrecords import ingest_cells
 from fieldrx.fleet.ingest import Batch, IngestError, ingest, parse_batch
 from fieldrx.fleet.status import sweep_offline
 
@@ -253,6 +254,10 @@ class IngestWorker:
                 self.client.ack(m.mid, m.qos)
                 continue
             entry = by_stream.get((mid, batch.stream))
+            if entry is not None and entry[0].kind != batch.kind:
+                log.warning("dropping message on %s: stream %r changed kind", m.topic, batch.stream)
+                self.client.ack(m.mid, m.qos)
+                continue
             if entry is None:
                 by_stream[(mid, batch.stream)] = (batch, [m])
             else:
@@ -263,9 +268,12 @@ class IngestWorker:
             records = batch.records
             while True:
                 try:
-                    result = ingest(
-                        conn, machine_id, records, stream, batch.stream_start, batch.streamed
-                    )
+                    if batch.kind == "cells":  # uplink profile thin: its cell records
+                        result = ingest_cells(conn, machine_id, records, stream, batch.stream_start)
+                    else:
+                        result = ingest(
+                            conn, machine_id, records, stream, batch.stream_start, batch.streamed
+                        )
                     break
                 except IngestError as exc:
                     log.warning("dropping batch of machine %s: %s", machine_id, exc)

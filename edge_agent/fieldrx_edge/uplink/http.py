@@ -5,6 +5,10 @@ stream_start, records). The ack names the stream; rejected records are logged
 with the server's reasons and counted in the queue (the server acknowledges
 past them, so they never block what follows). A ``stream_conflict`` ack moves
 the unacknowledged records to a new stream.
+
+Uplink profile ``thin`` has two queues (the 1 Hz track and the cell records,
+``fieldrx_edge.uplink.thin``), each on its own stream: ``extra_queues`` are
+sent in turn with the main one, each trimmed by its own acks.
 """
 
 from __future__ import annotations
@@ -32,8 +36,10 @@ class HttpSender:
         batch_size: int = 500,
         timeout_s: float = 10.0,
         backoff: Backoff | None = None,
+        extra_queues: tuple[TelemetryQueue, ...] = (),
     ) -> None:
         self.queue = queue
+        self.queues = (queue, *extra_queues)
         self.url = base_url.rstrip("/") + "/api/v1/telemetry"
         self.batch_size = batch_size
         self.backoff = backoff or Backoff()
@@ -46,8 +52,20 @@ class HttpSender:
         self._client.close()
 
     def send_once(self) -> int | None:
-        """One batch. Returns records trimmed, 0 if nothing pending, None on failure."""
-        body, n, _ = self.queue.pending_batch(self.batch_size)
+        """One batch per queue. Returns records trimmed, 0 if nothing pending, None on failure."""
+        total = 0
+        for q in self.queues:
+            n = self._send(q)
+            if n is None:
+                return None
+            total += n
+        return total
+
+    def backlog(self) -> int:
+        return sum(q.backlog() for q in self.queues)
+
+    def _send(self, queue: TelemetryQueue) -> int | None:
+        body, n, _ = queue.pending_batch(self.batch_size)
         if not n:
             return 0
         try:
@@ -69,9 +87,9 @@ class HttpSender:
         self.sent_batches += 1
         if ack.rejected:
             log.warning("server rejected %d records: %s", len(ack.rejected), ack.rejected[:3])
-        trimmed = self.queue.ack(ack.acked_seq, rejected=ack.rejected, stream=ack.stream or None)
+        trimmed = queue.ack(ack.acked_seq, rejected=ack.rejected, stream=ack.stream or None)
         if ack.stream_conflict:
-            self.queue.new_stream()
+            queue.new_stream()
         return trimmed
 
     def run(self, stop: threading.Event, idle_s: float = 0.2) -> None:
@@ -82,7 +100,7 @@ class HttpSender:
                 stop.wait(self.backoff.next_delay())
                 continue
             self.backoff.reset()
-            if n == 0 or self.queue.backlog() == 0:
+            if n == 0 or self.backlog() == 0:
                 stop.wait(idle_s)
 
     def drain(self, timeout_s: float = 30.0) -> bool:
@@ -90,9 +108,9 @@ class HttpSender:
         import time
 
         deadline = time.monotonic() + timeout_s
-        while self.queue.backlog() > 0 and time.monotonic() < deadline:
+        while self.backlog() > 0 and time.monotonic() < deadline:
             if self.send_once() is None:
                 time.sleep(min(self.backoff.next_delay(), max(0.0, deadline - time.monotonic())))
             else:
                 self.backoff.reset()
-        return self.queue.backlog() == 0
+        return self.backlog() == 0

@@ -18,6 +18,11 @@ The broker admits no anonymous client: the machine logs in as
 ``mqtt_username(machine_id)`` with its device token as password, and may only
 publish its own telemetry and read its own acks (server README, "MQTT security").
 ``tls_ca`` turns on TLS (production brokers listen on 8883 with TLS only).
+
+Uplink profile ``thin`` has two queues (the 1 Hz track and the cell records,
+``fieldrx_edge.uplink.thin``) on two streams: one client sends both (the
+broker admits one session per machine), each queue a ``_Lane`` with its own
+in-flight window, and an ack goes to the lane of its stream.
 """
 
 from __future__ import annotations
@@ -37,6 +42,24 @@ from fieldrx_edge.uplink.queue import TelemetryQueue
 log = logging.getLogger(__name__)
 
 
+class _Lane:
+    """One queue's sending state: what the server acked, what is in flight, its stream."""
+
+    def __init__(self, queue: TelemetryQueue) -> None:
+        self.queue = queue
+        self.acked = queue.acked_seq
+        self.sent_up_to = self.acked
+        self.inflight: list[tuple[int, float]] = []  # (last seq of batch, sent at)
+        # set by the network thread, applied to the queue by the sending thread:
+        # (acked_seq, rejects with reasons, stream conflict)
+        self.pending_ack: tuple[int, list[dict[str, Any]], bool] | None = None
+        self.stream = queue.stream[0]
+
+    def resend_all(self) -> None:
+        self.sent_up_to = self.acked
+        self.inflight.clear()
+
+
 class MqttSender:
     def __init__(
         self,
@@ -51,8 +74,10 @@ class MqttSender:
         username: str | None = None,
         password: str | None = None,
         tls_ca: str | None = None,
+        extra_queues: tuple[TelemetryQueue, ...] = (),
     ) -> None:
         self.queue = queue
+        self.lanes = [_Lane(q) for q in (queue, *extra_queues)]
         self.batch_size = batch_size
         self.max_inflight = max_inflight_batches
         self.ack_timeout_s = ack_timeout_s
@@ -60,20 +85,14 @@ class MqttSender:
         self.ack_topic = topic_prefix + ack_topic(queue.machine_id)
         self.backoff = Backoff(cap_s=10.0)
         self._cv = threading.Condition()
-        self._acked = queue.acked_seq
-        self._sent_up_to = self._acked
-        self._inflight: list[tuple[int, float]] = []  # (last seq of batch, sent at)
         self._connected = False
-        # set by the network thread, applied to the queue by the sending thread:
-        # (acked_seq, rejects with reasons, stream conflict)
-        self._pending_ack: tuple[int, list[dict[str, Any]], bool] | None = None
-        self._stream = queue.stream[0]
         cid = client_id or mqtt_client_id(queue.machine_id)
         self.client = mqtt.Client(
             mqtt.CallbackAPIVersion.VERSION2, client_id=cid, clean_session=False
         )
-        self.client.max_inflight_messages_set(max_inflight_batches)
-        self.client.max_queued_messages_set(max_inflight_batches * 2)
+        n_lanes = len(self.lanes)
+        self.client.max_inflight_messages_set(max_inflight_batches * n_lanes)
+        self.client.max_queued_messages_set(max_inflight_batches * 2 * n_lanes)
         if username is not None:
             self.client.username_pw_set(username, password)
         if tls_ca:
@@ -89,6 +108,9 @@ class MqttSender:
         self.client.loop_stop()
         self.client.disconnect()
 
+    def backlog(self) -> int:
+        return sum(lane.queue.backlog() for lane in self.lanes)
+
     # callbacks (paho network thread)
     def _on_connect(self, client, userdata, flags, reason_code, properties) -> None:  # noqa: ANN001
         if reason_code.is_failure:
@@ -98,8 +120,8 @@ class MqttSender:
         with self._cv:
             self._connected = True
             # after a reconnect, resend everything not acked by the server
-            self._sent_up_to = self._acked
-            self._inflight.clear()
+            for lane in self.lanes:
+                lane.resend_all()
             self._cv.notify_all()
 
     def _on_disconnect(self, client, userdata, flags, reason_code, properties) -> None:  # noqa: ANN001
@@ -114,63 +136,68 @@ class MqttSender:
         except (ValueError, KeyError, TypeError, AttributeError):
             log.warning("bad ack payload on %s", msg.topic)
             return
-        if ack.stream and ack.stream != self._stream:
-            return  # another agent's (same machine) or a stream this queue left
-        if rejected:
-            log.warning("server rejected %d records: %s", len(rejected), rejected[:3])
         with self._cv:
-            if acked > self._acked:
-                self._acked = acked
-                self._inflight = [b for b in self._inflight if b[0] > acked]
-            pa = self._pending_ack
+            if ack.stream:
+                lane = next((x for x in self.lanes if x.stream == ack.stream), None)
+            else:
+                lane = self.lanes[0]
+            if lane is None:
+                return  # another agent's (same machine) or a stream this queue left
+            if rejected:
+                log.warning("server rejected %d records: %s", len(rejected), rejected[:3])
+            if acked > lane.acked:
+                lane.acked = acked
+                lane.inflight = [b for b in lane.inflight if b[0] > acked]
+            pa = lane.pending_ack
             if pa is None:
-                self._pending_ack = (acked, rejected, ack.stream_conflict)
+                lane.pending_ack = (acked, rejected, ack.stream_conflict)
             else:
                 conflict = pa[2] or ack.stream_conflict
-                self._pending_ack = (max(acked, pa[0]), pa[1] + rejected, conflict)
+                lane.pending_ack = (max(acked, pa[0]), pa[1] + rejected, conflict)
             self._cv.notify_all()
 
     def _apply_ack(self) -> None:
-        with self._cv:
-            pa = self._pending_ack
-            self._pending_ack = None
-        if pa is None:
-            return
-        self.queue.ack(pa[0], rejected=pa[1])
-        if pa[2]:
-            self._stream = self.queue.new_stream()
-            with self._cv:  # resend everything not acknowledged, on the new stream
-                self._acked = self.queue.acked_seq
-                self._sent_up_to = self._acked
-                self._inflight.clear()
+        for lane in self.lanes:
+            with self._cv:
+                pa = lane.pending_ack
+                lane.pending_ack = None
+            if pa is None:
+                continue
+            lane.queue.ack(pa[0], rejected=pa[1])
+            if pa[2]:
+                stream = lane.queue.new_stream()
+                with self._cv:  # resend everything not acknowledged, on the new stream
+                    lane.stream = stream
+                    lane.acked = lane.queue.acked_seq
+                    lane.resend_all()
 
     def send_some(self) -> int:
-        """Publish batches while the in-flight cap allows; returns records published."""
+        """Publish batches while the in-flight caps allow; returns records published."""
         self._apply_ack()
-        with self._cv:
-            if not self._connected:
-                return 0
-            now = time.monotonic()
-            if self._inflight and now - self._inflight[0][1] > self.ack_timeout_s:
-                log.info("no telemetry ack for %.0f s: resending", self.ack_timeout_s)
-                self._sent_up_to = self._acked
-                self._inflight.clear()
-            room = self.max_inflight - len(self._inflight)
-            after = max(self._sent_up_to, self._acked)
         published = 0
-        while room > 0:
-            payload, n, last = self.queue.pending_batch(self.batch_size, after=after)
-            if not n:
-                break
-            info = self.client.publish(self.topic, payload, qos=1)
-            if info.rc != mqtt.MQTT_ERR_SUCCESS:
-                break
-            after = last
+        for lane in self.lanes:
             with self._cv:
-                self._sent_up_to = after
-                self._inflight.append((after, time.monotonic()))
-            published += n
-            room -= 1
+                if not self._connected:
+                    return published
+                now = time.monotonic()
+                if lane.inflight and now - lane.inflight[0][1] > self.ack_timeout_s:
+                    log.info("no telemetry ack for %.0f s: resending", self.ack_timeout_s)
+                    lane.resend_all()
+                room = self.max_inflight - len(lane.inflight)
+                after = max(lane.sent_up_to, lane.acked)
+            while room > 0:
+                payload, n, last = lane.queue.pending_batch(self.batch_size, after=after)
+                if not n:
+                    break
+                info = self.client.publish(self.topic, payload, qos=1)
+                if info.rc != mqtt.MQTT_ERR_SUCCESS:
+                    break
+                after = last
+                with self._cv:
+                    lane.sent_up_to = after
+                    lane.inflight.append((after, time.monotonic()))
+                published += n
+                room -= 1
         return published
 
     def run(self, stop: threading.Event) -> None:
@@ -186,8 +213,8 @@ class MqttSender:
         while time.monotonic() < deadline:
             self.send_some()
             self._apply_ack()
-            if self.queue.backlog() == 0:
+            if self.backlog() == 0:
                 return True
             with self._cv:
                 self._cv.wait(0.05)
-        return self.queue.backlog() == 0
+        return self.backlog() == 0

@@ -28,10 +28,17 @@ import json
 import logging
 import sqlite3
 import threading
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from fieldrx_edge.protocol import new_stream_id, sanitize_record, telemetry_batch_json
+from fieldrx_edge.protocol import (
+    cell_batch_json,
+    new_stream_id,
+    sanitize_cell_record,
+    sanitize_record,
+    telemetry_batch_json,
+)
 
 log = logging.getLogger(__name__)
 
@@ -48,12 +55,30 @@ CREATE TABLE IF NOT EXISTS reasons (
 _MAX_REASON = 200  # characters of a reason kept (server texts can be long)
 
 
-class TelemetryQueue:
-    """Durable FIFO of telemetry records for one machine, on one stream at a time."""
+# what a queue holds: its record rules and its batch format
+_KINDS: dict[str, tuple[Callable[[dict[str, Any]], list[str]], Callable[..., bytes]]] = {
+    "telemetry": (sanitize_record, telemetry_batch_json),
+    "cells": (sanitize_cell_record, cell_batch_json),  # uplink profile thin (CellRecord)
+}
 
-    def __init__(self, path: str | Path, machine_id: int, synchronous: str = "NORMAL") -> None:
+
+class TelemetryQueue:
+    """Durable FIFO of telemetry records for one machine, on one stream at a time.
+
+    ``kind`` "cells" holds the thin profile's cell records (``protocol.CellRecord``,
+    sent as cell batches) under the same numbering, acknowledgement and stream rules."""
+
+    def __init__(
+        self,
+        path: str | Path,
+        machine_id: int,
+        synchronous: str = "NORMAL",
+        kind: str = "telemetry",
+    ) -> None:
         self.path = str(path)
         self.machine_id = machine_id
+        self.kind = kind
+        self._sanitize, self._batch_json = _KINDS[kind]
         self._sync = synchronous  # NORMAL survives process kills; FULL also power loss
         self._local = threading.local()
         Path(self.path).parent.mkdir(parents=True, exist_ok=True)
@@ -111,13 +136,17 @@ class TelemetryQueue:
         seqs = self.put_many([record])
         return seqs[-1] if seqs else 0
 
-    def put_many(self, records: list[dict[str, Any]]) -> list[int]:
+    def put_many(
+        self, records: list[dict[str, Any]], info: dict[str, str] | None = None
+    ) -> list[int]:
         """Store several records in one transaction (the bench and NDVI bursts).
 
         Each record is first made to follow the protocol (``sanitize_record``):
         what was nulled or clamped is counted as ``sanitized``, a record that
         cannot be repaired is not queued and counted as ``dropped``, both with
-        their reasons. Returns the seqs of the records queued."""
+        their reasons. ``info``: key/values stored in the same transaction (the
+        thin uplink's count of cell records emitted per job, so a restarted agent
+        neither loses nor repeats one). Returns the seqs of the records queued."""
         con = self._con()
         con.execute("BEGIN IMMEDIATE")
         try:
@@ -125,10 +154,12 @@ class TelemetryQueue:
             seqs = []
             rows = []
             fixed = dropped = 0
+            for key, value in (info or {}).items():
+                con.execute("INSERT OR REPLACE INTO info VALUES (?, ?)", (key, value))
             for rec in records:
                 rec["machine_id"] = self.machine_id
                 rec["seq"] = last + 1
-                reasons = sanitize_record(rec)
+                reasons = self._sanitize(rec)
                 if reasons:
                     kind = "dropped" if reasons[0].startswith("drop:") else "sanitized"
                     for r in reasons:
@@ -175,7 +206,12 @@ class TelemetryQueue:
         if not rows:
             return b"", 0, after if after is not None else self.acked_seq
         stream, start = self.stream
-        return telemetry_batch_json(stream, start, [r[1] for r in rows]), len(rows), rows[-1][0]
+        return self._batch_json(stream, start, [r[1] for r in rows]), len(rows), rows[-1][0]
+
+    def info(self, key: str) -> str | None:
+        """A value stored with ``put_many(..., info=...)``."""
+        row = self._con().execute("SELECT value FROM info WHERE key=?", (key,)).fetchone()
+        return None if row is None else str(row[0])
 
     @property
     def stream(self) -> tuple[str, int]:

@@ -1,0 +1,252 @@
+"""Cell records of the thin uplink profile: validate, COPY, deduplicate, acknowledge.
+
+A thin agent (``fieldrx_edge.uplink.thin``) sends its 1 Hz track as ordinary
+telemetry (``fleet.ingest``) and, on a stream of their own, one
+``protocol.CellRecord`` per cell it left, in cell batches (format 3,
+``"kind": "cells"``). They are stored here, in ``job_cell_records`` (kept
+forever, whatever the telemetry retention), with the semantics of the
+telemetry ingest (``fleet.ingest``'s docstring), so nothing is lost or stored
+twice:
+
+1. each record is validated on its own (``CellRecord`` rules, its machine, a
+   job of this machine, a time not beyond the server clock's tolerance); a bad
+   record is rejected with a reason and, when resending can never help,
+   acknowledged past;
+2. a transaction-level advisory lock per machine serialises the machine's cell
+   batches; the stream's stored seqs are read once and the new rows COPied;
+3. a seq already stored is a duplicate if it is the same record (same cell and
+   exit time), else the stream's numbering went backwards: nothing from there
+   on is stored and the ack says ``stream_conflict``;
+4. ``acked_seq`` (``cell_record_streams``) advances over the contiguous stored
+   or rejected-for-good seqs and stops at the first gap;
+5. per-cell aggregates and job progress move as for telemetry records
+   (``ingest.cell_progress``), in the same transaction.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import time
+from typing import Any
+
+import psycopg
+from fieldrx_edge.protocol import CellRecord
+from sqlalchemy import text
+from sqlalchemy.orm import Session
+
+from fieldrx.fleet import alerts as alert_rules
+from fieldrx.fleet.ingest import (
+    FUTURE_TOLERANCE_S,
+    INT8_MAX,
+    PG_EPOCH,
+    IngestError,
+    IngestResult,
+    cell_progress,
+)
+
+COLUMNS = (
+    "machine_id", "stream", "seq", "job_id", "cell_seq", "t_entry", "t_exit", "n_fixes",
+    "worked_s", "mass_g", "driven_m", "mean_speed_m_s", "mean_target_rate_kg_ha",
+    "mean_applied_rate_kg_ha", "flags",
+)  # fmt: skip
+COPY_TYPES = (
+    "int4", "varchar", "int8", "int4", "int4", "timestamptz", "timestamptz", "int4", "float8",
+    "float8", "float8", "float8", "float8", "float8", "varchar[]",
+)  # fmt: skip
+COPY_SQL = f"COPY job_cell_records ({', '.join(COLUMNS)}) FROM STDIN (FORMAT BINARY)"
+LOCK_NS = 7002  # advisory lock namespace: one machine's cell batches, one at a time
+
+
+def _ts(t: float) -> dt.datetime:
+    return dt.datetime.fromtimestamp(t, dt.UTC)
+
+
+def _us(t: float) -> int:
+    """Unix seconds -> microseconds since 2000-01-01 (``ingest.cell_progress``'s times)."""
+    return int(round((t - PG_EPOCH) * 1e6))
+
+
+def validate(
+    raw: list[Any], machine_id: int, stream: str, now: float
+) -> tuple[dict[int, tuple[Any, ...]], list[dict[str, Any]], set[int], int]:
+    """Valid rows by seq, rejects, rejected-for-good seqs and in-batch repeats."""
+    rows: dict[int, tuple[Any, ...]] = {}
+    rejected: list[dict[str, Any]] = []
+    dead: set[int] = set()
+    repeats = 0
+    for d in raw:
+        reason = None
+        try:
+            rec = CellRecord.from_dict(d)
+        except Exception as exc:  # ProtocolError, or TypeError from odd values
+            reason = str(exc) or type(exc).__name__
+        else:
+            if rec.machine_id != machine_id:
+                reason = f"machine_id {rec.machine_id} is not this device's machine ({machine_id})"
+            elif rec.seq > INT8_MAX:
+                reason = f"seq {rec.seq} out of range"
+            elif rec.t_exit >= now + FUTURE_TOLERANCE_S:
+                reason = f"t_exit {rec.t_exit!r} is ahead of the server clock: clock error"
+        if reason is not None:
+            seq = d.get("seq") if isinstance(d, dict) else None
+            seq = seq if type(seq) is int and seq >= 1 else None
+            rejected.append({"seq": seq, "reason": reason})
+            mid = d.get("machine_id") if isinstance(d, dict) else None
+            if seq is not None and (mid is None or mid == machine_id):
+                dead.add(seq)
+            continue
+        if rec.seq in rows:
+            repeats += 1
+            continue
+        rows[rec.seq] = (
+            machine_id, stream, rec.seq, rec.job_id, rec.cell_seq, _ts(rec.t_entry),
+            _ts(rec.t_exit), rec.n_fixes, float(rec.worked_s), float(rec.mass_g),
+            _f(rec.driven_m), _f(rec.mean_speed_m_s), _f(rec.mean_target_rate_kg_ha),
+            _f(rec.mean_applied_rate_kg_ha), list(rec.flags),
+        )  # fmt: skip
+    return rows, rejected, dead, repeats
+
+
+def _f(v: float | None) -> float | None:
+    return None if v is None else float(v)
+
+
+def ingest_cells(
+    conn: psycopg.Connection[Any],
+    machine_id: int,
+    raw: list[Any],
+    stream: str,
+    stream_start: int = 1,
+) -> IngestResult:
+    """Store one cell batch of ``stream`` for ``machine_id`` (already authenticated); the ack."""
+    if not stream:
+        raise IngestError("a cells batch must name its stream")
+    now = time.time()
+    rows, rejected, dead, repeats = validate(raw, machine_id, stream, now)
+    with conn.transaction(), conn.cursor() as cur:
+        cur.execute(
+            "SELECT m.organisation_id, s.acked_seq,"
+            " (SELECT coalesce(array_agg(j.id), '{}') FROM jobs j WHERE j.machine_id = m.id"
+            "  AND j.id = ANY(%s))"
+            " FROM (SELECT pg_advisory_xact_lock(%s, %s)) AS lock, machines m"
+            " LEFT JOIN cell_record_streams s ON s.machine_id = m.id AND s.stream = %s"
+            " WHERE m.id = %s",
+            (list({r[3] for r in rows.values()}), LOCK_NS, machine_id, stream, machine_id),
+        )
+        info = cur.fetchone()
+        if info is None:
+            raise IngestError(f"machine {machine_id} does not exist")
+        org, acked_db, mine = info[0], info[1], set(info[2])
+        for q in [q for q, r in rows.items() if r[3] not in mine]:
+            rejected.append({"seq": q, "reason": f"job {rows[q][3]} is not this machine's job"})
+            dead.add(q)
+            del rows[q]
+        acked0 = acked_db if acked_db is not None else stream_start - 1
+        result = IngestResult(
+            machine_id, acked0, rejected=rejected, duplicates=repeats, stream=stream, streamed=True
+        )
+        conflict: int | None = None
+        new: list[tuple[Any, ...]] = []
+        if rows:
+            existing: dict[int, tuple[Any, ...]] = {}
+            if acked_db is not None:  # a new stream holds nothing yet
+                cur.execute(
+                    "SELECT seq, cell_seq, t_exit FROM job_cell_records WHERE machine_id = %s"
+                    " AND stream = %s AND seq BETWEEN %s AND %s",
+                    (machine_id, stream, min(rows), max(rows)),
+                )
+                existing = {q: (c, t) for q, c, t in cur.fetchall()}
+            same = [q for q, k in existing.items() if q in rows and (rows[q][4], rows[q][6]) == k]
+            result.duplicates += len(same)
+            clash = [q for q in existing if q in rows and q not in same]
+            if clash:
+                conflict = min(clash)
+                result.stream_conflict = True
+                for q in sorted(rows):
+                    if (q >= conflict and q not in existing) or q in clash:
+                        result.rejected.append(
+                            {
+                                "seq": q,
+                                "reason": f"seq {q} on cell stream {stream} holds (or follows)"
+                                " a different record: continue on a new stream",
+                            }
+                        )
+                rows = {q: r for q, r in rows.items() if q < conflict}
+                dead = {q for q in dead if q < conflict}
+            new = [rows[q] for q in sorted(rows) if q not in existing]
+        if new:
+            with cur.copy(COPY_SQL) as copy:
+                copy.set_types(COPY_TYPES)
+                for r in new:
+                    copy.write_row(r)
+        result.stored = len(new)
+        result.acked_seq = _advance(cur, machine_id, stream, acked0, set(rows) | dead)
+        cur.execute(
+            "INSERT INTO cell_record_streams AS s (machine_id, stream, first_seq, acked_seq,"
+            " n_records) VALUES (%s, %s, %s, %s, %s) ON CONFLICT (machine_id, stream) DO UPDATE"
+            " SET acked_seq = excluded.acked_seq, last_seen_at = now(),"
+            " n_records = s.n_records + excluded.n_records",
+            (machine_id, stream, stream_start, result.acked_seq, len(new)),
+        )
+        if conflict is not None:
+            result.acked_seq = min(result.acked_seq, conflict - 1)
+        agg: dict[tuple[int, int], list[Any]] = {}
+        for r in new:
+            n = r[7]
+            if r[4] is None or n == 0:
+                continue
+            t0, t1 = _us(r[5].timestamp()), _us(r[6].timestamp())
+            a = agg.get((r[3], r[4]))
+            tsum, asum = (r[12] or 0.0) * n, (r[13] or 0.0) * n
+            if a is None:
+                agg[(r[3], r[4])] = [n, tsum, asum, t0, t1]
+            else:
+                a[0] += n
+                a[1] += tsum
+                a[2] += asum
+                a[3], a[4] = min(a[3], t0), max(a[4], t1)
+        alert_rules.notify(cur, cell_progress(cur, machine_id, org, agg))
+    return result
+
+
+def _advance(
+    cur: psycopg.Cursor[Any], machine_id: int, stream: str, acked: int, done: set[int]
+) -> int:
+    """Highest contiguous seq stored (or rejected for good), from the stored ack."""
+    while acked + 1 in done:
+        acked += 1
+    while True:
+        cur.execute(
+            "SELECT seq FROM job_cell_records WHERE machine_id = %s AND stream = %s AND seq > %s"
+            " ORDER BY seq LIMIT 2000",
+            (machine_id, stream, acked),
+        )
+        seqs = [r[0] for r in cur.fetchall()]
+        moved = False
+        for s in seqs:
+            if s == acked + 1:
+                acked = s
+                moved = True
+                while acked + 1 in done:
+                    acked += 1
+            elif s > acked + 1:
+                return acked
+        if not moved or len(seqs) < 2000:
+            return acked
+
+
+def job_cell_totals(session: Session, job_id: int, machine_id: int) -> list[Any]:
+    """A thin job's cell records summed per cell (null: no cell):
+    (cell_seq, fixes, worked s, mass g, target rate sum, applied rate sum, first t, last t),
+    the rate sums over fixes and the times (unix s) over cells' own fixes."""
+    return session.execute(
+        text(
+            "SELECT cell_seq, sum(n_fixes)::int, sum(worked_s), sum(mass_g),"
+            " sum(coalesce(mean_target_rate_kg_ha, 0) * n_fixes),"
+            " sum(coalesce(mean_applied_rate_kg_ha, 0) * n_fixes),"
+            " extract(epoch FROM min(t_entry) FILTER (WHERE n_fixes > 0))::float8,"
+            " extract(epoch FROM max(t_exit) FILTER (WHERE n_fixes > 0))::float8"
+            " FROM job_cell_records WHERE job_id = :j AND machine_id = :m GROUP BY cell_seq"
+        ),
+        {"j": job_id, "m": machine_id},
+    ).all()
