@@ -24,6 +24,7 @@ from sqlalchemy import select, text
 from fieldrx.api.common import ApiError, get_scoped, point_page
 from fieldrx.auth.deps import SessionDep, UserDep
 from fieldrx.db.models import Field, Job, JobEvent, PlanCell, Prescription
+from fieldrx.fleet.partitions import job_window
 from fieldrx.fleet.reports import JobReport, cached_report, job_plan
 
 router = APIRouter(tags=["reports"])
@@ -120,8 +121,14 @@ def as_applied_points(
 ) -> dict[str, Any]:
     """As-applied points (one per record with a position), in time order, paged."""
     job = get_scoped(session, Job, job_id, principal)
-    params = {"m": job.machine_id, "j": job.id, "lim": limit, "off": offset}
-    where = "machine_id = :m AND job_id = :j AND geom IS NOT NULL"
+    params = {
+        "m": job.machine_id,
+        "j": job.id,
+        "lim": limit,
+        "off": offset,
+        **job_window(session, job.machine_id, job.id),
+    }
+    where = "machine_id = :m AND job_id = :j AND t BETWEEN :t0 AND :t1 AND geom IS NOT NULL"
     total = session.execute(text(f"SELECT count(*) FROM telemetry WHERE {where}"), params).scalar()
     rows = session.execute(
         text(

@@ -38,6 +38,7 @@ from sqlalchemy import text
 from sqlalchemy.orm import Session
 
 from fieldrx.db.models import Field, Job, Machine, Plan, Prescription
+from fieldrx.fleet.partitions import job_window
 from fieldrx.formats.jobpackage import shaped_cells
 from fieldrx.geo.crs import to_utm
 
@@ -170,9 +171,15 @@ def build_report(session: Session, job: Job, max_gap_s: float = MAX_GAP_S) -> Jo
             " implement_down, actual_shaft_rpm, heading_deg,"
             " ST_X(ST_Transform(geom, :epsg)) AS x, ST_Y(ST_Transform(geom, :epsg)) AS y,"
             " fix_period_s"
-            " FROM telemetry WHERE machine_id = :m AND job_id = :j ORDER BY t, stream, seq"
+            " FROM telemetry WHERE machine_id = :m AND job_id = :j AND t BETWEEN :t0 AND :t1"
+            " ORDER BY t, stream, seq"
         ),
-        {"m": job.machine_id, "j": job.id, "epsg": fld.utm_epsg if fld is not None else 4326},
+        {
+            "m": job.machine_id,
+            "j": job.id,
+            "epsg": fld.utm_epsg if fld is not None else 4326,
+            **job_window(session, job.machine_id, job.id),
+        },
     ).all()
     nr = len(recs)
     if nr:
@@ -288,8 +295,11 @@ def report_key(session: Session, job: Job) -> tuple[Any, ...]:
     """What a job's report depends on that can change: its telemetry (records are only
     ever added), its state and prescription version, the machine's settings."""
     n, t_max = session.execute(
-        text("SELECT count(*), max(t) FROM telemetry WHERE job_id = :j AND machine_id = :m"),
-        {"j": job.id, "m": job.machine_id},
+        text(
+            "SELECT count(*), max(t) FROM telemetry WHERE job_id = :j AND machine_id = :m"
+            " AND t BETWEEN :t0 AND :t1"
+        ),
+        {"j": job.id, "m": job.machine_id, **job_window(session, job.machine_id, job.id)},
     ).one()
     m = session.get(Machine, job.machine_id)
     machine = (
