@@ -55,6 +55,14 @@ class Settings(BaseSettings):
     )
     imagery_max_pixels: int = Field(default=2_000_000_000, alias="FIELDRX_IMAGERY_MAX_PIXELS")
     imagery_timeout_s: float = Field(default=900.0, alias="FIELDRX_IMAGERY_TIMEOUT_S")
+    # Telemetry partitions (issue 18, fleet.partitions): raw records older than this many
+    # days are dropped a whole day at a time (0: kept forever); per-cell results are kept.
+    telemetry_retention_days: int = Field(default=0, ge=0, alias="FIELDRX_TELEMETRY_RETENTION_DAYS")
+    # how often each `fieldrx worker` runs partition maintenance (premake, retention, moving
+    # rows out of the default partition); 0: never (run `fieldrx telemetry-maintenance`)
+    telemetry_maintenance_s: float = Field(
+        default=3600.0, ge=0, alias="FIELDRX_TELEMETRY_MAINTENANCE_S"
+    )
 
 
 @lru_cache

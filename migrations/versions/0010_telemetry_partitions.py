@@ -104,7 +104,9 @@ def upgrade() -> None:
         .execute(sa.text("SELECT extversion FROM pg_extension WHERE extname = 'pg_partman'"))
         .scalar_one()
     )
-    kind = "native" if int(str(version).split(".")[0]) < 5 else "range"
+    v4 = int(str(version).split(".")[0]) < 5  # Debian 12: 4.7; PGDG images: 5 (renamed args)
+    kind = "native" if v4 else "range"
+    analyze = ", p_analyze := false" if v4 else ""
     op.execute(
         f"SELECT {pm}.create_parent(p_parent_table := 'public.telemetry', p_control := 't',"
         f" p_type := '{kind}', p_interval := '1 day', p_premake := {PREMAKE},"
@@ -116,7 +118,7 @@ def upgrade() -> None:
     )
     # a partition for every day that holds rows, then the rows themselves
     op.execute(
-        f"SELECT {pm}.create_partition_time('public.telemetry', array_agg(d), false)"
+        f"SELECT {pm}.create_partition_time('public.telemetry', array_agg(d){analyze})"
         " FROM (SELECT DISTINCT date_trunc('day', t) AS d FROM telemetry_old) days"
         " HAVING count(*) > 0"
     )

@@ -46,7 +46,7 @@ _LOCK_NS = 7002  # advisory lock namespace: partition creation (7001 is ingest's
 
 _known: set[tuple[str, int]] = set()  # (database, UTC day number) with a partition
 _failed: dict[tuple[str, int], float] = {}  # (database, day) -> monotonic time of failure
-_schemas: dict[str, str] = {}
+_partman: dict[str, tuple[str, int]] = {}  # database -> (schema, major version)
 _cache_lock = threading.Lock()
 
 
@@ -60,20 +60,29 @@ def day_start(day: int) -> dt.datetime:
     return PG_EPOCH_DT + dt.timedelta(days=day)
 
 
-def partman_schema(conn: psycopg.Connection[Any]) -> str:
-    """The schema pg_partman is installed in (``partman`` as the bootstrap creates it)."""
+def partman(conn: psycopg.Connection[Any]) -> tuple[str, int]:
+    """pg_partman's schema (``partman`` as the bootstrap creates it) and major version:
+    Debian 12 ships 4.7; the PGDG image of docker-compose may bring 5, whose
+    ``create_partition_time`` has no ``p_analyze`` argument."""
     key = _db(conn)
-    s = _schemas.get(key)
+    s = _partman.get(key)
     if s is None:
         with conn.transaction():  # never leave the caller's connection inside a transaction
             row = conn.execute(
-                "SELECT extnamespace::regnamespace::text FROM pg_extension"
+                "SELECT extnamespace::regnamespace::text, extversion FROM pg_extension"
                 " WHERE extname = 'pg_partman'"
             ).fetchone()
         if row is None:
             raise RuntimeError("pg_partman is not installed in this database (migration 0010)")
-        s = _schemas[key] = str(row[0])
+        s = _partman[key] = (str(row[0]), int(str(row[1]).split(".")[0]))
     return s
+
+
+def create_days_sql(schema: str, major: int) -> str:
+    """``create_partition_time`` for a timestamptz[] parameter, without an ANALYZE of the
+    whole set (v4: ``p_analyze`` false; v5 never analyzes there)."""
+    analyze = ", p_analyze := false" if major < 5 else ""
+    return f"SELECT {schema}.create_partition_time(%s, %s::timestamptz[]{analyze})"
 
 
 def ensure_days(conn: psycopg.Connection[Any], t_us: Iterable[int]) -> list[int]:
@@ -97,7 +106,7 @@ def ensure_days(conn: psycopg.Connection[Any], t_us: Iterable[int]) -> list[int]
         return []
     made: list[int] = []
     try:
-        pm = partman_schema(conn)
+        pm, major = partman(conn)
         with conn.transaction(), conn.cursor() as cur:
             cur.execute("SET LOCAL timezone = 'UTC'")
             cur.execute(f"SET LOCAL lock_timeout = '{CREATE_LOCK_TIMEOUT}'")
@@ -111,10 +120,7 @@ def ensure_days(conn: psycopg.Connection[Any], t_us: Iterable[int]) -> list[int]
                 if row is not None and not row[0]:
                     made.append(d)
             if made:
-                cur.execute(
-                    f"SELECT {pm}.create_partition_time(%s, %s::timestamptz[], false)",
-                    (PARENT, [day_start(d) for d in made]),
-                )
+                cur.execute(create_days_sql(pm, major), (PARENT, [day_start(d) for d in made]))
     except psycopg.Error as exc:
         log.warning(
             "telemetry partitions for %s not made now (%s): their records go to the default"
@@ -229,7 +235,7 @@ def maintain(
     (short locks), one run at a time per database (a session advisory lock).
     """
     t0 = time.perf_counter()
-    pm = partman_schema(conn)
+    pm, _ = partman(conn)
     if wait:
         conn.execute("SELECT pg_advisory_lock(%s, 1)", (_LOCK_NS,))
     elif not conn.execute("SELECT pg_try_advisory_lock(%s, 1)", (_LOCK_NS,)).fetchone()[0]:  # type: ignore[index]
