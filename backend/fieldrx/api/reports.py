@@ -118,7 +118,7 @@ def as_applied_points(
     session: SessionDep,
     limit: int = Query(default=5000, ge=1, le=50000),
     offset: int = Query(default=0, ge=0),
-) -> dict[str, Any]:
+) -> Response:
     """As-applied points (one per record with a position), in time order, paged."""
     job = get_scoped(session, Job, job_id, principal)
     params = {
@@ -137,7 +137,7 @@ def as_applied_points(
             f" implement_down FROM telemetry WHERE {where} ORDER BY t, seq LIMIT :lim OFFSET :off"
         ),
         params,
-    ).mappings()
+    )
     return point_page(rows, total or 0, limit, offset)
 
 
