@@ -356,6 +356,9 @@ def retention_drop(dsn: str, days: list[int]) -> dict[str, Any]:
 
     oldest = min(days)
     now_day = int(time.time() // DAY) - 10957  # days since 2000-01-01
+    name = "telemetry_p" + (
+        dt.datetime(2000, 1, 1, tzinfo=dt.UTC) + dt.timedelta(days=oldest)
+    ).strftime("%Y_%m_%d")
     keep = now_day - oldest - 1  # whole days newer than now - keep: the oldest ends before
     with psycopg.connect(dsn, options="-c jit=off") as conn:
         rows = conn.execute(
@@ -363,6 +366,9 @@ def retention_drop(dsn: str, days: list[int]) -> dict[str, Any]:
             (dt.datetime(2000, 1, 1, tzinfo=dt.UTC) + dt.timedelta(days=oldest),
              dt.datetime(2000, 1, 1, tzinfo=dt.UTC) + dt.timedelta(days=oldest + 1)),
         ).fetchone()[0]  # fmt: skip
+        heap, total = conn.execute(
+            "SELECT pg_relation_size(%s), pg_total_relation_size(%s)", (name, name)
+        ).fetchone()
         conn.commit()
         res = maintain(conn, keep)
         assert res is not None
@@ -371,12 +377,21 @@ def retention_drop(dsn: str, days: list[int]) -> dict[str, Any]:
         f"retention {keep} days: dropped {res.dropped} ({rows:,} rows) in {res.seconds:.3f} s"
         " (the whole maintenance run: default-partition check, pg_partman run_maintenance)"
     )
-    oldest_name = "telemetry_p" + (
-        dt.datetime(2000, 1, 1, tzinfo=dt.UTC) + dt.timedelta(days=oldest)
-    ).strftime("%Y_%m_%d")
     # the oldest loaded day, and only days before it (premade, empty: small --days runs)
-    assert oldest_name in res.dropped and max(res.dropped) == oldest_name, res.dropped
-    return {"retention_days": keep, "dropped": res.dropped, "rows": rows, "seconds": res.seconds}
+    assert name in res.dropped and max(res.dropped) == name, res.dropped
+    print(
+        f"a day's partition: {rows:,} rows, {total / 2**20:.0f} MiB with its indexes"
+        f" ({total / max(rows, 1):.0f} bytes/row; heap {heap / max(rows, 1):.0f})"
+    )
+    return {
+        "retention_days": keep,
+        "dropped": res.dropped,
+        "rows": rows,
+        "seconds": res.seconds,
+        "day_bytes": total,
+        "bytes_per_row": round(total / max(rows, 1), 1),
+        "heap_bytes_per_row": round(heap / max(rows, 1), 1),
+    }
 
 
 def main() -> int:
@@ -403,6 +418,7 @@ def main() -> int:
     from fieldrx.db.session import raw_dsn
 
     os.environ["FIELDRX_MQTT_CREDENTIALS"] = "off"
+    print(f"load average at start: {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs")
     url = make_db()
     dsn = raw_dsn(url)
     tmp = Path(tempfile.mkdtemp(prefix="fieldrx-bench-tq-"))
@@ -453,6 +469,10 @@ def main() -> int:
             "with_rows": big,
             "partitions_read": parts,
             "retention_drop_s": round(ret["seconds"], 3),
+            "day_partition_bytes_per_row": ret["bytes_per_row"],
+            "day_partition_heap_bytes_per_row": ret["heap_bytes_per_row"],
+            "loadavg_1m_end": round(os.getloadavg()[0], 1),
+            "cpus": os.cpu_count(),
             "retention_rows_dropped": ret["rows"],
             "load_s": round(load_s, 1),
             "worst_p50_ms": worst,
