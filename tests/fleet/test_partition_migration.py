@@ -59,7 +59,8 @@ def test_0010_keeps_every_row_and_dedup() -> None:
                 " SELECT m, st, s, to_timestamp(%s + d * 86400 + s * 30 + m),"
                 "  CASE WHEN m = 3 AND st = '' THEN NULL ELSE 7 END,"
                 "  ST_SetSRID(ST_MakePoint(11.5 + s * 1e-6, 48.1), 4326), 4, 0.9, 2.0, s %% 50,"
-                "  198.0 + m, true, CASE WHEN s %% 97 = 0 THEN '{no_fix}' ELSE '{}' END::varchar[], 0, 0.1,"
+                "  198.0 + m, true,"
+                "  CASE WHEN s %% 97 = 0 THEN '{no_fix}' ELSE '{}' END::varchar[], 0, 0.1,"
                 "  CASE WHEN s %% 2 = 0 THEN 0.5 END"
                 " FROM generate_series(1, 3) m, unnest(ARRAY['', 'abc']) st,"
                 "  generate_series(0, 11) d, generate_series(d * 500 + 1, d * 500 + 500) s",

@@ -174,3 +174,16 @@ def test_job_queries_read_only_the_jobs_days(conn, job, client, org) -> None:  #
     assert r.status_code == 200 and r.json()["total"] == 60, r.text
     rep = client.get(f"/api/v1/jobs/{job.job_id}/report", headers=org.headers())
     assert rep.status_code == 200 and rep.json()["n_records"] == 60, rep.text
+
+
+def test_maintenance_command(database_url: str, capsys) -> None:  # noqa: ANN001
+    """`fieldrx telemetry-maintenance` runs the same maintenance and prints what it did."""
+    import json
+
+    from fieldrx.cli import main
+
+    assert main(["telemetry-maintenance", "--retention-days", "0"]) == 0
+    out = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert out["retention_days"] == 0 and out["dropped"] == [] and out["partitions"] >= 5
+    with pytest.raises(SystemExit):
+        main(["telemetry-maintenance", "--retention-days", "-1"])

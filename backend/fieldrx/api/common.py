@@ -64,7 +64,7 @@ def point_page(rows: Result[Any], total: int, limit: int, offset: int, **extra: 
             "geometry": {"type": "Point", "coordinates": [r[ilon], r[ilat]]},
             "properties": dict(zip(names, [r[i] for i in props], strict=True)),
         }
-        for r in rows.tuples()
+        for r in rows
     ]
     nxt = offset + len(feats)
     body = {

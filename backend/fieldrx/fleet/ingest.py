@@ -688,6 +688,8 @@ def _advance(
     us = [r[2] for r in new]
     if info.first_us is not None:
         us += [info.first_us, info.last_us or info.first_us]
+    if not us:  # nothing stored on the stream and nothing new: no seq above the ack
+        return acked
     t0, t1 = _ts(min(us)), _ts(max(us))
     while True:
         cur.execute(
