@@ -227,18 +227,27 @@ def load_others(
     return time.perf_counter() - t0
 
 
-def timed(fn: Any, repeat: int) -> dict[str, float]:
+def timed(fn: Any, repeat: int, db_name: str) -> dict[str, float]:
+    """Wall time per call (p50, p90, max) and CPU time per call of everything that works
+    for it (this process, the API server, the database's backends; ``bench.ingest``'s
+    accounting): on a shared machine the wall time includes waiting for a core, the CPU
+    time is the call's own cost."""
+    from bench.ingest import cpu_seconds
+
     fn()  # warm: plans, caches
     ms = []
+    cpu0 = cpu_seconds(db_name)
     for _ in range(repeat):
         t0 = time.perf_counter()
         fn()
         ms.append((time.perf_counter() - t0) * 1000.0)
+    cpu1 = cpu_seconds(db_name)
     ms.sort()
     return {
         "p50_ms": round(statistics.median(ms), 1),
         "p90_ms": round(ms[int(0.9 * (len(ms) - 1))], 1),
         "max_ms": round(ms[-1], 1),
+        "cpu_ms": round(sum(cpu1[k] - cpu0[k] for k in cpu0) / repeat * 1000.0, 1),
     }
 
 
@@ -251,6 +260,7 @@ def measure(url: str, base: str, token: str, job: dict[str, Any], repeat: int) -
 
     c = httpx.Client(base_url=base, headers={"Authorization": f"Bearer {token}"}, timeout=60)
     jid, mid = job["job_id"], job["machine_id"]
+    db_name = url.rsplit("/", 1)[1]
     eng = make_engine(url)
     out: dict[str, Any] = {}
     with Session(eng) as s:
@@ -262,7 +272,7 @@ def measure(url: str, base: str, token: str, job: dict[str, Any], repeat: int) -
             assert rep.n_records == job["n_records"], (rep.n_records, job["n_records"])
             s.rollback()
 
-        out["report_build"] = timed(report, repeat)
+        out["report_build"] = timed(report, repeat, db_name)
     eng.dispose()
     summary = c.get(f"/api/v1/jobs/{jid}/summary").json()
     t_from, t_to = summary["first_record_at"], summary["last_record_at"]
@@ -279,14 +289,14 @@ def measure(url: str, base: str, token: str, job: dict[str, Any], repeat: int) -
     def same(body: dict[str, Any]) -> None:
         assert body["n_records"] == job["n_records"], (body["n_records"], job["n_records"])
 
-    out["report_api"] = timed(get(f"/api/v1/jobs/{jid}/report", check=same), repeat)
-    out["as_applied_points_api"] = timed(get(f"/api/v1/jobs/{jid}/as-applied"), repeat)
+    out["report_api"] = timed(get(f"/api/v1/jobs/{jid}/report", check=same), repeat, db_name)
+    out["as_applied_points_api"] = timed(get(f"/api/v1/jobs/{jid}/as-applied"), repeat, db_name)
 
     def iso(v: Any) -> str:
         return v if isinstance(v, str) else dt.datetime.fromtimestamp(v, dt.UTC).isoformat()
 
     rng = {"from": iso(t_from), "to": iso(t_to)}  # the endpoint's page (1,000)
-    out["track_api"] = timed(get(f"/api/v1/machines/{mid}/track", rng), repeat)
+    out["track_api"] = timed(get(f"/api/v1/machines/{mid}/track", rng), repeat, db_name)
     return out
 
 
@@ -430,7 +440,7 @@ def main() -> int:
         print("baseline (the table holds only the job):")
         base_t = measure(url, base, token, job, args.repeat)
         for k, v in base_t.items():
-            print(f"  {k}: p50 {v['p50_ms']} ms, p90 {v['p90_ms']} ms")
+            print(f"  {k}: p50 {v['p50_ms']} ms, p90 {v['p90_ms']} ms, CPU {v['cpu_ms']} ms/call")
         import psycopg
 
         with psycopg.connect(dsn) as conn:
@@ -451,8 +461,8 @@ def main() -> int:
         big = measure(url, base, token, job, args.repeat)
         for k, v in big.items():
             print(
-                f"  {k}: p50 {v['p50_ms']} ms, p90 {v['p90_ms']} ms"
-                f" (baseline {base_t[k]['p50_ms']})"
+                f"  {k}: p50 {v['p50_ms']} ms, p90 {v['p90_ms']} ms, CPU {v['cpu_ms']} ms/call"
+                f" (baseline p50 {base_t[k]['p50_ms']}, CPU {base_t[k]['cpu_ms']})"
             )
         print("EXPLAIN, partitions each hot query reads:")
         parts = explain_all(dsn, job)
