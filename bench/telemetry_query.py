@@ -17,7 +17,9 @@ Steps, all on a throw-away database at head (telemetry partitioned by day, migra
    and attached as that day's partition (indexes built in bulk: the fast way to load
    history, not what ingest does); the job's own day gets its share by INSERT into the
    live partition, so the job shares its partition with other machines' rows; ANALYZE;
-4. the same timings (p50 / p90 of ``--repeat`` runs each): the report as built by
+4. the same timings (p50 / p90 of ``--repeat`` runs each, and the CPU time per call of
+   this process, the API server and the database's backends: on a shared machine the
+   wall time includes waiting for a core): the report as built by
    ``fleet.reports.build_report`` (uncached), ``GET /jobs/{id}/report`` (cache check),
    ``GET /jobs/{id}/as-applied`` (the job's track points) and
    ``GET /machines/{id}/track`` over the job's time range, all through the API;
