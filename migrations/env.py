@@ -1,17 +1,18 @@
 """Alembic environment: the only way the FieldRx schema changes.
 
 GeoAlchemy2's helpers keep autogenerate from dropping PostGIS's own tables
-and from creating spatial indexes twice (shared/STACK.md).
+and from creating spatial indexes twice (shared/STACK.md); ``include_object``
+also leaves out the partitions made at run time (plan_cells, telemetry).
 """
 
 from __future__ import annotations
 
 from alembic import context
-from geoalchemy2 import alembic_helpers
-from sqlalchemy import engine_from_config, pool
-
+from fieldrx.db.bootstrap import include_object
 from fieldrx.db.models import Base
 from fieldrx.settings import get_settings
+from geoalchemy2 import alembic_helpers
+from sqlalchemy import engine_from_config, pool
 
 config = context.config
 target_metadata = Base.metadata
@@ -26,7 +27,7 @@ def run_migrations_offline() -> None:
         url=_url(),
         target_metadata=target_metadata,
         literal_binds=True,
-        include_object=alembic_helpers.include_object,
+        include_object=include_object,
         process_revision_directives=alembic_helpers.writer,
         render_item=alembic_helpers.render_item,
     )
@@ -42,7 +43,7 @@ def run_migrations_online() -> None:
         context.configure(
             connection=connection,
             target_metadata=target_metadata,
-            include_object=alembic_helpers.include_object,
+            include_object=include_object,
             process_revision_directives=alembic_helpers.writer,
             render_item=alembic_helpers.render_item,
         )

@@ -25,14 +25,17 @@ apt_install() {
 }
 have_pkg() { dpkg-query -W -f='${Status}' "$1" 2>/dev/null | grep -q "install ok installed"; }
 
-# --- PostgreSQL + PostGIS -------------------------------------------------
+# --- PostgreSQL + PostGIS + pg_partman ---------------------------------------
+# pg_partman keeps telemetry's daily partitions (migration 0010, fieldrx.fleet.partitions)
 PG_HOST=127.0.0.1
 PG_PORT=5432
 if ! have_pkg postgresql-15; then
-  apt_install postgresql-15 postgresql-15-postgis-3
-elif ! have_pkg postgresql-15-postgis-3; then
+  apt_install postgresql-15 postgresql-15-postgis-3 postgresql-15-partman
+else
   # Never name postgresql-15 here: apt would upgrade the running server.
-  apt_install postgresql-15-postgis-3
+  MISSING=()
+  for p in postgresql-15-postgis-3 postgresql-15-partman; do have_pkg $p || MISSING+=("$p"); done
+  if [[ ${#MISSING[@]} -gt 0 ]]; then apt_install "${MISSING[@]}"; fi
 fi
 if ! pg_isready -q -h $PG_HOST -p $PG_PORT; then
   if [[ ! -d /etc/postgresql/15/main ]]; then
@@ -50,7 +53,8 @@ if ! pg_isready -q -h $PG_HOST -p $PG_PORT; then
 fi
 pg_isready -h $PG_HOST -p $PG_PORT >/dev/null || { echo "PostgreSQL does not answer on $PG_HOST:$PG_PORT" >&2; exit 1; }
 # PostGIS is not a trusted extension: create it as the superuser, also in template1
-# so throw-away test databases get it.
+# so throw-away test databases get it. pg_partman (not trusted either) is created per
+# database by fieldrx.db.bootstrap.ensure_database, in schema partman.
 runuser -u postgres -- psql -q -d template1 -c "CREATE EXTENSION IF NOT EXISTS postgis" >/dev/null
 
 # --- MQTT broker (package; started below, once the virtual environment exists) ---

@@ -10,7 +10,7 @@ import argparse
 import importlib
 import sys
 
-COMMAND_MODULES = ("plan", "rx", "worker", "mqtt")
+COMMAND_MODULES = ("plan", "rx", "worker", "mqtt", "telemetry")
 
 
 def _serve(args: argparse.Namespace) -> int:

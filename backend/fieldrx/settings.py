@@ -59,6 +59,14 @@ class Settings(BaseSettings):
     # ("" = ./var/rawlogs beside the checkout), and the largest accepted (gzip bytes).
     raw_log_dir: str = Field(default="", alias="FIELDRX_RAW_LOG_DIR")
     raw_log_max_bytes: int = Field(default=512 * 1024**2, alias="FIELDRX_RAW_LOG_MAX_BYTES")
+    # Telemetry partitions (issue 18, fleet.partitions): raw records older than this many
+    # days are dropped a whole day at a time (0: kept forever); per-cell results are kept.
+    telemetry_retention_days: int = Field(default=0, ge=0, alias="FIELDRX_TELEMETRY_RETENTION_DAYS")
+    # how often each `fieldrx worker` runs partition maintenance (premake, retention, moving
+    # rows out of the default partition); 0: never (run `fieldrx telemetry-maintenance`)
+    telemetry_maintenance_s: float = Field(
+        default=3600.0, ge=0, alias="FIELDRX_TELEMETRY_MAINTENANCE_S"
+    )
 
 
 @lru_cache

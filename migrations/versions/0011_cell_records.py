@@ -26,7 +26,7 @@ from alembic import op
 from sqlalchemy.dialects.postgresql import ARRAY
 
 revision: str = "0011_cell_records"
-down_revision: str | Sequence[str] | None = "0009_job_kinds"
+down_revision: str | Sequence[str] | None = "0010_telemetry_partitions"
 branch_labels: str | Sequence[str] | None = None
 depends_on: str | Sequence[str] | None = None
 

@@ -21,7 +21,7 @@ from collections.abc import Sequence
 from alembic import op
 
 revision: str = "0013_cells"
-down_revision: str | Sequence[str] | None = "0009_job_kinds"
+down_revision: str | Sequence[str] | None = "0011_cell_records"
 branch_labels: str | Sequence[str] | None = None
 depends_on: str | Sequence[str] | None = None
 

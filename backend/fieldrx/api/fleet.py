@@ -11,6 +11,7 @@ import json
 from typing import Any
 
 from fastapi import APIRouter, Query
+from fastapi.responses import Response
 from pydantic import BaseModel, ConfigDict
 from sqlalchemy import func, select, text, update
 
@@ -217,7 +218,7 @@ def machine_track(
     to: dt.datetime | None = None,
     limit: int = Query(default=1000, ge=1, le=10000),
     offset: int = Query(default=0, ge=0),
-) -> dict[str, Any]:
+) -> Response:
     """History replay: the machine's positions in time order, one page at a time (GeoJSON)."""
     get_scoped(session, Machine, machine_id, principal)
     frm, to = _range(frm, to)
@@ -239,7 +240,7 @@ def machine_track(
             f" ORDER BY t, seq LIMIT :lim OFFSET :off"
         ),
         params,
-    ).mappings()
+    )
     return point_page(rows, total or 0, limit, offset, machine_id=machine_id)
 
 

@@ -23,6 +23,7 @@ from sqlalchemy import select, text
 from fieldrx.api.common import ApiError, get_scoped, point_page
 from fieldrx.auth.deps import SessionDep, UserDep
 from fieldrx.db.models import Field, Job, JobEvent, Prescription
+from fieldrx.fleet.partitions import job_window
 from fieldrx.fleet.reports import CellReport, JobReport, cached_report, job_plan
 from fieldrx.store import load_cells
 from fieldrx.store import tiles as cell_tiles
@@ -153,11 +154,17 @@ def as_applied_points(
     session: SessionDep,
     limit: int = Query(default=5000, ge=1, le=50000),
     offset: int = Query(default=0, ge=0),
-) -> dict[str, Any]:
+) -> Response:
     """As-applied points (one per record with a position), in time order, paged."""
     job = get_scoped(session, Job, job_id, principal)
-    params = {"m": job.machine_id, "j": job.id, "lim": limit, "off": offset}
-    where = "machine_id = :m AND job_id = :j AND geom IS NOT NULL"
+    params = {
+        "m": job.machine_id,
+        "j": job.id,
+        "lim": limit,
+        "off": offset,
+        **job_window(session, job.machine_id, job.id),
+    }
+    where = "machine_id = :m AND job_id = :j AND t BETWEEN :t0 AND :t1 AND geom IS NOT NULL"
     total = session.execute(text(f"SELECT count(*) FROM telemetry WHERE {where}"), params).scalar()
     rows = session.execute(
         text(
@@ -166,7 +173,7 @@ def as_applied_points(
             f" implement_down FROM telemetry WHERE {where} ORDER BY t, seq LIMIT :lim OFFSET :off"
         ),
         params,
-    ).mappings()
+    )
     return point_page(rows, total or 0, limit, offset)
 
 

@@ -48,6 +48,8 @@ def run(args: argparse.Namespace) -> int:
         session_expiry_s=s.worker_session_expiry_s,
         node=s.worker_node,
         slot_dir=s.worker_slot_dir,
+        maintenance_s=s.telemetry_maintenance_s,
+        retention_days=s.telemetry_retention_days,
     )
     stop = threading.Event()
     signal.signal(signal.SIGTERM, lambda *_: stop.set())

@@ -1,16 +1,19 @@
-"""Database bootstrap: create the database and PostGIS if missing, then migrate.
+"""Database bootstrap: create the database, PostGIS and pg_partman if missing, then migrate.
 
-PostGIS is not a trusted extension, so it is created by a superuser
-connection (shared/STACK.md); migrations then run as the application user.
+Neither PostGIS nor pg_partman is a trusted extension, so they are created by a
+superuser connection (shared/STACK.md); migrations then run as the application user.
 """
 
 from __future__ import annotations
 
 import os
+import re
 from pathlib import Path
+from typing import Any
 
 import psycopg
 from alembic.config import Config
+from geoalchemy2 import alembic_helpers
 from psycopg import sql
 from sqlalchemy.engine import make_url
 
@@ -37,8 +40,24 @@ def alembic_config(url: str | None = None) -> Config:
     return cfg
 
 
+# partitions are made at run time (plan_cells per plan, telemetry per day by pg_partman):
+# no model names them, so schema comparison must not take them for tables to drop
+_PARTITION = re.compile(r"^(plan_cells_p\d+|telemetry_p\d{4}_\d{2}_\d{2}|telemetry_default)$")
+
+
+def include_object(
+    obj: Any, name: str | None, type_: str, reflected: bool, compare_to: Any
+) -> bool:
+    """Alembic ``include_object``: GeoAlchemy2's rules, and run-time partitions left out."""
+    if type_ == "table" and reflected and name is not None and _PARTITION.match(name):
+        return False
+    return bool(alembic_helpers.include_object(obj, name, type_, reflected, compare_to))
+
+
 def ensure_database(url: str | None = None, superuser_dsn: str | None = None) -> None:
-    """Create the database named in ``url`` and the postgis extension in it when missing."""
+    """Create the database named in ``url`` and the postgis and pg_partman (schema
+    ``partman``, when the server has it; migration 0010 says how to install it) extensions
+    in it when missing."""
     u = make_url(url or get_settings().database_url)
     admin = superuser_dsn or (
         f"postgresql://{u.username or 'postgres'}@{u.host or '127.0.0.1'}:{u.port or 5432}/postgres"
@@ -52,6 +71,13 @@ def ensure_database(url: str | None = None, superuser_dsn: str | None = None) ->
     target = admin.rsplit("/", 1)[0] + f"/{u.database}"
     with psycopg.connect(target, autocommit=True) as conn:
         conn.execute("CREATE EXTENSION IF NOT EXISTS postgis")
+        available = conn.execute(
+            "SELECT installed_version IS NULL FROM pg_available_extensions"
+            " WHERE name = 'pg_partman'"
+        ).fetchone()
+        if available is not None and available[0]:
+            conn.execute("CREATE SCHEMA IF NOT EXISTS partman")
+            conn.execute("CREATE EXTENSION IF NOT EXISTS pg_partman SCHEMA partman")
 
 
 def drop_database(url: str, superuser_dsn: str | None = None) -> None:

@@ -400,19 +400,28 @@ class CellRecordStream(Base):
 
 class Telemetry(Base):
     """One record per fix. (machine_id, stream, seq) is the deduplication key (stream ''
-    is the legacy stream of agents that send none); rows arrive by COPY."""
+    is the legacy stream of agents that send none); rows arrive by COPY.
+
+    Partitioned by record time, one partition per UTC day, managed by pg_partman
+    (migration 0010, ``fieldrx.fleet.partitions``): the primary key must hold ``t``,
+    ingest keeps (machine_id, stream, seq) unique under its per-machine lock. Every
+    query names a machine or a job (the distribution key of a Citus deployment,
+    docs/scale.md) and, where it can, a time range (partition pruning).
+    """
 
     __tablename__ = "telemetry"
     __table_args__ = (
         Index("ix_telemetry_machine_t", "machine_id", "t"),
         Index("ix_telemetry_job_cell", "job_id", "cell_seq"),
+        Index("ix_telemetry_t_brin", "t", postgresql_using="brin"),
+        {"postgresql_partition_by": "RANGE (t)"},
     )
     machine_id: Mapped[int] = mapped_column(
         ForeignKey("machines.id", ondelete="CASCADE"), primary_key=True
     )
     stream: Mapped[str] = mapped_column(String(32), primary_key=True, server_default="")
     seq: Mapped[int] = mapped_column(BigInteger, primary_key=True)
-    t: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True))
+    t: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True), primary_key=True)
     fix_period_s: Mapped[float | None] = mapped_column(Double)
     received_at: Mapped[dt.datetime] = mapped_column(
         DateTime(timezone=True), server_default=func.now()
@@ -466,6 +475,23 @@ class TelemetryStream(Base):
     )
     first_t: Mapped[dt.datetime | None] = mapped_column(DateTime(timezone=True))
     last_t: Mapped[dt.datetime | None] = mapped_column(DateTime(timezone=True))
+    # highest seq stored on the stream (null: none): ingest skips the dedup lookup for a
+    # batch above it and bounds its lookups by first_t..last_t (migration 0010)
+    max_seq: Mapped[int | None] = mapped_column(BigInteger)
+
+
+class TelemetryJobSpan(Base):
+    """First and last record time of a machine's records of one job: a job's telemetry
+    queries name this range, so they touch only the job's daily partitions (0010)."""
+
+    __tablename__ = "telemetry_job_spans"
+    machine_id: Mapped[int] = mapped_column(
+        ForeignKey("machines.id", ondelete="CASCADE"), primary_key=True
+    )
+    job_id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    first_t: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True))
+    last_t: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True))
+    n_records: Mapped[int] = mapped_column(BigInteger)
 
 
 class MachineStatus(Base):

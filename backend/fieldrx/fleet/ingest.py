@@ -14,7 +14,12 @@ the machine's legacy stream ''. One batch is one transaction:
    batches of the same machine (two MQTT workers, a retry racing the
    original, two agents), so the stream's stored seqs can be read once and
    the new rows COPied straight into ``telemetry`` with COPY BINARY (EWKB
-   points), the fastest path measured here (shared/STACK.md);
+   points), the fastest path measured here (shared/STACK.md). ``telemetry``
+   is partitioned by day (``fleet.partitions``): the records' days are made
+   first if missing, and the seq lookups name a time range so they read only
+   the stream's days: none at all for a batch above the stream's highest
+   stored seq (the common case), the batch's own time range for resends,
+   the stream's first..last record time otherwise;
 3. a seq already stored on the stream is a duplicate only if it is the same
    record (same fix time); if it holds another record the stream's numbering
    went backwards (restored or cloned queue): nothing from that seq on is
@@ -62,6 +67,7 @@ from fieldrx_edge.protocol import (
 )
 
 from fieldrx.fleet import alerts as alert_rules
+from fieldrx.fleet.partitions import ensure_days, record_job_spans
 from fieldrx.fleet.telemetry_row import (
     PG_EPOCH,
     TELEMETRY_COPY,
@@ -354,6 +360,11 @@ class MachineInfo:
     stream_seen: float | None  # this stream's last batch (epoch s)
     other_seen: float | None  # the machine's other streams' last batch (epoch s)
     event_alerts: dict[str, int] = field(default_factory=dict)  # EVENT_KINDS not ended
+    # the stream's highest stored seq and first/last record time (int8 us; None: nothing
+    # stored): every stored record of the stream lies in that time range (migration 0010)
+    max_seq: int | None = None
+    first_us: int | None = None
+    last_us: int | None = None
 
 
 def _lock_machine(cur: psycopg.Cursor[Any], machine_id: int, stream: str) -> MachineInfo | None:
@@ -365,7 +376,8 @@ def _lock_machine(cur: psycopg.Cursor[Any], machine_id: int, stream: str) -> Mac
         "   WHERE a.machine_id = m.id AND a.ended_at IS NULL),"
         " extract(epoch FROM ts.last_seen_at)::float8,"
         " (SELECT extract(epoch FROM max(o.last_seen_at))::float8 FROM telemetry_streams o"
-        "   WHERE o.machine_id = m.id AND o.stream <> %s)"
+        "   WHERE o.machine_id = m.id AND o.stream <> %s),"
+        " ts.max_seq, ts.first_t, ts.last_t"
         " FROM (SELECT pg_advisory_xact_lock(%s, %s)) AS lock, machines m"
         " LEFT JOIN machine_status s ON s.machine_id = m.id"
         " LEFT JOIN telemetry_streams ts ON ts.machine_id = m.id AND ts.stream = %s"
@@ -378,7 +390,10 @@ def _lock_machine(cur: psycopg.Cursor[Any], machine_id: int, stream: str) -> Mac
     alerts = r[5] if isinstance(r[5], dict) else orjson.loads(r[5])
     events = {k: v for k, v in alerts.items() if k in alert_rules.EVENT_KINDS}
     conds = {k: v for k, v in alerts.items() if k not in events}
-    return MachineInfo(r[0], r[1], r[2], r[3], r[4], conds, r[6], r[7], events)
+    return MachineInfo(
+        r[0], r[1], r[2], r[3], r[4], conds, r[6], r[7], events, r[8],
+        None if r[9] is None else _t_us(r[9]), None if r[10] is None else _t_us(r[10]),
+    )  # fmt: skip
 
 
 def _t_us(t: dt.datetime) -> int:
@@ -400,6 +415,7 @@ def ingest(
     ``streamed``: the batch was format 2 (default: a stream was named)."""
     now = time.time()
     rows, rejected, dead, repeats = validate(raw, machine_id, stream, now)
+    ensure_days(conn, [r.t for r in rows.values()])  # own transaction, before the batch's
     with conn.transaction(), conn.cursor() as cur:
         info = _lock_machine(cur, machine_id, stream)
         if info is None:
@@ -412,15 +428,7 @@ def ingest(
         new: list[TelemetryRow] = []
         conflict: int | None = None
         if rows:
-            lo, hi = min(rows), max(rows)
-            existing: dict[int, int] = {}
-            if info.acked_seq is not None:  # a new stream holds nothing yet
-                cur.execute(
-                    "SELECT seq, t FROM telemetry WHERE machine_id = %s AND stream = %s"
-                    " AND seq BETWEEN %s AND %s",
-                    (machine_id, stream, lo, hi),
-                )
-                existing = {seq: _t_us(t) for seq, t in cur.fetchall()}
+            existing = _stored(cur, machine_id, stream, info, rows)
             if existing:
                 same = [q for q, t_us in existing.items() if q in rows and rows[q].t == t_us]
                 result.duplicates += len(same)
@@ -437,8 +445,9 @@ def ingest(
             new = [rows[s] for s in sorted(rows) if s not in existing]
         if new:
             TELEMETRY_COPY.write_rows(cur, new)
+            record_job_spans(cur, machine_id, [r.t for r in new], [r.job_id for r in new])
         result.stored = len(new)
-        result.acked_seq = _advance(cur, machine_id, stream, acked0, set(rows) | dead)
+        result.acked_seq = _advance(cur, machine_id, stream, acked0, set(rows) | dead, info, new)
         messages: list[dict[str, Any]] = []
         _stream_row(cur, machine_id, stream, stream_start, result.acked_seq, new, info)
         if conflict is not None:
@@ -487,6 +496,48 @@ def ingest(
     return result
 
 
+def _ts(us: int) -> dt.datetime:
+    return _PG_EPOCH_DT + dt.timedelta(microseconds=us)
+
+
+def _stored(
+    cur: psycopg.Cursor[Any],
+    machine_id: int,
+    stream: str,
+    info: MachineInfo,
+    rows: dict[int, tuple[Any, ...]],
+) -> dict[int, int]:
+    """Stored records of the stream holding a seq of this batch: seq -> t (int8 us).
+
+    Only seqs up to the stream's highest stored seq can be stored; a batch above it (new
+    records in order, the common case) needs no lookup. A resend holds the same records,
+    so its stored copies lie within the batch's own time range: looked up there first
+    (one or two days). What is still unmatched (records stored out of order, or another
+    record under the same seq: a restored queue) is looked up over the stream's first to
+    last record time, which holds every stored record of the stream.
+    """
+    if info.acked_seq is None or info.max_seq is None:  # a new stream holds nothing yet
+        return {}
+    cand = [q for q in rows if q <= info.max_seq]
+    if not cand:
+        return {}
+    sql = (
+        "SELECT seq, t FROM telemetry WHERE machine_id = %s AND stream = %s"
+        " AND seq BETWEEN %s AND %s AND t BETWEEN %s AND %s"
+    )
+    ts = [rows[q][2] for q in cand]
+    cur.execute(sql, (machine_id, stream, min(cand), max(cand), _ts(min(ts)), _ts(max(ts))))
+    found = {seq: _t_us(t) for seq, t in cur.fetchall()}
+    rest = [q for q in cand if q not in found]
+    if rest and info.first_us is not None and info.last_us is not None:
+        cur.execute(
+            sql,
+            (machine_id, stream, min(rest), max(rest), _ts(info.first_us), _ts(info.last_us)),
+        )
+        found.update((seq, _t_us(t)) for seq, t in cur.fetchall())
+    return found
+
+
 def _conflict_reason(seq: int, stream: str, clash: bool) -> str:
     what = "holds a different record" if clash else "follows a seq that does"
     return (
@@ -512,13 +563,17 @@ def _stream_row(
         t1 = dt.datetime.fromtimestamp(max(us) / 1e6 + PG_EPOCH, dt.UTC)
     cur.execute(
         "INSERT INTO telemetry_streams AS ts (machine_id, stream, first_seq, acked_seq,"
-        " n_records, first_t, last_t) VALUES (%s, %s, %s, %s, %s, %s, %s)"
+        " n_records, first_t, last_t, max_seq) VALUES (%s, %s, %s, %s, %s, %s, %s, %s)"
         " ON CONFLICT (machine_id, stream) DO UPDATE SET acked_seq = excluded.acked_seq,"
         " last_seen_at = now(), n_records = ts.n_records + excluded.n_records,"
         " first_t = least(ts.first_t, excluded.first_t),"
-        " last_t = greatest(ts.last_t, excluded.last_t)",
-        (machine_id, stream, stream_start if stream else 1, acked, len(new), t0, t1),
-    )
+        " last_t = greatest(ts.last_t, excluded.last_t),"
+        " max_seq = greatest(ts.max_seq, excluded.max_seq)",
+        (
+            machine_id, stream, stream_start if stream else 1, acked, len(new), t0, t1,
+            max(r.seq for r in new) if new else None,
+        ),
+    )  # fmt: skip
 
 
 def _streams_alert(
@@ -572,16 +627,34 @@ def _may_alert(new: list[TelemetryRow], info: MachineInfo) -> bool:
 
 
 def _advance(
-    cur: psycopg.Cursor[Any], machine_id: int, stream: str, acked: int, done: set[int]
+    cur: psycopg.Cursor[Any],
+    machine_id: int,
+    stream: str,
+    acked: int,
+    done: set[int],
+    info: MachineInfo,
+    new: list[TelemetryRow],
 ) -> int:
-    """Highest contiguous seq stored (or rejected for good), starting from the stored ack."""
+    """Highest contiguous seq stored (or rejected for good), starting from the stored ack.
+
+    Stored seqs above the ack are looked up only when there can be any (the stream's
+    highest stored seq, with this batch's, is above it), within the stream's time range."""
     while acked + 1 in done:
         acked += 1
+    top = max([info.max_seq or 0, *(r.seq for r in new)])
+    if acked >= top:
+        return acked
+    us = [r.t for r in new]
+    if info.first_us is not None:
+        us += [info.first_us, info.last_us or info.first_us]
+    if not us:  # nothing stored on the stream and nothing new: no seq above the ack
+        return acked
+    t0, t1 = _ts(min(us)), _ts(max(us))
     while True:
         cur.execute(
             "SELECT seq FROM telemetry WHERE machine_id = %s AND stream = %s AND seq > %s"
-            " ORDER BY seq LIMIT 2000",
-            (machine_id, stream, acked),
+            " AND t BETWEEN %s AND %s ORDER BY seq LIMIT 2000",
+            (machine_id, stream, acked, t0, t1),
         )
         seqs = [r[0] for r in cur.fetchall()]
         moved = False

@@ -11,6 +11,7 @@ behind it, and ends when it is back at or above it.
 
 from __future__ import annotations
 
+import datetime as dt
 from typing import Any
 
 import psycopg
@@ -40,12 +41,24 @@ def check_depth_window(
     window_m = float(s["alert_window_m"])
     min_pct = float(s["alert_min_qualified_pct"])
     lo, hi = qualified_band_mm(float(s["target_depth_mm"]))
+    # the job's latest record time: its span (fleet.partitions), widened by this batch
+    cur.execute(
+        "SELECT last_t FROM telemetry_job_spans WHERE machine_id = %s AND job_id = %s",
+        (machine_id, job_id),
+    )
+    last = cur.fetchone()
+    if last is None:
+        return []
     cur.execute(
         "SELECT extract(epoch FROM t)::float8, speed_filtered_m_s, depth_mm FROM telemetry"
         " WHERE machine_id = %s AND job_id = %s AND implement_down AND depth_mm IS NOT NULL"
-        " AND t >= (SELECT max(t) FROM telemetry WHERE machine_id = %s AND job_id = %s)"
-        " - make_interval(secs => %s) ORDER BY t DESC",
-        (machine_id, job_id, machine_id, job_id, window_m / MIN_SPEED_M_S + 2.0),
+        " AND t BETWEEN %s AND %s ORDER BY t DESC",
+        (
+            machine_id,
+            job_id,
+            last[0] - dt.timedelta(seconds=window_m / MIN_SPEED_M_S + 2.0),
+            last[0],
+        ),
     )
     dist = 0.0
     n = ok = 0

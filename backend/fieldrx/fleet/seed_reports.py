@@ -22,12 +22,14 @@ from sqlalchemy import text
 from sqlalchemy.orm import Session
 
 from fieldrx.db.models import Alert, Job
+from fieldrx.fleet.partitions import job_window
 
 _ROWS_SQL = text(
     """
     SELECT seq, extract(epoch FROM t) AS ts, speed_filtered_m_s, implement_down,
            target_shaft_rpm, actual_shaft_rpm, depth_mm, alarms
-    FROM telemetry WHERE machine_id = :m AND job_id = :j ORDER BY t, seq
+    FROM telemetry WHERE machine_id = :m AND job_id = :j AND t BETWEEN :t0 AND :t1
+    ORDER BY t, seq
     """
 )
 
@@ -42,14 +44,17 @@ _CELLS_SQL = text(
                FILTER (WHERE t.depth_mm IS NOT NULL) AS qualified_pct
     FROM telemetry t
     JOIN plan_cells pc ON pc.plan_id = :plan AND ST_Intersects(pc.geom, t.geom)
-    WHERE t.machine_id = :m AND t.job_id = :j AND t.implement_down AND t.geom IS NOT NULL
+    WHERE t.machine_id = :m AND t.job_id = :j AND t.t BETWEEN :t0 AND :t1
+      AND t.implement_down AND t.geom IS NOT NULL
     GROUP BY pc.seq ORDER BY pc.seq
     """
 )
 
 
 def _rows(session: Session, job: Job) -> list[dict[str, Any]]:
-    res = session.execute(_ROWS_SQL, {"m": job.machine_id, "j": job.id})
+    res = session.execute(
+        _ROWS_SQL, {"m": job.machine_id, "j": job.id, **job_window(session, job.machine_id, job.id)}
+    )
     return [
         {
             "seq": r.seq,
@@ -107,7 +112,14 @@ def kind_report(session: Session, job: Job, cells: bool = True) -> dict[str, Any
     if cells:
         res = session.execute(
             _CELLS_SQL,
-            {"m": job.machine_id, "j": job.id, "plan": job.plan_id, "lo": lo, "hi": hi},
+            {
+                "m": job.machine_id,
+                "j": job.id,
+                "plan": job.plan_id,
+                "lo": lo,
+                "hi": hi,
+                **job_window(session, job.machine_id, job.id),
+            },
         )
         keep = (
             ("ndvi", "ndvi_raw", "target_rate_kg_ha", "applied_rate_kg_ha")

@@ -16,6 +16,11 @@ broker lets only machine N publish on machine N's telemetry topic, so the machin
 id taken from the topic is the sender's. Defence in depth: ingest rejects every
 record whose ``machine_id`` is not the topic's.
 
+Telemetry partitions: every ``maintenance_s`` (FIELDRX_TELEMETRY_MAINTENANCE_S, from
+start) a worker runs ``fleet.partitions.maintain`` (premake days, move late records out
+of the default partition, drop days past FIELDRX_TELEMETRY_RETENTION_DAYS); workers take
+turns, one run at a time.
+
 Sessions: each worker holds a *slot* (the lowest free one per node, broker and
 group, kept by a lock file in FIELDRX_WORKER_SLOT_DIR) and connects as
 ``fieldrx-worker-<group>-<node>-<slot>`` (node: FIELDRX_WORKER_NODE, default the
@@ -50,6 +55,7 @@ from fieldrx.db.session import raw_dsn
 from fieldrx.fleet.alerts import check_no_data
 from fieldrx.fleet.cellrecords import ingest_cells
 from fieldrx.fleet.ingest import Batch, IngestError, ingest, parse_batch
+from fieldrx.fleet.partitions import maintain
 from fieldrx.fleet.status import sweep_offline
 
 log = logging.getLogger(__name__)
@@ -94,6 +100,8 @@ class IngestWorker:
         session_expiry_s: int = 3600,
         node: str = "",
         slot_dir: str = "",
+        maintenance_s: float = 0.0,
+        retention_days: int = 0,
     ) -> None:
         self.broker = Broker.from_url(mqtt_url, WORKER_USER)
         self.host = self.broker.host
@@ -103,6 +111,10 @@ class IngestWorker:
         self.batch_s = batch_ms / 1000.0
         self.heartbeat_timeout_s = heartbeat_timeout_s
         self.no_data_every_s = no_data_every_s
+        # telemetry partition maintenance (fleet.partitions) every maintenance_s, from start;
+        # workers take turns (the first to hold the lock runs it, the others skip)
+        self.maintenance_s = maintenance_s
+        self.retention_days = retention_days
         self.stats = WorkerStats()
         self.inbox: queue.Queue[mqtt.MQTTMessage] = queue.Queue()
         self.subscribed = threading.Event()
@@ -184,6 +196,7 @@ class IngestWorker:
         self.client.loop_start()
         conn = psycopg.connect(self.dsn, options="-c jit=off")
         last_check = 0.0
+        last_maintenance = -float("inf")
         try:
             while not stop.is_set():
                 try:
@@ -217,11 +230,32 @@ class IngestWorker:
                     except psycopg.Error as exc:
                         log.warning("no-data check failed: %s", exc)
                         conn = self._reconnect(conn)
+                if self.maintenance_s > 0 and now - last_maintenance >= self.maintenance_s:
+                    last_maintenance = now
+                    conn = self._maintain(conn)
         finally:
             self.client.loop_stop()
             self.client.disconnect()
             conn.close()
         return self.stats
+
+    def _maintain(self, conn: psycopg.Connection[Any]) -> psycopg.Connection[Any]:
+        """Telemetry partition maintenance, unless another worker is running it."""
+        try:
+            res = maintain(conn, self.retention_days, wait=False)
+        except (psycopg.Error, RuntimeError) as exc:
+            log.warning("telemetry partition maintenance failed: %s", exc)
+            return self._reconnect(conn)
+        if res is not None and (res.created or res.dropped or res.moved_rows):
+            log.warning(
+                "telemetry partitions: %d made, %d dropped (retention %d days), %d rows moved"
+                " out of the default partition",
+                len(res.created),
+                len(res.dropped),
+                res.retention_days,
+                res.moved_rows,
+            )
+        return conn
 
     def _beat(self) -> None:
         """Touch FIELDRX_WORKER_HEARTBEAT (if set) while the broker and the database answer:

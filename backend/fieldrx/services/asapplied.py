@@ -13,6 +13,7 @@ from sqlalchemy import select, text
 from sqlalchemy.orm import Session
 
 from fieldrx.db.models import Field, Job, PlanCell, Prescription
+from fieldrx.fleet.partitions import job_window
 from fieldrx.fleet.reports import JobReport, job_plan
 from fieldrx.formats.asapplied import (
     AsAppliedPoints,
@@ -25,13 +26,14 @@ from fieldrx.formats.asapplied import (
 POINTS_SQL = text(
     "SELECT extract(epoch FROM t)::float8, ST_X(geom), ST_Y(geom), target_rate_kg_ha,"
     " applied_rate_kg_ha, coalesce(speed_filtered_m_s, speed_raw_m_s), implement_down"
-    " FROM telemetry WHERE machine_id = :m AND job_id = :j AND geom IS NOT NULL"
-    " ORDER BY t, seq"
+    " FROM telemetry WHERE machine_id = :m AND job_id = :j AND t BETWEEN :t0 AND :t1"
+    " AND geom IS NOT NULL ORDER BY t, seq"
 )
 
 
 def job_points(session: Session, job: Job) -> AsAppliedPoints:
-    rows = session.execute(POINTS_SQL, {"m": job.machine_id, "j": job.id}).all()
+    window = job_window(session, job.machine_id, job.id)
+    rows = session.execute(POINTS_SQL, {"m": job.machine_id, "j": job.id, **window}).all()
 
     def col(i: int) -> np.ndarray:
         return np.asarray([np.nan if r[i] is None else r[i] for r in rows], dtype=float)

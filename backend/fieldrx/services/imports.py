@@ -40,6 +40,9 @@ from fieldrx.db.models import (
     PrescriptionVersion,
     Telemetry,
 )
+from fieldrx.db.session import raw_dsn
+from fieldrx.fleet.db import raw_connection
+from fieldrx.fleet.partitions import PG_EPOCH_DT, ensure_days, record_job_spans
 from fieldrx.formats import FormatError
 from fieldrx.formats.isoxml_import import RxIn, TaskDataSet
 from fieldrx.formats.timelog import TimeLog
@@ -290,14 +293,23 @@ def store_timelogs(
             )
     if not rows:
         raise FormatError(f"{source_name}: no time log record has a position")
+    # the records' daily partitions (a task log may be years old), made and committed on
+    # a connection of their own; then the rows and the job's time span (fleet.partitions)
+    t_us = [(r["t"] - PG_EPOCH_DT) // dt.timedelta(microseconds=1) for r in rows]
+    with raw_connection(raw_dsn(session.get_bind().url.render_as_string(hide_password=False))) as c:
+        ensure_days(c, t_us)
     session.execute(insert(Telemetry), rows)
+    with session.connection().connection.dbapi_connection.cursor() as cur:  # type: ignore[union-attr]
+        record_job_spans(cur, machine.id, t_us, [job.id] * len(rows))
+    window = {"m": machine.id, "t0": min(r["t"] for r in rows), "t1": max(r["t"] for r in rows)}
     plan_id = rx.plan_id
     session.execute(
         text(
             "UPDATE telemetry t SET cell_seq = pc.seq FROM plan_cells pc"
-            " WHERE t.machine_id = :m AND pc.plan_id = :p AND ST_Intersects(pc.geom, t.geom)"
+            " WHERE t.machine_id = :m AND t.t BETWEEN :t0 AND :t1 AND pc.plan_id = :p"
+            " AND ST_Intersects(pc.geom, t.geom)"
         ),
-        {"m": machine.id, "p": plan_id},
+        {**window, "p": plan_id},
     )
     session.execute(
         text(
@@ -305,9 +317,10 @@ def store_timelogs(
             " applied_rate_sum, first_t, last_t)"
             " SELECT :j, cell_seq, count(*), sum(coalesce(target_rate_kg_ha, 0)),"
             " sum(applied_rate_kg_ha), min(t), max(t) FROM telemetry"
-            " WHERE machine_id = :m AND cell_seq IS NOT NULL AND implement_down GROUP BY cell_seq"
+            " WHERE machine_id = :m AND t BETWEEN :t0 AND :t1 AND cell_seq IS NOT NULL"
+            " AND implement_down GROUP BY cell_seq"
         ),
-        {"j": job.id, "m": machine.id},
+        {**window, "j": job.id},
     )
     session.flush()
     return {"job_id": job.id, "machine_id": machine.id, "records": len(rows)}
