@@ -8,9 +8,8 @@ import psycopg
 from alembic import command
 from alembic.autogenerate import compare_metadata
 from alembic.migration import MigrationContext
-from fieldrx.db.bootstrap import alembic_config, drop_database, ensure_database
+from fieldrx.db.bootstrap import alembic_config, drop_database, ensure_database, include_object
 from fieldrx.db.models import Base
-from geoalchemy2 import alembic_helpers
 from sqlalchemy import create_engine
 
 from tests.conftest import PG
@@ -36,9 +35,7 @@ def test_upgrade_downgrade_roundtrip() -> None:
         assert {"fields", "plan_cells", "telemetry", "prescription_rates", "api_tokens"} <= tables
         engine = create_engine(url)
         with engine.connect() as conn:
-            ctx = MigrationContext.configure(
-                conn, opts={"include_object": alembic_helpers.include_object}
-            )
+            ctx = MigrationContext.configure(conn, opts={"include_object": include_object})
             diff = compare_metadata(ctx, Base.metadata)
         engine.dispose()
         assert diff == [], f"models and migrations disagree: {diff}"

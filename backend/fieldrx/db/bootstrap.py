@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import Any
 
 import psycopg
 from alembic.config import Config
@@ -27,6 +28,22 @@ def _root() -> Path:
         if candidate and (Path(candidate) / "alembic.ini").is_file():
             return Path(candidate)
     raise FileNotFoundError("alembic.ini not found: set FIELDRX_ROOT to the folder that holds it")
+
+
+def include_object(
+    obj: Any, name: str | None, type_: str, reflected: bool, compare_to: Any
+) -> bool:
+    """What Alembic's autogenerate compares: GeoAlchemy2's filter (PostGIS's own tables and
+    spatial indexes), and not procrastinate's queue tables, which revision 0012 creates from
+    the SQL procrastinate ships instead of from models."""
+    from geoalchemy2 import alembic_helpers
+
+    if type_ == "table" and (name or "").startswith("procrastinate_"):
+        return False
+    table = getattr(obj, "table", None)
+    if table is not None and str(getattr(table, "name", "")).startswith("procrastinate_"):
+        return False
+    return bool(alembic_helpers.include_object(obj, name, type_, reflected, compare_to))
 
 
 def alembic_config(url: str | None = None) -> Config:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -391,10 +392,27 @@ def create_plan_bounded(
     return plan
 
 
-def create_plan(session: Session, field: Field, params: PlanParams, organisation_id: int) -> Plan:
-    """Plan + grid + store (flushes, does not commit). Raises ``PlanningError``."""
+ProgressFn = Callable[[float, str], None]
+
+
+def _no_progress(share: float, message: str) -> None:
+    return None
+
+
+def create_plan(
+    session: Session,
+    field: Field,
+    params: PlanParams,
+    organisation_id: int,
+    progress: ProgressFn = _no_progress,
+) -> Plan:
+    """Plan + grid + store (flushes, does not commit). Raises ``PlanningError``.
+
+    ``progress(share, message)`` is called between the stages (a background task shows it;
+    it may raise to stop the work, which then stores nothing)."""
     t0 = time.perf_counter()
     check_plan_cost(field.area_m2, params)
+    progress(0.05, "planning the coverage path")
     boundary = field_utm(field)
     cov = plan_coverage(
         boundary,
@@ -409,6 +427,7 @@ def create_plan(session: Session, field: Field, params: PlanParams, organisation
         pattern=params.pattern,
     )
     t_plan = time.perf_counter()
+    progress(0.4, "cutting the path into cells")
     grid = build_grid(
         cov,
         boundary,
@@ -416,6 +435,7 @@ def create_plan(session: Session, field: Field, params: PlanParams, organisation
         min_cell_fraction=params.min_cell_fraction,
     )
     t_grid = time.perf_counter()
+    progress(0.6, f"storing {len(grid):,} cells")
     metrics: dict[str, Any] = dict(cov.metrics())
     metrics["n_cells"] = len(grid)
     metrics["cells_uncovered_m2"] = round(grid.uncovered_m2, 3)
