@@ -255,3 +255,26 @@ def test_background_prescription(client, org, db) -> None:
     assert rx["name"] == "flat" and rx["plan_id"] == plan["id"]
     db.rollback()
     assert db.scalar(select(func.count()).where(Prescription.plan_id == plan["id"])) == 1
+
+
+def test_concurrent_plans_of_different_fields_do_not_deadlock(client, org, db) -> None:
+    """Two workers storing plans at the same moment: each ATTACH PARTITION of plan_cells
+    locks the parent and the referenced tables in an order that can cross (PostgreSQL
+    reported a deadlock and one plan failed, found by the two-worker queue test)."""
+    from fieldrx.settings import get_settings
+    from fieldrx.tasks.work import plan_child
+
+    url = get_settings().database_url
+    ids = make_fields(client, org, 8, 300, 200)
+    tasks = [
+        client.post(
+            f"/api/v1/fields/{fid}/plans?background=true", headers=org.headers(), json=PLAN
+        ).json()["id"]
+        for fid in ids
+    ]
+    db.execute(text("UPDATE tasks SET status = 'running' WHERE id = ANY(:ids)"), {"ids": tasks})
+    db.commit()
+    with ThreadPoolExecutor(4) as ex:
+        results = list(ex.map(lambda t: plan_child(url, t, 60.0), tasks))
+    assert len({r["plan_id"] for r in results}) == len(ids)
+    assert _plans(db, ids) == len(ids)

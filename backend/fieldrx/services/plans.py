@@ -254,6 +254,9 @@ def fast_cell_copy_payloads(
     yield pgcopy.TRAILER
 
 
+STORE_LOCK_NS = 7004  # advisory lock namespace: plans are stored one at a time (create_plan)
+
+
 def copy_cells(session: Session, plan_id: int, grid: Grid, epsg: int) -> dict[str, float]:
     """Store the grid's cells in the plan's own partition, inside the session's transaction.
 
@@ -450,6 +453,11 @@ def create_plan(
         n_cells=len(grid),
         route=shape_to_db(route),
     )
+    # Stores take turns (lock held to commit): ATTACH PARTITION needs SHARE ROW EXCLUSIVE on
+    # plans, which every other transaction that inserted a plan row holds against it while
+    # it waits for plan_cells in turn; two concurrent stores deadlocked (PostgreSQL aborted
+    # one: found by two task workers planning at once). Planning and the grid stay parallel.
+    session.execute(text("SELECT pg_advisory_xact_lock(:ns, 0)"), {"ns": STORE_LOCK_NS})
     # this transaction attaches a bulk-built partition itself (migration 0002 trigger)
     session.execute(text("SELECT set_config('fieldrx.bulk_plan_cells', 'on', true)"))
     session.add(plan)

@@ -28,4 +28,4 @@ nothing. So a plan is stored once however often its job runs.
 from __future__ import annotations
 
 QUEUES = ("plan", "prescription", "imagery")  # one queue per kind of work
-TASK_LOCK_NS = 7003  # advisory lock namespace (fleet.ingest uses 7001, fleet.alerts 7002)
+TASK_LOCK_NS = 7003  # advisory lock namespace (fleet.ingest 7001, fleet.alerts 7002, plans 7004)
