@@ -748,6 +748,8 @@ def main() -> int:
                     [
                         str(BIN / "fieldrx"),
                         "worker",
+                        "--role",
+                        "ingest",
                         "--group",
                         group,
                         "--batch-ms",

@@ -9,7 +9,8 @@ PORT=${FIELDRX_PORT:-8000}
 mkdir -p .run
 WORKER_PID=""
 if .venv/bin/fieldrx worker --help >/dev/null 2>&1; then
-  .venv/bin/fieldrx worker >.run/worker.log 2>&1 &
+  # MQTT telemetry ingest and background tasks (plans, prescriptions, imagery ingest)
+  .venv/bin/fieldrx worker --role all >.run/worker.log 2>&1 &
   WORKER_PID=$!
 fi
 cleanup() { [[ -n "$WORKER_PID" ]] && kill "$WORKER_PID" 2>/dev/null || true; }

@@ -44,6 +44,7 @@ ROUTERS = (
     "live",
     "archive",
     "imports",
+    "tasks",
 )
 
 

@@ -49,3 +49,9 @@ class Busy(DomainError):
     retry later."""
 
     status = 503
+
+
+class Cancelled(DomainError):
+    """The user cancelled the work (a background task); nothing of it was stored."""
+
+    status = 409

@@ -67,6 +67,16 @@ class Settings(BaseSettings):
     telemetry_maintenance_s: float = Field(
         default=3600.0, ge=0, alias="FIELDRX_TELEMETRY_MAINTENANCE_S"
     )
+    # uploads larger than this are converted by a task worker (202 + task) instead of inline
+    imagery_background_bytes: int = Field(
+        default=64 * 1024**2, ge=0, alias="FIELDRX_IMAGERY_BACKGROUND_BYTES"
+    )
+    # Background tasks (issue 18, fieldrx.tasks): jobs run at once per worker process, how
+    # often a worker proves it is alive, and after how long without a heartbeat its running
+    # jobs are handed to another worker (stalled-job recovery).
+    task_concurrency: int = Field(default=2, ge=1, alias="FIELDRX_TASK_CONCURRENCY")
+    task_heartbeat_s: float = Field(default=10.0, gt=0, alias="FIELDRX_TASK_HEARTBEAT_S")
+    task_stalled_after_s: float = Field(default=60.0, gt=0, alias="FIELDRX_TASK_STALLED_AFTER_S")
 
 
 @lru_cache

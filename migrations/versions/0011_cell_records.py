@@ -14,7 +14,7 @@ distributed by machine (Citus) with telemetry; reports read it by (job, cell).
 for cell streams: kept apart so a thin agent's two streams are not two agents).
 
 Revision ID: 0011_cell_records
-Revises: 0009_job_kinds
+Revises: 0010_telemetry_partitions
 """
 
 from __future__ import annotations

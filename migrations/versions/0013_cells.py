@@ -11,7 +11,7 @@ INCLUDING CONSTRAINTS``; ATTACH PARTITION requires it).
 Downgrade keeps each MultiPolygon's largest part again (what was stored before).
 
 Revision ID: 0013_cells
-Revises: 0009_job_kinds
+Revises: 0012_tasks
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ from collections.abc import Sequence
 from alembic import op
 
 revision: str = "0013_cells"
-down_revision: str | Sequence[str] | None = "0011_cell_records"
+down_revision: str | Sequence[str] | None = "0012_tasks"
 branch_labels: str | Sequence[str] | None = None
 depends_on: str | Sequence[str] | None = None
 

@@ -39,8 +39,16 @@ def test_upgrade_downgrade_roundtrip() -> None:
             diff = compare_metadata(ctx, Base.metadata)
         engine.dispose()
         assert diff == [], f"models and migrations disagree: {diff}"
+        with psycopg.connect(dsn) as conn:  # 0012: procrastinate's queue schema is there
+            assert conn.execute("SELECT procrastinate_cancel_job_v1(0, true, false)").fetchone()
         command.downgrade(cfg, "base")
         assert _tables(dsn) <= {"alembic_version", "spatial_ref_sys"}
+        with psycopg.connect(dsn) as conn:  # ... and gone with it: functions and types too
+            left = conn.execute(
+                "SELECT proname FROM pg_proc WHERE proname LIKE 'procrastinate%' UNION ALL "
+                "SELECT typname FROM pg_type WHERE typname LIKE 'procrastinate%'"
+            ).fetchall()
+        assert left == []
         command.upgrade(cfg, "head")
         assert "fields" in _tables(dsn)
     finally:

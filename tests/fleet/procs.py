@@ -111,6 +111,8 @@ def start_worker(
         [
             str(BIN / "fieldrx"),
             "worker",
+            "--role",
+            "ingest",
             "--group",
             group,
             "--batch-ms",

@@ -12,8 +12,8 @@ import datetime as dt
 from typing import Any, Literal
 
 import numpy as np
-from fastapi import APIRouter, File, Form, Request, Response, UploadFile
-from geoalchemy2.shape import from_shape, to_shape
+from fastapi import APIRouter, File, Form, Query, Request, Response, UploadFile
+from geoalchemy2.shape import to_shape
 from pydantic import BaseModel, Field
 from shapely import wkb
 from sqlalchemy import select
@@ -30,6 +30,7 @@ from fieldrx.imagery.ingest import IngestSpec, ingest
 from fieldrx.imagery.stats import cell_ndvi
 from fieldrx.imagery.tiles import render_tile
 from fieldrx.services import prescriptions as rx_svc
+from fieldrx.services.imagery import imagery_row
 from fieldrx.settings import get_settings
 
 router = APIRouter(tags=["imagery"])
@@ -87,7 +88,7 @@ def _receive(upload: UploadFile, limit: int) -> Any:
     return path
 
 
-@router.post("/fields/{field_id:int}/imagery", status_code=201)
+@router.post("/fields/{field_id:int}/imagery", status_code=201, response_model=None)
 def upload_imagery(
     field_id: int,
     principal: WriterDep,
@@ -102,16 +103,40 @@ def upload_imagery(
     nir_band: int | None = Form(
         default=None, ge=1, description="multispectral: NIR band (1-based)"
     ),
-) -> dict[str, Any]:
+    background: bool | None = Query(
+        default=None,
+        description="convert in a `fieldrx worker` and answer 202 with the task; default: "
+        "only uploads larger than FIELDRX_IMAGERY_BACKGROUND_BYTES",
+    ),
+) -> dict[str, Any] | Response:
     """Validate the GeoTIFF, convert it to a Cloud-Optimized GeoTIFF and record it.
 
     422 for a non-TIFF, an unreadable or non-georeferenced raster, one that does not overlap
     the field, a band count that does not fit the kind, or a header claiming more pixels
-    than ``FIELDRX_IMAGERY_MAX_PIXELS``; nothing is stored then.
+    than ``FIELDRX_IMAGERY_MAX_PIXELS``; nothing is stored then. A large upload (or any,
+    with ``background=true``) is converted in the background: 202 with the task, whose
+    ``result_url`` is the image (the same checks then fail the task with the same message).
     """
     field = get_scoped(session, FieldRow, field_id, principal)
     settings = get_settings()
     incoming = _receive(file, settings.imagery_max_upload_bytes)
+    size = incoming.stat().st_size
+    if background or (background is None and size > settings.imagery_background_bytes):
+        return _queue_ingest(
+            session,
+            principal,
+            incoming,
+            {
+                "field_id": field.id,
+                "kind": kind,
+                "name": name,
+                "filename": (file.filename or "")[:255],
+                "acquired_on": acquired_on.isoformat() if acquired_on else None,
+                "red_band": red_band,
+                "nir_band": nir_band,
+                "size_bytes": size,
+            },
+        )
     key = storage.new_key(principal.organisation_id)
     dst = storage.path_for(key)
     dst.parent.mkdir(parents=True, exist_ok=True)
@@ -129,24 +154,14 @@ def upload_imagery(
             res = ingest(incoming, dst, spec, settings.imagery_timeout_s)
         except ImageryError as exc:
             raise ApiError(422, str(exc), where="file") from exc
-        row = Imagery(
+        row = imagery_row(
             organisation_id=principal.organisation_id,
             field_id=field.id,
             kind=kind,
-            name=name or (file.filename or kind),
-            filename=(file.filename or "")[:255],
+            name=name,
+            filename=file.filename or "",
             storage_key=key,
-            acquired_on=dt.date.fromisoformat(res.acquired_on) if res.acquired_on else None,
-            source_crs=res.source_crs,
-            resolution_m=res.resolution_m,
-            width=res.width,
-            height=res.height,
-            band_count=res.band_count,
-            dtype=res.dtype,
-            bands=res.bands,
-            nodata=res.nodata,
-            size_bytes=res.size_bytes,
-            footprint=from_shape(wkb.loads(res.footprint_wkb), srid=4326),
+            res=res,
             created_by=principal.user_id,
         )
         session.add(row)
@@ -161,6 +176,20 @@ def upload_imagery(
     out["overlap_share"] = round(res.overlap_share, 4)
     out["warnings"] = res.warnings
     return out
+
+
+def _queue_ingest(
+    session: SessionDep, principal: WriterDep, incoming: Any, params: dict[str, Any]
+) -> Response:
+    """Hand the received upload to an imagery task (the task removes it when it ends)."""
+    from fieldrx.api.tasks import queue_task
+
+    try:
+        return queue_task(session, principal, "imagery", {**params, "incoming": incoming.name})
+    except BaseException:
+        session.rollback()
+        incoming.unlink(missing_ok=True)
+        raise
 
 
 @router.get("/fields/{field_id:int}/imagery")

@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 from typing import Any, Literal
 
-from fastapi import APIRouter, Query
+from fastapi import APIRouter, Query, Response
 from pydantic import BaseModel, Field
 from sqlalchemy import func, select
 from sqlalchemy.exc import OperationalError
@@ -54,17 +54,35 @@ class PlanIn(BaseModel):
     )
 
 
-@router.post("/fields/{field_id:int}/plans", status_code=201)
-def create(field_id: int, body: PlanIn, principal: WriterDep, session: SessionDep) -> dict:
+BACKGROUND = Query(
+    default=False,
+    description="queue the work for a `fieldrx worker` and answer 202 with the task "
+    "(poll /api/v1/tasks/{id}) instead of waiting for it",
+)
+
+
+@router.post("/fields/{field_id:int}/plans", status_code=201, response_model=None)
+def create(
+    field_id: int,
+    body: PlanIn,
+    principal: WriterDep,
+    session: SessionDep,
+    background: bool = BACKGROUND,
+) -> dict | Response:
     """Plan the coverage path, cut the grid and store both (one transaction).
 
     Bad parameters (w <= 0, w wider than the field, L < 0.5 m, > 5 million
     cells, degenerate field) answer 422 with the planner's reason; the cell count
     is estimated before any work. Planning runs in a worker process with a time
     limit (FIELDRX_PLAN_TIME_LIMIT_S, 422 when exceeded; 503 when all workers are busy).
+    With ``background=true`` it is queued instead: 202 with the task.
     """
     field = get_scoped(session, FieldRow, field_id, principal)
     params = PlanParams(**body.model_dump())
+    if background:
+        from fieldrx.api.tasks import queue_plan
+
+        return queue_plan(session, principal, field, params)
     try:
         plan = create_plan_bounded(session, field, params, field.organisation_id)
     except PlanningError as exc:

@@ -88,10 +88,20 @@ def _plan_field(session: SessionDep, plan: Plan) -> FieldRow:
     return field
 
 
-@router.post("/plans/{plan_id:int}/prescriptions", status_code=201)
-def create(plan_id: int, body: PrescriptionIn, principal: WriterDep, session: SessionDep) -> dict:
+@router.post("/plans/{plan_id:int}/prescriptions", status_code=201, response_model=None)
+def create(
+    plan_id: int,
+    body: PrescriptionIn,
+    principal: WriterDep,
+    session: SessionDep,
+    background: bool = Query(
+        default=False,
+        description="queue the work for a `fieldrx worker` and answer 202 with the task",
+    ),
+) -> dict | Response:
     """Interpolate the field's samples onto the plan's cells, apply the rate model, clamp to
-    the metering range (flagged), and store version 1."""
+    the metering range (flagged), and store version 1. With ``background=true`` it is
+    queued instead (202 with the task; its ``result_url`` is the prescription)."""
     plan = get_scoped(session, Plan, plan_id, principal)
     field = _plan_field(session, plan)
     machine = None
@@ -99,6 +109,15 @@ def create(plan_id: int, body: PrescriptionIn, principal: WriterDep, session: Se
         machine = session.get(Machine, body.machine_id)
         if machine is None or machine.organisation_id != principal.organisation_id:
             raise ApiError(422, f"machine {body.machine_id} not found", where="machine_id")
+    if background:
+        from fieldrx.api.tasks import queue_task
+
+        return queue_task(
+            session,
+            principal,
+            "prescription",
+            {"plan_id": plan.id, "body": body.model_dump(mode="json")},
+        )
     try:
         meter = svc.meter_spec(
             machine, plan, body.speed_min_kmh, body.speed_max_kmh, body.width_m, body.calibration

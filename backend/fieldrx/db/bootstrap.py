@@ -48,8 +48,15 @@ _PARTITION = re.compile(r"^(plan_cells_p\d+|telemetry_p\d{4}_\d{2}_\d{2}|telemet
 def include_object(
     obj: Any, name: str | None, type_: str, reflected: bool, compare_to: Any
 ) -> bool:
-    """Alembic ``include_object``: GeoAlchemy2's rules, and run-time partitions left out."""
+    """Alembic ``include_object``: GeoAlchemy2's rules (PostGIS's own tables and spatial
+    indexes); run-time partitions left out; procrastinate's queue tables left out too
+    (revision 0012 creates them from the SQL procrastinate ships, not from models)."""
     if type_ == "table" and reflected and name is not None and _PARTITION.match(name):
+        return False
+    if type_ == "table" and (name or "").startswith("procrastinate_"):
+        return False
+    table = getattr(obj, "table", None)
+    if table is not None and str(getattr(table, "name", "")).startswith("procrastinate_"):
         return False
     return bool(alembic_helpers.include_object(obj, name, type_, reflected, compare_to))
 

@@ -602,3 +602,55 @@ class Imagery(Base):
     footprint: Mapped[Any] = mapped_column(Geometry("MULTIPOLYGON", srid=4326, spatial_index=True))
     created_by: Mapped[int | None] = mapped_column(ForeignKey("users.id", ondelete="SET NULL"))
     created_at: Mapped[dt.datetime] = _now()
+
+
+TASK_KINDS = ("plan", "prescription", "imagery", "plan_batch")  # issue 18, revision 0012
+TASK_STATES = ("queued", "running", "succeeded", "failed", "cancelled")
+
+
+class Task(Base):
+    """Background work of an organisation (issue 18): what the API and the UI see of a job on
+    the PostgreSQL queue (procrastinate's ``procrastinate_jobs`` row ``job_id``).
+
+    procrastinate knows how to run a job once and recover it from a dead worker; this row
+    holds what FieldRx promises on top: organisation scoping, who asked, progress (0..1 and a
+    message), the result (``{"plan_id": 7}``), the error a user can act on, and the
+    cancellation request. A batch is a ``plan_batch`` row without a job whose children
+    (``parent_id``) are the per-field tasks. The row is written in the same transaction as
+    the work's result, which is what makes a retried job finish exactly once.
+    """
+
+    __tablename__ = "tasks"
+    __table_args__ = (
+        CheckConstraint(
+            "kind IN ('plan', 'prescription', 'imagery', 'plan_batch')", name="ck_tasks_kind"
+        ),
+        CheckConstraint(
+            "status IN ('queued', 'running', 'succeeded', 'failed', 'cancelled')",
+            name="ck_tasks_status",
+        ),
+        CheckConstraint("progress >= 0 AND progress <= 1", name="ck_tasks_progress"),
+        Index("ix_tasks_org_created", "organisation_id", "created_at"),
+        Index("ix_tasks_parent", "parent_id"),
+    )
+    id: Mapped[int] = mapped_column(BigInteger, primary_key=True)
+    organisation_id: Mapped[int] = mapped_column(ForeignKey("organisations.id", ondelete="CASCADE"))
+    created_by: Mapped[int | None] = mapped_column(ForeignKey("users.id", ondelete="SET NULL"))
+    parent_id: Mapped[int | None] = mapped_column(
+        BigInteger, ForeignKey("tasks.id", ondelete="CASCADE")
+    )
+    kind: Mapped[str] = mapped_column(String(32))
+    status: Mapped[str] = mapped_column(String(16), server_default="queued")
+    progress: Mapped[float] = mapped_column(Double, server_default=text("0"))
+    message: Mapped[str] = mapped_column(Text, server_default="")
+    params: Mapped[dict[str, Any]] = mapped_column(JSONB, server_default=text("'{}'"))
+    result: Mapped[dict[str, Any] | None] = mapped_column(JSONB)
+    error: Mapped[str | None] = mapped_column(Text)
+    cancel_requested: Mapped[bool] = mapped_column(Boolean, server_default=text("false"))
+    job_id: Mapped[int | None] = mapped_column(BigInteger)
+    attempts: Mapped[int] = mapped_column(Integer, server_default=text("0"))
+    worker: Mapped[str] = mapped_column(String(200), server_default="")
+    created_at: Mapped[dt.datetime] = _now()
+    updated_at: Mapped[dt.datetime] = _now()
+    started_at: Mapped[dt.datetime | None] = mapped_column(DateTime(timezone=True))
+    finished_at: Mapped[dt.datetime | None] = mapped_column(DateTime(timezone=True))

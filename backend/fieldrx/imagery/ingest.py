@@ -20,10 +20,13 @@ import math
 import multiprocessing as mp
 import os
 import shutil
+import time
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
+from fieldrx.errors import Cancelled
 from fieldrx.imagery import KINDS, ImageryError
 
 # First bytes of a classic TIFF and a BigTIFF, little and big endian (TIFF 6.0 sec. 2,
@@ -329,19 +332,35 @@ def _child(conn: Any, src: str, dst: str, spec: IngestSpec) -> None:
         conn.close()
 
 
-def ingest(src: Path, dst: Path, spec: IngestSpec, timeout_s: float) -> IngestResult:
+def ingest(
+    src: Path,
+    dst: Path,
+    spec: IngestSpec,
+    timeout_s: float,
+    should_stop: Callable[[], bool] | None = None,
+) -> IngestResult:
     """``inspect_and_convert`` in a fresh process, stopped after ``timeout_s``.
 
     On timeout the child is killed and its partial output removed (it writes to
     a work directory and renames only on success, so ``dst`` never holds a partial COG).
+    A background task passes ``should_stop`` (polled every second): when it turns true the
+    child is killed the same way and ``Cancelled`` is raised.
     """
     ctx = mp.get_context("spawn")
     parent, child = ctx.Pipe(duplex=False)
     proc = ctx.Process(target=_child, args=(child, str(src), str(dst), spec), daemon=True)
     proc.start()
     child.close()
+    deadline = time.monotonic() + timeout_s
     try:
-        if not parent.poll(timeout_s):
+        while not parent.poll(max(0.0, min(1.0, deadline - time.monotonic()))):
+            if should_stop is not None and should_stop():
+                proc.kill()
+                proc.join(5)
+                dst.unlink(missing_ok=True)
+                raise Cancelled("the imagery conversion was cancelled; nothing was stored")
+            if time.monotonic() < deadline:
+                continue
             raise ImageryError(
                 f"converting the raster took longer than {timeout_s:g} s and was stopped "
                 "(a raster that expands to far more pixels than its file size suggests is "

@@ -11,6 +11,11 @@ rolls its transaction back) and the caller gets ``TooExpensive``.
 At most ``FIELDRX_HEAVY_WORKERS`` children run at once per server process;
 further requests wait up to their own time limit for a slot, then get ``Busy``
 (503).
+
+A background task (``fieldrx.tasks``) passes ``should_stop``: polled about once a second
+while the child works, and when it says so the child is killed (its transaction rolls
+back) and ``Cancelled`` is raised, so a cancelled plan stops within a second even in a
+stage that reports no progress.
 """
 
 from __future__ import annotations
@@ -23,7 +28,7 @@ from collections.abc import Callable
 from multiprocessing.connection import Connection
 from typing import Any, TypeVar
 
-from fieldrx.errors import Busy, TooExpensive
+from fieldrx.errors import Busy, Cancelled, TooExpensive
 from fieldrx.settings import get_settings
 
 T = TypeVar("T")
@@ -39,6 +44,7 @@ _PRELOAD = [
     "fieldrx.agronomy.soil",
     "fieldrx.formats.field_import",
     "fieldrx.geo.validate",
+    "fieldrx.tasks.work",
 ]
 _ctx = multiprocessing.get_context("forkserver")
 _ctx.set_forkserver_preload(_PRELOAD)
@@ -77,10 +83,25 @@ def _child(conn: Connection, fn: Callable[..., Any], args: tuple[Any, ...]) -> N
         conn.close()
 
 
-def _wait(recv: Connection, t0: float, time_limit_s: float, what: str) -> None:
-    """Wait for the child's answer in short steps: past the time limit, or once the server's
-    main thread has ended (SIGTERM after the graceful-shutdown timeout), give up."""
+STOP_POLL_S = 1.0
+
+
+def _wait(
+    recv: Connection,
+    t0: float,
+    time_limit_s: float,
+    what: str,
+    should_stop: Callable[[], bool] | None = None,
+) -> None:
+    """Wait for the child's answer in short steps: past the time limit, once the server's
+    main thread has ended (SIGTERM after the graceful-shutdown timeout), or when
+    ``should_stop()`` says so (checked every ``STOP_POLL_S``), give up."""
+    next_check = time.monotonic() + STOP_POLL_S
     while not recv.poll(0.25):
+        if should_stop is not None and time.monotonic() >= next_check:
+            next_check = time.monotonic() + STOP_POLL_S
+            if should_stop():
+                raise Cancelled(f"{what} was cancelled; nothing was stored")
         if time.monotonic() - t0 >= time_limit_s:
             raise TooExpensive(
                 f"{what} took longer than the {time_limit_s:g} s limit and was stopped; "
@@ -90,12 +111,19 @@ def _wait(recv: Connection, t0: float, time_limit_s: float, what: str) -> None:
             raise Busy(f"the server is shutting down; {what} was stopped, retry it")
 
 
-def run_bounded(fn: Callable[..., T], *args: Any, time_limit_s: float, what: str) -> T:
+def run_bounded(
+    fn: Callable[..., T],
+    *args: Any,
+    time_limit_s: float,
+    what: str,
+    should_stop: Callable[[], bool] | None = None,
+) -> T:
     """``fn(*args)`` in a child process; its exception is re-raised here.
 
     ``fn`` must be a module-level function and ``args``/result picklable. Raises
-    ``TooExpensive`` when the child runs past ``time_limit_s`` (the child is killed)
-    and ``Busy`` when no worker slot frees up within the limit.
+    ``TooExpensive`` when the child runs past ``time_limit_s`` (the child is killed),
+    ``Busy`` when no worker slot frees up within the limit, and ``Cancelled`` when
+    ``should_stop()`` turns true (the child is killed).
     """
     t0 = time.monotonic()
     slots = _get_slots()
@@ -107,7 +135,7 @@ def run_bounded(fn: Callable[..., T], *args: Any, time_limit_s: float, what: str
         proc.start()
         send.close()
         try:
-            _wait(recv, t0, time_limit_s, what)
+            _wait(recv, t0, time_limit_s, what, should_stop)
             try:
                 ok, value = recv.recv()
             except EOFError:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -45,6 +46,9 @@ class PlanParams:
 
 def field_utm(field: Field) -> Any:
     return to_utm(to_shape(field.boundary), field.utm_epsg)
+
+
+STORE_LOCK_NS = 7004  # advisory lock namespace: plans are stored one at a time (create_plan)
 
 
 def delete_plan(session: Session, plan: Plan) -> None:
@@ -134,10 +138,27 @@ def create_plan_bounded(
     return plan
 
 
-def create_plan(session: Session, field: Field, params: PlanParams, organisation_id: int) -> Plan:
-    """Plan + grid + store (flushes, does not commit). Raises ``PlanningError``."""
+ProgressFn = Callable[[float, str], None]
+
+
+def _no_progress(share: float, message: str) -> None:
+    return None
+
+
+def create_plan(
+    session: Session,
+    field: Field,
+    params: PlanParams,
+    organisation_id: int,
+    progress: ProgressFn = _no_progress,
+) -> Plan:
+    """Plan + grid + store (flushes, does not commit). Raises ``PlanningError``.
+
+    ``progress(share, message)`` is called between the stages (a background task shows it;
+    it may raise to stop the work, which then stores nothing)."""
     t0 = time.perf_counter()
     check_plan_cost(field.area_m2, params)
+    progress(0.05, "planning the coverage path")
     boundary = field_utm(field)
     cov = plan_coverage(
         boundary,
@@ -152,6 +173,7 @@ def create_plan(session: Session, field: Field, params: PlanParams, organisation
         pattern=params.pattern,
     )
     t_plan = time.perf_counter()
+    progress(0.4, "cutting the path into cells")
     grid = build_grid(
         cov,
         boundary,
@@ -160,6 +182,7 @@ def create_plan(session: Session, field: Field, params: PlanParams, organisation
         epsg=field.utm_epsg,
     )
     t_grid = time.perf_counter()
+    progress(0.6, f"storing {len(grid):,} cells")
     metrics: dict[str, Any] = dict(cov.metrics())
     metrics["n_cells"] = len(grid)
     metrics["cells_uncovered_m2"] = round(grid.uncovered_m2, 3)
@@ -174,6 +197,11 @@ def create_plan(session: Session, field: Field, params: PlanParams, organisation
         n_cells=len(grid),
         route=shape_to_db(route),
     )
+    # Stores take turns (lock held to commit): ATTACH PARTITION needs SHARE ROW EXCLUSIVE on
+    # plans, which every other transaction that inserted a plan row holds against it while
+    # it waits for plan_cells in turn; two concurrent stores deadlocked (PostgreSQL aborted
+    # one: found by two task workers planning at once). Planning and the grid stay parallel.
+    session.execute(text("SELECT pg_advisory_xact_lock(:ns, 0)"), {"ns": STORE_LOCK_NS})
     # this transaction attaches a bulk-built partition itself (migration 0002 trigger)
     session.execute(text("SELECT set_config('fieldrx.bulk_plan_cells', 'on', true)"))
     session.add(plan)

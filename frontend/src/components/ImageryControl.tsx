@@ -2,7 +2,9 @@ import { useCallback, useEffect, useState } from 'react';
 import type * as maplibregl from 'maplibre-gl';
 import { api, errorText } from '../api';
 import { defaultImagery, imageryLabel, opacityFromPercent, sortNewest, type ImageryItem } from '../lib/imagery';
+import { isTask, progressLabel, type TaskView } from '../lib/tasks';
 import { showImagery } from '../map/imagery';
+import { TaskProgress } from './TaskProgress';
 
 /**
  * Imagery picker, opacity and (for a field) GeoTIFF upload, floating over a map. Shows the
@@ -17,6 +19,7 @@ export function ImageryControl(props: { map: maplibregl.Map | null; fieldId?: nu
   const [busy, setBusy] = useState(false);
   const [msg, setMsg] = useState('');
   const [err, setErr] = useState('');
+  const [task, setTask] = useState<TaskView | null>(null);
 
   const load = useCallback(
     async (pick?: number) => {
@@ -52,10 +55,17 @@ export function ImageryControl(props: { map: maplibregl.Map | null; fieldId?: nu
     setErr('');
     setMsg('Uploading and converting…');
     try {
-      const item = await api.post<ImageryItem & { warnings?: string[] }>(`/fields/${fieldId}/imagery`, fd);
-      setMsg(`Stored ${imageryLabel(item)}${item.warnings?.length ? ` — ${item.warnings.join('; ')}` : ''}`);
+      const item = await api.post<unknown>(`/fields/${fieldId}/imagery`, fd);
       form.reset();
-      await load(item.id);
+      if (isTask(item)) {
+        // a large upload is converted by a worker: follow its task
+        setMsg('');
+        setTask(item);
+        return;
+      }
+      const img = item as ImageryItem & { warnings?: string[] };
+      setMsg(`Stored ${imageryLabel(img)}${img.warnings?.length ? ` — ${img.warnings.join('; ')}` : ''}`);
+      await load(img.id);
     } catch (e) {
       setMsg('');
       setErr(errorText(e));
@@ -124,6 +134,20 @@ export function ImageryControl(props: { map: maplibregl.Map | null; fieldId?: nu
             {busy ? 'Working…' : 'Upload GeoTIFF'}
           </button>
         </form>
+      )}
+      {task && (
+        <TaskProgress
+          task={task}
+          label="Converting"
+          onDone={(t) => {
+            setTask(null);
+            const id = Number(t.result?.imagery_id);
+            if (t.status === 'succeeded' && id) {
+              setMsg('Stored the image');
+              void load(id);
+            } else setErr(progressLabel(t));
+          }}
+        />
       )}
       {msg && <p className="ok small" data-testid="imagery-msg">{msg}</p>}
       {err && <p className="error small" data-testid="imagery-error">{err}</p>}

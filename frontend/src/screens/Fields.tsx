@@ -2,6 +2,8 @@ import { useCallback, useEffect, useRef, useState } from 'react';
 import type * as maplibregl from 'maplibre-gl';
 import { api, ApiError } from '../api';
 import { ErrorBox } from '../components/Status';
+import { TaskProgress } from '../components/TaskProgress';
+import type { TaskView } from '../lib/tasks';
 import { bboxOf } from '../lib/geo';
 import { formatArea } from '../lib/units';
 import { MapView } from '../map/MapView';
@@ -19,6 +21,7 @@ export function FieldsScreen() {
   const [fields, setFields] = useState<FieldCollection>(EMPTY);
   const [error, setError] = useState<unknown>(null);
   const [importMsg, setImportMsg] = useState('');
+  const [batch, setBatch] = useState<TaskView | null>(null);
   const [newFarm, setNewFarm] = useState('');
   const mapRef = useRef<maplibregl.Map | null>(null);
   const fitted = useRef(false);
@@ -106,6 +109,17 @@ export function FieldsScreen() {
     fitTo(map, bboxOf(fields));
   };
 
+  /** One plan per field of the selected farm with the default parameters, in the
+   * background (POST /plans/batch); the batch's progress shows below the button. */
+  const planFarm = async () => {
+    setError(null);
+    try {
+      setBatch(await api.post<TaskView>('/plans/batch', { farm_id: Number(farmId), params: {} }));
+    } catch (e) {
+      setError(e);
+    }
+  };
+
   const onImport = async (file: File) => {
     setImportMsg('');
     setError(null);
@@ -162,6 +176,26 @@ export function FieldsScreen() {
             />
           </label>
         </div>
+        {farmId && (
+          <div className="row">
+            <button
+              data-testid="plan-farm"
+              data-write=""
+              disabled={!!batch && batch.status !== 'succeeded'}
+              onClick={() => void planFarm()}
+            >
+              Plan every field of this farm
+            </button>
+          </div>
+        )}
+        {batch && (
+          <TaskProgress
+            key={batch.id}
+            task={batch}
+            label="Planning"
+            onDone={(t) => setBatch(t)}
+          />
+        )}
         {importMsg && (
           <p className="ok" data-testid="import-result">
             {importMsg}

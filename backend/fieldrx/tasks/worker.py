@@ -1,0 +1,94 @@
+"""A task worker: procrastinate's worker loop plus stalled-job recovery.
+
+procrastinate gives each job to one worker and records every worker's heartbeat
+(``FIELDRX_TASK_HEARTBEAT_S``). A worker that dies without stopping (SIGKILL, power loss,
+OOM) leaves its jobs in ``doing``; procrastinate does not hand those on by itself. Every
+worker therefore runs ``recover_stalled``: each heartbeat interval it asks procrastinate
+for the running jobs of workers silent for longer than ``FIELDRX_TASK_STALLED_AFTER_S``
+(``JobManager.get_stalled_jobs``, heartbeat based) and puts them back in the queue
+(``JobManager.retry_job``). Several workers may race for the same job: the retry of a job
+already back in the queue fails in procrastinate and is ignored. A retried task that the
+dead worker had in fact finished is not done twice: ``fieldrx.tasks`` (exactly once).
+
+The stalled threshold must exceed the heartbeat interval by a good margin (a busy worker
+whose heartbeat is late would otherwise lose its jobs to another worker; the guard still
+keeps the result single, but the work would be done twice).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+from collections.abc import Iterable
+
+from procrastinate import App
+
+from fieldrx.tasks.queue import get_app
+
+log = logging.getLogger(__name__)
+
+
+async def recover_stalled(app: App, stalled_after_s: float, interval_s: float) -> None:
+    """Forever: requeue the running jobs of workers without a heartbeat for
+    ``stalled_after_s`` seconds, checking every ``interval_s`` seconds."""
+    from procrastinate.exceptions import ConnectorException
+
+    while True:
+        await asyncio.sleep(interval_s)
+        try:
+            stalled = await app.job_manager.get_stalled_jobs(
+                seconds_since_heartbeat=stalled_after_s
+            )
+        except ConnectorException:
+            log.warning("stalled-job check failed; retrying", exc_info=True)
+            continue
+        for job in stalled:
+            try:
+                await app.job_manager.retry_job(job)
+            except ConnectorException:  # another worker requeued it first
+                continue
+            log.warning(
+                "job %s (task %s) of a stalled worker was put back in the queue",
+                job.id,
+                job.task_kwargs.get("task_id"),
+            )
+
+
+async def run_task_worker(
+    stop: asyncio.Event,
+    *,
+    queues: Iterable[str] | None = None,
+    concurrency: int = 2,
+    heartbeat_s: float = 10.0,
+    stalled_after_s: float = 60.0,
+    name: str = "fieldrx-tasks",
+) -> None:
+    """Run jobs until ``stop`` is set; then stop fetching and let running jobs finish."""
+    app = get_app()
+    async with app.open_async():
+        worker = asyncio.create_task(
+            app.run_worker_async(
+                queues=list(queues) if queues else None,
+                concurrency=concurrency,
+                name=name,
+                update_heartbeat_interval=heartbeat_s,
+                stalled_worker_timeout=stalled_after_s,
+                abort_job_polling_interval=min(5.0, heartbeat_s),
+                install_signal_handlers=False,
+            ),
+            name="procrastinate-worker",
+        )
+        recovery = asyncio.create_task(
+            recover_stalled(app, stalled_after_s, heartbeat_s), name="stalled-recovery"
+        )
+        stopping = asyncio.create_task(stop.wait())
+        await asyncio.wait({worker, stopping}, return_when=asyncio.FIRST_COMPLETED)
+        recovery.cancel()
+        with contextlib.suppress(asyncio.CancelledError):
+            await recovery
+        if not worker.done():
+            worker.cancel()  # procrastinate: stop fetching, wait for running jobs
+        with contextlib.suppress(asyncio.CancelledError):
+            await worker
+        stopping.cancel()
