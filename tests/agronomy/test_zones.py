@@ -4,7 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from fieldrx.agronomy.zones import ZoneError, classify_zones, kmeans_1d, zone_means
+from fieldrx.agronomy.zones import (
+    ZoneError,
+    classify_zones,
+    kmeans_1d,
+    zone_cell_values,
+    zone_means,
+)
 from shapely.geometry import box
 
 
@@ -58,3 +64,23 @@ def test_two_small_neighbours_do_not_swap_forever() -> None:
     vals = np.array([0.1, 0.5, 0.9, 0.9])
     z = classify_zones(vals, 3, polygons=polys, area_m2=np.full(4, 25.0), min_area_m2=60.0)
     assert len(set(z.labels.tolist())) == 1  # everything ends in one zone >= 60 m2
+
+
+def test_zone_cell_values_gives_each_cell_its_zone_mean() -> None:
+    """The zone prescription input: every cell holds its zone's area-weighted mean, no-data
+    cells stay NaN, and the table names the zoned value."""
+    polys = _grid(6, 2)
+    vals = np.array([1.0, 1.2, 5.0, 5.4, 9.0, 9.2] * 2)
+    vals[0] = np.nan
+    area = np.full(12, 25.0)
+    area[1] = 75.0  # weights: zone 1 is cells 1, 6, 7 -> (1.2*75 + 1.0*25 + 1.2*25) / 125
+    per_cell, info = zone_cell_values(
+        vals, 3, polygons=polys, area_m2=area, min_area_m2=0.0, value_name="n_mg_kg"
+    )
+    assert np.isnan(per_cell[0])
+    assert per_cell[1] == pytest.approx((1.2 * 75 + 1.0 * 25 + 1.2 * 25) / 125)
+    assert per_cell[[2, 3, 8, 9]] == pytest.approx([5.2] * 4)
+    assert [z["zone"] for z in info["zones"]] == [1, 2, 3]
+    assert [z["cells"] for z in info["zones"]] == [3, 4, 4]
+    assert info["zones"][2]["n_mg_kg_from"] == 9.0
+    assert info["zones"][0]["area_m2"] == 125.0 and info["zoned_value"] == "n_mg_kg"

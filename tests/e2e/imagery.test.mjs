@@ -1,6 +1,6 @@
 // Imagery in the browser: upload an orthophoto on a field, see it under the field's
 // boundary (tiles served and drawn below the data layers), pick it and change its opacity,
-// and find it under the boundary editor's map; maps open fitted to the fields.
+// and find it under the boundary editor's map; maps open fitted to the fields; NDVI and soil zones.
 import { after, before, describe, it } from 'node:test';
 import assert from 'node:assert/strict';
 import { execFileSync } from 'node:child_process';
@@ -164,5 +164,46 @@ describe('imagery under the maps', { skip: SKIP }, () => {
     });
     assert.equal(r.status, 200);
     assert.equal(Buffer.from(await r.arrayBuffer()).subarray(0, 2).toString(), 'PK');
+  });
+
+  it('builds a 3-zone prescription from soil samples with the control next to the NDVI zones', async () => {
+    // soil N rising west -> east on a 5 x 5 grid around the field's centre (inside it or
+    // stored with include_outside): the zones must come out ordered by N
+    const [w, s, e, n] = field.bbox;
+    const cx = (w + e) / 2;
+    const cy = (s + n) / 2;
+    const rows = ['sample_id,lon,lat,n_mg_kg'];
+    for (let i = 0; i < 5; i++) {
+      for (let j = 0; j < 5; j++) {
+        const lon = cx + ((i - 2) / 2) * (e - w) * 0.3;
+        const lat = cy + ((j - 2) / 2) * (n - s) * 0.3;
+        rows.push(`Z${Date.now()}-${i}-${j},${lon.toFixed(8)},${lat.toFixed(8)},${50 + 15 * i + j}`);
+      }
+    }
+    const form = new FormData();
+    form.append('file', new Blob([rows.join('\n') + '\n'], { type: 'text/csv' }), 'zones.csv');
+    const up = await fetch(`${BASE_URL}/api/v1/fields/${field.id}/soil-samples?include_outside=true`, {
+      method: 'POST',
+      headers: { Authorization: `Bearer ${token}` },
+      body: form,
+    });
+    assert.equal(up.status, 201, await up.text());
+    const plan = await api(token, 'POST', `/fields/${field.id}/plans`, { swath_width_m: 2.3, cell_length_m: 5 });
+    assert.equal(plan.status, 201, JSON.stringify(plan.data));
+    await page.goto(`${BASE_URL}/#/plans/${plan.data.id}`);
+    await page.waitForSelector('[data-testid=soil-zones-form]');
+    await page.selectOption('[data-testid=soil-zones-model]', 'nutrient_balance');
+    await page.fill('[data-testid=soil-zones-k]', '3');
+    await page.fill('[data-testid=soil-zones-min-area]', '100');
+    await page.click('[data-testid=soil-zones-submit]');
+    await page.waitForURL(/#\/prescriptions\/\d+/, { timeout: 60_000 });
+    const rx = (await api(token, 'GET', `/prescriptions/${page.url().split('/').pop()}`)).data;
+    assert.equal(rx.model, 'nutrient_balance');
+    const zones = rx.summary.interpolation.zones;
+    assert.equal(zones.length, 3);
+    const means = zones.map((z) => z.mean_n_mg_kg);
+    assert.deepEqual([...means].sort((a, b) => a - b), means);
+    await mapIdle(page, 'rx');
+    await shot(page, 'zone-prescription-from-soil');
   });
 });

@@ -1,4 +1,5 @@
-"""Management zones: classify per-cell values (NDVI) into k zones and smooth small ones away.
+"""Management zones: classify per-cell values (imagery NDVI or an interpolated soil property)
+into k zones and smooth small ones away.
 
 Classifier: one-dimensional k-means (Lloyd's algorithm) started from the k quantile
 midpoints, so it is deterministic; in one dimension its zones are contiguous value
@@ -15,6 +16,7 @@ minimum area survives unless it has no neighbour at all.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -169,3 +171,48 @@ def zone_means(values: np.ndarray, labels: np.ndarray, area_m2: np.ndarray, k: i
     a = np.bincount(labels[ok], weights=w, minlength=k + 1)[1:]
     with np.errstate(invalid="ignore", divide="ignore"):
         return np.where(a > 0, s / a, np.nan)
+
+
+def zone_cell_values(
+    values: np.ndarray,
+    k: int,
+    *,
+    polygons: np.ndarray,
+    area_m2: np.ndarray,
+    min_area_m2: float,
+    value_name: str,
+) -> tuple[np.ndarray, dict[str, Any]]:
+    """A zone prescription's model input: every cell gets its zone's area-weighted mean.
+
+    ``values`` is the per-cell property (imagery NDVI, or a soil property interpolated onto
+    the cells; NaN = no data, such a cell stays NaN and gets the prescription's fallback).
+    Zones are ``classify_zones`` (k-means, smoothed to ``min_area_m2``); the rate model is
+    then applied to one value per zone, so each zone has exactly one rate. Returns the
+    per-cell values and a description for the prescription summary: classifier, k, the
+    merged patches and the zone table (zone 1 = lowest value; ``{value_name}_from`` is the
+    zone's lowest cell value, ``mean_{value_name}`` its area-weighted mean).
+    """
+    v = np.asarray(values, dtype=float)
+    area = np.asarray(area_m2, dtype=float)
+    z = classify_zones(v, k, polygons=polygons, area_m2=area, min_area_m2=min_area_m2)
+    means = zone_means(v, z.labels, area, k)
+    per_cell = np.where(z.labels > 0, means[np.maximum(z.labels, 1) - 1], np.nan)
+    table = [
+        {
+            "zone": i + 1,
+            f"{value_name}_from": z.breaks[i],
+            f"mean_{value_name}": None if np.isnan(means[i]) else float(means[i]),
+            "cells": int((z.labels == i + 1).sum()),
+            "area_m2": float(area[z.labels == i + 1].sum()),
+        }
+        for i in range(k)
+    ]
+    info = {
+        "classifier": "kmeans_1d",
+        "k": k,
+        "min_area_m2": min_area_m2,
+        "merged_patches": z.merged_patches,
+        "zoned_value": value_name,
+        "zones": table,
+    }
+    return per_cell, info

@@ -19,7 +19,7 @@ from shapely import wkb
 from sqlalchemy import select
 
 from fieldrx.agronomy.cells import CellTable
-from fieldrx.agronomy.zones import ZoneError, classify_zones, zone_means
+from fieldrx.agronomy.zones import ZoneError, zone_cell_values
 from fieldrx.api.common import ApiError, geom_to_geojson, get_scoped
 from fieldrx.api.prescriptions import BAD_INPUT
 from fieldrx.auth.deps import SessionDep, UserDep, WriterDep
@@ -429,35 +429,15 @@ def zones_from_imagery(
 
     def zone_ndvi(cells: CellTable) -> tuple[np.ndarray, dict[str, Any]]:
         stats = _cell_ndvi(path, kind, bands, cells, body.min_valid_share)
-        z = classify_zones(
+        values, zoning = zone_cell_values(
             stats.mean,
             body.k,
             polygons=cells.polygons_utm,
             area_m2=cells.area_m2,
             min_area_m2=body.min_area_m2,
+            value_name="ndvi",
         )
-        means = zone_means(stats.mean, z.labels, cells.area_m2, body.k)
-        values = np.where(z.labels > 0, means[np.maximum(z.labels, 1) - 1], np.nan)
-        table = [
-            {
-                "zone": k + 1,
-                "ndvi_from": z.breaks[k],
-                "mean_ndvi": None if np.isnan(means[k]) else float(means[k]),
-                "cells": int((z.labels == k + 1).sum()),
-                "area_m2": float(cells.area_m2[z.labels == k + 1].sum()),
-            }
-            for k in range(body.k)
-        ]
-        info = {
-            **stats.info,
-            "imagery_id": img.id,
-            "classifier": "kmeans_1d",
-            "k": body.k,
-            "min_area_m2": body.min_area_m2,
-            "merged_patches": z.merged_patches,
-            "zones": table,
-        }
-        return values, info
+        return values, {**stats.info, "imagery_id": img.id, **zoning}
 
     return _create_rx(
         session,

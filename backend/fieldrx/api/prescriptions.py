@@ -13,6 +13,7 @@ from sqlalchemy import select
 from fieldrx.agronomy.interpolate import InterpolationError
 from fieldrx.agronomy.prescription import PrescriptionError
 from fieldrx.agronomy.rates import MeterRangeError, RateModelError
+from fieldrx.agronomy.zones import ZoneError
 from fieldrx.api.common import ApiError, get_scoped
 from fieldrx.auth.deps import SessionDep, UserDep, WriterDep
 from fieldrx.db.models import Field as FieldRow
@@ -139,6 +140,78 @@ def create(
             organisation_id=principal.organisation_id,
         )
     except BAD_INPUT as exc:
+        session.rollback()
+        raise ApiError(422, str(exc)) from exc
+    session.commit()
+    return svc.prescription_summary(session, rx)
+
+
+class SoilZonesIn(PrescriptionIn):
+    """A zone prescription from soil samples: the model's input property interpolated
+    onto the plan's cells, then zoned like imagery NDVI zones."""
+
+    k: int = Field(default=4, ge=2, le=12, description="number of zones")
+    min_area_m2: float = Field(
+        default=0.0, ge=0, description="patches of a zone smaller than this join a neighbour"
+    )
+
+
+@router.post("/plans/{plan_id:int}/zones", status_code=201)
+def create_soil_zones(
+    plan_id: int, body: SoilZonesIn, principal: WriterDep, session: SessionDep
+) -> dict:
+    """Management zones from soil samples: the model's input (nutrient_balance: n_mg_kg,
+    ndvi: sample NDVI) interpolated onto the plan's cells (``interpolation``), k-means into
+    ``k`` zones (zone 1 lowest), patches under ``min_area_m2`` merged into their main
+    neighbour, and one rate per zone: the model at the zone's area-weighted mean. Stored as
+    version 1 of a prescription (edits, ISOXML treatment zones, Shapefile as usual); the
+    zone table is in ``summary.interpolation.zones``."""
+    plan = get_scoped(session, Plan, plan_id, principal)
+    field = _plan_field(session, plan)
+    machine = None
+    if body.machine_id is not None:
+        machine = session.get(Machine, body.machine_id)
+        if machine is None or machine.organisation_id != principal.organisation_id:
+            raise ApiError(422, f"machine {body.machine_id} not found", where="machine_id")
+    try:
+        source = svc.soil_zone_source(
+            session,
+            field,
+            body.model,
+            body.interpolation,
+            body.interpolation_params,
+            body.k,
+            body.min_area_m2,
+        )
+        meter = svc.meter_spec(
+            machine, plan, body.speed_min_kmh, body.speed_max_kmh, body.width_m, body.calibration
+        )
+        rx = svc.create_prescription(
+            session,
+            plan,
+            field,
+            name=body.name or f"{body.k} soil zones ({body.model}) on plan {plan.id}",
+            product=body.product,
+            model=body.model,
+            params=body.params,
+            interpolation=body.interpolation,
+            interpolation_params=body.interpolation_params,
+            fallback_rate_kg_ha=body.fallback_rate_kg_ha,
+            meter=meter,
+            machine_id=body.machine_id,
+            user_id=principal.user_id,
+            organisation_id=principal.organisation_id,
+            cell_source=source,
+            source={
+                "zones": {
+                    "from": "soil_samples",
+                    "k": body.k,
+                    "min_area_m2": body.min_area_m2,
+                    "classifier": "kmeans_1d",
+                }
+            },
+        )
+    except (*BAD_INPUT, ZoneError) as exc:
         session.rollback()
         raise ApiError(422, str(exc)) from exc
     session.commit()

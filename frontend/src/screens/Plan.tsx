@@ -5,6 +5,7 @@ import { ErrorBox, isMissingEndpoint, Kv } from '../components/Status';
 import { bboxOf } from '../lib/geo';
 import { formatDistance, formatPercent } from '../lib/units';
 import { ImageryRxForm } from '../components/ImageryRxForm';
+import { SoilZonesForm } from '../components/SoilZonesForm';
 import { MapView } from '../map/MapView';
 import { addRouteLayers, planGridLayers, planTilesUrl, replaceVectorSource } from '../map/grid';
 import { fitTo, setGeoJSON } from '../map/setup';
@@ -132,6 +133,7 @@ export function PlanScreen({ planId }: { planId: number }) {
         {field?.id !== undefined && (
           <ImageryRxForm planId={planId} fieldId={field.id} onCreated={(r) => navigate(`/prescriptions/${r.id}`)} />
         )}
+        <SoilZonesForm planId={planId} onCreated={(r) => navigate(`/prescriptions/${r.id}`)} />
       </aside>
       <MapView name="plan" onReady={onReady} fieldId={field?.id} />
     </div>
