@@ -200,7 +200,15 @@ def seed002(seeds: list[int], decomposition: bool = True) -> dict[str, Any]:
     print(
         f"fuzzy PID SD <= fixed PID SD per band: {better}; qualified >= 95 % in every band: {qual}"
     )
-    print("  why: fieldrx_edge.jobkinds.seeding docstring")
+    kd = out[fuzzy_name]["gains_mean_sd"]["kd"][0]
+    print(
+        f"  why: Table 2's k_e keeps every error of this field inside E's ZE set, whose rules"
+        f" lower Kd (here to {kd:.2f}, K'd {DEPTH_PID_GAINS['kd']:g}) and move Kp around zero:"
+    )
+    print(
+        "  the fuzzy PID is a fixed PID with a lower Kd, which follows the soil worse (track"
+        " column below); details: fieldrx_edge.jobkinds.seeding docstring"
+    )
     out["fuzzy_at_least_as_good"] = better
     out["fuzzy_vs_fixed_sd_pct"] = [round(float(v), 3) for v in diff.mean(axis=0)]
     out["qualified_at_least_95"] = qual
