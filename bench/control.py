@@ -49,7 +49,12 @@ import scipy.signal
 from fieldrx_edge.control import LADRC, PID, FuzzyPID, IncrementalPID
 from fieldrx_edge.control.metrics import disturbance_metrics, step_metrics
 from fieldrx_edge.control.simulate import closed_loop
-from fieldrx_edge.depth import DEPTH_FUZZY_FACTORS, DEPTH_PID_GAINS, DEPTH_U_LIMIT, TABLE2_FACTORS
+from fieldrx_edge.depth import (
+    DEPTH_PID_GAINS,
+    DEPTH_U_LIMIT,
+    STEP_TUNED_FUZZY_FACTORS,
+    TABLE2_FACTORS,
+)
 from fieldrx_edge.estimate import KalmanSpeedFilter
 from fieldrx_edge.plants import seed000_shaft, seed001_motor, seed002_depth
 from fieldrx_edge.plants.seeds import (
@@ -302,7 +307,7 @@ def seed002(plots, tune):
             **DEPTH_PID_GAINS, **TABLE2_FACTORS, **lim()
         ),
         "fuzzy PID, tuned factors": lambda: FuzzyPID(
-            **DEPTH_PID_GAINS, **DEPTH_FUZZY_FACTORS, **lim()
+            **DEPTH_PID_GAINS, **STEP_TUNED_FUZZY_FACTORS, **lim()
         ),
     }
     runs = {}
@@ -332,7 +337,7 @@ def seed002(plots, tune):
     print("  (the factor tuning is for the unit step: on 10 mm the tuned fuzzy PID settles faster")
     print("   with less IAE but overshoots more than the fixed PID; drec 0 = never left the band)")
     (tr_f, fixed, _), (tr_t, table2, _), (tr_z, fuzzy, _) = runs.values()
-    print(f"  tuned factors: {DEPTH_FUZZY_FACTORS}; Table 2: {TABLE2_FACTORS}")
+    print(f"  tuned factors: {STEP_TUNED_FUZZY_FACTORS}; Table 2: {TABLE2_FACTORS}")
     print("  paper: no numbers, only 'smaller overshoot and shorter settling' (Fig. 13).")
     win = (
         "fuzzy"
@@ -417,7 +422,7 @@ def step_cost():
         "ladrc_o1": LADRC(**LADRC_DESIGN, out_min=0.0, out_max=100.0).step,
         "ladrc_o2": LADRC(150.0, 400.0, 6000.0, order=2).step,
         "ladrc_o1_td": LADRC(**LADRC_DESIGN, td_r=40.0).step,
-        "fuzzy_pid": FuzzyPID(**DEPTH_PID_GAINS, **DEPTH_FUZZY_FACTORS, **lim()).step,
+        "fuzzy_pid": FuzzyPID(**DEPTH_PID_GAINS, **STEP_TUNED_FUZZY_FACTORS, **lim()).step,
     }
     rng = np.random.default_rng(1)
     ys = [float(v) for v in rng.uniform(0.0, 2.0, 20000)]

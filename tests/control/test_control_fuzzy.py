@@ -10,7 +10,7 @@ from fieldrx_edge.control import PID, FuzzyPID
 from fieldrx_edge.control.fuzzy import RULES_DKD, RULES_DKI, RULES_DKP, mamdani, surface
 from fieldrx_edge.control.metrics import step_metrics
 from fieldrx_edge.control.simulate import closed_loop
-from fieldrx_edge.depth import DEPTH_FUZZY_FACTORS, DEPTH_PID_GAINS, DEPTH_U_LIMIT
+from fieldrx_edge.depth import DEPTH_PID_GAINS, DEPTH_U_LIMIT, STEP_TUNED_FUZZY_FACTORS
 from fieldrx_edge.plants import seed002_depth
 
 
@@ -67,7 +67,10 @@ def test_tuned_fuzzy_pid_is_at_least_as_good_as_fixed_pid() -> None:
     )
     fuzzy = _depth_run(
         FuzzyPID(
-            **DEPTH_PID_GAINS, **DEPTH_FUZZY_FACTORS, out_min=-DEPTH_U_LIMIT, out_max=DEPTH_U_LIMIT
+            **DEPTH_PID_GAINS,
+            **STEP_TUNED_FUZZY_FACTORS,
+            out_min=-DEPTH_U_LIMIT,
+            out_max=DEPTH_U_LIMIT,
         )
     )
     assert fuzzy.overshoot_pct <= fixed.overshoot_pct
@@ -91,3 +94,45 @@ def test_limits_anti_windup_reset_bumpless() -> None:
     c.set_params(kp=6.0, kd=1.0)
     # Unchanged inputs: the derivative term vanishes, P + I must match the twin's output.
     assert c.step(1.0, y, 1e-3) == pytest.approx(twin.step(1.0, y, 1e-3), abs=1e-9)
+
+
+@pytest.mark.parametrize("n", [None, 20.0, 100.0])
+def test_without_adaptation_it_is_the_fixed_pid(n: float | None) -> None:
+    # With every output factor 0 (dK = 0, eq. 10: K = K') the fuzzy PID must be the fixed PID
+    # with the same gains and derivative filter, sample for sample: the seed 002 comparison
+    # (bench/seeds.py) gives both the same base gains. It once filtered ec with gain
+    # (1 - e^(-N dt)) / dt instead of N, a derivative 1 % weaker at N 20, 1 ms.
+    fixed = PID(**DEPTH_PID_GAINS, n=n, out_min=-DEPTH_U_LIMIT, out_max=DEPTH_U_LIMIT)
+    fuzzy = FuzzyPID(
+        **DEPTH_PID_GAINS,
+        k_dkp=0.0,
+        k_dki=0.0,
+        k_dkd=0.0,
+        n=n,
+        out_min=-DEPTH_U_LIMIT,
+        out_max=DEPTH_U_LIMIT,
+    )
+    rng = np.random.default_rng(3)
+    y = rng.normal(0.0, 0.5, 3000).cumsum() * 0.05  # a wandering, noisy measurement
+    for k, m in enumerate(y):
+        r = 1.0 if k > 100 else 0.0
+        assert fuzzy.step(r, float(m), 1e-3) == pytest.approx(
+            fixed.step(r, float(m), 1e-3), abs=1e-9
+        )
+
+
+def test_table2_adaptation_inside_the_qualified_band() -> None:
+    # Sign and size of the adaptation where the depth loop lives: errors within GB/T 20865's
+    # +-10 mm band and error rates within the cylinder's 50 mm/s. Table 2 maps e in mm by
+    # 6 / 200, so E stays within +-0.3 of ZE: the tables act through Ec alone. At (ZE, ZE)
+    # the textbook tables say dKp ZE, dKi ZE, dKd NS (-1 of [-3, 3], x 0.5 = -0.5): Kd drops
+    # by about 0.5 (17 % of K'd 3), Kp moves against the sign of ec by at most 0.6 (5 % of
+    # K'p 12; an odd function of ec, zero on average) and Ki by at most 0.04.
+    c = FuzzyPID(**DEPTH_PID_GAINS)  # Table 2 factors are the defaults
+    assert c.deltas(0.0, 0.0) == pytest.approx((0.0, 0.0, -0.5), abs=2e-3)
+    grid = [(e, ec) for e in np.linspace(-10, 10, 21) for ec in np.linspace(-50, 50, 41)]
+    d = np.array([c.deltas(float(e), float(ec)) for e, ec in grid])
+    assert d[:, 2].min() >= -0.65 and d[:, 2].max() <= 1e-9
+    assert np.abs(d[:, 0]).max() <= 0.6 + 1e-9 and np.abs(d[:, 1]).max() <= 0.045
+    up, down = c.deltas(0.0, -30.0), c.deltas(0.0, 30.0)
+    assert up[0] > 0.3 and down[0] < -0.3 and up[0] == pytest.approx(-down[0], abs=1e-6)

@@ -317,3 +317,52 @@ def test_run_notices_a_silent_sensor(tmp_path: Path) -> None:
     assert all(r["ndvi"] is not None and r["target_rate_kg_ha"] > 0 for r in held)
     assert all(r["target_shaft_rpm"] == 0.0 and r["target_rate_kg_ha"] == 0.0 for r in lost)
     assert recs.index(held[0]) < recs.index(lost[0])
+
+
+def test_depth_job_controllers_are_the_papers_with_shared_base_gains() -> None:
+    from fieldrx_edge.control import PID, FuzzyPID
+    from fieldrx_edge.depth import DEPTH_PID_GAINS
+    from fieldrx_edge.jobkinds.seeding import build_depth_controller
+
+    s = validate_settings("seeding_depth", {})
+    fz = build_depth_controller(s["controller"], s["actuator_speed_mm_s"])
+    assert isinstance(fz, FuzzyPID)
+    # seed 002 Table 2: 6/200, 6/50, 0.9/3, 0.06/3, 1.5/3 (once tuned factors on the unit step)
+    assert (fz.k_e, fz.k_ec, fz.k_dkp, fz.k_dki, fz.k_dkd) == (0.03, 0.12, 0.30, 0.02, 0.5)
+    pid = build_depth_controller(
+        validate_settings("seeding_depth", {"controller": {"name": "pid"}})["controller"], 50.0
+    )
+    assert isinstance(pid, PID)
+    for c in (fz, pid):  # the same K' and derivative filter for both, limited at 50 mm/s
+        assert (c.kp, c.ki, c.kd) == tuple(DEPTH_PID_GAINS.values())
+        assert c.n == fz.n and c.out_max == pytest.approx(50.0 / 2.6091)
+
+
+def test_depth_simulation_dug_out_telemetry_and_cylinder() -> None:
+    from fieldrx_edge.jobkinds.seeding import DepthDisturbance, simulate_seeding
+
+    pid = validate_settings("seeding_depth", {"controller": {"name": "pid"}})["controller"]
+    job = kind_job("seeding_depth")
+    base = simulate_seeding(job, seed=2, controller=pid)
+    fuzzy = simulate_seeding(job, seed=2)
+    quiet = simulate_seeding(
+        job, seed=2, controller=pid, disturbance=DepthDisturbance(sensor_noise_mv=0.0)
+    )
+    fast = simulate_seeding(
+        kind_job("seeding_depth", actuator_speed_mm_s=500.0), seed=2, controller=pid
+    )
+
+    def sd(out: dict, table: str) -> list[float]:
+        return [b["sd_mm"] for b in out[table]["bands"]]
+
+    # the same soil under both controllers
+    assert fuzzy["open_loop_table"] == base["open_loop_table"]
+    assert fuzzy["gains"]["kd"][0] < 3.0 and base["gains"]["kd"] == [3.0, 0.0]
+    # the sensor's reading adds its noise to the true (dug-out) depth, in every band
+    reading, dug = sd(base, "depth_table"), sd(base, "true_depth_table")
+    assert all(m > t for m, t in zip(reading, dug, strict=True))
+    assert sd(quiet, "depth_table") == pytest.approx(sd(quiet, "true_depth_table"), abs=1e-9)
+    # control removes most of the soil's variation, and the cylinder speed of the settings
+    # is the plant's (it was 50 mm/s whatever the settings said)
+    for o, t, f in zip(sd(base, "open_loop_table"), dug, sd(fast, "true_depth_table"), strict=True):
+        assert t < 0.6 * o and f < 0.9 * t

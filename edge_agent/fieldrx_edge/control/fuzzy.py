@@ -123,8 +123,11 @@ class FuzzyPID(Controller):
     (Table 2: 0.03, 0.12) and output factors ``k_dkp``, ``k_dki``, ``k_dkd``
     (Table 2: 0.30, 0.02, 0.5). The PID is positional with forward-Euler
     integral of Ki*e (so Ki changes never bump) and derivative Kd * ec, where
-    ec is the backward difference of e, optionally low-passed with
-    coefficient ``n``. Gains never go below zero. Anti-windup: conditional
+    ec is the backward difference of e, or with coefficient ``n`` the filtered
+    derivative N s / (s + N) discretised exactly as ``PID`` does it: with all
+    output factors 0 (dK = 0) it is ``PID`` with the same gains, sample for
+    sample, so a comparison with the fixed PID differs only by the adaptation.
+    The filtered ec is also the fuzzy input Ec. Gains never go below zero. Anti-windup: conditional
     integration, as in ``PID``.
     """
 
@@ -235,12 +238,15 @@ class FuzzyPID(Controller):
 
     def step(self, setpoint: float, measurement: float, dt: float) -> float:
         e = setpoint - measurement
-        ec = (e - self._e) / dt
-        if self.n is not None:
+        if self.n is None:
+            ec = (e - self._e) / dt
+        else:
+            # N s / (s + N) on e, discretised exactly as ``PID``'s derivative filter:
+            # ec(k) = e^(-N dt) ec(k-1) + N (e(k) - e(k-1)), so with dK = 0 this is ``PID``.
             if dt != self._alpha_dt:
                 self._alpha = 1.0 - math.exp(-self.n * dt)
                 self._alpha_dt = dt
-            ec = self._ecf + self._alpha * (ec - self._ecf)
+            ec = (1.0 - self._alpha) * self._ecf + self.n * (e - self._e)
         self._e = e
         self._ecf = ec
         dkp, dki, dkd = self.deltas(e, ec)

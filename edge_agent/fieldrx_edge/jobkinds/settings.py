@@ -52,7 +52,7 @@ NDVI_LADRC_PARAMS: dict[str, float] = {"wc": 5.0, "wo": 20.0, "b0": 64.0, "order
 
 # Seed 002 (wheat sowing depth, 2023): target 30 mm; GB/T 20865 band +-10 mm at >= 30 mm,
 # +-5 mm below; eq. 13 y = -0.065 x + 270.35 over 2628-4356 mV; adaptive fuzzy PID with Table 2's
-# universes (factors tuned in bench/control.py, fieldrx_edge.depth); cylinder 50 mm/s; 1 ms loop;
+# universes and factors (fieldrx_edge.depth.TABLE2_FACTORS); cylinder 50 mm/s; 1 ms loop;
 # field test bands 1-3 / 3-5 / 5-7 km/h (Table 3).
 DEPTH_DEFAULTS: dict[str, Any] = {
     "target_depth_mm": 30.0,
