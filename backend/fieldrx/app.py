@@ -15,7 +15,6 @@ from sqlalchemy import exc as sa_exc
 from sqlalchemy.orm import exc as orm_exc
 
 from fieldrx import __version__
-from fieldrx.api.common import ApiError
 from fieldrx.auth.mqtt import MqttCredentialError
 from fieldrx.errors import DomainError
 from fieldrx.middleware import LimitsAndHeaders, install_log_redaction
@@ -78,10 +77,6 @@ def create_app() -> FastAPI:
     install_log_redaction()
     bounded.warm_up()
 
-    @app.exception_handler(ApiError)
-    async def _api_error(_: Request, exc: ApiError) -> JSONResponse:
-        return JSONResponse(status_code=exc.status_code, content=exc.body)
-
     @app.exception_handler(MqttCredentialError)
     async def _mqtt_error(_: Request, exc: MqttCredentialError) -> JSONResponse:
         """A device credential could not be changed on the broker: nothing was committed."""
@@ -142,11 +137,16 @@ def create_app() -> FastAPI:
         parts = []
         for err in errors:
             loc = ".".join(str(p) for p in err.get("loc", ()) if p != "body")
-            parts.append(f"{loc}: {err.get('msg')}" if loc else str(err.get("msg")))
+            msg = str(err.get("msg"))
+            if err.get("type") == "extra_forbidden":  # a misspelt or unsupported field
+                msg = "unknown field: not part of this request (see /docs for the fields)"
+            parts.append(f"{loc}: {msg}" if loc else msg)
+        first = errors[0].get("loc", ()) if errors else ()
         return JSONResponse(
             status_code=422,
             content={
                 "detail": "; ".join(parts) or "invalid request",
+                "where": ".".join(str(p) for p in first if p != "body") or None,
                 "errors": [
                     {"loc": list(e.get("loc", ())), "msg": e.get("msg"), "type": e.get("type")}
                     for e in errors

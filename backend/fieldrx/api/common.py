@@ -6,12 +6,13 @@ from collections.abc import Iterable, Mapping
 from typing import Any, TypeVar
 
 from fastapi import HTTPException, status
-from geoalchemy2.shape import from_shape, to_shape
+from geoalchemy2.shape import to_shape
 from shapely.geometry import mapping
 from shapely.geometry.base import BaseGeometry
 from sqlalchemy.orm import Session
 
 from fieldrx.auth.deps import Principal
+from fieldrx.errors import DomainError
 
 T = TypeVar("T")
 
@@ -32,17 +33,15 @@ def geom_to_geojson(geom: Any) -> dict[str, Any]:
     return mapping(shp)
 
 
-def shape_to_db(geom: BaseGeometry, srid: int = 4326) -> Any:
-    return from_shape(geom, srid=srid)
+class ApiError(DomainError):
+    """An error a router decides the status of: answered like every domain error, as the one
+    error body ``{"detail": message, **extra}`` (``schemas.errors.ErrorOut``).
 
-
-class ApiError(Exception):
-    """An error answered as a flat JSON body: {"detail": message, **extra} (where, location)."""
+    Lower layers raise ``fieldrx.errors`` classes instead (they never import this module)."""
 
     def __init__(self, status_code: int, message: str, **extra: Any) -> None:
-        super().__init__(message)
-        self.status_code = status_code
-        self.body: dict[str, Any] = {"detail": message, **extra}
+        super().__init__(message, **extra)
+        self.status = status_code
 
 
 def point_page(

@@ -9,33 +9,29 @@ job that was ``sent`` moves it to ``downloaded``.
 from __future__ import annotations
 
 import gzip
-from typing import Literal
 
 from fastapi import APIRouter, Request
 from fastapi.responses import Response
-from pydantic import BaseModel, Field
 from sqlalchemy import select
 
 from fieldrx.api.common import ApiError
-from fieldrx.api.jobs import JobOut, job_out
+from fieldrx.api.jobs import job_out
+from fieldrx.api.schemas.errors import ERRORS
+from fieldrx.api.schemas.jobs import (
+    DeviceJobList,
+    DeviceStateIn,
+    DeviceTokenRotated,
+    JobOut,
+    JobPackageOut,
+)
 from fieldrx.auth.deps import DeviceDep, Principal, SessionDep
 from fieldrx.db.models import Job
 from fieldrx.fleet.jobstate import change_state
 from fieldrx.services.jobpackage import build_job_package
 
-router = APIRouter(prefix="/device", tags=["device"])
+router = APIRouter(prefix="/device", tags=["device"], responses=ERRORS)
 
 ACTIVE = ("sent", "downloaded", "running", "paused")
-
-
-class DeviceStateIn(BaseModel):
-    state: Literal["downloaded", "running", "paused", "completed"]
-    note: str = Field(default="", max_length=2000)
-
-
-class DeviceJobList(BaseModel):
-    items: list[JobOut]
-    total: int
 
 
 def _my_job(session: SessionDep, job_id: int, principal: Principal) -> Job:
@@ -67,7 +63,14 @@ def device_jobs(principal: DeviceDep, session: SessionDep) -> DeviceJobList:
 
 @router.get(
     "/jobs/{job_id:int}/package",
-    responses={200: {"description": "JobPackage JSON"}, 304: {"description": "not modified"}},
+    response_class=Response,
+    responses={
+        200: {
+            "description": "the job package (gzip with Accept-Encoding: gzip); ETag = checksum",
+            "content": {"application/json": {"schema": JobPackageOut.model_json_schema()}},
+        },
+        304: {"description": "not modified (If-None-Match carried the package's checksum)"},
+    },
 )
 def job_package(
     job_id: int, request: Request, principal: DeviceDep, session: SessionDep
@@ -110,8 +113,8 @@ def device_state(
     return job_out(job)
 
 
-@router.post("/token", status_code=201)
-def rotate_token(principal: DeviceDep, session: SessionDep) -> dict[str, object]:
+@router.post("/token", status_code=201, response_model=DeviceTokenRotated)
+def rotate_token(principal: DeviceDep, session: SessionDep) -> DeviceTokenRotated:
     """Rotate the machine's own device token: a new one (shown once) with a fresh expiry;
     the one used for this call is revoked. The agent stores the new token before using it."""
     from fieldrx.auth.service import issue_device_token, token_expiry
@@ -119,8 +122,6 @@ def rotate_token(principal: DeviceDep, session: SessionDep) -> dict[str, object]
     assert principal.machine_id is not None
     token = issue_device_token(session, principal.machine_id, principal.organisation_id)
     session.commit()
-    return {
-        "machine_id": principal.machine_id,
-        "token": token,
-        "expires_at": token_expiry(session, token),
-    }
+    return DeviceTokenRotated(
+        machine_id=principal.machine_id, token=token, expires_at=token_expiry(session, token)
+    )

@@ -22,11 +22,15 @@ from shapely.geometry import mapping
 from sqlalchemy import select, text
 
 from fieldrx.api.common import ApiError, get_scoped, point_page
+from fieldrx.api.schemas.errors import ERRORS
+from fieldrx.api.schemas.files import MVT, file_response
+from fieldrx.api.schemas.fleet import PointPage
+from fieldrx.api.schemas.reports import AsAppliedCells, AsAppliedReport, JobSummaryOut, KindReport
 from fieldrx.auth.deps import SessionDep, UserDep
 from fieldrx.db.models import Field, Job, JobEvent, PlanCell, Prescription
 from fieldrx.fleet.reports import JobReport, cached_report, job_plan
 
-router = APIRouter(tags=["reports"])
+router = APIRouter(tags=["reports"], responses=ERRORS)
 
 
 def _report(session: SessionDep, job_id: int, principal: Any) -> tuple[Job, JobReport]:
@@ -46,7 +50,7 @@ def _prescription_job(job: Job) -> None:
         )
 
 
-@router.get("/jobs/{job_id:int}/report")
+@router.get("/jobs/{job_id:int}/report", response_model=AsAppliedReport | KindReport)
 def job_report(
     job_id: int,
     principal: UserDep,
@@ -68,7 +72,7 @@ def job_report(
     return out
 
 
-@router.get("/jobs/{job_id:int}/summary")
+@router.get("/jobs/{job_id:int}/summary", response_model=JobSummaryOut)
 def job_summary(job_id: int, principal: UserDep, session: SessionDep) -> dict[str, Any]:
     """Compact job record for farm software: what, where, when, how much, how well."""
     job, rep = _report(session, job_id, principal)
@@ -110,7 +114,7 @@ def job_summary(job_id: int, principal: UserDep, session: SessionDep) -> dict[st
     }
 
 
-@router.get("/jobs/{job_id:int}/as-applied")
+@router.get("/jobs/{job_id:int}/as-applied", response_model=PointPage)
 def as_applied_points(
     job_id: int,
     principal: UserDep,
@@ -141,7 +145,7 @@ def _cell_geoms(session: SessionDep, plan_id: int) -> dict[int, Any]:
     return {int(s): to_shape(g) for s, g in rows}
 
 
-@router.get("/jobs/{job_id:int}/as-applied/cells")
+@router.get("/jobs/{job_id:int}/as-applied/cells", response_model=AsAppliedCells)
 def as_applied_cells(job_id: int, principal: UserDep, session: SessionDep) -> dict[str, Any]:
     """Per-cell GeoJSON: planned vs applied rate, masses and accuracy."""
     job, rep = _report(session, job_id, principal)
@@ -172,7 +176,15 @@ CSV_COLUMNS = (
 )
 
 
-@router.get("/jobs/{job_id:int}/export")
+@router.get(
+    "/jobs/{job_id:int}/export",
+    response_class=Response,
+    responses=file_response(
+        "per-cell CSV, zipped Shapefile or TASKDATA.zip (Content-Disposition names it)",
+        "text/csv",
+        "application/zip",
+    ),
+)
 def export_report(
     job_id: int,
     principal: UserDep,
@@ -238,7 +250,11 @@ TILE_SQL = text(
 )
 
 
-@router.get("/tiles/jobs/{job_id:int}/{z:int}/{x:int}/{y:int}.mvt")
+@router.get(
+    "/tiles/jobs/{job_id:int}/{z:int}/{x:int}/{y:int}.mvt",
+    response_class=Response,
+    responses=file_response("a Mapbox vector tile, layer 'cells'", MVT),
+)
 def job_tile(
     job_id: int, z: int, x: int, y: int, request: Request, principal: UserDep, session: SessionDep
 ) -> Response:
@@ -265,7 +281,7 @@ def job_tile(
     ).scalar()
     return Response(
         bytes(data or b""),
-        media_type="application/vnd.mapbox-vector-tile",
+        media_type=MVT,
         headers={"Cache-Control": "no-cache", "Last-Modified": _http_date(job.updated_at)},
     )
 

@@ -319,9 +319,9 @@ def version_summary(ver: PrescriptionVersion) -> dict[str, Any]:
 
 
 def _stats(summary: dict[str, Any]) -> dict[str, Any]:
-    out = {k: v for k, v in summary.items() if isinstance(v, int | float) and v is not None}
+    """Counts derived from the summary's flags (the summary's own figures are not copied)."""
+    out: dict[str, Any] = {}
     fl = summary.get("flagged") or {}
-    out["cell_count"] = summary.get("n_cells", 0)
     out["out_of_meter_range_count"] = int(fl.get("below_meter_range", 0)) + int(
         fl.get("above_meter_range", 0)
     )
@@ -356,9 +356,7 @@ def prescription_summary(session: Session, rx: Prescription) -> dict[str, Any]:
         "interpolation_params": p.get("interpolation_params", {}),
         "fallback_rate_kg_ha": p.get("fallback_rate_kg_ha"),
         "meter": p.get("meter"),
-        "version": rx.current_version,
         "current_version": rx.current_version,
-        "latest_version": rx.current_version,
         "versions": [
             {
                 "version": v.version,
@@ -633,11 +631,8 @@ def rates_page(
                     "area_m2": round(area, 3),
                     "rate_kg_ha": rate,
                     "flags": fl,
-                    "flag": ",".join(fl),
-                    # outside what the machine meters at the planned speeds (stored as
-                    # asked); "clamped" is the same flag under the tiles' older name
+                    # outside what the machine meters at the planned speeds (stored as asked)
                     "out_of_meter_range": "below_meter_range" in fl or "above_meter_range" in fl,
-                    "clamped": "below_meter_range" in fl or "above_meter_range" in fl,
                     # no sample near enough: the rate is the prescription's fallback rate
                     "fallback": "no_data" in fl,
                     "source_value": src,
