@@ -1,4 +1,4 @@
-"""create_app(): routers, error handlers and the static browser UI."""
+"""create_app(): routers, error handlers, offline API docs and the static browser UI."""
 
 from __future__ import annotations
 
@@ -15,6 +15,7 @@ from sqlalchemy import exc as sa_exc
 from sqlalchemy.orm import exc as orm_exc
 
 from fieldrx import __version__
+from fieldrx.apidocs import FIRST_CALL, install_docs
 from fieldrx.auth.mqtt import MqttCredentialError
 from fieldrx.errors import DomainError
 from fieldrx.middleware import LimitsAndHeaders, install_log_redaction
@@ -57,13 +58,12 @@ def create_app() -> FastAPI:
     app = FastAPI(
         title="FieldRx",
         version=__version__,
-        description=(
-            "Variable-rate fertilization: fields, coverage planning, path-ordered grids, "
-            "prescriptions, ISOXML/Shapefile exports, jobs and fleet telemetry."
-        ),
-        docs_url="/docs",
+        description=FIRST_CALL,
+        docs_url=None,  # served from the packaged assets by install_docs (no CDN)
+        redoc_url=None,
         openapi_url=f"{API_PREFIX}/openapi.json",
     )
+    install_docs(app, f"{API_PREFIX}/openapi.json")
 
     settings = get_settings()
     app.add_middleware(

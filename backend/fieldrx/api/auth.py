@@ -66,6 +66,7 @@ def _login(session: SessionDep, user: User, organisation_id: int | None) -> Logi
     "/login",
     response_model=LoginOut,
     responses={429: {"model": ErrorOut, "description": "too many failed sign-ins (Retry-After)"}},
+    openapi_extra={"security": []},  # public: this is where a token comes from
 )
 def login(body: LoginIn, request: Request, session: SessionDep) -> LoginOut:
     """Exchange e-mail and password for a bearer token scoped to one organisation.

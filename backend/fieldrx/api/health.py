@@ -12,7 +12,7 @@ from fieldrx.auth.deps import SessionDep
 router = APIRouter(tags=["health"], responses={503: ERRORS[503]})
 
 
-@router.get("/health", response_model=HealthOut)
+@router.get("/health", response_model=HealthOut, openapi_extra={"security": []})
 def health(session: SessionDep) -> HealthOut:
     """200 when the API and its database answer (503 when the database does not).
 

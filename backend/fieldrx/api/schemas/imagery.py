@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import datetime as dt
-from typing import Any
+from typing import Any, Literal
 
 from pydantic import Field
 
@@ -13,7 +13,7 @@ from fieldrx.api.schemas.base import Geometry, In, Out
 class ImageryOut(Out):
     id: int
     field_id: int
-    kind: str = Field(description="orthophoto | ndvi | multispectral")
+    kind: Literal["orthophoto", "ndvi", "multispectral"]
     name: str
     filename: str
     acquired_on: dt.date | None

@@ -32,15 +32,23 @@ class SoilImportList(Out):
     total: int
 
 
+class OutsideRow(Out):
+    """A sample lying outside the field (beyond the tolerance)."""
+
+    row: int
+    sample_id: str
+    lon: float
+    lat: float
+    distance_m: float | None
+
+
 class SoilImportResult(Out):
     imported: int
     import_batch: str
     import_: SoilImportOut = Field(alias="import")
     skipped: int = Field(description="bad rows left out (skip_bad_rows)")
     errors: list[dict[str, Any]] = Field(description="{row, column, message} of each bad row")
-    outside: list[dict[str, Any]] = Field(
-        description="{row, sample_id, lon, lat, distance_m} of samples outside the field"
-    )
+    outside: list[OutsideRow]
     n_outside: int
     outside_stored: bool
     outside_tolerance_m: float
