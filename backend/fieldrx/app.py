@@ -163,6 +163,16 @@ def create_app() -> FastAPI:
             raise
         app.include_router(module.router, prefix=API_PREFIX)
 
+    @app.api_route(
+        f"{API_PREFIX}/{{path:path}}",
+        methods=["GET", "HEAD", "POST", "PUT", "PATCH", "DELETE", "OPTIONS"],
+        include_in_schema=False,
+    )
+    def _no_such_endpoint(path: str) -> JSONResponse:
+        """No route (a misspelt path, a negative id the ``int`` converter refuses): 404 in the
+        one error shape, whatever the method (not the UI's index page, not a bare 405)."""
+        return JSONResponse({"detail": f"not found: {API_PREFIX}/{path}"}, status_code=404)
+
     dist = _frontend_dist()
     index = dist / "index.html"
     if (dist / "assets").is_dir():

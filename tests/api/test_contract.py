@@ -231,3 +231,37 @@ def test_docs_are_served_from_the_app(client) -> None:  # noqa: ANN001
         js = client.get(f"/docs-assets/{asset}")
         assert js.status_code == 200 and len(js.content) > 500_000
     assert "First call" in client.get(f"{API}/openapi.json").json()["info"]["description"]
+
+
+def test_first_call_guide_works(client, org) -> None:  # noqa: ANN001
+    """The README's / OpenAPI description's first call, step by step, with a token made
+    without a role: field, plan, prescription, ISOXML."""
+    r = client.post(f"{API}/auth/tokens", headers=org.headers("agronomist"), json={"name": "s"})
+    h = {"Authorization": f"Bearer {r.json()['token']}"}
+    ring = [[112.32, 32.13], [112.3237, 32.13], [112.3237, 32.1321], [112.32, 32.1321]]
+    field = client.post(
+        f"{API}/fields",
+        headers=h,
+        json={
+            "type": "Feature",
+            "properties": {"name": "North"},
+            "geometry": {"type": "Polygon", "coordinates": [[*ring, ring[0]]]},
+        },
+    )
+    assert field.status_code == 201, field.text
+    plan = client.post(
+        f"{API}/fields/{field.json()['id']}/plans",
+        headers=h,
+        json={"swath_width_m": 12, "cell_length_m": 10},
+    )
+    assert plan.status_code == 201, plan.text
+    rx = client.post(
+        f"{API}/plans/{plan.json()['id']}/prescriptions",
+        headers=h,
+        json={"model": "uniform", "params": {"rate_kg_ha": 150}},
+    )
+    assert rx.status_code == 201, rx.text
+    assert rx.json()["summary"]["rate_mean_kg_ha"] == 150
+    out = client.get(f"{API}/prescriptions/{rx.json()['id']}/export?format=isoxml", headers=h)
+    assert out.status_code == 200 and out.headers["content-type"] == "application/zip"
+    assert out.content[:2] == b"PK"
