@@ -26,7 +26,8 @@ describe('offline API docs', { skip: up ? false : `no FieldRx server at ${BASE_U
     const blocked = new Set();
     const onRequest = (r) => requests.push(r.url());
     const onFailed = (r) => {
-      if (/ERR_BLOCKED_BY_(CSP|CLIENT)/.test(r.failure()?.errorText ?? '')) blocked.add(r.url());
+      // Chromium reports a request its CSP refused as 'csp' (older: net::ERR_BLOCKED_BY_CSP)
+      if (/^csp$|ERR_BLOCKED_BY_(CSP|CLIENT)/.test(r.failure()?.errorText ?? '')) blocked.add(r.url());
     };
     page.on('request', onRequest);
     page.on('requestfailed', onFailed);
