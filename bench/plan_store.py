@@ -108,8 +108,8 @@ def tiles_and_rx(s, plan, fld, org_id) -> dict:
 def run(url: str) -> None:
     import psycopg
     import shapely
-    from fieldrx.api.common import shape_to_db
     from fieldrx.auth.service import create_organisation
+    from fieldrx.db.geometry import shape_to_db
     from fieldrx.db.models import Field
     from fieldrx.db.session import get_sessionmaker
     from fieldrx.geo.crs import to_wgs84

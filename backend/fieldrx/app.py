@@ -1,4 +1,4 @@
-"""create_app(): routers, error handlers and the static browser UI."""
+"""create_app(): routers, error handlers, offline API docs and the static browser UI."""
 
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ from sqlalchemy import exc as sa_exc
 from sqlalchemy.orm import exc as orm_exc
 
 from fieldrx import __version__
-from fieldrx.api.common import ApiError
+from fieldrx.apidocs import FIRST_CALL, install_docs
 from fieldrx.auth.mqtt import MqttCredentialError
 from fieldrx.errors import DomainError
 from fieldrx.middleware import LimitsAndHeaders, install_log_redaction
@@ -59,13 +59,12 @@ def create_app() -> FastAPI:
     app = FastAPI(
         title="FieldRx",
         version=__version__,
-        description=(
-            "Variable-rate fertilization: fields, coverage planning, path-ordered grids, "
-            "prescriptions, ISOXML/Shapefile exports, jobs and fleet telemetry."
-        ),
-        docs_url="/docs",
+        description=FIRST_CALL,
+        docs_url=None,  # served from the packaged assets by install_docs (no CDN)
+        redoc_url=None,
         openapi_url=f"{API_PREFIX}/openapi.json",
     )
+    install_docs(app, f"{API_PREFIX}/openapi.json")
 
     settings = get_settings()
     app.add_middleware(
@@ -78,10 +77,6 @@ def create_app() -> FastAPI:
     )
     install_log_redaction()
     bounded.warm_up()
-
-    @app.exception_handler(ApiError)
-    async def _api_error(_: Request, exc: ApiError) -> JSONResponse:
-        return JSONResponse(status_code=exc.status_code, content=exc.body)
 
     @app.exception_handler(MqttCredentialError)
     async def _mqtt_error(_: Request, exc: MqttCredentialError) -> JSONResponse:
@@ -143,11 +138,16 @@ def create_app() -> FastAPI:
         parts = []
         for err in errors:
             loc = ".".join(str(p) for p in err.get("loc", ()) if p != "body")
-            parts.append(f"{loc}: {err.get('msg')}" if loc else str(err.get("msg")))
+            msg = str(err.get("msg"))
+            if err.get("type") == "extra_forbidden":  # a misspelt or unsupported field
+                msg = "unknown field: not part of this request (see /docs for the fields)"
+            parts.append(f"{loc}: {msg}" if loc else msg)
+        first = errors[0].get("loc", ()) if errors else ()
         return JSONResponse(
             status_code=422,
             content={
                 "detail": "; ".join(parts) or "invalid request",
+                "where": ".".join(str(p) for p in first if p != "body") or None,
                 "errors": [
                     {"loc": list(e.get("loc", ())), "msg": e.get("msg"), "type": e.get("type")}
                     for e in errors
@@ -163,6 +163,16 @@ def create_app() -> FastAPI:
                 continue
             raise
         app.include_router(module.router, prefix=API_PREFIX)
+
+    @app.api_route(
+        f"{API_PREFIX}/{{path:path}}",
+        methods=["GET", "HEAD", "POST", "PUT", "PATCH", "DELETE", "OPTIONS"],
+        include_in_schema=False,
+    )
+    def _no_such_endpoint(path: str) -> JSONResponse:
+        """No route (a misspelt path, a negative id the ``int`` converter refuses): 404 in the
+        one error shape, whatever the method (not the UI's index page, not a bare 405)."""
+        return JSONResponse({"detail": f"not found: {API_PREFIX}/{path}"}, status_code=404)
 
     dist = _frontend_dist()
     index = dist / "index.html"

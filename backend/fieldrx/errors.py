@@ -24,6 +24,19 @@ class DomainError(Exception):
         return {"detail": self.message, **self.extra}
 
 
+class Invalid(DomainError):
+    """The request is well formed but its values cannot be used (a state that does not
+    exist, a setting out of range); ``where`` names the field."""
+
+    status = 422
+
+
+class NotFound(DomainError):
+    """A resource the request names does not exist (or belongs to another organisation)."""
+
+    status = 404
+
+
 class TooExpensive(DomainError):
     """A request's cost bound (rows, cells, bytes, time) is exceeded: refused before or while
     working, nothing stored."""

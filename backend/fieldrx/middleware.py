@@ -13,6 +13,8 @@ import re
 from starlette.exceptions import HTTPException
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
+from fieldrx.apidocs import DOCS_CSP
+
 # The browser UI: scripts and styles only from the server itself; MapLibre builds its
 # workers from blob: URLs and draws tiles of a user-configured https basemap; the live
 # view is a WebSocket to the same host.
@@ -39,9 +41,8 @@ SECURITY_HEADERS = [
     (b"cross-origin-opener-policy", b"same-origin"),
     (b"permissions-policy", b"camera=(), microphone=(), geolocation=(self)"),
 ]
-# Swagger UI (/docs) loads its script and styles from a CDN: it gets the headers above
-# but not the UI's CSP.
-_NO_CSP = ("/docs", "/redoc")
+# The API docs pages (served from packaged assets, fieldrx.apidocs) get their own CSP.
+_DOCS = ("/docs", "/redoc")
 
 
 class BodyTooLarge(HTTPException):
@@ -86,8 +87,9 @@ class LimitsAndHeaders:
                 started = True
                 have = {k.lower() for k, _ in message.get("headers", [])}
                 extra = [(k, v) for k, v in SECURITY_HEADERS if k not in have]
-                if b"content-security-policy" not in have and not path.startswith(_NO_CSP):
-                    extra.append((b"content-security-policy", CSP.encode()))
+                if b"content-security-policy" not in have:
+                    csp = DOCS_CSP if path.startswith(_DOCS) else CSP
+                    extra.append((b"content-security-policy", csp.encode()))
                 message = {**message, "headers": [*message.get("headers", []), *extra]}
             await send(message)
 

@@ -1,5 +1,5 @@
 import { useEffect, useState } from 'react';
-import { api, getSession, getToken, setSession, type SessionInfo } from './api';
+import { client, getSession, getToken, setSession, type SessionInfo } from './api/client';
 import { navigate, useRoute } from './router';
 import { Login } from './screens/Login';
 import { FieldsScreen } from './screens/Fields';
@@ -77,7 +77,7 @@ export function App() {
           data-testid="logout"
           onClick={() => {
             // Revoke the token on the server too; sign out locally whatever happens.
-            void api.post('/auth/logout').catch(() => undefined);
+            void client.POST('/api/v1/auth/logout').catch(() => undefined);
             setSession(null);
             setSess(null);
           }}

@@ -1,5 +1,5 @@
 import { useEffect, useRef, useState } from 'react';
-import { liveProtocols, liveUrl } from './api';
+import { liveProtocols, liveUrl } from './api/client';
 
 export interface LiveMessage {
   type: 'position' | 'status' | 'alert' | string;

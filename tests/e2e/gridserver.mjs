@@ -83,10 +83,20 @@ export async function startGridServer({ port = 0, grid = syntheticGrid() } = {})
       res.writeHead(200, { 'Content-Type': 'application/vnd.mapbox-vector-tile', 'Cache-Control': 'no-store' });
       return res.end(buf);
     }
-    if (p === '/api/v1/prescriptions/1') return json(res, 200, { id: 1, plan_id: 1, model: 'synthetic', latest_version: 1, versions: [{ version: 1 }] });
+    // The few answers the prescription screen reads, in the server's shapes (PrescriptionOut, ...).
+    if (p === '/api/v1/prescriptions/1')
+      return json(res, 200, {
+        id: 1,
+        plan_id: 1,
+        model: 'synthetic',
+        current_version: 1,
+        versions: [{ version: 1, note: '', created_at: null }],
+        summary: { n_cells: grid.features.length },
+        stats: { out_of_meter_range_count: 0, no_data_count: 0, attention_count: 0, attention_area_m2: 0 },
+      });
     if (p === '/api/v1/plans/1') return json(res, 200, { id: 1, field_id: 1 });
     if (p === '/api/v1/fields/1') return json(res, 200, boundary);
-    if (p === '/api/v1/machines' || p === '/api/v1/farms') return json(res, 200, []);
+    if (p === '/api/v1/machines' || p === '/api/v1/farms') return json(res, 200, { items: [], total: 0 });
     if (p.startsWith('/api/')) return json(res, 404, { detail: 'Not Found' });
     const file = normalize(join(dist, p === '/' ? 'index.html' : p));
     if (!file.startsWith(dist) || !existsSync(file) || !statSync(file).isFile()) return json(res, 404, { detail: 'Not Found' });

@@ -33,7 +33,11 @@ def test_create_list_get(client, org) -> None:  # noqa: ANN001
     assert job["events"][0]["by_user_id"] == org.user_ids["agronomist"]
     r = client.post(
         "/api/v1/jobs",
-        json={"prescription_id": fx.prescription_id, "machine_id": fx.machine_id, "version": 7},
+        json={
+            "prescription_id": fx.prescription_id,
+            "machine_id": fx.machine_id,
+            "prescription_version": 7,
+        },
         headers=org.headers(),
     )
     assert r.status_code == 404 and "version 7" in r.json()["detail"]

@@ -67,7 +67,10 @@ def test_other_organisation_sees_nothing(client, make_org) -> None:
         assert _call(client, method, url, b.headers("admin"), body).status_code == 404, url
     listed = client.get(f"{API}/prescriptions", headers=b.headers()).json()
     assert listed["total"] == 0
-    assert client.get(f"{API}/prescriptions/{rx['id']}", headers=a.headers()).json()["version"] == 1
+    assert (
+        client.get(f"{API}/prescriptions/{rx['id']}", headers=a.headers()).json()["current_version"]
+        == 1
+    )
 
 
 def test_viewer_cannot_write(client, org) -> None:

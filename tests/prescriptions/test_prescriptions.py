@@ -32,7 +32,7 @@ def test_worked_example_nutrient_balance(client, org) -> None:
         params={"target_yield_kg_ha": 2500, "n_fraction": 0.25},
         interpolation="idw",
     )
-    assert rx["version"] == 1 and rx["model"] == "nutrient_balance"
+    assert rx["current_version"] == 1 and rx["model"] == "nutrient_balance"
     s = rx["summary"]
     assert s["n_cells"] == plan["n_cells"]
     assert s["rate_mean_kg_ha"] == pytest.approx(700.4, abs=0.1)
@@ -226,7 +226,7 @@ def test_edits_make_new_versions_and_leave_old_ones(client, org) -> None:
     )
     assert r.status_code == 201, r.text
     body = r.json()
-    assert body["version"] == 2 and body["new_version"] == 2 and body["edited_cells"] == 2
+    assert body["current_version"] == 2 and body["new_version"] == 2 and body["edited_cells"] == 2
     assert [v["version"] for v in body["versions"]] == [1, 2]
     v2 = all_cells(client, h, rx["id"])
     assert v2[0]["properties"]["rate_kg_ha"] == 800 and v2[0]["properties"]["flags"] == ["manual"]
@@ -263,7 +263,7 @@ def test_edits_make_new_versions_and_leave_old_ones(client, org) -> None:
         json={"zone": zone, "rate_kg_ha": 650, "note": "west"},
     )
     assert r.status_code == 201, r.text
-    assert r.json()["version"] == 3
+    assert r.json()["current_version"] == 3
     painted = r.json()["edited_cells"]
     assert plan["n_cells"] * 0.3 < painted < plan["n_cells"] * 0.7
     v3 = all_cells(client, h, rx["id"], 3)
@@ -285,7 +285,7 @@ def test_edits_make_new_versions_and_leave_old_ones(client, org) -> None:
         assert r.status_code == 422, r.text
     r = client.post(f"{API}/prescriptions/{rx['id']}/edits", headers=h, json={"note": "nothing"})
     assert r.status_code == 422
-    assert client.get(f"{API}/prescriptions/{rx['id']}", headers=h).json()["version"] == 3
+    assert client.get(f"{API}/prescriptions/{rx['id']}", headers=h).json()["current_version"] == 3
 
 
 def test_delete_prescription(client, org, db) -> None:
@@ -339,7 +339,7 @@ def test_unmeterable_edits_are_refused_naming_limit_and_speed(
         assert f"{LO:.1f} kg/ha" in detail and "2.88 km/h" in detail and "30 r/min" in detail
     else:
         assert f"{HI:.1f} kg/ha" in detail and "9 km/h" in detail and "130 r/min" in detail
-    assert client.get(f"{API}/prescriptions/{rx['id']}", headers=h).json()["version"] == 1
+    assert client.get(f"{API}/prescriptions/{rx['id']}", headers=h).json()["current_version"] == 1
     n = db.scalar(
         text("SELECT count(*) FROM prescription_versions WHERE prescription_id = :x"),
         {"x": rx["id"]},

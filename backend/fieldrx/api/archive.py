@@ -15,10 +15,12 @@ from sqlalchemy import func, select
 
 from fieldrx.api.common import ApiError
 from fieldrx.api.reports import as_applied_cells, job_summary
+from fieldrx.api.schemas.errors import ERRORS
+from fieldrx.api.schemas.reports import ArchiveList, ArchiveOut
 from fieldrx.auth.deps import SessionDep, UserDep, WriterDep
 from fieldrx.db.models import Job, JobArchive
 
-router = APIRouter(tags=["archive"])
+router = APIRouter(tags=["archive"], responses=ERRORS)
 
 
 def _out(a: JobArchive, full: bool) -> dict[str, Any]:
@@ -34,7 +36,7 @@ def _out(a: JobArchive, full: bool) -> dict[str, Any]:
     return out
 
 
-@router.post("/jobs/{job_id:int}/archive", status_code=201)
+@router.post("/jobs/{job_id:int}/archive", status_code=201, response_model=ArchiveOut)
 def archive_job(job_id: int, principal: WriterDep, session: SessionDep) -> dict[str, Any]:
     """Archive (again: replaces the previous copy) the job's as-applied evidence."""
     summary = job_summary(job_id, principal, session)  # 404 for another organisation's job
@@ -55,7 +57,7 @@ def archive_job(job_id: int, principal: WriterDep, session: SessionDep) -> dict[
     return _out(row, full=False)
 
 
-@router.get("/job-archives")
+@router.get("/job-archives", response_model=ArchiveList)
 def list_archives(
     principal: UserDep,
     session: SessionDep,
@@ -68,7 +70,7 @@ def list_archives(
     return {"items": [_out(r, full=False) for r in rows], "total": total}
 
 
-@router.get("/job-archives/{job_id:int}")
+@router.get("/job-archives/{job_id:int}", response_model=ArchiveOut)
 def get_archive(job_id: int, principal: UserDep, session: SessionDep) -> dict[str, Any]:
     row = session.get(JobArchive, job_id)
     if row is None or row.organisation_id != principal.organisation_id:

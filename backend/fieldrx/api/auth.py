@@ -5,9 +5,20 @@ from __future__ import annotations
 import datetime as dt
 
 from fastapi import APIRouter, HTTPException, Request, status
-from pydantic import BaseModel, Field
 from sqlalchemy import select
 
+from fieldrx.api.schemas.auth import (
+    LoginIn,
+    LoginOut,
+    MeOut,
+    NewTokenOut,
+    OrgOut,
+    SwitchIn,
+    TokenIn,
+    TokenOut,
+    UserOut,
+)
+from fieldrx.api.schemas.errors import ERRORS, ErrorOut
 from fieldrx.auth import throttle
 from fieldrx.auth.deps import SessionDep, UserDep
 from fieldrx.auth.mqtt import revoke_device_after
@@ -15,36 +26,7 @@ from fieldrx.auth.security import verify_password_or_dummy
 from fieldrx.auth.service import issue_user_token
 from fieldrx.db.models import ROLES, ApiToken, Membership, Organisation, User
 
-router = APIRouter(prefix="/auth", tags=["auth"])
-
-
-class LoginIn(BaseModel):
-    email: str = Field(max_length=320)
-    password: str = Field(max_length=1000)
-    organisation_id: int | None = Field(
-        default=None, description="organisation to sign in to (default: the first one)"
-    )
-
-
-class OrgOut(BaseModel):
-    id: int
-    name: str
-    role: str
-
-
-class UserOut(BaseModel):
-    id: int
-    email: str
-    full_name: str
-
-
-class LoginOut(BaseModel):
-    access_token: str
-    token_type: str = "bearer"
-    expires_at: dt.datetime | None
-    user: UserOut
-    organisation: OrgOut
-    organisations: list[OrgOut]
+router = APIRouter(prefix="/auth", tags=["auth"], responses=ERRORS)
 
 
 def _orgs(session: SessionDep, user_id: int) -> list[OrgOut]:
@@ -83,7 +65,8 @@ def _login(session: SessionDep, user: User, organisation_id: int | None) -> Logi
 @router.post(
     "/login",
     response_model=LoginOut,
-    responses={401: {"description": "wrong e-mail or password"}, 429: {"description": "throttled"}},
+    responses={429: {"model": ErrorOut, "description": "too many failed sign-ins (Retry-After)"}},
+    openapi_extra={"security": []},  # public: this is where a token comes from
 )
 def login(body: LoginIn, request: Request, session: SessionDep) -> LoginOut:
     """Exchange e-mail and password for a bearer token scoped to one organisation.
@@ -108,22 +91,12 @@ def login(body: LoginIn, request: Request, session: SessionDep) -> LoginOut:
     return _login(session, user, body.organisation_id)
 
 
-class SwitchIn(BaseModel):
-    organisation_id: int
-
-
 @router.post("/switch", response_model=LoginOut)
 def switch_organisation(body: SwitchIn, principal: UserDep, session: SessionDep) -> LoginOut:
     """New token for another organisation the user belongs to (the organisation switcher)."""
     user = session.get(User, principal.user_id)
     assert user is not None
     return _login(session, user, body.organisation_id)
-
-
-class MeOut(BaseModel):
-    user: UserOut
-    organisation: OrgOut
-    organisations: list[OrgOut]
 
 
 @router.get("/me", response_model=MeOut)
@@ -148,26 +121,6 @@ def logout(principal: UserDep, session: SessionDep) -> None:
     session.commit()
 
 
-class TokenIn(BaseModel):
-    name: str = Field(min_length=1, max_length=200)
-    role: str = Field(default="viewer", description="admin | agronomist | viewer, at most your own")
-    expires_in_days: float = Field(default=90, gt=0, le=3650)
-
-
-class TokenOut(BaseModel):
-    id: int
-    name: str
-    role: str | None
-    prefix: str
-    created_at: dt.datetime
-    expires_at: dt.datetime | None
-    revoked_at: dt.datetime | None
-
-
-class NewTokenOut(TokenOut):
-    token: str
-
-
 @router.get("/tokens", response_model=list[TokenOut])
 def list_tokens(principal: UserDep, session: SessionDep) -> list[TokenOut]:
     rows = session.scalars(
@@ -183,18 +136,25 @@ def list_tokens(principal: UserDep, session: SessionDep) -> list[TokenOut]:
 
 @router.post("/tokens", response_model=NewTokenOut, status_code=201)
 def create_token(body: TokenIn, principal: UserDep, session: SessionDep) -> NewTokenOut:
-    """A named, expiring API token for farm software; the token is shown only once."""
-    if body.role not in ROLES:
-        raise HTTPException(422, f"role must be one of {list(ROLES)}")
-    if ROLES.index(body.role) < ROLES.index(principal.role or "viewer"):
+    """A named, expiring API token for farm software; the token is shown only once.
+
+    Without ``role`` the token may write (``agronomist``) when your own role allows it, so a
+    developer's first POST works; a viewer's token stays a viewer's."""
+    own = principal.role or "viewer"
+    role = body.role
+    if role is None:
+        role = "agronomist" if ROLES.index(own) <= ROLES.index("agronomist") else own
+    if ROLES.index(role) < ROLES.index(own):
         raise HTTPException(
-            403, f"cannot create a '{body.role}' token with role '{principal.role}'"
+            403,
+            f"cannot create a '{role}' token with role '{own}': a token has at most its "
+            f"creator's role (ask an admin of your organisation for a '{role}' token)",
         )
     token, row = issue_user_token(
         session,
         principal.user_id or 0,
         principal.organisation_id,
-        body.role,
+        role,
         name=body.name,
         ttl=dt.timedelta(days=body.expires_in_days),
     )

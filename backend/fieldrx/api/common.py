@@ -7,13 +7,14 @@ from typing import Any, TypeVar
 import orjson
 from fastapi import HTTPException, status
 from fastapi.responses import Response
-from geoalchemy2.shape import from_shape, to_shape
+from geoalchemy2.shape import to_shape
 from shapely.geometry import mapping
 from shapely.geometry.base import BaseGeometry
 from sqlalchemy import Result
 from sqlalchemy.orm import Session
 
 from fieldrx.auth.deps import Principal
+from fieldrx.errors import DomainError
 
 T = TypeVar("T")
 
@@ -34,17 +35,15 @@ def geom_to_geojson(geom: Any) -> dict[str, Any]:
     return mapping(shp)
 
 
-def shape_to_db(geom: BaseGeometry, srid: int = 4326) -> Any:
-    return from_shape(geom, srid=srid)
+class ApiError(DomainError):
+    """An error a router decides the status of: answered like every domain error, as the one
+    error body ``{"detail": message, **extra}`` (``schemas.errors.ErrorOut``).
 
-
-class ApiError(Exception):
-    """An error answered as a flat JSON body: {"detail": message, **extra} (where, location)."""
+    Lower layers raise ``fieldrx.errors`` classes instead (they never import this module)."""
 
     def __init__(self, status_code: int, message: str, **extra: Any) -> None:
-        super().__init__(message)
-        self.status_code = status_code
-        self.body: dict[str, Any] = {"detail": message, **extra}
+        super().__init__(message, **extra)
+        self.status = status_code
 
 
 def point_page(rows: Result[Any], total: int, limit: int, offset: int, **extra: Any) -> Response:

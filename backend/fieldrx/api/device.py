@@ -9,33 +9,31 @@ job that was ``sent`` moves it to ``downloaded``.
 from __future__ import annotations
 
 import gzip
-from typing import Literal
 
 from fastapi import APIRouter, Request
 from fastapi.responses import Response
-from pydantic import BaseModel, Field
 from sqlalchemy import select
 
 from fieldrx.api.common import ApiError
-from fieldrx.api.jobs import JobOut, job_out
+from fieldrx.api.jobs import job_out
+from fieldrx.api.schemas.errors import ERRORS
+from fieldrx.api.schemas.jobs import (
+    DeviceJobList,
+    DeviceStateIn,
+    DeviceTokenRotated,
+    JobOut,
+    JobPackageOut,
+    RawLogsRequested,
+    RawLogStored,
+)
 from fieldrx.auth.deps import DeviceDep, Principal, SessionDep
 from fieldrx.db.models import Job
 from fieldrx.fleet.jobstate import change_state
 from fieldrx.services.jobpackage import build_job_package
 
-router = APIRouter(prefix="/device", tags=["device"])
+router = APIRouter(prefix="/device", tags=["device"], responses=ERRORS)
 
 ACTIVE = ("sent", "downloaded", "running", "paused")
-
-
-class DeviceStateIn(BaseModel):
-    state: Literal["downloaded", "running", "paused", "completed"]
-    note: str = Field(default="", max_length=2000)
-
-
-class DeviceJobList(BaseModel):
-    items: list[JobOut]
-    total: int
 
 
 def _my_job(session: SessionDep, job_id: int, principal: Principal) -> Job:
@@ -67,7 +65,14 @@ def device_jobs(principal: DeviceDep, session: SessionDep) -> DeviceJobList:
 
 @router.get(
     "/jobs/{job_id:int}/package",
-    responses={200: {"description": "JobPackage JSON"}, 304: {"description": "not modified"}},
+    response_class=Response,
+    responses={
+        200: {
+            "description": "the job package (gzip with Accept-Encoding: gzip); ETag = checksum",
+            "content": {"application/json": {"schema": JobPackageOut.model_json_schema()}},
+        },
+        304: {"description": "not modified (If-None-Match carried the package's checksum)"},
+    },
 )
 def job_package(
     job_id: int, request: Request, principal: DeviceDep, session: SessionDep
@@ -110,7 +115,7 @@ def device_state(
     return job_out(job)
 
 
-@router.get("/raw-logs/requested")
+@router.get("/raw-logs/requested", response_model=RawLogsRequested)
 def raw_logs_requested(principal: DeviceDep, session: SessionDep) -> dict[str, list[int]]:
     """Jobs of this machine whose full 10 Hz log the office asked for (thin uplink; the agent
     answers with ``PUT /device/jobs/{id}/raw-log``: ``fieldrx-edge upload-log``)."""
@@ -125,7 +130,7 @@ def raw_logs_requested(principal: DeviceDep, session: SessionDep) -> dict[str, l
     return {"job_ids": [j for j in ids if rawlogs.requested(principal.organisation_id, j)]}
 
 
-@router.put("/jobs/{job_id:int}/raw-log")
+@router.put("/jobs/{job_id:int}/raw-log", response_model=RawLogStored)
 async def upload_raw_log(
     job_id: int, request: Request, principal: DeviceDep, session: SessionDep
 ) -> dict[str, object]:
@@ -149,8 +154,8 @@ async def upload_raw_log(
     return {"job_id": job.id, "bytes": len(body), "records": lines}
 
 
-@router.post("/token", status_code=201)
-def rotate_token(principal: DeviceDep, session: SessionDep) -> dict[str, object]:
+@router.post("/token", status_code=201, response_model=DeviceTokenRotated)
+def rotate_token(principal: DeviceDep, session: SessionDep) -> DeviceTokenRotated:
     """Rotate the machine's own device token: a new one (shown once) with a fresh expiry;
     the one used for this call is revoked. The agent stores the new token before using it."""
     from fieldrx.auth.service import issue_device_token, token_expiry
@@ -158,8 +163,6 @@ def rotate_token(principal: DeviceDep, session: SessionDep) -> dict[str, object]
     assert principal.machine_id is not None
     token = issue_device_token(session, principal.machine_id, principal.organisation_id)
     session.commit()
-    return {
-        "machine_id": principal.machine_id,
-        "token": token,
-        "expires_at": token_expiry(session, token),
-    }
+    return DeviceTokenRotated(
+        machine_id=principal.machine_id, token=token, expires_at=token_expiry(session, token)
+    )

@@ -2,39 +2,16 @@
 
 from __future__ import annotations
 
-import datetime as dt
-
 from fastapi import APIRouter, Query
-from pydantic import BaseModel, Field
 from sqlalchemy import func, select
 
 from fieldrx.api.common import get_scoped
+from fieldrx.api.schemas.errors import ERRORS
+from fieldrx.api.schemas.farms import FarmIn, FarmList, FarmOut, FarmPatch
 from fieldrx.auth.deps import SessionDep, UserDep, WriterDep
 from fieldrx.db.models import Farm
 
-router = APIRouter(prefix="/farms", tags=["farms"])
-
-
-class FarmIn(BaseModel):
-    name: str = Field(min_length=1, max_length=200)
-    notes: str = Field(default="", max_length=10_000)
-
-
-class FarmPatch(BaseModel):
-    name: str | None = Field(default=None, min_length=1, max_length=200)
-    notes: str | None = Field(default=None, max_length=10_000)
-
-
-class FarmOut(BaseModel):
-    id: int
-    name: str
-    notes: str
-    created_at: dt.datetime
-
-
-class FarmList(BaseModel):
-    items: list[FarmOut]
-    total: int
+router = APIRouter(prefix="/farms", tags=["farms"], responses=ERRORS)
 
 
 @router.get("", response_model=FarmList)

@@ -5,43 +5,31 @@ from __future__ import annotations
 from typing import Any
 
 from fastapi import APIRouter, HTTPException, Query, UploadFile
-from fastapi.responses import JSONResponse
 from geoalchemy2.shape import to_shape
-from pydantic import BaseModel, Field
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
-from fieldrx.api.common import ApiError, geom_to_geojson, get_scoped, shape_to_db
+from fieldrx.api.common import ApiError, geom_to_geojson, get_scoped
+from fieldrx.api.schemas.errors import ERRORS
+from fieldrx.api.schemas.fields import (
+    FieldCollection,
+    FieldFeature,
+    FieldFeatureIn,
+    FieldImportOut,
+    FieldPatch,
+    FieldProps,
+)
 from fieldrx.auth.deps import Principal, SessionDep, UserDep, WriterDep
+from fieldrx.db.geometry import shape_to_db
 from fieldrx.db.models import Farm, Imagery
 from fieldrx.db.models import Field as FieldRow
 from fieldrx.geo.validate import BoundaryError, ValidBoundary, validate_boundary
 from fieldrx.imagery import storage as imagery_storage
 from fieldrx.services.evidence import refuse_if_evidence
 
-router = APIRouter(prefix="/fields", tags=["fields"])
+router = APIRouter(prefix="/fields", tags=["fields"], responses=ERRORS)
 
 MAX_IMPORT_BYTES = 50 * 1024 * 1024
-
-
-class FieldProps(BaseModel):
-    name: str = Field(default="", max_length=200)
-    farm_id: int | None = None
-    crop: str = Field(default="", max_length=100)
-    notes: str = Field(default="", max_length=10_000)
-
-
-class FieldFeatureIn(BaseModel):
-    """A GeoJSON Feature with a Polygon or MultiPolygon geometry in WGS84 lon/lat."""
-
-    type: str = Field(default="Feature", pattern="^Feature$")
-    geometry: dict[str, Any]
-    properties: FieldProps = Field(default_factory=FieldProps)
-
-
-class FieldPatch(BaseModel):
-    geometry: dict[str, Any] | None = None
-    properties: FieldProps | None = None
 
 
 def field_feature(row: FieldRow) -> dict[str, Any]:
@@ -97,7 +85,7 @@ def _valid_field(principal: Principal, valid: ValidBoundary, props: FieldProps) 
     )
 
 
-@router.get("")
+@router.get("", response_model=FieldCollection)
 def list_fields(
     principal: UserDep,
     session: SessionDep,
@@ -138,7 +126,7 @@ def list_fields(
     }
 
 
-@router.post("", status_code=201)
+@router.post("", status_code=201, response_model=FieldFeature)
 def create_field(body: FieldFeatureIn, principal: WriterDep, session: SessionDep) -> dict[str, Any]:
     """Create a field from a GeoJSON Feature; the boundary is validated and oriented."""
     _check_farm(session, body.properties.farm_id, principal)
@@ -168,13 +156,13 @@ def read_valid_fields(
     return out
 
 
-@router.post("/import", status_code=201)
+@router.post("/import", status_code=201, response_model=FieldImportOut)
 def import_fields(
     file: UploadFile,
     principal: WriterDep,
     session: SessionDep,
     farm_id: int | None = None,
-) -> JSONResponse:
+) -> dict[str, Any]:
     """Bulk import from a GeoJSON FeatureCollection, KML or zipped Shapefile: all fields or none."""
     from fieldrx.formats import FormatError
     from fieldrx.services.bounded import run_bounded
@@ -205,22 +193,19 @@ def import_fields(
         rows.append(_valid_field(principal, valid, fp))
     session.add_all(rows)
     session.commit()
-    return JSONResponse(
-        status_code=201,
-        content={
-            "type": "FeatureCollection",
-            "features": [field_feature(r) for r in rows],
-            "imported": len(rows),
-        },
-    )
+    return {
+        "type": "FeatureCollection",
+        "features": [field_feature(r) for r in rows],
+        "imported": len(rows),
+    }
 
 
-@router.get("/{field_id:int}")
+@router.get("/{field_id:int}", response_model=FieldFeature)
 def get_field(field_id: int, principal: UserDep, session: SessionDep) -> dict[str, Any]:
     return field_feature(get_scoped(session, FieldRow, field_id, principal))
 
 
-@router.patch("/{field_id:int}")
+@router.patch("/{field_id:int}", response_model=FieldFeature)
 def update_field(
     field_id: int, body: FieldPatch, principal: WriterDep, session: SessionDep
 ) -> dict[str, Any]:

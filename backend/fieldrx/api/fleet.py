@@ -12,10 +12,20 @@ from typing import Any
 
 from fastapi import APIRouter, Query
 from fastapi.responses import Response
-from pydantic import BaseModel, ConfigDict
 from sqlalchemy import func, select, text, update
 
 from fieldrx.api.common import ApiError, get_scoped, point_page
+from fieldrx.api.schemas.errors import ERRORS
+from fieldrx.api.schemas.fleet import (
+    AckGroupIn,
+    AckGroupOut,
+    AlertGroupList,
+    AlertList,
+    AlertOut,
+    ChartOut,
+    FleetStatusOut,
+    PointPage,
+)
 from fieldrx.auth.deps import SessionDep, UserDep, WriterDep
 from fieldrx.db.models import Alert, Machine
 from fieldrx.fleet.alerts import ALERT_KINDS, LIVE_CHANNEL, check_no_data
@@ -23,10 +33,10 @@ from fieldrx.fleet.db import raw_connection
 from fieldrx.fleet.status import machine_status
 from fieldrx.settings import get_settings
 
-router = APIRouter(tags=["fleet"])
+router = APIRouter(tags=["fleet"], responses=ERRORS)
 
 
-@router.get("/machines/status")
+@router.get("/machines/status", response_model=FleetStatusOut)
 def fleet_status(principal: UserDep, session: SessionDep) -> dict[str, Any]:
     """Every machine of the organisation: online (heartbeat), position, job, rates, backlog."""
     timeout = get_settings().heartbeat_timeout_s
@@ -55,7 +65,7 @@ def _alert_out(a: Alert) -> dict[str, Any]:
     }
 
 
-@router.get("/alerts")
+@router.get("/alerts", response_model=AlertList)
 def list_alerts(
     principal: UserDep,
     session: SessionDep,
@@ -91,7 +101,7 @@ def list_alerts(
     return {"items": [_alert_out(a) for a in rows], "total": total}
 
 
-@router.post("/alerts/{alert_id:int}/ack")
+@router.post("/alerts/{alert_id:int}/ack", response_model=AlertOut)
 def ack_alert(alert_id: int, principal: WriterDep, session: SessionDep) -> dict[str, Any]:
     """Acknowledge: someone has seen it. An active alert stays active until its cause ends."""
     a = get_scoped(session, Alert, alert_id, principal)
@@ -124,7 +134,7 @@ LIMIT :lim
 """
 
 
-@router.get("/alerts/groups")
+@router.get("/alerts/groups", response_model=AlertGroupList)
 def alert_groups(
     principal: UserDep,
     session: SessionDep,
@@ -158,16 +168,7 @@ def alert_groups(
     return {"items": items, "total": len(items)}
 
 
-class AckGroupIn(BaseModel):
-    """One group: the machine's alerts of ``kind`` on ``job_id`` (null: without a job)."""
-
-    model_config = ConfigDict(extra="forbid")
-    machine_id: int
-    kind: str
-    job_id: int | None = None
-
-
-@router.post("/alerts/ack")
+@router.post("/alerts/ack", response_model=AckGroupOut)
 def ack_alert_group(body: AckGroupIn, principal: WriterDep, session: SessionDep) -> dict[str, Any]:
     """Acknowledge every alert of a group at once (ended or active; active ones stay active)."""
     if body.kind not in ALERT_KINDS:
@@ -209,7 +210,7 @@ def _range(
     return frm, to
 
 
-@router.get("/machines/{machine_id:int}/track")
+@router.get("/machines/{machine_id:int}/track", response_model=PointPage)
 def machine_track(
     machine_id: int,
     principal: UserDep,
@@ -257,7 +258,7 @@ CHART_COLUMNS = (
 )
 
 
-@router.get("/machines/{machine_id:int}/telemetry")
+@router.get("/machines/{machine_id:int}/telemetry", response_model=ChartOut)
 def machine_telemetry(
     machine_id: int,
     principal: UserDep,

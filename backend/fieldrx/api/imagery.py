@@ -14,7 +14,6 @@ from typing import Any, Literal
 import numpy as np
 from fastapi import APIRouter, File, Form, Query, Request, Response, UploadFile
 from geoalchemy2.shape import to_shape
-from pydantic import BaseModel, Field
 from shapely import wkb
 from sqlalchemy import select
 
@@ -22,6 +21,17 @@ from fieldrx.agronomy.cells import CellTable
 from fieldrx.agronomy.zones import ZoneError, zone_cell_values
 from fieldrx.api.common import ApiError, geom_to_geojson, get_scoped
 from fieldrx.api.prescriptions import BAD_INPUT
+from fieldrx.api.schemas.errors import ERRORS
+from fieldrx.api.schemas.files import file_response
+from fieldrx.api.schemas.imagery import (
+    ImageryList,
+    ImageryOut,
+    ImageryRxIn,
+    ImageryUploadOut,
+    ZonesIn,
+)
+from fieldrx.api.schemas.prescriptions import PrescriptionOut
+from fieldrx.api.schemas.tasks import QUEUED
 from fieldrx.auth.deps import SessionDep, UserDep, WriterDep
 from fieldrx.db.models import Field as FieldRow
 from fieldrx.db.models import Imagery, Machine, Plan
@@ -33,7 +43,7 @@ from fieldrx.services import prescriptions as rx_svc
 from fieldrx.services.imagery import imagery_row
 from fieldrx.settings import get_settings
 
-router = APIRouter(tags=["imagery"])
+router = APIRouter(tags=["imagery"], responses=ERRORS)
 
 CHUNK = 1024 * 1024
 MAX_ZOOM = 24
@@ -88,7 +98,12 @@ def _receive(upload: UploadFile, limit: int) -> Any:
     return path
 
 
-@router.post("/fields/{field_id:int}/imagery", status_code=201, response_model=None)
+@router.post(
+    "/fields/{field_id:int}/imagery",
+    status_code=201,
+    response_model=ImageryUploadOut,
+    responses=QUEUED,
+)
 def upload_imagery(
     field_id: int,
     principal: WriterDep,
@@ -108,7 +123,7 @@ def upload_imagery(
         description="convert in a `fieldrx worker` and answer 202 with the task; default: "
         "only uploads larger than FIELDRX_IMAGERY_BACKGROUND_BYTES",
     ),
-) -> dict[str, Any] | Response:
+) -> Any:
     """Validate the GeoTIFF, convert it to a Cloud-Optimized GeoTIFF and record it.
 
     422 for a non-TIFF, an unreadable or non-georeferenced raster, one that does not overlap
@@ -192,7 +207,7 @@ def _queue_ingest(
         raise
 
 
-@router.get("/fields/{field_id:int}/imagery")
+@router.get("/fields/{field_id:int}/imagery", response_model=ImageryList)
 def list_field_imagery(
     field_id: int, principal: UserDep, session: SessionDep, kind: str | None = None
 ) -> dict[str, Any]:
@@ -211,7 +226,7 @@ def list_field_imagery(
     return {"items": [imagery_item(r) for r in rows], "total": len(rows)}
 
 
-@router.get("/imagery")
+@router.get("/imagery", response_model=ImageryList)
 def list_imagery(
     principal: UserDep, session: SessionDep, kind: str | None = None
 ) -> dict[str, Any]:
@@ -227,7 +242,7 @@ def list_imagery(
     return {"items": [imagery_item(r) for r in rows], "total": len(rows)}
 
 
-@router.get("/imagery/{imagery_id:int}")
+@router.get("/imagery/{imagery_id:int}", response_model=ImageryOut)
 def get_imagery(imagery_id: int, principal: UserDep, session: SessionDep) -> dict[str, Any]:
     return imagery_item(get_scoped(session, Imagery, imagery_id, principal))
 
@@ -242,7 +257,15 @@ def delete_imagery(imagery_id: int, principal: WriterDep, session: SessionDep) -
     path.unlink(missing_ok=True)
 
 
-@router.get("/tiles/imagery/{imagery_id:int}/{z:int}/{x:int}/{y:int}.png")
+@router.get(
+    "/tiles/imagery/{imagery_id:int}/{z:int}/{x:int}/{y:int}.png",
+    response_class=Response,
+    responses={
+        **file_response("a 256 px PNG tile", "image/png"),
+        204: {"description": "the image does not reach this tile"},
+        304: {"description": "not modified (If-None-Match)"},
+    },
+)
 def imagery_tile(
     imagery_id: int,
     z: int,
@@ -277,28 +300,6 @@ def imagery_tile(
     return Response(content=data, media_type="image/png", headers=headers)
 
 
-class ImageryRxIn(BaseModel):
-    """An NDVI prescription whose per-cell NDVI comes from an image (not from samples)."""
-
-    plan_id: int
-    name: str = Field(default="", max_length=200)
-    product: str = Field(default="", max_length=200)
-    params: dict[str, Any] = Field(
-        default_factory=dict,
-        description="seed 000 NDVI curve: ndvi_low, rate_at_low_kg_ha, ndvi_high, "
-        "rate_at_high_kg_ha (defaults 0.24 -> 375, 0.65 -> 180 kg/ha)",
-    )
-    min_valid_share: float = Field(
-        default=0.5, ge=0, le=1, description="cells with fewer valid pixels have no data"
-    )
-    fallback_rate_kg_ha: float | None = Field(default=None, ge=0)
-    machine_id: int | None = None
-    speed_min_kmh: float | None = Field(default=None, gt=0)
-    speed_max_kmh: float | None = Field(default=None, gt=0)
-    width_m: float | None = Field(default=None, gt=0)
-    calibration: dict[str, Any] | None = None
-
-
 def _cell_ndvi(
     path: Any, kind: str, bands: dict[str, Any], cells: CellTable, min_valid_share: float
 ) -> Any:
@@ -308,7 +309,9 @@ def _cell_ndvi(
     )
 
 
-@router.post("/imagery/{imagery_id:int}/prescriptions", status_code=201)
+@router.post(
+    "/imagery/{imagery_id:int}/prescriptions", status_code=201, response_model=PrescriptionOut
+)
 def prescription_from_imagery(
     imagery_id: int, body: ImageryRxIn, principal: WriterDep, session: SessionDep
 ) -> dict[str, Any]:
@@ -407,14 +410,7 @@ def _create_rx(
     return rx_svc.prescription_summary(session, rx)
 
 
-class ZonesIn(ImageryRxIn):
-    k: int = Field(default=4, ge=2, le=12, description="number of zones")
-    min_area_m2: float = Field(
-        default=0.0, ge=0, description="patches of a zone smaller than this join a neighbour"
-    )
-
-
-@router.post("/imagery/{imagery_id:int}/zones", status_code=201)
+@router.post("/imagery/{imagery_id:int}/zones", status_code=201, response_model=PrescriptionOut)
 def zones_from_imagery(
     imagery_id: int, body: ZonesIn, principal: WriterDep, session: SessionDep
 ) -> dict[str, Any]:

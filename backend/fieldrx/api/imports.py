@@ -15,10 +15,16 @@ import hashlib
 from typing import Any
 
 import numpy as np
-from fastapi import APIRouter, Query, UploadFile
-from fastapi.responses import JSONResponse
+from fastapi import APIRouter, Query, Response, UploadFile
 
 from fieldrx.api.common import ApiError
+from fieldrx.api.schemas.errors import ERRORS
+from fieldrx.api.schemas.imports import (
+    AsAppliedTableImportOut,
+    IsoxmlImportOut,
+    RxShapefileImportOut,
+    TimelogImportOut,
+)
 from fieldrx.auth.deps import SessionDep, WriterDep
 from fieldrx.formats import FormatError
 from fieldrx.formats.archive import read_zip
@@ -27,9 +33,10 @@ from fieldrx.geo import PlanningError
 from fieldrx.services import imports as svc
 from fieldrx.services.plans import PlanParams
 
-router = APIRouter(prefix="/imports", tags=["imports"])
+router = APIRouter(prefix="/imports", tags=["imports"], responses=ERRORS)
 
 MAX_UPLOAD_BYTES = 100 * 1024 * 1024
+STORED = "stored (confirm matched the preview); 200 is the preview"
 
 
 def _files(files: list[UploadFile]) -> tuple[dict[str, bytes], str, str]:
@@ -55,16 +62,23 @@ def _files(files: list[UploadFile]) -> tuple[dict[str, bytes], str, str]:
     return out, digest.hexdigest(), names
 
 
-@router.post("/isoxml")
+@router.post(
+    "/isoxml",
+    response_model=IsoxmlImportOut,
+    responses={
+        201: {"model": IsoxmlImportOut, "description": "stored (confirm matched the preview)"}
+    },
+)
 def import_isoxml(
     files: list[UploadFile],
+    response: Response,
     principal: WriterDep,
     session: SessionDep,
     confirm: str | None = Query(default=None, description="the preview's sha256"),
     swath_width_m: float = Query(default=PlanParams.swath_width_m, gt=0, le=100),
     cell_length_m: float = Query(default=PlanParams.cell_length_m, gt=0, le=500),
     headland_passes: int = Query(default=0, ge=0, le=20),
-) -> JSONResponse:
+) -> dict[str, Any]:
     """Preview (no ``confirm``) or store (``confirm`` = the preview's sha256) a TASKDATA set."""
     data, sha, names = _files(files)
     try:
@@ -75,7 +89,7 @@ def import_isoxml(
     body: dict[str, Any] = {"sha256": sha, "preview": pre}
     if confirm is None:
         body["stored"] = False
-        return JSONResponse(body)
+        return body
     if confirm != sha:
         raise ApiError(409, "confirm does not match this upload's sha256: preview it again")
     params = PlanParams(
@@ -91,12 +105,20 @@ def import_isoxml(
     session.commit()
     body["stored"] = True
     body["created"] = created
-    return JSONResponse(body, status_code=201)
+    response.status_code = 201
+    return body
 
 
-@router.post("/prescription-shapefile")
+@router.post(
+    "/prescription-shapefile",
+    response_model=RxShapefileImportOut,
+    responses={
+        201: {"model": RxShapefileImportOut, "description": "stored (confirm matched the preview)"}
+    },
+)
 def import_prescription_shapefile(
     file: UploadFile,
+    response: Response,
     principal: WriterDep,
     session: SessionDep,
     field_id: int = Query(description="the field the prescription is for"),
@@ -109,7 +131,7 @@ def import_prescription_shapefile(
     swath_width_m: float = Query(default=PlanParams.swath_width_m, gt=0, le=100),
     cell_length_m: float = Query(default=PlanParams.cell_length_m, gt=0, le=500),
     headland_passes: int = Query(default=0, ge=0, le=20),
-) -> JSONResponse:
+) -> dict[str, Any]:
     """A zipped prescription Shapefile with an attribute-mapping step (preview, then confirm).
 
     Without ``rate_column`` the preview lists the numeric columns and a
@@ -148,7 +170,7 @@ def import_prescription_shapefile(
     if rate_column is None:
         if confirm is not None:
             raise ApiError(422, "confirm needs rate_column (the mapping step)", where="rate_column")
-        return JSONResponse(body)
+        return body
     try:
         rx = rx_from_items(
             items,
@@ -169,7 +191,7 @@ def import_prescription_shapefile(
         "default_rate_kg_ha": default_rate_kg_ha,
     }
     if confirm is None:
-        return JSONResponse(body)
+        return body
     if confirm != sha:
         raise ApiError(409, "confirm does not match this upload's sha256: preview it again")
     params = PlanParams(
@@ -186,12 +208,20 @@ def import_prescription_shapefile(
     session.commit()
     body["stored"] = True
     body["created"] = {"prescription_id": row.id, "plan_id": plan.id, "field_id": fld.id}
-    return JSONResponse(body, status_code=201)
+    response.status_code = 201
+    return body
 
 
-@router.post("/timelog")
+@router.post(
+    "/timelog",
+    response_model=TimelogImportOut,
+    responses={
+        201: {"model": TimelogImportOut, "description": "stored (confirm matched the preview)"}
+    },
+)
 def import_timelog(
     files: list[UploadFile],
+    response: Response,
     principal: WriterDep,
     session: SessionDep,
     prescription_id: int = Query(description="the prescription the as-applied data belongs to"),
@@ -199,7 +229,7 @@ def import_timelog(
         default=None, gt=0, le=100, description="working width; default DDI 67 from the log"
     ),
     confirm: str | None = Query(default=None, description="the preview's sha256"),
-) -> JSONResponse:
+) -> dict[str, Any]:
     """ISO 11783-10 TimeLogs (TLGxxxxx.XML + .BIN, zipped or loose) as a completed job.
 
     The preview lists each log's records, time span, positions and the DDIs
@@ -252,7 +282,7 @@ def import_timelog(
         width = float(np.median(logged)) if logged else None
     body["width_m"] = width
     if confirm is None:
-        return JSONResponse(body)
+        return body
     if confirm != sha:
         raise ApiError(409, "confirm does not match this upload's sha256: preview it again")
     if width is None:
@@ -267,12 +297,23 @@ def import_timelog(
     session.commit()
     body["stored"] = True
     body["created"] = created
-    return JSONResponse(body, status_code=201)
+    response.status_code = 201
+    return body
 
 
-@router.post("/as-applied-table")
+@router.post(
+    "/as-applied-table",
+    response_model=AsAppliedTableImportOut,
+    responses={
+        201: {
+            "model": AsAppliedTableImportOut,
+            "description": "stored (confirm matched the preview)",
+        }
+    },
+)
 def import_asapplied_table(
     file: UploadFile,
+    response: Response,
     principal: WriterDep,
     session: SessionDep,
     prescription_id: int = Query(description="the prescription the as-applied data belongs to"),
@@ -288,7 +329,7 @@ def import_asapplied_table(
     lat_column: str | None = None,
     interval_s: float = Query(default=1.0, gt=0, le=3600),
     confirm: str | None = Query(default=None, description="the preview's sha256"),
-) -> JSONResponse:
+) -> dict[str, Any]:
     """Another terminal's as-applied Shapefile (zip) or CSV, with an attribute-mapping step.
 
     Without ``rate_column`` the preview lists the columns and suggestions;
@@ -315,7 +356,7 @@ def import_asapplied_table(
     if rate_column is None:
         if confirm is not None:
             raise ApiError(422, "confirm needs rate_column (the mapping step)", where="rate_column")
-        return JSONResponse(body)
+        return body
     try:
         log = to_timelog(
             table,
@@ -341,7 +382,7 @@ def import_asapplied_table(
         "times": "from " + time_column if time_column else f"every {interval_s} s in file order",
     }
     if confirm is None:
-        return JSONResponse(body)
+        return body
     if confirm != sha:
         raise ApiError(409, "confirm does not match this upload's sha256: preview it again")
     if width_m is None:
@@ -356,4 +397,5 @@ def import_asapplied_table(
     session.commit()
     body["stored"] = True
     body["created"] = created
-    return JSONResponse(body, status_code=201)
+    response.status_code = 201
+    return body

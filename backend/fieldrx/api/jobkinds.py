@@ -54,7 +54,7 @@ def kind_settings(kind: str, given: dict[str, Any] | None, machine: Machine) -> 
 
 def create_kind_job(session: Any, principal: Any, body: Any) -> Job:
     """Validate and store a sensor-kind job (state planned) and its first event."""
-    if body.prescription_id is not None or body.version is not None:
+    if body.prescription_id is not None or body.prescription_version is not None:
         raise ApiError(
             422,
             f"a {body.kind} job decides its rates from sensors: leave prescription_id out"

@@ -2,15 +2,24 @@
 
 from __future__ import annotations
 
-import datetime as dt
-from typing import Any, Literal
+from typing import Any
 
 from fastapi import APIRouter, Query
-from pydantic import BaseModel, Field
 from sqlalchemy import func, select
 
 from fieldrx.api.common import ApiError, get_scoped
 from fieldrx.api.jobkinds import CONTROLLERS, DEFAULTS, KINDS, create_kind_job
+from fieldrx.api.schemas.errors import ERRORS
+from fieldrx.api.schemas.jobs import (
+    EventOut,
+    JobIn,
+    JobList,
+    JobOut,
+    Kind,
+    KindsOut,
+    State,
+    StateIn,
+)
 from fieldrx.auth.deps import SessionDep, UserDep, WriterDep
 from fieldrx.db.models import (
     JOB_KINDS,
@@ -26,77 +35,7 @@ from fieldrx.db.models import (
 from fieldrx.fleet.jobstate import change_state, notify_job
 from fieldrx.services import prescriptions as rx_svc
 
-router = APIRouter(prefix="/jobs", tags=["jobs"])
-
-State = Literal["planned", "sent", "downloaded", "running", "paused", "completed", "aborted"]
-
-
-Kind = Literal["prescription_map", "ndvi_topdress", "seeding_depth"]
-
-
-class JobIn(BaseModel):
-    kind: Kind = Field(
-        default="prescription_map",
-        description="prescription_map (seed 001: the prescription's cell rates), ndvi_topdress "
-        "(seed 000: canopy sensors decide the rate) or seeding_depth (seed 002: sowing-depth "
-        "control); GET /jobs/kinds lists each kind's settings, units and the papers' defaults",
-    )
-    prescription_id: int | None = Field(default=None, description="prescription_map jobs")
-    version: int | None = Field(default=None, description="prescription version; default current")
-    plan_id: int | None = Field(
-        default=None, description="sensor kinds: the planned path (field, swaths) to drive"
-    )
-    settings: dict[str, Any] | None = Field(
-        default=None,
-        description="sensor kinds: settings to change from the papers' defaults (partial)",
-    )
-    machine_id: int
-    name: str = Field(default="", max_length=200)
-    confirm_flagged: bool = Field(
-        default=False,
-        description="send although cells have no data or lie outside the machine's meter range "
-        "(without it such a job is refused with 409 listing count, area and cells)",
-    )
-
-
-class StateIn(BaseModel):
-    state: State
-    note: str = Field(default="", max_length=2000)
-
-
-class EventOut(BaseModel):
-    state: str
-    at: dt.datetime
-    by_user_id: int | None
-    by_machine_id: int | None
-    note: str
-
-
-class JobOut(BaseModel):
-    id: int
-    name: str
-    state: str
-    kind: str = "prescription_map"
-    prescription_id: int | None
-    prescription_version: int | None
-    plan_id: int | None = None
-    settings: dict[str, Any] = Field(default_factory=dict)
-    machine_id: int
-    n_cells: int
-    cells_applied: int
-    progress: float
-    package_checksum: str
-    flagged_cells: int = 0
-    flagged_confirmed: bool = False
-    created_by: int | None
-    created_at: dt.datetime
-    updated_at: dt.datetime
-    events: list[EventOut] | None = None
-
-
-class JobList(BaseModel):
-    items: list[JobOut]
-    total: int
+router = APIRouter(prefix="/jobs", tags=["jobs"], responses=ERRORS)
 
 
 def job_out(job: Job, events: list[JobEvent] | None = None) -> JobOut:
@@ -175,14 +114,18 @@ def create_job(body: JobIn, principal: WriterDep, session: SessionDep) -> JobOut
     machine = session.get(Machine, body.machine_id)
     if machine is None or machine.organisation_id != principal.organisation_id:
         raise ApiError(404, f"machine {body.machine_id} not found", where="machine_id")
-    version = body.version if body.version is not None else rx.current_version
+    version = (
+        body.prescription_version if body.prescription_version is not None else rx.current_version
+    )
     v = session.scalar(
         select(PrescriptionVersion).where(
             PrescriptionVersion.prescription_id == rx.id, PrescriptionVersion.version == version
         )
     )
     if v is None:
-        raise ApiError(404, f"prescription {rx.id} has no version {version}", where="version")
+        raise ApiError(
+            404, f"prescription {rx.id} has no version {version}", where="prescription_version"
+        )
     _check_width(session, rx, machine)
     attention = _attention(session, rx, v, machine)
     if attention["count"] and not body.confirm_flagged:
@@ -231,7 +174,7 @@ def create_job(body: JobIn, principal: WriterDep, session: SessionDep) -> JobOut
     return job_out(job, _events(session, job.id))
 
 
-@router.get("/kinds")
+@router.get("/kinds", response_model=KindsOut)
 def job_kinds(principal: UserDep) -> dict[str, Any]:
     """Each kind's default settings (the papers' values), units in the names, controllers."""
     return {

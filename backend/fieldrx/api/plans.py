@@ -3,14 +3,17 @@
 from __future__ import annotations
 
 import json
-from typing import Any, Literal
+from typing import Any
 
-from fastapi import APIRouter, Query, Response
-from pydantic import BaseModel, Field
+from fastapi import APIRouter, Query
 from sqlalchemy import func, select
 from sqlalchemy.exc import OperationalError
 
 from fieldrx.api.common import ApiError, get_scoped
+from fieldrx.api.schemas.errors import ERRORS
+from fieldrx.api.schemas.plans import PlanCellPage, PlanIn, PlanList, PlanOut, RouteOut
+from fieldrx.api.schemas.prescriptions import PrescriptionList
+from fieldrx.api.schemas.tasks import QUEUED
 from fieldrx.auth.deps import SessionDep, UserDep, WriterDep
 from fieldrx.db.models import Field as FieldRow
 from fieldrx.db.models import Plan, Prescription
@@ -24,34 +27,9 @@ from fieldrx.services.plans import (
     plan_summary,
 )
 
-router = APIRouter(tags=["plans"])
+router = APIRouter(tags=["plans"], responses=ERRORS)
 
 MAX_PAGE = 50_000
-
-
-class PlanIn(BaseModel):
-    swath_width_m: float = Field(
-        default=2.3, allow_inf_nan=False, description="implement working width w, m"
-    )
-    cell_length_m: float = Field(
-        default=5.0, allow_inf_nan=False, description="cell length L along the path, m"
-    )
-    heading: Literal["longest_edge", "angle", "optimal"] = "longest_edge"
-    angle_deg: float | None = Field(
-        default=None, description="swath azimuth, degrees clockwise from north (heading=angle)"
-    )
-    headland_passes: int = Field(default=0, ge=0, le=20)
-    start_corner: Literal["sw", "se", "nw", "ne"] = "sw"
-    headland_order: Literal["first", "last"] = "first"
-    min_cell_fraction: float = Field(default=0.1, ge=0, lt=1)
-    turn_radius_m: float = Field(
-        default=6.0, gt=0, le=50, description="minimum turning radius of the machine, m"
-    )
-    reverse: bool = Field(default=False, description="the machine may reverse (fishtail turns)")
-    pattern: Literal["boustrophedon", "skip", "auto"] = Field(
-        default="boustrophedon",
-        description="swath order in a block: neighbours, skip-row (U-turns), or the faster",
-    )
 
 
 BACKGROUND = Query(
@@ -61,14 +39,16 @@ BACKGROUND = Query(
 )
 
 
-@router.post("/fields/{field_id:int}/plans", status_code=201, response_model=None)
+@router.post(
+    "/fields/{field_id:int}/plans", status_code=201, response_model=PlanOut, responses=QUEUED
+)
 def create(
     field_id: int,
     body: PlanIn,
     principal: WriterDep,
     session: SessionDep,
     background: bool = BACKGROUND,
-) -> dict | Response:
+) -> Any:
     """Plan the coverage path, cut the grid and store both (one transaction).
 
     Bad parameters (w <= 0, w wider than the field, L < 0.5 m, > 5 million
@@ -90,7 +70,7 @@ def create(
     return plan_summary(plan)
 
 
-@router.get("/fields/{field_id:int}/plans")
+@router.get("/fields/{field_id:int}/plans", response_model=PlanList)
 def list_plans(field_id: int, principal: UserDep, session: SessionDep) -> dict[str, Any]:
     field = get_scoped(session, FieldRow, field_id, principal)
     rows = session.scalars(
@@ -99,12 +79,12 @@ def list_plans(field_id: int, principal: UserDep, session: SessionDep) -> dict[s
     return {"items": [plan_summary(p) for p in rows], "total": len(rows)}
 
 
-@router.get("/plans/{plan_id:int}")
+@router.get("/plans/{plan_id:int}", response_model=PlanOut)
 def get_plan(plan_id: int, principal: UserDep, session: SessionDep) -> dict[str, Any]:
     return plan_summary(get_scoped(session, Plan, plan_id, principal))
 
 
-@router.get("/plans/{plan_id:int}/cells")
+@router.get("/plans/{plan_id:int}/cells", response_model=PlanCellPage)
 def get_cells(
     plan_id: int,
     principal: UserDep,
@@ -123,7 +103,7 @@ def get_cells(
     }
 
 
-@router.get("/plans/{plan_id:int}/route")
+@router.get("/plans/{plan_id:int}/route", response_model=RouteOut)
 def get_route(plan_id: int, principal: UserDep, session: SessionDep) -> dict[str, Any]:
     """The whole route (swaths and connections in driving order) as a LineString Feature."""
     plan = get_scoped(session, Plan, plan_id, principal)
@@ -138,7 +118,7 @@ def get_route(plan_id: int, principal: UserDep, session: SessionDep) -> dict[str
     }
 
 
-@router.get("/plans/{plan_id:int}/prescriptions")
+@router.get("/plans/{plan_id:int}/prescriptions", response_model=PrescriptionList)
 def list_plan_prescriptions(plan_id: int, principal: UserDep, session: SessionDep) -> dict:
     from fieldrx.services.prescriptions import prescription_summary
 

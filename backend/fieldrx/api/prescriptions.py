@@ -7,7 +7,6 @@ from typing import Any, Literal
 
 from fastapi import APIRouter, Query
 from fastapi.responses import Response
-from pydantic import BaseModel, Field, model_validator
 from sqlalchemy import select
 
 from fieldrx.agronomy.interpolate import InterpolationError
@@ -15,6 +14,20 @@ from fieldrx.agronomy.prescription import PrescriptionError
 from fieldrx.agronomy.rates import MeterRangeError, RateModelError
 from fieldrx.agronomy.zones import ZoneError
 from fieldrx.api.common import ApiError, get_scoped
+from fieldrx.api.schemas.errors import ERRORS
+from fieldrx.api.schemas.files import file_response
+from fieldrx.api.schemas.prescriptions import (
+    EditIn,
+    EditOut,
+    PrescriptionIn,
+    PrescriptionList,
+    PrescriptionOut,
+    RxCellPage,
+    SoilZonesIn,
+    VersionDetail,
+    VersionList,
+)
+from fieldrx.api.schemas.tasks import QUEUED
 from fieldrx.auth.deps import SessionDep, UserDep, WriterDep
 from fieldrx.db.models import Field as FieldRow
 from fieldrx.db.models import Machine, Plan, Prescription, PrescriptionVersion
@@ -23,7 +36,7 @@ from fieldrx.services import exports
 from fieldrx.services import prescriptions as svc
 from fieldrx.services.evidence import refuse_if_evidence
 
-router = APIRouter(tags=["prescriptions"])
+router = APIRouter(tags=["prescriptions"], responses=ERRORS)
 
 MAX_PAGE = 50_000
 BAD_INPUT = (
@@ -36,60 +49,18 @@ BAD_INPUT = (
 )
 
 
-class PrescriptionIn(BaseModel):
-    name: str = Field(default="", max_length=200)
-    product: str = Field(default="", max_length=200)
-    model: str = Field(
-        default="nutrient_balance",
-        description="nutrient_balance | ndvi | uniform (aliases: ndvi_linear, constant)",
-    )
-    params: dict[str, Any] = Field(
-        default_factory=dict,
-        description="nutrient_balance: target_yield_kg_ha, n_fraction, e_kg_per_100kg, "
-        "k_utilisation; ndvi: ndvi_low, rate_at_low_kg_ha, ndvi_high, rate_at_high_kg_ha; "
-        "uniform: rate_kg_ha",
-    )
-    interpolation: Literal["cell_mean", "idw", "kriging"] = "cell_mean"
-    interpolation_params: dict[str, Any] = Field(
-        default_factory=dict,
-        description="idw: power, radius_m, k; kriging: variogram_model, nlags, max_distance_m",
-    )
-    fallback_rate_kg_ha: float | None = Field(default=None, ge=0)
-    machine_id: int | None = None
-    # physical bounds: degenerate values (5e-324 m) only make rate = flow / (w v) overflow
-    speed_min_kmh: float | None = Field(default=None, ge=0.036, le=108)
-    speed_max_kmh: float | None = Field(default=None, ge=0.036, le=108)
-    width_m: float | None = Field(default=None, ge=0.05, le=60)
-    calibration: dict[str, Any] | None = None
-
-
-class CellEdit(BaseModel):
-    seq: int = Field(ge=0)
-    rate_kg_ha: float = Field(ge=0)
-
-
-class EditIn(BaseModel):
-    cells: list[CellEdit] | None = None
-    zone: dict[str, Any] | None = Field(default=None, description="GeoJSON Polygon (lon/lat)")
-    rate_kg_ha: float | None = Field(default=None, ge=0, description="rate of the zone")
-    note: str = Field(default="", max_length=2000)
-
-    @model_validator(mode="after")
-    def _one_kind(self) -> EditIn:
-        if (self.cells is None) == (self.zone is None):
-            raise ValueError("give either cells [{seq, rate_kg_ha}] or zone + rate_kg_ha")
-        if self.zone is not None and self.rate_kg_ha is None:
-            raise ValueError("a zone edit needs rate_kg_ha")
-        return self
-
-
 def _plan_field(session: SessionDep, plan: Plan) -> FieldRow:
     field = session.get(FieldRow, plan.field_id)
     assert field is not None
     return field
 
 
-@router.post("/plans/{plan_id:int}/prescriptions", status_code=201, response_model=None)
+@router.post(
+    "/plans/{plan_id:int}/prescriptions",
+    status_code=201,
+    response_model=PrescriptionOut,
+    responses=QUEUED,
+)
 def create(
     plan_id: int,
     body: PrescriptionIn,
@@ -99,7 +70,7 @@ def create(
         default=False,
         description="queue the work for a `fieldrx worker` and answer 202 with the task",
     ),
-) -> dict | Response:
+) -> Any:
     """Interpolate the field's samples onto the plan's cells, apply the rate model, clamp to
     the metering range (flagged), and store version 1. With ``background=true`` it is
     queued instead (202 with the task; its ``result_url`` is the prescription)."""
@@ -146,17 +117,7 @@ def create(
     return svc.prescription_summary(session, rx)
 
 
-class SoilZonesIn(PrescriptionIn):
-    """A zone prescription from soil samples: the model's input property interpolated
-    onto the plan's cells, then zoned like imagery NDVI zones."""
-
-    k: int = Field(default=4, ge=2, le=12, description="number of zones")
-    min_area_m2: float = Field(
-        default=0.0, ge=0, description="patches of a zone smaller than this join a neighbour"
-    )
-
-
-@router.post("/plans/{plan_id:int}/zones", status_code=201)
+@router.post("/plans/{plan_id:int}/zones", status_code=201, response_model=PrescriptionOut)
 def create_soil_zones(
     plan_id: int, body: SoilZonesIn, principal: WriterDep, session: SessionDep
 ) -> dict:
@@ -218,7 +179,7 @@ def create_soil_zones(
     return svc.prescription_summary(session, rx)
 
 
-@router.get("/prescriptions")
+@router.get("/prescriptions", response_model=PrescriptionList)
 def list_prescriptions(
     principal: UserDep, session: SessionDep, plan_id: int | None = None
 ) -> dict[str, Any]:
@@ -229,7 +190,7 @@ def list_prescriptions(
     return {"items": [svc.prescription_summary(session, r) for r in rows], "total": len(rows)}
 
 
-@router.get("/prescriptions/{rx_id:int}")
+@router.get("/prescriptions/{rx_id:int}", response_model=PrescriptionOut)
 def get_prescription(rx_id: int, principal: UserDep, session: SessionDep) -> dict[str, Any]:
     """Current version's summary: area, product mass, mean/min/max, histogram, flags, CV RMSE."""
     return svc.prescription_summary(session, get_scoped(session, Prescription, rx_id, principal))
@@ -242,7 +203,7 @@ def _version(session: SessionDep, rx: Prescription, version: int | None) -> Pres
         raise ApiError(404, str(exc)) from exc
 
 
-@router.get("/prescriptions/{rx_id:int}/versions")
+@router.get("/prescriptions/{rx_id:int}/versions", response_model=VersionList)
 def list_versions(rx_id: int, principal: UserDep, session: SessionDep) -> dict[str, Any]:
     rx = get_scoped(session, Prescription, rx_id, principal)
     rows = session.scalars(
@@ -257,13 +218,13 @@ def list_versions(rx_id: int, principal: UserDep, session: SessionDep) -> dict[s
     }
 
 
-@router.get("/prescriptions/{rx_id:int}/versions/{version:int}")
+@router.get("/prescriptions/{rx_id:int}/versions/{version:int}", response_model=VersionDetail)
 def get_version(rx_id: int, version: int, principal: UserDep, session: SessionDep) -> dict:
     rx = get_scoped(session, Prescription, rx_id, principal)
     return {"prescription_id": rx.id, **svc.version_summary(_version(session, rx, version))}
 
 
-@router.get("/prescriptions/{rx_id:int}/cells")
+@router.get("/prescriptions/{rx_id:int}/cells", response_model=RxCellPage)
 def get_cells(
     rx_id: int,
     principal: UserDep,
@@ -287,7 +248,7 @@ def get_cells(
     }
 
 
-@router.post("/prescriptions/{rx_id:int}/edits", status_code=201)
+@router.post("/prescriptions/{rx_id:int}/edits", status_code=201, response_model=EditOut)
 def edit(rx_id: int, body: EditIn, principal: WriterDep, session: SessionDep) -> dict[str, Any]:
     """Per-cell rates or a painted zone -> version n+1 (n unchanged). Edited rates are
     meter-checked; cells are flagged manual (cells) or zone (zone)."""
@@ -316,7 +277,16 @@ def edit(rx_id: int, body: EditIn, principal: WriterDep, session: SessionDep) ->
     return out
 
 
-@router.get("/prescriptions/{rx_id:int}/export")
+@router.get(
+    "/prescriptions/{rx_id:int}/export",
+    response_class=Response,
+    responses=file_response(
+        "the version as a file (Content-Disposition names it)",
+        "application/geo+json",
+        "text/csv",
+        "application/zip",
+    ),
+)
 def export(
     rx_id: int,
     principal: UserDep,

@@ -21,6 +21,16 @@ from fastapi.responses import FileResponse, Response
 from sqlalchemy import select, text
 
 from fieldrx.api.common import ApiError, get_scoped, point_page
+from fieldrx.api.schemas.errors import ERRORS
+from fieldrx.api.schemas.files import MVT, file_response
+from fieldrx.api.schemas.fleet import PointPage
+from fieldrx.api.schemas.reports import (
+    AsAppliedCells,
+    AsAppliedReport,
+    JobSummaryOut,
+    KindReport,
+    RawLogState,
+)
 from fieldrx.auth.deps import SessionDep, UserDep
 from fieldrx.db.models import Field, Job, JobEvent, Prescription
 from fieldrx.fleet.partitions import job_window
@@ -28,7 +38,7 @@ from fieldrx.fleet.reports import CellReport, JobReport, cached_report, job_plan
 from fieldrx.store import load_cells
 from fieldrx.store import tiles as cell_tiles
 
-router = APIRouter(tags=["reports"])
+router = APIRouter(tags=["reports"], responses=ERRORS)
 
 
 def _report(session: SessionDep, job_id: int, principal: Any) -> tuple[Job, JobReport]:
@@ -48,7 +58,7 @@ def _prescription_job(job: Job) -> None:
         )
 
 
-@router.get("/jobs/{job_id:int}/report")
+@router.get("/jobs/{job_id:int}/report", response_model=AsAppliedReport | KindReport)
 def job_report(
     job_id: int,
     principal: UserDep,
@@ -70,7 +80,9 @@ def job_report(
     return out
 
 
-@router.post("/jobs/{job_id:int}/raw-log/request", status_code=202)
+@router.post(
+    "/jobs/{job_id:int}/raw-log/request", status_code=202, response_model=RawLogState
+)
 def request_raw_log(job_id: int, principal: UserDep, session: SessionDep) -> dict[str, Any]:
     """Ask the job's tractor for its full 10 Hz log (a thin-profile job keeps it on board);
     it arrives with the agent's next ``upload-log`` and is then served by GET below."""
@@ -92,7 +104,8 @@ def _raw_log_state(job: Job) -> str:
 
 @router.get(
     "/jobs/{job_id:int}/raw-log",
-    responses={200: {"content": {"application/gzip": {}}}, 404: {"description": "not uploaded"}},
+    response_class=Response,
+    responses=file_response("the job's 10 Hz log: gzip of JSON lines", "application/gzip"),
 )
 def get_raw_log(job_id: int, principal: UserDep, session: SessionDep) -> Response:
     """The job's full 10 Hz log as the tractor uploaded it (gzip of JSON lines)."""
@@ -105,7 +118,7 @@ def get_raw_log(job_id: int, principal: UserDep, session: SessionDep) -> Respons
     return FileResponse(path, media_type="application/gzip", filename=f"job-{job.id}-raw.jsonl.gz")
 
 
-@router.get("/jobs/{job_id:int}/summary")
+@router.get("/jobs/{job_id:int}/summary", response_model=JobSummaryOut)
 def job_summary(job_id: int, principal: UserDep, session: SessionDep) -> dict[str, Any]:
     """Compact job record for farm software: what, where, when, how much, how well."""
     job, rep = _report(session, job_id, principal)
@@ -147,7 +160,7 @@ def job_summary(job_id: int, principal: UserDep, session: SessionDep) -> dict[st
     }
 
 
-@router.get("/jobs/{job_id:int}/as-applied")
+@router.get("/jobs/{job_id:int}/as-applied", response_model=PointPage)
 def as_applied_points(
     job_id: int,
     principal: UserDep,
@@ -177,7 +190,7 @@ def as_applied_points(
     return point_page(rows, total or 0, limit, offset)
 
 
-@router.get("/jobs/{job_id:int}/as-applied/cells")
+@router.get("/jobs/{job_id:int}/as-applied/cells", response_model=AsAppliedCells)
 def as_applied_cells(job_id: int, principal: UserDep, session: SessionDep) -> dict[str, Any]:
     """Per-cell GeoJSON: planned vs applied rate, masses and accuracy."""
     job, rep = _report(session, job_id, principal)
@@ -206,7 +219,15 @@ CSV_COLUMNS = (
 )
 
 
-@router.get("/jobs/{job_id:int}/export")
+@router.get(
+    "/jobs/{job_id:int}/export",
+    response_class=Response,
+    responses=file_response(
+        "per-cell CSV, zipped Shapefile or TASKDATA.zip (Content-Disposition names it)",
+        "text/csv",
+        "application/zip",
+    ),
+)
 def export_report(
     job_id: int,
     principal: UserDep,
@@ -248,7 +269,11 @@ def export_report(
     )
 
 
-@router.get("/tiles/jobs/{job_id:int}/{z:int}/{x:int}/{y:int}.mvt")
+@router.get(
+    "/tiles/jobs/{job_id:int}/{z:int}/{x:int}/{y:int}.mvt",
+    response_class=Response,
+    responses=file_response("a Mapbox vector tile, layer 'cells'", MVT),
+)
 def job_tile(
     job_id: int, z: int, x: int, y: int, request: Request, principal: UserDep, session: SessionDep
 ) -> Response:
@@ -272,8 +297,8 @@ def job_tile(
         [c.n_records for c in cells],
     )
     return Response(
-        data,
-        media_type="application/vnd.mapbox-vector-tile",
+        bytes(data or b""),
+        media_type=MVT,
         headers={"Cache-Control": "no-cache", "Last-Modified": _http_date(job.updated_at)},
     )
 

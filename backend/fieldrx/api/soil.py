@@ -5,17 +5,19 @@ from __future__ import annotations
 from typing import Any
 
 from fastapi import APIRouter, HTTPException, Query, UploadFile
-from fastapi.responses import JSONResponse
 
 from fieldrx.agronomy.soil import SoilFormatError
 from fieldrx.api.common import ApiError, get_scoped
+from fieldrx.api.schemas.base import Deleted
+from fieldrx.api.schemas.errors import ERRORS
+from fieldrx.api.schemas.soil import SampleCollection, SoilImportList, SoilImportResult
 from fieldrx.auth.deps import SessionDep, UserDep, WriterDep
 from fieldrx.db.models import Field
 from fieldrx.services import soil as svc
 from fieldrx.services.bounded import run_bounded
 from fieldrx.settings import get_settings
 
-router = APIRouter(prefix="/fields", tags=["soil"])
+router = APIRouter(prefix="/fields", tags=["soil"], responses=ERRORS)
 
 MAX_BYTES = 20 * 1024 * 1024
 MAX_ROWS = 50_000  # a 1 ha sampling grid on a 5,000 ha farm; more is abuse or a wrong file
@@ -29,7 +31,7 @@ def count_rows(name: str, data: bytes) -> int:
     return data.count(b"\n") + (0 if data.endswith(b"\n") else 1) - 1  # minus the header
 
 
-@router.post("/{field_id:int}/soil-samples", status_code=201)
+@router.post("/{field_id:int}/soil-samples", status_code=201, response_model=SoilImportResult)
 def import_samples(
     field_id: int,
     file: UploadFile,
@@ -40,7 +42,7 @@ def import_samples(
     include_outside: bool = Query(
         default=False, description="also store samples lying outside the field (reported anyway)"
     ),
-) -> JSONResponse:
+) -> dict[str, Any]:
     """Import samples. Any bad row rejects the whole file (422 listing row + column of every
     error) unless ``skip_bad_rows``; samples outside the field (beyond a 10 m tolerance) are
     reported with their distance and stored only with ``include_outside``; the same file
@@ -88,16 +90,16 @@ def import_samples(
         session.rollback()
         raise ApiError(exc.status, str(exc), **exc.extra) from exc
     session.commit()
-    return JSONResponse(status_code=201, content=content)
+    return content
 
 
-@router.get("/{field_id:int}/soil-samples")
+@router.get("/{field_id:int}/soil-samples", response_model=SampleCollection)
 def list_samples(field_id: int, principal: UserDep, session: SessionDep) -> dict[str, Any]:
     field = get_scoped(session, Field, field_id, principal)
     return svc.samples_geojson(svc.sample_rows(session, field.id))
 
 
-@router.delete("/{field_id:int}/soil-samples")
+@router.delete("/{field_id:int}/soil-samples", response_model=Deleted)
 def delete_samples(field_id: int, principal: WriterDep, session: SessionDep) -> dict[str, int]:
     field = get_scoped(session, Field, field_id, principal)
     n = svc.delete_samples(session, field.id)
@@ -105,14 +107,14 @@ def delete_samples(field_id: int, principal: WriterDep, session: SessionDep) -> 
     return {"deleted": n}
 
 
-@router.get("/{field_id:int}/soil-imports")
+@router.get("/{field_id:int}/soil-imports", response_model=SoilImportList)
 def list_imports(field_id: int, principal: UserDep, session: SessionDep) -> dict[str, Any]:
     """The field's uploads (file, digest, samples stored, outside rows), newest first."""
     field = get_scoped(session, Field, field_id, principal)
     return svc.list_imports(session, field.id)
 
 
-@router.delete("/{field_id:int}/soil-imports/{import_id:int}")
+@router.delete("/{field_id:int}/soil-imports/{import_id:int}", response_model=Deleted)
 def delete_import(
     field_id: int, import_id: int, principal: WriterDep, session: SessionDep
 ) -> dict[str, int]:
@@ -125,7 +127,7 @@ def delete_import(
     return {"deleted": n}
 
 
-@router.delete("/{field_id:int}/soil-samples/{sample_pk:int}")
+@router.delete("/{field_id:int}/soil-samples/{sample_pk:int}", response_model=Deleted)
 def delete_sample(
     field_id: int, sample_pk: int, principal: WriterDep, session: SessionDep
 ) -> dict[str, int]:

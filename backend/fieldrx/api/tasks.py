@@ -13,12 +13,12 @@ from typing import Any, Literal
 
 from fastapi import APIRouter, Query
 from fastapi.responses import JSONResponse
-from pydantic import BaseModel, Field, model_validator
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
 from fieldrx.api.common import ApiError, get_scoped
-from fieldrx.api.plans import PlanIn
+from fieldrx.api.schemas.errors import ERRORS
+from fieldrx.api.schemas.tasks import MAX_BATCH, QUEUED, PlanBatchIn, TaskList, TaskOut
 from fieldrx.auth.deps import Principal, SessionDep, UserDep, WriterDep
 from fieldrx.db.models import Field as FieldRow
 from fieldrx.db.models import Task
@@ -26,9 +26,7 @@ from fieldrx.geo import PlanningError
 from fieldrx.services.plans import PlanParams, check_plan_cost
 from fieldrx.tasks import store
 
-router = APIRouter(tags=["tasks"])
-
-MAX_BATCH = 10_000
+router = APIRouter(tags=["tasks"], responses=ERRORS)
 
 
 def accepted(session: Session, row: Task) -> JSONResponse:
@@ -75,22 +73,7 @@ def queue_task(
     return accepted(session, row)
 
 
-class PlanBatchIn(BaseModel):
-    """Plan many fields with one set of parameters: ``field_ids`` or every field of
-    ``farm_id``."""
-
-    field_ids: list[int] | None = Field(default=None, min_length=1, max_length=MAX_BATCH)
-    farm_id: int | None = None
-    params: PlanIn = Field(default_factory=PlanIn)
-
-    @model_validator(mode="after")
-    def _one_source(self) -> PlanBatchIn:
-        if (self.field_ids is None) == (self.farm_id is None):
-            raise ValueError("give either field_ids or farm_id")
-        return self
-
-
-@router.post("/plans/batch", status_code=202)
+@router.post("/plans/batch", status_code=202, response_model=TaskOut, responses=QUEUED)
 def plan_batch(body: PlanBatchIn, principal: WriterDep, session: SessionDep) -> JSONResponse:
     """Queue one plan task per field under a batch task (202 with the batch; its progress
     is the mean of its children's, ``items`` lists them with their ``result_url``).
@@ -135,7 +118,7 @@ def plan_batch(body: PlanBatchIn, principal: WriterDep, session: SessionDep) -> 
     return accepted(session, parent)
 
 
-@router.get("/tasks")
+@router.get("/tasks", response_model=TaskList)
 def list_tasks(
     principal: UserDep,
     session: SessionDep,
@@ -163,14 +146,14 @@ def list_tasks(
     }
 
 
-@router.get("/tasks/{task_id:int}")
+@router.get("/tasks/{task_id:int}", response_model=TaskOut)
 def get_task(task_id: int, principal: UserDep, session: SessionDep) -> dict[str, Any]:
     """Status, progress 0..1, message, result and ``result_url``, error; a batch adds
     ``counts`` and its children as ``items``."""
     return store.task_view(session, get_scoped(session, Task, task_id, principal))
 
 
-@router.post("/tasks/{task_id:int}/cancel", status_code=202)
+@router.post("/tasks/{task_id:int}/cancel", status_code=202, response_model=TaskOut)
 def cancel_task(task_id: int, principal: WriterDep, session: SessionDep) -> dict[str, Any]:
     """Cancel a task (a batch: all its unfinished children). Queued ones end at once; a
     running one stops within about a second and stores nothing. 409 when it already ended."""

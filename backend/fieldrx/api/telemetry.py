@@ -16,36 +16,26 @@ checked on the ingest connection in one statement (fieldrx.fleet.auth).
 
 from __future__ import annotations
 
-import datetime as dt
+from typing import Annotated
 
-from fastapi import APIRouter, HTTPException, Request, status
+from fastapi import APIRouter, Depends, HTTPException, Request, status
 from fastapi.responses import Response
-from pydantic import BaseModel
 from sqlalchemy import select
 from starlette.concurrency import run_in_threadpool
 
 from fieldrx.api.common import ApiError, get_scoped
-from fieldrx.auth.deps import SessionDep, UserDep
+from fieldrx.api.schemas.errors import ERRORS
+from fieldrx.api.schemas.telemetry import StreamOut, TelemetryAckOut, TelemetryBatchIn
+from fieldrx.auth.deps import SessionDep, UserDep, bearer_token
 from fieldrx.db.models import Machine, TelemetryStream
 from fieldrx.fleet.auth import device_of
 from fieldrx.fleet.cellrecords import ingest_cells
 from fieldrx.fleet.db import raw_connection
 from fieldrx.fleet.ingest import IngestError, IngestResult, ingest, parse_batch
 
-router = APIRouter(tags=["telemetry"])
+router = APIRouter(tags=["telemetry"], responses=ERRORS)
 
 MAX_RECORDS = 20_000
-
-
-def _bearer(request: Request) -> str:
-    scheme, _, token = request.headers.get("authorization", "").partition(" ")
-    if scheme.lower() != "bearer" or not token.strip():
-        raise HTTPException(
-            status.HTTP_401_UNAUTHORIZED,
-            "missing bearer token (Authorization: Bearer <token>)",
-            headers={"WWW-Authenticate": "Bearer"},
-        )
-    return token.strip()
 
 
 def _ingest(token: str, body: bytes) -> IngestResult:
@@ -77,30 +67,28 @@ def _ingest(token: str, body: bytes) -> IngestResult:
 @router.post(
     "/telemetry",
     summary="Store a batch of telemetry records (device token)",
+    response_class=Response,
+    openapi_extra={
+        "requestBody": {
+            "required": True,
+            "content": {
+                "application/json": {"schema": TelemetryBatchIn.model_json_schema()},
+            },
+        }
+    },
     responses={
-        200: {"description": "TelemetryAck JSON"},
-        401: {"description": "missing, invalid, expired or revoked token"},
-        403: {"description": "not a device token"},
+        200: {
+            "description": "what was stored, deduplicated and rejected (record by record)",
+            "content": {"application/json": {"schema": TelemetryAckOut.model_json_schema()}},
+        }
     },
 )
-async def post_telemetry(request: Request) -> Response:
-    token = _bearer(request)
+async def post_telemetry(
+    request: Request, token: Annotated[str, Depends(bearer_token)]
+) -> Response:
     body = await request.body()
     result = await run_in_threadpool(_ingest, token, body)
     return Response(content=result.to_json(), media_type="application/json")
-
-
-class StreamOut(BaseModel):
-    """One agent queue's numbering of a machine's telemetry (stream '' = legacy agents)."""
-
-    stream: str
-    first_seq: int
-    acked_seq: int
-    n_records: int
-    first_seen_at: dt.datetime
-    last_seen_at: dt.datetime
-    first_t: dt.datetime | None
-    last_t: dt.datetime | None
 
 
 @router.get(

@@ -8,13 +8,14 @@ from fastapi import APIRouter, Request, Response
 from geoalchemy2.shape import to_shape
 
 from fieldrx.api.common import ApiError, get_scoped
+from fieldrx.api.schemas.errors import ERRORS
+from fieldrx.api.schemas.files import MVT, TILE_RESPONSES
 from fieldrx.auth.deps import SessionDep, UserDep
 from fieldrx.db.models import Field, Plan, Prescription, PrescriptionVersion
 from fieldrx.services import tiles
 
-router = APIRouter(prefix="/tiles", tags=["tiles"])
+router = APIRouter(prefix="/tiles", tags=["tiles"], responses=ERRORS)
 
-MVT = "application/vnd.mapbox-vector-tile"
 MAX_ZOOM = 24
 
 
@@ -47,7 +48,11 @@ def _tile_response(request: Request, etag: str, data: bytes) -> Response:
     return Response(content=data, media_type=MVT, headers=headers)
 
 
-@router.get("/plans/{plan_id:int}/{z:int}/{x:int}/{y:int}.mvt")
+@router.get(
+    "/plans/{plan_id:int}/{z:int}/{x:int}/{y:int}.mvt",
+    response_class=Response,
+    responses=TILE_RESPONSES,
+)
 def plan_tile(
     plan_id: int, z: int, x: int, y: int, request: Request, principal: UserDep, session: SessionDep
 ) -> Response:
@@ -63,7 +68,11 @@ def plan_tile(
     )
 
 
-@router.get("/prescriptions/{rx_id:int}/{version:int}/{z:int}/{x:int}/{y:int}.mvt")
+@router.get(
+    "/prescriptions/{rx_id:int}/{version:int}/{z:int}/{x:int}/{y:int}.mvt",
+    response_class=Response,
+    responses=TILE_RESPONSES,
+)
 def prescription_tile(
     rx_id: int,
     version: int,

@@ -10,7 +10,8 @@ import datetime as dt
 from dataclasses import dataclass
 from typing import Annotated
 
-from fastapi import Depends, HTTPException, Request, status
+from fastapi import Depends, HTTPException, status
+from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 from sqlalchemy import select, update
 from sqlalchemy.orm import Session
 
@@ -19,6 +20,14 @@ from fieldrx.db.models import ApiToken
 from fieldrx.db.session import get_session
 
 WRITE_ROLES = ("admin", "agronomist")
+
+bearer = HTTPBearer(
+    scheme_name="bearer",
+    bearerFormat="opaque token",
+    description="A user token (POST /api/v1/auth/login or /auth/tokens) or a machine's device "
+    "token (POST /api/v1/machines/{id}/device-token).",
+    auto_error=False,  # our own 401 says what is missing and how to send it
+)
 
 
 @dataclass(frozen=True)
@@ -35,16 +44,18 @@ class Principal:
         return self.kind == "device"
 
 
-def _bearer(request: Request) -> str:
-    header = request.headers.get("authorization", "")
-    scheme, _, token = header.partition(" ")
-    if scheme.lower() != "bearer" or not token:
+def bearer_token(
+    credentials: Annotated[HTTPAuthorizationCredentials | None, Depends(bearer)],
+) -> str:
+    """The token of ``Authorization: Bearer <token>`` (declared as the OpenAPI bearer scheme,
+    so /docs shows Authorize); 401 saying how to send it when missing."""
+    if credentials is None or not credentials.credentials.strip():
         raise HTTPException(
             status.HTTP_401_UNAUTHORIZED,
             "missing bearer token (Authorization: Bearer <token>)",
             headers={"WWW-Authenticate": "Bearer"},
         )
-    return token.strip()
+    return credentials.credentials.strip()
 
 
 def resolve_token(session: Session, token: str) -> Principal | None:
@@ -69,9 +80,9 @@ def resolve_token(session: Session, token: str) -> Principal | None:
 
 
 def current_principal(
-    request: Request, session: Annotated[Session, Depends(get_session)]
+    token: Annotated[str, Depends(bearer_token)], session: Annotated[Session, Depends(get_session)]
 ) -> Principal:
-    principal = resolve_token(session, _bearer(request))
+    principal = resolve_token(session, token)
     if principal is None:
         raise HTTPException(
             status.HTTP_401_UNAUTHORIZED,
@@ -91,13 +102,22 @@ def current_user(principal: Annotated[Principal, Depends(current_principal)]) ->
 def writer(principal: Annotated[Principal, Depends(current_user)]) -> Principal:
     """A person allowed to change data (admin or agronomist)."""
     if principal.role not in WRITE_ROLES:
-        raise HTTPException(status.HTTP_403_FORBIDDEN, f"role '{principal.role}' cannot write")
+        raise HTTPException(
+            status.HTTP_403_FORBIDDEN,
+            f"role '{principal.role}' cannot write: this needs role 'agronomist' or 'admin'. "
+            "Sign in as such a user, or have one create a token for you with "
+            'POST /api/v1/auth/tokens {"name": ..., "role": "agronomist"}',
+        )
     return principal
 
 
 def admin(principal: Annotated[Principal, Depends(current_user)]) -> Principal:
     if principal.role != "admin":
-        raise HTTPException(status.HTTP_403_FORBIDDEN, "admin role required")
+        raise HTTPException(
+            status.HTTP_403_FORBIDDEN,
+            f"role '{principal.role}' cannot do this: it needs role 'admin' (ask an admin of "
+            "your organisation)",
+        )
     return principal
 
 

@@ -18,8 +18,8 @@ from typing import Any
 from sqlalchemy import text
 from sqlalchemy.orm import Session
 
-from fieldrx.api.common import ApiError
 from fieldrx.db.models import Alert, Job, JobEvent
+from fieldrx.errors import Conflict, Invalid
 from fieldrx.fleet.alerts import LIVE_CHANNEL, alert_message
 from fieldrx.fleet.reports import build_report
 
@@ -47,14 +47,13 @@ def change_state(
 ) -> bool:
     """Apply a transition (not committed); False when the job already is in ``state``."""
     if state not in TRANSITIONS:
-        raise ApiError(422, f"unknown state '{state}'", where="state", allowed=list(TRANSITIONS))
+        raise Invalid(f"unknown state '{state}'", where="state", allowed=list(TRANSITIONS))
     if job.state == state:
         return False
     allowed = TRANSITIONS[job.state]
     if state not in allowed:
         hint = f"allowed: {', '.join(allowed)}" if allowed else f"'{job.state}' is final"
-        raise ApiError(
-            409,
+        raise Conflict(
             f"job {job.id} cannot go from '{job.state}' to '{state}' ({hint})",
             state=job.state,
             allowed=list(allowed),

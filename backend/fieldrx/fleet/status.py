@@ -80,7 +80,6 @@ def machine_status(
                 if r["lon"] is None
                 else {"type": "Point", "coordinates": [r["lon"], r["lat"]]},
                 "speed_m_s": speed,
-                "speed_kmh": None if speed is None else speed * 3.6,
                 "last_speed_m_s": r["speed_m_s"],
                 "heading_deg": r["heading_deg"],
                 "speed_range_m_s": [r["speed_min_m_s"], r["speed_max_m_s"]],

@@ -29,7 +29,7 @@ from sqlalchemy import insert, text
 from sqlalchemy.orm import Session
 
 from fieldrx.agronomy.cells import CellTable
-from fieldrx.api.common import shape_to_db
+from fieldrx.db.geometry import shape_to_db
 from fieldrx.db.models import (
     Farm,
     Field,

@@ -20,7 +20,7 @@ from geoalchemy2.shape import to_shape
 from sqlalchemy import text
 from sqlalchemy.orm import Session
 
-from fieldrx.api.common import shape_to_db
+from fieldrx.db.geometry import shape_to_db
 from fieldrx.db.models import Field, Plan
 from fieldrx.geo import PlanningError
 from fieldrx.geo.coverage import plan_coverage
@@ -230,15 +230,9 @@ def plan_summary(plan: Plan) -> dict[str, Any]:
         "id": plan.id,
         "field_id": plan.field_id,
         "params": p,
-        "swath_width_m": p.get("swath_width_m"),
-        "cell_length_m": p.get("cell_length_m"),
-        "heading": p.get("heading"),
-        "heading_rule": p.get("heading"),
-        "headland_passes": p.get("headland_passes"),
         "heading_deg": plan.heading_deg,
         "n_cells": plan.n_cells,
         "metrics": plan.metrics,
-        "stats": {k: v for k, v in (plan.metrics or {}).items() if isinstance(v, int | float)},
         "created_at": plan.created_at.isoformat() if plan.created_at else None,
     }
 

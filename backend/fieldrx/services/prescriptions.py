@@ -271,9 +271,9 @@ def version_summary(ver: PrescriptionVersion) -> dict[str, Any]:
 
 
 def _stats(summary: dict[str, Any]) -> dict[str, Any]:
-    out = {k: v for k, v in summary.items() if isinstance(v, int | float) and v is not None}
+    """Counts derived from the summary's flags (the summary's own figures are not copied)."""
+    out: dict[str, Any] = {}
     fl = summary.get("flagged") or {}
-    out["cell_count"] = summary.get("n_cells", 0)
     out["out_of_meter_range_count"] = int(fl.get("below_meter_range", 0)) + int(
         fl.get("above_meter_range", 0)
     )
@@ -308,9 +308,7 @@ def prescription_summary(session: Session, rx: Prescription) -> dict[str, Any]:
         "interpolation_params": p.get("interpolation_params", {}),
         "fallback_rate_kg_ha": p.get("fallback_rate_kg_ha"),
         "meter": p.get("meter"),
-        "version": rx.current_version,
         "current_version": rx.current_version,
-        "latest_version": rx.current_version,
         "versions": [
             {
                 "version": v.version,
@@ -560,11 +558,8 @@ def rates_page(
             "area_m2": np.round(cells.area_m2, 3),
             "rate_kg_ha": rate,
             "flags": names,
-            "flag": [",".join(f) for f in names],
-            # outside what the machine meters at the planned speeds (stored as
-            # asked); "clamped" is the same flag under the tiles' older name
+            # outside what the machine meters at the planned speeds (stored as asked)
             "out_of_meter_range": meter,
-            "clamped": meter,
             # no sample near enough: the rate is the prescription's fallback rate
             "fallback": (masks & FLAG_BITS["no_data"]) != 0,
             "source_value": src,

@@ -1,6 +1,6 @@
 import { useCallback, useEffect, useState } from 'react';
 import type * as maplibregl from 'maplibre-gl';
-import { api, errorText } from '../api';
+import { call, client, errorText, formBody } from '../api/client';
 import { defaultImagery, imageryLabel, opacityFromPercent, sortNewest, type ImageryItem } from '../lib/imagery';
 import { isTask, progressLabel, type TaskView } from '../lib/tasks';
 import { showImagery } from '../map/imagery';
@@ -24,7 +24,11 @@ export function ImageryControl(props: { map: maplibregl.Map | null; fieldId?: nu
   const load = useCallback(
     async (pick?: number) => {
       try {
-        const r = await api.get<{ items: ImageryItem[] }>(fieldId ? `/fields/${fieldId}/imagery` : '/imagery');
+        const r = await call(
+          fieldId
+            ? client.GET('/api/v1/fields/{field_id}/imagery', { params: { path: { field_id: fieldId } } })
+            : client.GET('/api/v1/imagery'),
+        );
         const list = sortNewest(r?.items ?? []);
         setItems(list);
         setSelected(pick ?? defaultImagery(list, fieldId)?.id ?? null);
@@ -55,7 +59,9 @@ export function ImageryControl(props: { map: maplibregl.Map | null; fieldId?: nu
     setErr('');
     setMsg('Uploading and converting…');
     try {
-      const item = await api.post<unknown>(`/fields/${fieldId}/imagery`, fd);
+      const item = await call(
+        client.POST('/api/v1/fields/{field_id}/imagery', { params: { path: { field_id: fieldId } }, ...formBody(fd) }),
+      );
       form.reset();
       if (isTask(item)) {
         // a large upload is converted by a worker: follow its task

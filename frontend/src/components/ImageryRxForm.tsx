@@ -1,7 +1,6 @@
 import { useEffect, useState } from 'react';
-import { api } from '../api';
+import { call, client, type Prescription } from '../api/client';
 import { imageryLabel, sortNewest, type ImageryItem } from '../lib/imagery';
-import type { Prescription } from '../types';
 import { ErrorBox } from './Status';
 
 /**
@@ -18,8 +17,7 @@ export function ImageryRxForm(props: { planId: number; fieldId: number; onCreate
   const [busy, setBusy] = useState(false);
   const [error, setError] = useState<unknown>(null);
   useEffect(() => {
-    api
-      .get<{ items: ImageryItem[] }>(`/fields/${fieldId}/imagery`)
+    call(client.GET('/api/v1/fields/{field_id}/imagery', { params: { path: { field_id: fieldId } } }))
       .then((r) => {
         const list = sortNewest((r?.items ?? []).filter((i) => i.kind !== 'orthophoto'));
         setItems(list);
@@ -38,8 +36,17 @@ export function ImageryRxForm(props: { planId: number; fieldId: number; onCreate
         setBusy(true);
         setError(null);
         try {
-          const body = mode === 'zones' ? { plan_id: planId, k, min_area_m2: minArea } : { plan_id: planId };
-          onCreated(await api.post<Prescription>(`/imagery/${imageId}/${mode === 'zones' ? 'zones' : 'prescriptions'}`, body));
+          const path = { imagery_id: Number(imageId) };
+          onCreated(
+            mode === 'zones'
+              ? await call(
+                  client.POST('/api/v1/imagery/{imagery_id}/zones', {
+                    params: { path },
+                    body: { plan_id: planId, k, min_area_m2: minArea },
+                  }),
+                )
+              : await call(client.POST('/api/v1/imagery/{imagery_id}/prescriptions', { params: { path }, body: { plan_id: planId } })),
+          );
         } catch (err) {
           setError(err);
         } finally {

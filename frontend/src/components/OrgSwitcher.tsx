@@ -1,4 +1,4 @@
-import { api, errorText, getToken, setSession, type SessionInfo } from '../api';
+import { call, client, errorText, setSession, type SessionInfo } from '../api/client';
 
 /**
  * Organisation name, or a switcher when the user belongs to several. Switching
@@ -6,7 +6,7 @@ import { api, errorText, getToken, setSession, type SessionInfo } from '../api';
  */
 export function OrgSwitcher({ session, onChange }: { session: SessionInfo; onChange: (s: SessionInfo) => void }) {
   const orgs = session.organisations ?? [];
-  const role = (session.organisation as { role?: string } | undefined)?.role;
+  const role = session.organisation?.role;
   if (orgs.length < 2)
     return (
       <span data-testid="org-name">
@@ -21,11 +21,9 @@ export function OrgSwitcher({ session, onChange }: { session: SessionInfo; onCha
       onChange={async (e) => {
         const id = Number(e.target.value);
         try {
-          const r = await api.post<{ access_token?: string } & SessionInfo>('/auth/switch', {
-            organisation_id: id,
-          });
-          const info = { ...session, organisation: r.organisation ?? orgs.find((o) => o.id === id) };
-          setSession(r.access_token ?? getToken(), info);
+          const r = await call(client.POST('/api/v1/auth/switch', { body: { organisation_id: id } }));
+          const info = { user: r.user, organisation: r.organisation, organisations: r.organisations };
+          setSession(r.access_token, info);
           onChange(info);
           location.reload();
         } catch (err) {

@@ -1,7 +1,6 @@
 import { useState } from 'react';
-import { api } from '../api';
+import { call, client, type Prescription, type Schemas } from '../api/client';
 import { MODEL_DEFAULTS } from '../screens/RxForm';
-import type { Prescription } from '../types';
 import { ErrorBox } from './Status';
 
 /**
@@ -37,13 +36,18 @@ export function SoilZonesForm(props: { planId: number; onCreated: (r: Prescripti
         setBusy(true);
         try {
           onCreated(
-            await api.post<Prescription>(`/plans/${planId}/zones`, {
-              model,
-              params: p,
-              interpolation: interp,
-              k,
-              min_area_m2: minArea,
-            }),
+            await call(
+              client.POST('/api/v1/plans/{plan_id}/zones', {
+                params: { path: { plan_id: planId } },
+                body: {
+                  model,
+                  params: p as Schemas['SoilZonesIn']['params'],
+                  interpolation: interp as Schemas['SoilZonesIn']['interpolation'],
+                  k,
+                  min_area_m2: minArea,
+                },
+              }),
+            ),
           );
         } catch (err) {
           setError(err);

@@ -1,5 +1,5 @@
 /** Small shared bits: error banner, busy text, "not available yet" notice. */
-import { ApiError, errorText } from '../api';
+import { ApiError, errorText } from '../api/client';
 
 export function ErrorBox({ error, testid = 'error' }: { error: unknown; testid?: string }) {
   if (!error) return null;
@@ -17,11 +17,6 @@ export function ErrorBox({ error, testid = 'error' }: { error: unknown; testid?:
       )}
     </div>
   );
-}
-
-/** A 404/405 from an endpoint that other work has not shipped yet. */
-export function isMissingEndpoint(e: unknown): boolean {
-  return e instanceof ApiError && (e.status === 404 || e.status === 405 || e.status === 501);
 }
 
 export function Kv({ items }: { items: [string, React.ReactNode, string?][] }) {

@@ -1,5 +1,5 @@
 import { useEffect, useState } from 'react';
-import { api, errorText } from '../api';
+import { call, client, errorText } from '../api/client';
 import { isFinal, pollTask, progressLabel, type TaskView } from '../lib/tasks';
 
 /**
@@ -13,7 +13,10 @@ export function TaskProgress(props: { task: TaskView; onDone?: (t: TaskView) => 
 
   useEffect(() => {
     const signal = { aborted: false };
-    pollTask((u) => api.get<TaskView>(u), task.url, { signal, onUpdate: setView })
+    pollTask(
+      () => call(client.GET('/api/v1/tasks/{task_id}', { params: { path: { task_id: task.id } } })),
+      task.url,
+      { signal, onUpdate: setView })
       .then((t) => {
         if (!signal.aborted && isFinal(t)) onDone?.(t);
       })
@@ -26,7 +29,7 @@ export function TaskProgress(props: { task: TaskView; onDone?: (t: TaskView) => 
 
   const cancel = async () => {
     try {
-      setView(await api.post<TaskView>(`${task.url}/cancel`, {}));
+      setView(await call(client.POST('/api/v1/tasks/{task_id}/cancel', { params: { path: { task_id: task.id } } })));
     } catch (e) {
       setErr(errorText(e));
     }

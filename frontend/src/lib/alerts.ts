@@ -3,21 +3,14 @@
  * job, on one machine) is one line with a count, acknowledged together (POST /alerts/ack).
  * A job whose rate wandered in and out of tolerance 16 times is one line, not 16.
  */
+import type { Schemas } from '../api/client';
 
-export interface AlertGroup {
-  machine_id: number;
-  job_id: number | null;
-  kind: string;
-  count: number;
-  active: number;
-  unacknowledged: number;
-  acknowledged?: boolean;
-  first_started_at?: string;
-  last_started_at?: string;
-  message?: string;
-  max_value?: number | null;
-  alert_ids?: number[];
-}
+/** The server's alert group: these helpers need its counts and key, the rest may follow. */
+export type AlertGroup = Pick<
+  Schemas['AlertGroup'],
+  'machine_id' | 'job_id' | 'kind' | 'count' | 'active' | 'unacknowledged'
+> &
+  Partial<Schemas['AlertGroup']>;
 
 export function groupKey(g: Pick<AlertGroup, 'machine_id' | 'job_id' | 'kind'>): string {
   return `${g.machine_id}:${g.job_id ?? '-'}:${g.kind}`;
@@ -29,7 +22,7 @@ export function openGroupCount(groups: AlertGroup[]): number {
 }
 
 /** The body of POST /alerts/ack for a group. */
-export function ackBody(g: AlertGroup): { machine_id: number; job_id: number | null; kind: string } {
+export function ackBody(g: AlertGroup): Schemas['AckGroupIn'] {
   return { machine_id: g.machine_id, job_id: g.job_id ?? null, kind: g.kind };
 }
 

@@ -110,3 +110,11 @@ export function bearingDeg(a: Position, b: Position): number {
   const x = Math.cos(p1) * Math.sin(p2) - Math.sin(p1) * Math.cos(p2) * Math.cos(l2 - l1);
   return ((Math.atan2(y, x) / rad) % 360 + 360) % 360;
 }
+
+/**
+ * The server's GeoJSON (RFC 7946) as the map library's type: the generated API types say
+ * only "an object" for a geometry, so this is the one place that narrows it.
+ */
+export function asGeoJSON<T extends GeoJSON.GeoJSON = GeoJSON.FeatureCollection>(obj: object): T {
+  return obj as T;
+}

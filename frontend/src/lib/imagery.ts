@@ -1,19 +1,14 @@
 /** Imagery under the maps: which image to show first, where its layer goes, map start view. */
+import type { Schemas } from '../api/client';
 import type { BBox } from './geo';
 
-export type ImageryKind = 'orthophoto' | 'ndvi' | 'multispectral';
+export type ImageryKind = Schemas['ImageryOut']['kind'];
 
-export interface ImageryItem {
-  id: number;
-  field_id: number;
-  kind: ImageryKind;
-  name: string;
-  acquired_on: string | null;
-  created_at: string | null;
-  resolution_m: number;
-  bounds: BBox;
-  tiles: string;
-}
+/** The keys of the server's `ImageryOut` these helpers read. */
+export type ImageryItem = Pick<
+  Schemas['ImageryOut'],
+  'id' | 'field_id' | 'kind' | 'name' | 'acquired_on' | 'created_at' | 'resolution_m' | 'bounds' | 'tiles'
+>;
 
 /** Newest first: acquisition date (unknown dates last), then upload time, then id. */
 export function sortNewest(items: ImageryItem[]): ImageryItem[] {

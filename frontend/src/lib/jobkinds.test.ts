@@ -17,7 +17,7 @@ describe('job kinds', () => {
   it('builds the body of each kind', () => {
     expect(jobBody('prescription_map', { prescriptionId: '3', version: '', machineId: '2' })).toEqual({
       prescription_id: 3,
-      version: undefined,
+      prescription_version: undefined,
       machine_id: 2,
     });
     expect(jobBody('seeding_depth', { planId: '7', machineId: '2' }, { target_depth_mm: '40' })).toEqual({

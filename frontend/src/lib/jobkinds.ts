@@ -4,8 +4,9 @@
  * (GET /jobs/kinds, fieldrx_edge.jobkinds.settings); this module shapes the forms: every
  * input with its unit and the paper's value named as such, and the body sent.
  */
+import type { Schemas } from '../api/client';
 
-export type JobKind = 'prescription_map' | 'ndvi_topdress' | 'seeding_depth';
+export type JobKind = NonNullable<Schemas['JobIn']['kind']>;
 
 export const KIND_LABELS: Record<JobKind, string> = {
   prescription_map: 'Prescription map (seed 001)',
@@ -78,11 +79,11 @@ export function jobBody(
   kind: JobKind,
   ids: { prescriptionId?: string; version?: string; planId?: string; machineId: string },
   values: Record<string, string> = {},
-): Record<string, unknown> {
+): Schemas['JobIn'] {
   if (kind === 'prescription_map') {
     return {
       prescription_id: Number(ids.prescriptionId),
-      version: ids.version ? Number(ids.version) : undefined,
+      prescription_version: ids.version ? Number(ids.version) : undefined,
       machine_id: Number(ids.machineId),
     };
   }

@@ -4,22 +4,14 @@
  * passed in) so they are tested without a browser.
  */
 
-export type TaskStatus = 'queued' | 'running' | 'succeeded' | 'failed' | 'cancelled';
+import type { components } from '../api/generated/schema';
 
-export interface TaskView {
-  id: number;
-  kind: string;
-  status: TaskStatus;
-  progress: number;
-  message: string;
-  result: Record<string, unknown> | null;
-  result_url: string | null;
-  error: string | null;
-  url: string;
-  cancel_requested?: boolean;
-  counts?: Partial<Record<TaskStatus, number>>;
-  items?: TaskView[];
-}
+type TaskOut = components['schemas']['TaskOut'];
+export type TaskStatus = TaskOut['status'];
+
+/** What the UI reads of a task (the server's ``TaskOut``, generated). */
+export type TaskView = Pick<TaskOut, 'id' | 'kind' | 'status' | 'progress' | 'message' | 'result' | 'result_url' | 'error' | 'url'> &
+  Partial<Pick<TaskOut, 'cancel_requested' | 'counts'>> & { items?: TaskView[] | null };
 
 const FINAL: readonly TaskStatus[] = ['succeeded', 'failed', 'cancelled'];
 

@@ -1,6 +1,6 @@
 import { useEffect, useRef, useState } from 'react';
 import type * as maplibregl from 'maplibre-gl';
-import { api } from '../api';
+import { call, client } from '../api/client';
 import { ImageryControl } from '../components/ImageryControl';
 import { bboxOf } from '../lib/geo';
 import { startBounds } from '../lib/imagery';
@@ -38,8 +38,7 @@ export function MapView(props: {
     map.on('load', () => {
       cleanup = readyRef.current?.(map);
       setMap(map);
-      api
-        .get('/fields?limit=1000')
+      call(client.GET('/api/v1/fields', { params: { query: { limit: 1000 } } }))
         .then((fc) => {
           const b = startBounds(bboxOf(fc));
           if (alive && !moved && b) fitTo(map, b, 40);

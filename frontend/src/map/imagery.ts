@@ -1,5 +1,6 @@
 /** The imagery raster layer on a MapLibre map: one per map, under every data layer. */
 import type * as maplibregl from 'maplibre-gl';
+import type { BBox } from '../lib/geo';
 import { imageryBeforeId, type ImageryItem } from '../lib/imagery';
 import { absoluteApiUrl } from './setup';
 
@@ -18,7 +19,7 @@ export function showImagery(map: maplibregl.Map, item: ImageryItem | null, opaci
       type: 'raster',
       tiles: [absoluteApiUrl(item.tiles)],
       tileSize: 256,
-      bounds: item.bounds,
+      bounds: item.bounds as BBox,
       maxzoom: 22,
     });
     (map.getSource(IMAGERY_ID) as unknown as { _fieldrxId?: number })._fieldrxId = item.id;

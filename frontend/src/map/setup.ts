@@ -2,7 +2,7 @@
 import * as maplibregl from 'maplibre-gl';
 import workerUrl from 'maplibre-gl/dist/maplibre-gl-worker.mjs?url';
 import 'maplibre-gl/dist/maplibre-gl.css';
-import { getToken } from '../api';
+import { getToken } from '../api/client';
 
 // Without this the worker never loads under Vite and the map never goes idle (STACK.md).
 maplibregl.setWorkerUrl(workerUrl);

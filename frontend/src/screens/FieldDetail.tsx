@@ -1,35 +1,19 @@
 import { useCallback, useEffect, useRef, useState } from 'react';
 import * as maplibregl from 'maplibre-gl';
-import { api, ApiError } from '../api';
-import { ErrorBox, isMissingEndpoint, Kv } from '../components/Status';
+import { ApiError, call, client, formBody, type FieldFeature, type Plan, type Schemas } from '../api/client';
+import { ErrorBox, Kv } from '../components/Status';
 import { Legend } from '../components/Legend';
 import { classColors, legendEntries, niceBreaks, stepExpression } from '../lib/colors';
-import { bboxOf } from '../lib/geo';
+import { asGeoJSON, bboxOf } from '../lib/geo';
 import { formatArea } from '../lib/units';
 import { MapView } from '../map/MapView';
 import { fitTo, setGeoJSON } from '../map/setup';
 import { navigate } from '../router';
-import type { FieldFeature, Plan } from '../types';
-import { listOf } from '../types';
 import { PlanForm } from './PlanForm';
 
-type SoilFC = GeoJSON.FeatureCollection<GeoJSON.Point, Record<string, unknown>>;
-
-interface SoilImportRow {
-  id: number;
-  filename: string;
-  n_samples: number;
-  n_stored: number;
-  n_outside: number;
-  outside_stored: boolean;
-  created_at?: string;
-}
-
-interface OutsideRow {
-  row: number;
-  sample_id: string;
-  distance_m?: number | null;
-}
+type SoilFC = Schemas['SampleCollection'];
+type SoilImportRow = Schemas['SoilImportRow'];
+type OutsideRow = Schemas['OutsideRow'];
 
 const SKIP_KEYS = new Set([
   'id',
@@ -47,7 +31,6 @@ const SKIP_KEYS = new Set([
 export function FieldDetail({ fieldId }: { fieldId: number }) {
   const [field, setField] = useState<FieldFeature | null>(null);
   const [plans, setPlans] = useState<Plan[]>([]);
-  const [plansMissing, setPlansMissing] = useState(false);
   const [soil, setSoil] = useState<SoilFC | null>(null);
   const [error, setError] = useState<unknown>(null);
   const [soilError, setSoilError] = useState<unknown>(null);
@@ -61,41 +44,43 @@ export function FieldDetail({ fieldId }: { fieldId: number }) {
 
   const loadSoil = useCallback(async () => {
     try {
-      const fc = await api.get<SoilFC>(`/fields/${fieldId}/soil-samples`);
-      setSoil(fc?.features ? fc : null);
-      setImports(listOf<SoilImportRow>(await api.get(`/fields/${fieldId}/soil-imports`)));
+      const path = { field_id: fieldId };
+      setSoil(await call(client.GET('/api/v1/fields/{field_id}/soil-samples', { params: { path } })));
+      setImports((await call(client.GET('/api/v1/fields/{field_id}/soil-imports', { params: { path } }))).items);
     } catch (e) {
-      if (!isMissingEndpoint(e)) setSoilError(e);
+      setSoilError(e);
     }
   }, [fieldId]);
 
   useEffect(() => {
-    api.get<FieldFeature>(`/fields/${fieldId}`).then(setField).catch(setError);
-    api
-      .get(`/fields/${fieldId}/plans`)
-      .then((r) => setPlans(listOf<Plan>(r)))
-      .catch((e) => (isMissingEndpoint(e) ? setPlansMissing(true) : setError(e)));
+    const path = { field_id: fieldId };
+    call(client.GET('/api/v1/fields/{field_id}', { params: { path } }))
+      .then(setField)
+      .catch(setError);
+    call(client.GET('/api/v1/fields/{field_id}/plans', { params: { path } }))
+      .then((r) => setPlans(r.items))
+      .catch(setError);
     void loadSoil();
   }, [fieldId, loadSoil]);
 
   useEffect(() => {
     const map = mapRef.current;
     if (!map || !field) return;
-    setGeoJSON(map, 'field', field as GeoJSON.Feature);
+    setGeoJSON(map, 'field', asGeoJSON(field));
     fitTo(map, bboxOf(field));
   }, [field]);
   useEffect(() => {
     const map = mapRef.current;
     if (!map) return;
-    setGeoJSON(map, 'soil', soil ?? { type: 'FeatureCollection', features: [] });
+    setGeoJSON(map, 'soil', soil ? asGeoJSON(soil) : { type: 'FeatureCollection', features: [] });
   }, [soil]);
 
   const onReady = (map: maplibregl.Map) => {
     mapRef.current = map;
-    setGeoJSON(map, 'field', (field as GeoJSON.Feature) ?? { type: 'FeatureCollection', features: [] });
+    setGeoJSON(map, 'field', field ? asGeoJSON(field) : { type: 'FeatureCollection', features: [] });
     map.addLayer({ id: 'field-fill', type: 'fill', source: 'field', paint: { 'fill-color': '#4c9a2a', 'fill-opacity': 0.25 } });
     map.addLayer({ id: 'field-line', type: 'line', source: 'field', paint: { 'line-color': '#2d5e16', 'line-width': 2 } });
-    setGeoJSON(map, 'soil', soil ?? { type: 'FeatureCollection', features: [] });
+    setGeoJSON(map, 'soil', soil ? asGeoJSON(soil) : { type: 'FeatureCollection', features: [] });
     map.addLayer({
       id: 'soil',
       type: 'circle',
@@ -120,49 +105,48 @@ export function FieldDetail({ fieldId }: { fieldId: number }) {
     setOutside([]);
     const fd = new FormData();
     fd.append('file', file);
-    const q = new URLSearchParams();
-    if (skipBad) q.set('skip_bad_rows', 'true');
-    if (includeOutside) q.set('include_outside', 'true');
+    const query = { skip_bad_rows: skipBad || undefined, include_outside: includeOutside || undefined };
     try {
-      const r = await api.post<Record<string, unknown>>(
-        `/fields/${fieldId}/soil-samples${q.size ? `?${q}` : ''}`,
-        fd,
+      const r = await call(
+        client.POST('/api/v1/fields/{field_id}/soil-samples', {
+          params: { path: { field_id: fieldId }, query },
+          ...formBody(fd),
+        }),
       );
-      const n = (r?.stored ?? r?.imported ?? r?.count ?? listOf(r).length) as number;
-      const skipped = Array.isArray(r?.skipped) ? (r.skipped as unknown[]).length : r?.skipped;
-      const far = Array.isArray(r?.outside) ? (r.outside as OutsideRow[]) : [];
+      const far = r.outside;
       setOutside(far);
       setSoilMsg(
-        `Uploaded ${file.name}: ${n ?? '?'} samples${skipped ? `, ${String(skipped)} rows skipped` : ''}${
-          far.length ? `, ${far.length} outside the field ${r?.outside_stored ? '(stored as asked)' : '(not stored)'}` : ''
+        `Uploaded ${file.name}: ${r.imported} samples${r.skipped ? `, ${r.skipped} rows skipped` : ''}${
+          far.length ? `, ${far.length} outside the field ${r.outside_stored ? '(stored as asked)' : '(not stored)'}` : ''
         }`,
       );
       await loadSoil();
     } catch (e) {
-      const body = e instanceof ApiError ? (e.body as Record<string, unknown> | null) : null;
+      const body = e instanceof ApiError ? (e.body as Schemas['ErrorOut'] | null) : null;
       if (body && Array.isArray(body.outside)) setOutside(body.outside as OutsideRow[]);
       setSoilError(e);
     }
   };
 
-  const remove = async (path: string, what: string) => {
+  const remove = async (del: () => Promise<Schemas['Deleted']>, what: string) => {
     if (!confirm(`Delete ${what}?`)) return;
     setSoilError(null);
     try {
-      const r = await api.del<{ deleted?: number }>(path);
-      setSoilMsg(`Deleted ${what} (${r?.deleted ?? 0} samples)`);
+      const r = await del();
+      setSoilMsg(`Deleted ${what} (${r.deleted} samples)`);
       await loadSoil();
     } catch (e) {
       setSoilError(e);
     }
   };
 
+  type SampleKey = keyof Schemas['SampleProps'];
   const sampleKeys = soil?.features[0]
-    ? Object.keys(soil.features[0].properties ?? {}).filter((k) => !SKIP_KEYS.has(k))
+    ? (Object.keys(soil.features[0].properties) as SampleKey[]).filter((k) => !SKIP_KEYS.has(k))
     : [];
-  const numericKeys = sampleKeys.filter((k) => soil!.features.some((f) => typeof f.properties?.[k] === 'number') && k !== 'row');
-  const key = colorKey && numericKeys.includes(colorKey) ? colorKey : (numericKeys.find((k) => /^n_|nitrogen/i.test(k)) ?? numericKeys[0] ?? '');
-  const vals = key ? (soil?.features ?? []).map((f) => Number(f.properties?.[key])).filter(Number.isFinite) : [];
+  const numericKeys = sampleKeys.filter((k) => soil!.features.some((f) => typeof f.properties[k] === 'number'));
+  const key = colorKey && numericKeys.includes(colorKey as SampleKey) ? (colorKey as SampleKey) : (numericKeys.find((k) => /^n_|nitrogen/i.test(k)) ?? numericKeys[0] ?? '');
+  const vals = key ? (soil?.features ?? []).map((f) => Number(f.properties[key])).filter(Number.isFinite) : [];
   const vLo = vals.length ? vals.reduce((a, b) => Math.min(a, b)) : 0;
   const vHi = vals.length ? vals.reduce((a, b) => Math.max(a, b)) : 1;
   const sBreaks = niceBreaks(vLo, vHi === vLo ? vLo + 1 : vHi, 5);
@@ -201,7 +185,7 @@ export function FieldDetail({ fieldId }: { fieldId: number }) {
             onClick={async () => {
               if (!confirm('Delete this field?')) return;
               try {
-                await api.del(`/fields/${fieldId}`);
+                await call(client.DELETE('/api/v1/fields/{field_id}', { params: { path: { field_id: fieldId } } }));
                 navigate('/fields');
               } catch (e) {
                 setError(e);
@@ -283,7 +267,15 @@ export function FieldDetail({ fieldId }: { fieldId: number }) {
                       className="danger"
                       data-write=""
                       data-testid={`soil-import-delete-${i.id}`}
-                      onClick={() => void remove(`/fields/${fieldId}/soil-imports/${i.id}`, `import ${i.filename || i.id}`)}
+                      onClick={() => void remove(
+                          () =>
+                            call(
+                              client.DELETE('/api/v1/fields/{field_id}/soil-imports/{import_id}', {
+                                params: { path: { field_id: fieldId, import_id: i.id } },
+                              }),
+                            ),
+                          `import ${i.filename || i.id}`,
+                        )}
                     >
                       Delete
                     </button>
@@ -326,7 +318,7 @@ export function FieldDetail({ fieldId }: { fieldId: number }) {
                 {soil.features.slice(0, 200).map((f, i) => (
                   <tr key={i}>
                     {sampleKeys.map((k) => (
-                      <td key={k}>{fmtCell(f.properties?.[k])}</td>
+                      <td key={k}>{fmtCell(f.properties[k])}</td>
                     ))}
                     <td>
                       <button
@@ -336,8 +328,13 @@ export function FieldDetail({ fieldId }: { fieldId: number }) {
                         title="Delete this sample"
                         onClick={() =>
                           void remove(
-                            `/fields/${fieldId}/soil-samples/${String(f.properties?.id)}`,
-                            `sample ${String(f.properties?.sample_id ?? '')}`,
+                            () =>
+                              call(
+                                client.DELETE('/api/v1/fields/{field_id}/soil-samples/{sample_pk}', {
+                                  params: { path: { field_id: fieldId, sample_pk: f.properties.id } },
+                                }),
+                              ),
+                            `sample ${f.properties.sample_id}`,
                           )
                         }
                       >
@@ -352,11 +349,7 @@ export function FieldDetail({ fieldId }: { fieldId: number }) {
         )}
 
         <h3>Plans</h3>
-        {plansMissing ? (
-          <p className="muted" data-testid="plans-unavailable">
-            Planning is not available on this server yet.
-          </p>
-        ) : (
+        {
           <>
             <ul className="list" data-testid="plan-list">
               {plans.map((p) => (
@@ -365,14 +358,14 @@ export function FieldDetail({ fieldId }: { fieldId: number }) {
                     Plan #{p.id}
                   </a>{' '}
                   <span className="muted">
-                    {p.swath_width_m ?? '?'} m swath · {p.cell_length_m ?? '?'} m cells
+                    {p.params.swath_width_m} m swath · {p.params.cell_length_m} m cells
                   </span>
                 </li>
               ))}
             </ul>
             <PlanForm fieldId={fieldId} onCreated={(p) => navigate(`/plans/${p.id}`)} />
           </>
-        )}
+        }
       </aside>
       <MapView name="field" onReady={onReady} fieldId={fieldId} />
     </div>

@@ -2,7 +2,7 @@ import { useEffect, useRef, useState } from 'react';
 import type * as maplibregl from 'maplibre-gl';
 import { TerraDraw, TerraDrawPolygonMode, TerraDrawSelectMode } from 'terra-draw';
 import { TerraDrawMapLibreGLAdapter } from 'terra-draw-maplibre-gl-adapter';
-import { api, ApiError } from '../api';
+import { ApiError, call, client, type Farm } from '../api/client';
 import { ErrorBox } from '../components/Status';
 import {
   bboxOf,
@@ -18,8 +18,6 @@ import { formatArea } from '../lib/units';
 import { MapView } from '../map/MapView';
 import { fitTo, setGeoJSON } from '../map/setup';
 import { navigate } from '../router';
-import type { Farm, FieldFeature } from '../types';
-import { listOf } from '../types';
 
 type Mode = 'polygon' | 'hole' | 'select';
 
@@ -47,10 +45,9 @@ export function FieldEditor({ fieldId }: { fieldId?: number }) {
   modeRef.current = mode;
 
   useEffect(() => {
-    api
-      .get('/farms')
+    call(client.GET('/api/v1/farms'))
       .then((r) => {
-        const fs = listOf<Farm>(r);
+        const fs = r.items;
         setFarms(fs);
         setFarmId((cur) => cur || (fs[0] ? String(fs[0].id) : ''));
       })
@@ -167,9 +164,9 @@ export function FieldEditor({ fieldId }: { fieldId?: number }) {
     });
 
     if (fieldId) {
-      api
-        .get<FieldFeature>(`/fields/${fieldId}`)
-        .then((f) => {
+      call(client.GET('/api/v1/fields/{field_id}', { params: { path: { field_id: fieldId } } }))
+        .then((field) => {
+          const f = { ...field, geometry: field.geometry as unknown as AreaGeom };
           setName(f.properties.name ?? '');
           setCrop(f.properties.crop ?? '');
           if (f.properties.farm_id != null) setFarmId(String(f.properties.farm_id));
@@ -194,8 +191,7 @@ export function FieldEditor({ fieldId }: { fieldId?: number }) {
         .catch(setError);
     } else {
       // Start where the organisation's fields are, not on a world view.
-      api
-        .get<GeoJSON.FeatureCollection>('/fields?limit=500')
+      call(client.GET('/api/v1/fields', { params: { query: { limit: 500 } } }))
         .then((fc) => fitTo(map, bboxOf(fc), 80))
         .catch(() => undefined);
     }
@@ -218,16 +214,12 @@ export function FieldEditor({ fieldId }: { fieldId?: number }) {
     if (!geometry) return;
     setBusy(true);
     setError(null);
-    const feature = {
-      type: 'Feature',
-      geometry,
-      properties: { name, farm_id: farmId ? Number(farmId) : null, crop },
-    };
+    const properties = { name, farm_id: farmId ? Number(farmId) : null, crop };
     try {
       const r = fieldId
-        ? await api.patch<FieldFeature>(`/fields/${fieldId}`, feature)
-        : await api.post<FieldFeature>('/fields', feature);
-      navigate(`/fields/${r.properties?.id ?? r.id ?? fieldId}`);
+        ? await call(client.PATCH('/api/v1/fields/{field_id}', { params: { path: { field_id: fieldId } }, body: { geometry: { ...geometry }, properties } }))
+        : await call(client.POST('/api/v1/fields', { body: { type: 'Feature', geometry: { ...geometry }, properties } }));
+      navigate(`/fields/${r.id}`);
     } catch (e) {
       setError(e);
     } finally {

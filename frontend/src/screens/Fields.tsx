@@ -1,18 +1,17 @@
 import { useCallback, useEffect, useRef, useState } from 'react';
 import type * as maplibregl from 'maplibre-gl';
-import { api, ApiError } from '../api';
+import { ApiError, call, client, formBody, type Farm, type Schemas } from '../api/client';
 import { ErrorBox } from '../components/Status';
 import { TaskProgress } from '../components/TaskProgress';
 import type { TaskView } from '../lib/tasks';
-import { bboxOf } from '../lib/geo';
+import { asGeoJSON, bboxOf } from '../lib/geo';
 import { formatArea } from '../lib/units';
 import { MapView } from '../map/MapView';
 import { fitTo, setGeoJSON } from '../map/setup';
 import { navigate } from '../router';
-import type { Farm, FieldCollection } from '../types';
-import { listOf } from '../types';
+type FieldCollection = Schemas['FieldCollection'];
 
-const EMPTY: FieldCollection = { type: 'FeatureCollection', features: [] };
+const EMPTY: FieldCollection = { type: 'FeatureCollection', features: [], total: 0, limit: 0, offset: 0 };
 
 export function FieldsScreen() {
   const [farms, setFarms] = useState<Farm[]>([]);
@@ -28,19 +27,16 @@ export function FieldsScreen() {
 
   const loadFarms = useCallback(async () => {
     try {
-      setFarms(listOf<Farm>(await api.get('/farms')));
+      setFarms((await call(client.GET('/api/v1/farms'))).items);
     } catch (e) {
       setError(e);
     }
   }, []);
 
   const loadFields = useCallback(async () => {
-    const p = new URLSearchParams({ limit: '500' });
-    if (q) p.set('q', q);
-    if (farmId) p.set('farm_id', farmId);
+    const query = { limit: 500, q: q || undefined, farm_id: farmId ? Number(farmId) : undefined };
     try {
-      const fc = await api.get<FieldCollection>(`/fields?${p}`);
-      setFields(fc?.features ? fc : EMPTY);
+      setFields(await call(client.GET('/api/v1/fields', { params: { query } })));
       setError(null);
     } catch (e) {
       setError(e);
@@ -70,7 +66,7 @@ export function FieldsScreen() {
   useEffect(() => {
     const map = mapRef.current;
     if (!map) return;
-    setGeoJSON(map, 'fields', fields as GeoJSON.FeatureCollection);
+    setGeoJSON(map, 'fields', asGeoJSON(fields));
     if (!fitted.current || q || farmId) {
       fitTo(map, bboxOf(fields));
       if (fields.features.length) fitted.current = true;
@@ -79,7 +75,7 @@ export function FieldsScreen() {
 
   const onReady = (map: maplibregl.Map) => {
     mapRef.current = map;
-    setGeoJSON(map, 'fields', fields as GeoJSON.FeatureCollection);
+    setGeoJSON(map, 'fields', asGeoJSON(fields));
     map.addLayer({
       id: 'fields-fill',
       type: 'fill',
@@ -114,7 +110,7 @@ export function FieldsScreen() {
   const planFarm = async () => {
     setError(null);
     try {
-      setBatch(await api.post<TaskView>('/plans/batch', { farm_id: Number(farmId), params: {} }));
+      setBatch(await call(client.POST('/api/v1/plans/batch', { body: { farm_id: Number(farmId), params: {} } })));
     } catch (e) {
       setError(e);
     }
@@ -127,8 +123,9 @@ export function FieldsScreen() {
     fd.append('file', file);
     const fid = farmId || (farms[0] ? String(farms[0].id) : '');
     try {
-      const r = await api.post<unknown>(`/fields/import${fid ? `?farm_id=${fid}` : ''}`, fd);
-      const n = listOf(r).length || (r as { features?: unknown[] })?.features?.length || 0;
+      const query = { farm_id: fid ? Number(fid) : undefined };
+      const r = await call(client.POST('/api/v1/fields/import', { params: { query }, ...formBody(fd) }));
+      const n = r.imported;
       setImportMsg(`Imported ${n || 'the'} field${n === 1 ? '' : 's'} from ${file.name}`);
       await loadFields();
     } catch (e) {
@@ -136,7 +133,7 @@ export function FieldsScreen() {
     }
   };
 
-  const total = fields.total ?? fields.features.length;
+  const total = fields.total;
   return (
     <div className="split">
       <aside className="panel">
@@ -226,7 +223,7 @@ export function FieldsScreen() {
             onSubmit={async (e) => {
               e.preventDefault();
               try {
-                await api.post('/farms', { name: newFarm });
+                await call(client.POST('/api/v1/farms', { body: { name: newFarm } }));
                 setNewFarm('');
                 await loadFarms();
               } catch (err) {

@@ -1,16 +1,15 @@
 import { useCallback, useEffect, useRef, useState } from 'react';
 import type * as maplibregl from 'maplibre-gl';
-import { api } from '../api';
-import { ErrorBox, isMissingEndpoint } from '../components/Status';
+import { call, client } from '../api/client';
+import { ErrorBox } from '../components/Status';
 import { statusColor } from '../lib/colors';
 import { applyLive, fromStatusItem, type Fleet } from '../lib/fleet';
-import { bboxOf } from '../lib/geo';
+import { asGeoJSON, bboxOf } from '../lib/geo';
 import { compass, formatPercent, formatRate, formatSpeed } from '../lib/units';
 import { useLive } from '../live';
 import { MapView } from '../map/MapView';
 import { fitTo, setGeoJSON } from '../map/setup';
 import { ackBody, groupKey, groupLabel, markAcknowledged, openGroupCount, type AlertGroup } from '../lib/alerts';
-import { listOf } from '../types';
 
 const TRAIL = 300;
 
@@ -38,28 +37,23 @@ export function FleetScreen() {
   const [fleet, setFleet] = useState<Fleet>(new Map());
   const [groups, setGroups] = useState<AlertGroup[]>([]);
   const [error, setError] = useState<unknown>(null);
-  const [missing, setMissing] = useState(false);
   const trails = useRef(new Map<number, [number, number][]>());
   const mapRef = useRef<maplibregl.Map | null>(null);
   const fitted = useRef(false);
 
   const loadStatus = useCallback(async () => {
     try {
-      const r = await api.get('/machines/status');
-      setFleet(new Map(listOf<Record<string, unknown>>(r).map((o) => [Number(o.machine_id ?? o.id), fromStatusItem(o)])));
+      const r = await call(client.GET('/api/v1/machines/status'));
+      setFleet(new Map(r.items.map((o) => [o.machine_id, fromStatusItem(o)])));
     } catch (e) {
-      if (!isMissingEndpoint(e)) return setError(e);
-      setMissing(true);
-      // Without fleet status, still list the machines.
-      const r = await api.get('/machines').catch(() => []);
-      setFleet(new Map(listOf<Record<string, unknown>>(r).map((o) => [Number(o.id), fromStatusItem(o)])));
+      setError(e);
     }
   }, []);
   const loadAlerts = useCallback(async () => {
     try {
-      setGroups(listOf<AlertGroup>(await api.get('/alerts/groups?limit=50')));
+      setGroups((await call(client.GET('/api/v1/alerts/groups', { params: { query: { limit: 50 } } }))).items);
     } catch (e) {
-      if (!isMissingEndpoint(e)) setError(e);
+      setError(e);
     }
   }, []);
 
@@ -106,9 +100,8 @@ export function FleetScreen() {
     setGeoJSON(map, 'fields', { type: 'FeatureCollection', features: [] });
     map.addLayer({ id: 'fields-fill', type: 'fill', source: 'fields', paint: { 'fill-color': '#4c9a2a', 'fill-opacity': 0.15 } });
     map.addLayer({ id: 'fields-line', type: 'line', source: 'fields', paint: { 'line-color': '#2d5e16', 'line-width': 1 } });
-    api
-      .get<GeoJSON.FeatureCollection>('/fields?limit=500')
-      .then((fc) => setGeoJSON(map, 'fields', fc))
+    call(client.GET('/api/v1/fields', { params: { query: { limit: 500 } } }))
+      .then((fc) => setGeoJSON(map, 'fields', asGeoJSON(fc)))
       .catch(() => undefined);
     setGeoJSON(map, 'trails', { type: 'FeatureCollection', features: [] });
     map.addLayer({ id: 'trails', type: 'line', source: 'trails', paint: { 'line-color': '#1e3a8a', 'line-width': 2, 'line-opacity': 0.6 } });
@@ -143,7 +136,7 @@ export function FleetScreen() {
   const name = (id?: number) => (id != null ? (fleet.get(id)?.name ?? `#${id}`) : '');
   const ackAll = async (g: AlertGroup) => {
     try {
-      await api.post('/alerts/ack', ackBody(g));
+      await call(client.POST('/api/v1/alerts/ack', { body: ackBody(g) }));
       setGroups((cur) => markAcknowledged(cur, groupKey(g)));
     } catch (e) {
       setError(e);
@@ -156,7 +149,6 @@ export function FleetScreen() {
         <p className="muted">
           Live: <span data-testid="live-state">{live}</span>
         </p>
-        {missing && <p className="muted">Fleet status is not available on this server yet.</p>}
         <ErrorBox error={error} />
         <div className="row wrap small" data-testid="fleet-legend">
           {(['working', 'moving', 'idle', 'alarm', 'offline'] as const).map((st) => (

@@ -1,17 +1,15 @@
 import { useCallback, useEffect, useMemo, useRef, useState } from 'react';
 import type * as maplibregl from 'maplibre-gl';
-import { api } from '../api';
+import { call, client, type FieldFeature, type Job, type Prescription, type Schemas } from '../api/client';
 import { Legend } from '../components/Legend';
-import { ErrorBox, isMissingEndpoint, Kv } from '../components/Status';
+import { ErrorBox, Kv } from '../components/Status';
 import { ACCURACY_BREAKS, RED_GREEN, classColors, legendEntries, niceBreaks, stepExpression } from '../lib/colors';
-import { bboxOf, bearingDeg } from '../lib/geo';
+import { asGeoJSON, bboxOf, bearingDeg } from '../lib/geo';
 import { normaliseTrack, type TrackPoint } from '../lib/track';
 import { formatArea, formatDuration, formatMass, formatPercent, formatRate } from '../lib/units';
 import { MapView } from '../map/MapView';
 import { absoluteApiUrl, fitTo, setGeoJSON } from '../map/setup';
 import { replaceVectorSource } from '../map/grid';
-import type { FieldFeature, Job, Plan, Prescription } from '../types';
-import { pick } from '../types';
 import { KindReport } from './KindReport';
 
 type View = 'applied' | 'accuracy';
@@ -23,8 +21,7 @@ const MAX_POINTS = 200_000;
 export function JobReport({ jobId }: { jobId: number }) {
   const [kindJob, setKindJob] = useState<Job | null | undefined>(undefined);
   useEffect(() => {
-    api
-      .get<Job>(`/jobs/${jobId}`)
+    call(client.GET('/api/v1/jobs/{job_id}', { params: { path: { job_id: jobId } } }))
       .then((j) => setKindJob(j.kind && j.kind !== 'prescription_map' ? j : null))
       .catch(() => setKindJob(null));
   }, [jobId]);
@@ -38,13 +35,12 @@ function PrescriptionJobReport({ jobId }: { jobId: number }) {
   const [job, setJob] = useState<Job | null>(null);
   const [rx, setRx] = useState<Prescription | null>(null);
   const [field, setField] = useState<FieldFeature | null>(null);
-  const [report, setReport] = useState<Record<string, unknown> | null>(null);
+  const [report, setReport] = useState<Schemas['AsAppliedReport'] | null>(null);
   const [points, setPoints] = useState<TrackPoint[]>([]);
   const [view, setView] = useState<View>('applied');
   const [tIdx, setTIdx] = useState(-1);
   const [follow, setFollow] = useState(true);
   const [error, setError] = useState<unknown>(null);
-  const [missing, setMissing] = useState(false);
   const [tick, setTick] = useState(0);
   const mapRef = useRef<maplibregl.Map | null>(null);
   const nextOffset = useRef(0);
@@ -53,12 +49,13 @@ function PrescriptionJobReport({ jobId }: { jobId: number }) {
   useEffect(() => {
     (async () => {
       try {
-        const j = await api.get<Job>(`/jobs/${jobId}`);
+        const j = await call(client.GET('/api/v1/jobs/{job_id}', { params: { path: { job_id: jobId } } }));
         setJob(j);
-        const r = await api.get<Prescription>(`/prescriptions/${j.prescription_id}`);
+        if (j.prescription_id == null) return;
+        const r = await call(client.GET('/api/v1/prescriptions/{rx_id}', { params: { path: { rx_id: j.prescription_id } } }));
         setRx(r);
-        const p = await api.get<Plan>(`/plans/${r.plan_id}`);
-        setField(await api.get<FieldFeature>(`/fields/${p.field_id}`));
+        const p = await call(client.GET('/api/v1/plans/{plan_id}', { params: { path: { plan_id: r.plan_id } } }));
+        setField(await call(client.GET('/api/v1/fields/{field_id}', { params: { path: { field_id: p.field_id } } })));
       } catch (e) {
         setError(e);
       }
@@ -67,26 +64,24 @@ function PrescriptionJobReport({ jobId }: { jobId: number }) {
 
   const refresh = useCallback(async () => {
     try {
-      const j = await api.get<Job>(`/jobs/${jobId}`);
+      const path = { job_id: jobId };
+      const j = await call(client.GET('/api/v1/jobs/{job_id}', { params: { path } }));
       setJob(j);
-      const rep = await api.get<Record<string, unknown>>(`/jobs/${jobId}/report?cells=false`).catch((e) => {
-        if (isMissingEndpoint(e)) setMissing(true);
-        return null;
-      });
-      if (rep) setReport(rep);
+      const rep = await call(client.GET('/api/v1/jobs/{job_id}/report', { params: { path, query: { cells: false } } }));
+      if (!('kind' in rep)) setReport(rep);
       // New records since the last poll (the endpoint pages in time order).
       for (let page = 0; page < 10 && nextOffset.current < MAX_POINTS; page++) {
-        const r = await api.get<{ features: unknown[]; next_offset?: number | null }>(
-          `/jobs/${jobId}/as-applied?limit=20000&offset=${nextOffset.current}`,
+        const r = await call(
+          client.GET('/api/v1/jobs/{job_id}/as-applied', { params: { path, query: { limit: 20000, offset: nextOffset.current } } }),
         );
         const pts = normaliseTrack(r);
         if (pts.length) setPoints((cur) => [...cur, ...pts]);
-        nextOffset.current += r.features?.length ?? 0;
+        nextOffset.current += r.features.length;
         if (!r.next_offset) break;
       }
       setTick((t) => t + 1);
     } catch (e) {
-      if (!isMissingEndpoint(e)) setError(e);
+      setError(e);
     }
   }, [jobId]);
 
@@ -103,9 +98,8 @@ function PrescriptionJobReport({ jobId }: { jobId: number }) {
     if (follow) setTIdx(points.length - 1);
   }, [points.length, follow]);
 
-  const stats = { ...(rx ?? {}), ...((rx?.stats as Record<string, unknown>) ?? {}) } as Record<string, unknown>;
-  const lo = pick(stats, 'rate_min_kg_ha') ?? 0;
-  const hi = pick(stats, 'rate_max_kg_ha') ?? 1000;
+  const lo = rx?.summary.rate_min_kg_ha ?? 0;
+  const hi = rx?.summary.rate_max_kg_ha ?? 1000;
   const rateBreaks = useMemo(() => niceBreaks(lo, hi === lo ? lo + 1 : hi, 6), [lo, hi]);
   const rateColors = classColors(rateBreaks.length - 1);
   const accColors = classColors(ACCURACY_BREAKS.length - 1, RED_GREEN);
@@ -136,7 +130,7 @@ function PrescriptionJobReport({ jobId }: { jobId: number }) {
   useEffect(() => {
     const map = mapRef.current;
     if (!map || !field) return;
-    setGeoJSON(map, 'field', field as GeoJSON.Feature);
+    setGeoJSON(map, 'field', asGeoJSON(field));
     fitTo(map, bboxOf(field));
     // Cell tiles only once the view is on the field; below the field outline and the replay.
     if (!map.getSource('job')) {
@@ -170,7 +164,7 @@ function PrescriptionJobReport({ jobId }: { jobId: number }) {
 
   const onReady = (map: maplibregl.Map) => {
     mapRef.current = map;
-    setGeoJSON(map, 'field', (field as GeoJSON.Feature) ?? EMPTY);
+    setGeoJSON(map, 'field', field ? asGeoJSON(field) : EMPTY);
     map.addLayer({ id: 'field-line', type: 'line', source: 'field', paint: { 'line-color': '#222', 'line-width': 2 } });
     setGeoJSON(map, 'trail', EMPTY);
     map.addLayer({ id: 'trail', type: 'line', source: 'trail', paint: { 'line-color': '#111', 'line-width': 1.2, 'line-opacity': 0.55 } });
@@ -191,16 +185,16 @@ function PrescriptionJobReport({ jobId }: { jobId: number }) {
     setMapReady(true);
   };
 
-  const r = report ?? {};
+  const r: Partial<Schemas['AsAppliedReport']> = report ?? {};
   /** Prescribed cells nothing landed in (the job-end alert lists them too). */
-  const notApplied = (rep: Record<string, unknown>): string => {
-    const seqs = Array.isArray(rep.not_applied_seqs) ? (rep.not_applied_seqs as number[]) : [];
+  const notApplied = (rep: Partial<Schemas['AsAppliedReport']>): string => {
+    const seqs = rep.not_applied_seqs ?? [];
     if (!seqs.length) return report ? 'none' : '–';
     const shown = seqs.slice(0, 30).join(', ');
     return `${seqs.length}: seq ${shown}${seqs.length > 30 ? ` and ${seqs.length - 30} more` : ''}`;
   };
-  const cov = pick(r, 'coverage_pct');
-  const acc = pick(r, 'mean_accuracy_pct');
+  const cov = r.coverage_pct;
+  const acc = r.mean_accuracy_pct;
   return (
     <div className="split">
       <aside className="panel">
@@ -209,29 +203,28 @@ function PrescriptionJobReport({ jobId }: { jobId: number }) {
         </p>
         <h2>Job #{jobId} report</h2>
         <ErrorBox error={error} />
-        {missing && <p className="muted">Reports are not available on this server yet.</p>}
         <Kv
           items={[
             ['State', job?.state ?? '–', 'report-state'],
             ['Machine', job ? <a href={`#/machines/${job.machine_id}`}>#{job.machine_id}</a> : '–'],
             [
               'Prescription',
-              job ? <a href={`#/prescriptions/${job.prescription_id}`}>#{job.prescription_id} v{job.prescription_version ?? job.version}</a> : '–',
+              job ? <a href={`#/prescriptions/${job.prescription_id}`}>#{job.prescription_id} v{job.prescription_version}</a> : '–',
             ],
             [
               'Flagged cells',
               job?.flagged_cells ? `${String(job.flagged_cells)}${job.flagged_confirmed ? ' (sent on confirmation)' : ''}` : '–',
               'report-flagged',
             ],
-            ['Cells applied', `${pick(r, 'cells_applied') ?? '–'} / ${pick(r, 'cells_planned', 'n_cells') ?? '–'}`, 'report-cells'],
+            ['Cells applied', `${r.cells_applied ?? '–'} / ${r.cells_planned ?? '–'}`, 'report-cells'],
             ['Coverage', cov != null ? formatPercent(cov / 100) : '–', 'report-coverage'],
-            ['Planned', formatMass(pick(r, 'planned_total_kg'))],
-            ['Applied', formatMass(pick(r, 'applied_total_kg')), 'report-applied-kg'],
-            ['Outside cells', formatMass(pick(r, 'applied_outside_cells_kg'))],
+            ['Planned', formatMass(r.planned_total_kg)],
+            ['Applied', formatMass(r.applied_total_kg), 'report-applied-kg'],
+            ['Outside cells', formatMass(r.applied_outside_cells_kg)],
             ['Mean accuracy', acc != null ? `${acc.toFixed(1)} %` : '–', 'report-accuracy'],
-            ['Worst cell', pick(r, 'min_accuracy_pct') != null ? `${pick(r, 'min_accuracy_pct')!.toFixed(1)} %` : '–'],
-            ['Time worked', formatDuration(pick(r, 'time_worked_s'))],
-            ['Records', String(pick(r, 'n_records') ?? points.length), 'report-records'],
+            ['Worst cell', r.min_accuracy_pct != null ? `${r.min_accuracy_pct.toFixed(1)} %` : '–'],
+            ['Time worked', formatDuration(r.time_worked_s)],
+            ['Records', String(r.n_records ?? points.length), 'report-records'],
             ['Never applied', notApplied(r), 'report-not-applied'],
             ['Field', field ? `${field.properties.name} (${formatArea(field.properties.area_m2)})` : '–'],
           ]}

@@ -1,15 +1,13 @@
 import { useCallback, useEffect, useState } from 'react';
-import { api } from '../api';
-import { ErrorBox, isMissingEndpoint } from '../components/Status';
-import { KIND_LABELS, type JobKind } from '../lib/jobkinds';
+import { call, client, type Job, type Machine, type Schemas } from '../api/client';
+import { ErrorBox } from '../components/Status';
+import { jobBody, KIND_LABELS, type JobKind } from '../lib/jobkinds';
 import { formatPercent } from '../lib/units';
 import { hashQuery } from '../router';
-import type { Job, Machine } from '../types';
-import { listOf } from '../types';
 import { SensorJobForm } from './SensorJobForm';
 
 /** What a user may do from each state (server: fleet/jobstate.TRANSITIONS). */
-const NEXT_STATES: Record<string, string[]> = {
+const NEXT_STATES: Record<string, Schemas['StateIn']['state'][]> = {
   planned: ['sent', 'aborted'],
   sent: ['aborted'],
   downloaded: ['aborted'],
@@ -33,24 +31,21 @@ export function JobsScreen() {
   const [machineId, setMachineId] = useState('');
   const [kind, setKind] = useState<JobKind>('prescription_map');
   const [error, setError] = useState<unknown>(null);
-  const [missing, setMissing] = useState(false);
   const created = hashQuery().get('created');
 
   const load = useCallback(async () => {
     try {
-      setJobs(listOf<Job>(await api.get('/jobs')));
+      setJobs((await call(client.GET('/api/v1/jobs'))).items);
     } catch (e) {
-      if (isMissingEndpoint(e)) setMissing(true);
-      else setError(e);
+      setError(e);
     }
   }, []);
 
   useEffect(() => {
     void load();
-    api
-      .get('/machines')
+    call(client.GET('/api/v1/machines'))
       .then((r) => {
-        const ms = listOf<Machine>(r);
+        const ms = r.items;
         setMachines(ms);
         if (ms[0]) setMachineId(String(ms[0].id));
       })
@@ -63,7 +58,6 @@ export function JobsScreen() {
   return (
     <div className="page">
       <h2>Jobs</h2>
-      {missing && <p className="muted">Jobs are not available on this server yet.</p>}
       {created && (
         <p className="ok" data-testid="job-created">
           Job #{created} sent.
@@ -96,12 +90,12 @@ export function JobsScreen() {
           e.preventDefault();
           setError(null);
           try {
-            const j = await api.post<{ id: number; state?: string }>('/jobs', {
-              prescription_id: Number(rxId),
-              version: version ? Number(version) : undefined,
-              machine_id: Number(machineId),
-            });
-            if (!j.state || j.state === 'planned') await api.post(`/jobs/${j.id}/state`, { state: 'sent' });
+            const body = jobBody('prescription_map', { prescriptionId: rxId, version, machineId });
+            const j = await call(client.POST('/api/v1/jobs', { body }));
+            if (j.state === 'planned')
+              await call(
+                client.POST('/api/v1/jobs/{job_id}/state', { params: { path: { job_id: j.id } }, body: { state: 'sent' } }),
+              );
             await load();
           } catch (err) {
             setError(err);
@@ -142,7 +136,7 @@ export function JobsScreen() {
                   <a href={`#/plans/${String(j.plan_id)}`}>{KIND_LABELS[j.kind as JobKind] ?? String(j.kind)}</a>
                 ) : (
                   <a href={`#/prescriptions/${j.prescription_id}`}>
-                    #{j.prescription_id} v{j.version ?? j.prescription_version ?? '?'}
+                    #{j.prescription_id} v{j.prescription_version ?? '?'}
                   </a>
                 )}
               </td>
@@ -166,7 +160,9 @@ export function JobsScreen() {
                     data-testid={`job-${j.id}-${s}`} data-write=""
                     onClick={async () => {
                       try {
-                        await api.post(`/jobs/${j.id}/state`, { state: s });
+                        await call(
+                          client.POST('/api/v1/jobs/{job_id}/state', { params: { path: { job_id: j.id } }, body: { state: s } }),
+                        );
                         await load();
                       } catch (e) {
                         setError(e);

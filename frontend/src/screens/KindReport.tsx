@@ -1,14 +1,13 @@
 import { useEffect, useMemo, useRef, useState } from 'react';
 import type * as maplibregl from 'maplibre-gl';
-import { api } from '../api';
+import { call, client, type FieldFeature, type Job } from '../api/client';
 import { Legend } from '../components/Legend';
 import { ErrorBox, Kv } from '../components/Status';
 import { classColors, legendEntries, niceBreaks, stepExpression } from '../lib/colors';
-import { bboxOf } from '../lib/geo';
+import { asGeoJSON, bboxOf } from '../lib/geo';
 import { cellValue, KIND_LABELS, type DepthBand, type JobKind, type ShaftBand } from '../lib/jobkinds';
 import { MapView } from '../map/MapView';
 import { fitTo, setGeoJSON } from '../map/setup';
-import type { FieldFeature, Job, Plan } from '../types';
 
 const EMPTY: GeoJSON.FeatureCollection = { type: 'FeatureCollection', features: [] };
 const FINAL = new Set(['completed', 'aborted']);
@@ -29,12 +28,14 @@ export function KindReport({ job }: { job: Job }) {
   useEffect(() => {
     (async () => {
       try {
-        const p = await api.get<Plan>(`/plans/${String(job.plan_id)}`);
-        setField(await api.get<FieldFeature>(`/fields/${p.field_id}`));
+        if (job.plan_id == null) return;
+        const path = { plan_id: job.plan_id };
+        const p = await call(client.GET('/api/v1/plans/{plan_id}', { params: { path } }));
+        setField(await call(client.GET('/api/v1/fields/{field_id}', { params: { path: { field_id: p.field_id } } })));
         const feats: GeoJSON.Feature[] = [];
         for (let off = 0; off < 20000; off += 1000) {
-          const r = await api.get<{ features: GeoJSON.Feature[] }>(`/plans/${String(job.plan_id)}/cells?limit=1000&offset=${off}`);
-          feats.push(...r.features);
+          const r = await call(client.GET('/api/v1/plans/{plan_id}/cells', { params: { path, query: { limit: 1000, offset: off } } }));
+          feats.push(...asGeoJSON(r).features);
           if (r.features.length < 1000) break;
         }
         setCells(feats);
@@ -46,9 +47,8 @@ export function KindReport({ job }: { job: Job }) {
 
   useEffect(() => {
     let stop = false;
-    api
-      .get<Record<string, unknown>>(`/jobs/${job.id}/report`)
-      .then((r) => !stop && setReport(r))
+    call(client.GET('/api/v1/jobs/{job_id}/report', { params: { path: { job_id: job.id } } }))
+      .then((r) => !stop && setReport(r as Record<string, unknown>))
       .catch((e) => !stop && setError(e));
     if (FINAL.has(job.state) && tick > 0) return;
     const t = setTimeout(() => setTick((x) => x + 1), 4000);
@@ -90,13 +90,13 @@ export function KindReport({ job }: { job: Job }) {
 
   const onReady = (map: maplibregl.Map) => {
     mapRef.current = map;
-    setGeoJSON(map, 'field', (field as GeoJSON.Feature) ?? EMPTY);
+    setGeoJSON(map, 'field', field ? asGeoJSON(field) : EMPTY);
     map.addLayer({ id: 'field-line', type: 'line', source: 'field', paint: { 'line-color': '#222', 'line-width': 2 } });
     setMapReady(true);
   };
   useEffect(() => {
     const map = mapRef.current;
-    if (map && field) setGeoJSON(map, 'field', field as GeoJSON.Feature);
+    if (map && field) setGeoJSON(map, 'field', asGeoJSON(field));
   }, [field]);
 
   const r = report ?? {};

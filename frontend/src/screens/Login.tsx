@@ -1,5 +1,5 @@
 import { useState } from 'react';
-import { errorText, login, type SessionInfo } from '../api';
+import { errorText, login, type SessionInfo } from '../api/client';
 
 export function Login({ onLogin }: { onLogin: (s: SessionInfo) => void }) {
   const [email, setEmail] = useState('');

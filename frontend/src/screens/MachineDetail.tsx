@@ -1,11 +1,10 @@
 import { useCallback, useEffect, useMemo, useState } from 'react';
-import { api } from '../api';
-import { ErrorBox, isMissingEndpoint, Kv } from '../components/Status';
+import { call, client, type Machine } from '../api/client';
+import { ErrorBox, Kv } from '../components/Status';
 import { TimeChart } from '../components/TimeChart';
 import { decimate, normaliseTrack, type TrackPoint } from '../lib/track';
 import { formatSpeed, msToKmh } from '../lib/units';
 import { useLive } from '../live';
-import type { Machine } from '../types';
 import { calibrationText, formOf, validateCalibration, type CalibrationErrors, type CalibrationForm } from '../lib/calibration';
 
 const MAX_POINTS = 3000;
@@ -16,26 +15,30 @@ export function MachineDetail({ machineId }: { machineId: number }) {
   const [track, setTrack] = useState<TrackPoint[]>([]);
   const [error, setError] = useState<unknown>(null);
   const [token, setToken] = useState('');
-  const [missing, setMissing] = useState(false);
   const [calForm, setCalForm] = useState<CalibrationForm | null>(null);
   const [calErrors, setCalErrors] = useState<CalibrationErrors>({});
 
   const loadTrack = useCallback(async () => {
     try {
       // The newest records: ask for the total first, then the last page (time order).
-      const head = await api.get<{ total?: number }>(`/machines/${machineId}/track?limit=1`);
-      const total = head.total ?? 0;
+      const path = { machine_id: machineId };
+      const head = await call(client.GET('/api/v1/machines/{machine_id}/track', { params: { path, query: { limit: 1 } } }));
       const limit = 10_000;
-      const offset = Math.max(0, total - limit);
-      setTrack(normaliseTrack(await api.get(`/machines/${machineId}/track?limit=${limit}&offset=${offset}`)));
+      const offset = Math.max(0, head.total - limit);
+      setTrack(
+        normaliseTrack(
+          await call(client.GET('/api/v1/machines/{machine_id}/track', { params: { path, query: { limit, offset } } })),
+        ),
+      );
     } catch (e) {
-      if (isMissingEndpoint(e)) setMissing(true);
-      else setError(e);
+      setError(e);
     }
   }, [machineId]);
 
   useEffect(() => {
-    api.get<Machine>(`/machines/${machineId}`).then(setMachine).catch(setError);
+    call(client.GET('/api/v1/machines/{machine_id}', { params: { path: { machine_id: machineId } } }))
+      .then(setMachine)
+      .catch(setError);
     void loadTrack();
   }, [machineId, loadTrack]);
 
@@ -97,7 +100,9 @@ export function MachineDetail({ machineId }: { machineId: number }) {
             setCalErrors(r.errors);
             if (!r.value) return;
             try {
-              setMachine(await api.patch<Machine>(`/machines/${machineId}`, r.value));
+              setMachine(
+                await call(client.PATCH('/api/v1/machines/{machine_id}', { params: { path: { machine_id: machineId } }, body: r.value })),
+              );
               setCalForm(null);
             } catch (err) {
               setError(err);
@@ -146,7 +151,9 @@ export function MachineDetail({ machineId }: { machineId: number }) {
           data-testid="device-token" data-write=""
           onClick={async () => {
             try {
-              const r = await api.post<{ token: string }>(`/machines/${machineId}/device-token`);
+              const r = await call(
+                client.POST('/api/v1/machines/{machine_id}/device-token', { params: { path: { machine_id: machineId } } }),
+              );
               setToken(r.token);
             } catch (e) {
               setError(e);
@@ -162,7 +169,6 @@ export function MachineDetail({ machineId }: { machineId: number }) {
         )}
       </div>
       {token && <p className="muted small">Shown once: copy it into the edge agent's configuration now.</p>}
-      {missing && <p className="muted">Track history is not available on this server yet.</p>}
       <TimeChart t={t} series={speed} title="Ground speed: raw vs Kalman-filtered" unit="km/h" testid="chart-speed" />
       {track.length > 0 && !hasRaw && (
         <p className="muted small" data-testid="chart-speed-note">

@@ -1,5 +1,5 @@
 import { useCallback, useEffect, useState } from 'react';
-import { api } from '../api';
+import { call, client, type Machine } from '../api/client';
 import { ErrorBox } from '../components/Status';
 import {
   calibrationText,
@@ -9,8 +9,6 @@ import {
   type CalibrationErrors,
   type CalibrationForm,
 } from '../lib/calibration';
-import type { Machine } from '../types';
-import { listOf } from '../types';
 
 const FIELDS: [keyof CalibrationForm, string, string][] = [
   ['slope', 'a (g/min per r/min)', 'cal-slope'],
@@ -32,7 +30,7 @@ export function MachinesScreen() {
   const [calErrors, setCalErrors] = useState<CalibrationErrors>({});
   const load = useCallback(async () => {
     try {
-      setMachines(listOf<Machine>(await api.get('/machines')));
+      setMachines((await call(client.GET('/api/v1/machines'))).items);
     } catch (e) {
       setError(e);
     }
@@ -59,15 +57,19 @@ export function MachinesScreen() {
           setCalErrors(r.errors);
           if (!r.value) return;
           try {
-            await api.post('/machines', {
-              name,
-              implement_type: 'spreader',
-              width_m: Number(width),
-              lag_s: r.value.lag_s,
-              calibration: r.value.calibration,
-              speed_min_m_s: Number(speedMin) / 3.6,
-              speed_max_m_s: Number(speedMax) / 3.6,
-            });
+            await call(
+              client.POST('/api/v1/machines', {
+                body: {
+                  name,
+                  implement_type: 'spreader',
+                  width_m: Number(width),
+                  lag_s: r.value.lag_s,
+                  calibration: r.value.calibration,
+                  speed_min_m_s: Number(speedMin) / 3.6,
+                  speed_max_m_s: Number(speedMax) / 3.6,
+                },
+              }),
+            );
             setName('');
             setCal(EMPTY_CALIBRATION);
             await load();

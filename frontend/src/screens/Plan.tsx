@@ -1,8 +1,8 @@
 import { useEffect, useRef, useState } from 'react';
 import type * as maplibregl from 'maplibre-gl';
-import { api } from '../api';
-import { ErrorBox, isMissingEndpoint, Kv } from '../components/Status';
-import { bboxOf } from '../lib/geo';
+import { call, client, type FieldFeature, type Plan, type Prescription, type Schemas } from '../api/client';
+import { ErrorBox, Kv } from '../components/Status';
+import { asGeoJSON, bboxOf } from '../lib/geo';
 import { formatDistance, formatPercent } from '../lib/units';
 import { ImageryRxForm } from '../components/ImageryRxForm';
 import { SoilZonesForm } from '../components/SoilZonesForm';
@@ -11,32 +11,33 @@ import { addRouteLayers, planGridLayers, planTilesUrl, replaceVectorSource } fro
 import { fitTo, setGeoJSON } from '../map/setup';
 import { attentionOf, attentionSummary } from '../lib/flags';
 import { navigate } from '../router';
-import type { FieldFeature, Plan, Prescription } from '../types';
-import { listOf, pick } from '../types';
 import { RxForm } from './RxForm';
 
 /** A coverage plan: grid (vector tiles), path with direction arrows, stats; build prescriptions. */
 export function PlanScreen({ planId }: { planId: number }) {
   const [plan, setPlan] = useState<Plan | null>(null);
-  const [route, setRoute] = useState<GeoJSON.GeoJSON | null>(null);
+  const [route, setRoute] = useState<Schemas['RouteOut'] | null>(null);
   const [field, setField] = useState<FieldFeature | null>(null);
   const [rxs, setRxs] = useState<Prescription[]>([]);
   const [error, setError] = useState<unknown>(null);
   const mapRef = useRef<maplibregl.Map | null>(null);
 
   useEffect(() => {
-    api
-      .get<Plan>(`/plans/${planId}`)
+    const path = { plan_id: planId };
+    call(client.GET('/api/v1/plans/{plan_id}', { params: { path } }))
       .then((p) => {
         setPlan(p);
-        api.get<FieldFeature>(`/fields/${p.field_id}`).then(setField).catch(() => undefined);
+        call(client.GET('/api/v1/fields/{field_id}', { params: { path: { field_id: p.field_id } } }))
+          .then(setField)
+          .catch(() => undefined);
       })
       .catch(setError);
-    api.get<GeoJSON.GeoJSON>(`/plans/${planId}/route`).then(setRoute).catch(() => undefined);
-    api
-      .get(`/plans/${planId}/prescriptions`)
-      .then((r) => setRxs(listOf<Prescription>(r)))
-      .catch((e) => (isMissingEndpoint(e) ? undefined : setError(e)));
+    call(client.GET('/api/v1/plans/{plan_id}/route', { params: { path } }))
+      .then(setRoute)
+      .catch(() => undefined);
+    call(client.GET('/api/v1/plans/{plan_id}/prescriptions', { params: { path } }))
+      .then((r) => setRxs(r.items))
+      .catch(setError);
   }, [planId]);
 
   const [mapReady, setMapReady] = useState(false);
@@ -44,7 +45,7 @@ export function PlanScreen({ planId }: { planId: number }) {
     const map = mapRef.current;
     if (!map) return;
     if (field) {
-      setGeoJSON(map, 'field', field as GeoJSON.Feature);
+      setGeoJSON(map, 'field', asGeoJSON(field));
       fitTo(map, bboxOf(field));
       // Grid tiles only once the view is on the field (no wasted low-zoom requests).
       if (!map.getSource('grid')) {
@@ -53,25 +54,19 @@ export function PlanScreen({ planId }: { planId: number }) {
         if (map.getLayer('route-arrows')) map.moveLayer('route-arrows');
       }
     }
-    if (route) setGeoJSON(map, 'route', route);
+    if (route) setGeoJSON(map, 'route', asGeoJSON(route));
   }, [field, route, mapReady, planId]);
 
   const onReady = (map: maplibregl.Map) => {
     mapRef.current = map;
-    setGeoJSON(map, 'field', (field as GeoJSON.Feature) ?? { type: 'FeatureCollection', features: [] });
+    setGeoJSON(map, 'field', field ? asGeoJSON(field) : { type: 'FeatureCollection', features: [] });
     map.addLayer({ id: 'field-line', type: 'line', source: 'field', paint: { 'line-color': '#2d5e16', 'line-width': 2 } });
-    setGeoJSON(map, 'route', route ?? { type: 'FeatureCollection', features: [] });
+    setGeoJSON(map, 'route', route ? asGeoJSON(route) : { type: 'FeatureCollection', features: [] });
     addRouteLayers(map, 'route');
     setMapReady(true);
   };
 
-  const s = {
-    ...(plan ?? {}),
-    ...((plan?.metrics as Record<string, unknown>) ?? {}),
-    ...((plan?.stats as Record<string, unknown>) ?? {}),
-  } as Record<string, unknown>;
-  const coverage = pick(s, 'coverage', 'coverage_fraction', 'coverage_ratio');
-  const coveragePct = pick(s, 'coverage_pct', 'coverage_percent');
+  const m = plan?.metrics;
   return (
     <div className="split">
       <aside className="panel">
@@ -81,21 +76,17 @@ export function PlanScreen({ planId }: { planId: number }) {
         {plan && (
           <Kv
             items={[
-              ['Swath width', `${plan.swath_width_m ?? '–'} m`],
-              ['Cell length', `${plan.cell_length_m ?? '–'} m`],
-              ['Heading rule', `${plan.heading_rule ?? '–'}${plan.heading_deg != null ? ` (${Number(plan.heading_deg).toFixed(1)}°)` : ''}`],
-              ['Headland passes', String(plan.headland_passes ?? '–')],
-              ['Swaths', String(pick(s, 'swath_count', 'swaths', 'n_swaths') ?? '–'), 'plan-swaths'],
-              ['Turns', String(pick(s, 'turn_count', 'turns', 'n_turns') ?? '–'), 'plan-turns'],
-              [
-                'Coverage',
-                coverage != null ? formatPercent(coverage > 1 ? coverage / 100 : coverage) : coveragePct != null ? formatPercent(coveragePct / 100) : '–',
-                'plan-coverage',
-              ],
-              ['Cells', String(pick(s, 'cell_count', 'cells', 'n_cells') ?? '–'), 'plan-cells'],
-              ['Working length', formatDistance(pick(s, 'working_length_m', 'path_length_m')), 'plan-length'],
-              ['Turns / transit', formatDistance(pick(s, 'nonworking_length_m'))],
-              ['Overlap', pick(s, 'overlap_pct') != null ? formatPercent(pick(s, 'overlap_pct')! / 100) : '–'],
+              ['Swath width', `${plan.params.swath_width_m} m`],
+              ['Cell length', `${plan.params.cell_length_m} m`],
+              ['Heading rule', `${plan.params.heading}${plan.heading_deg != null ? ` (${plan.heading_deg.toFixed(1)}°)` : ''}`],
+              ['Headland passes', String(plan.params.headland_passes ?? '–')],
+              ['Swaths', String(m?.n_swaths ?? '–'), 'plan-swaths'],
+              ['Turns', String(m?.n_turns ?? '–'), 'plan-turns'],
+              ['Coverage', m?.coverage_pct != null ? formatPercent(m.coverage_pct / 100) : '–', 'plan-coverage'],
+              ['Cells', String(plan.n_cells), 'plan-cells'],
+              ['Working length', formatDistance(m?.working_length_m ?? undefined), 'plan-length'],
+              ['Turns / transit', formatDistance(m?.nonworking_length_m ?? undefined)],
+              ['Overlap', m?.overlap_pct != null ? formatPercent(m.overlap_pct / 100) : '–'],
             ]}
           />
         )}
@@ -104,7 +95,7 @@ export function PlanScreen({ planId }: { planId: number }) {
           onClick={async () => {
             if (!confirm('Delete this plan?')) return;
             try {
-              await api.del(`/plans/${planId}`);
+              await call(client.DELETE('/api/v1/plans/{plan_id}', { params: { path: { plan_id: planId } } }));
               navigate(plan ? `/fields/${plan.field_id}` : '/fields');
             } catch (e) {
               setError(e);

@@ -1,7 +1,6 @@
 import { useState } from 'react';
-import { api } from '../api';
+import { call, client, type Plan, type Schemas, inline } from '../api/client';
 import { ErrorBox } from '../components/Status';
-import type { Plan } from '../types';
 
 /** Planning parameters (metres, degrees); the server validates and returns 422 with the field name. */
 export function PlanForm({ fieldId, onCreated }: { fieldId: number; onCreated: (p: Plan) => void }) {
@@ -20,15 +19,15 @@ export function PlanForm({ fieldId, onCreated }: { fieldId: number; onCreated: (
         e.preventDefault();
         setBusy(true);
         setError(null);
-        const body: Record<string, unknown> = {
+        const body: Schemas['PlanIn'] = {
           swath_width_m: Number(swath),
           cell_length_m: Number(cell),
-          heading: rule,
+          heading: rule as Schemas['PlanIn']['heading'],
           headland_passes: Number(headland),
+          angle_deg: rule === 'angle' ? Number(heading) : undefined,
         };
-        if (rule === 'angle') body.angle_deg = Number(heading);
         try {
-          onCreated(await api.post<Plan>(`/fields/${fieldId}/plans`, body));
+          onCreated(inline(await call(client.POST('/api/v1/fields/{field_id}/plans', { params: { path: { field_id: fieldId } }, body }))));
         } catch (err) {
           setError(err);
         } finally {

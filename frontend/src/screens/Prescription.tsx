@@ -2,19 +2,26 @@ import { useCallback, useEffect, useMemo, useRef, useState } from 'react';
 import type * as maplibregl from 'maplibre-gl';
 import { TerraDraw, TerraDrawPolygonMode } from 'terra-draw';
 import { TerraDrawMapLibreGLAdapter } from 'terra-draw-maplibre-gl-adapter';
-import { api, ApiError, download } from '../api';
+import {
+  ApiError,
+  call,
+  client,
+  download,
+  type FieldFeature,
+  type Machine,
+  type Prescription,
+  type Schemas,
+} from '../api/client';
 import { Histogram, Legend } from '../components/Legend';
 import { ErrorBox, Kv } from '../components/Status';
 import { classColors, histogram, legendEntries, niceBreaks, stepExpression } from '../lib/colors';
 import { attentionLines, attentionOf, attentionSummary, flaggedConfirmation } from '../lib/flags';
-import { bboxOf, type PolygonGeom } from '../lib/geo';
+import { asGeoJSON, bboxOf, type PolygonGeom } from '../lib/geo';
 import { formatRate } from '../lib/units';
 import { MapView } from '../map/MapView';
 import { loadedCells, replaceVectorSource, rxGridLayers, rxTilesUrl } from '../map/grid';
 import { fitTo, setGeoJSON } from '../map/setup';
 import { navigate } from '../router';
-import type { FieldFeature, Machine, Plan, Prescription } from '../types';
-import { listOf, pick } from '../types';
 
 const CLASSES = 6;
 const EXPORTS: [string, string, string][] = [
@@ -52,7 +59,7 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
   const [machines, setMachines] = useState<Machine[]>([]);
   const [machineId, setMachineId] = useState('');
   const [msg, setMsg] = useState('');
-  const [verSummary, setVerSummary] = useState<Record<string, unknown> | null>(null);
+  const [verSummary, setVerSummary] = useState<Schemas['RxSummary'] | null>(null);
   const [confirmJob, setConfirmJob] = useState<{ message: string; count: number; areaM2: number; seq: number[] } | null>(null);
   const [error, setError] = useState<unknown>(null);
   const mapRef = useRef<maplibregl.Map | null>(null);
@@ -64,14 +71,13 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
   const load = useCallback(
     async (pickVersion?: number) => {
       try {
-        const r = await api.get<Prescription>(`/prescriptions/${rxId}`);
+        const r = await call(client.GET('/api/v1/prescriptions/{rx_id}', { params: { path: { rx_id: rxId } } }));
         setRx(r);
-        const latest = r.latest_version ?? r.version ?? Math.max(1, ...listOf<{ version: number }>(r.versions).map((v) => v.version));
-        setVersion(pickVersion ?? latest);
+        setVersion(pickVersion ?? r.current_version);
         if (!field) {
           try {
-            const plan = await api.get<Plan>(`/plans/${r.plan_id}`);
-            setField(await api.get<FieldFeature>(`/fields/${plan.field_id}`));
+            const plan = await call(client.GET('/api/v1/plans/{plan_id}', { params: { path: { plan_id: r.plan_id } } }));
+            setField(await call(client.GET('/api/v1/fields/{field_id}', { params: { path: { field_id: plan.field_id } } })));
           } catch {
             setFitted(true); // no boundary to fit to: show the grid wherever the map is
           }
@@ -85,10 +91,9 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
 
   useEffect(() => {
     void load();
-    api
-      .get('/machines')
+    call(client.GET('/api/v1/machines'))
       .then((m) => {
-        const ms = listOf<Machine>(m);
+        const ms = m.items;
         setMachines(ms);
         if (ms[0]) setMachineId(String(ms[0].id));
       })
@@ -97,27 +102,25 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
   }, [rxId]);
 
   useEffect(() => {
-    const current = (rx?.current_version ?? rx?.version) as number | undefined;
+    const current = rx?.current_version;
     if (!rx || version == null || version === current) {
       setVerSummary(null);
       return;
     }
     let live = true;
-    api
-      .get<{ summary?: Record<string, unknown> }>(`/prescriptions/${rxId}/versions/${version}`)
-      .then((v) => live && setVerSummary(v.summary ?? null))
+    call(client.GET('/api/v1/prescriptions/{rx_id}/versions/{version}', { params: { path: { rx_id: rxId, version } } }))
+      .then((v) => live && setVerSummary(v.summary))
       .catch(() => live && setVerSummary(null));
     return () => {
       live = false;
     };
   }, [rx, version, rxId]);
 
-  const stats = { ...(rx ?? {}), ...((rx?.stats as Record<string, unknown>) ?? {}) } as Record<string, unknown>;
   // Flags of the version on screen (the prescription's summary is its current version's).
   const attention = attentionOf(verSummary ? { ...rx, summary: verSummary } : rx);
   // The server's summary covers every cell; loaded tiles are the fallback.
-  const lo = pick(stats, 'rate_min_kg_ha', 'min_rate_kg_ha') ?? (rates.length ? minOf(rates) : undefined);
-  const hi = pick(stats, 'rate_max_kg_ha', 'max_rate_kg_ha') ?? (rates.length ? maxOf(rates) : undefined);
+  const lo = rx?.summary.rate_min_kg_ha ?? (rates.length ? minOf(rates) : undefined);
+  const hi = rx?.summary.rate_max_kg_ha ?? (rates.length ? maxOf(rates) : undefined);
   const breaks = useMemo(() => niceBreaks(lo ?? 0, hi ?? 1000, CLASSES), [lo, hi]);
   const colors = useMemo(() => classColors(breaks.length - 1), [breaks]);
   const legend =
@@ -164,7 +167,7 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
   useEffect(() => {
     const map = mapRef.current;
     if (!map || !field) return;
-    setGeoJSON(map, 'field', field as GeoJSON.Feature);
+    setGeoJSON(map, 'field', asGeoJSON(field));
     fitTo(map, bboxOf(field));
     setFitted(true);
   }, [field, mapReady]);
@@ -208,16 +211,16 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
     };
   };
 
-  const applyEdit = async (body: unknown) => {
+  const applyEdit = async (body: Schemas['EditIn']) => {
     setError(null);
     try {
-      const r = await api.post<Record<string, unknown>>(`/prescriptions/${rxId}/edits`, body);
-      const v = pick(r, 'new_version', 'version', 'latest_version');
+      const r = await call(client.POST('/api/v1/prescriptions/{rx_id}/edits', { params: { path: { rx_id: rxId } }, body }));
+      const v = r.new_version;
       setCell(null);
       setZone(null);
       drawRef.current?.clear();
       await load(v);
-      setMsg(`Saved as version ${v ?? '(new)'}`);
+      setMsg(`Saved as version ${v}`);
     } catch (e) {
       setError(e);
     }
@@ -227,15 +230,20 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
   const sendJob = async (confirmFlagged: boolean) => {
     setError(null);
     try {
-      const j = await api.post<{ id: number; state?: string }>('/jobs', {
-        prescription_id: rxId,
-        version: version ?? 1,
-        machine_id: Number(machineId),
-        confirm_flagged: confirmFlagged,
-      });
+      const j = await call(
+        client.POST('/api/v1/jobs', {
+          body: {
+            prescription_id: rxId,
+            prescription_version: version ?? undefined,
+            machine_id: Number(machineId),
+            confirm_flagged: confirmFlagged,
+          },
+        }),
+      );
       setConfirmJob(null);
       // A new job is 'planned'; sending makes it downloadable by the machine.
-      if (!j.state || j.state === 'planned') await api.post(`/jobs/${j.id}/state`, { state: 'sent' });
+      if (j.state === 'planned')
+        await call(client.POST('/api/v1/jobs/{job_id}/state', { params: { path: { job_id: j.id } }, body: { state: 'sent' } }));
       setMsg(`Job #${j.id} created`);
       navigate(`/jobs?created=${j.id}`);
     } catch (e) {
@@ -245,10 +253,8 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
     }
   };
 
-  const versions = listOf<{ version: number; created_at?: string; note?: string }>(rx?.versions);
-  const versionNums = versions.length
-    ? versions.map((v) => v.version)
-    : Array.from({ length: version ?? 1 }, (_, i) => i + 1);
+  const versions = rx?.versions ?? [];
+  const versionNums = versions.map((v) => v.version);
 
   return (
     <div className="split">
@@ -264,7 +270,7 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
         <Kv
           items={[
             ['Model', String(rx?.model ?? '–'), 'rx-model-name'],
-            ['Cells', String(pick(stats, 'cell_count', 'n_cells') ?? (rates.length || '–')), 'rx-cell-count'],
+            ['Cells', String(rx?.summary.n_cells ?? (rates.length || '–')), 'rx-cell-count'],
             ['Rate range', lo != null && hi != null ? `${formatRate(lo)} – ${formatRate(hi)}` : '–', 'rx-range'],
             ['Flagged cells', rx ? attentionSummary(attention) : '–', 'rx-flagged'],
           ]}
@@ -366,7 +372,7 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
             data-testid="zone-panel"
             onSubmit={(e) => {
               e.preventDefault();
-              void applyEdit({ zone, rate_kg_ha: Number(zoneRate) });
+              void applyEdit({ zone: { ...zone }, rate_kg_ha: Number(zoneRate) });
             }}
           >
             <input

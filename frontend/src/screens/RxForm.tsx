@@ -1,8 +1,6 @@
 import { useEffect, useState } from 'react';
-import { api } from '../api';
+import { call, client, type Machine, type Prescription, type Schemas, inline } from '../api/client';
 import { ErrorBox } from '../components/Status';
-import type { Machine, Prescription } from '../types';
-import { listOf } from '../types';
 
 /** Defaults from seed 002 eq. 19-21 (winter rape worked example, SCIENCE.md). */
 export const MODEL_DEFAULTS: Record<string, Record<string, unknown>> = {
@@ -23,10 +21,9 @@ export function RxForm({ planId, onCreated }: { planId: number; onCreated: (r: P
   const [machines, setMachines] = useState<Machine[]>([]);
   const [machineId, setMachineId] = useState('');
   useEffect(() => {
-    api
-      .get('/machines')
+    call(client.GET('/api/v1/machines'))
       .then((r) => {
-        const ms = listOf<Machine>(r);
+        const ms = r.items;
         setMachines(ms);
         if (ms[0]) setMachineId(String(ms[0].id));
       })
@@ -41,7 +38,7 @@ export function RxForm({ planId, onCreated }: { planId: number; onCreated: (r: P
       onSubmit={async (e) => {
         e.preventDefault();
         setError(null);
-        let p: unknown;
+        let p: Record<string, unknown>;
         try {
           p = JSON.parse(params);
         } catch {
@@ -51,12 +48,19 @@ export function RxForm({ planId, onCreated }: { planId: number; onCreated: (r: P
         setBusy(true);
         try {
           onCreated(
-            await api.post<Prescription>(`/plans/${planId}/prescriptions`, {
-              model,
-              params: p,
-              interpolation: interp,
-              ...(machineId ? { machine_id: Number(machineId) } : {}),
-            }),
+            inline(
+              await call(
+              client.POST('/api/v1/plans/{plan_id}/prescriptions', {
+                params: { path: { plan_id: planId } },
+                body: {
+                  model,
+                  params: p,
+                  interpolation: interp as Schemas['PrescriptionIn']['interpolation'],
+                  machine_id: machineId ? Number(machineId) : undefined,
+                },
+              }),
+            ),
+            ),
           );
         } catch (err) {
           setError(err);

@@ -1,8 +1,7 @@
 import { useState } from 'react';
-import { api } from '../api';
+import { call, client, type Machine } from '../api/client';
 import { fieldsOf, jobBody, KIND_LABELS, ndviPreview, qualifiedBand, type JobKind } from '../lib/jobkinds';
 import { formatRate } from '../lib/units';
-import type { Machine } from '../types';
 
 /**
  * The form of a sensor job kind (seed 000 / 002): the plan to drive, the machine, and the
@@ -37,8 +36,10 @@ export function SensorJobForm({
         onError(null);
         try {
           const mid = machineId || (machines[0] ? String(machines[0].id) : '');
-          const j = await api.post<{ id: number }>('/jobs', jobBody(kind, { planId, machineId: mid }, values));
-          await api.post(`/jobs/${j.id}/state`, { state: 'sent' });
+          const j = await call(client.POST('/api/v1/jobs', { body: jobBody(kind, { planId, machineId: mid }, values) }));
+          await call(
+            client.POST('/api/v1/jobs/{job_id}/state', { params: { path: { job_id: j.id } }, body: { state: 'sent' } }),
+          );
           onCreated(j.id);
         } catch (err) {
           onError(err);

@@ -1,0 +1,128 @@
+"""Jobs: a prescription version or a sensor kind bound to a machine, and its state."""
+
+from __future__ import annotations
+
+import datetime as dt
+from typing import Any, Literal
+
+from pydantic import Field
+
+from fieldrx.api.schemas.base import In, Open, Out
+
+State = Literal["planned", "sent", "downloaded", "running", "paused", "completed", "aborted"]
+
+Kind = Literal["prescription_map", "ndvi_topdress", "seeding_depth"]
+
+
+class JobIn(In):
+    kind: Kind = Field(
+        default="prescription_map",
+        description="prescription_map (seed 001: the prescription's cell rates), ndvi_topdress "
+        "(seed 000: canopy sensors decide the rate) or seeding_depth (seed 002: sowing-depth "
+        "control); GET /jobs/kinds lists each kind's settings, units and the papers' defaults",
+    )
+    prescription_id: int | None = Field(default=None, description="prescription_map jobs")
+    prescription_version: int | None = Field(
+        default=None, description="prescription_map jobs: the version to apply; default current"
+    )
+    plan_id: int | None = Field(
+        default=None, description="sensor kinds: the planned path (field, swaths) to drive"
+    )
+    settings: dict[str, Any] | None = Field(
+        default=None,
+        description="sensor kinds: settings to change from the papers' defaults (partial)",
+    )
+    machine_id: int
+    name: str = Field(default="", max_length=200)
+    confirm_flagged: bool = Field(
+        default=False,
+        description="send although cells have no data or lie outside the machine's meter range "
+        "(without it such a job is refused with 409 listing count, area and cells)",
+    )
+
+
+class StateIn(In):
+    state: State
+    note: str = Field(default="", max_length=2000)
+
+
+class EventOut(Out):
+    state: str
+    at: dt.datetime
+    by_user_id: int | None
+    by_machine_id: int | None
+    note: str
+
+
+class JobOut(Out):
+    id: int
+    name: str
+    state: str
+    kind: str = "prescription_map"
+    prescription_id: int | None
+    prescription_version: int | None
+    plan_id: int | None = None
+    settings: dict[str, Any] = Field(default_factory=dict)
+    machine_id: int
+    n_cells: int
+    cells_applied: int
+    progress: float
+    package_checksum: str
+    flagged_cells: int = 0
+    flagged_confirmed: bool = False
+    created_by: int | None
+    created_at: dt.datetime
+    updated_at: dt.datetime
+    events: list[EventOut] | None = None
+
+
+class JobList(Out):
+    items: list[JobOut]
+    total: int
+
+
+class KindInfo(Out):
+    defaults: dict[str, Any] = Field(description="the papers' settings, units in the names")
+    controllers: list[str]
+
+
+class KindsOut(Out):
+    kinds: dict[str, KindInfo]
+
+
+class DeviceStateIn(In):
+    state: Literal["downloaded", "running", "paused", "completed"]
+    note: str = Field(default="", max_length=2000)
+
+
+class DeviceJobList(Out):
+    items: list[JobOut]
+    total: int
+
+
+class DeviceTokenRotated(Out):
+    machine_id: int
+    token: str = Field(description="the new device token: shown only once")
+    expires_at: dt.datetime | None
+
+
+class JobPackageOut(Open):
+    """``fieldrx_edge.protocol.JobPackage``: cells in path order with corners and rates, the
+    implement, calibration and control settings (see the edge agent's protocol module)."""
+
+    job_id: int
+    checksum: str
+
+
+class RawLogsRequested(Out):
+    """Jobs of the machine whose full 10 Hz log the office asked for (thin uplink)."""
+
+    job_ids: list[int]
+
+
+class RawLogStored(Out):
+    """A job's full 10 Hz log received from the tractor (gzip of JSON lines)."""
+
+    job_id: int
+    bytes: int = Field(description="gzip size received")
+    records: int = Field(description="fixes (JSON lines) in the log")

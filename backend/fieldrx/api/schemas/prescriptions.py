@@ -1,0 +1,201 @@
+"""Prescriptions: build parameters, edits, versions, cells."""
+
+from __future__ import annotations
+
+import datetime as dt
+from typing import Any, Literal
+
+from pydantic import Field, model_validator
+
+from fieldrx.api.schemas.base import Geometry, In, Open, Out
+
+
+class PrescriptionIn(In):
+    name: str = Field(default="", max_length=200)
+    product: str = Field(default="", max_length=200)
+    model: str = Field(
+        default="nutrient_balance",
+        description="nutrient_balance | ndvi | uniform (aliases: ndvi_linear, constant)",
+    )
+    params: dict[str, Any] = Field(
+        default_factory=dict,
+        description="nutrient_balance: target_yield_kg_ha, n_fraction, e_kg_per_100kg, "
+        "k_utilisation; ndvi: ndvi_low, rate_at_low_kg_ha, ndvi_high, rate_at_high_kg_ha; "
+        "uniform: rate_kg_ha",
+    )
+    interpolation: Literal["cell_mean", "idw", "kriging"] = "cell_mean"
+    interpolation_params: dict[str, Any] = Field(
+        default_factory=dict,
+        description="idw: power, radius_m, k; kriging: variogram_model, nlags, max_distance_m",
+    )
+    fallback_rate_kg_ha: float | None = Field(default=None, ge=0)
+    machine_id: int | None = None
+    # physical bounds: degenerate values (5e-324 m) only make rate = flow / (w v) overflow
+    speed_min_kmh: float | None = Field(default=None, ge=0.036, le=108)
+    speed_max_kmh: float | None = Field(default=None, ge=0.036, le=108)
+    width_m: float | None = Field(default=None, ge=0.05, le=60)
+    calibration: dict[str, Any] | None = None
+
+
+class CellEdit(In):
+    seq: int = Field(ge=0)
+    rate_kg_ha: float = Field(ge=0)
+
+
+class EditIn(In):
+    cells: list[CellEdit] | None = None
+    zone: Geometry | None = Field(default=None, description="GeoJSON Polygon (lon/lat)")
+    rate_kg_ha: float | None = Field(default=None, ge=0, description="rate of the zone")
+    note: str = Field(default="", max_length=2000)
+
+    @model_validator(mode="after")
+    def _one_kind(self) -> EditIn:
+        if (self.cells is None) == (self.zone is None):
+            raise ValueError("give either cells [{seq, rate_kg_ha}] or zone + rate_kg_ha")
+        if self.zone is not None and self.rate_kg_ha is None:
+            raise ValueError("a zone edit needs rate_kg_ha")
+        return self
+
+
+class Histogram(Open):
+    """Whole-field, area-weighted: ``counts[i]`` cells and ``area_m2[i]`` between
+    ``edges_kg_ha[i]`` and ``edges_kg_ha[i+1]``."""
+
+    edges_kg_ha: list[float]
+    counts: list[int]
+    area_m2: list[float]
+
+
+class Attention(Open):
+    """Cells the machine will not apply as prescribed (meter range) or with a fallback rate."""
+
+    flags: list[str] = Field(default_factory=list)
+    count: int = 0
+    area_m2: float = 0.0
+    area_ha: float = 0.0
+    seq: list[int] | None = None
+
+
+class RxSummary(Open):
+    """A version's whole-field figures (``agronomy.prescription.summarize``) as stored with
+    it; edits add ``edited_cells`` and ``based_on_version``."""
+
+    n_cells: int = 0
+    area_m2: float = 0.0
+    area_ha: float = 0.0
+    product_kg: float = 0.0
+    rate_mean_kg_ha: float | None = None
+    rate_min_kg_ha: float | None = None
+    rate_max_kg_ha: float | None = None
+    histogram: Histogram | None = None
+    flagged: dict[str, int] | None = None
+    flagged_area_m2: dict[str, float] | None = None
+    n_flagged: int | None = None
+    attention: Attention | None = None
+    flagged_seq: list[int] | None = None
+    interpolation: dict[str, Any] | None = None
+    meter: dict[str, Any] | None = None
+
+
+class RxStats(Out):
+    """Counts derived from the current version's flags (not copies of ``summary``)."""
+
+    out_of_meter_range_count: int
+    no_data_count: int
+    attention_count: int
+    attention_area_m2: float
+    kriging_cv_rmse: float | None = Field(
+        default=None, description="leave-one-out RMSE of the kriging interpolation"
+    )
+
+
+class VersionRef(Out):
+    version: int
+    note: str
+    created_at: dt.datetime | None
+
+
+class PrescriptionOut(Out):
+    id: int
+    plan_id: int
+    machine_id: int | None
+    name: str
+    product: str
+    model: str
+    params: dict[str, Any] = Field(description="the rate model's parameters")
+    interpolation: str | None
+    interpolation_params: dict[str, Any]
+    fallback_rate_kg_ha: float | None
+    meter: dict[str, Any] | None = Field(description="the meter the rates were checked against")
+    current_version: int
+    versions: list[VersionRef]
+    summary: RxSummary = Field(description="the current version's summary")
+    stats: RxStats
+    created_at: dt.datetime | None
+
+
+class EditOut(PrescriptionOut):
+    edited_cells: int
+    new_version: int
+
+
+class PrescriptionList(Out):
+    items: list[PrescriptionOut]
+    total: int
+
+
+class VersionOut(Out):
+    version: int
+    note: str
+    created_at: dt.datetime | None
+    created_by: int | None
+    summary: RxSummary
+
+
+class VersionDetail(VersionOut):
+    prescription_id: int
+
+
+class VersionList(Out):
+    items: list[VersionOut]
+    total: int
+    current_version: int
+
+
+class RxCellProps(Out):
+    seq: int
+    swath: int
+    area_m2: float
+    rate_kg_ha: float
+    flags: list[str]
+    out_of_meter_range: bool = Field(
+        description="outside what the machine meters at the planned speeds (stored as asked)"
+    )
+    fallback: bool = Field(description="no sample near enough: the rate is the fallback rate")
+    source_value: float | None
+
+
+class RxCell(Out):
+    type: Literal["Feature"] = "Feature"
+    id: int
+    geometry: Geometry
+    properties: RxCellProps
+
+
+class RxCellPage(Out):
+    type: Literal["FeatureCollection"] = "FeatureCollection"
+    features: list[RxCell]
+    total: int
+    version: int = Field(description="the version these cells belong to")
+    limit: int
+    offset: int
+
+
+class SoilZonesIn(PrescriptionIn):
+    """A zone prescription from soil samples: the model's input property interpolated
+    onto the plan's cells, then zoned like imagery NDVI zones."""
+
+    k: int = Field(default=4, ge=2, le=12, description="number of zones")
+    min_area_m2: float = Field(
+        default=0.0, ge=0, description="patches of a zone smaller than this join a neighbour"
+    )

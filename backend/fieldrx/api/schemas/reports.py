@@ -1,0 +1,145 @@
+"""As-applied reports of a job, job summaries and archives."""
+
+from __future__ import annotations
+
+import datetime as dt
+from typing import Any, Literal
+
+from pydantic import Field
+
+from fieldrx.api.schemas.base import Geometry, Open, Out
+
+
+class CellReportOut(Out):
+    """One cell's planned vs applied figures (seed 001 eq. 17-18)."""
+
+    seq: int
+    swath: int
+    area_m2: float
+    target_rate_kg_ha: float = Field(description="planned (prescription version)")
+    n_records: int
+    mean_target_rate_kg_ha: float | None = Field(description="what the agent asked for")
+    mean_applied_rate_kg_ha: float | None = Field(description="mean of the records' rates")
+    applied_rate_kg_ha: float = Field(description="M2 over the cell's area")
+    m1_g: float
+    m2_g: float
+    accuracy_pct: float | None = Field(description="theta, seed 001 eq. 18")
+    first_t: float | None
+    last_t: float | None
+
+
+class AsAppliedSummary(Out):
+    job_id: int
+    name: str
+    state: str
+    machine_id: int
+    implement_width_m: float
+    plan_id: int
+    n_cells: int
+    cells_planned: int
+    cells_applied: int
+    coverage_pct: float
+    planned_total_kg: float
+    applied_total_kg: float
+    applied_in_cells_kg: float
+    applied_outside_cells_kg: float
+    mean_accuracy_pct: float | None
+    min_accuracy_pct: float | None
+    time_worked_s: float
+    n_records: int
+    first_t: dt.datetime | None
+    last_t: dt.datetime | None
+    not_applied_seqs: list[int] = Field(
+        description="prescribed cells where nothing landed, path order"
+    )
+
+
+class AsAppliedReport(AsAppliedSummary):
+    """A prescription_map job's report; ``cells`` unless ``cells=false``."""
+
+    cells: list[CellReportOut] | None = None
+
+
+class KindReport(Open):
+    """A sensor job's report (``fleet.seed_reports``: NDVI / depth figures and the papers'
+    Table 3 beside them)."""
+
+    job_id: int
+    kind: Literal["ndvi_topdress", "seeding_depth"]
+    state: str
+    settings: dict[str, Any]
+    n_records: int
+
+
+class NamedRef(Out):
+    id: int
+    name: str
+
+
+class RxRef(Out):
+    id: int | None
+    version: int | None
+    product: str
+
+
+class JobSummaryOut(Out):
+    """Compact job record for farm software: what, where, when, how much, how well."""
+
+    job_id: int
+    name: str
+    state: str
+    field: NamedRef | None
+    machine_id: int
+    prescription: RxRef
+    started_at: dt.datetime | None
+    ended_at: dt.datetime | None
+    first_record_at: dt.datetime | None
+    last_record_at: dt.datetime | None
+    time_worked_s: float
+    area_applied_ha: float
+    coverage_pct: float
+    planned_total_kg: float
+    applied_total_kg: float
+    applied_outside_cells_kg: float
+    mean_accuracy_pct: float | None
+    min_accuracy_pct: float | None
+    cells_planned: int
+    cells_applied: int
+    unit: Literal["kg"] = "kg"
+
+
+class AsAppliedCell(Out):
+    type: Literal["Feature"] = "Feature"
+    id: int
+    geometry: Geometry | None
+    properties: CellReportOut
+
+
+class AsAppliedCells(Out):
+    type: Literal["FeatureCollection"] = "FeatureCollection"
+    features: list[AsAppliedCell]
+    summary: AsAppliedSummary
+
+
+class ArchiveOut(Out):
+    job_id: int
+    name: str
+    archived_at: dt.datetime | None
+    archived_by: int | None
+    summary: dict[str, Any] = Field(description="GET /jobs/{id}/summary as archived")
+    cells: dict[str, Any] | None = Field(
+        default=None, description="GET /jobs/{id}/as-applied/cells as archived (one archive)"
+    )
+
+
+class ArchiveList(Out):
+    items: list[ArchiveOut]
+    total: int
+
+
+class RawLogState(Out):
+    """Where a job's full 10 Hz log stands (thin uplink): ``not requested``, ``requested``
+    (the tractor sends it with its next ``fieldrx-edge upload-log``) or ``uploaded``."""
+
+    job_id: int
+    state: Literal["not requested", "requested", "uploaded"]

@@ -1,0 +1,113 @@
+"""API documentation served by the app itself: Swagger UI at /docs, ReDoc at /redoc.
+
+Both pages load their scripts and styles from the ``fastapi-offline`` package's copy
+(mounted at ``/docs-assets``), never from a CDN: a tractor-side laptop or a farm office
+without internet still gets working docs, and no request leaves the server's host.
+``FIRST_CALL`` is the short guide in the OpenAPI description (and the README).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from fastapi import FastAPI
+from fastapi.openapi.docs import get_redoc_html, get_swagger_ui_html
+from fastapi.responses import HTMLResponse
+from fastapi.staticfiles import StaticFiles
+
+ASSETS_URL = "/docs-assets"
+
+FIRST_CALL = """
+Variable-rate fertilization: fields, coverage planning, path-ordered grids, prescriptions,
+ISOXML/Shapefile exports, jobs and fleet telemetry.
+
+## First call
+
+Every request carries `Authorization: Bearer <token>` (the **Authorize** button above).
+
+1. **A token that may write.** Sign in, then make a named token for your software; without
+   `role` it is an `agronomist` token (may write) when your own role allows it:
+
+       curl -s -X POST $URL/api/v1/auth/login -H 'Content-Type: application/json' \\
+         -d '{"email": "agronomist@demo.fieldrx.org", "password": "fieldrx-demo"}'
+       curl -s -X POST $URL/api/v1/auth/tokens -H "Authorization: Bearer $LOGIN_TOKEN" \\
+         -H 'Content-Type: application/json' -d '{"name": "my script"}'
+
+   A `viewer` token only reads: a write answers 403 naming the role it needs.
+2. **A field**: `POST /api/v1/fields` with a GeoJSON Feature (Polygon, lon/lat):
+   `{"type": "Feature", "geometry": {...}, "properties": {"name": "North"}}`.
+3. **A plan**: `POST /api/v1/fields/{field_id}/plans` `{"swath_width_m": 12, "cell_length_m": 10}`.
+4. **Soil samples** (for a nutrient-balance prescription):
+   `POST /api/v1/fields/{field_id}/soil-samples` with a CSV file (`lon,lat,n_mg_kg`).
+5. **A prescription**: `POST /api/v1/plans/{plan_id}/prescriptions`
+   `{"model": "uniform", "params": {"rate_kg_ha": 150}}` (or `nutrient_balance` with
+   `"interpolation": "idw"`).
+6. **ISOXML for the terminal**:
+   `GET /api/v1/prescriptions/{rx_id}/export?format=isoxml` answers `TASKDATA.zip`.
+
+Errors are one shape (`ErrorOut`): `detail` says what is wrong and what to change, `where`
+names the field. Unknown body fields are refused (422), not ignored.
+"""
+
+# The docs pages run FastAPI's small inline start-up script; everything else is ours.
+DOCS_CSP = "; ".join(
+    [
+        "default-src 'self'",
+        "script-src 'self' 'unsafe-inline'",
+        "style-src 'self' 'unsafe-inline'",
+        "img-src 'self' data: blob:",
+        "font-src 'self' data:",
+        "connect-src 'self'",
+        "worker-src 'self' blob:",
+        "object-src 'none'",
+        "base-uri 'self'",
+        "frame-ancestors 'none'",
+    ]
+)
+
+
+def assets_dir() -> Path:
+    """The packaged Swagger UI / ReDoc files (``fastapi_offline/static``)."""
+    import fastapi_offline
+
+    return Path(fastapi_offline.__file__).resolve().parent / "static"
+
+
+def install_docs(app: FastAPI, openapi_url: str) -> None:
+    """Mount the assets and the two pages (create the app with docs_url=redoc_url=None)."""
+    app.mount(ASSETS_URL, StaticFiles(directory=assets_dir()), name="docs-assets")
+    title = app.title
+
+    @app.get("/docs", include_in_schema=False)
+    def swagger_ui() -> HTMLResponse:
+        return get_swagger_ui_html(
+            openapi_url=openapi_url,
+            title=f"{title} API",
+            swagger_js_url=f"{ASSETS_URL}/swagger-ui-bundle.js",
+            swagger_css_url=f"{ASSETS_URL}/swagger-ui.css",
+            swagger_favicon_url=f"{ASSETS_URL}/favicon.png",
+            # no badge fetched from the public validator service
+            swagger_ui_parameters={"validatorUrl": None, "persistAuthorization": True},
+        )
+
+    @app.get("/redoc", include_in_schema=False)
+    def redoc() -> HTMLResponse:
+        return get_redoc_html(
+            openapi_url=openapi_url,
+            title=f"{title} API",
+            redoc_js_url=f"{ASSETS_URL}/redoc.standalone.js",
+            redoc_favicon_url=f"{ASSETS_URL}/favicon.png",
+            with_google_fonts=False,
+        )
+
+
+def openapi_json(app: FastAPI | None = None) -> str:
+    """The OpenAPI document as committed in ``frontend/src/api/openapi.json`` (the generated
+    TypeScript client's source; ``tests/api/test_contract.py`` fails when it is stale)."""
+    import json
+
+    if app is None:
+        from fieldrx.app import create_app
+
+        app = create_app()
+    return json.dumps(app.openapi(), indent=2, ensure_ascii=False) + "\n"

@@ -1,0 +1,16 @@
+#!/usr/bin/env bash
+# Regenerate the browser's typed API client from the server's OpenAPI document (no server
+# needed): frontend/src/api/openapi.json, then frontend/src/api/generated/schema.ts
+# (openapi-typescript). Run after changing a route or a model in backend/fieldrx/api/;
+# tests/api/test_contract.py fails while the committed files are stale.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+ROOT=$(pwd)
+PY=${PYTHON:-$ROOT/.venv/bin/python}
+mkdir -p frontend/src/api/generated
+PYTHONPATH="$ROOT/backend:$ROOT/edge_agent${PYTHONPATH:+:$PYTHONPATH}" "$PY" -c \
+  "from fieldrx.apidocs import openapi_json; print(openapi_json(), end='')" \
+  >frontend/src/api/openapi.json
+(cd frontend && npx --no-install openapi-typescript src/api/openapi.json \
+  -o src/api/generated/schema.ts --alphabetize --default-non-nullable false >/dev/null)
+echo "frontend/src/api/openapi.json and frontend/src/api/generated/schema.ts are current"
