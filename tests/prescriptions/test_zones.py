@@ -52,7 +52,7 @@ def test_soil_n_zones_one_rate_per_zone_west_to_east(client, org) -> None:
     rx = _zones(
         client, org, plan["id"], model="nutrient_balance", params=NB, interpolation="idw", k=3
     )
-    assert rx["model"] == "nutrient_balance" and rx["version"] == 1
+    assert rx["model"] == "nutrient_balance" and rx["current_version"] == 1
     interp = rx["summary"]["interpolation"]
     assert interp["method"] == "idw" and interp["n_samples"] == 16
     assert interp["classifier"] == "kmeans_1d" and interp["zoned_value"] == "n_mg_kg"

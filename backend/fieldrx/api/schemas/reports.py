@@ -52,6 +52,11 @@ class AsAppliedSummary(Out):
     not_applied_seqs: list[int] = Field(
         description="prescribed cells where nothing landed, path order"
     )
+    uplink: Literal["full", "thin"] = Field(
+        default="full",
+        description="where the figures came from: every 10 Hz record (full) or the thin "
+        "profile's per-cell records (1 Hz track + one record per cell left)",
+    )
 
 
 class AsAppliedReport(AsAppliedSummary):

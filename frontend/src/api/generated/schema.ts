@@ -1850,6 +1850,13 @@ export interface components {
             state: string;
             /** Time Worked S */
             time_worked_s: number;
+            /**
+             * Uplink
+             * @description where the figures came from: every 10 Hz record (full) or the thin profile's per-cell records (1 Hz track + one record per cell left)
+             * @default full
+             * @enum {string}
+             */
+            uplink?: "full" | "thin";
         };
         /** AsAppliedSummary */
         AsAppliedSummary: {
@@ -1898,6 +1905,13 @@ export interface components {
             state: string;
             /** Time Worked S */
             time_worked_s: number;
+            /**
+             * Uplink
+             * @description where the figures came from: every 10 Hz record (full) or the thin profile's per-cell records (1 Hz track + one record per cell left)
+             * @default full
+             * @enum {string}
+             */
+            uplink?: "full" | "thin";
         };
         /** AsAppliedTableImportOut */
         AsAppliedTableImportOut: {
