@@ -9,6 +9,8 @@ export DATABASE_URL="postgresql+psycopg://postgres@127.0.0.1:5432/$DB"
 export FIELDRX_URL="http://127.0.0.1:$PORT"
 export FIELDRX_EMAIL=agronomist@demo.fieldrx.org FIELDRX_PASSWORD=fieldrx-demo
 export PATH="$ROOT/.venv/bin:$PATH"
+# this checkout's code, whichever checkout the venv's editable install points at
+export PYTHONPATH="$ROOT/backend:$ROOT/edge_agent${PYTHONPATH:+:$PYTHONPATH}"
 # a machine silent this long is "offline" (the fleet test waits for the push)
 export FIELDRX_HEARTBEAT_TIMEOUT_S=${FIELDRX_HEARTBEAT_TIMEOUT_S:-10}
 mkdir -p .run tests/e2e/artifacts
