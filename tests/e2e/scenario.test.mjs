@@ -148,7 +148,11 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
     await shot(page, 'import-invalid');
     assert.ok(marked > 0, 'import problem marked on the map');
     const before = Number((await page.textContent('[data-testid=field-count]')).replace(/\D/g, ''));
-    await page.setInputFiles('[data-testid=import-file]', file);
+    // "Import..." is reachable by keyboard (issue 15): focus it, Enter opens the file chooser.
+    await page.focus('[data-testid=import-button]');
+    assert.equal(await page.evaluate(() => document.activeElement?.getAttribute('data-testid')), 'import-button');
+    const [chooser] = await Promise.all([page.waitForEvent('filechooser'), page.keyboard.press('Enter')]);
+    await chooser.setFiles(file);
     await page.waitForSelector('[data-testid=import-result]');
     await page.waitForFunction((n) => Number(document.querySelector('[data-testid=field-count]').textContent.replace(/\D/g, '')) > n, before);
     await mapIdle(page, 'fields');
@@ -373,6 +377,37 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
     S.rxVersion = Number(afterV);
     await mapIdle(page, 'rx');
     await shot(page, 'prescription-edited');
+
+    // Issue 15: the histogram is the server's whole-field, area-weighted one of the version on
+    // screen: the same at any zoom, and switching versions shows that version's figures.
+    const histOf = () => page.locator('[data-testid=rx-histogram] title').allTextContents();
+    const haOf = (titles) => titles.map((t) => Number(t.match(/: ([\d.]+) ha$/)?.[1]));
+    const until = async (want, what) => {
+      let got;
+      for (let i = 0; i < 100; i++) {
+        got = haOf(await histOf());
+        if (JSON.stringify(got) === JSON.stringify(want)) return;
+        await page.waitForTimeout(100);
+      }
+      assert.deepEqual(got, want, what);
+    };
+    const haBins = (summary) => summary.histogram.area_m2.map((a) => Math.round(a / 100) / 100);
+    const v2 = (await api(token, 'GET', `/prescriptions/${S.rxId}/versions/${afterV}`)).data.summary;
+    await until(haBins(v2), 'the edited version\'s histogram (ha per bin, from the server)');
+    const atZoom = await histOf();
+    await page.evaluate(() => window.__fieldrxMaps.rx.setZoom(window.__fieldrxMaps.rx.getZoom() + 4));
+    await mapIdle(page, 'rx');
+    assert.deepEqual(await histOf(), atZoom, 'the histogram does not change with zoom');
+    const v1 = (await api(token, 'GET', `/prescriptions/${S.rxId}/versions/${before}`)).data.summary;
+    await page.selectOption('[data-testid=rx-version]', before);
+    await until(haBins(v1), 'version 1 on screen shows version 1\'s histogram');
+    await page.waitForFunction(
+      (n) => document.querySelector('[data-testid=rx-cell-count]')?.textContent?.includes(String(n)),
+      v1.n_cells,
+    );
+    await page.selectOption('[data-testid=rx-version]', afterV);
+    await until(haBins(v2), 'back on the edited version');
+    await mapIdle(page, 'rx');
   });
 
   it('paints a zone with one rate (another version)', async (t) => {

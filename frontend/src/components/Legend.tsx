@@ -15,7 +15,21 @@ export function Legend({ entries, title, testid = 'legend' }: { entries: LegendE
 }
 
 /** Bar per legend class, same colours as the map (plain SVG: no chart library needed for bars). */
-export function Histogram({ counts, colors, testid = 'histogram' }: { counts: number[]; colors: string[]; testid?: string }) {
+export function Histogram({
+  counts,
+  colors,
+  unit = 'cells',
+  labels,
+  testid = 'histogram',
+}: {
+  counts: number[];
+  colors: string[];
+  /** What a bar counts (cells, ha). */
+  unit?: string;
+  /** Per bar, what it covers (shown on hover). */
+  labels?: string[];
+  testid?: string;
+}) {
   const max = Math.max(1, ...counts);
   const w = 240;
   const h = 80;
@@ -27,7 +41,10 @@ export function Histogram({ counts, colors, testid = 'histogram' }: { counts: nu
         return (
           <g key={i}>
             <rect x={i * bw + 1} y={h - bh} width={bw - 2} height={bh} fill={colors[i]} stroke="#333" strokeWidth={0.3}>
-              <title>{c} cells</title>
+              <title>
+                {labels?.[i] ? `${labels[i]}: ` : ''}
+                {c} {unit}
+              </title>
             </rect>
             <text x={i * bw + bw / 2} y={h + 11} fontSize={9} textAnchor="middle">
               {c}

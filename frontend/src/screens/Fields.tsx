@@ -19,6 +19,7 @@ export function FieldsScreen() {
   const [q, setQ] = useState('');
   const [fields, setFields] = useState<FieldCollection>(EMPTY);
   const [error, setError] = useState<unknown>(null);
+  const importRef = useRef<HTMLInputElement>(null);
   const [importMsg, setImportMsg] = useState('');
   const [batch, setBatch] = useState<TaskView | null>(null);
   const [newFarm, setNewFarm] = useState('');
@@ -158,20 +159,23 @@ export function FieldsScreen() {
           <button data-testid="new-field" data-write="" onClick={() => navigate('/fields/new')}>
             Draw new field
           </button>
-          <label className="button" data-write="">
+          {/* a real button (keyboard reachable, unlike a label around a hidden input) */}
+          <button type="button" data-testid="import-button" data-write="" onClick={() => importRef.current?.click()}>
             Import…
-            <input
-              data-testid="import-file" data-write=""
-              type="file"
-              accept=".geojson,.json,.kml,.zip"
-              hidden
-              onChange={(e) => {
-                const f = e.target.files?.[0];
-                if (f) void onImport(f);
-                e.target.value = '';
-              }}
-            />
-          </label>
+          </button>
+          <input
+            ref={importRef}
+            data-testid="import-file"
+            data-write=""
+            type="file"
+            accept=".geojson,.json,.kml,.zip"
+            hidden
+            onChange={(e) => {
+              const f = e.target.files?.[0];
+              if (f) void onImport(f);
+              e.target.value = '';
+            }}
+          />
         </div>
         {farmId && (
           <div className="row">

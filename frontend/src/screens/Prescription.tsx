@@ -14,7 +14,7 @@ import {
 } from '../api/client';
 import { Histogram, Legend } from '../components/Legend';
 import { ErrorBox, Kv } from '../components/Status';
-import { classColors, histogram, legendEntries, niceBreaks, stepExpression } from '../lib/colors';
+import { classColors, classify, histogram, legendEntries, niceBreaks, stepExpression } from '../lib/colors';
 import { attentionLines, attentionOf, attentionSummary, flaggedConfirmation } from '../lib/flags';
 import { asGeoJSON, bboxOf, type PolygonGeom } from '../lib/geo';
 import { formatRate } from '../lib/units';
@@ -116,11 +116,13 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
     };
   }, [rx, version, rxId]);
 
-  // Flags of the version on screen (the prescription's summary is its current version's).
+  // The summary of the version on screen: the prescription's own is its current version's,
+  // another version's is fetched (figures, flags, legend and histogram all follow the choice).
+  const shown = verSummary ?? rx?.summary;
   const attention = attentionOf(verSummary ? { ...rx, summary: verSummary } : rx);
   // The server's summary covers every cell; loaded tiles are the fallback.
-  const lo = rx?.summary.rate_min_kg_ha ?? (rates.length ? minOf(rates) : undefined);
-  const hi = rx?.summary.rate_max_kg_ha ?? (rates.length ? maxOf(rates) : undefined);
+  const lo = shown?.rate_min_kg_ha ?? (rates.length ? minOf(rates) : undefined);
+  const hi = shown?.rate_max_kg_ha ?? (rates.length ? maxOf(rates) : undefined);
   const breaks = useMemo(() => niceBreaks(lo ?? 0, hi ?? 1000, CLASSES), [lo, hi]);
   const colors = useMemo(() => classColors(breaks.length - 1), [breaks]);
   const legend =
@@ -128,6 +130,19 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
       ? [{ color: colors[0], from: lo, to: lo, label: `${lo.toFixed(1)} (uniform)` }]
       : legendEntries(breaks, colors, (v) => v.toFixed(0));
   const colorExpr = useMemo(() => stepExpression('rate_kg_ha', breaks, colors), [breaks, colors]);
+  // Whole-field, area-weighted histogram of the version on screen, from the server's summary
+  // (never from the tiles on screen: those change with zoom and bin overview cells); each
+  // bar takes the legend colour of its middle rate.
+  const serverHist = useMemo(() => {
+    const h = shown?.histogram;
+    if (!h || !h.area_m2.length) return null;
+    const mids = h.edges_kg_ha.slice(0, -1).map((e, i) => (e + h.edges_kg_ha[i + 1]) / 2);
+    return {
+      counts: h.area_m2.map((a) => Math.round(a / 100) / 100),
+      colors: mids.map((m) => colors[classify(m, breaks)]),
+      labels: h.edges_kg_ha.slice(0, -1).map((e, i) => `${e.toFixed(0)}–${h.edges_kg_ha[i + 1].toFixed(0)} kg/ha`),
+    };
+  }, [shown, breaks, colors]);
 
   // (Re)load the tile source for the chosen version.
   useEffect(() => {
@@ -270,7 +285,7 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
         <Kv
           items={[
             ['Model', String(rx?.model ?? '–'), 'rx-model-name'],
-            ['Cells', String(rx?.summary.n_cells ?? (rates.length || '–')), 'rx-cell-count'],
+            ['Cells', String(shown?.n_cells ?? (rates.length || '–')), 'rx-cell-count'],
             ['Rate range', lo != null && hi != null ? `${formatRate(lo)} – ${formatRate(hi)}` : '–', 'rx-range'],
             ['Flagged cells', rx ? attentionSummary(attention) : '–', 'rx-flagged'],
           ]}
@@ -309,7 +324,17 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
           </select>
         </label>
         <Legend entries={legend} title="Rate (kg/ha)" testid="rx-legend" />
-        <Histogram counts={histogram(rates, breaks)} colors={colors} testid="rx-histogram" />
+        {serverHist ? (
+          <Histogram
+            counts={serverHist.counts}
+            colors={serverHist.colors}
+            unit="ha"
+            labels={serverHist.labels}
+            testid="rx-histogram"
+          />
+        ) : (
+          <Histogram counts={histogram(rates, breaks)} colors={colors} testid="rx-histogram" />
+        )}
 
         <h3>Edit</h3>
         {cell ? (
