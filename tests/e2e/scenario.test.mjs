@@ -395,9 +395,12 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
     const v2 = (await api(token, 'GET', `/prescriptions/${S.rxId}/versions/${afterV}`)).data.summary;
     await until(haBins(v2), 'the edited version\'s histogram (ha per bin, from the server)');
     const atZoom = await histOf();
-    await page.evaluate(() => window.__fieldrxMaps.rx.setZoom(window.__fieldrxMaps.rx.getZoom() + 4));
+    const zoom0 = await page.evaluate(() => window.__fieldrxMaps.rx.getZoom());
+    await page.evaluate((z) => window.__fieldrxMaps.rx.setZoom(z + 4), zoom0);
     await mapIdle(page, 'rx');
     assert.deepEqual(await histOf(), atZoom, 'the histogram does not change with zoom');
+    await page.evaluate((z) => window.__fieldrxMaps.rx.setZoom(z), zoom0);
+    await mapIdle(page, 'rx');
     const v1 = (await api(token, 'GET', `/prescriptions/${S.rxId}/versions/${before}`)).data.summary;
     await page.selectOption('[data-testid=rx-version]', before);
     await until(haBins(v1), 'version 1 on screen shows version 1\'s histogram');
