@@ -28,7 +28,7 @@ from fieldrx.api.schemas.prescriptions import (
     VersionList,
 )
 from fieldrx.api.schemas.tasks import QUEUED
-from fieldrx.auth.deps import SessionDep, UserDep, WriterDep
+from fieldrx.auth.deps import Principal, SessionDep, UserDep, WriterDep
 from fieldrx.db.models import Field as FieldRow
 from fieldrx.db.models import Machine, Plan, Prescription, PrescriptionVersion
 from fieldrx.formats import FormatError
@@ -55,6 +55,59 @@ def _plan_field(session: SessionDep, plan: Plan) -> FieldRow:
     return field
 
 
+def _body_machine(
+    session: SessionDep, body: PrescriptionIn, principal: Principal
+) -> Machine | None:
+    """The body's machine (its meter range and calibration), the organisation's own or 422."""
+    if body.machine_id is None:
+        return None
+    machine = session.get(Machine, body.machine_id)
+    if machine is None or machine.organisation_id != principal.organisation_id:
+        raise ApiError(422, f"machine {body.machine_id} not found", where="machine_id")
+    return machine
+
+
+def _store(
+    session: SessionDep,
+    plan: Plan,
+    field: FieldRow,
+    machine: Machine | None,
+    body: PrescriptionIn,
+    principal: Principal,
+    name: str,
+    errors: tuple[type[Exception], ...] = BAD_INPUT,
+    **extra: Any,
+) -> dict[str, Any]:
+    """Build and store version 1 from ``body`` (one transaction; bad input: 422, nothing
+    stored); ``extra`` goes to ``create_prescription`` (a cell source, its description)."""
+    try:
+        meter = svc.meter_spec(
+            machine, plan, body.speed_min_kmh, body.speed_max_kmh, body.width_m, body.calibration
+        )
+        rx = svc.create_prescription(
+            session,
+            plan,
+            field,
+            name=name,
+            product=body.product,
+            model=body.model,
+            params=body.params,
+            interpolation=body.interpolation,
+            interpolation_params=body.interpolation_params,
+            fallback_rate_kg_ha=body.fallback_rate_kg_ha,
+            meter=meter,
+            machine_id=body.machine_id,
+            user_id=principal.user_id,
+            organisation_id=principal.organisation_id,
+            **extra,
+        )
+    except errors as exc:
+        session.rollback()
+        raise ApiError(422, str(exc)) from exc
+    session.commit()
+    return svc.prescription_summary(session, rx)
+
+
 @router.post(
     "/plans/{plan_id:int}/prescriptions",
     status_code=201,
@@ -76,11 +129,7 @@ def create(
     queued instead (202 with the task; its ``result_url`` is the prescription)."""
     plan = get_scoped(session, Plan, plan_id, principal)
     field = _plan_field(session, plan)
-    machine = None
-    if body.machine_id is not None:
-        machine = session.get(Machine, body.machine_id)
-        if machine is None or machine.organisation_id != principal.organisation_id:
-            raise ApiError(422, f"machine {body.machine_id} not found", where="machine_id")
+    machine = _body_machine(session, body, principal)
     if background:
         from fieldrx.api.tasks import queue_task
 
@@ -90,31 +139,7 @@ def create(
             "prescription",
             {"plan_id": plan.id, "body": body.model_dump(mode="json")},
         )
-    try:
-        meter = svc.meter_spec(
-            machine, plan, body.speed_min_kmh, body.speed_max_kmh, body.width_m, body.calibration
-        )
-        rx = svc.create_prescription(
-            session,
-            plan,
-            field,
-            name=body.name,
-            product=body.product,
-            model=body.model,
-            params=body.params,
-            interpolation=body.interpolation,
-            interpolation_params=body.interpolation_params,
-            fallback_rate_kg_ha=body.fallback_rate_kg_ha,
-            meter=meter,
-            machine_id=body.machine_id,
-            user_id=principal.user_id,
-            organisation_id=principal.organisation_id,
-        )
-    except BAD_INPUT as exc:
-        session.rollback()
-        raise ApiError(422, str(exc)) from exc
-    session.commit()
-    return svc.prescription_summary(session, rx)
+    return _store(session, plan, field, machine, body, principal, name=body.name)
 
 
 @router.post("/plans/{plan_id:int}/zones", status_code=201, response_model=PrescriptionOut)
@@ -129,11 +154,7 @@ def create_soil_zones(
     zone table is in ``summary.interpolation.zones``."""
     plan = get_scoped(session, Plan, plan_id, principal)
     field = _plan_field(session, plan)
-    machine = None
-    if body.machine_id is not None:
-        machine = session.get(Machine, body.machine_id)
-        if machine is None or machine.organisation_id != principal.organisation_id:
-            raise ApiError(422, f"machine {body.machine_id} not found", where="machine_id")
+    machine = _body_machine(session, body, principal)
     try:
         source = svc.soil_zone_source(
             session,
@@ -144,39 +165,27 @@ def create_soil_zones(
             body.k,
             body.min_area_m2,
         )
-        meter = svc.meter_spec(
-            machine, plan, body.speed_min_kmh, body.speed_max_kmh, body.width_m, body.calibration
-        )
-        rx = svc.create_prescription(
-            session,
-            plan,
-            field,
-            name=body.name or f"{body.k} soil zones ({body.model}) on plan {plan.id}",
-            product=body.product,
-            model=body.model,
-            params=body.params,
-            interpolation=body.interpolation,
-            interpolation_params=body.interpolation_params,
-            fallback_rate_kg_ha=body.fallback_rate_kg_ha,
-            meter=meter,
-            machine_id=body.machine_id,
-            user_id=principal.user_id,
-            organisation_id=principal.organisation_id,
-            cell_source=source,
-            source={
-                "zones": {
-                    "from": "soil_samples",
-                    "k": body.k,
-                    "min_area_m2": body.min_area_m2,
-                    "classifier": "kmeans_1d",
-                }
-            },
-        )
-    except (*BAD_INPUT, ZoneError) as exc:
-        session.rollback()
+    except BAD_INPUT as exc:
         raise ApiError(422, str(exc)) from exc
-    session.commit()
-    return svc.prescription_summary(session, rx)
+    return _store(
+        session,
+        plan,
+        field,
+        machine,
+        body,
+        principal,
+        name=body.name or f"{body.k} soil zones ({body.model}) on plan {plan.id}",
+        errors=(*BAD_INPUT, ZoneError),
+        cell_source=source,
+        source={
+            "zones": {
+                "from": "soil_samples",
+                "k": body.k,
+                "min_area_m2": body.min_area_m2,
+                "classifier": "kmeans_1d",
+            }
+        },
+    )
 
 
 @router.get("/prescriptions", response_model=PrescriptionList)

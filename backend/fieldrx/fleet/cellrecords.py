@@ -36,11 +36,13 @@ from sqlalchemy.orm import Session
 
 from fieldrx.fleet import alerts as alert_rules
 from fieldrx.fleet.ingest import (
+    ACK_PAGE,
     FUTURE_TOLERANCE_S,
     INT8_MAX,
     PG_EPOCH,
     IngestError,
     IngestResult,
+    advance_over_stored,
     cell_progress,
 )
 
@@ -212,27 +214,18 @@ def ingest_cells(
 def _advance(
     cur: psycopg.Cursor[Any], machine_id: int, stream: str, acked: int, done: set[int]
 ) -> int:
-    """Highest contiguous seq stored (or rejected for good), from the stored ack."""
-    while acked + 1 in done:
-        acked += 1
-    while True:
+    """Highest contiguous seq stored (or rejected for good), from the stored ack
+    (``ingest.advance_over_stored``, the rule telemetry acks follow)."""
+
+    def stored_above(after: int) -> list[int]:
         cur.execute(
             "SELECT seq FROM job_cell_records WHERE machine_id = %s AND stream = %s AND seq > %s"
-            " ORDER BY seq LIMIT 2000",
-            (machine_id, stream, acked),
+            " ORDER BY seq LIMIT %s",
+            (machine_id, stream, after, ACK_PAGE),
         )
-        seqs = [r[0] for r in cur.fetchall()]
-        moved = False
-        for s in seqs:
-            if s == acked + 1:
-                acked = s
-                moved = True
-                while acked + 1 in done:
-                    acked += 1
-            elif s > acked + 1:
-                return acked
-        if not moved or len(seqs) < 2000:
-            return acked
+        return [r[0] for r in cur.fetchall()]
+
+    return advance_over_stored(stored_above, acked, done)
 
 
 def job_cell_totals(session: Session, job_id: int, machine_id: int) -> list[Any]:

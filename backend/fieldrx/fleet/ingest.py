@@ -46,7 +46,7 @@ import datetime as dt
 import json
 import operator
 import time
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
@@ -650,13 +650,31 @@ def _advance(
     if not us:  # nothing stored on the stream and nothing new: no seq above the ack
         return acked
     t0, t1 = _ts(min(us)), _ts(max(us))
-    while True:
+
+    def stored_above(after: int) -> list[int]:
         cur.execute(
             "SELECT seq FROM telemetry WHERE machine_id = %s AND stream = %s AND seq > %s"
-            " AND t BETWEEN %s AND %s ORDER BY seq LIMIT 2000",
-            (machine_id, stream, acked, t0, t1),
+            " AND t BETWEEN %s AND %s ORDER BY seq LIMIT %s",
+            (machine_id, stream, after, t0, t1, ACK_PAGE),
         )
-        seqs = [r[0] for r in cur.fetchall()]
+        return [r[0] for r in cur.fetchall()]
+
+    return advance_over_stored(stored_above, acked, done)
+
+
+ACK_PAGE = 2000  # stored seqs read per step while the ack walks over them
+
+
+def advance_over_stored(
+    stored_above: Callable[[int], list[int]], acked: int, done: set[int]
+) -> int:
+    """Move ``acked`` over the contiguous seqs that are stored (``stored_above(a)``: the
+    stream's stored seqs above ``a``, ascending, at most ``ACK_PAGE``) or in ``done``;
+    stop at the first gap. Shared by telemetry and the thin profile's cell records."""
+    while acked + 1 in done:
+        acked += 1
+    while True:
+        seqs = stored_above(acked)
         moved = False
         for s in seqs:
             if s == acked + 1:
@@ -666,7 +684,7 @@ def _advance(
                     acked += 1
             elif s > acked + 1:
                 return acked
-        if not moved or len(seqs) < 2000:
+        if not moved or len(seqs) < ACK_PAGE:
             return acked
 
 
