@@ -80,9 +80,7 @@ def job_report(
     return out
 
 
-@router.post(
-    "/jobs/{job_id:int}/raw-log/request", status_code=202, response_model=RawLogState
-)
+@router.post("/jobs/{job_id:int}/raw-log/request", status_code=202, response_model=RawLogState)
 def request_raw_log(job_id: int, principal: UserDep, session: SessionDep) -> dict[str, Any]:
     """Ask the job's tractor for its full 10 Hz log (a thin-profile job keeps it on board);
     it arrives with the agent's next ``upload-log`` and is then served by GET below."""
