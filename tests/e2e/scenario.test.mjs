@@ -112,6 +112,12 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
   });
 
   it('imports a GeoJSON field file', async () => {
+    // Subscribe to file choosers now, many round trips before the key press below:
+    // playwright-core drops a chooser that opens while its subscription is still being
+    // set up (the server adds the subscription only after Chromium confirms the
+    // interception), which is what made this step time out under CI load.
+    const keepChooserSubscribed = () => {};
+    page.on('filechooser', keepChooserSubscribed);
     const fc = (await api(token, 'GET', '/fields?limit=500')).data;
     const bb = fc.features.map((f) => f.bbox).filter(Boolean);
     const west = bb.length ? Math.min(...bb.map((b) => b[0])) - 0.02 : 112.29;
@@ -152,6 +158,7 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
     await page.focus('[data-testid=import-button]');
     assert.equal(await page.evaluate(() => document.activeElement?.getAttribute('data-testid')), 'import-button');
     const [chooser] = await Promise.all([page.waitForEvent('filechooser'), page.keyboard.press('Enter')]);
+    page.off('filechooser', keepChooserSubscribed);
     await chooser.setFiles(file);
     await page.waitForSelector('[data-testid=import-result]');
     await page.waitForFunction((n) => Number(document.querySelector('[data-testid=field-count]').textContent.replace(/\D/g, '')) > n, before);
