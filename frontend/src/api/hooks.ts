@@ -19,6 +19,7 @@
  * ```
  */
 import {
+  keepPreviousData,
   QueryClient,
   queryOptions,
   useMutation,
@@ -215,7 +216,8 @@ export const useFarms = (o?: HookOptions<Data<typeof queries.farms>>) => useQuer
 
 /** GET /fields with a filter (`{ q, farm_id, limit }`); each filter is its own cache entry. */
 export const useFields = (q: FieldsQuery = {}, o?: HookOptions<Data<typeof queries.fields>>) =>
-  useQuery({ ...queries.fields(q), ...poll(o) });
+  // a new filter keeps showing the previous list until its answer arrives (no empty flash)
+  useQuery({ ...queries.fields(q), ...poll(o), placeholderData: keepPreviousData });
 
 /** One field (undefined/NaN id = not fetched). */
 export const useField = (id: number | null | undefined, o?: HookOptions<Data<typeof queries.field>>) =>

@@ -27,8 +27,8 @@ export function ZoneDraw(props: {
   onReady?: (draw: TerraDraw) => void;
   /** Any feature changed (also while drawing). */
   onChange?: (draw: TerraDraw) => void;
-  /** A polygon was closed (or an edit finished): its id. */
-  onFinish?: (id: string | number, draw: TerraDraw) => void;
+  /** A polygon was closed (action 'draw') or an edit ended ('edit', 'deleteCoordinate', ...): its id. */
+  onFinish?: (id: string | number, draw: TerraDraw, context: { mode: string; action: string }) => void;
 }) {
   const map = useMap();
   const drawRef = useRef<TerraDraw | null>(null);
@@ -50,7 +50,7 @@ export function ZoneDraw(props: {
     draw.start();
     draw.setMode(cbs.current.mode);
     draw.on('change', () => cbs.current.onChange?.(draw));
-    draw.on('finish', (id) => cbs.current.onFinish?.(id, draw));
+    draw.on('finish', (id, context) => cbs.current.onFinish?.(id, draw, context));
     drawRef.current = draw;
     window.__fieldrxDraw = draw;
     cbs.current.onReady?.(draw);
