@@ -229,6 +229,19 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
     }
     const areaEdited = await page.textContent('[data-testid=draw-area]');
     assert.ok(parseFloat(areaEdited) > parseFloat(areaHoled), `dragging a vertex grows the area: ${areaHoled} -> ${areaEdited}`);
+    // Undo / redo (issue 15): the button and Ctrl+Z step back through the drag and the hole,
+    // Ctrl+Shift+Z and the button step forward again to the edited boundary.
+    const areaNow = () => page.textContent('[data-testid=draw-area]');
+    await page.click('[data-testid=draw-undo]');
+    assert.equal(await areaNow(), areaHoled, 'undo takes back the vertex drag');
+    await page.keyboard.press('Control+z');
+    assert.equal(await areaNow(), area, 'Ctrl+Z takes back the hole');
+    assert.equal(await page.locator('[data-testid=hole-count]').count(), 0, 'no hole after undo');
+    await page.keyboard.press('Control+Shift+z');
+    assert.equal(await areaNow(), areaHoled, 'Ctrl+Shift+Z puts the hole back');
+    await page.click('[data-testid=draw-redo]');
+    assert.equal(await areaNow(), areaEdited, 'redo puts the drag back');
+    assert.ok(await page.locator('[data-testid=draw-redo]').isDisabled(), 'nothing more to redo');
     S.fieldName = `E2E field ${Date.now()}`;
     await page.fill('[data-testid=field-name]', S.fieldName);
     await page.fill('[data-testid=field-crop]', 'winter oilseed rape');

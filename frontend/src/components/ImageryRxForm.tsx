@@ -1,5 +1,6 @@
-import { useEffect, useState } from 'react';
+import { useMemo, useState } from 'react';
 import { call, client, type Prescription } from '../api/client';
+import { useImagery } from '../api/hooks';
 import { imageryLabel, sortNewest, type ImageryItem } from '../lib/imagery';
 import { ErrorBox } from './Status';
 
@@ -9,22 +10,19 @@ import { ErrorBox } from './Status';
  */
 export function ImageryRxForm(props: { planId: number; fieldId: number; onCreated: (r: Prescription) => void }) {
   const { planId, fieldId, onCreated } = props;
-  const [items, setItems] = useState<ImageryItem[]>([]);
-  const [imageId, setImageId] = useState('');
+  // the same cached list as the map's imagery control: an upload there shows up here
+  const imagery = useImagery(fieldId);
+  const items = useMemo(
+    () => sortNewest(((imagery.data?.items ?? []) as ImageryItem[]).filter((i) => i.kind !== 'orthophoto')),
+    [imagery.data],
+  );
+  const [picked, setImageId] = useState('');
+  const imageId = picked || (items[0] ? String(items[0].id) : '');
   const [mode, setMode] = useState<'ndvi' | 'zones'>('ndvi');
   const [k, setK] = useState(4);
   const [minArea, setMinArea] = useState(0);
   const [busy, setBusy] = useState(false);
   const [error, setError] = useState<unknown>(null);
-  useEffect(() => {
-    call(client.GET('/api/v1/fields/{field_id}/imagery', { params: { path: { field_id: fieldId } } }))
-      .then((r) => {
-        const list = sortNewest((r?.items ?? []).filter((i) => i.kind !== 'orthophoto'));
-        setItems(list);
-        if (list[0]) setImageId(String(list[0].id));
-      })
-      .catch(() => setItems([]));
-  }, [fieldId]);
   if (!items.length) return null;
   return (
     <form

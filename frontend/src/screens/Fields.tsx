@@ -1,138 +1,56 @@
-import { useCallback, useEffect, useRef, useState } from 'react';
-import type * as maplibregl from 'maplibre-gl';
-import { ApiError, call, client, formBody, type Farm, type Schemas } from '../api/client';
+import { useRef, useState } from 'react';
+import { ApiError, call, client, formBody, type Schemas } from '../api/client';
+import { qk, useApiMutation, useFarms, useFields } from '../api/hooks';
 import { ErrorBox } from '../components/Status';
 import { TaskProgress } from '../components/TaskProgress';
 import type { TaskView } from '../lib/tasks';
-import { asGeoJSON, bboxOf } from '../lib/geo';
+import { bboxOf } from '../lib/geo';
+import { useDebounced } from '../lib/useDebounced';
 import { formatArea } from '../lib/units';
 import { MapView } from '../map/MapView';
-import { fitTo, setGeoJSON } from '../map/setup';
+import { FieldBoundary, FitBounds, Problems } from '../map/overlays';
 import { navigate } from '../router';
 type FieldCollection = Schemas['FieldCollection'];
 
 const EMPTY: FieldCollection = { type: 'FeatureCollection', features: [], total: 0, limit: 0, offset: 0 };
 
 export function FieldsScreen() {
-  const [farms, setFarms] = useState<Farm[]>([]);
   const [farmId, setFarmId] = useState<string>('');
   const [q, setQ] = useState('');
-  const [fields, setFields] = useState<FieldCollection>(EMPTY);
-  const [error, setError] = useState<unknown>(null);
-  const importRef = useRef<HTMLInputElement>(null);
-  const [importMsg, setImportMsg] = useState('');
   const [batch, setBatch] = useState<TaskView | null>(null);
   const [newFarm, setNewFarm] = useState('');
-  const mapRef = useRef<maplibregl.Map | null>(null);
-  const fitted = useRef(false);
-
-  const loadFarms = useCallback(async () => {
-    try {
-      setFarms((await call(client.GET('/api/v1/farms'))).items);
-    } catch (e) {
-      setError(e);
-    }
-  }, []);
-
-  const loadFields = useCallback(async () => {
-    const query = { limit: 500, q: q || undefined, farm_id: farmId ? Number(farmId) : undefined };
-    try {
-      setFields(await call(client.GET('/api/v1/fields', { params: { query } })));
-      setError(null);
-    } catch (e) {
-      setError(e);
-    }
-  }, [q, farmId]);
-
-  useEffect(() => {
-    void loadFarms();
-  }, [loadFarms]);
-  useEffect(() => {
-    const t = setTimeout(() => void loadFields(), 200);
-    return () => clearTimeout(t);
-  }, [loadFields]);
-
-  // An import refused with a location (e.g. a self-intersection) is marked on the map.
-  const problem = error instanceof ApiError ? error.parsed.location : undefined;
-  useEffect(() => {
-    const map = mapRef.current;
-    if (!map || !map.getSource('problems')) return;
-    setGeoJSON(map, 'problems', {
-      type: 'FeatureCollection',
-      features: problem ? [{ type: 'Feature', properties: {}, geometry: { type: 'Point', coordinates: problem } }] : [],
-    });
-    if (problem) map.jumpTo({ center: problem, zoom: Math.max(map.getZoom(), 15) });
-  }, [problem?.[0], problem?.[1]]); // eslint-disable-line react-hooks/exhaustive-deps
-
-  useEffect(() => {
-    const map = mapRef.current;
-    if (!map) return;
-    setGeoJSON(map, 'fields', asGeoJSON(fields));
-    if (!fitted.current || q || farmId) {
-      fitTo(map, bboxOf(fields));
-      if (fields.features.length) fitted.current = true;
-    }
-  }, [fields, q, farmId]);
-
-  const onReady = (map: maplibregl.Map) => {
-    mapRef.current = map;
-    setGeoJSON(map, 'fields', asGeoJSON(fields));
-    map.addLayer({
-      id: 'fields-fill',
-      type: 'fill',
-      source: 'fields',
-      paint: { 'fill-color': '#4c9a2a', 'fill-opacity': 0.35 },
-    });
-    map.addLayer({
-      id: 'fields-line',
-      type: 'line',
-      source: 'fields',
-      paint: { 'line-color': '#2d5e16', 'line-width': 2 },
-    });
-    setGeoJSON(map, 'problems', { type: 'FeatureCollection', features: [] });
-    map.addLayer({
-      id: 'problems',
-      type: 'circle',
-      source: 'problems',
-      paint: { 'circle-radius': 14, 'circle-color': 'rgba(215, 38, 61, 0.35)', 'circle-stroke-color': '#d7263d', 'circle-stroke-width': 3 },
-    });
-    map.on('click', 'fields-fill', (e) => {
-      const f = e.features?.[0];
-      const id = f?.properties?.id ?? f?.id;
-      if (id != null) navigate(`/fields/${id}`);
-    });
-    map.on('mouseenter', 'fields-fill', () => (map.getCanvas().style.cursor = 'pointer'));
-    map.on('mouseleave', 'fields-fill', () => (map.getCanvas().style.cursor = ''));
-    fitTo(map, bboxOf(fields));
-  };
+  const importRef = useRef<HTMLInputElement>(null);
+  const farmsQ = useFarms();
+  const farms = farmsQ.data?.items ?? [];
+  const query = { limit: 500, q: useDebounced(q, 200) || undefined, farm_id: farmId ? Number(farmId) : undefined };
+  const fieldsQ = useFields(query);
+  const fields = fieldsQ.data ?? EMPTY;
 
   /** One plan per field of the selected farm with the default parameters, in the
    * background (POST /plans/batch); the batch's progress shows below the button. */
-  const planFarm = async () => {
-    setError(null);
-    try {
-      setBatch(await call(client.POST('/api/v1/plans/batch', { body: { farm_id: Number(farmId), params: {} } })));
-    } catch (e) {
-      setError(e);
-    }
-  };
-
-  const onImport = async (file: File) => {
-    setImportMsg('');
-    setError(null);
-    const fd = new FormData();
-    fd.append('file', file);
-    const fid = farmId || (farms[0] ? String(farms[0].id) : '');
-    try {
+  const planFarm = useApiMutation(
+    (fid: number) => call(client.POST('/api/v1/plans/batch', { body: { farm_id: fid, params: {} } })),
+  );
+  const importFile = useApiMutation(
+    async (file: File) => {
+      const fd = new FormData();
+      fd.append('file', file);
+      const fid = farmId || (farms[0] ? String(farms[0].id) : '');
       const query = { farm_id: fid ? Number(fid) : undefined };
-      const r = await call(client.POST('/api/v1/fields/import', { params: { query }, ...formBody(fd) }));
-      const n = r.imported;
-      setImportMsg(`Imported ${n || 'the'} field${n === 1 ? '' : 's'} from ${file.name}`);
-      await loadFields();
-    } catch (e) {
-      setError(e);
-    }
-  };
+      return call(client.POST('/api/v1/fields/import', { params: { query }, ...formBody(fd) }));
+    },
+    { invalidate: () => [qk.fields()] },
+  );
+  const addFarm = useApiMutation((name: string) => call(client.POST('/api/v1/farms', { body: { name } })), {
+    invalidate: () => [qk.farms()],
+  });
+  const error = importFile.error ?? planFarm.error ?? addFarm.error ?? fieldsQ.error ?? farmsQ.error;
+  // An import refused with a location (e.g. a self-intersection) is marked on the map.
+  const problem = importFile.error instanceof ApiError ? importFile.error.parsed.location : undefined;
+  const imported = importFile.data?.imported;
+  const importMsg = importFile.isSuccess
+    ? `Imported ${imported || 'the'} field${imported === 1 ? '' : 's'} from ${importFile.variables.name}`
+    : '';
 
   const total = fields.total;
   return (
@@ -172,7 +90,7 @@ export function FieldsScreen() {
             hidden
             onChange={(e) => {
               const f = e.target.files?.[0];
-              if (f) void onImport(f);
+              if (f) importFile.mutate(f);
               e.target.value = '';
             }}
           />
@@ -183,7 +101,7 @@ export function FieldsScreen() {
               data-testid="plan-farm"
               data-write=""
               disabled={!!batch && batch.status !== 'succeeded'}
-              onClick={() => void planFarm()}
+              onClick={() => planFarm.mutate(Number(farmId), { onSuccess: setBatch })}
             >
               Plan every field of this farm
             </button>
@@ -224,15 +142,9 @@ export function FieldsScreen() {
           <summary>Farms</summary>
           <form
             className="row"
-            onSubmit={async (e) => {
+            onSubmit={(e) => {
               e.preventDefault();
-              try {
-                await call(client.POST('/api/v1/farms', { body: { name: newFarm } }));
-                setNewFarm('');
-                await loadFarms();
-              } catch (err) {
-                setError(err);
-              }
+              addFarm.mutate(newFarm, { onSuccess: () => setNewFarm('') });
             }}
           >
             <input
@@ -251,7 +163,11 @@ export function FieldsScreen() {
           </ul>
         </details>
       </aside>
-      <MapView name="fields" onReady={onReady} />
+      <MapView name="fields">
+        <FieldBoundary id="fields" data={fields} onClick={(id) => navigate(`/fields/${id}`)} />
+        <Problems points={[problem]} focus />
+        <FitBounds bbox={bboxOf(fields)} />
+      </MapView>
     </div>
   );
 }

@@ -1,5 +1,6 @@
-import { useCallback, useEffect, useState } from 'react';
-import { call, client, type Machine } from '../api/client';
+import { useState } from 'react';
+import { call, client, type Schemas } from '../api/client';
+import { qk, useApiMutation, useMachines } from '../api/hooks';
 import { ErrorBox } from '../components/Status';
 import {
   calibrationText,
@@ -20,22 +21,18 @@ const FIELDS: [keyof CalibrationForm, string, string][] = [
 
 /** Machine register: create implements with width, lag time and their measured metering calibration. */
 export function MachinesScreen() {
-  const [machines, setMachines] = useState<Machine[]>([]);
-  const [error, setError] = useState<unknown>(null);
+  const machinesQ = useMachines();
+  const machines = machinesQ.data?.items ?? [];
   const [name, setName] = useState('');
   const [width, setWidth] = useState('12');
   const [speedMin, setSpeedMin] = useState('3');
   const [speedMax, setSpeedMax] = useState('9');
   const [cal, setCal] = useState<CalibrationForm>(EMPTY_CALIBRATION);
   const [calErrors, setCalErrors] = useState<CalibrationErrors>({});
-  const load = useCallback(async () => {
-    try {
-      setMachines((await call(client.GET('/api/v1/machines'))).items);
-    } catch (e) {
-      setError(e);
-    }
-  }, []);
-  useEffect(() => void load(), [load]);
+  const create = useApiMutation((body: Schemas['MachineIn']) => call(client.POST('/api/v1/machines', { body })), {
+    invalidate: () => [qk.machines(), qk.machineStatus()],
+  });
+  const error = create.error ?? machinesQ.error;
   const checked = validateCalibration(cal);
   const w = Number(width);
   const range =
@@ -50,32 +47,26 @@ export function MachinesScreen() {
         className="card"
         data-testid="machine-form"
         noValidate
-        onSubmit={async (e) => {
+        onSubmit={(e) => {
           e.preventDefault();
-          setError(null);
           const r = validateCalibration(cal);
           setCalErrors(r.errors);
           if (!r.value) return;
-          try {
-            await call(
-              client.POST('/api/v1/machines', {
-                body: {
-                  name,
-                  implement_type: 'spreader',
-                  width_m: Number(width),
-                  lag_s: r.value.lag_s,
-                  calibration: r.value.calibration,
-                  speed_min_m_s: Number(speedMin) / 3.6,
-                  speed_max_m_s: Number(speedMax) / 3.6,
-                },
-              }),
-            );
-            setName('');
-            setCal(EMPTY_CALIBRATION);
-            await load();
-          } catch (err) {
-            setError(err);
-          }
+          const body = {
+            name,
+            implement_type: 'spreader',
+            width_m: Number(width),
+            lag_s: r.value.lag_s,
+            calibration: r.value.calibration,
+            speed_min_m_s: Number(speedMin) / 3.6,
+            speed_max_m_s: Number(speedMax) / 3.6,
+          };
+          create.mutate(body, {
+            onSuccess: () => {
+              setName('');
+              setCal(EMPTY_CALIBRATION);
+            },
+          });
         }}
       >
         <div className="row wrap">

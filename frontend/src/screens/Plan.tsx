@@ -1,69 +1,35 @@
-import { useEffect, useRef, useState } from 'react';
-import type * as maplibregl from 'maplibre-gl';
-import { call, client, type FieldFeature, type Plan, type Prescription, type Schemas } from '../api/client';
+import { call, client } from '../api/client';
+import { qk, useApiMutation, useField, useInvalidate, usePlan, usePlanPrescriptions, usePlanRoute } from '../api/hooks';
 import { ErrorBox, Kv } from '../components/Status';
-import { asGeoJSON, bboxOf } from '../lib/geo';
+import { bboxOf } from '../lib/geo';
 import { formatDistance, formatPercent } from '../lib/units';
 import { ImageryRxForm } from '../components/ImageryRxForm';
 import { SoilZonesForm } from '../components/SoilZonesForm';
 import { MapView } from '../map/MapView';
-import { addRouteLayers, planGridLayers, planTilesUrl, replaceVectorSource } from '../map/grid';
-import { fitTo, setGeoJSON } from '../map/setup';
+import { planTilesUrl } from '../map/grid';
+import { CellGrid, FieldBoundary, FitBounds, Track } from '../map/overlays';
 import { attentionOf, attentionSummary } from '../lib/flags';
 import { navigate } from '../router';
 import { RxForm } from './RxForm';
 
 /** A coverage plan: grid (vector tiles), path with direction arrows, stats; build prescriptions. */
 export function PlanScreen({ planId }: { planId: number }) {
-  const [plan, setPlan] = useState<Plan | null>(null);
-  const [route, setRoute] = useState<Schemas['RouteOut'] | null>(null);
-  const [field, setField] = useState<FieldFeature | null>(null);
-  const [rxs, setRxs] = useState<Prescription[]>([]);
-  const [error, setError] = useState<unknown>(null);
-  const mapRef = useRef<maplibregl.Map | null>(null);
-
-  useEffect(() => {
-    const path = { plan_id: planId };
-    call(client.GET('/api/v1/plans/{plan_id}', { params: { path } }))
-      .then((p) => {
-        setPlan(p);
-        call(client.GET('/api/v1/fields/{field_id}', { params: { path: { field_id: p.field_id } } }))
-          .then(setField)
-          .catch(() => undefined);
-      })
-      .catch(setError);
-    call(client.GET('/api/v1/plans/{plan_id}/route', { params: { path } }))
-      .then(setRoute)
-      .catch(() => undefined);
-    call(client.GET('/api/v1/plans/{plan_id}/prescriptions', { params: { path } }))
-      .then((r) => setRxs(r.items))
-      .catch(setError);
-  }, [planId]);
-
-  const [mapReady, setMapReady] = useState(false);
-  useEffect(() => {
-    const map = mapRef.current;
-    if (!map) return;
-    if (field) {
-      setGeoJSON(map, 'field', asGeoJSON(field));
-      fitTo(map, bboxOf(field));
-      // Grid tiles only once the view is on the field (no wasted low-zoom requests).
-      if (!map.getSource('grid')) {
-        replaceVectorSource(map, 'grid', planTilesUrl(planId), planGridLayers('grid'));
-        if (map.getLayer('route-line')) map.moveLayer('route-line');
-        if (map.getLayer('route-arrows')) map.moveLayer('route-arrows');
-      }
-    }
-    if (route) setGeoJSON(map, 'route', asGeoJSON(route));
-  }, [field, route, mapReady, planId]);
-
-  const onReady = (map: maplibregl.Map) => {
-    mapRef.current = map;
-    setGeoJSON(map, 'field', field ? asGeoJSON(field) : { type: 'FeatureCollection', features: [] });
-    map.addLayer({ id: 'field-line', type: 'line', source: 'field', paint: { 'line-color': '#2d5e16', 'line-width': 2 } });
-    setGeoJSON(map, 'route', route ? asGeoJSON(route) : { type: 'FeatureCollection', features: [] });
-    addRouteLayers(map, 'route');
-    setMapReady(true);
+  const planQ = usePlan(planId);
+  const plan = planQ.data;
+  const fieldQ = useField(plan?.field_id);
+  const field = fieldQ.data;
+  const route = usePlanRoute(planId).data;
+  const rxsQ = usePlanPrescriptions(planId);
+  const rxs = rxsQ.data?.items ?? [];
+  const del = useApiMutation(() => call(client.DELETE('/api/v1/plans/{plan_id}', { params: { path: { plan_id: planId } } })), {
+    invalidate: () => (plan ? [qk.fieldPlans(plan.field_id)] : []),
+  });
+  const error = planQ.error ?? rxsQ.error ?? del.error;
+  const invalidate = useInvalidate();
+  /** A new prescription: the plan's list is stale, then open it. */
+  const created = (r: { id: number }) => {
+    void invalidate(qk.planPrescriptions(planId));
+    navigate(`/prescriptions/${r.id}`);
   };
 
   const m = plan?.metrics;
@@ -92,14 +58,9 @@ export function PlanScreen({ planId }: { planId: number }) {
         )}
         <button
           className="danger"
-          onClick={async () => {
+          onClick={() => {
             if (!confirm('Delete this plan?')) return;
-            try {
-              await call(client.DELETE('/api/v1/plans/{plan_id}', { params: { path: { plan_id: planId } } }));
-              navigate(plan ? `/fields/${plan.field_id}` : '/fields');
-            } catch (e) {
-              setError(e);
-            }
+            del.mutate(undefined, { onSuccess: () => navigate(plan ? `/fields/${plan.field_id}` : '/fields') });
           }}
         >
           Delete plan
@@ -120,13 +81,19 @@ export function PlanScreen({ planId }: { planId: number }) {
             </li>
           ))}
         </ul>
-        <RxForm planId={planId} onCreated={(r) => navigate(`/prescriptions/${r.id}`)} />
+        <RxForm planId={planId} onCreated={created} />
         {field?.id !== undefined && (
-          <ImageryRxForm planId={planId} fieldId={field.id} onCreated={(r) => navigate(`/prescriptions/${r.id}`)} />
+          <ImageryRxForm planId={planId} fieldId={field.id} onCreated={created} />
         )}
-        <SoilZonesForm planId={planId} onCreated={(r) => navigate(`/prescriptions/${r.id}`)} />
+        <SoilZonesForm planId={planId} onCreated={created} />
       </aside>
-      <MapView name="plan" onReady={onReady} fieldId={field?.id} />
+      <MapView name="plan" fieldId={field?.id}>
+        {/* fit first: grid tiles only once the view is on the field (no wasted low-zoom requests) */}
+        <FitBounds bbox={bboxOf(field)} />
+        <FieldBoundary data={field} fill={false} />
+        {field && <CellGrid id="grid" tiles={planTilesUrl(planId)} />}
+        <Track id="route" data={route} arrows />
+      </MapView>
     </div>
   );
 }

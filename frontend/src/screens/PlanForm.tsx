@@ -1,5 +1,6 @@
 import { useState } from 'react';
 import { call, client, type Plan, type Schemas, inline } from '../api/client';
+import { qk, useApiMutation } from '../api/hooks';
 import { ErrorBox } from '../components/Status';
 
 /** Planning parameters (metres, degrees); the server validates and returns 422 with the field name. */
@@ -9,16 +10,17 @@ export function PlanForm({ fieldId, onCreated }: { fieldId: number; onCreated: (
   const [rule, setRule] = useState('longest_edge');
   const [heading, setHeading] = useState('0');
   const [headland, setHeadland] = useState('1');
-  const [error, setError] = useState<unknown>(null);
-  const [busy, setBusy] = useState(false);
+  const create = useApiMutation(
+    (body: Schemas['PlanIn']) =>
+      call(client.POST('/api/v1/fields/{field_id}/plans', { params: { path: { field_id: fieldId } }, body })).then(inline),
+    { invalidate: () => [qk.fieldPlans(fieldId)] },
+  );
   return (
     <form
       className="form"
       data-testid="plan-form" data-write=""
-      onSubmit={async (e) => {
+      onSubmit={(e) => {
         e.preventDefault();
-        setBusy(true);
-        setError(null);
         const body: Schemas['PlanIn'] = {
           swath_width_m: Number(swath),
           cell_length_m: Number(cell),
@@ -26,13 +28,7 @@ export function PlanForm({ fieldId, onCreated }: { fieldId: number; onCreated: (
           headland_passes: Number(headland),
           angle_deg: rule === 'angle' ? Number(heading) : undefined,
         };
-        try {
-          onCreated(inline(await call(client.POST('/api/v1/fields/{field_id}/plans', { params: { path: { field_id: fieldId } }, body }))));
-        } catch (err) {
-          setError(err);
-        } finally {
-          setBusy(false);
-        }
+        create.mutate(body, { onSuccess: onCreated });
       }}
     >
       <h4>New plan</h4>
@@ -69,10 +65,10 @@ export function PlanForm({ fieldId, onCreated }: { fieldId: number; onCreated: (
           onChange={(e) => setHeadland(e.target.value)}
         />
       </label>
-      <button data-testid="plan-submit" disabled={busy}>
-        {busy ? 'Planning…' : 'Plan coverage'}
+      <button data-testid="plan-submit" disabled={create.isPending}>
+        {create.isPending ? 'Planning…' : 'Plan coverage'}
       </button>
-      <ErrorBox error={error} testid="plan-error" />
+      <ErrorBox error={create.error} testid="plan-error" />
     </form>
   );
 }
