@@ -109,18 +109,21 @@ function PrescriptionJobReport({ jobId }: { jobId: number }) {
     if (src && tick > 1 && !(job && FINAL.has(job.state) && tick > 3)) src.setTiles([tilesUrl(jobId, tick)]);
   }, [tick]); // eslint-disable-line react-hooks/exhaustive-deps
 
+  const haveReport = report != null;
   useEffect(() => {
     if (!map || !field) return;
     setGeoJSON(map, 'field', asGeoJSON(field));
     fitTo(map, bboxOf(field));
-    // Cell tiles only once the view is on the field; below the field outline and the replay.
-    if (!map.getSource('job')) {
+    // Cell tiles only once the view is on the field and the report is known (a large job's
+    // tiles then read the report task's snapshot instead of computing the report again);
+    // below the field outline and the replay.
+    if (haveReport && !map.getSource('job')) {
       replaceVectorSource(map, 'job', tilesUrl(jobId, tick), [
         { id: 'job-fill', type: 'fill', source: 'job', 'source-layer': 'cells', paint: { 'fill-color': fill as never, 'fill-opacity': 0.85 } },
       ]);
       for (const l of ['field-line', 'trail', 'replay']) if (map.getLayer(l)) map.moveLayer(l);
     }
-  }, [field, map]); // eslint-disable-line react-hooks/exhaustive-deps
+  }, [field, map, haveReport]); // eslint-disable-line react-hooks/exhaustive-deps
 
   // Printing (the button or the browser's own menu): a still of the map goes on the page.
   useEffect(() => {
