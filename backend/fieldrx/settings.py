@@ -77,6 +77,20 @@ class Settings(BaseSettings):
     task_concurrency: int = Field(default=2, ge=1, alias="FIELDRX_TASK_CONCURRENCY")
     task_heartbeat_s: float = Field(default=10.0, gt=0, alias="FIELDRX_TASK_HEARTBEAT_S")
     task_stalled_after_s: float = Field(default=60.0, gt=0, alias="FIELDRX_TASK_STALLED_AFTER_S")
+    # Files tasks produce (exports, job-report snapshots; tasks.files) are deleted this long
+    # after they were written, checked by every task worker every task_result_purge_s.
+    task_result_retention_s: float = Field(
+        default=24 * 3600.0, gt=0, alias="FIELDRX_TASK_RESULT_RETENTION_S"
+    )
+    task_result_purge_s: float = Field(default=600.0, gt=0, alias="FIELDRX_TASK_RESULT_PURGE_S")
+    # a job report or as-applied export over this many records runs as a task (202) unless
+    # the request says background=false; a prescription export over this many cells too
+    report_background_records: int = Field(
+        default=50_000, ge=0, alias="FIELDRX_REPORT_BACKGROUND_RECORDS"
+    )
+    export_background_cells: int = Field(
+        default=100_000, ge=0, alias="FIELDRX_EXPORT_BACKGROUND_CELLS"
+    )
 
 
 @lru_cache

@@ -32,14 +32,74 @@ from fieldrx.db.models import (
     PrescriptionRate,
     PrescriptionVersion,
 )
+from fieldrx.db.models import Field as FieldRow
 from fieldrx.fleet.jobstate import change_state, notify_job
 from fieldrx.services import prescriptions as rx_svc
 
 router = APIRouter(prefix="/jobs", tags=["jobs"], responses=ERRORS)
 
 
-def job_out(job: Job, events: list[JobEvent] | None = None) -> JobOut:
+def job_context(session: SessionDep, jobs: list[Job]) -> dict[int, dict[str, Any]]:
+    """What a jobs list shows beside each job (machine and field names, product, when it
+    started and ended), in five queries for the whole page."""
+    if not jobs:
+        return {}
+    ids = [j.id for j in jobs]
+    rxs = {
+        r.id: (r.product, r.plan_id)
+        for r in session.execute(
+            select(Prescription.id, Prescription.product, Prescription.plan_id).where(
+                Prescription.id.in_({j.prescription_id for j in jobs if j.prescription_id})
+            )
+        )
+    }
+    plan_of = {j.id: j.plan_id or rxs.get(j.prescription_id or 0, (None, None))[1] for j in jobs}
+    fields_ = {
+        pid: (fid, name)
+        for pid, fid, name in session.execute(
+            select(Plan.id, FieldRow.id, FieldRow.name)
+            .join(FieldRow, FieldRow.id == Plan.field_id)
+            .where(Plan.id.in_({p for p in plan_of.values() if p}))
+        )
+    }
+    machines = dict(
+        session.execute(
+            select(Machine.id, Machine.name).where(Machine.id.in_({j.machine_id for j in jobs}))
+        ).all()
+    )
+    started = dict(
+        session.execute(
+            select(JobEvent.job_id, func.min(JobEvent.at))
+            .where(JobEvent.job_id.in_(ids), JobEvent.state == "running")
+            .group_by(JobEvent.job_id)
+        ).all()
+    )
+    ended = dict(
+        session.execute(
+            select(JobEvent.job_id, func.max(JobEvent.at))
+            .where(JobEvent.job_id.in_(ids), JobEvent.state.in_(("completed", "aborted")))
+            .group_by(JobEvent.job_id)
+        ).all()
+    )
+    out: dict[int, dict[str, Any]] = {}
+    for j in jobs:
+        fid, fname = fields_.get(plan_of[j.id] or 0, (None, None))
+        out[j.id] = {
+            "machine_name": machines.get(j.machine_id),
+            "field_id": fid,
+            "field_name": fname,
+            "product": rxs[j.prescription_id][0] if j.prescription_id in rxs else None,
+            "started_at": started.get(j.id),
+            "ended_at": ended.get(j.id),
+        }
+    return out
+
+
+def job_out(
+    job: Job, events: list[JobEvent] | None = None, context: dict[str, Any] | None = None
+) -> JobOut:
     return JobOut(
+        **(context or {}),
         id=job.id,
         name=job.name,
         state=job.state,
@@ -202,14 +262,16 @@ def list_jobs(
     if prescription_id is not None:
         stmt = stmt.where(Job.prescription_id == prescription_id)
     total = session.scalar(select(func.count()).select_from(stmt.subquery())) or 0
-    rows = session.scalars(stmt.order_by(Job.id.desc()).limit(limit).offset(offset))
-    return JobList(items=[job_out(j) for j in rows], total=total)
+    rows = list(session.scalars(stmt.order_by(Job.id.desc()).limit(limit).offset(offset)))
+    ctx = job_context(session, rows)
+    return JobList(items=[job_out(j, context=ctx[j.id]) for j in rows], total=total)
 
 
 @router.get("/{job_id:int}", response_model=JobOut)
 def get_job(job_id: int, principal: UserDep, session: SessionDep) -> JobOut:
+    """The job with its events, machine and field names, product, start and end."""
     job = get_scoped(session, Job, job_id, principal)
-    return job_out(job, _events(session, job.id))
+    return job_out(job, _events(session, job.id), job_context(session, [job])[job.id])
 
 
 @router.post("/{job_id:int}/state", response_model=JobOut)

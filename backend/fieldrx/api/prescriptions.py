@@ -289,12 +289,15 @@ def edit(rx_id: int, body: EditIn, principal: WriterDep, session: SessionDep) ->
 @router.get(
     "/prescriptions/{rx_id:int}/export",
     response_class=Response,
-    responses=file_response(
-        "the version as a file (Content-Disposition names it)",
-        "application/geo+json",
-        "text/csv",
-        "application/zip",
-    ),
+    responses={
+        **file_response(
+            "the version as a file (Content-Disposition names it)",
+            "application/geo+json",
+            "text/csv",
+            "application/zip",
+        ),
+        **QUEUED,
+    },
 )
 def export(
     rx_id: int,
@@ -305,6 +308,11 @@ def export(
     profile: Literal["cells", "deere", "fieldview", "raven", "agleader", "trimble"] = "cells",
     zone_classes: int | None = Query(default=None, ge=1, le=254),
     max_polygons: int | None = Query(default=None, ge=1, le=100_000),
+    background: bool | None = Query(
+        default=None,
+        description="true: write the file in a task (202 with it; its result_url downloads "
+        "it); false: inline; unset: a task above FIELDRX_EXPORT_BACKGROUND_CELLS cells",
+    ),
 ) -> Response:
     """One version as a file download (GeoJSON, Table 1 CSV, zipped Shapefile, TASKDATA.zip).
 
@@ -315,6 +323,19 @@ def export(
     """
     rx = get_scoped(session, Prescription, rx_id, principal)
     ver = _version(session, rx, version)
+    if background or (background is None and _large_export(session, rx)):
+        from fieldrx.api.tasks import queue_task
+
+        params = {
+            "source": "prescription",
+            "rx_id": rx.id,
+            "version": ver.version,
+            "format": format,
+            "profile": profile,
+            "zone_classes": zone_classes,
+            "max_polygons": max_polygons,
+        }
+        return queue_task(session, principal, "export", params)
     info: dict[str, Any] = {}
     try:
         data, media, filename = exports.export_version(
@@ -337,6 +358,13 @@ def export(
         headers["X-FieldRx-Export-Note"] = info["note"]
         headers["X-FieldRx-Zones"] = json.dumps(info["zones"], separators=(",", ":"))
     return Response(content=data, media_type=media, headers=headers)
+
+
+def _large_export(session: SessionDep, rx: Prescription) -> bool:
+    from fieldrx.settings import get_settings
+
+    plan = session.get(Plan, rx.plan_id)
+    return plan is not None and plan.n_cells > get_settings().export_background_cells
 
 
 @router.delete("/prescriptions/{rx_id:int}", status_code=204)

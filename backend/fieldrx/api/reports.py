@@ -9,9 +9,7 @@ telemetry, so the map colours a cell by the accuracy the side panel shows.
 
 from __future__ import annotations
 
-import csv
 import datetime as dt
-import io
 import json
 from dataclasses import asdict, fields
 from typing import Any, Literal
@@ -31,12 +29,25 @@ from fieldrx.api.schemas.reports import (
     KindReport,
     RawLogState,
 )
+from fieldrx.api.schemas.tasks import QUEUED
+from fieldrx.api.tasks import accepted, queue_task
 from fieldrx.auth.deps import SessionDep, UserDep
 from fieldrx.db.models import Field, Job, JobEvent, Prescription
 from fieldrx.fleet.partitions import job_window
-from fieldrx.fleet.reports import CellReport, JobReport, cached_report, job_plan
+from fieldrx.fleet.reports import (
+    CellReport,
+    JobReport,
+    cache_get,
+    cached_report,
+    job_plan,
+    key_records,
+    report_digest,
+    report_key,
+)
+from fieldrx.settings import get_settings
 from fieldrx.store import load_cells
 from fieldrx.store import tiles as cell_tiles
+from fieldrx.tasks.exports import open_report_task, stored_report
 
 router = APIRouter(tags=["reports"], responses=ERRORS)
 
@@ -44,7 +55,45 @@ router = APIRouter(tags=["reports"], responses=ERRORS)
 def _report(session: SessionDep, job_id: int, principal: Any) -> tuple[Job, JobReport]:
     job = get_scoped(session, Job, job_id, principal)
     _prescription_job(job)
-    return job, cached_report(session, job)
+    return job, _cached(session, job)
+
+
+def _cached(session: SessionDep, job: Job) -> JobReport:
+    """The job's report: this process's cache, a report task's stored snapshot, or built."""
+    org = job.organisation_id
+    return cached_report(session, job, lambda d: stored_report(session, org, job.id, d))
+
+
+BACKGROUND = Query(
+    default=None,
+    description="true: run as a task (202 with it) unless the answer is ready; false: "
+    "inline whatever the size; unset: a task when the job has more than "
+    "FIELDRX_REPORT_BACKGROUND_RECORDS records",
+)
+
+
+def _ready_or_cheap(session: SessionDep, job: Job, background: bool | None) -> bool:
+    """Answer inline? Yes when asked to, when the report is cached here or stored by a
+    report task, or (unless ``background=true``) when the job is small."""
+    if background is False:
+        return True
+    key = report_key(session, job)
+    if cache_get(session, job, key) is not None:
+        return True
+    if stored_report(session, job.organisation_id, job.id, report_digest(key)) is not None:
+        return True
+    return background is None and key_records(key) <= get_settings().report_background_records
+
+
+def _queue_report(session: SessionDep, principal: Any, job: Job) -> Any:
+    """202 with the job's report task: the open one for the same data, or a new one."""
+    from fieldrx.db.models import Task
+
+    digest = report_digest(report_key(session, job))
+    tid = open_report_task(session, job.organisation_id, job.id, digest)
+    if tid is not None:
+        return accepted(session, session.get(Task, tid))
+    return queue_task(session, principal, "report", {"job_id": job.id, "key": digest})
 
 
 def _prescription_job(job: Job) -> None:
@@ -58,21 +107,30 @@ def _prescription_job(job: Job) -> None:
         )
 
 
-@router.get("/jobs/{job_id:int}/report", response_model=AsAppliedReport | KindReport)
+@router.get(
+    "/jobs/{job_id:int}/report", response_model=AsAppliedReport | KindReport, responses=QUEUED
+)
 def job_report(
     job_id: int,
     principal: UserDep,
     session: SessionDep,
     cells: bool = Query(default=True, description="include the per-cell rows"),
-) -> dict[str, Any]:
+    background: bool | None = BACKGROUND,
+) -> Any:
     """Per-cell target vs applied rate and accuracy theta, coverage, totals, time worked.
     Sensor kinds get their own report (fieldrx.fleet.seed_reports: NDVI / depth maps and the
-    papers' Table 3)."""
+    papers' Table 3).
+
+    A large job's report is computed by a task worker (``background``): 202 with the
+    ``report`` task (asking again while it runs joins it); once it succeeded, this answers
+    200 from its stored snapshot, as do the job's tiles and exports."""
     job = get_scoped(session, Job, job_id, principal)
     if job.kind != "prescription_map":
         from fieldrx.fleet.seed_reports import kind_report
 
         return kind_report(session, job, cells=cells)
+    if not _ready_or_cheap(session, job, background):
+        return _queue_report(session, principal, job)
     _, rep = _report(session, job_id, principal)
     out = rep.summary()
     if cells:
@@ -203,56 +261,40 @@ def as_applied_cells(job_id: int, principal: UserDep, session: SessionDep) -> di
     return {"type": "FeatureCollection", "features": feats, "summary": rep.summary()}
 
 
-CSV_COLUMNS = (
-    "seq",
-    "swath",
-    "area_m2",
-    "target_rate_kg_ha",
-    "applied_rate_kg_ha",
-    "mean_applied_rate_kg_ha",
-    "m1_g",
-    "m2_g",
-    "accuracy_pct",
-    "n_records",
-)
-
-
 @router.get(
     "/jobs/{job_id:int}/export",
     response_class=Response,
-    responses=file_response(
-        "per-cell CSV, zipped Shapefile or TASKDATA.zip (Content-Disposition names it)",
-        "text/csv",
-        "application/zip",
-    ),
+    responses={
+        **file_response(
+            "per-cell CSV, zipped Shapefile or TASKDATA.zip (Content-Disposition names it)",
+            "text/csv",
+            "application/zip",
+        ),
+        **QUEUED,
+    },
 )
 def export_report(
     job_id: int,
     principal: UserDep,
     session: SessionDep,
     format: Literal["csv", "shapefile", "isoxml"] = "csv",  # noqa: A002
+    background: bool | None = BACKGROUND,
 ) -> Response:
     """Per-cell as-applied table as CSV; zipped Shapefile (cell polygons + record points);
-    ISO 11783-10 TASKDATA.zip with a TimeLog (``formats.asapplied``)."""
-    job, rep = _report(session, job_id, principal)
-    stem = f"job{job.id}_as_applied"
-    if format == "csv":
-        buf = io.StringIO()
-        w = csv.writer(buf, lineterminator="\n")
-        w.writerow(CSV_COLUMNS)
-        for c in rep.cells:
-            d = asdict(c)
-            w.writerow(
-                [
-                    "" if d[k] is None else (round(d[k], 6) if isinstance(d[k], float) else d[k])
-                    for k in CSV_COLUMNS
-                ]
-            )
-        return Response(
-            buf.getvalue(),
-            media_type="text/csv",
-            headers={"Content-Disposition": f'attachment; filename="{stem}.csv"'},
-        )
+    ISO 11783-10 TASKDATA.zip with a TimeLog (``formats.asapplied``).
+
+    A large job's export runs as an ``export`` task (``background``): 202 with the task,
+    whose ``result_url`` downloads the file once it succeeded (``GET /tasks/{id}/download``).
+    """
+    job = get_scoped(session, Job, job_id, principal)
+    _prescription_job(job)
+    if background or (
+        background is None
+        and key_records(report_key(session, job)) > get_settings().report_background_records
+    ):
+        params = {"source": "job", "job_id": job.id, "format": format}
+        return queue_task(session, principal, "export", params)
+    rep = _cached(session, job)
     from fieldrx.formats import FormatError
     from fieldrx.services.asapplied import export_job
 
@@ -281,7 +323,7 @@ def job_tile(
     job = get_scoped(session, Job, job_id, principal)
     _prescription_job(job)
     plan = job_plan(session, job)
-    cells = cached_report(session, job).cells  # the report's figures, not a second formula
+    cells = _cached(session, job).cells  # the report's figures, not a second formula
     data = cell_tiles.job_tile(
         session,
         plan.id,

@@ -4,7 +4,8 @@ A request that runs in the background (``?background=true`` on planning and
 prescriptions, large imagery uploads, and every batch) answers ``202 Accepted`` with the
 task (``Location: /api/v1/tasks/{id}``); poll ``GET /tasks/{id}`` for status, progress
 (0..1), message, ``result_url`` once it succeeded, ``error`` if it failed. Tasks are run
-by ``fieldrx worker`` processes (``fieldrx.tasks``).
+by ``fieldrx worker`` processes (``fieldrx.tasks``). An export task's file is downloaded
+from ``GET /tasks/{id}/download`` until its retention ends (``tasks.files``).
 """
 
 from __future__ import annotations
@@ -12,19 +13,21 @@ from __future__ import annotations
 from typing import Any, Literal
 
 from fastapi import APIRouter, Query
-from fastapi.responses import JSONResponse
+from fastapi.responses import JSONResponse, Response, StreamingResponse
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
 from fieldrx.api.common import ApiError, get_scoped
 from fieldrx.api.schemas.errors import ERRORS
+from fieldrx.api.schemas.files import file_response
 from fieldrx.api.schemas.tasks import MAX_BATCH, QUEUED, PlanBatchIn, TaskList, TaskOut
 from fieldrx.auth.deps import Principal, SessionDep, UserDep, WriterDep
 from fieldrx.db.models import Field as FieldRow
 from fieldrx.db.models import Task
+from fieldrx.db.session import get_engine
 from fieldrx.geo import PlanningError
 from fieldrx.services.plans import PlanParams, check_plan_cost
-from fieldrx.tasks import store
+from fieldrx.tasks import files, store
 
 router = APIRouter(tags=["tasks"], responses=ERRORS)
 
@@ -164,3 +167,43 @@ def cancel_task(task_id: int, principal: WriterDep, session: SessionDep) -> dict
     counts = store.request_cancel(session, row)
     session.commit()
     return {**store.task_view(session, row, with_children=False), **counts}
+
+
+@router.get(
+    "/tasks/{task_id:int}/download",
+    response_class=Response,
+    responses={
+        **file_response(
+            "the file the task produced (Content-Disposition names it)",
+            "text/csv",
+            "application/zip",
+            "application/geo+json",
+            "application/gzip",
+        ),
+        410: {"description": "the file was deleted after its retention: run the task again"},
+    },
+)
+def download(task_id: int, principal: UserDep, session: SessionDep) -> Response:
+    """The file a succeeded export (or report) task produced, streamed with its media type.
+    409 while the task has not succeeded; 410 once the file passed its retention
+    (``FIELDRX_TASK_RESULT_RETENTION_S``)."""
+    row = get_scoped(session, Task, task_id, principal)
+    if row.status != "succeeded":
+        raise ApiError(409, f"task {task_id} is {row.status}: there is no file to download yet")
+    meta = files.info(session, task_id)
+    if meta is None:
+        if row.kind in ("export", "report"):
+            raise ApiError(
+                410,
+                f"task {task_id}'s file was deleted after its retention; run the export again",
+            )
+        raise ApiError(404, f"task {task_id} ({row.kind}) produces no file; see its result_url")
+    session.close()  # the stream reads on its own short connections
+    return StreamingResponse(
+        files.iter_chunks(get_engine(), task_id, meta.size),
+        media_type=meta.media_type,
+        headers={
+            "Content-Disposition": f'attachment; filename="{meta.filename}"',
+            "Content-Length": str(meta.size),
+        },
+    )

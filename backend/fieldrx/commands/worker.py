@@ -3,7 +3,8 @@
 - ``ingest``: the MQTT telemetry ingest worker (MQTT 5 shared subscription; run several,
   they share the load), ``fleet.worker``;
 - ``tasks``: runs background tasks from the PostgreSQL queue (plans, prescriptions,
-  imagery ingest; run several on any hosts, they share the queue), ``fieldrx.tasks``.
+  imagery ingest, exports, job reports; run several on any hosts, they share the queue),
+  ``fieldrx.tasks``.
 
 ``--role tasks`` or ``--role ingest`` runs one of them (e.g. to scale them separately).
 SIGTERM/SIGINT stop both: ingest acknowledges what it stored, the task worker stops
@@ -112,6 +113,8 @@ async def _main(args: argparse.Namespace) -> None:
                     concurrency=args.concurrency or s.task_concurrency,
                     heartbeat_s=s.task_heartbeat_s,
                     stalled_after_s=s.task_stalled_after_s,
+                    result_retention_s=s.task_result_retention_s,
+                    result_purge_s=s.task_result_purge_s,
                 )
             )
         )

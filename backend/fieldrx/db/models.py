@@ -23,6 +23,7 @@ from sqlalchemy import (
     ForeignKey,
     Index,
     Integer,
+    LargeBinary,
     SmallInteger,
     String,
     Text,
@@ -623,7 +624,8 @@ class Task(Base):
     __tablename__ = "tasks"
     __table_args__ = (
         CheckConstraint(
-            "kind IN ('plan', 'prescription', 'imagery', 'plan_batch')", name="ck_tasks_kind"
+            "kind IN ('plan', 'prescription', 'imagery', 'plan_batch', 'export', 'report')",
+            name="ck_tasks_kind",
         ),
         CheckConstraint(
             "status IN ('queued', 'running', 'succeeded', 'failed', 'cancelled')",
@@ -654,3 +656,22 @@ class Task(Base):
     updated_at: Mapped[dt.datetime] = _now()
     started_at: Mapped[dt.datetime | None] = mapped_column(DateTime(timezone=True))
     finished_at: Mapped[dt.datetime | None] = mapped_column(DateTime(timezone=True))
+
+
+class TaskFile(Base):
+    """The file a task produced (revision 0015): an export to download, or a job report's
+    per-cell snapshot that API processes read instead of recomputing it. Written in the
+    transaction that marks the task succeeded (one file per task however often it runs);
+    deleted by workers after ``FIELDRX_TASK_RESULT_RETENTION_S`` (``tasks.files``)."""
+
+    __tablename__ = "task_files"
+    __table_args__ = (Index("ix_task_files_created", "created_at"),)
+    task_id: Mapped[int] = mapped_column(
+        BigInteger, ForeignKey("tasks.id", ondelete="CASCADE"), primary_key=True
+    )
+    organisation_id: Mapped[int] = mapped_column(ForeignKey("organisations.id", ondelete="CASCADE"))
+    filename: Mapped[str] = mapped_column(String(300))
+    media_type: Mapped[str] = mapped_column(String(100))
+    size: Mapped[int] = mapped_column(BigInteger)
+    data: Mapped[bytes] = mapped_column(LargeBinary)
+    created_at: Mapped[dt.datetime] = _now()

@@ -7,6 +7,10 @@ writing is ``formats.asapplied``.
 
 from __future__ import annotations
 
+import csv
+import io
+from dataclasses import asdict
+
 import numpy as np
 from geoalchemy2.shape import to_shape
 from sqlalchemy import select, text
@@ -73,9 +77,43 @@ def _cells(session: Session, rep: JobReport) -> list[CellRow]:
     ]
 
 
+CSV_COLUMNS = (
+    "seq",
+    "swath",
+    "area_m2",
+    "target_rate_kg_ha",
+    "applied_rate_kg_ha",
+    "mean_applied_rate_kg_ha",
+    "m1_g",
+    "m2_g",
+    "accuracy_pct",
+    "n_records",
+)
+JOB_FORMATS = ("csv", "shapefile", "isoxml")
+
+
+def cells_csv(rep: JobReport) -> bytes:
+    """The report's per-cell table as CSV (``CSV_COLUMNS``; empty = unknown)."""
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(CSV_COLUMNS)
+    for c in rep.cells:
+        d = asdict(c)
+        w.writerow(
+            [
+                "" if d[k] is None else (round(d[k], 6) if isinstance(d[k], float) else d[k])
+                for k in CSV_COLUMNS
+            ]
+        )
+    return buf.getvalue().encode()
+
+
 def export_job(session: Session, job: Job, rep: JobReport, fmt: str) -> tuple[bytes, str, str]:
-    """(bytes, media type, file name) of the as-applied ``shapefile`` or ``isoxml``."""
+    """(bytes, media type, file name) of the as-applied ``csv`` (per-cell table),
+    ``shapefile`` (cell polygons + record points, zipped) or ``isoxml`` (TASKDATA.zip)."""
     stem = f"job{job.id}_as_applied"
+    if fmt == "csv":
+        return cells_csv(rep), "text/csv", f"{stem}.csv"
     points = job_points(session, job)
     if fmt == "shapefile":
         return (

@@ -16,7 +16,9 @@ Modules:
   dispatches by kind;
 - ``work``: what each kind does, run in a child process with a time limit
   (``services.bounded``) and finished under the task's guard (below);
-- ``worker``: the worker loop and stalled-job recovery.
+- ``exports``: the export and job-report kinds; ``files``: the files they produce
+  (stored with the task's success, downloaded in slices, purged after a retention);
+- ``worker``: the worker loop, stalled-job recovery and the purge of old files.
 
 Exactly once: a killed worker's job runs again on another worker, and the killed
 worker's child may even still be finishing. Every kind therefore writes its result and
@@ -27,5 +29,5 @@ nothing. So a plan is stored once however often its job runs.
 
 from __future__ import annotations
 
-QUEUES = ("plan", "prescription", "imagery")  # one queue per kind of work
+QUEUES = ("plan", "prescription", "imagery", "export", "report")  # one queue per kind of work
 TASK_LOCK_NS = 7003  # advisory lock namespace (fleet.ingest 7001, fleet.alerts 7002, plans 7004)

@@ -27,6 +27,7 @@ RESULT_LINKS = {
     "plan": ("plan_id", "/plans/{}"),
     "prescription": ("prescription_id", "/prescriptions/{}"),
     "imagery": ("imagery_id", "/imagery/{}"),
+    "report": ("job_id", "/jobs/{}/report"),
 }
 
 
@@ -102,6 +103,8 @@ def create_batch(
 
 
 def result_url(kind: str, result: dict[str, Any] | None) -> str | None:
+    if kind == "export":
+        return None if not result else result.get("download_url")
     link = RESULT_LINKS.get(kind)
     if link is None or not result or result.get(link[0]) is None:
         return None

@@ -6,6 +6,8 @@ the kind's work and records a failure or a cancellation. The work itself:
 - ``plan`` and ``prescription`` run in a child process of ``services.bounded`` (the same
   forkserver, time limit and kill-on-cancel as the inline API), whose one transaction
   stores the result and completes the task under ``store.guard`` (exactly once);
+- ``export`` and ``report`` run in the worker thread (``tasks.exports``) and store their
+  file with the task's success (``tasks.files``);
 - ``imagery`` runs ``imagery.ingest.ingest`` (its own spawned converter with a time limit:
   GDAL state must not be forked) and records the row + completes the task in one
   transaction in the worker thread.
@@ -301,10 +303,24 @@ def _run_imagery(claimed: store.Claimed, should_stop: StopFn) -> dict[str, Any]:
         incoming.unlink(missing_ok=True)
 
 
+def _run_export(claimed: store.Claimed, should_stop: StopFn) -> dict[str, Any]:
+    from fieldrx.tasks.exports import run_export
+
+    return run_export(claimed, should_stop)
+
+
+def _run_report(claimed: store.Claimed, should_stop: StopFn) -> dict[str, Any]:
+    from fieldrx.tasks.exports import run_report
+
+    return run_report(claimed, should_stop)
+
+
 RUNNERS: dict[str, Callable[[store.Claimed, StopFn], dict[str, Any]]] = {
     "plan": _run_plan,
     "prescription": _run_prescription,
     "imagery": _run_imagery,
+    "export": _run_export,
+    "report": _run_report,
 }
 
 

@@ -13,6 +13,9 @@ dead worker had in fact finished is not done twice: ``fieldrx.tasks`` (exactly o
 The stalled threshold must exceed the heartbeat interval by a good margin (a busy worker
 whose heartbeat is late would otherwise lose its jobs to another worker; the guard still
 keeps the result single, but the work would be done twice).
+
+Every worker also deletes task files past their retention (``purge_results``,
+``tasks.files``); several doing so at once is harmless (a DELETE by age).
 """
 
 from __future__ import annotations
@@ -55,6 +58,22 @@ async def recover_stalled(app: App, stalled_after_s: float, interval_s: float) -
             )
 
 
+async def purge_results(retention_s: float, interval_s: float) -> None:
+    """Forever: delete task files older than ``retention_s``, every ``interval_s`` seconds
+    (first right away: a worker that starts after a long stop catches up)."""
+    from fieldrx.db.session import get_engine
+    from fieldrx.tasks.files import purge_expired
+
+    while True:
+        try:
+            n = await asyncio.to_thread(purge_expired, get_engine(), retention_s)
+            if n:
+                log.info("deleted %d task file(s) older than %g s", n, retention_s)
+        except Exception:  # a database hiccup: try again next round
+            log.warning("purging old task files failed; retrying", exc_info=True)
+        await asyncio.sleep(interval_s)
+
+
 async def run_task_worker(
     stop: asyncio.Event,
     *,
@@ -63,6 +82,8 @@ async def run_task_worker(
     heartbeat_s: float = 10.0,
     stalled_after_s: float = 60.0,
     name: str = "fieldrx-tasks",
+    result_retention_s: float = 24 * 3600.0,
+    result_purge_s: float = 600.0,
 ) -> None:
     """Run jobs until ``stop`` is set; then stop fetching and let running jobs finish."""
     app = get_app()
@@ -82,11 +103,15 @@ async def run_task_worker(
         recovery = asyncio.create_task(
             recover_stalled(app, stalled_after_s, heartbeat_s), name="stalled-recovery"
         )
+        purge = asyncio.create_task(
+            purge_results(result_retention_s, result_purge_s), name="result-purge"
+        )
         stopping = asyncio.create_task(stop.wait())
         await asyncio.wait({worker, stopping}, return_when=asyncio.FIRST_COMPLETED)
-        recovery.cancel()
-        with contextlib.suppress(asyncio.CancelledError):
-            await recovery
+        for side in (recovery, purge):
+            side.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await side
         if not worker.done():
             worker.cancel()  # procrastinate: stop fetching, wait for running jobs
         with contextlib.suppress(asyncio.CancelledError):

@@ -95,6 +95,11 @@ export function formBody(fd: FormData): { body: never; bodySerializer: () => For
 
 /** Fetches with the token and saves the response as a file (exports). */
 export async function download(path: string, fallbackName: string): Promise<string> {
+  const res = await fetchFile(path);
+  return saveFile(res, fallbackName);
+}
+
+async function fetchFile(path: string): Promise<Response> {
   const token = getToken();
   const res = await fetch(path.startsWith('/api') ? path : `${API}${path}`, {
     headers: token ? { Authorization: `Bearer ${token}` } : {},
@@ -109,6 +114,24 @@ export async function download(path: string, fallbackName: string): Promise<stri
     }
     throw new ApiError(res.status, parseApiError(body, res.status), body);
   }
+  return res;
+}
+
+/**
+ * An export that the server may queue (large jobs: 202 with an ``export`` task): the file is
+ * saved at once (``{ file }``), or the task is returned (``{ task }``) for the caller to
+ * follow; its ``result_url`` is then passed to ``download``.
+ */
+export async function downloadOrTask(
+  path: string,
+  fallbackName: string,
+): Promise<{ file: string } | { task: Schemas['TaskOut'] }> {
+  const res = await fetchFile(path);
+  if (res.status === 202) return { task: (await res.json()) as Schemas['TaskOut'] };
+  return { file: await saveFile(res, fallbackName) };
+}
+
+async function saveFile(res: Response, fallbackName: string): Promise<string> {
   const cd = res.headers.get('Content-Disposition') ?? '';
   const m = /filename\*?=(?:UTF-8'')?"?([^";]+)"?/i.exec(cd);
   const name = m ? decodeURIComponent(m[1]) : fallbackName;

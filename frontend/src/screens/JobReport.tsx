@@ -1,12 +1,16 @@
-import { useCallback, useEffect, useMemo, useRef, useState } from 'react';
+import { useCallback, useEffect, useMemo, useState } from 'react';
+import { flushSync } from 'react-dom';
 import type * as maplibregl from 'maplibre-gl';
-import { call, client, type FieldFeature, type Job, type Prescription, type Schemas } from '../api/client';
+import { call, client, type FieldFeature, type Job, type Prescription } from '../api/client';
+import { ExportButtons } from '../components/ExportButtons';
 import { Legend } from '../components/Legend';
+import { PrintReport, mapSnapshot } from '../components/PrintReport';
+import { ReportLoading, useJobReport, type AsAppliedReport } from '../components/ReportLoader';
 import { ErrorBox, Kv } from '../components/Status';
+import { TrackReplay } from '../components/TrackReplay';
 import { ACCURACY_BREAKS, RED_GREEN, classColors, legendEntries, niceBreaks, stepExpression } from '../lib/colors';
-import { asGeoJSON, bboxOf, bearingDeg } from '../lib/geo';
-import { normaliseTrack, type TrackPoint } from '../lib/track';
-import { formatArea, formatDuration, formatMass, formatPercent, formatRate } from '../lib/units';
+import { asGeoJSON, bboxOf } from '../lib/geo';
+import { formatArea, formatDuration, formatMass, formatPercent } from '../lib/units';
 import { MapView } from '../map/MapView';
 import { absoluteApiUrl, fitTo, setGeoJSON } from '../map/setup';
 import { replaceVectorSource } from '../map/grid';
@@ -15,9 +19,9 @@ import { KindReport } from './KindReport';
 type View = 'applied' | 'accuracy';
 const EMPTY: GeoJSON.FeatureCollection = { type: 'FeatureCollection', features: [] };
 const FINAL = new Set(['completed', 'aborted']);
-const MAX_POINTS = 200_000;
 
-/** As-applied map (job vector tiles), per-cell accuracy, totals, and a replay of the records. */
+/** As-applied map (job vector tiles), per-cell accuracy, totals, exports, a printable report
+ * and a paged replay of the records. */
 export function JobReport({ jobId }: { jobId: number }) {
   const [kindJob, setKindJob] = useState<Job | null | undefined>(undefined);
   useEffect(() => {
@@ -35,15 +39,12 @@ function PrescriptionJobReport({ jobId }: { jobId: number }) {
   const [job, setJob] = useState<Job | null>(null);
   const [rx, setRx] = useState<Prescription | null>(null);
   const [field, setField] = useState<FieldFeature | null>(null);
-  const [report, setReport] = useState<Schemas['AsAppliedReport'] | null>(null);
-  const [points, setPoints] = useState<TrackPoint[]>([]);
   const [view, setView] = useState<View>('applied');
-  const [tIdx, setTIdx] = useState(-1);
-  const [follow, setFollow] = useState(true);
   const [error, setError] = useState<unknown>(null);
   const [tick, setTick] = useState(0);
-  const mapRef = useRef<maplibregl.Map | null>(null);
-  const nextOffset = useRef(0);
+  const [map, setMap] = useState<maplibregl.Map | null>(null);
+  const [printImage, setPrintImage] = useState('');
+  const { report, task, refresh: refreshReport } = useJobReport(jobId);
 
   // Static context: job -> prescription (for the colour scale) -> plan -> field (to fit the map).
   useEffect(() => {
@@ -64,26 +65,13 @@ function PrescriptionJobReport({ jobId }: { jobId: number }) {
 
   const refresh = useCallback(async () => {
     try {
-      const path = { job_id: jobId };
-      const j = await call(client.GET('/api/v1/jobs/{job_id}', { params: { path } }));
-      setJob(j);
-      const rep = await call(client.GET('/api/v1/jobs/{job_id}/report', { params: { path, query: { cells: false } } }));
-      if (!('kind' in rep)) setReport(rep);
-      // New records since the last poll (the endpoint pages in time order).
-      for (let page = 0; page < 10 && nextOffset.current < MAX_POINTS; page++) {
-        const r = await call(
-          client.GET('/api/v1/jobs/{job_id}/as-applied', { params: { path, query: { limit: 20000, offset: nextOffset.current } } }),
-        );
-        const pts = normaliseTrack(r);
-        if (pts.length) setPoints((cur) => [...cur, ...pts]);
-        nextOffset.current += r.features.length;
-        if (!r.next_offset) break;
-      }
+      setJob(await call(client.GET('/api/v1/jobs/{job_id}', { params: { path: { job_id: jobId } } })));
+      await refreshReport();
       setTick((t) => t + 1);
     } catch (e) {
       setError(e);
     }
-  }, [jobId]);
+  }, [jobId, refreshReport]);
 
   useEffect(() => {
     void refresh();
@@ -93,10 +81,6 @@ function PrescriptionJobReport({ jobId }: { jobId: number }) {
     const t = setTimeout(() => void refresh(), 4000);
     return () => clearTimeout(t);
   }, [tick, job, refresh]);
-
-  useEffect(() => {
-    if (follow) setTIdx(points.length - 1);
-  }, [points.length, follow]);
 
   const lo = rx?.summary.rate_min_kg_ha ?? 0;
   const hi = rx?.summary.rate_max_kg_ha ?? 1000;
@@ -113,63 +97,52 @@ function PrescriptionJobReport({ jobId }: { jobId: number }) {
     view === 'applied'
       ? legendEntries(rateBreaks, rateColors, (v) => v.toFixed(0))
       : legendEntries(ACCURACY_BREAKS, accColors, (v) => `${v} %`);
+  const legendTitle = view === 'applied' ? 'Applied rate (kg/ha)' : 'Accuracy (100 % = target met)';
 
   useEffect(() => {
-    const map = mapRef.current;
     if (map?.getLayer('job-fill')) map.setPaintProperty('job-fill', 'fill-color', fill as never);
-  }, [fill]);
+  }, [fill, map]);
 
   // Reload tiles as records arrive (the server answers no-cache tiles).
   useEffect(() => {
-    const map = mapRef.current;
     const src = map?.getSource('job') as maplibregl.VectorTileSource | undefined;
     if (src && tick > 1 && !(job && FINAL.has(job.state) && tick > 3)) src.setTiles([tilesUrl(jobId, tick)]);
   }, [tick]); // eslint-disable-line react-hooks/exhaustive-deps
 
-  const [mapReady, setMapReady] = useState(false);
+  const haveReport = report != null;
   useEffect(() => {
-    const map = mapRef.current;
     if (!map || !field) return;
     setGeoJSON(map, 'field', asGeoJSON(field));
     fitTo(map, bboxOf(field));
-    // Cell tiles only once the view is on the field; below the field outline and the replay.
-    if (!map.getSource('job')) {
+    // Cell tiles only once the view is on the field and the report is known (a large job's
+    // tiles then read the report task's snapshot instead of computing the report again);
+    // below the field outline and the replay.
+    if (haveReport && !map.getSource('job')) {
       replaceVectorSource(map, 'job', tilesUrl(jobId, tick), [
         { id: 'job-fill', type: 'fill', source: 'job', 'source-layer': 'cells', paint: { 'fill-color': fill as never, 'fill-opacity': 0.85 } },
       ]);
       for (const l of ['field-line', 'trail', 'replay']) if (map.getLayer(l)) map.moveLayer(l);
     }
-  }, [field, mapReady]); // eslint-disable-line react-hooks/exhaustive-deps
+  }, [field, map, haveReport]); // eslint-disable-line react-hooks/exhaustive-deps
 
-  const cur = tIdx >= 0 ? points[tIdx] : undefined;
+  // Printing (the button or the browser's own menu): a still of the map goes on the page.
   useEffect(() => {
-    const map = mapRef.current;
-    if (!map) return;
-    const upto = points.slice(0, tIdx + 1).filter((p) => p.lon != null && p.lat != null);
-    setGeoJSON(map, 'trail', {
-      type: 'Feature',
-      properties: {},
-      geometry: { type: 'LineString', coordinates: upto.map((p) => [p.lon!, p.lat!]) },
-    });
-    const n = upto.length;
-    const heading = n > 1 ? bearingDeg([upto[n - 2].lon!, upto[n - 2].lat!], [upto[n - 1].lon!, upto[n - 1].lat!]) : 0;
-    setGeoJSON(
-      map,
-      'replay',
-      cur?.lon != null && cur.lat != null
-        ? { type: 'Feature', properties: { heading: cur.heading_deg ?? heading }, geometry: { type: 'Point', coordinates: [cur.lon, cur.lat] } }
-        : EMPTY,
-    );
-  }, [points, tIdx, cur]);
+    const before = () => setPrintImage(mapSnapshot(map));
+    window.addEventListener('beforeprint', before);
+    return () => window.removeEventListener('beforeprint', before);
+  }, [map]);
+  const print = () => {
+    flushSync(() => setPrintImage(mapSnapshot(map)));
+    window.print();
+  };
 
-  const onReady = (map: maplibregl.Map) => {
-    mapRef.current = map;
-    setGeoJSON(map, 'field', field ? asGeoJSON(field) : EMPTY);
-    map.addLayer({ id: 'field-line', type: 'line', source: 'field', paint: { 'line-color': '#222', 'line-width': 2 } });
-    setGeoJSON(map, 'trail', EMPTY);
-    map.addLayer({ id: 'trail', type: 'line', source: 'trail', paint: { 'line-color': '#111', 'line-width': 1.2, 'line-opacity': 0.55 } });
-    setGeoJSON(map, 'replay', EMPTY);
-    map.addLayer({
+  const onReady = (m: maplibregl.Map) => {
+    setGeoJSON(m, 'field', field ? asGeoJSON(field) : EMPTY);
+    m.addLayer({ id: 'field-line', type: 'line', source: 'field', paint: { 'line-color': '#222', 'line-width': 2 } });
+    setGeoJSON(m, 'trail', EMPTY);
+    m.addLayer({ id: 'trail', type: 'line', source: 'trail', paint: { 'line-color': '#111', 'line-width': 1.2, 'line-opacity': 0.55 } });
+    setGeoJSON(m, 'replay', EMPTY);
+    m.addLayer({
       id: 'replay',
       type: 'symbol',
       source: 'replay',
@@ -182,91 +155,83 @@ function PrescriptionJobReport({ jobId }: { jobId: number }) {
       },
       paint: { 'icon-color': '#d7263d', 'icon-halo-color': '#fff', 'icon-halo-width': 2 },
     });
-    setMapReady(true);
+    setMap(m);
   };
 
-  const r: Partial<Schemas['AsAppliedReport']> = report ?? {};
+  const r: Partial<AsAppliedReport> = report ?? {};
+  /** Before the first report: "…" (loading), not "–" or 0 that read as "nothing there". */
+  const v = (x: React.ReactNode | undefined | null): React.ReactNode => (report ? (x ?? '–') : '…');
   /** Prescribed cells nothing landed in (the job-end alert lists them too). */
-  const notApplied = (rep: Partial<Schemas['AsAppliedReport']>): string => {
+  const notApplied = (rep: Partial<AsAppliedReport>): string => {
     const seqs = rep.not_applied_seqs ?? [];
-    if (!seqs.length) return report ? 'none' : '–';
+    if (!seqs.length) return report ? 'none' : '…';
     const shown = seqs.slice(0, 30).join(', ');
     return `${seqs.length}: seq ${shown}${seqs.length > 30 ? ` and ${seqs.length - 30} more` : ''}`;
   };
   const cov = r.coverage_pct;
   const acc = r.mean_accuracy_pct;
   return (
-    <div className="split">
+    <div className="split report-page">
       <aside className="panel">
-        <p>
+        <p className="screen-only">
           <a href="#/jobs">← Jobs</a>
         </p>
         <h2>Job #{jobId} report</h2>
         <ErrorBox error={error} />
-        <Kv
-          items={[
-            ['State', job?.state ?? '–', 'report-state'],
-            ['Machine', job ? <a href={`#/machines/${job.machine_id}`}>#{job.machine_id}</a> : '–'],
-            [
-              'Prescription',
-              job ? <a href={`#/prescriptions/${job.prescription_id}`}>#{job.prescription_id} v{job.prescription_version}</a> : '–',
-            ],
-            [
-              'Flagged cells',
-              job?.flagged_cells ? `${String(job.flagged_cells)}${job.flagged_confirmed ? ' (sent on confirmation)' : ''}` : '–',
-              'report-flagged',
-            ],
-            ['Cells applied', `${r.cells_applied ?? '–'} / ${r.cells_planned ?? '–'}`, 'report-cells'],
-            ['Coverage', cov != null ? formatPercent(cov / 100) : '–', 'report-coverage'],
-            ['Planned', formatMass(r.planned_total_kg)],
-            ['Applied', formatMass(r.applied_total_kg), 'report-applied-kg'],
-            ['Outside cells', formatMass(r.applied_outside_cells_kg)],
-            ['Mean accuracy', acc != null ? `${acc.toFixed(1)} %` : '–', 'report-accuracy'],
-            ['Worst cell', r.min_accuracy_pct != null ? `${r.min_accuracy_pct.toFixed(1)} %` : '–'],
-            ['Time worked', formatDuration(r.time_worked_s)],
-            ['Records', String(r.n_records ?? points.length), 'report-records'],
-            ['Never applied', notApplied(r), 'report-not-applied'],
-            ['Field', field ? `${field.properties.name} (${formatArea(field.properties.area_m2)})` : '–'],
-          ]}
-        />
-        <div className="row" role="group">
+        {!report && <ReportLoading task={task} onDone={() => void refresh()} />}
+        <div aria-busy={!report}>
+          <Kv
+            items={[
+              ['State', job?.state ?? '–', 'report-state'],
+              ['Machine', job ? <a href={`#/machines/${job.machine_id}`}>{job.machine_name ?? `#${job.machine_id}`}</a> : '–', 'report-machine'],
+              [
+                'Prescription',
+                job ? <a href={`#/prescriptions/${job.prescription_id}`}>#{job.prescription_id} v{job.prescription_version}</a> : '–',
+              ],
+              ['Product', rx?.product || job?.product || '–', 'report-product'],
+              [
+                'Flagged cells',
+                job?.flagged_cells ? `${String(job.flagged_cells)}${job.flagged_confirmed ? ' (sent on confirmation)' : ''}` : '–',
+                'report-flagged',
+              ],
+              ['Cells applied', report ? `${r.cells_applied ?? '–'} / ${r.cells_planned ?? '–'}` : '…', 'report-cells'],
+              ['Coverage', v(cov != null ? formatPercent(cov / 100) : null), 'report-coverage'],
+              ['Planned', v(formatMass(r.planned_total_kg))],
+              ['Applied', v(formatMass(r.applied_total_kg)), 'report-applied-kg'],
+              ['Outside cells', v(formatMass(r.applied_outside_cells_kg))],
+              ['Mean accuracy', v(acc != null ? `${acc.toFixed(1)} %` : null), 'report-accuracy'],
+              ['Worst cell', v(r.min_accuracy_pct != null ? `${r.min_accuracy_pct.toFixed(1)} %` : null)],
+              ['Time worked', v(formatDuration(r.time_worked_s))],
+              ['Records', v(r.n_records != null ? String(r.n_records) : null), 'report-records'],
+              ['Never applied', notApplied(r), 'report-not-applied'],
+              ['Field', field ? `${field.properties.name} (${formatArea(field.properties.area_m2)})` : '–'],
+            ]}
+          />
+        </div>
+        <div className="row screen-only" role="group">
           <button data-testid="view-applied" className={view === 'applied' ? 'on' : ''} onClick={() => setView('applied')}>
             As applied
           </button>
           <button data-testid="view-accuracy" className={view === 'accuracy' ? 'on' : ''} onClick={() => setView('accuracy')}>
             Accuracy
           </button>
+          <button data-testid="report-print" onClick={print} disabled={!report}>
+            Print report
+          </button>
         </div>
-        <Legend
-          entries={legend}
-          title={view === 'applied' ? 'Applied rate (kg/ha)' : 'Accuracy (100 % = target met)'}
-          testid="report-legend"
+        <ExportButtons
+          path={`/jobs/${jobId}/export`}
+          formats={[
+            { format: 'csv', label: 'CSV', fallback: `job${jobId}_as_applied.csv` },
+            { format: 'shapefile', label: 'Shapefile', fallback: `job${jobId}_as_applied.zip` },
+            { format: 'isoxml', label: 'ISOXML', fallback: `job${jobId}_TASKDATA.zip` },
+          ]}
         />
-        <h3>Track replay</h3>
-        <input
-          data-testid="replay-slider"
-          type="range"
-          min={0}
-          max={Math.max(0, points.length - 1)}
-          value={Math.max(0, tIdx)}
-          disabled={points.length === 0}
-          onChange={(e) => {
-            const v = Number(e.target.value);
-            setFollow(v >= points.length - 1);
-            setTIdx(v);
-          }}
-          style={{ width: '100%' }}
-        />
-        <p className="muted small" data-testid="replay-time">
-          {cur
-            ? `${new Date(cur.t * 1000).toISOString().replace('T', ' ').slice(0, 19)} UTC · target ${formatRate(cur.target_rate_kg_ha)} · applied ${formatRate(cur.applied_rate_kg_ha)}`
-            : 'no records yet'}
-        </p>
-        <p className="muted small" data-testid="report-points">
-          {points.length} as-applied records
-        </p>
+        <Legend entries={legend} title={legendTitle} testid="report-legend" />
+        <TrackReplay jobId={jobId} map={map} tick={tick} />
       </aside>
       <MapView name="report" onReady={onReady} fieldId={field?.id} />
+      <PrintReport job={job} field={field} rx={rx} report={report} mapImage={printImage} legend={legend} legendTitle={legendTitle} />
     </div>
   );
 }

@@ -22,7 +22,16 @@ const ACTION: Record<string, string> = {
   aborted: 'abort',
 };
 
-/** Jobs with their states; send a prescription version to a machine. */
+/** "2026-05-04 07:12" (local time), or a dash. */
+function when(iso: string | null | undefined): string {
+  if (!iso) return '–';
+  const d = new Date(iso);
+  const p = (n: number) => String(n).padStart(2, '0');
+  return `${d.getFullYear()}-${p(d.getMonth() + 1)}-${p(d.getDate())} ${p(d.getHours())}:${p(d.getMinutes())}`;
+}
+
+/** Jobs with product, field, machine, when they ran and their states; send a prescription
+ * version to a machine. */
 export function JobsScreen() {
   const [jobs, setJobs] = useState<Job[]>([]);
   const [machines, setMachines] = useState<Machine[]>([]);
@@ -118,7 +127,11 @@ export function JobsScreen() {
           <tr>
             <th>Job</th>
             <th>Prescription / kind</th>
+            <th>Product</th>
+            <th>Field</th>
             <th>Machine</th>
+            <th>Started</th>
+            <th>Ended</th>
             <th>State</th>
             <th>Progress</th>
             <th>Flagged cells</th>
@@ -140,9 +153,15 @@ export function JobsScreen() {
                   </a>
                 )}
               </td>
-              <td>
-                <a href={`#/machines/${j.machine_id}`}>{mName(j.machine_id)}</a>
+              <td data-testid={`job-product-${j.id}`}>{j.product || '–'}</td>
+              <td data-testid={`job-field-${j.id}`}>
+                {j.field_id != null ? <a href={`#/fields/${j.field_id}`}>{j.field_name ?? `#${j.field_id}`}</a> : '–'}
               </td>
+              <td data-testid={`job-machine-${j.id}`}>
+                <a href={`#/machines/${j.machine_id}`}>{j.machine_name ?? mName(j.machine_id)}</a>
+              </td>
+              <td data-testid={`job-started-${j.id}`}>{when(j.started_at)}</td>
+              <td data-testid={`job-ended-${j.id}`}>{when(j.ended_at)}</td>
               <td>
                 <span className={`state state-${j.state}`} data-testid={`job-state-${j.id}`}>
                   {j.state}

@@ -1,4 +1,5 @@
 import { useEffect, useMemo, useRef, useState } from 'react';
+import { ReportLoading } from '../components/ReportLoader';
 import type * as maplibregl from 'maplibre-gl';
 import { call, client, type FieldFeature, type Job } from '../api/client';
 import { Legend } from '../components/Legend';
@@ -122,13 +123,14 @@ export function KindReport({ job }: { job: Job }) {
         </p>
         <h2>Job #{job.id} report</h2>
         <ErrorBox error={error} />
+        {!report && !error && <ReportLoading task={null} onDone={() => undefined} />}
         <Kv
           items={[
             ['Kind', KIND_LABELS[kind] ?? kind, 'report-kind'],
             ['State', job.state, 'report-state'],
-            ['Machine', <a href={`#/machines/${job.machine_id}`}>#{job.machine_id}</a>],
+            ['Machine', <a href={`#/machines/${job.machine_id}`}>{job.machine_name ?? `#${job.machine_id}`}</a>],
             ['Plan', <a href={`#/plans/${String(job.plan_id)}`}>#{String(job.plan_id)}</a>],
-            ['Records', String(r.n_records ?? '–'), 'report-records'],
+            ['Records', report ? String(r.n_records ?? '–') : '…', 'report-records'],
             ['Sensor held / stopped', `${alarms.sensor_fault ?? 0} / ${alarms.sensor_lost ?? 0} records`, 'report-sensor'],
             ...(kind === 'ndvi_topdress'
               ? ([['Mean shaft-speed error', `${f1(r.mean_relative_error_pct, 2)} % (paper 3.35 %)`, 'report-shaft-error']] as [string, string, string][])

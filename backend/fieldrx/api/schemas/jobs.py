@@ -74,6 +74,14 @@ class JobOut(Out):
     created_at: dt.datetime
     updated_at: dt.datetime
     events: list[EventOut] | None = None
+    machine_name: str | None = Field(default=None, description="the machine's name")
+    field_id: int | None = Field(default=None, description="the field the job works")
+    field_name: str | None = None
+    product: str | None = Field(
+        default=None, description="prescription_map jobs: the prescription's product"
+    )
+    started_at: dt.datetime | None = Field(default=None, description="first 'running' event")
+    ended_at: dt.datetime | None = Field(default=None, description="last completed/aborted event")
 
 
 class JobList(Out):

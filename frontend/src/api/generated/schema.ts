@@ -827,7 +827,10 @@ export interface paths {
             path?: never;
             cookie?: never;
         };
-        /** Get Job */
+        /**
+         * Get Job
+         * @description The job with its events, machine and field names, product, start and end.
+         */
         get: operations["get_job_api_v1_jobs__job_id__get"];
         put?: never;
         post?: never;
@@ -908,6 +911,9 @@ export interface paths {
          * Export Report
          * @description Per-cell as-applied table as CSV; zipped Shapefile (cell polygons + record points);
          *     ISO 11783-10 TASKDATA.zip with a TimeLog (``formats.asapplied``).
+         *
+         *     A large job's export runs as an ``export`` task (``background``): 202 with the task,
+         *     whose ``result_url`` downloads the file once it succeeded (``GET /tasks/{id}/download``).
          */
         get: operations["export_report_api_v1_jobs__job_id__export_get"];
         put?: never;
@@ -971,6 +977,10 @@ export interface paths {
          * @description Per-cell target vs applied rate and accuracy theta, coverage, totals, time worked.
          *     Sensor kinds get their own report (fieldrx.fleet.seed_reports: NDVI / depth maps and the
          *     papers' Table 3).
+         *
+         *     A large job's report is computed by a task worker (``background``): 202 with the
+         *     ``report`` task (asking again while it runs joins it); once it succeeded, this answers
+         *     200 from its stored snapshot, as do the job's tiles and exports.
          */
         get: operations["job_report_api_v1_jobs__job_id__report_get"];
         put?: never;
@@ -1516,6 +1526,28 @@ export interface paths {
          *     running one stops within about a second and stores nothing. 409 when it already ended.
          */
         post: operations["cancel_task_api_v1_tasks__task_id__cancel_post"];
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/api/v1/tasks/{task_id}/download": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        /**
+         * Download
+         * @description The file a succeeded export (or report) task produced, streamed with its media type.
+         *     409 while the task has not succeeded; 410 once the file passed its retention
+         *     (``FIELDRX_TASK_RESULT_RETENTION_S``).
+         */
+        get: operations["download_api_v1_tasks__task_id__download_get"];
+        put?: never;
+        post?: never;
         delete?: never;
         options?: never;
         head?: never;
@@ -2798,8 +2830,20 @@ export interface components {
             created_at: string;
             /** Created By */
             created_by: number | null;
+            /**
+             * Ended At
+             * @description last completed/aborted event
+             */
+            ended_at?: string | null;
             /** Events */
             events?: components["schemas"]["EventOut"][] | null;
+            /**
+             * Field Id
+             * @description the field the job works
+             */
+            field_id?: number | null;
+            /** Field Name */
+            field_name?: string | null;
             /**
              * Flagged Cells
              * @default 0
@@ -2819,6 +2863,11 @@ export interface components {
             kind?: string;
             /** Machine Id */
             machine_id: number;
+            /**
+             * Machine Name
+             * @description the machine's name
+             */
+            machine_name?: string | null;
             /** N Cells */
             n_cells: number;
             /** Name */
@@ -2831,12 +2880,22 @@ export interface components {
             prescription_id: number | null;
             /** Prescription Version */
             prescription_version: number | null;
+            /**
+             * Product
+             * @description prescription_map jobs: the prescription's product
+             */
+            product?: string | null;
             /** Progress */
             progress: number;
             /** Settings */
             settings?: {
                 [key: string]: unknown;
             };
+            /**
+             * Started At
+             * @description first 'running' event
+             */
+            started_at?: string | null;
             /** State */
             state: string;
             /**
@@ -9331,6 +9390,8 @@ export interface operations {
     export_report_api_v1_jobs__job_id__export_get: {
         parameters: {
             query?: {
+                /** @description true: run as a task (202 with it) unless the answer is ready; false: inline whatever the size; unset: a task when the job has more than FIELDRX_REPORT_BACKGROUND_RECORDS records */
+                background?: boolean | null;
                 format?: "csv" | "shapefile" | "isoxml";
             };
             header?: never;
@@ -9349,6 +9410,15 @@ export interface operations {
                 content: {
                     "application/zip": string;
                     "text/csv": string;
+                };
+            };
+            /** @description queued: poll the task's url */
+            202: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["TaskOut"];
                 };
             };
             /** @description missing, invalid, expired or revoked bearer token */
@@ -9589,6 +9659,8 @@ export interface operations {
     job_report_api_v1_jobs__job_id__report_get: {
         parameters: {
             query?: {
+                /** @description true: run as a task (202 with it) unless the answer is ready; false: inline whatever the size; unset: a task when the job has more than FIELDRX_REPORT_BACKGROUND_RECORDS records */
+                background?: boolean | null;
                 /** @description include the per-cell rows */
                 cells?: boolean;
             };
@@ -9607,6 +9679,15 @@ export interface operations {
                 };
                 content: {
                     "application/json": components["schemas"]["AsAppliedReport"] | components["schemas"]["KindReport"];
+                };
+            };
+            /** @description queued: poll the task's url */
+            202: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["TaskOut"];
                 };
             };
             /** @description missing, invalid, expired or revoked bearer token */
@@ -11930,6 +12011,8 @@ export interface operations {
     export_api_v1_prescriptions__rx_id__export_get: {
         parameters: {
             query?: {
+                /** @description true: write the file in a task (202 with it; its result_url downloads it); false: inline; unset: a task above FIELDRX_EXPORT_BACKGROUND_CELLS cells */
+                background?: boolean | null;
                 format?: "geojson" | "csv" | "shapefile" | "isoxml" | "isoxml-zones";
                 max_polygons?: number | null;
                 profile?: "cells" | "deere" | "fieldview" | "raven" | "agleader" | "trimble";
@@ -11953,6 +12036,15 @@ export interface operations {
                     "application/geo+json": Record<string, never>;
                     "application/zip": string;
                     "text/csv": string;
+                };
+            };
+            /** @description queued: poll the task's url */
+            202: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["TaskOut"];
                 };
             };
             /** @description missing, invalid, expired or revoked bearer token */
@@ -12421,6 +12513,101 @@ export interface operations {
                 content: {
                     "application/json": components["schemas"]["ErrorOut"];
                 };
+            };
+            /** @description request body or upload too large */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description invalid input: the message names the field, row or vertex */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description the database or the worker pool is busy or unreachable: retry (Retry-After) */
+            503: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+        };
+    };
+    download_api_v1_tasks__task_id__download_get: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                task_id: number;
+            };
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description the file the task produced (Content-Disposition names it) */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/geo+json": Record<string, never>;
+                    "application/gzip": string;
+                    "application/zip": string;
+                    "text/csv": string;
+                };
+            };
+            /** @description missing, invalid, expired or revoked bearer token */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description the token may not do this (a viewer writing, a device token on a user endpoint); the message names the role needed */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description no such resource in the caller's organisation */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description conflicts with stored state (a job state transition, evidence that must be kept) */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description the file was deleted after its retention: run the task again */
+            410: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content?: never;
             };
             /** @description request body or upload too large */
             413: {
