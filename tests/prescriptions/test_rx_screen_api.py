@@ -290,3 +290,26 @@ def test_legend_classes_editable_per_version(client, org) -> None:
     assert again["summary"]["classes"]["breaks_kg_ha"] == [700, 720, 740]  # unchanged by the 422
     r = client.patch(f"{API}/prescriptions/{rid}/versions/1", headers=h, json={"class_count": 3})
     assert len(r.json()["summary"]["classes"]["breaks_kg_ha"]) == 4
+
+
+def test_edit_is_based_on_the_version_on_screen(client, org) -> None:
+    """Editing v1 while v2 is current makes v3 from v1's rates (not v2's)."""
+    h = org.headers()
+    plan = setup_plan(client, h)
+    rid = make_rx(client, h, plan["id"], model="uniform", params={"rate_kg_ha": 300})["id"]
+    url = f"{API}/prescriptions/{rid}/edits"
+    r = client.post(url, headers=h, json={"cells": [{"seq": 0, "rate_kg_ha": 500}]})
+    assert r.json()["new_version"] == 2
+    r = client.post(
+        url, headers=h, json={"cells": [{"seq": 1, "rate_kg_ha": 400}], "based_on_version": 1}
+    )
+    assert r.status_code == 201, r.text
+    assert r.json()["new_version"] == 3 and r.json()["summary"]["based_on_version"] == 1
+    v3 = {
+        c["properties"]["seq"]: c["properties"]["rate_kg_ha"] for c in all_cells(client, h, rid, 3)
+    }
+    assert (v3[0], v3[1]) == (300, 400)
+    r = client.post(
+        url, headers=h, json={"cells": [{"seq": 1, "rate_kg_ha": 400}], "based_on_version": 8}
+    )
+    assert r.status_code == 404 and "no version 8" in r.json()["detail"]

@@ -326,7 +326,11 @@ def edit(rx_id: int, body: EditIn, principal: WriterDep, session: SessionDep) ->
             zone_rate_kg_ha=body.rate_kg_ha,
             note=body.note,
             user_id=principal.user_id,
+            based_on=body.based_on_version,
         )
+    except LookupError as exc:
+        session.rollback()
+        raise ApiError(404, str(exc), where="based_on_version") from exc
     except BAD_INPUT as exc:
         session.rollback()
         raise ApiError(422, str(exc)) from exc

@@ -605,11 +605,13 @@ def edit_prescription(
     zone_rate_kg_ha: float | None,
     note: str,
     user_id: int | None,
+    based_on: int | None = None,
 ) -> tuple[PrescriptionVersion, int]:
-    """Make version n+1 from the current version n (n is left as it is)."""
+    """Make the next version from version ``based_on`` (default the current one; the
+    version on the user's screen), which is left as it is."""
     from shapely.geometry import shape
 
-    base = get_version(session, rx, None)
+    base = get_version(session, rx, based_on)
     seq, rates, flags, src = load_rates(session, base.id)
     meter = _meter_of(rx)
     if cells is not None:

@@ -72,6 +72,9 @@ class EditIn(In):
     zone: Geometry | None = Field(default=None, description="GeoJSON Polygon (lon/lat)")
     rate_kg_ha: float | None = Field(default=None, ge=0, description="rate of the zone")
     note: str = Field(default="", max_length=2000)
+    based_on_version: int | None = Field(
+        default=None, ge=1, description="the version edited (default: the current one)"
+    )
 
     @model_validator(mode="after")
     def _one_kind(self) -> EditIn:

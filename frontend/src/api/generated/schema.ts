@@ -2378,6 +2378,11 @@ export interface components {
         };
         /** EditIn */
         EditIn: {
+            /**
+             * Based On Version
+             * @description the version edited (default: the current one)
+             */
+            based_on_version?: number | null;
             /** Cells */
             cells?: components["schemas"]["CellEdit"][] | null;
             /**
