@@ -93,7 +93,11 @@ export function SoilZonesForm(props: { planId: number; onCreated: (r: Prescripti
         <RxModelFields
           model={model}
           fields={fields}
-          setFields={setFields}
+          setFields={(f) => {
+            setFields(f);
+            // an edited value is checked again on submit: its old error goes now
+            if (Object.keys(err.fields).length) setErr({ api: err.api, fields: {} });
+          }}
           errors={err.fields}
           crops={cat.crops}
           products={cat.products}
