@@ -26,7 +26,6 @@ export function ZonesTable(props: {
     setCount(String((classes?.breaks_kg_ha.length ?? 7) - 1));
     setBreaks((classes?.breaks_kg_ha ?? []).join(', '));
   }, [classes]);
-  if (!classes) return null;
   const save = async (body: Schemas['VersionPatch']) => {
     setBusy(true);
     setError(null);
@@ -40,6 +39,16 @@ export function ZonesTable(props: {
       setBusy(false);
     }
   };
+  if (!classes)
+    return (
+      <div className="small muted" data-testid="rx-zones">
+        No classes stored with this version (made before classes were kept).{' '}
+        <button type="button" className="link" data-write="" onClick={() => void save({ class_count: 6 })}>
+          Store 6 equal classes
+        </button>
+        <ErrorBox error={error} testid="rx-classes-error" />
+      </div>
+    );
   const totals = classes.table.reduce((a, r) => ({ ha: a.ha + r.area_ha, t: a.t + r.product_t }), { ha: 0, t: 0 });
   return (
     <div data-testid="rx-zones">

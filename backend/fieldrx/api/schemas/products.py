@@ -14,7 +14,7 @@ class ProductIn(In):
     n_pct: float = Field(ge=0, le=100, description="N mass fraction in %")
     p2o5_pct: float = Field(default=0.0, ge=0, le=100, description="P2O5 in %")
     k2o_pct: float = Field(default=0.0, ge=0, le=100, description="K2O in %")
-    price_per_t: float | None = Field(default=None, ge=0, description="price per tonne")
+    price_per_t: float | None = Field(default=None, ge=0, le=1e9, description="price per tonne")
 
     @model_validator(mode="after")
     def _sum(self) -> ProductIn:
