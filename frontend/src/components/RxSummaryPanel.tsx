@@ -1,19 +1,9 @@
 import type { Schemas } from '../api/client';
-import { formatProduct } from '../lib/rxform';
+import { formatProduct, outsideMeter } from '../lib/rxform';
 import { formatRate } from '../lib/units';
 import { Kv } from './Status';
 
 type Summary = Schemas['RxSummary'];
-
-/** [lo, hi] of what a machine meters; rates outside it (0 = off is always fine). */
-export function outsideMeter(s: Pick<Summary, 'rate_min_kg_ha' | 'rate_max_kg_ha'>, lo: number, hi: number): string | null {
-  const min = s.rate_min_kg_ha;
-  const max = s.rate_max_kg_ha;
-  const parts: string[] = [];
-  if (min != null && min > 0 && min < lo) parts.push(`lowest rate ${formatRate(min)} is below ${formatRate(lo)}`);
-  if (max != null && max > hi) parts.push(`highest rate ${formatRate(max)} is above ${formatRate(hi)}`);
-  return parts.length ? parts.join('; ') : null;
-}
 
 /**
  * The whole-field figures of the version on screen (server summary, every cell): area,

@@ -3,9 +3,9 @@ import { ApiError, call, client, type Schemas } from '../api/client';
 import { useMachines } from '../api/hooks';
 import { meterableRange, type LinearCalibration } from '../lib/calibration';
 import { flaggedConfirmation } from '../lib/flags';
+import { outsideMeter } from '../lib/rxform';
 import { formatRate } from '../lib/units';
 import { navigate } from '../router';
-import { outsideMeter } from './RxSummaryPanel';
 import { ErrorBox } from './Status';
 
 /**

@@ -4,6 +4,7 @@
  * the agronomist's min / max clamp. Pure: turns the fields into a PrescriptionIn body.
  */
 import type { Schemas } from '../api/client';
+import { formatRate } from './units';
 
 export type Crop = Schemas['CropOut'];
 export type Product = Schemas['ProductOut'];
@@ -122,4 +123,14 @@ export function productText(p: Product): string {
 export function formatProduct(kg: number | null | undefined): string {
   if (kg == null || !Number.isFinite(kg)) return '–';
   return Math.abs(kg) >= 10_000 ? `${(kg / 1000).toFixed(3)} t` : `${kg.toFixed(1)} kg`;
+}
+
+/** [lo, hi] of what a machine meters; rates outside it (0 = off is always fine). */
+export function outsideMeter(s: { rate_min_kg_ha?: number | null; rate_max_kg_ha?: number | null }, lo: number, hi: number): string | null {
+  const min = s.rate_min_kg_ha;
+  const max = s.rate_max_kg_ha;
+  const parts: string[] = [];
+  if (min != null && min > 0 && min < lo) parts.push(`lowest rate ${formatRate(min)} is below ${formatRate(lo)}`);
+  if (max != null && max > hi) parts.push(`highest rate ${formatRate(max)} is above ${formatRate(hi)}`);
+  return parts.length ? parts.join('; ') : null;
 }
