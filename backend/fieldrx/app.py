@@ -36,6 +36,7 @@ ROUTERS = (
     "imagery",
     "soil",
     "prescriptions",
+    "products",
     "jobs",
     "device",
     "telemetry",

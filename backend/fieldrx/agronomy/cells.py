@@ -21,6 +21,8 @@ FLAG_BITS: dict[str, int] = {
     "above_meter_range": 4,  # rate lowered to the highest meterable rate
     "manual": 8,  # rate set by a per-cell edit
     "zone": 16,  # rate set by zone painting
+    "clamped_min": 32,  # model rate raised to the agronomist's minimum (reported)
+    "clamped_max": 64,  # model rate lowered to the agronomist's maximum (reported)
 }
 
 

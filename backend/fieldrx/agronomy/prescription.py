@@ -42,6 +42,7 @@ class Prescription:
     meter_range_kg_ha: tuple[float, float] | None = None
     fallback_rate_kg_ha: float | None = None
     info: dict[str, Any] = field(default_factory=dict)
+    clamp: dict[str, Any] | None = None
 
     def summary(
         self, area_m2: np.ndarray, bins: int = 10, seq: np.ndarray | None = None
@@ -53,6 +54,8 @@ class Prescription:
             None if self.meter_range_kg_ha is None else list(self.meter_range_kg_ha)
         )
         out["fallback_rate_kg_ha"] = self.fallback_rate_kg_ha
+        if self.clamp is not None:
+            out["clamp"] = self.clamp
         out.update({k: v for k, v in self.info.items() if k not in out})
         return out
 
@@ -79,13 +82,17 @@ def build_prescription(
     meter: MeterCheck | None = None,
     fallback_rate_kg_ha: float | None = None,
     area_m2: np.ndarray | None = None,
+    clamp_min_kg_ha: float | None = None,
+    clamp_max_kg_ha: float | None = None,
+    seq: np.ndarray | None = None,
 ) -> Prescription:
     """Rates from per-cell values (NaN / ``no_data`` = no data).
 
     Cells without data get ``fallback_rate_kg_ha``, or when None the model's
     rate at the area-weighted mean of the cells that have data; they are
-    flagged ``no_data``. Then every rate is checked against the meter range
-    (kept as computed and flagged, see ``rates.check_meter_range``).
+    flagged ``no_data``. Then the agronomist's clamp (``clamp_rates``: every
+    changed cell flagged and counted) and the meter range check (kept as
+    computed and flagged, see ``rates.check_meter_range``).
     """
     params = dict(params)
     if model == "uniform":
@@ -112,8 +119,54 @@ def build_prescription(
             raise PrescriptionError(f"fallback_rate_kg_ha must be >= 0, got {fb!r}")
         raw = np.where(nd, fb, raw)
         flags = np.where(nd, FLAG_BITS["no_data"], 0).astype(np.uint16)
+    clamp = None
+    if clamp_min_kg_ha is not None or clamp_max_kg_ha is not None:
+        raw, flags, clamp = clamp_rates(raw, flags, clamp_min_kg_ha, clamp_max_kg_ha, area_m2, seq)
     rates, flags, rng = _finalise(raw, flags, meter)
-    return Prescription(rates, flags, model, params, rng, fb)
+    return Prescription(rates, flags, model, params, rng, fb, clamp=clamp)
+
+
+def clamp_rates(
+    rate_kg_ha: np.ndarray,
+    flags: np.ndarray,
+    lo: float | None,
+    hi: float | None,
+    area_m2: np.ndarray | None = None,
+    seq: np.ndarray | None = None,
+    max_listed: int = 1000,
+) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
+    """The agronomist's min / max rate applied to model rates, never silently.
+
+    Every rate below ``lo`` becomes ``lo`` (flag ``clamped_min``), every rate above
+    ``hi`` becomes ``hi`` (``clamped_max``); the report gives both counts, their area,
+    the model's range before the clamp and the first ``max_listed`` cells by seq.
+    """
+    if lo is not None and hi is not None and lo > hi:
+        raise PrescriptionError(f"clamp minimum {lo:g} kg/ha exceeds the maximum {hi:g} kg/ha")
+    for name, v in (("minimum", lo), ("maximum", hi)):
+        if v is not None and not (np.isfinite(v) and v >= 0):
+            raise PrescriptionError(f"clamp {name} must be a rate >= 0 kg/ha, got {v!r}")
+    r = np.asarray(rate_kg_ha, dtype=float)
+    fl = np.array(flags, dtype=np.uint16)
+    below = np.zeros(len(r), bool) if lo is None else r < lo
+    above = np.zeros(len(r), bool) if hi is None else r > hi
+    out = np.clip(r, -np.inf if lo is None else lo, np.inf if hi is None else hi)
+    fl[below] |= FLAG_BITS["clamped_min"]
+    fl[above] |= FLAG_BITS["clamped_max"]
+    a = np.ones(len(r)) if area_m2 is None else np.asarray(area_m2, dtype=float)
+    changed = below | above
+    report: dict[str, Any] = {
+        "min_kg_ha": lo,
+        "max_kg_ha": hi,
+        "raised": int(below.sum()),
+        "lowered": int(above.sum()),
+        "count": int(changed.sum()),
+        "area_m2": round(float(a[changed].sum()), 3),
+        "model_min_kg_ha": round(float(r.min()), 3) if len(r) else None,
+        "model_max_kg_ha": round(float(r.max()), 3) if len(r) else None,
+        "seq": None if seq is None else [int(x) for x in np.asarray(seq)[changed][:max_listed]],
+    }
+    return out, fl, report
 
 
 def prescribe(
@@ -304,4 +357,81 @@ def summarize(
         "flagged_seq": None
         if seq is None
         else [int(x) for x in np.asarray(seq)[flagged_seq_mask][:max_listed]],
+    }
+
+
+def class_breaks(lo: float, hi: float, n: int) -> list[float]:
+    """``n`` equal-width rate classes over [lo, hi] (one class 1 kg/ha wide when lo == hi)."""
+    if n < 1:
+        raise PrescriptionError(f"class count must be >= 1, got {n}")
+    if hi <= lo:
+        return [round(lo, 3), round(lo + 1.0, 3)]
+    return [round(float(e), 3) for e in np.linspace(lo, hi, n + 1)]
+
+
+def check_breaks(breaks: list[float]) -> list[float]:
+    """Breaks typed by a person: at least two, finite, strictly increasing (422 otherwise)."""
+    b = [float(x) for x in breaks]
+    if len(b) < 2:
+        raise PrescriptionError("breaks_kg_ha: give at least two edges (one class)")
+    for i, (x, y) in enumerate(zip(b, b[1:], strict=False)):
+        if not (np.isfinite(x) and np.isfinite(y)) or y <= x:
+            raise PrescriptionError(
+                f"breaks_kg_ha must increase: edge {i + 1} ({y:g}) <= edge {i} ({x:g})"
+            )
+    return b
+
+
+def class_table(
+    rate_kg_ha: np.ndarray, area_m2: np.ndarray, breaks: list[float]
+) -> list[dict[str, Any]]:
+    """Zones table of a version: per legend class, cells, ha and t of product.
+
+    Class i holds breaks[i] <= rate < breaks[i+1] (the last class includes its upper
+    edge); rates outside the breaks go to the first / last class, like the map's colour
+    steps. Product t = sum(rate * area_m2) / 1e4 / 1000.
+    """
+    r = np.asarray(rate_kg_ha, dtype=float)
+    a = np.asarray(area_m2, dtype=float)
+    k = len(breaks) - 1
+    idx = np.clip(np.searchsorted(np.asarray(breaks), r, side="right") - 1, 0, k - 1)
+    out = []
+    for i in range(k):
+        m = idx == i
+        out.append(
+            {
+                "class": i + 1,
+                "from_kg_ha": breaks[i],
+                "to_kg_ha": breaks[i + 1],
+                "n_cells": int(m.sum()),
+                "area_ha": round(float(a[m].sum()) / 1e4, 6),
+                "product_t": round(float((r[m] * a[m]).sum()) / 1e7, 6),
+            }
+        )
+    return out
+
+
+def diff_rates(
+    seq: np.ndarray,
+    rate_a: np.ndarray,
+    rate_b: np.ndarray,
+    area_m2: np.ndarray,
+    max_listed: int = 1000,
+    tol_kg_ha: float = 1e-9,
+) -> dict[str, Any]:
+    """What changed from rate map a to b over the same cells: cells and area whose rate
+    differs, product delta kg (b - a, sum(rate * area) / 1e4) and the largest change."""
+    ra = np.asarray(rate_a, dtype=float)
+    rb = np.asarray(rate_b, dtype=float)
+    a = np.asarray(area_m2, dtype=float)
+    d = rb - ra
+    changed = np.abs(d) > tol_kg_ha
+    return {
+        "cells_changed": int(changed.sum()),
+        "area_changed_m2": round(float(a[changed].sum()), 3),
+        "area_changed_ha": round(float(a[changed].sum()) / 1e4, 6),
+        "product_kg_delta": round(float((d * a).sum()) / 1e4, 3),
+        "max_increase_kg_ha": round(float(max(0.0, d.max())), 3) if len(d) else 0.0,
+        "max_decrease_kg_ha": round(float(max(0.0, -d.min())), 3) if len(d) else 0.0,
+        "seq": [int(x) for x in np.asarray(seq)[changed][:max_listed]],
     }

@@ -17,6 +17,7 @@ from fieldrx.api.common import ApiError, get_scoped
 from fieldrx.api.schemas.errors import ERRORS
 from fieldrx.api.schemas.files import file_response
 from fieldrx.api.schemas.prescriptions import (
+    CurrentIn,
     EditIn,
     EditOut,
     PrescriptionIn,
@@ -25,7 +26,9 @@ from fieldrx.api.schemas.prescriptions import (
     RxCellPage,
     SoilZonesIn,
     VersionDetail,
+    VersionDiff,
     VersionList,
+    VersionPatch,
 )
 from fieldrx.api.schemas.tasks import QUEUED
 from fieldrx.auth.deps import Principal, SessionDep, UserDep, WriterDep
@@ -81,24 +84,15 @@ def _store(
     """Build and store version 1 from ``body`` (one transaction; bad input: 422, nothing
     stored); ``extra`` goes to ``create_prescription`` (a cell source, its description)."""
     try:
-        meter = svc.meter_spec(
-            machine, plan, body.speed_min_kmh, body.speed_max_kmh, body.width_m, body.calibration
-        )
-        rx = svc.create_prescription(
+        rx = svc.create_from_request(
             session,
             plan,
             field,
-            name=name,
-            product=body.product,
-            model=body.model,
-            params=body.params,
-            interpolation=body.interpolation,
-            interpolation_params=body.interpolation_params,
-            fallback_rate_kg_ha=body.fallback_rate_kg_ha,
-            meter=meter,
-            machine_id=body.machine_id,
-            user_id=principal.user_id,
+            machine,
+            body.model_dump(),
             organisation_id=principal.organisation_id,
+            user_id=principal.user_id,
+            name=name,
             **extra,
         )
     except errors as exc:
@@ -233,6 +227,63 @@ def get_version(rx_id: int, version: int, principal: UserDep, session: SessionDe
     return {"prescription_id": rx.id, **svc.version_summary(_version(session, rx, version))}
 
 
+@router.patch("/prescriptions/{rx_id:int}/versions/{version:int}", response_model=VersionDetail)
+def patch_version(
+    rx_id: int, version: int, body: VersionPatch, principal: WriterDep, session: SessionDep
+) -> dict:
+    """A version's note and its legend classes (``class_count`` equal classes or explicit
+    ``breaks_kg_ha``); the zones table follows. Its rates never change."""
+    rx = get_scoped(session, Prescription, rx_id, principal)
+    ver = _version(session, rx, version)
+    try:
+        svc.patch_version(
+            session,
+            rx,
+            ver,
+            note=body.note,
+            class_count=body.class_count,
+            breaks_kg_ha=body.breaks_kg_ha,
+        )
+    except BAD_INPUT as exc:
+        session.rollback()
+        raise ApiError(422, str(exc), where="breaks_kg_ha") from exc
+    session.commit()
+    return {"prescription_id": rx.id, **svc.version_summary(ver)}
+
+
+@router.put("/prescriptions/{rx_id:int}/current", response_model=PrescriptionOut)
+def set_current(
+    rx_id: int, body: CurrentIn, principal: WriterDep, session: SessionDep
+) -> dict[str, Any]:
+    """Make an existing version current: undo goes back to the version an edit was made
+    from, redo forward to the edit's version. No version is changed or deleted."""
+    rx = get_scoped(session, Prescription, rx_id, principal)
+    try:
+        svc.set_current(session, rx, body.version)
+    except LookupError as exc:
+        raise ApiError(404, str(exc), where="version") from exc
+    session.commit()
+    return svc.prescription_summary(session, rx)
+
+
+@router.get("/prescriptions/{rx_id:int}/diff", response_model=VersionDiff)
+def diff(
+    rx_id: int,
+    principal: UserDep,
+    session: SessionDep,
+    from_version: int = Query(ge=1, alias="from"),
+    to_version: int = Query(ge=1, alias="to"),
+) -> dict[str, Any]:
+    """Version ``to`` minus version ``from``: cells and area whose rate changed, product
+    (kg) and cost delta, mean rate delta, largest increase / decrease, changed cells."""
+    rx = get_scoped(session, Prescription, rx_id, principal)
+    va, vb = _version(session, rx, from_version), _version(session, rx, to_version)
+    try:
+        return svc.diff_versions(session, rx, va, vb)
+    except BAD_INPUT as exc:
+        raise ApiError(422, str(exc)) from exc
+
+
 @router.get("/prescriptions/{rx_id:int}/cells", response_model=RxCellPage)
 def get_cells(
     rx_id: int,
@@ -275,7 +326,11 @@ def edit(rx_id: int, body: EditIn, principal: WriterDep, session: SessionDep) ->
             zone_rate_kg_ha=body.rate_kg_ha,
             note=body.note,
             user_id=principal.user_id,
+            based_on=body.based_on_version,
         )
+    except LookupError as exc:
+        session.rollback()
+        raise ApiError(404, str(exc), where="based_on_version") from exc
     except BAD_INPUT as exc:
         session.rollback()
         raise ApiError(422, str(exc)) from exc

@@ -250,6 +250,31 @@ class Prescription(Base):
     created_at: Mapped[dt.datetime] = _now()
 
 
+class Product(Base):
+    """A fertiliser an organisation added to its catalogue (the defaults every
+    organisation sees are in ``agronomy.products.DEFAULT_PRODUCTS``, not rows)."""
+
+    __tablename__ = "products"
+    __table_args__ = (
+        UniqueConstraint("organisation_id", "name", name="uq_product_org_name"),
+        CheckConstraint(
+            "n_pct >= 0 AND p2o5_pct >= 0 AND k2o_pct >= 0 AND n_pct + p2o5_pct + k2o_pct <= 100",
+            name="ck_product_pct",
+        ),
+        CheckConstraint("price_per_t IS NULL OR price_per_t >= 0", name="ck_product_price"),
+    )
+    id: Mapped[int] = mapped_column(primary_key=True)
+    organisation_id: Mapped[int] = mapped_column(
+        ForeignKey("organisations.id", ondelete="CASCADE"), index=True
+    )
+    name: Mapped[str] = mapped_column(String(200))
+    n_pct: Mapped[float] = mapped_column(Double)
+    p2o5_pct: Mapped[float] = mapped_column(Double, default=0.0)
+    k2o_pct: Mapped[float] = mapped_column(Double, default=0.0)
+    price_per_t: Mapped[float | None] = mapped_column(Double)
+    created_at: Mapped[dt.datetime] = _now()
+
+
 class PrescriptionVersion(Base):
     """An immutable version; an edit creates version n+1 and leaves n as it was."""
 

@@ -29,9 +29,14 @@ from fieldrx.agronomy.prescription import (
     PrescriptionError,
     apply_cell_edits,
     build_prescription,
+    check_breaks,
+    class_breaks,
+    class_table,
+    diff_rates,
     paint_zone,
     summarize,
 )
+from fieldrx.agronomy.products import CROPS, product_figures
 from fieldrx.agronomy.rates import MeterCheck, check_meter_range
 from fieldrx.agronomy.zones import zone_cell_values
 from fieldrx.db.models import (
@@ -74,6 +79,73 @@ def canonical_model(model: str, params: dict[str, Any]) -> tuple[str, dict[str, 
             continue
         out[PARAM_ALIASES.get(k, k)] = v
     return m, out
+
+
+def crop_params(
+    model: str, params: dict[str, Any], crop: str | None, product: dict[str, Any] | None
+) -> tuple[dict[str, Any], dict[str, Any] | None, dict[str, str]]:
+    """Fill nutrient-balance parameters the request left out from the crop and the
+    product, and say where each came from (what the user gave is never replaced).
+
+    e_kg_per_100kg and k_utilisation come from the crop (``agronomy.products.CROPS``),
+    n_fraction from the product's N % / 100; a given n_fraction that disagrees with the
+    product's N % is refused rather than one of them silently winning.
+    """
+    out = dict(params)
+    sources = {k: "given" for k in out}
+    crop_d = None
+    if crop is not None:
+        found = next((c for c in CROPS if c.key == crop), None)
+        if found is None:
+            raise RxError(f"unknown crop {crop!r} (expected one of {[c.key for c in CROPS]})")
+        crop_d = found.to_dict()
+        if model == "nutrient_balance":
+            for k in ("e_kg_per_100kg", "k_utilisation"):
+                if k not in out:
+                    out[k] = crop_d[k]
+                    sources[k] = f"{found.name}: {found.source}"
+    if product is not None and model == "nutrient_balance":
+        x = float(product.get("n_pct") or 0.0) / 100.0
+        if x <= 0:
+            raise RxError(f"product {product['name']!r} has no N: nutrient_balance needs N")
+        if "n_fraction" not in out:
+            out["n_fraction"] = x
+            sources["n_fraction"] = f"{product['name']}: {product['source']}"
+        elif abs(float(out["n_fraction"]) - x) > 1e-9:
+            raise RxError(
+                f"params.n_fraction {out['n_fraction']} disagrees with product "
+                f"{product['name']!r} ({product['n_pct']:g} % N = {x:g}): give one of them"
+            )
+    return out, crop_d, sources
+
+
+def legend_classes(
+    rates: np.ndarray, area: np.ndarray, breaks: list[float], source: str
+) -> dict[str, Any]:
+    """A version's legend classes and zones table (class -> ha -> t)."""
+    return {"breaks_kg_ha": breaks, "source": source, "table": class_table(rates, area, breaks)}
+
+
+def auto_classes(rates: np.ndarray, area: np.ndarray, n: int) -> dict[str, Any]:
+    lo, hi = (float(rates.min()), float(rates.max())) if len(rates) else (0.0, 1.0)
+    return legend_classes(rates, area, class_breaks(lo, hi, n), f"{n} equal classes")
+
+
+def inherited_classes(
+    rates: np.ndarray, area: np.ndarray, base: dict[str, Any] | None
+) -> dict[str, Any]:
+    """An edit keeps its base version's breaks (the legend does not jump between
+    versions), its outer edges widened to the new rates when they leave them."""
+    if not base or not base.get("breaks_kg_ha"):
+        return auto_classes(rates, area, 6)
+    b = [float(x) for x in base["breaks_kg_ha"]]
+    src = str(base.get("source", ""))
+    if len(rates):
+        lo, hi = float(rates.min()), float(rates.max())
+        if lo < b[0] or hi > b[-1]:
+            b[0], b[-1] = min(b[0], round(lo, 3)), max(b[-1], round(hi, 3))
+            src += " (outer edges widened to the edited rates)"
+    return legend_classes(rates, area, b, src)
 
 
 @dataclass
@@ -373,6 +445,12 @@ def create_prescription(
     organisation_id: int,
     cell_source: Callable[[CellTable], tuple[np.ndarray, dict[str, Any]]] | None = None,
     source: dict[str, Any] | None = None,
+    crop: str | None = None,
+    product_info: dict[str, Any] | None = None,
+    clamp_min_kg_ha: float | None = None,
+    clamp_max_kg_ha: float | None = None,
+    class_count: int = 6,
+    note: str = "",
 ) -> Prescription:
     """Interpolate, rate, clamp and store version 1 (flush only). Raises ValueError subclasses.
 
@@ -383,6 +461,7 @@ def create_prescription(
     model, params = canonical_model(model, params)
     if model not in MODEL_INPUT:
         raise RxError(f"unknown model {model!r} (expected one of {sorted(MODEL_INPUT)})")
+    params, crop_d, param_sources = crop_params(model, params, crop, product_info)
     column = MODEL_INPUT[model]
     if column is None:  # uniform: no geometry needed
         seq, area = load_seq_area(session, plan.id)
@@ -414,19 +493,27 @@ def create_prescription(
         check,
         fallback_rate_kg_ha,
         area,
+        clamp_min_kg_ha,
+        clamp_max_kg_ha,
+        seq,
     )
     summary = p.summary(area, seq=seq)
     if interp_info is not None:
         summary["interpolation"] = interp_info
     if meter is not None:
         summary["meter"] = meter.describe()
+    summary.update(product_figures(p.rate_kg_ha, area, product_info))
+    summary["product"] = product_info
+    summary["crop"] = crop_d
+    summary["param_sources"] = param_sources
+    summary["classes"] = auto_classes(p.rate_kg_ha, np.asarray(area, float), class_count)
     summary = _json_safe(summary)
     rx = Prescription(
         organisation_id=organisation_id,
         plan_id=plan.id,
         machine_id=machine_id,
         name=name or f"{model} on plan {plan.id}",
-        product=product,
+        product=product or (product_info or {}).get("name", ""),
         model=model,
         params={
             "model_params": params,
@@ -434,14 +521,72 @@ def create_prescription(
             "interpolation_params": interpolation_params,
             "fallback_rate_kg_ha": fallback_rate_kg_ha,
             "meter": None if meter is None else meter.to_dict(),
+            "product_info": product_info,
+            "clamp": {"min_kg_ha": clamp_min_kg_ha, "max_kg_ha": clamp_max_kg_ha},
             **({"source": source} if source else {}),
         },
         current_version=1,
     )
     session.add(rx)
     session.flush()
-    _new_version(session, rx, 1, "created", user_id, seq, p.rate_kg_ha, p.flags, values, summary)
+    _new_version(
+        session, rx, 1, note or "created", user_id, seq, p.rate_kg_ha, p.flags, values, summary
+    )
     return rx
+
+
+def create_from_request(
+    session: Session,
+    plan: Plan,
+    field: Field,
+    machine: Machine | None,
+    b: dict[str, Any],
+    *,
+    organisation_id: int,
+    user_id: int | None,
+    name: str | None = None,
+    **extra: Any,
+) -> Prescription:
+    """Version 1 from a ``PrescriptionIn`` body as a dict (the API route and the background
+    task share it): meter, catalogue product, crop defaults, clamp, classes, note."""
+    from fieldrx.services.products import resolve_product
+
+    meter = meter_spec(
+        machine,
+        plan,
+        b.get("speed_min_kmh"),
+        b.get("speed_max_kmh"),
+        b.get("width_m"),
+        b.get("calibration"),
+    )
+    product_info = None
+    if b.get("product_key"):
+        product_info = resolve_product(session, organisation_id, b["product_key"])
+        if product_info is None:
+            raise RxError(f"product_key {b['product_key']!r} is not in this catalogue")
+    return create_prescription(
+        session,
+        plan,
+        field,
+        name=b.get("name", "") if name is None else name,
+        product=b.get("product", ""),
+        model=b.get("model", "nutrient_balance"),
+        params=b.get("params") or {},
+        interpolation=b.get("interpolation", "cell_mean"),
+        interpolation_params=b.get("interpolation_params") or {},
+        fallback_rate_kg_ha=b.get("fallback_rate_kg_ha"),
+        meter=meter,
+        machine_id=b.get("machine_id"),
+        user_id=user_id,
+        organisation_id=organisation_id,
+        crop=b.get("crop"),
+        product_info=product_info,
+        clamp_min_kg_ha=b.get("clamp_min_kg_ha"),
+        clamp_max_kg_ha=b.get("clamp_max_kg_ha"),
+        class_count=int(b.get("class_count") or 6),
+        note=b.get("note", ""),
+        **extra,
+    )
 
 
 def _meter_of(rx: Prescription) -> MeterCheck | None:
@@ -460,11 +605,13 @@ def edit_prescription(
     zone_rate_kg_ha: float | None,
     note: str,
     user_id: int | None,
+    based_on: int | None = None,
 ) -> tuple[PrescriptionVersion, int]:
-    """Make version n+1 from the current version n (n is left as it is)."""
+    """Make the next version from version ``based_on`` (default the current one; the
+    version on the user's screen), which is left as it is."""
     from shapely.geometry import shape
 
-    base = get_version(session, rx, None)
+    base = get_version(session, rx, based_on)
     seq, rates, flags, src = load_rates(session, base.id)
     meter = _meter_of(rx)
     if cells is not None:
@@ -504,9 +651,14 @@ def edit_prescription(
         "meter",
         "fallback_rate_kg_ha",
         "interpolation",
+        "product",
+        "crop",
+        "param_sources",
     ):
         if key in old:
             summary[key] = old[key]
+    summary.update(product_figures(new_rates, area, old.get("product")))
+    summary["classes"] = inherited_classes(new_rates, np.asarray(area, float), old.get("classes"))
     summary["edited_cells"] = int(changed)
     summary["based_on_version"] = base.version
     ver = _new_version(
@@ -522,6 +674,59 @@ def edit_prescription(
         _json_safe(summary),
     )
     return ver, int(changed)
+
+
+def patch_version(
+    session: Session,
+    rx: Prescription,
+    ver: PrescriptionVersion,
+    *,
+    note: str | None,
+    class_count: int | None,
+    breaks_kg_ha: list[float] | None,
+) -> PrescriptionVersion:
+    """A version's note and legend classes (its rates stay as they are; flush only)."""
+    if note is not None:
+        ver.note = note
+    if class_count is not None or breaks_kg_ha is not None:
+        seq, rates, _, _ = load_rates(session, ver.id)
+        aseq, area = load_seq_area(session, rx.plan_id)
+        if not np.array_equal(aseq, seq):
+            raise RxError("the plan's cells do not match the prescription's rates")
+        a = np.asarray(area, float)
+        if breaks_kg_ha is not None:
+            classes = legend_classes(rates, a, check_breaks(breaks_kg_ha), "set by user")
+        else:
+            assert class_count is not None
+            classes = auto_classes(rates, a, class_count)
+        ver.summary = _json_safe({**(ver.summary or {}), "classes": classes})
+    session.flush()
+    return ver
+
+
+def set_current(session: Session, rx: Prescription, version: int) -> None:
+    """Make an existing version current (undo / redo move this pointer; versions stay)."""
+    get_version(session, rx, version)
+    rx.current_version = version
+    session.flush()
+
+
+def diff_versions(
+    session: Session, rx: Prescription, va: PrescriptionVersion, vb: PrescriptionVersion
+) -> dict[str, Any]:
+    """Cells and area whose rate differs between two versions, product and cost delta."""
+    seq_a, ra, _, _ = load_rates(session, va.id)
+    seq_b, rb, _, _ = load_rates(session, vb.id)
+    aseq, area = load_seq_area(session, rx.plan_id)
+    if not (np.array_equal(seq_a, seq_b) and np.array_equal(aseq, seq_a)):
+        raise RxError("the two versions do not cover the same cells")
+    out = diff_rates(seq_a, ra, rb, area)
+    sa, sb = va.summary or {}, vb.summary or {}
+    ca, cb = sa.get("cost"), sb.get("cost")
+    out["cost_delta"] = None if ca is None or cb is None else round(cb - ca, 2)
+    ma, mb = sa.get("rate_mean_kg_ha"), sb.get("rate_mean_kg_ha")
+    out["rate_mean_delta_kg_ha"] = None if ma is None or mb is None else round(mb - ma, 3)
+    return {"from_version": va.version, "to_version": vb.version, **out}
 
 
 def _max_version(session: Session, rx: Prescription) -> int:

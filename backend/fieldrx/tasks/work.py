@@ -160,29 +160,8 @@ def _rx_work(
     if b.get("machine_id") is not None:
         machine = _scoped(session, Machine, b["machine_id"], org, "machine")
     progress(0.1, "loading cells and data")
-    meter = svc.meter_spec(
-        machine,
-        plan,
-        b.get("speed_min_kmh"),
-        b.get("speed_max_kmh"),
-        b.get("width_m"),
-        b.get("calibration"),
-    )
-    rx = svc.create_prescription(
-        session,
-        plan,
-        field,
-        name=b.get("name", ""),
-        product=b.get("product", ""),
-        model=b.get("model", "nutrient_balance"),
-        params=b.get("params") or {},
-        interpolation=b.get("interpolation", "cell_mean"),
-        interpolation_params=b.get("interpolation_params") or {},
-        fallback_rate_kg_ha=b.get("fallback_rate_kg_ha"),
-        meter=meter,
-        machine_id=b.get("machine_id"),
-        user_id=user,
-        organisation_id=org,
+    rx = svc.create_from_request(
+        session, plan, field, machine, b, organisation_id=org, user_id=user
     )
     progress(0.95, "stored")
     return {"prescription_id": int(rx.id), "plan_id": int(plan.id)}, "prescription built"

@@ -1,23 +1,30 @@
-import { useState } from 'react';
+import { useEffect, useState } from 'react';
 import { call, client, type Prescription, type Schemas } from '../api/client';
-import { MODEL_DEFAULTS } from '../screens/RxForm';
+import { defaultFields, rxBody, type FieldErrors, type RxFields } from '../lib/rxform';
+import { useCatalogue } from '../lib/useCatalogue';
+import { RxModelFields } from './RxModelFields';
 import { ErrorBox } from './Status';
 
 /**
  * Management zones from the field's soil samples (next to the imagery NDVI zones): the
  * model's input (soil N for nutrient balance, sample NDVI for the NDVI curve) interpolated
  * onto the plan's cells, k zones with the same classifier and minimum-area smoothing as
- * imagery zones, one model rate per zone (POST /plans/{id}/zones).
+ * imagery zones, one model rate per zone (POST /plans/{id}/zones). The model's inputs are
+ * the same typed fields as the prescription form's.
  */
 export function SoilZonesForm(props: { planId: number; onCreated: (r: Prescription) => void }) {
   const { planId, onCreated } = props;
+  const cat = useCatalogue();
   const [model, setModel] = useState<'nutrient_balance' | 'ndvi'>('nutrient_balance');
   const [interp, setInterp] = useState('idw');
   const [k, setK] = useState(4);
   const [minArea, setMinArea] = useState(0);
-  const [params, setParams] = useState(JSON.stringify(MODEL_DEFAULTS.nutrient_balance, null, 2));
+  const [fields, setFields] = useState<RxFields | null>(null);
   const [busy, setBusy] = useState(false);
-  const [error, setError] = useState<unknown>(null);
+  const [err, setErr] = useState<{ api: unknown; fields: FieldErrors }>({ api: null, fields: {} });
+  useEffect(() => {
+    if (!fields && cat.crops.length) setFields(defaultFields(cat.crops, cat.products));
+  }, [cat.crops, cat.products, fields]);
   return (
     <form
       className="form"
@@ -25,14 +32,10 @@ export function SoilZonesForm(props: { planId: number; onCreated: (r: Prescripti
       data-write=""
       onSubmit={async (e) => {
         e.preventDefault();
-        setError(null);
-        let p: unknown;
-        try {
-          p = JSON.parse(params);
-        } catch {
-          setError(new Error('Parameters must be JSON'));
-          return;
-        }
+        if (!fields) return;
+        const { body, errors } = rxBody(model, fields);
+        setErr({ api: null, fields: errors });
+        if (!body) return;
         setBusy(true);
         try {
           onCreated(
@@ -41,7 +44,7 @@ export function SoilZonesForm(props: { planId: number; onCreated: (r: Prescripti
                 params: { path: { plan_id: planId } },
                 body: {
                   model,
-                  params: p as Schemas['SoilZonesIn']['params'],
+                  ...body,
                   interpolation: interp as Schemas['SoilZonesIn']['interpolation'],
                   k,
                   min_area_m2: minArea,
@@ -49,8 +52,8 @@ export function SoilZonesForm(props: { planId: number; onCreated: (r: Prescripti
               }),
             ),
           );
-        } catch (err) {
-          setError(err);
+        } catch (error) {
+          setErr({ api: error, fields: {} });
         } finally {
           setBusy(false);
         }
@@ -62,11 +65,7 @@ export function SoilZonesForm(props: { planId: number; onCreated: (r: Prescripti
         <select
           data-testid="soil-zones-model"
           value={model}
-          onChange={(e) => {
-            const m = e.target.value as 'nutrient_balance' | 'ndvi';
-            setModel(m);
-            setParams(JSON.stringify(MODEL_DEFAULTS[m] ?? {}, null, 2));
-          }}
+          onChange={(e) => setModel(e.target.value as 'nutrient_balance' | 'ndvi')}
         >
           <option value="nutrient_balance">Soil N (nutrient balance rate)</option>
           <option value="ndvi">Sample NDVI (NDVI rate)</option>
@@ -90,14 +89,26 @@ export function SoilZonesForm(props: { planId: number; onCreated: (r: Prescripti
           <input data-testid="soil-zones-min-area" type="number" min={0} value={minArea} onChange={(e) => setMinArea(Number(e.target.value))} />
         </label>
       </div>
-      <label>
-        Rate model parameters
-        <textarea data-testid="soil-zones-params" rows={5} value={params} onChange={(e) => setParams(e.target.value)} />
-      </label>
-      <button data-testid="soil-zones-submit" disabled={busy}>
+      {fields && (
+        <RxModelFields
+          model={model}
+          fields={fields}
+          setFields={(f) => {
+            setFields(f);
+            // an edited value is checked again on submit: its old error goes now
+            if (Object.keys(err.fields).length) setErr({ api: err.api, fields: {} });
+          }}
+          errors={err.fields}
+          crops={cat.crops}
+          products={cat.products}
+          onProductAdded={cat.reload}
+          tid="soil-zones"
+        />
+      )}
+      <button data-testid="soil-zones-submit" disabled={busy || !fields}>
         {busy ? 'Computing…' : 'Build soil zone prescription'}
       </button>
-      <ErrorBox error={error} testid="soil-zones-error" />
+      <ErrorBox error={err.api} testid="soil-zones-error" />
     </form>
   );
 }

@@ -1,69 +1,70 @@
-import { useEffect, useState } from 'react';
+import { useEffect, useRef, useState } from 'react';
 import { call, client, type Machine, type Prescription, type Schemas, inline } from '../api/client';
+import { RxModelFields } from '../components/RxModelFields';
 import { ErrorBox } from '../components/Status';
+import { defaultFields, rxBody, type FieldErrors, type RxFields, type RxModel } from '../lib/rxform';
+import { useCatalogue } from '../lib/useCatalogue';
 
-/** Defaults from seed 002 eq. 19-21 (winter rape worked example, SCIENCE.md). */
-export const MODEL_DEFAULTS: Record<string, Record<string, unknown>> = {
-  nutrient_balance: {
-    target_yield_kg_ha: 2500,
-    e_kg_per_100kg: 5.8,
-    k_utilisation: 0.342,
-    n_fraction: 0.25,
-  },
-  uniform: { rate_kg_ha: 300 },
-  ndvi: { ndvi_low: 0.2, rate_at_low_kg_ha: 400, ndvi_high: 0.8, rate_at_high_kg_ha: 150 },
-};
-
+/** New prescription: crop-aware typed fields with units (no JSON), product from the catalogue, clamp, note. */
 export function RxForm({ planId, onCreated }: { planId: number; onCreated: (r: Prescription) => void }) {
-  const [model, setModel] = useState('nutrient_balance');
-  const [params, setParams] = useState(JSON.stringify(MODEL_DEFAULTS.nutrient_balance, null, 2));
+  const cat = useCatalogue();
+  const [model, setModel] = useState<RxModel>('nutrient_balance');
+  const [fields, setFields] = useState<RxFields | null>(null);
   const [interp, setInterp] = useState('idw');
   const [machines, setMachines] = useState<Machine[]>([]);
   const [machineId, setMachineId] = useState('');
+  const [note, setNote] = useState('');
+  const [err, setErr] = useState<{ api: unknown; fields: FieldErrors }>({ api: null, fields: {} });
+  const [busy, setBusy] = useState(false);
+  const formRef = useRef<HTMLFormElement>(null);
   useEffect(() => {
     call(client.GET('/api/v1/machines'))
       .then((r) => {
-        const ms = r.items;
-        setMachines(ms);
-        if (ms[0]) setMachineId(String(ms[0].id));
+        setMachines(r.items);
+        if (r.items[0]) setMachineId(String(r.items[0].id));
       })
       .catch(() => undefined);
   }, []);
-  const [error, setError] = useState<unknown>(null);
-  const [busy, setBusy] = useState(false);
+  useEffect(() => {
+    if (!fields && cat.crops.length) setFields(defaultFields(cat.crops, cat.products));
+  }, [cat.crops, cat.products, fields]);
+  // An error is shown next to what caused it and scrolled into view.
+  useEffect(() => {
+    const el = formRef.current?.querySelector('[aria-invalid=true], [data-testid=rx-error]');
+    el?.scrollIntoView({ block: 'center' });
+  }, [err]);
   return (
     <form
+      ref={formRef}
       className="form"
-      data-testid="rx-form" data-write=""
+      data-testid="rx-form"
+      data-write=""
       onSubmit={async (e) => {
         e.preventDefault();
-        setError(null);
-        let p: Record<string, unknown>;
-        try {
-          p = JSON.parse(params);
-        } catch {
-          setError(new Error('Parameters must be JSON'));
-          return;
-        }
+        if (!fields) return;
+        const { body, errors } = rxBody(model, fields);
+        setErr({ api: null, fields: errors });
+        if (!body) return;
         setBusy(true);
         try {
           onCreated(
             inline(
               await call(
-              client.POST('/api/v1/plans/{plan_id}/prescriptions', {
-                params: { path: { plan_id: planId } },
-                body: {
-                  model,
-                  params: p,
-                  interpolation: interp as Schemas['PrescriptionIn']['interpolation'],
-                  machine_id: machineId ? Number(machineId) : undefined,
-                },
-              }),
-            ),
+                client.POST('/api/v1/plans/{plan_id}/prescriptions', {
+                  params: { path: { plan_id: planId } },
+                  body: {
+                    model,
+                    ...body,
+                    note,
+                    interpolation: interp as Schemas['PrescriptionIn']['interpolation'],
+                    machine_id: machineId ? Number(machineId) : undefined,
+                  },
+                }),
+              ),
             ),
           );
-        } catch (err) {
-          setError(err);
+        } catch (error) {
+          setErr({ api: error, fields: {} });
         } finally {
           setBusy(false);
         }
@@ -72,27 +73,40 @@ export function RxForm({ planId, onCreated }: { planId: number; onCreated: (r: P
       <h4>New prescription</h4>
       <label>
         Model
-        <select
-          data-testid="rx-model"
-          value={model}
-          onChange={(e) => {
-            setModel(e.target.value);
-            setParams(JSON.stringify(MODEL_DEFAULTS[e.target.value] ?? {}, null, 2));
-          }}
-        >
-          <option value="nutrient_balance">Nutrient balance (soil N)</option>
+        <select data-testid="rx-model" value={model} onChange={(e) => setModel(e.target.value as RxModel)}>
+          <option value="nutrient_balance">Nutrient balance (soil N, seed 001)</option>
           <option value="uniform">Uniform rate</option>
-          <option value="ndvi">NDVI (linear)</option>
+          <option value="ndvi">NDVI (linear, seed 000)</option>
         </select>
       </label>
-      <label>
-        Interpolation
-        <select data-testid="rx-interp" value={interp} onChange={(e) => setInterp(e.target.value)}>
-          <option value="idw">Inverse distance</option>
-          <option value="kriging">Kriging</option>
-          <option value="cell_mean">Mean of samples in the cell</option>
-        </select>
-      </label>
+      {fields ? (
+        <RxModelFields
+          model={model}
+          fields={fields}
+          setFields={(f) => {
+            setFields(f);
+            // an edited value is checked again on submit: its old error goes now
+            if (Object.keys(err.fields).length) setErr({ api: err.api, fields: {} });
+          }}
+          errors={err.fields}
+          crops={cat.crops}
+          products={cat.products}
+          onProductAdded={cat.reload}
+        />
+      ) : (
+        <p className="muted">Loading crops and products…</p>
+      )}
+      <ErrorBox error={cat.error} testid="rx-catalogue-error" />
+      {model !== 'uniform' && (
+        <label>
+          Interpolation
+          <select data-testid="rx-interp" value={interp} onChange={(e) => setInterp(e.target.value)}>
+            <option value="idw">Inverse distance</option>
+            <option value="kriging">Kriging</option>
+            <option value="cell_mean">Mean of samples in the cell</option>
+          </select>
+        </label>
+      )}
       <label>
         Meter limits from
         <select data-testid="rx-machine" value={machineId} onChange={(e) => setMachineId(e.target.value)}>
@@ -105,13 +119,13 @@ export function RxForm({ planId, onCreated }: { planId: number; onCreated: (r: P
         </select>
       </label>
       <label>
-        Parameters
-        <textarea data-testid="rx-params" rows={7} value={params} onChange={(e) => setParams(e.target.value)} />
+        Note (stored with version 1)
+        <input data-testid="rx-note" value={note} maxLength={2000} onChange={(e) => setNote(e.target.value)} />
       </label>
-      <button data-testid="rx-submit" disabled={busy}>
+      <button data-testid="rx-submit" disabled={busy || !fields}>
         {busy ? 'Computing…' : 'Build prescription'}
       </button>
-      <ErrorBox error={error} testid="rx-error" />
+      <ErrorBox error={err.api} testid="rx-error" />
     </form>
   );
 }

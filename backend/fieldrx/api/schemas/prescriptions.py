@@ -35,6 +35,31 @@ class PrescriptionIn(In):
     speed_max_kmh: float | None = Field(default=None, ge=0.036, le=108)
     width_m: float | None = Field(default=None, ge=0.05, le=60)
     calibration: dict[str, Any] | None = None
+    crop: str | None = Field(
+        default=None,
+        description="a crop key of GET /products: its e_kg_per_100kg and k_utilisation fill "
+        "the nutrient-balance parameters not given",
+    )
+    product_key: str | None = Field(
+        default=None,
+        description="a product key of GET /products: names the product, gives n_fraction "
+        "(nutrient_balance) and the version's nutrient and cost figures",
+    )
+    clamp_min_kg_ha: float | None = Field(
+        default=None, ge=0, description="raise model rates below this (cells flagged, counted)"
+    )
+    clamp_max_kg_ha: float | None = Field(
+        default=None, ge=0, description="lower model rates above this (cells flagged, counted)"
+    )
+    class_count: int = Field(default=6, ge=1, le=20, description="legend classes of version 1")
+    note: str = Field(default="", max_length=2000, description="note of version 1")
+
+    @model_validator(mode="after")
+    def _clamp_order(self) -> PrescriptionIn:
+        lo, hi = self.clamp_min_kg_ha, self.clamp_max_kg_ha
+        if lo is not None and hi is not None and lo > hi:
+            raise ValueError(f"clamp_min_kg_ha {lo:g} exceeds clamp_max_kg_ha {hi:g}")
+        return self
 
 
 class CellEdit(In):
@@ -47,6 +72,9 @@ class EditIn(In):
     zone: Geometry | None = Field(default=None, description="GeoJSON Polygon (lon/lat)")
     rate_kg_ha: float | None = Field(default=None, ge=0, description="rate of the zone")
     note: str = Field(default="", max_length=2000)
+    based_on_version: int | None = Field(
+        default=None, ge=1, description="the version edited (default: the current one)"
+    )
 
     @model_validator(mode="after")
     def _one_kind(self) -> EditIn:
@@ -76,6 +104,39 @@ class Attention(Open):
     seq: list[int] | None = None
 
 
+class ClampReport(Open):
+    """The agronomist's min / max and what it changed when the version was built."""
+
+    min_kg_ha: float | None = None
+    max_kg_ha: float | None = None
+    raised: int = 0
+    lowered: int = 0
+    count: int = 0
+    area_m2: float = 0.0
+    model_min_kg_ha: float | None = None
+    model_max_kg_ha: float | None = None
+    seq: list[int] | None = None
+
+
+class ClassRow(Open):
+    """One legend class of the zones table: its rate range, cells, ha and t of product."""
+
+    class_: int = Field(alias="class")
+    from_kg_ha: float
+    to_kg_ha: float
+    n_cells: int
+    area_ha: float
+    product_t: float
+
+
+class LegendClasses(Open):
+    """The version's legend classes (fixed with it) and its zones table."""
+
+    breaks_kg_ha: list[float]
+    source: str
+    table: list[ClassRow]
+
+
 class RxSummary(Open):
     """A version's whole-field figures (``agronomy.prescription.summarize``) as stored with
     it; edits add ``edited_cells`` and ``based_on_version``."""
@@ -95,6 +156,17 @@ class RxSummary(Open):
     flagged_seq: list[int] | None = None
     interpolation: dict[str, Any] | None = None
     meter: dict[str, Any] | None = None
+    product_t: float | None = None
+    nutrients_kg: dict[str, float] | None = Field(default=None, description="N, P2O5, K2O")
+    nutrients_kg_ha: dict[str, float] | None = None
+    cost: float | None = Field(default=None, description="product t x price per t")
+    product: dict[str, Any] | None = Field(default=None, description="the product used")
+    crop: dict[str, Any] | None = None
+    param_sources: dict[str, str] | None = Field(
+        default=None, description="where each model parameter came from"
+    )
+    clamp: ClampReport | None = None
+    classes: LegendClasses | None = None
 
 
 class RxStats(Out):
@@ -199,3 +271,37 @@ class SoilZonesIn(PrescriptionIn):
     min_area_m2: float = Field(
         default=0.0, ge=0, description="patches of a zone smaller than this join a neighbour"
     )
+
+
+class VersionPatch(In):
+    """A version's note and legend classes (its rates never change)."""
+
+    note: str | None = Field(default=None, max_length=2000)
+    class_count: int | None = Field(default=None, ge=1, le=20)
+    breaks_kg_ha: list[float] | None = Field(default=None, min_length=2, max_length=21)
+
+    @model_validator(mode="after")
+    def _one_classes(self) -> VersionPatch:
+        if self.class_count is not None and self.breaks_kg_ha is not None:
+            raise ValueError("give class_count or breaks_kg_ha, not both")
+        return self
+
+
+class CurrentIn(In):
+    version: int = Field(ge=1, description="the version that becomes current (undo / redo)")
+
+
+class VersionDiff(Out):
+    """What changed from version ``from_version`` to ``to_version`` (b - a)."""
+
+    from_version: int
+    to_version: int
+    cells_changed: int
+    area_changed_m2: float
+    area_changed_ha: float
+    product_kg_delta: float
+    cost_delta: float | None
+    rate_mean_delta_kg_ha: float | None
+    max_increase_kg_ha: float
+    max_decrease_kg_ha: float
+    seq: list[int] = Field(description="the first 1000 changed cells")

@@ -1389,6 +1389,48 @@ export interface paths {
         patch?: never;
         trace?: never;
     };
+    "/api/v1/prescriptions/{rx_id}/current": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        get?: never;
+        /**
+         * Set Current
+         * @description Make an existing version current: undo goes back to the version an edit was made
+         *     from, redo forward to the edit's version. No version is changed or deleted.
+         */
+        put: operations["set_current_api_v1_prescriptions__rx_id__current_put"];
+        post?: never;
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/api/v1/prescriptions/{rx_id}/diff": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        /**
+         * Diff
+         * @description Version ``to`` minus version ``from``: cells and area whose rate changed, product
+         *     (kg) and cost delta, mean rate delta, largest increase / decrease, changed cells.
+         */
+        get: operations["diff_api_v1_prescriptions__rx_id__diff_get"];
+        put?: never;
+        post?: never;
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
     "/api/v1/prescriptions/{rx_id}/edits": {
         parameters: {
             query?: never;
@@ -1464,6 +1506,56 @@ export interface paths {
         put?: never;
         post?: never;
         delete?: never;
+        options?: never;
+        head?: never;
+        /**
+         * Patch Version
+         * @description A version's note and its legend classes (``class_count`` equal classes or explicit
+         *     ``breaks_kg_ha``); the zones table follows. Its rates never change.
+         */
+        patch: operations["patch_version_api_v1_prescriptions__rx_id__versions__version__patch"];
+        trace?: never;
+    };
+    "/api/v1/products": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        /**
+         * Catalogue
+         * @description Default products and crops (each with its ``source``) and the organisation's own
+         *     products (source "organisation product").
+         */
+        get: operations["catalogue_api_v1_products_get"];
+        put?: never;
+        /**
+         * Add Product
+         * @description Add a product to the organisation's catalogue (409 when the name is taken).
+         */
+        post: operations["add_product_api_v1_products_post"];
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/api/v1/products/{product_id}": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        get?: never;
+        put?: never;
+        post?: never;
+        /**
+         * Delete Product
+         * @description Remove an organisation's product; prescriptions keep the copy they were built with.
+         */
+        delete: operations["delete_product_api_v1_products__product_id__delete"];
         options?: never;
         head?: never;
         patch?: never;
@@ -2064,6 +2156,13 @@ export interface components {
              */
             red_band?: number | null;
         };
+        /** Catalogue */
+        Catalogue: {
+            /** Crops */
+            crops: components["schemas"]["CropOut"][];
+            /** Products */
+            products: components["schemas"]["ProductOut"][];
+        };
         /** CellEdit */
         CellEdit: {
             /** Rate Kg Ha */
@@ -2150,6 +2249,64 @@ export interface components {
             /** Target Shaft Rpm */
             target_shaft_rpm: (number | null)[];
         };
+        /**
+         * ClampReport
+         * @description The agronomist's min / max and what it changed when the version was built.
+         */
+        ClampReport: {
+            /**
+             * Area M2
+             * @default 0
+             */
+            area_m2?: number;
+            /**
+             * Count
+             * @default 0
+             */
+            count?: number;
+            /**
+             * Lowered
+             * @default 0
+             */
+            lowered?: number;
+            /** Max Kg Ha */
+            max_kg_ha?: number | null;
+            /** Min Kg Ha */
+            min_kg_ha?: number | null;
+            /** Model Max Kg Ha */
+            model_max_kg_ha?: number | null;
+            /** Model Min Kg Ha */
+            model_min_kg_ha?: number | null;
+            /**
+             * Raised
+             * @default 0
+             */
+            raised?: number;
+            /** Seq */
+            seq?: number[] | null;
+        } & {
+            [key: string]: unknown;
+        };
+        /**
+         * ClassRow
+         * @description One legend class of the zones table: its rate range, cells, ha and t of product.
+         */
+        ClassRow: {
+            /** Area Ha */
+            area_ha: number;
+            /** Class */
+            class: number;
+            /** From Kg Ha */
+            from_kg_ha: number;
+            /** N Cells */
+            n_cells: number;
+            /** Product T */
+            product_t: number;
+            /** To Kg Ha */
+            to_kg_ha: number;
+        } & {
+            [key: string]: unknown;
+        };
         /** ControllerIn */
         ControllerIn: {
             /**
@@ -2167,6 +2324,35 @@ export interface components {
              * @default 0.01
              */
             period_s?: number;
+        };
+        /** CropOut */
+        CropOut: {
+            /**
+             * E Kg Per 100Kg
+             * @description kg N taken up per 100 kg of yield
+             */
+            e_kg_per_100kg: number;
+            /**
+             * K Utilisation
+             * @description fertiliser N utilisation
+             */
+            k_utilisation: number;
+            /** Key */
+            key: string;
+            /** Name */
+            name: string;
+            /** Source */
+            source: string;
+            /** Target Yield T Ha */
+            target_yield_t_ha: number;
+        };
+        /** CurrentIn */
+        CurrentIn: {
+            /**
+             * Version
+             * @description the version that becomes current (undo / redo)
+             */
+            version: number;
         };
         /** Deleted */
         Deleted: {
@@ -2224,6 +2410,11 @@ export interface components {
         };
         /** EditIn */
         EditIn: {
+            /**
+             * Based On Version
+             * @description the version edited (default: the current one)
+             */
+            based_on_version?: number | null;
             /** Cells */
             cells?: components["schemas"]["CellEdit"][] | null;
             /**
@@ -2998,6 +3189,20 @@ export interface components {
             };
         };
         /**
+         * LegendClasses
+         * @description The version's legend classes (fixed with it) and its zones table.
+         */
+        LegendClasses: {
+            /** Breaks Kg Ha */
+            breaks_kg_ha: number[];
+            /** Source */
+            source: string;
+            /** Table */
+            table: components["schemas"]["ClassRow"][];
+        } & {
+            [key: string]: unknown;
+        };
+        /**
          * LinearCalibrationIn
          * @description Seed 001 eq. 1 form of a meter's calibration: q0 = a * r + b [g/min], r in r/min.
          *
@@ -3535,6 +3740,27 @@ export interface components {
             calibration?: {
                 [key: string]: unknown;
             } | null;
+            /**
+             * Clamp Max Kg Ha
+             * @description lower model rates above this (cells flagged, counted)
+             */
+            clamp_max_kg_ha?: number | null;
+            /**
+             * Clamp Min Kg Ha
+             * @description raise model rates below this (cells flagged, counted)
+             */
+            clamp_min_kg_ha?: number | null;
+            /**
+             * Class Count
+             * @description legend classes of version 1
+             * @default 6
+             */
+            class_count?: number;
+            /**
+             * Crop
+             * @description a crop key of GET /products: its e_kg_per_100kg and k_utilisation fill the nutrient-balance parameters not given
+             */
+            crop?: string | null;
             /** Fallback Rate Kg Ha */
             fallback_rate_kg_ha?: number | null;
             /**
@@ -3564,6 +3790,12 @@ export interface components {
              */
             name?: string;
             /**
+             * Note
+             * @description note of version 1
+             * @default
+             */
+            note?: string;
+            /**
              * Params
              * @description nutrient_balance: target_yield_kg_ha, n_fraction, e_kg_per_100kg, k_utilisation; ndvi: ndvi_low, rate_at_low_kg_ha, ndvi_high, rate_at_high_kg_ha; uniform: rate_kg_ha
              */
@@ -3575,6 +3807,11 @@ export interface components {
              * @default
              */
             product?: string;
+            /**
+             * Product Key
+             * @description a product key of GET /products: names the product, gives n_fraction (nutrient_balance) and the version's nutrient and cost figures
+             */
+            product_key?: string | null;
             /** Speed Max Kmh */
             speed_max_kmh?: number | null;
             /** Speed Min Kmh */
@@ -3634,6 +3871,63 @@ export interface components {
             summary: components["schemas"]["RxSummary"];
             /** Versions */
             versions: components["schemas"]["VersionRef"][];
+        };
+        /** ProductIn */
+        ProductIn: {
+            /**
+             * K2O Pct
+             * @description K2O in %
+             * @default 0
+             */
+            k2o_pct?: number;
+            /**
+             * N Pct
+             * @description N mass fraction in %
+             */
+            n_pct: number;
+            /** Name */
+            name: string;
+            /**
+             * P2O5 Pct
+             * @description P2O5 in %
+             * @default 0
+             */
+            p2o5_pct?: number;
+            /**
+             * Price Per T
+             * @description price per tonne
+             */
+            price_per_t?: number | null;
+        };
+        /** ProductOut */
+        ProductOut: {
+            /** Created At */
+            created_at?: string | null;
+            /**
+             * Id
+             * @description the row id of an organisation's product; null: default
+             */
+            id: number | null;
+            /** K2O Pct */
+            k2o_pct: number;
+            /**
+             * Key
+             * @description what PrescriptionIn.product_key takes
+             */
+            key: string;
+            /** N Pct */
+            n_pct: number;
+            /** Name */
+            name: string;
+            /** P2O5 Pct */
+            p2o5_pct: number;
+            /** Price Per T */
+            price_per_t: number | null;
+            /**
+             * Source
+             * @description where the figures come from
+             */
+            source: string;
         };
         /**
          * RawLogsRequested
@@ -3863,6 +4157,17 @@ export interface components {
              */
             area_m2?: number;
             attention?: components["schemas"]["Attention"] | null;
+            clamp?: components["schemas"]["ClampReport"] | null;
+            classes?: components["schemas"]["LegendClasses"] | null;
+            /**
+             * Cost
+             * @description product t x price per t
+             */
+            cost?: number | null;
+            /** Crop */
+            crop?: {
+                [key: string]: unknown;
+            } | null;
             /** Flagged */
             flagged?: {
                 [key: string]: number;
@@ -3890,10 +4195,37 @@ export interface components {
             /** N Flagged */
             n_flagged?: number | null;
             /**
+             * Nutrients Kg
+             * @description N, P2O5, K2O
+             */
+            nutrients_kg?: {
+                [key: string]: number;
+            } | null;
+            /** Nutrients Kg Ha */
+            nutrients_kg_ha?: {
+                [key: string]: number;
+            } | null;
+            /**
+             * Param Sources
+             * @description where each model parameter came from
+             */
+            param_sources?: {
+                [key: string]: string;
+            } | null;
+            /**
+             * Product
+             * @description the product used
+             */
+            product?: {
+                [key: string]: unknown;
+            } | null;
+            /**
              * Product Kg
              * @default 0
              */
             product_kg?: number;
+            /** Product T */
+            product_t?: number | null;
             /** Rate Max Kg Ha */
             rate_max_kg_ha?: number | null;
             /** Rate Mean Kg Ha */
@@ -4055,6 +4387,27 @@ export interface components {
             calibration?: {
                 [key: string]: unknown;
             } | null;
+            /**
+             * Clamp Max Kg Ha
+             * @description lower model rates above this (cells flagged, counted)
+             */
+            clamp_max_kg_ha?: number | null;
+            /**
+             * Clamp Min Kg Ha
+             * @description raise model rates below this (cells flagged, counted)
+             */
+            clamp_min_kg_ha?: number | null;
+            /**
+             * Class Count
+             * @description legend classes of version 1
+             * @default 6
+             */
+            class_count?: number;
+            /**
+             * Crop
+             * @description a crop key of GET /products: its e_kg_per_100kg and k_utilisation fill the nutrient-balance parameters not given
+             */
+            crop?: string | null;
             /** Fallback Rate Kg Ha */
             fallback_rate_kg_ha?: number | null;
             /**
@@ -4096,6 +4449,12 @@ export interface components {
              */
             name?: string;
             /**
+             * Note
+             * @description note of version 1
+             * @default
+             */
+            note?: string;
+            /**
              * Params
              * @description nutrient_balance: target_yield_kg_ha, n_fraction, e_kg_per_100kg, k_utilisation; ndvi: ndvi_low, rate_at_low_kg_ha, ndvi_high, rate_at_high_kg_ha; uniform: rate_kg_ha
              */
@@ -4107,6 +4466,11 @@ export interface components {
              * @default
              */
             product?: string;
+            /**
+             * Product Key
+             * @description a product key of GET /products: names the product, gives n_fraction (nutrient_balance) and the version's nutrient and cost figures
+             */
+            product_key?: string | null;
             /** Speed Max Kmh */
             speed_max_kmh?: number | null;
             /** Speed Min Kmh */
@@ -4381,6 +4745,37 @@ export interface components {
             /** Version */
             version: number;
         };
+        /**
+         * VersionDiff
+         * @description What changed from version ``from_version`` to ``to_version`` (b - a).
+         */
+        VersionDiff: {
+            /** Area Changed Ha */
+            area_changed_ha: number;
+            /** Area Changed M2 */
+            area_changed_m2: number;
+            /** Cells Changed */
+            cells_changed: number;
+            /** Cost Delta */
+            cost_delta: number | null;
+            /** From Version */
+            from_version: number;
+            /** Max Decrease Kg Ha */
+            max_decrease_kg_ha: number;
+            /** Max Increase Kg Ha */
+            max_increase_kg_ha: number;
+            /** Product Kg Delta */
+            product_kg_delta: number;
+            /** Rate Mean Delta Kg Ha */
+            rate_mean_delta_kg_ha: number | null;
+            /**
+             * Seq
+             * @description the first 1000 changed cells
+             */
+            seq: number[];
+            /** To Version */
+            to_version: number;
+        };
         /** VersionList */
         VersionList: {
             /** Current Version */
@@ -4401,6 +4796,18 @@ export interface components {
             summary: components["schemas"]["RxSummary"];
             /** Version */
             version: number;
+        };
+        /**
+         * VersionPatch
+         * @description A version's note and legend classes (its rates never change).
+         */
+        VersionPatch: {
+            /** Breaks Kg Ha */
+            breaks_kg_ha?: number[] | null;
+            /** Class Count */
+            class_count?: number | null;
+            /** Note */
+            note?: string | null;
         };
         /** VersionRef */
         VersionRef: {
@@ -11919,6 +12326,183 @@ export interface operations {
             };
         };
     };
+    set_current_api_v1_prescriptions__rx_id__current_put: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                rx_id: number;
+            };
+            cookie?: never;
+        };
+        requestBody: {
+            content: {
+                "application/json": components["schemas"]["CurrentIn"];
+            };
+        };
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["PrescriptionOut"];
+                };
+            };
+            /** @description missing, invalid, expired or revoked bearer token */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description the token may not do this (a viewer writing, a device token on a user endpoint); the message names the role needed */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description no such resource in the caller's organisation */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description conflicts with stored state (a job state transition, evidence that must be kept) */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description request body or upload too large */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description invalid input: the message names the field, row or vertex */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description the database or the worker pool is busy or unreachable: retry (Retry-After) */
+            503: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+        };
+    };
+    diff_api_v1_prescriptions__rx_id__diff_get: {
+        parameters: {
+            query: {
+                from: number;
+                to: number;
+            };
+            header?: never;
+            path: {
+                rx_id: number;
+            };
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["VersionDiff"];
+                };
+            };
+            /** @description missing, invalid, expired or revoked bearer token */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description the token may not do this (a viewer writing, a device token on a user endpoint); the message names the role needed */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description no such resource in the caller's organisation */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description conflicts with stored state (a job state transition, evidence that must be kept) */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description request body or upload too large */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description invalid input: the message names the field, row or vertex */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description the database or the worker pool is busy or unreachable: retry (Retry-After) */
+            503: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+        };
+    };
     edit_api_v1_prescriptions__rx_id__edits_post: {
         parameters: {
             query?: never;
@@ -12217,6 +12801,349 @@ export interface operations {
                 content: {
                     "application/json": components["schemas"]["VersionDetail"];
                 };
+            };
+            /** @description missing, invalid, expired or revoked bearer token */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description the token may not do this (a viewer writing, a device token on a user endpoint); the message names the role needed */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description no such resource in the caller's organisation */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description conflicts with stored state (a job state transition, evidence that must be kept) */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description request body or upload too large */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description invalid input: the message names the field, row or vertex */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description the database or the worker pool is busy or unreachable: retry (Retry-After) */
+            503: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+        };
+    };
+    patch_version_api_v1_prescriptions__rx_id__versions__version__patch: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                rx_id: number;
+                version: number;
+            };
+            cookie?: never;
+        };
+        requestBody: {
+            content: {
+                "application/json": components["schemas"]["VersionPatch"];
+            };
+        };
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["VersionDetail"];
+                };
+            };
+            /** @description missing, invalid, expired or revoked bearer token */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description the token may not do this (a viewer writing, a device token on a user endpoint); the message names the role needed */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description no such resource in the caller's organisation */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description conflicts with stored state (a job state transition, evidence that must be kept) */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description request body or upload too large */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description invalid input: the message names the field, row or vertex */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description the database or the worker pool is busy or unreachable: retry (Retry-After) */
+            503: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+        };
+    };
+    catalogue_api_v1_products_get: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["Catalogue"];
+                };
+            };
+            /** @description missing, invalid, expired or revoked bearer token */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description the token may not do this (a viewer writing, a device token on a user endpoint); the message names the role needed */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description no such resource in the caller's organisation */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description conflicts with stored state (a job state transition, evidence that must be kept) */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description request body or upload too large */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description invalid input: the message names the field, row or vertex */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description the database or the worker pool is busy or unreachable: retry (Retry-After) */
+            503: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+        };
+    };
+    add_product_api_v1_products_post: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        requestBody: {
+            content: {
+                "application/json": components["schemas"]["ProductIn"];
+            };
+        };
+        responses: {
+            /** @description Successful Response */
+            201: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ProductOut"];
+                };
+            };
+            /** @description missing, invalid, expired or revoked bearer token */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description the token may not do this (a viewer writing, a device token on a user endpoint); the message names the role needed */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description no such resource in the caller's organisation */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description conflicts with stored state (a job state transition, evidence that must be kept) */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description request body or upload too large */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description invalid input: the message names the field, row or vertex */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description the database or the worker pool is busy or unreachable: retry (Retry-After) */
+            503: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+        };
+    };
+    delete_product_api_v1_products__product_id__delete: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                product_id: number;
+            };
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            204: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content?: never;
             };
             /** @description missing, invalid, expired or revoked bearer token */
             401: {

@@ -1,0 +1,126 @@
+import type { ReactNode } from 'react';
+import { NDVI_SOURCE, withCrop, type Crop, type FieldErrors, type Product, type RxFields, type RxModel } from '../lib/rxform';
+import { ProductPicker } from './ProductPicker';
+
+/** A number input with its unit and, under it, where its default comes from or what is wrong. */
+function Num(props: {
+  label: string;
+  unit: string;
+  k: keyof RxFields;
+  f: RxFields;
+  set: (f: RxFields) => void;
+  errors: FieldErrors;
+  source?: ReactNode;
+  tid: string;
+  step?: string;
+}) {
+  const { label, unit, k, f, set, errors, source, tid, step = 'any' } = props;
+  return (
+    <label className="num-field">
+      {label}
+      <span className="with-unit">
+        <input
+          data-testid={`${tid}-${k}`}
+          type="number"
+          step={step}
+          value={f[k]}
+          aria-invalid={!!errors[k]}
+          onChange={(e) => set({ ...f, [k]: e.target.value })}
+        />
+        <span className="unit">{unit}</span>
+      </span>
+      {errors[k] ? (
+        <span className="field-error" data-testid={`${tid}-${k}-error`}>
+          {errors[k]}
+        </span>
+      ) : source ? (
+        <span className="small muted source">{source}</span>
+      ) : null}
+    </label>
+  );
+}
+
+/**
+ * The rate model's inputs as typed fields with units (crop, target yield t/ha, product,
+ * N uptake, utilisation; or a uniform rate; or the NDVI curve) and the agronomist's
+ * min / max clamp. Each default says where it comes from.
+ */
+export function RxModelFields(props: {
+  model: RxModel;
+  fields: RxFields;
+  setFields: (f: RxFields) => void;
+  errors: FieldErrors;
+  crops: Crop[];
+  products: Product[];
+  onProductAdded: () => Promise<void>;
+  tid?: string;
+}) {
+  const { model, fields: f, setFields: set, errors, crops, products, onProductAdded, tid = 'rx' } = props;
+  const crop = crops.find((c) => c.key === f.crop);
+  const cropSource = (k: 'e_kg_per_100kg' | 'k_utilisation' | 'target_yield_t_ha') =>
+    crop && String(crop[k]) === f[k === 'e_kg_per_100kg' ? 'eKgPer100kg' : k === 'k_utilisation' ? 'kUtilisation' : 'targetYieldTHa']
+      ? `default: ${crop.name}, ${crop.source}`
+      : 'set by you';
+  const common = { f, set, errors, tid };
+  return (
+    <fieldset className="rx-fields">
+      {model === 'nutrient_balance' && (
+        <>
+          <label>
+            Crop
+            <select
+              data-testid={`${tid}-crop`}
+              value={f.crop}
+              onChange={(e) => {
+                const c = crops.find((x) => x.key === e.target.value);
+                if (c) set(withCrop(f, c));
+              }}
+            >
+              {crops.map((c) => (
+                <option key={c.key} value={c.key}>
+                  {c.name}
+                </option>
+              ))}
+            </select>
+          </label>
+          <Num label="Target yield" unit="t/ha" k="targetYieldTHa" source={cropSource('target_yield_t_ha')} {...common} />
+          <ProductPicker
+            products={products}
+            value={f.productKey}
+            onChange={(k) => set({ ...f, productKey: k })}
+            onAdded={onProductAdded}
+            error={errors.productKey}
+            testid={`${tid}-product`}
+          />
+          <details>
+            <summary>Crop N uptake and utilisation</summary>
+            <Num label="N uptake" unit="kg N / 100 kg yield" k="eKgPer100kg" source={cropSource('e_kg_per_100kg')} {...common} />
+            <Num label="Fertiliser N utilisation" unit="fraction" k="kUtilisation" source={cropSource('k_utilisation')} {...common} />
+          </details>
+        </>
+      )}
+      {model === 'uniform' && <Num label="Rate" unit="kg/ha" k="uniformRate" {...common} />}
+      {model === 'ndvi' && (
+        <div className="row wrap">
+          <Num label="NDVI low" unit="" k="ndviLow" source={NDVI_SOURCE} {...common} />
+          <Num label="Rate at NDVI low" unit="kg/ha" k="rateAtLow" source={NDVI_SOURCE} {...common} />
+          <Num label="NDVI high" unit="" k="ndviHigh" source={NDVI_SOURCE} {...common} />
+          <Num label="Rate at NDVI high" unit="kg/ha" k="rateAtHigh" source={NDVI_SOURCE} {...common} />
+        </div>
+      )}
+      {model !== 'nutrient_balance' && (
+        <ProductPicker
+          products={products}
+          value={f.productKey}
+          onChange={(k) => set({ ...f, productKey: k })}
+          onAdded={onProductAdded}
+          testid={`${tid}-product`}
+        />
+      )}
+      <div className="row wrap">
+        <Num label="Min rate (clamp)" unit="kg/ha" k="clampMin" source="empty: no minimum" {...common} />
+        <Num label="Max rate (clamp)" unit="kg/ha" k="clampMax" source="empty: no maximum" {...common} />
+      </div>
+    </fieldset>
+  );
+}

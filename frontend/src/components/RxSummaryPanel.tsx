@@ -1,0 +1,91 @@
+import type { Schemas } from '../api/client';
+import { formatProduct, outsideMeter } from '../lib/rxform';
+import { formatRate } from '../lib/units';
+import { Kv } from './Status';
+
+type Summary = Schemas['RxSummary'];
+
+/**
+ * The whole-field figures of the version on screen (server summary, every cell): area,
+ * product (kg or t), mean / min / max rate, nutrients per ha, cost, the clamp and what it
+ * changed, the meter range the rates were checked against beside the rate range, and where
+ * each model parameter came from.
+ */
+export function RxSummaryPanel({ summary: s, version }: { summary: Summary | null | undefined; version: number | null }) {
+  if (!s) return <p className="muted">Loading the version's figures…</p>;
+  const nut = s.nutrients_kg_ha ?? null;
+  const meter = s.meter as { rate_min_kg_ha?: number; rate_max_kg_ha?: number; speed_min_kmh?: number; speed_max_kmh?: number } | null;
+  const warn = meter?.rate_min_kg_ha != null && meter.rate_max_kg_ha != null ? outsideMeter(s, meter.rate_min_kg_ha, meter.rate_max_kg_ha) : null;
+  const fl = (s.flagged ?? {}) as Record<string, number>;
+  const fla = (s.flagged_area_m2 ?? {}) as Record<string, number>;
+  const raised = fl.clamped_min ?? 0;
+  const lowered = fl.clamped_max ?? 0;
+  const clamp = s.clamp;
+  const product = s.product as { name?: string; price_per_t?: number | null } | null;
+  return (
+    <div className="rx-summary" data-testid="rx-summary" data-version={version ?? ''}>
+      <Kv
+        items={[
+          ['Area', `${(s.area_ha ?? 0).toFixed(3)} ha`, 'rx-sum-area'],
+          ['Product', product?.name ?? '–', 'rx-sum-product-name'],
+          ['Total product', formatProduct(s.product_kg), 'rx-sum-product'],
+          ['Mean rate', formatRate(s.rate_mean_kg_ha), 'rx-sum-mean'],
+          [
+            'Rate range',
+            <>
+              {formatRate(s.rate_min_kg_ha)} – {formatRate(s.rate_max_kg_ha)}
+              {meter?.rate_min_kg_ha != null && (
+                <span className="small muted" data-testid="rx-meter-range">
+                  {' '}
+                  · machine meters {formatRate(meter.rate_min_kg_ha)} – {formatRate(meter.rate_max_kg_ha)} at {meter.speed_min_kmh}–
+                  {meter.speed_max_kmh} km/h
+                </span>
+              )}
+            </>,
+            'rx-range',
+          ],
+          [
+            'Nutrients',
+            nut
+              ? Object.entries(nut)
+                  .filter(([, v]) => v > 0)
+                  .map(([k, v]) => `${v.toFixed(1)} kg ${k}/ha`)
+                  .join(', ') || '0'
+              : 'choose a product to see kg N/ha',
+            'rx-sum-n',
+          ],
+          [
+            'Cost',
+            s.cost != null ? s.cost.toLocaleString('en-US', { maximumFractionDigits: 2 }) : product ? 'no price set for the product' : '–',
+            'rx-sum-cost',
+          ],
+        ]}
+      />
+      {warn && (
+        <p className="warn small" data-testid="rx-meter-warn">
+          Outside what the machine meters: {warn}.
+        </p>
+      )}
+      {(clamp || raised + lowered > 0) && (
+        <p className={raised + lowered > 0 ? 'warn small' : 'small muted'} data-testid="rx-clamp">
+          Clamp {clamp?.min_kg_ha != null ? formatRate(clamp.min_kg_ha) : 'none'} – {clamp?.max_kg_ha != null ? formatRate(clamp.max_kg_ha) : 'none'}:{' '}
+          {raised} cell{raised === 1 ? '' : 's'} raised, {lowered} lowered (
+          {(((fla.clamped_min ?? 0) + (fla.clamped_max ?? 0)) / 10_000).toFixed(3)} ha)
+          {clamp?.model_min_kg_ha != null && ` · model gave ${formatRate(clamp.model_min_kg_ha)} – ${formatRate(clamp.model_max_kg_ha)}`}
+        </p>
+      )}
+      {s.param_sources && Object.keys(s.param_sources).length > 0 && (
+        <details className="small">
+          <summary>Parameters and their sources</summary>
+          <ul data-testid="rx-param-sources">
+            {Object.entries(s.param_sources).map(([k, src]) => (
+              <li key={k}>
+                {k} = {String((s.params as Record<string, unknown> | undefined)?.[k] ?? '')} — {src}
+              </li>
+            ))}
+          </ul>
+        </details>
+      )}
+    </div>
+  );
+}
