@@ -6,7 +6,7 @@ figures. The defaults every organisation sees live in code
 (``agronomy.products.DEFAULT_PRODUCTS``); this table holds the ones a user adds.
 
 Revision ID: 0016_rx_products
-Revises: 0013_cells
+Revises: 0015_report_tasks
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ import sqlalchemy as sa
 from alembic import op
 
 revision: str = "0016_rx_products"
-down_revision: str | Sequence[str] | None = "0013_cells"
+down_revision: str | Sequence[str] | None = "0015_report_tasks"
 branch_labels: str | Sequence[str] | None = None
 depends_on: str | Sequence[str] | None = None
 
