@@ -173,3 +173,46 @@ def test_distinct_rates_kept_exactly_when_they_fit():
     zones, summary = dissolve_zones(c, 8, 100)
     assert sorted(z.rate_kg_ha for z in zones) == [120.0, 240.0]
     assert summary.max_rate_change_kg_ha == 0.0
+
+
+@pytest.mark.timeout(600)
+def test_isoxml_zones_bounded_on_500ha_field(tmp_path):
+    """The ISOXML zone export stays within terminal limits on a large field.
+
+    The planner bench's 500 ha field at 12 m x 10 m cells (42,016 cells, a rate pattern
+    with many small patches): at most 100 polygons (Climate FieldView's documented limit,
+    the default) and at most a caller's tighter limit; XSD-valid, read back by isoxml-py
+    with the whole cell area and a zone for every cell. The file size is a regression
+    guard (830 kB TASKDATA.XML, 154 kB zipped when written); no terminal documents a byte
+    limit we could hold it to.
+    """
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+    from bench.planning import field_500ha
+
+    f = field_500ha()
+    plan = plan_coverage(f, swath_width_m=12.0, headland_passes=2)
+    c = build_grid(plan, f, cell_length_m=10.0, epsg=32633)
+    xy = c.centroids_utm - c.centroids_utm.min(axis=0)
+    c = c.with_rates(np.round(200 + 80 * np.sin(xy[:, 0] / 60) * np.cos(xy[:, 1] / 45), 1))
+    assert len(c) > 40_000 and c.total_area_m2 > 4.9e6
+    data, summary = write_isoxml_zones(c, "500ha", None, "urea")
+    xml = zipfile.ZipFile(io.BytesIO(data)).read("TASKDATA/TASKDATA.XML")
+    assert len(data) < 400_000 and len(xml) < 2_000_000
+    zones = _isoxml_zones(data, tmp_path / "default")
+    assert 0 < len(zones) == summary.n_polygons <= 100
+    geoms = [g for g, _ in zones]
+    assert all(g.is_valid for g in geoms)
+    assert geod_area(geoms) == pytest.approx(geod_area(c.polygons_wgs84()), rel=1e-5)
+    pts = shapely.point_on_surface(c.polygons_wgs84())
+    hits = shapely.STRtree(geoms).query(pts, predicate="intersects")
+    assert np.array_equal(np.unique(hits[0]), np.arange(len(c)))
+    assert summary.area_reassigned_m2 > 0 and "joined a neighbouring zone" in summary.note()
+    # a tighter terminal limit is honoured too
+    data, summary = write_isoxml_zones(c, "500ha", None, "urea", n_classes=4, max_polygons=10)
+    zones = _isoxml_zones(data, tmp_path / "tight")
+    assert 0 < len(zones) == summary.n_polygons <= 10
+    assert geod_area([g for g, _ in zones]) == pytest.approx(
+        geod_area(c.polygons_wgs84()), rel=1e-5
+    )
