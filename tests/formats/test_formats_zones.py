@@ -216,3 +216,88 @@ def test_isoxml_zones_bounded_on_500ha_field(tmp_path):
     assert geod_area([g for g, _ in zones]) == pytest.approx(
         geod_area(c.polygons_wgs84()), rel=1e-5
     )
+
+
+def striped_with_specks(n_swaths: int = 60, n_per_swath: int = 80, share: float = 0.04):
+    """Four north-south rate stripes (50, 100, 150, 200 kg/ha) sprinkled with single-cell specks.
+
+    Every speck is a patch of its own (a different class from its stripe), so
+    the cells make far more patches than a terminal allows; returns the cells
+    and which cells are specks.
+    """
+    c = CellTable.rectangle(EPSG, X0, Y0, n_swaths, n_per_swath, 2.3, 5.0)
+    stripe = np.minimum((c.centroids_utm[:, 0] - X0) // (2.3 * n_swaths / 4), 3).astype(int)
+    rate = 50.0 + 50.0 * stripe
+    rng = np.random.default_rng(7)
+    speck = rng.random(len(c)) < share
+    # a speck is two classes off its stripe; isolated: no speck touches another
+    xy = np.round((c.centroids_utm - [X0, Y0]) / [2.3, 5.0] - 0.5).astype(int)
+    grid = np.zeros((n_swaths, n_per_swath), bool)
+    grid[xy[:, 0], xy[:, 1]] = speck
+    near = np.zeros_like(grid)
+    for dx in (-1, 0, 1):
+        for dy in (-1, 0, 1):
+            if dx or dy:
+                near |= np.roll(np.roll(grid, dx, 0), dy, 1)
+    speck &= ~near[xy[:, 0], xy[:, 1]]
+    inner = (xy[:, 0] > 0) & (xy[:, 0] < n_swaths - 1)
+    speck &= inner & (xy[:, 1] > 0) & (xy[:, 1] < n_per_swath - 1)
+    rate = np.where(speck, np.where(stripe >= 2, rate - 100.0, rate + 100.0), rate)
+    return c.with_rates(rate), speck
+
+
+def test_sieve_holds_cap_keeps_classes_and_moves_only_the_specks():
+    """Issue 19: the old sieve doubled a minimum patch area until the count fit and swept
+    79 % of the 500 ha field into 2 zones. Now only the smallest patches move, until the
+    cap holds: here only specks, and all four classes stay."""
+    c, speck = striped_with_specks()
+    assert speck.sum() > 100  # far more patches than the cap
+    zones, s = dissolve_zones(c, 4, 20)
+    assert s.n_patches == 4 + speck.sum()
+    assert s.n_polygons <= 20 and s.n_zones == 4 and len(zones) == 4
+    assert sorted(z.rate_kg_ha for z in zones) == [50.0, 100.0, 150.0, 200.0]
+    # it stops as soon as the count fits: 20 polygons, the other specks stay
+    assert s.n_polygons == 20 and s.patches_merged == s.n_patches - 20
+    assert s.area_reassigned_m2 == pytest.approx(s.patches_merged * 2.3 * 5.0)
+    assert s.max_moved_rate_change_kg_ha == pytest.approx(100.0)
+    assert "joined a neighbouring zone" in s.note() and f"{s.patches_merged} patches" in s.note()
+
+
+def test_sieve_stops_as_soon_as_the_cap_fits():
+    c, speck = striped_with_specks(30, 40, 0.05)
+    n = 4 + int(speck.sum())
+    zones, s = dissolve_zones(c, 4, n)  # everything fits: nothing moves
+    assert s.n_polygons == n and s.patches_merged == 0 and s.area_reassigned_m2 == 0.0
+    assert "no patch was merged" in s.note()
+    zones, s = dissolve_zones(c, 4, n - 3)  # three merges and no more
+    assert s.n_polygons == n - 3 and s.patches_merged == 3
+    assert s.area_reassigned_m2 == pytest.approx(np.sort(c.area_m2[speck])[:3].sum())
+
+
+def test_classes_kept_when_the_cap_allows_on_a_smooth_field():
+    """The default (8 classes, 100 polygons) on the wavy field keeps every class."""
+    c = field_cells("smooth")
+    zones, s = dissolve_zones(c)
+    assert s.n_classes == 8 and s.n_zones == 8 and s.n_polygons <= 100
+    assert s.max_moved_rate_change_kg_ha <= s.max_rate_change_kg_ha
+    # the note is truthful: the moved area is what changed class
+    assert s.area_reassigned_m2 < c.total_area_m2 * 0.5
+
+
+@pytest.mark.timeout(300)
+def test_dissolve_runtime_bound_on_medium_field():
+    """50,000 cells (2.3 m x 5 m, 11.5 ha) with a smooth pattern in well under a minute
+    under load (the old sieve: ~40 s for 42k cells; the 500 ha field's figures are in
+    bench/zones.py)."""
+    import time
+
+    c = CellTable.rectangle(EPSG, X0, Y0, 200, 250, 2.3, 5.0)
+    xy = c.centroids_utm - [X0, Y0]
+    c = c.with_rates(np.round(200 + 80 * np.sin(xy[:, 0] / 60) * np.cos(xy[:, 1] / 45), 1))
+    t = time.perf_counter()
+    zones, s = dissolve_zones(c)
+    dt = time.perf_counter() - t
+    assert s.n_polygons <= 100 and s.n_zones == 8
+    assert dt < 45.0, f"dissolve took {dt:.1f} s"
+    area = sum(z.area_m2 for z in zones)
+    assert area == pytest.approx(c.total_area_m2)

@@ -74,7 +74,11 @@ def polygon_parts(geom: Any) -> list[Any]:
 
 @dataclass
 class Zone:
-    """One rate class: its setpoint and its dissolved WGS84 polygons (valid, snapped)."""
+    """One rate class: its setpoint and its dissolved WGS84 polygons (valid, snapped).
+
+    The setpoint is the area-weighted mean rate of the cells binned into the
+    class; cells merged in from smaller patches take it (``ZoneSummary``).
+    """
 
     rate_kg_ha: float
     polygons: list[Any]
@@ -218,7 +222,7 @@ class _Sieved:
 
 def _sieve(
     cls: np.ndarray,
-    rate: np.ndarray,
+    class_rate: np.ndarray,
     area: np.ndarray,
     a: np.ndarray,
     b: np.ndarray,
@@ -234,9 +238,10 @@ def _sieve(
     closest to its own (ties: most shared edges, then larger area); every
     other neighbour of that class joins too, as the merged cells now connect
     them. Union-find keeps patch -> surviving patch. The loop stops as soon
-    as the count fits (and no patch is below ``min_patch`` m^2), so a cap
-    that allows every class keeps every class, and what moves is the
-    smallest area that meets the cap this way (greedy, smallest first).
+    as the count fits (and no patch is below ``min_patch`` m^2). A class's
+    last patch is never merged away, so every class survives (the cap is at
+    least the class count), and what moves is the smallest area that meets
+    the cap this way (greedy, smallest first).
     The old sieve doubled a minimum patch area and recomputed everything
     per round; the last doubling swept most of the field into two zones.
     """
@@ -246,9 +251,6 @@ def _sieve(
         return _Sieved(cls, k, 0, 0.0)
     pcls = np.zeros(k, dtype=np.int64)
     pcls[comp] = cls
-    w = area + 1e-12
-    wsum = np.maximum(np.bincount(cls, weights=w), 1e-300)
-    class_rate = np.bincount(cls, weights=w * rate) / wsum
     pa, pb = comp[a], comp[b]
     cross = pa != pb
     lo, hi = np.minimum(pa[cross], pb[cross]), np.maximum(pa[cross], pb[cross])
@@ -261,6 +263,7 @@ def _sieve(
     pc = pcls.tolist()
     ar = parea.tolist()
     parent = list(range(k))
+    live = np.bincount(pcls).tolist()  # live patches per class
     heap = [(ar[i], i) for i in range(k)]
     heapq.heapify(heap)
     count, merged, largest = k, 0, 0.0
@@ -271,8 +274,8 @@ def _sieve(
         if count <= max_patches and size >= min_patch:
             break
         near = nbr[p]
-        if not near:
-            continue  # a separate part of the field: nothing to join
+        if not near or live[pc[p]] == 1:
+            continue  # a separate part of the field, or its class's last patch: it stays
         rp = prate[p]
         q = min(near, key=lambda r: (abs(prate[r] - rp), -near[r], -ar[r], r))
         group = [r for r in near if pc[r] == pc[q]]
@@ -293,6 +296,8 @@ def _sieve(
             nbr[m] = {}
             into.pop(m, None)
         count -= len(members)
+        live[pc[p]] -= 1
+        live[pc[root]] -= len(members) - 1
         merged += 1
         largest = max(largest, size)
         heapq.heappush(heap, (ar[root], root))
@@ -306,12 +311,112 @@ def _sieve(
     return _Sieved(pcls[root_of][comp], count, merged, largest)
 
 
-def _dissolve(cells: CellTable, cls: np.ndarray, decimals: int) -> list[tuple[int, Any]]:
+def _quad_area(q: np.ndarray) -> np.ndarray:
+    """Shoelace area of (n, 4, 2) quads, relative to their first corner (UTM products lose mm)."""
+    r = q - q[:, :1]
+    x, y = r[:, :, 0], r[:, :, 1]
+    return 0.5 * np.abs(np.sum(x * np.roll(y, -1, axis=1) - np.roll(x, -1, axis=1) * y, axis=1))
+
+
+def _runs(cells: CellTable, cls: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Whole cells in a row of one swath and one class, joined.
+
+    Returns the run per cell, each run's quad (four corners: for the
+    adjacency test) and its polygon with every cell corner along its sides
+    (for the union: the zones keep the cells' vertices, so no edge is longer
+    than a cell and projecting vertex by vertex stays exact enough).
+
+    A run is consecutive cells (same swath, ``index_in_swath`` + 1) that are
+    their whole footprint (unclipped 4-corner cells), share their cut edge
+    and go straight; its polygon is the rear corners of the first and the
+    front corners of the last cell. The quad's area must equal the cells'
+    summed area (1e-7) or the run falls back to its cells. Every later step
+    (adjacency, patches, union) works on runs: ~436k cells of the 500 ha
+    bench field become far fewer runs, and a run always stays in one patch.
+    Other cells (clipped, headland curves, from the store without corners)
+    are runs of one with their own polygon.
+    """
+    n = len(cells)
+    polys = cells.polygons_utm
+    c = cells.corners_utm
+    quad = _quad_area(c)
+    parea = shapely.area(polys)
+    whole = (
+        (shapely.get_type_id(polys) == 3)
+        & (shapely.get_num_coordinates(polys) == 5)
+        & (np.abs(parea - quad) <= 1e-7 * np.maximum(quad, 1e-12))
+    )
+    o = np.lexsort((cells.index_in_swath, cells.swath))
+    i, j = o[:-1], o[1:]
+    d = c[i, 1] - c[i, 0]
+    u = d / np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-12)[:, None]
+
+    def off(pt: np.ndarray, base: np.ndarray) -> np.ndarray:
+        q = pt - base
+        return np.abs(u[:, 0] * q[:, 1] - u[:, 1] * q[:, 0])
+
+    join = (
+        (cells.swath[i] == cells.swath[j])
+        & (cells.index_in_swath[j] == cells.index_in_swath[i] + 1)
+        & (cls[i] == cls[j])
+        & whole[i]
+        & whole[j]
+        & (np.hypot(*(c[i, 1] - c[j, 0]).T) <= _TOUCH_M)
+        & (np.hypot(*(c[i, 2] - c[j, 3]).T) <= _TOUCH_M)
+        & (off(c[j, 1], c[i, 0]) <= 1e-6)
+        & (off(c[j, 2], c[i, 3]) <= 1e-6)
+    )
+    brk = np.concatenate([[True], ~join])
+    rid_sorted = np.cumsum(brk) - 1
+    starts = np.flatnonzero(brk)
+    ends = np.concatenate([starts[1:], [n]]) - 1
+    fi, la = o[starts], o[ends]
+    ring = np.stack([c[fi, 0], c[la, 1], c[la, 2], c[fi, 3], c[fi, 0]], axis=1)
+    rq = _quad_area(ring[:, :4])
+    summed = np.bincount(rid_sorted, weights=parea[o])
+    good = (starts != ends) & (np.abs(rq - summed) <= 1e-7 * summed)
+    run = np.empty(n, dtype=np.int64)
+    run[o] = rid_sorted
+    bad_cell = ~good[run]  # runs of one, or runs that failed the area check: their cells
+    k = len(starts)
+    ids = np.full(n, -1, dtype=np.int64)
+    keep_runs = np.flatnonzero(good)
+    ids_good = np.full(k, -1, dtype=np.int64)
+    ids_good[keep_runs] = np.arange(len(keep_runs))
+    ids[~bad_cell] = ids_good[run[~bad_cell]]
+    lone = np.flatnonzero(bad_cell)
+    ids[lone] = len(keep_runs) + np.arange(len(lone))
+    quads = np.concatenate([shapely.polygons(ring[keep_runs]), polys[lone]])
+    # the union gets every cell corner along the run's sides, as the cells had them:
+    # rear-right of the first, front-right of each, front-left of each backwards,
+    # rear-left of the first, closed
+    in_run = good[rid_sorted]
+    r = rid_sorted[in_run]
+    pos = np.arange(n)[in_run] - starts[r]  # place of the cell in its run
+    length = (ends - starts + 1)[r]
+    cell = o[in_run]
+    first = pos == 0
+    key = np.concatenate(
+        [np.zeros(int(first.sum())), 1 + pos, 1 + length + (length - 1 - pos)]
+        + [2 + 2 * length[first], 3 + 2 * length[first]]
+    )
+    rr = np.concatenate([r[first], r, r, r[first], r[first]])
+    xy = np.concatenate(
+        [c[cell[first], 0], c[cell, 1], c[cell, 2], c[cell[first], 3], c[cell[first], 0]]
+    )
+    order = np.lexsort((key, rr))
+    sides = shapely.polygons(shapely.linearrings(xy[order], indices=ids_good[rr[order]]))
+    return ids, quads, np.concatenate([sides, polys[lone]])
+
+
+def _dissolve(
+    geoms_utm: np.ndarray, cls: np.ndarray, epsg: int, decimals: int
+) -> list[tuple[int, Any]]:
     """Union per class in UTM (fast), then to lon/lat and ``snap_valid`` (slivers < 0.1 mm go)."""
     out = []
     for c in np.unique(cls).tolist():
-        merged = shapely.union_all(cells.polygons_utm[cls == c])
-        wgs = to_wgs84(merged, cells.epsg)
+        merged = shapely.union_all(geoms_utm[cls == c])
+        wgs = to_wgs84(merged, epsg)
         out.append((int(c), snap_valid(wgs, decimals)))
     return out
 
@@ -340,28 +445,35 @@ def dissolve_zones(
     rate = np.asarray(cells.rate_kg_ha, dtype=float)
     area = np.asarray(cells.area_m2, dtype=float)
     cls0 = _classes(rate, n_classes)
-    a, b = _adjacency(cells.polygons_utm)
+    unit, uquads, ugeoms = _runs(cells, cls0)  # cells joined in runs: all below works on runs
+    nu = len(ugeoms)
+    ucls0 = np.zeros(nu, dtype=cls0.dtype)
+    ucls0[unit] = cls0
+    uarea = np.bincount(unit, weights=area, minlength=nu)
+    w = area + 1e-12
+    class_rate = np.bincount(cls0, weights=w * rate) / np.maximum(
+        np.bincount(cls0, weights=w), 1e-300
+    )
+    a, b = _adjacency(uquads)
     min_patch = 0.0 if min_patch_m2 is None else max(float(min_patch_m2), 0.0)
-    n_patches0, _ = _patches(cls0, a, b)
+    n_patches0, _ = _patches(ucls0, a, b)
     target = max_polygons
     while True:
-        sv = _sieve(cls0, rate, area, a, b, target, min_patch)
-        cls = sv.cls
-        merged = _dissolve(cells, cls, decimals)
+        sv = _sieve(ucls0, class_rate, uarea, a, b, target, min_patch)
+        merged = _dissolve(ugeoms, sv.cls, cells.epsg, decimals)
         n_poly = sum(len(polygon_parts(g)) for _, g in merged)
         if n_poly <= max_polygons or sv.n_patches > target or target <= 1:
             break
         target -= n_poly - max_polygons
+    cls = sv.cls[unit]
     if n_poly > max_polygons:
         raise FormatError(
             f"the zones need {n_poly} polygons, more than the limit {max_polygons} "
             f"(the field has {sv.n_patches} parts that cannot be merged): use a higher limit"
         )
-    w = area + 1e-12
-    used = np.unique(cls)
-    sums = np.bincount(cls, weights=w * rate, minlength=int(used.max()) + 1)
-    wsum = np.bincount(cls, weights=w, minlength=int(used.max()) + 1)
-    zone_rate = np.round(sums / np.maximum(wsum, 1e-300), 2)
+    # a zone keeps its class's rate (mean of the cells binned into it), so merging
+    # changes only the moved cells' rate, never the rate of the cells that stayed
+    zone_rate = np.round(class_rate, 2)
     zones = []
     for c, geom in sorted(merged, key=lambda cg: zone_rate[cg[0]]):
         inside = cls == c
