@@ -6,6 +6,13 @@ headland 2 passes, ~436k cells) with the smooth rate pattern of the zone tests
 100 polygons, FieldView's limit). Prints stage timings, what the sieve moved
 (area, largest per-cell rate change) and the classes kept.
 Run: .venv/bin/python bench/zones.py [swath_m cell_m [n_classes max_polygons]]
+
+Measured on the 2-core machine under load 9..25 (435,729 cells, 8 classes, 100 polygons):
+the old sieve (minimum patch doubled, full recomputation per round) 381.8 s, 2 zones /
+8 polygons, 79.0 % of the area moved, largest rate change 81.8 kg/ha. Now 14.9..35 s
+(union_all is ~85 % of it), 8 zones / 100 polygons, 69.0 % moved, 88.6 kg/ha: the rate
+pattern has 734 connected class patches, so 100 polygons cannot draw 8 classes without
+moving most of them; with 4 classes 36.5 % moves, with a limit of 1000 nothing moves.
 """
 
 import json
