@@ -117,6 +117,16 @@ if [[ $WITH_TEST -eq 1 ]]; then
   fi
 fi
 
+# --- isoxml-js, the second independent ISOXML reader of the export tests --------------
+# tests/formats/js (its own package.json + lock, not the frontend's): npm "isoxml"
+if [[ $WITH_TEST -eq 1 ]]; then
+  JSDIR=tests/formats/js
+  if [[ ! -d $JSDIR/node_modules || $JSDIR/package-lock.json -nt $JSDIR/node_modules ]]; then
+    log "npm ci ($JSDIR: isoxml-js)"
+    (cd $JSDIR && npm ci --no-audit --no-fund --loglevel=error)
+  fi
+fi
+
 # --- Frontend ---------------------------------------------------------------
 if [[ -f frontend/package.json ]]; then
   if [[ ! -d frontend/node_modules || frontend/package-lock.json -nt frontend/node_modules ]]; then

@@ -1,4 +1,4 @@
-"""Import of a TASKDATA set written by other software (see tests/formats/data/README.md)."""
+"""Import of TASKDATA sets written by other software (see tests/formats/data/README.md)."""
 
 from __future__ import annotations
 
@@ -7,6 +7,7 @@ from pathlib import Path
 import pytest
 import shapely
 from fieldrx.formats.isoxml_import import read_taskdata
+from pyproj import Geod
 
 from tests.plans.helpers import API
 
@@ -51,3 +52,60 @@ def test_full_task_imported_through_api(client, org):
     assert field["properties"]["area_m2"] == pytest.approx(
         body["preview"]["fields"][0]["area_m2"], rel=1e-5
     )
+
+
+# --- isoxml-dotnet's partfield set (GreenDB): 13 boundaries, two with holes -----------------
+
+PARTFIELDS = Path(__file__).parent / "data" / "isoxml-dotnet_partfields" / "TASKDATA.XML"
+GEOD = Geod(ellps="WGS84")
+
+
+def _geod_area(g) -> float:
+    """Ellipsoidal area; rings oriented first (pyproj sums signed ring areas)."""
+    return abs(GEOD.geometry_area_perimeter(shapely.orient_polygons(g))[0])
+
+
+def test_partfields_with_holes_areas_match_the_declared():
+    ds = read_taskdata({"TASKDATA.XML": PARTFIELDS.read_bytes()})
+    assert ds.version == "4.3"
+    assert len(ds.fields) == 13 and not ds.prescriptions
+    for f in ds.fields:
+        assert f.boundary.is_valid, f.name
+        # PFD D is the writer's own area (m^2, whole hundreds): within 1 %
+        assert _geod_area(f.boundary) == pytest.approx(f.declared_area_m2, rel=0.01), f.name
+    holed = {f.name: f.boundary for f in ds.fields if f.boundary.interiors}
+    assert sorted(holed) == ["MW_LaConc_EC_Equator_Hole", "NM_Oxted_NullMeridian_Hole"]
+    oxted = holed["NM_Oxted_NullMeridian_Hole"]
+    (hole,) = oxted.interiors
+    # the inner ring as written (LSG A=2, 11 points, lon D / lat C), first = last
+    assert len(hole.coords) == 11 and hole.coords[0] == (0.000429, 51.240845)
+    assert hole.coords[4] == (0.000408, 51.239528)
+    # the hole is subtracted: the declared 35,600 m2 is the outer ring (45,700) less ~10,070
+    outer = _geod_area(shapely.Polygon(oxted.exterior))
+    assert outer > 1.25 * 35600 and _geod_area(oxted) == pytest.approx(35600, rel=0.01)
+    assert not oxted.contains(shapely.Point(0.0004, 51.2402))  # inside the hole
+    assert oxted.contains(shapely.Point(0.0020, 51.2395))
+    eq = holed["MW_LaConc_EC_Equator_Hole"]  # straddles the equator: latitudes of both signs
+    assert eq.bounds[1] < 0 < eq.bounds[3] and len(eq.interiors[0].coords) == 6
+    whats = " | ".join(s["what"] + " -> " + s["why"] for s in ds.skipped)
+    assert whats.count("without treatment zones") == 13
+
+
+def test_partfields_with_holes_imported_through_api(client, org):
+    h = org.headers()
+    files = {"files": ("TASKDATA.XML", PARTFIELDS.read_bytes(), "application/xml")}
+    pre = client.post(f"{API}/imports/isoxml", headers=h, files=files)
+    assert pre.status_code == 200, pre.text
+    body = pre.json()
+    assert len(body["preview"]["fields"]) == 13
+    ok = client.post(f"{API}/imports/isoxml?confirm={body['sha256']}", headers=h, files=files)
+    assert ok.status_code == 201, ok.text
+    by_name = {}
+    for f in ok.json()["created"]["fields"]:
+        got = client.get(f"{API}/fields/{f['id']}", headers=h).json()
+        by_name[got["properties"]["name"]] = got
+    assert len(by_name) == 13
+    oxted = by_name["NM_Oxted_NullMeridian_Hole"]
+    geom = shapely.geometry.shape(oxted["geometry"])
+    assert len(shapely.get_parts(geom)) == 1 and len(shapely.get_parts(geom)[0].interiors) == 1
+    assert oxted["properties"]["area_m2"] == pytest.approx(35600, rel=0.01)
