@@ -109,7 +109,7 @@ describe('fleet, route history and layouts in the browser', { skip: SKIP }, () =
     );
     await mapIdle(page, 'fleet');
     const painted = await page.evaluate(
-      (jid) => window.__fieldrxMaps.fleet.queryRenderedFeatures({ layers: [`coverage-${jid}`] }).length,
+      (jid) => window.__fieldrxMaps.fleet.queryRenderedFeatures({ layers: [`coverage-${jid}-fill`] }).filter((f) => f.properties.n_records > 0).length,
       S.jobId,
     );
     assert.ok(painted > 0, `covered cells painted (${painted})`);

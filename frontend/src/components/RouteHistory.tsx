@@ -6,20 +6,21 @@
  * browser never has to do time-zone arithmetic. A long day is read in pages with a bar.
  */
 import { useEffect, useMemo, useState } from 'react';
-import type * as maplibregl from 'maplibre-gl';
 import { call, client } from '../api/client';
 import type { Schemas } from '../api/client';
 import { bboxOf } from '../lib/geo';
 import { formatDistance } from '../lib/units';
+import { useFields } from '../api/hooks';
 import { MapView } from '../map/MapView';
-import { fitTo, setGeoJSON } from '../map/setup';
+import { FieldBoundary, FitBounds, Points, Track } from '../map/overlays';
 import { Busy, useBusy } from './Busy';
 import { ErrorBox } from './Status';
 
 type TrackDay = Schemas['TrackDay'];
 const PAGE = 10_000;
 const MAX_POINTS = 200_000;
-const EMPTY: GeoJSON.FeatureCollection = { type: 'FeatureCollection', features: [] };
+/** The day's first fix green, its last red. */
+const END_COLOR = ['match', ['get', 'end'], 'start', '#2e9e44', '#d7263d'];
 
 function localTz(): string {
   try {
@@ -51,7 +52,6 @@ export function RouteHistory({ machineId }: { machineId: number }) {
   const [coords, setCoords] = useState<[number, number][]>([]);
   const [loaded, setLoaded] = useState<{ n: number; total: number } | null>(null);
   const [error, setError] = useState<unknown>(null);
-  const [map, setMap] = useState<maplibregl.Map | null>(null);
   const { busy, run } = useBusy();
 
   useEffect(() => {
@@ -94,13 +94,8 @@ export function RouteHistory({ machineId }: { machineId: number }) {
     };
   }, [machineId, chosen, run]);
 
-  useEffect(() => {
-    if (!map) return;
-    const line: GeoJSON.FeatureCollection =
-      coords.length > 1
-        ? { type: 'FeatureCollection', features: [{ type: 'Feature', properties: {}, geometry: { type: 'LineString', coordinates: coords } }] }
-        : EMPTY;
-    const ends: GeoJSON.FeatureCollection = {
+  const ends = useMemo(
+    (): GeoJSON.FeatureCollection => ({
       type: 'FeatureCollection',
       features: coords.length
         ? [
@@ -108,29 +103,11 @@ export function RouteHistory({ machineId }: { machineId: number }) {
             { type: 'Feature', properties: { end: 'end' }, geometry: { type: 'Point', coordinates: coords[coords.length - 1] } },
           ]
         : [],
-    };
-    setGeoJSON(map, 'day-track', line);
-    setGeoJSON(map, 'day-ends', ends);
-    if (coords.length) fitTo(map, bboxOf(coords.length > 1 ? line : ends), 30);
-  }, [map, coords]);
-
-  const onReady = (m: maplibregl.Map) => {
-    setGeoJSON(m, 'day-track', EMPTY);
-    m.addLayer({ id: 'day-track', type: 'line', source: 'day-track', paint: { 'line-color': '#1e3a8a', 'line-width': 3 } });
-    setGeoJSON(m, 'day-ends', EMPTY);
-    m.addLayer({
-      id: 'day-ends',
-      type: 'circle',
-      source: 'day-ends',
-      paint: {
-        'circle-radius': 6,
-        'circle-color': ['match', ['get', 'end'], 'start', '#2e9e44', '#d7263d'],
-        'circle-stroke-color': '#fff',
-        'circle-stroke-width': 2,
-      },
-    });
-    setMap(m);
-  };
+    }),
+    [coords],
+  );
+  const paths = useMemo(() => [coords], [coords]);
+  const fields = useFields({ limit: 500 });
 
   const first = days?.[days.length - 1]?.day;
   const last = days?.[0]?.day;
@@ -173,7 +150,12 @@ export function RouteHistory({ machineId }: { machineId: number }) {
             ` (${tz})`}
       </p>
       <div className="map-box">
-        <MapView name="machine-track" onReady={onReady} imagery={false} />
+        <MapView name="machine-track" imagery={false}>
+          <FieldBoundary id="fields" data={fields.data} />
+          <Track id="day-track" paths={paths} width={3} arrows />
+          <Points id="day-ends" data={ends} color={END_COLOR} radius={6} />
+          <FitBounds bbox={bboxOf(ends)} padding={30} />
+        </MapView>
       </div>
     </section>
   );
