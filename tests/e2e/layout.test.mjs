@@ -124,8 +124,18 @@ describe('fleet, route history and layouts in the browser', { skip: SKIP }, () =
   });
 
   it('shows the route of a chosen day', async () => {
+    // a slow network (the real server, answers held back 1.5 s): the wait is shown, both next
+    // to the control and in the top bar
+    const hold = async (route) => {
+      await new Promise((r) => setTimeout(r, 1500));
+      await route.continue().catch(() => {}); // the page may have moved on
+    };
+    await page.route('**/api/v1/machines/*/track/days*', hold);
     await page.goto(`${BASE_URL}/#/machines/${S.machineId}`);
+    await page.waitForSelector('[data-testid=track-busy]', { timeout: 1400 });
+    await page.waitForSelector('[data-testid=activity][data-active=true]', { timeout: 1400 });
     await page.waitForSelector('[data-testid=track-day-2026-06-01]');
+    await page.unroute('**/api/v1/machines/*/track/days*', hold);
     await page.waitForSelector('[data-testid=track-day-2026-06-02]');
     /** Points of the line on the map, once it shows `want` of them (or what it shows after 5 s). */
     const trackCoords = async (want) => {
@@ -157,7 +167,7 @@ describe('fleet, route history and layouts in the browser', { skip: SKIP }, () =
     await page.screenshot({ path: join(SCREENS, 'machine-1280-route-history.png') });
   });
 
-  /** Every visible control lies inside the viewport; the page itself does not scroll sideways. */
+  /** Every visible control lies inside the viewport (and its panel); the page itself does not scroll sideways. */
   async function overflow() {
     return page.evaluate(() => {
       const W = window.innerWidth;
@@ -169,6 +179,7 @@ describe('fleet, route history and layouts in the browser', { skip: SKIP }, () =
         let box = el.parentElement;
         let scrolls = false;
         for (; box; box = box.parentElement) {
+          if (box.matches('.split > .panel')) break; // it scrolls up and down, never sideways
           const ox = getComputedStyle(box).overflowX;
           if ((ox === 'auto' || ox === 'scroll') && box.scrollWidth > box.clientWidth) {
             scrolls = true;
@@ -176,7 +187,11 @@ describe('fleet, route history and layouts in the browser', { skip: SKIP }, () =
           }
         }
         if (scrolls) continue;
-        if (r.left < -1 || r.right > W + 1)
+        const panel = el.closest('.split > .panel');
+        const pr = panel ? panel.getBoundingClientRect() : null;
+        if (pr && (r.left < pr.left - 1 || r.right > pr.right + 1))
+          bad.push(`${el.tagName.toLowerCase()}[${el.getAttribute('data-testid') ?? el.textContent?.trim().slice(0, 30)}] ${Math.round(r.left)}..${Math.round(r.right)} past the panel's ${Math.round(pr.left)}..${Math.round(pr.right)}`);
+        else if (r.left < -1 || r.right > W + 1)
           bad.push(`${el.tagName.toLowerCase()}[${el.getAttribute('data-testid') ?? el.textContent?.trim().slice(0, 30)}] ${Math.round(r.left)}..${Math.round(r.right)}`);
       }
       const sw = document.documentElement.scrollWidth;

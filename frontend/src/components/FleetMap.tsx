@@ -5,8 +5,9 @@
  * Labels are DOM markers, not a symbol layer: the offline base style has no glyph server.
  * Coverage is the job's own as-applied cell tiles (the report's figures: a cell is painted
  * once something landed in it), re-requested at most every `COVERAGE_REFRESH_MS` while the
- * job's progress messages come in (a busy job sends several a second, and each tile
- * request re-reads the report's cells).
+ * job's progress moves (a busy job sends several messages a second, and a tile request after
+ * new records rebuilds the job's report: at 2 s the fleet page slowed the ingest of a
+ * simulated job on the shared 2-core test machine).
  */
 import { useEffect, useMemo, useRef, useState } from 'react';
 import * as maplibregl from 'maplibre-gl';
@@ -18,7 +19,7 @@ import { MapView } from '../map/MapView';
 import { CellGrid, FieldBoundary, FitBounds, Machines, Track } from '../map/overlays';
 import { absoluteApiUrl } from '../map/setup';
 
-export const COVERAGE_REFRESH_MS = 2000;
+export const COVERAGE_REFRESH_MS = 5000;
 /** Covered cells (something landed) in amber; the rest of the job's grid stays clear. */
 const COVERED = ['case', ['>', ['to-number', ['get', 'n_records'], 0], 0], '#f0b400', 'rgba(0,0,0,0)'];
 
