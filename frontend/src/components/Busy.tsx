@@ -31,11 +31,10 @@ const counter: Middleware = {
     emit();
     return response;
   },
-  onError({ error }) {
+  onError() {
     pending = Math.max(0, pending - 1);
     emit();
-    // re-throw: the caller's `call` reports it
-    throw error;
+    // nothing returned: the next middleware sees the error and the caller gets it thrown
   },
 };
 let installed = false;
