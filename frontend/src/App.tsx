@@ -15,10 +15,33 @@ import { MachineDetail } from './screens/MachineDetail';
 import { MachinesScreen } from './screens/Machines';
 import { SettingsScreen } from './screens/Settings';
 import { OrgSwitcher } from './components/OrgSwitcher';
+import { ActivityBar, installActivityCounter } from './components/Busy';
+
+installActivityCounter();
+
+const PANEL_KEY = 'fieldrx.panel';
+/** Screens laid out as a side panel over/beside a map (`.split > .panel` + MapView). */
+const SPLIT = new Set(['fields', 'plans', 'prescriptions', 'fleet', '']);
+
+/**
+ * The side panel's open state, kept for the tab: a cab tablet driver who hid the panel to
+ * see the whole map keeps it hidden across screens. The map resizes itself on the window's
+ * resize event, so one is sent after the panel changes the map's width.
+ */
+function usePanel(): [boolean, () => void] {
+  const [open, setOpen] = useState(() => sessionStorage.getItem(PANEL_KEY) !== 'closed');
+  useEffect(() => {
+    sessionStorage.setItem(PANEL_KEY, open ? 'open' : 'closed');
+    const t = requestAnimationFrame(() => window.dispatchEvent(new Event('resize')));
+    return () => cancelAnimationFrame(t);
+  }, [open]);
+  return [open, () => setOpen((o) => !o)];
+}
 
 export function App() {
   const route = useRoute();
   const [session, setSess] = useState<SessionInfo | null>(getToken() ? getSession() : null);
+  const [panelOpen, togglePanel] = usePanel();
   const queryClient = useQueryClient();
 
   useEffect(() => {
@@ -59,15 +82,38 @@ export function App() {
   else screen = <FieldsScreen />;
 
   const nav = (p: string, label: string, tid: string) => (
-    <a href={`#/${p}`} className={a === p || (!a && p === 'fields') ? 'active' : ''} data-testid={tid}>
+    <a
+      href={`#/${p}`}
+      className={a === p || (!a && p === 'fields') ? 'active' : ''}
+      aria-current={a === p || (!a && p === 'fields') ? 'page' : undefined}
+      data-testid={tid}
+    >
       {label}
     </a>
   );
+  const split = SPLIT.has(a ?? '') || (a === 'jobs' && b != null);
+  const viewer = (session.organisation as { role?: string } | undefined)?.role === 'viewer';
   return (
-    <div className={`app ${(session.organisation as { role?: string } | undefined)?.role === 'viewer' ? 'role-viewer' : ''}`}>
+    <div className={`app ${viewer ? 'role-viewer' : ''} ${panelOpen ? '' : 'panel-closed'}`}>
+      <a className="skip" href="#main" onClick={(e) => (e.preventDefault(), document.getElementById('main')?.focus())}>
+        Skip to content
+      </a>
       <header className="topbar">
+        {split && (
+          <button
+            type="button"
+            className="panel-toggle"
+            data-testid="panel-toggle"
+            aria-expanded={panelOpen}
+            aria-label={panelOpen ? 'Hide the side panel' : 'Show the side panel'}
+            title={panelOpen ? 'Hide the side panel (full map)' : 'Show the side panel'}
+            onClick={togglePanel}
+          >
+            <span aria-hidden="true">{panelOpen ? '⟨' : '☰'}</span>
+          </button>
+        )}
         <span className="brand">FieldRx</span>
-        <nav>
+        <nav aria-label="Main">
           {nav('fields', 'Fields', 'nav-fields')}
           {nav('jobs', 'Jobs', 'nav-jobs')}
           {nav('fleet', 'Fleet', 'nav-fleet')}
@@ -75,6 +121,7 @@ export function App() {
           {nav('settings', 'Settings', 'nav-settings')}
         </nav>
         <span className="spacer" />
+        <ActivityBar />
         <OrgSwitcher session={session} onChange={setSess} />
         <span className="user" data-testid="current-user">
           {session.user?.email ?? ''}
@@ -92,7 +139,9 @@ export function App() {
           Sign out
         </button>
       </header>
-      <main className="content">{screen}</main>
+      <main className={`content ${split ? 'has-split' : ''}`} id="main" tabIndex={-1}>
+        {screen}
+      </main>
     </div>
   );
 }

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import datetime as dt
+import time
 
 from sqlalchemy import text
 
@@ -189,3 +190,67 @@ def test_fleet_isolation(client, make_org) -> None:  # noqa: ANN001
         client.get(f"/api/v1/machines/{fb.machine_id}/telemetry", headers=a.headers()).status_code
         == 404
     )
+
+
+def test_track_by_day_in_the_farms_time_zone(client, make_org) -> None:  # noqa: ANN001
+    """Route history by day: the days are local, and each day's bounds fetch exactly that
+    day's track (a record 30 min after UTC midnight is still the previous day in New York)."""
+    org, other = make_org(), make_org()
+    fx = make_job(org.id, state="running")
+    utc = dt.UTC
+    times = [
+        dt.datetime(2026, 6, 1, 10, 0, tzinfo=utc),  # 1 June in UTC and in New York
+        dt.datetime(2026, 6, 1, 11, 0, tzinfo=utc),
+        dt.datetime(2026, 6, 2, 0, 30, tzinfo=utc),  # 2 June UTC, 1 June 20:30 in New York
+        dt.datetime(2026, 6, 3, 9, 0, tzinfo=utc),
+    ]
+    _post(client, fx, [record(fx, i + 1, t=x.timestamp()) for i, x in enumerate(times)])
+    base = f"/api/v1/machines/{fx.machine_id}/track"
+    h = org.headers("viewer")
+
+    def days(tz: str) -> list[dict]:
+        r = client.get(f"{base}/days", params={"tz": tz}, headers=h)
+        assert r.status_code == 200, r.text
+        return r.json()["items"]
+
+    assert [(d["day"], d["points"]) for d in days("UTC")] == [
+        ("2026-06-03", 1),
+        ("2026-06-02", 1),
+        ("2026-06-01", 2),
+    ]
+    ny = days("America/New_York")
+    assert [(d["day"], d["points"]) for d in ny] == [("2026-06-03", 1), ("2026-06-01", 3)]
+    june1 = ny[1]
+    assert june1["start"].startswith("2026-06-01T00:00:00") and june1["start"].endswith("-04:00")
+    page = client.get(base, params={"from": june1["start"], "to": june1["end"]}, headers=h).json()
+    assert [f["properties"]["seq"] for f in page["features"]] == [1, 2, 3]
+    assert page["total"] == 3
+    bad = client.get(f"{base}/days", params={"tz": "Mars/Olympus"}, headers=h)
+    assert bad.status_code == 422 and "Mars/Olympus" in bad.text
+    assert client.get(f"{base}/days", headers=other.headers()).status_code == 404
+
+
+def test_status_keeps_last_seen_and_position_when_offline(client, db, org) -> None:  # noqa: ANN001
+    """The fleet list shows "offline, last seen 5 min ago" at the last known place: an
+    offline machine keeps its last_seen_at, silent_s and position (only live figures go)."""
+    fx = make_job(org.id, state="running")
+    _post(client, fx, [record(fx, 1, t=time.time())])
+    (m,) = client.get("/api/v1/machines/status", headers=org.headers()).json()["items"]
+    assert m["online"] and m["silent_s"] < 30 and m["last_seen_at"] is not None
+    db.execute(
+        text(
+            "UPDATE machine_status SET last_seen_at = now() - interval '5 minutes'"
+            " WHERE machine_id = :m"
+        ),
+        {"m": fx.machine_id},
+    )
+    db.commit()
+    body = client.get("/api/v1/machines/status", headers=org.headers()).json()
+    (m,) = body["items"]
+    assert not m["online"] and m["state"] == "offline"
+    assert 299 <= m["silent_s"] < 330
+    seen = dt.datetime.fromisoformat(m["last_seen_at"])
+    now = dt.datetime.fromisoformat(body["server_time"])
+    assert 299 <= (now - seen).total_seconds() < 330
+    assert m["position"]["coordinates"] == [fx.cells[0]["lon"], fx.cells[0]["lat"]]
+    assert m["speed_m_s"] is None and m["last_speed_m_s"] == 1.5

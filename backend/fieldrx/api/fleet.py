@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import datetime as dt
 import json
+import zoneinfo
 from typing import Any
 
 from fastapi import APIRouter, Query
@@ -25,6 +26,7 @@ from fieldrx.api.schemas.fleet import (
     ChartOut,
     FleetStatusOut,
     PointPage,
+    TrackDays,
 )
 from fieldrx.auth.deps import SessionDep, UserDep, WriterDep
 from fieldrx.db.models import Alert, Machine
@@ -243,6 +245,58 @@ def machine_track(
         params,
     )
     return point_page(rows, total or 0, limit, offset, machine_id=machine_id)
+
+
+DAYS_SQL = """
+SELECT (t AT TIME ZONE :tz)::date AS day, count(*) AS points, min(t) AS first_t, max(t) AS last_t
+FROM telemetry WHERE machine_id = :m AND geom IS NOT NULL
+GROUP BY 1 ORDER BY 1 DESC LIMIT :lim
+"""
+
+
+MICROSECOND = dt.timedelta(microseconds=1)
+
+
+def _zone(tz: str) -> zoneinfo.ZoneInfo:
+    try:
+        return zoneinfo.ZoneInfo(tz)
+    except (zoneinfo.ZoneInfoNotFoundError, ValueError):
+        raise ApiError(
+            422, f"unknown time zone '{tz}' (an IANA name such as 'Europe/Berlin')", where="tz"
+        ) from None
+
+
+@router.get("/machines/{machine_id:int}/track/days", response_model=TrackDays)
+def machine_track_days(
+    machine_id: int,
+    principal: UserDep,
+    session: SessionDep,
+    tz: str = Query(default="UTC", description="IANA time zone the days are counted in"),
+    limit: int = Query(default=366, ge=1, le=3660),
+) -> dict[str, Any]:
+    """The days on which the machine has a track, newest first, each with its bounds in
+    ``tz``: the UI's route history asks ``/track?from=start&to=end`` for the chosen day
+    (a farm's day is local: a night shift after 00:00 UTC is still "today" in Europe)."""
+    get_scoped(session, Machine, machine_id, principal)
+    zone = _zone(tz)
+    rows = session.execute(text(DAYS_SQL), {"m": machine_id, "tz": tz, "lim": limit}).all()
+    items = []
+    for day, points, first_t, last_t in rows:
+        start = dt.datetime.combine(day, dt.time(), zone)
+        # ``to`` is inclusive: the day's last microsecond (timestamptz's resolution), so a
+        # record at the next midnight is not on both days
+        end = dt.datetime.combine(day + dt.timedelta(days=1), dt.time(), zone) - MICROSECOND
+        items.append(
+            {
+                "day": day,
+                "points": points,
+                "first_t": first_t,
+                "last_t": last_t,
+                "start": start,
+                "end": end,
+            }
+        )
+    return {"machine_id": machine_id, "tz": tz, "items": items}
 
 
 CHART_COLUMNS = (

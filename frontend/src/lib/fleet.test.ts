@@ -1,5 +1,5 @@
 import { describe, expect, it } from 'vitest';
-import { applyLive, deriveStatus, fromStatusItem, type Fleet } from './fleet';
+import { applyLive, deriveStatus, fromStatusItem, lastSeenText, type Fleet } from './fleet';
 
 const item = {
   machine_id: 1,
@@ -76,5 +76,30 @@ describe('sensor jobs on the fleet view', () => {
     f = applyLive(f, { type: 'position', machine_id: 4, lon: 1, lat: 2, depth_mm: 30.5 });
     expect(f.get(4)?.depth_mm).toBe(30.5);
     expect(f.get(4)?.ndvi).toBeNull(); // a record without NDVI: no stale figure
+  });
+});
+
+describe('last seen', () => {
+  const now = Date.UTC(2026, 5, 1, 12, 0, 0);
+  it('comes from the server-side silence, not the browser clock', () => {
+    const m = fromStatusItem({ machine_id: 3, online: false, silent_s: 300, last_seen_at: '2020-01-01T00:00:00Z' }, now);
+    expect(m.last_seen_ms).toBe(now - 300_000);
+    expect(m.status).toBe('offline');
+    expect(lastSeenText(m.last_seen_ms, now)).toBe('5 min ago');
+  });
+  it('is now on a position and the sweep time on the offline push', () => {
+    const start: Fleet = new Map([[3, fromStatusItem({ machine_id: 3, online: true, silent_s: 1 }, now)]]);
+    const f = applyLive(start, { type: 'position', machine_id: 3, lon: 1, lat: 2 }, now + 5000);
+    expect(f.get(3)?.last_seen_ms).toBe(now + 5000);
+    const off = applyLive(f, { type: 'machine', event: 'offline', machine_id: 3, silent_s: 12 }, now + 20_000);
+    expect(off.get(3)?.status).toBe('offline');
+    expect(off.get(3)?.last_seen_ms).toBe(now + 8000);
+  });
+  it('reads as a person would say it', () => {
+    expect(lastSeenText(null, now)).toBe('never');
+    expect(lastSeenText(now - 2000, now)).toBe('just now');
+    expect(lastSeenText(now - 45_000, now)).toBe('45 s ago');
+    expect(lastSeenText(now - (3 * 3600 + 5 * 60) * 1000, now)).toBe('3 h 5 min ago');
+    expect(lastSeenText(now - 2 * 3600 * 1000, now)).toBe('2 h ago');
   });
 });

@@ -19,6 +19,8 @@ export interface FleetMachine {
   active_alerts?: number;
   alarms?: string[];
   t?: number | string | null;
+  /** when the server last heard from the machine, in this browser's clock (ms since epoch) */
+  last_seen_ms?: number | null;
   /** sensor jobs (issue 13): latest filtered NDVI and applied rate (seed 000), depth (seed 002) */
   ndvi?: number | null;
   applied_rate_kg_ha?: number | null;
@@ -50,7 +52,7 @@ export function deriveStatus(m: Omit<FleetMachine, 'status'>): FleetMachine['sta
 }
 
 /** One item of GET /machines/status (position as a GeoJSON Point, job as an object). */
-export function fromStatusItem(o: Record<string, unknown>): FleetMachine {
+export function fromStatusItem(o: Record<string, unknown>, now = Date.now()): FleetMachine {
   const pos = o.position as { coordinates?: number[] } | null | undefined;
   const job = o.job as Record<string, unknown> | null | undefined;
   const m: Omit<FleetMachine, 'status'> = {
@@ -67,6 +69,7 @@ export function fromStatusItem(o: Record<string, unknown>): FleetMachine {
     active_alerts: num(o.active_alerts) ?? 0,
     alarms: Array.isArray(o.alarms) ? (o.alarms as string[]) : [],
     t: (o.last_t as string) ?? null,
+    last_seen_ms: seenAt(o.silent_s, now),
   };
   return { ...m, status: deriveStatus(m) };
 }
@@ -77,11 +80,11 @@ export interface LiveMsg {
 }
 
 /** Applies one live message; returns the same map when nothing changed (cheap React updates). */
-export function applyLive(fleet: Fleet, msg: LiveMsg): Fleet {
+export function applyLive(fleet: Fleet, msg: LiveMsg, now = Date.now()): Fleet {
   if (msg.type === 'status' && Array.isArray(msg.machines)) {
     const next: Fleet = new Map();
     for (const o of msg.machines as Record<string, unknown>[]) {
-      const m = fromStatusItem(o);
+      const m = fromStatusItem(o, now);
       next.set(m.machine_id, { ...fleet.get(m.machine_id), ...m });
     }
     return next;
@@ -102,6 +105,7 @@ export function applyLive(fleet: Fleet, msg: LiveMsg): Fleet {
       implement_down: typeof msg.implement_down === 'boolean' ? msg.implement_down : prev.implement_down,
       alarms: Array.isArray(msg.alarms) ? (msg.alarms as string[]) : prev.alarms,
       t: (msg.t as number) ?? prev.t,
+      last_seen_ms: now,
       ndvi: num(msg.ndvi),
       applied_rate_kg_ha: num(msg.applied_rate_kg_ha),
       depth_mm: num(msg.depth_mm),
@@ -115,7 +119,7 @@ export function applyLive(fleet: Fleet, msg: LiveMsg): Fleet {
     };
   } else if (msg.type === 'machine' && msg.event === 'offline') {
     // pushed by the server after the heartbeat timeout: no speed, no flags any more
-    upd = { ...prev, online: false, speed_m_s: null, alarms: [] };
+    upd = { ...prev, online: false, speed_m_s: null, alarms: [], last_seen_ms: seenAt(msg.silent_s, now) ?? prev.last_seen_ms };
   } else if (msg.type === 'alert') {
     const delta = msg.event === 'ended' ? -1 : msg.event === 'started' || msg.event == null ? 1 : 0;
     upd = { ...prev, active_alerts: Math.max(0, (prev.active_alerts ?? 0) + delta) };
@@ -123,4 +127,27 @@ export function applyLive(fleet: Fleet, msg: LiveMsg): Fleet {
   const next = new Map(fleet);
   next.set(id, { ...upd, status: deriveStatus(upd) });
   return next;
+}
+
+/**
+ * When the server last heard from a machine, from its ``silent_s`` (seconds, the server's
+ * own now minus last_seen_at): the browser's clock may be off by minutes, a difference of
+ * two server times is not.
+ */
+function seenAt(silent: unknown, now: number): number | null {
+  const s = num(silent);
+  return s == null ? null : now - s * 1000;
+}
+
+/** "just now", "45 s ago", "12 min ago", "3 h 5 min ago", then the date and time. */
+export function lastSeenText(seenMs: number | null | undefined, now = Date.now()): string {
+  if (seenMs == null) return 'never';
+  const s = Math.max(0, Math.round((now - seenMs) / 1000));
+  if (s < 5) return 'just now';
+  if (s < 60) return `${s} s ago`;
+  const min = Math.floor(s / 60);
+  if (min < 60) return `${min} min ago`;
+  const h = Math.floor(min / 60);
+  if (h < 24) return min % 60 ? `${h} h ${min % 60} min ago` : `${h} h ago`;
+  return new Date(seenMs).toLocaleString();
 }

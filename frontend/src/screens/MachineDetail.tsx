@@ -1,11 +1,14 @@
 import { useCallback, useEffect, useMemo, useState } from 'react';
 import { call, client, type Machine } from '../api/client';
 import { ErrorBox, Kv } from '../components/Status';
+import { Busy, useBusy } from '../components/Busy';
 import { TimeChart } from '../components/TimeChart';
 import { decimate, normaliseTrack, type TrackPoint } from '../lib/track';
 import { formatSpeed, msToKmh } from '../lib/units';
 import { useLive } from '../live';
-import { calibrationText, formOf, validateCalibration, type CalibrationErrors, type CalibrationForm } from '../lib/calibration';
+import { calibrationText } from '../lib/calibration';
+import { CalibrationEditor, DeviceToken } from '../components/MachineForms';
+import { RouteHistory } from '../components/RouteHistory';
 
 const MAX_POINTS = 3000;
 
@@ -14,9 +17,8 @@ export function MachineDetail({ machineId }: { machineId: number }) {
   const [machine, setMachine] = useState<Machine | null>(null);
   const [track, setTrack] = useState<TrackPoint[]>([]);
   const [error, setError] = useState<unknown>(null);
-  const [token, setToken] = useState('');
-  const [calForm, setCalForm] = useState<CalibrationForm | null>(null);
-  const [calErrors, setCalErrors] = useState<CalibrationErrors>({});
+
+  const { busy, run } = useBusy();
 
   const loadTrack = useCallback(async () => {
     try {
@@ -25,11 +27,8 @@ export function MachineDetail({ machineId }: { machineId: number }) {
       const head = await call(client.GET('/api/v1/machines/{machine_id}/track', { params: { path, query: { limit: 1 } } }));
       const limit = 10_000;
       const offset = Math.max(0, head.total - limit);
-      setTrack(
-        normaliseTrack(
-          await call(client.GET('/api/v1/machines/{machine_id}/track', { params: { path, query: { limit, offset } } })),
-        ),
-      );
+      const page = await call(client.GET('/api/v1/machines/{machine_id}/track', { params: { path, query: { limit, offset } } }));
+      setTrack(normaliseTrack(page));
     } catch (e) {
       setError(e);
     }
@@ -39,8 +38,8 @@ export function MachineDetail({ machineId }: { machineId: number }) {
     call(client.GET('/api/v1/machines/{machine_id}', { params: { path: { machine_id: machineId } } }))
       .then(setMachine)
       .catch(setError);
-    void loadTrack();
-  }, [machineId, loadTrack]);
+    void run(loadTrack);
+  }, [machineId, loadTrack, run]);
 
   useLive((m) => {
     if (Number(m.machine_id) !== machineId || m.type !== 'position') return;
@@ -78,6 +77,7 @@ export function MachineDetail({ machineId }: { machineId: number }) {
         <a href="#/fleet">← Fleet</a>
       </p>
       <h2 data-testid="machine-title">{machine?.name ?? `Machine #${machineId}`}</h2>
+      <Busy busy={busy} label="loading the latest records…" testid="machine-busy" />
       <ErrorBox error={error} />
       <Kv
         items={[
@@ -89,86 +89,9 @@ export function MachineDetail({ machineId }: { machineId: number }) {
           ['Track points', String(track.length), 'machine-track-count'],
         ]}
       />
-      {calForm ? (
-        <form
-          className="card"
-          data-testid="cal-edit-form"
-          noValidate
-          onSubmit={async (e) => {
-            e.preventDefault();
-            const r = validateCalibration(calForm);
-            setCalErrors(r.errors);
-            if (!r.value) return;
-            try {
-              setMachine(
-                await call(client.PATCH('/api/v1/machines/{machine_id}', { params: { path: { machine_id: machineId } }, body: r.value })),
-              );
-              setCalForm(null);
-            } catch (err) {
-              setError(err);
-            }
-          }}
-        >
-          <div className="row wrap">
-            {(
-              [
-                ['slope', 'a (g/min per r/min)'],
-                ['intercept', 'b (g/min)'],
-                ['minRpm', 'min r/min'],
-                ['maxRpm', 'max r/min'],
-                ['lag', 'lag s'],
-              ] as [keyof CalibrationForm, string][]
-            ).map(([k, label]) => (
-              <label className="inline" key={k}>
-                {label}{' '}
-                <input type="number" step="any" value={calForm[k]} onChange={(e) => setCalForm({ ...calForm, [k]: e.target.value })} />
-              </label>
-            ))}
-          </div>
-          {Object.keys(calErrors).length > 0 && (
-            <ul className="error" role="alert">
-              {Object.values(calErrors).map((m) => (
-                <li key={m}>{m}</li>
-              ))}
-            </ul>
-          )}
-          <div className="row">
-            <button data-write="">Save calibration</button>
-            <button type="button" onClick={() => setCalForm(null)}>
-              Cancel
-            </button>
-          </div>
-        </form>
-      ) : (
-        machine?.calibration?.kind !== 'table' && (
-          <button data-write="" data-testid="cal-edit" onClick={() => setCalForm(formOf(machine?.calibration, machine?.lag_s))}>
-            Edit calibration
-          </button>
-        )
-      )}
-      <div className="row">
-        <button
-          data-testid="device-token" data-write=""
-          onClick={async () => {
-            try {
-              const r = await call(
-                client.POST('/api/v1/machines/{machine_id}/device-token', { params: { path: { machine_id: machineId } } }),
-              );
-              setToken(r.token);
-            } catch (e) {
-              setError(e);
-            }
-          }}
-        >
-          New device token
-        </button>
-        {token && (
-          <code className="token" data-testid="device-token-value">
-            {token}
-          </code>
-        )}
-      </div>
-      {token && <p className="muted small">Shown once: copy it into the edge agent's configuration now.</p>}
+      <CalibrationEditor machine={machine} onSaved={setMachine} />
+      <DeviceToken machineId={machineId} />
+      <RouteHistory machineId={machineId} />
       <TimeChart t={t} series={speed} title="Ground speed: raw vs Kalman-filtered" unit="km/h" testid="chart-speed" />
       {track.length > 0 && !hasRaw && (
         <p className="muted small" data-testid="chart-speed-note">

@@ -118,6 +118,27 @@ class PointPage(Out):
     next_offset: int | None = Field(description="offset of the next page; null on the last")
 
 
+class TrackDay(Out):
+    """One local calendar day on which the machine recorded positions."""
+
+    day: dt.date = Field(description="the day in the requested time zone")
+    points: int = Field(description="records with a position that day")
+    first_t: dt.datetime
+    last_t: dt.datetime
+    start: dt.datetime = Field(description="the day's start (pass as ``from`` to the track)")
+    end: dt.datetime = Field(
+        description="the day's last microsecond (pass as ``to``: the track's ``to`` is inclusive)"
+    )
+
+
+class TrackDays(Out):
+    """Days with a track, newest first (route history by day)."""
+
+    machine_id: int
+    tz: str
+    items: list[TrackDay]
+
+
 class ChartOut(Out):
     """Column arrays, one value per record (``t`` in Unix seconds)."""
 

@@ -1175,6 +1175,28 @@ export interface paths {
         patch?: never;
         trace?: never;
     };
+    "/api/v1/machines/{machine_id}/track/days": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        /**
+         * Machine Track Days
+         * @description The days on which the machine has a track, newest first, each with its bounds in
+         *     ``tz``: the UI's route history asks ``/track?from=start&to=end`` for the chosen day
+         *     (a farm's day is local: a night shift after 00:00 UTC is still "today" in Europe).
+         */
+        get: operations["machine_track_days_api_v1_machines__machine_id__track_days_get"];
+        put?: never;
+        post?: never;
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
     "/api/v1/machines/status": {
         parameters: {
             query?: never;
@@ -4721,6 +4743,57 @@ export interface components {
             revoked_at: string | null;
             /** Role */
             role: string | null;
+        };
+        /**
+         * TrackDay
+         * @description One local calendar day on which the machine recorded positions.
+         */
+        TrackDay: {
+            /**
+             * Day
+             * Format: date
+             * @description the day in the requested time zone
+             */
+            day: string;
+            /**
+             * End
+             * Format: date-time
+             * @description the day's last microsecond (pass as ``to``: the track's ``to`` is inclusive)
+             */
+            end: string;
+            /**
+             * First T
+             * Format: date-time
+             */
+            first_t: string;
+            /**
+             * Last T
+             * Format: date-time
+             */
+            last_t: string;
+            /**
+             * Points
+             * @description records with a position that day
+             */
+            points: number;
+            /**
+             * Start
+             * Format: date-time
+             * @description the day's start (pass as ``from`` to the track)
+             */
+            start: string;
+        };
+        /**
+         * TrackDays
+         * @description Days with a track, newest first (route history by day).
+         */
+        TrackDays: {
+            /** Items */
+            items: components["schemas"]["TrackDay"][];
+            /** Machine Id */
+            machine_id: number;
+            /** Tz */
+            tz: string;
         };
         /** UserOut */
         UserOut: {
@@ -11131,6 +11204,95 @@ export interface operations {
                 };
                 content: {
                     "application/json": components["schemas"]["PointPage"];
+                };
+            };
+            /** @description missing, invalid, expired or revoked bearer token */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description the token may not do this (a viewer writing, a device token on a user endpoint); the message names the role needed */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description no such resource in the caller's organisation */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description conflicts with stored state (a job state transition, evidence that must be kept) */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description request body or upload too large */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description invalid input: the message names the field, row or vertex */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description the database or the worker pool is busy or unreachable: retry (Retry-After) */
+            503: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+        };
+    };
+    machine_track_days_api_v1_machines__machine_id__track_days_get: {
+        parameters: {
+            query?: {
+                limit?: number;
+                /** @description IANA time zone the days are counted in */
+                tz?: string;
+            };
+            header?: never;
+            path: {
+                machine_id: number;
+            };
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["TrackDays"];
                 };
             };
             /** @description missing, invalid, expired or revoked bearer token */

@@ -1,0 +1,113 @@
+/**
+ * The fleet's map, composed of overlays: fields as context, live trails, the running jobs'
+ * coverage, machines (status colour, heading) and their names as labels.
+ *
+ * Labels are DOM markers, not a symbol layer: the offline base style has no glyph server.
+ * Coverage is the job's own as-applied cell tiles (the report's figures: a cell is painted
+ * once something landed in it), re-requested at most every `COVERAGE_REFRESH_MS` while the
+ * job's progress moves (a busy job sends several messages a second, and a tile request after
+ * new records rebuilds the job's report: at 2 s the fleet page slowed the ingest of a
+ * simulated job on the shared 2-core test machine).
+ */
+import { useEffect, useMemo, useRef, useState } from 'react';
+import * as maplibregl from 'maplibre-gl';
+import { useFields } from '../api/hooks';
+import type { Fleet } from '../lib/fleet';
+import { bboxOf } from '../lib/geo';
+import { useMap } from '../map/context';
+import { MapView } from '../map/MapView';
+import { CellGrid, FieldBoundary, FitBounds, Machines, Track } from '../map/overlays';
+import { absoluteApiUrl } from '../map/setup';
+
+export const COVERAGE_REFRESH_MS = 5000;
+/** Covered cells (something landed) in amber; the rest of the job's grid stays clear. */
+const COVERED = ['case', ['>', ['to-number', ['get', 'n_records'], 0], 0], '#f0b400', 'rgba(0,0,0,0)'];
+
+/** One DOM label per machine with a position, kept in step with the fleet. */
+function MachineLabels({ fleet }: { fleet: Fleet }) {
+  const map = useMap();
+  const markers = useRef(new Map<number, maplibregl.Marker>());
+  useEffect(() => {
+    if (!map) return;
+    const seen = new Set<number>();
+    for (const m of fleet.values()) {
+      if (m.lon == null || m.lat == null) continue;
+      seen.add(m.machine_id);
+      let mk = markers.current.get(m.machine_id);
+      if (!mk) {
+        const el = document.createElement('div');
+        el.dataset.testid = `map-label-${m.machine_id}`;
+        mk = new maplibregl.Marker({ element: el, anchor: 'bottom', offset: [0, -13] }).setLngLat([m.lon, m.lat]).addTo(map);
+        markers.current.set(m.machine_id, mk);
+      }
+      const el = mk.getElement();
+      // classList, not className: the marker's own classes position it
+      el.classList.add('machine-label');
+      el.classList.toggle('offline', m.status === 'offline');
+      el.textContent = m.name ?? `#${m.machine_id}`;
+      mk.setLngLat([m.lon, m.lat]);
+    }
+    for (const [id, mk] of markers.current)
+      if (!seen.has(id)) {
+        mk.remove();
+        markers.current.delete(id);
+      }
+  }, [map, fleet]);
+  useEffect(
+    () => () => {
+      for (const mk of markers.current.values()) mk.remove();
+      markers.current.clear();
+    },
+    [map],
+  );
+  return null;
+}
+
+/** A running job's covered cells; its tiles are re-requested when progress has moved. */
+function LiveCoverage({ jobId, progress }: { jobId: number; progress: number }) {
+  const latest = useRef(progress);
+  latest.current = progress;
+  const [shown, setShown] = useState(progress);
+  useEffect(() => {
+    const t = setInterval(() => setShown(latest.current), COVERAGE_REFRESH_MS);
+    return () => clearInterval(t);
+  }, []);
+  return (
+    <CellGrid
+      id={`coverage-${jobId}`}
+      tiles={absoluteApiUrl(`/api/v1/tiles/jobs/${jobId}/{z}/{x}/{y}.mvt`)}
+      color={COVERED}
+      opacity={0.6}
+      refreshKey={shown}
+    />
+  );
+}
+
+/** The fleet's map: fitted once to the machines, then left where the user puts it. */
+export function FleetMap(props: { fleet: Fleet; trails: Map<number, [number, number][]> }) {
+  const { fleet, trails } = props;
+  const fields = useFields({ limit: 500 });
+  const machines = useMemo(() => [...fleet.values()], [fleet]);
+  const paths = useMemo(() => [...trails.values()].map((c) => [...c]), [fleet, trails]); // eslint-disable-line react-hooks/exhaustive-deps
+  const running = machines.filter((m) => m.job_id != null && m.job_state === 'running');
+  const bbox = useMemo(
+    () =>
+      bboxOf({
+        type: 'MultiPoint',
+        coordinates: machines.filter((m) => m.lon != null && m.lat != null).map((m) => [m.lon, m.lat]),
+      }),
+    [machines],
+  );
+  return (
+    <MapView name="fleet">
+      <FieldBoundary id="fields" data={fields.data} />
+      {running.map((m) => (
+        <LiveCoverage key={m.job_id} jobId={m.job_id as number} progress={m.progress ?? 0} />
+      ))}
+      <Track id="trails" paths={paths} width={2} opacity={0.6} />
+      <Machines machines={machines} onClick={(id) => (location.hash = `/machines/${id}`)} />
+      <MachineLabels fleet={fleet} />
+      <FitBounds bbox={bbox} once padding={60} maxZoom={16} />
+    </MapView>
+  );
+}
