@@ -11,12 +11,14 @@ import { describe, expect, it } from 'vitest';
  * Screens owned by other work in progress, not converted yet. The lead shrinks this list at
  * merge as each screen is converted (a converted screen left here is reported below).
  */
-export const ALLOWLIST = new Set(['Prescription', 'FieldDetail', 'Fleet', 'MachineDetail', 'JobReport', 'Jobs', 'KindReport']);
+export const ALLOWLIST = new Set(['FieldDetail', 'JobReport', 'KindReport', 'TrackReplay']);
 
-const DIR = join(__dirname);
-const screens = readdirSync(DIR)
-  .filter((f) => f.endsWith('.tsx'))
-  .map((f) => ({ name: f.replace(/\.tsx$/, ''), src: readFileSync(join(DIR, f), 'utf8') }));
+/** Screens and the components they are built from: the same two rules hold for both. */
+const read = (dir: string) =>
+  readdirSync(dir)
+    .filter((f) => f.endsWith('.tsx'))
+    .map((f) => ({ name: f.replace(/\.tsx$/, ''), src: readFileSync(join(dir, f), 'utf8') }));
+const screens = [...read(join(__dirname)), ...read(join(__dirname, '..', 'components'))];
 
 /** Direct map calls a screen must leave to the overlay components. */
 const DIRECT_MAP = /\.(addLayer|addSource|removeLayer|removeSource)\(|new\s+maplibregl\.Map\b|\b(replaceVectorSource|addRouteLayers|setGeoJSON)\(/g;
