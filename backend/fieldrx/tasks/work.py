@@ -30,6 +30,7 @@ import psycopg
 from sqlalchemy import text
 from sqlalchemy.orm import Session
 
+from fieldrx.agronomy.interpolate import DEFAULT_METHOD
 from fieldrx.db.models import Field, Machine, Plan
 from fieldrx.db.session import get_engine, make_engine, raw_dsn
 from fieldrx.errors import Cancelled, DomainError
@@ -174,7 +175,7 @@ def _rx_work(
         product=b.get("product", ""),
         model=b.get("model", "nutrient_balance"),
         params=b.get("params") or {},
-        interpolation=b.get("interpolation", "cell_mean"),
+        interpolation=b.get("interpolation", DEFAULT_METHOD),
         interpolation_params=b.get("interpolation_params") or {},
         fallback_rate_kg_ha=b.get("fallback_rate_kg_ha"),
         meter=meter,

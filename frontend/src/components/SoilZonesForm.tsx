@@ -2,6 +2,7 @@ import { useState } from 'react';
 import { call, client, type Prescription, type Schemas } from '../api/client';
 import { MODEL_DEFAULTS } from '../screens/RxForm';
 import { ErrorBox } from './Status';
+import { serverDefault } from '../api/defaults';
 
 /**
  * Management zones from the field's soil samples (next to the imagery NDVI zones): the
@@ -12,8 +13,8 @@ import { ErrorBox } from './Status';
 export function SoilZonesForm(props: { planId: number; onCreated: (r: Prescription) => void }) {
   const { planId, onCreated } = props;
   const [model, setModel] = useState<'nutrient_balance' | 'ndvi'>('nutrient_balance');
-  const [interp, setInterp] = useState('idw');
-  const [k, setK] = useState(4);
+  const [interp, setInterp] = useState<string>(serverDefault('SoilZonesIn', 'interpolation'));
+  const [k, setK] = useState(serverDefault('SoilZonesIn', 'k'));
   const [minArea, setMinArea] = useState(0);
   const [params, setParams] = useState(JSON.stringify(MODEL_DEFAULTS.nutrient_balance, null, 2));
   const [busy, setBusy] = useState(false);

@@ -1,6 +1,7 @@
 import { useEffect, useState } from 'react';
 import { call, client, type Machine, type Prescription, type Schemas, inline } from '../api/client';
 import { ErrorBox } from '../components/Status';
+import { serverDefault } from '../api/defaults';
 
 /** Defaults from seed 002 eq. 19-21 (winter rape worked example, SCIENCE.md). */
 export const MODEL_DEFAULTS: Record<string, Record<string, unknown>> = {
@@ -17,7 +18,7 @@ export const MODEL_DEFAULTS: Record<string, Record<string, unknown>> = {
 export function RxForm({ planId, onCreated }: { planId: number; onCreated: (r: Prescription) => void }) {
   const [model, setModel] = useState('nutrient_balance');
   const [params, setParams] = useState(JSON.stringify(MODEL_DEFAULTS.nutrient_balance, null, 2));
-  const [interp, setInterp] = useState('idw');
+  const [interp, setInterp] = useState<string>(serverDefault('PrescriptionIn', 'interpolation'));
   const [machines, setMachines] = useState<Machine[]>([]);
   const [machineId, setMachineId] = useState('');
   useEffect(() => {
