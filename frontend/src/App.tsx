@@ -1,4 +1,5 @@
 import { useEffect, useState } from 'react';
+import { useQueryClient } from '@tanstack/react-query';
 import { client, getSession, getToken, setSession, type SessionInfo } from './api/client';
 import { navigate, useRoute } from './router';
 import { Login } from './screens/Login';
@@ -18,12 +19,17 @@ import { OrgSwitcher } from './components/OrgSwitcher';
 export function App() {
   const route = useRoute();
   const [session, setSess] = useState<SessionInfo | null>(getToken() ? getSession() : null);
+  const queryClient = useQueryClient();
 
   useEffect(() => {
-    const out = () => setSess(null);
+    // another user's (or no user's) data must not be served from the cache
+    const out = () => {
+      queryClient.clear();
+      setSess(null);
+    };
     window.addEventListener('fieldrx:logout', out);
     return () => window.removeEventListener('fieldrx:logout', out);
-  }, []);
+  }, [queryClient]);
 
   if (!session || !getToken()) {
     return (
@@ -79,6 +85,7 @@ export function App() {
             // Revoke the token on the server too; sign out locally whatever happens.
             void client.POST('/api/v1/auth/logout').catch(() => undefined);
             setSession(null);
+            queryClient.clear();
             setSess(null);
           }}
         >

@@ -1,55 +1,36 @@
-import { useCallback, useEffect, useState } from 'react';
-import type * as maplibregl from 'maplibre-gl';
+import { useMemo, useState } from 'react';
 import { call, client, errorText, formBody } from '../api/client';
+import { qk, useImagery, useInvalidate } from '../api/hooks';
 import { defaultImagery, imageryLabel, opacityFromPercent, sortNewest, type ImageryItem } from '../lib/imagery';
 import { isTask, progressLabel, type TaskView } from '../lib/tasks';
-import { showImagery } from '../map/imagery';
+import { Imagery } from '../map/overlays/Imagery';
 import { TaskProgress } from './TaskProgress';
 
 /**
  * Imagery picker, opacity and (for a field) GeoTIFF upload, floating over a map. Shows the
  * field's newest orthophoto by default; without a field, the organisation's imagery.
  */
-export function ImageryControl(props: { map: maplibregl.Map | null; fieldId?: number }) {
-  const { map, fieldId } = props;
-  const [items, setItems] = useState<ImageryItem[]>([]);
-  const [selected, setSelected] = useState<number | null>(null);
+export function ImageryControl(props: { fieldId?: number }) {
+  const { fieldId } = props;
+  const imagery = useImagery(fieldId);
+  const invalidate = useInvalidate();
+  // imagery is optional: a map without it (or with the list refused) still works
+  const items = useMemo(() => sortNewest((imagery.data?.items ?? []) as ImageryItem[]), [imagery.data]);
+  /** The user's pick (null = "No imagery"); undefined = the default image. */
+  const [picked, setPicked] = useState<number | null | undefined>(undefined);
   const [opacityPct, setOpacityPct] = useState(100);
   const [open, setOpen] = useState(false);
   const [busy, setBusy] = useState(false);
   const [msg, setMsg] = useState('');
   const [err, setErr] = useState('');
   const [task, setTask] = useState<TaskView | null>(null);
+  const selected = picked === undefined ? (defaultImagery(items, fieldId)?.id ?? null) : picked;
+  const item = items.find((i) => i.id === selected) ?? null;
 
-  const load = useCallback(
-    async (pick?: number) => {
-      try {
-        const r = await call(
-          fieldId
-            ? client.GET('/api/v1/fields/{field_id}/imagery', { params: { path: { field_id: fieldId } } })
-            : client.GET('/api/v1/imagery'),
-        );
-        const list = sortNewest(r?.items ?? []);
-        setItems(list);
-        setSelected(pick ?? defaultImagery(list, fieldId)?.id ?? null);
-      } catch {
-        setItems([]); // imagery is optional: a map without it still works
-      }
-    },
-    [fieldId],
-  );
-  useEffect(() => {
-    void load();
-  }, [load]);
-
-  useEffect(() => {
-    if (!map) return;
-    const item = items.find((i) => i.id === selected) ?? null;
-    // MapView hands the map over from its 'load' event, so the style is there. Not
-    // whenLoaded(): while a source is still loading, loaded() and isStyleLoaded() are both
-    // false and it waits for a 'load' event that has already fired (the image never showed).
-    showImagery(map, item, opacityFromPercent(opacityPct));
-  }, [map, items, selected, opacityPct]);
+  const load = async (pick?: number) => {
+    await invalidate(qk.imagery(fieldId), qk.imagery());
+    if (pick !== undefined) setPicked(pick);
+  };
 
   const upload = async (form: HTMLFormElement) => {
     if (!fieldId) return;
@@ -82,11 +63,12 @@ export function ImageryControl(props: { map: maplibregl.Map | null; fieldId?: nu
 
   return (
     <div className="imagery-control" data-testid="imagery-control">
+      <Imagery item={item} opacity={opacityFromPercent(opacityPct)} />
       <div className="row">
         <select
           data-testid="imagery-select"
           value={selected ?? ''}
-          onChange={(e) => setSelected(e.target.value ? Number(e.target.value) : null)}
+          onChange={(e) => setPicked(e.target.value ? Number(e.target.value) : null)}
           title="Imagery under the map"
         >
           <option value="">No imagery</option>

@@ -1,7 +1,6 @@
 import { describe, expect, it } from 'vitest';
 import {
   defaultImagery,
-  imageryBeforeId,
   imageryLabel,
   opacityFromPercent,
   sortNewest,
@@ -42,13 +41,6 @@ describe('imagery', () => {
     expect(defaultImagery(list, 1)?.id).toBe(1);
     expect(defaultImagery(list.filter((i) => i.kind === 'ndvi'), 1)?.id).toBe(2);
     expect(defaultImagery([], 1)).toBeNull();
-  });
-
-  it('puts imagery under the first data layer, above background and base map', () => {
-    expect(imageryBeforeId(['background', 'basemap', 'imagery', 'field-fill', 'cells'], 'imagery')).toBe(
-      'field-fill',
-    );
-    expect(imageryBeforeId(['background', 'imagery'], 'imagery')).toBeUndefined();
   });
 
   it('clamps opacity', () => {

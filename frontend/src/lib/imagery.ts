@@ -30,18 +30,6 @@ export function defaultImagery(items: ImageryItem[], fieldId?: number): ImageryI
   return sorted.find((i) => i.kind === 'orthophoto') ?? sorted[0] ?? null;
 }
 
-/** Layers that stay below imagery: the background and the configured online base map. */
-const BELOW_IMAGERY = new Set(['background', 'basemap']);
-
-/**
- * The id of the first layer the imagery must sit under (the first data layer: boundaries,
- * grids, prescriptions, as-applied), or undefined when there is none yet (imagery on top,
- * and layers added later land above it).
- */
-export function imageryBeforeId(layerIds: string[], imageryLayerId: string): string | undefined {
-  return layerIds.find((id) => id !== imageryLayerId && !BELOW_IMAGERY.has(id));
-}
-
 /** Opacity from a 0..100 slider value, clamped (NaN -> fully opaque). */
 export function opacityFromPercent(pct: number): number {
   if (!Number.isFinite(pct)) return 1;

@@ -1,61 +1,89 @@
 import { useEffect, useRef, useState } from 'react';
 import type * as maplibregl from 'maplibre-gl';
-import { call, client } from '../api/client';
+import { useFields } from '../api/hooks';
 import { ImageryControl } from '../components/ImageryControl';
 import { bboxOf } from '../lib/geo';
 import { startBounds } from '../lib/imagery';
+import { MapContext, useMap } from './context';
+import { addSlotAnchors } from './overlay';
 import { createMap, fitTo } from './setup';
 
+export { useMap };
+
 /**
- * A map that lives as long as the component. onReady runs once after 'load'
- * so screens add sources/layers in one place.
+ * The one map component (issue 15 scope 3). Owns the maplibre map for as long as it is
+ * mounted, registers it as `window.__fieldrxMaps[name]` (the browser tests read it), and
+ * hands it to its children through context once loaded. Screens compose overlays:
  *
- * Every map opens fitted to the organisation's fields (never at world zoom) unless the
- * screen has already moved it to its own content, and carries the imagery control: the
- * newest orthophoto of ``fieldId`` (or the organisation's imagery) under all data layers.
+ * ```tsx
+ * <MapView name="plan" fieldId={field?.id}>
+ *   <FieldBoundary data={field} fill={false} />
+ *   <CellGrid id="grid" tiles={planTilesUrl(planId)} />
+ *   <Track id="route" data={route} arrows />
+ *   <FitBounds bbox={bboxOf(field)} />
+ * </MapView>
+ * ```
+ *
+ * Every map opens fitted to the organisation's fields (never at world zoom) unless something
+ * has already moved it (e.g. a `FitBounds`), and carries the imagery control: the newest
+ * orthophoto of `fieldId` (or the organisation's imagery) under all data layers.
  */
 export function MapView(props: {
+  /** Registry name (`window.__fieldrxMaps[name]`, `data-testid="map-<name>"`). */
   name: string;
+  /**
+   * @deprecated Screens compose overlay components instead. Kept while screens owned by
+   * others are converted; runs once after 'load', its return value runs on unmount.
+   */
   onReady?: (map: maplibregl.Map) => void | (() => void);
   className?: string;
+  /** Overlays (render nothing themselves) and any floating controls over the map. */
   children?: React.ReactNode;
+  /** The field whose imagery the imagery control offers first. */
   fieldId?: number;
+  /** false hides the imagery control (default shown). */
   imagery?: boolean;
 }) {
   const ref = useRef<HTMLDivElement>(null);
   const [map, setMap] = useState<maplibregl.Map | null>(null);
   const readyRef = useRef(props.onReady);
   readyRef.current = props.onReady;
+  const movedRef = useRef(false);
   useEffect(() => {
     if (!ref.current) return;
-    const map = createMap(ref.current, props.name);
+    const m = createMap(ref.current, props.name);
     let cleanup: void | (() => void);
-    let moved = false;
-    let alive = true;
-    map.once('movestart', () => {
-      moved = true;
+    movedRef.current = false;
+    m.once('movestart', () => {
+      movedRef.current = true;
     });
-    map.on('load', () => {
-      cleanup = readyRef.current?.(map);
-      setMap(map);
-      call(client.GET('/api/v1/fields', { params: { query: { limit: 1000 } } }))
-        .then((fc) => {
-          const b = startBounds(bboxOf(fc));
-          if (alive && !moved && b) fitTo(map, b, 40);
-        })
-        .catch(() => undefined);
+    m.on('load', () => {
+      addSlotAnchors(m);
+      cleanup = readyRef.current?.(m);
+      setMap(m);
     });
     return () => {
-      alive = false;
+      setMap(null);
       if (typeof cleanup === 'function') cleanup();
-      map.remove();
+      m.remove();
     };
   }, [props.name]);
+
+  // The organisation's extent as the opening view (the same cached query as the Fields screen's).
+  const orgFields = useFields({ limit: 500 });
+  useEffect(() => {
+    if (!map || movedRef.current || !orgFields.data) return;
+    const b = startBounds(bboxOf(orgFields.data));
+    if (b) fitTo(map, b, 40);
+  }, [map, orgFields.data]);
+
   return (
     <div className={`map-wrap ${props.className ?? ''}`}>
       <div ref={ref} className="map" data-testid={`map-${props.name}`} />
-      {props.imagery !== false && <ImageryControl map={map} fieldId={props.fieldId} />}
-      {props.children}
+      <MapContext.Provider value={map}>
+        {props.imagery !== false && <ImageryControl fieldId={props.fieldId} />}
+        {props.children}
+      </MapContext.Provider>
     </div>
   );
 }

@@ -4,6 +4,8 @@
  * software WebGL (STACK.md); tiles only carry what is on screen.
  */
 import type * as maplibregl from 'maplibre-gl';
+import { cellGridLayers, trackLayers } from './layers';
+import type { OverlayLayer } from './overlay';
 import { absoluteApiUrl } from './setup';
 
 export const GRID_MINZOOM = 8;
@@ -18,6 +20,7 @@ export function rxTilesUrl(rxId: number, version: number): string {
   return absoluteApiUrl(`/api/v1/tiles/prescriptions/${rxId}/${version}/{z}/{x}/{y}.mvt`);
 }
 
+/** @deprecated use `<CellGrid tiles>` (it adds, times and removes the source itself). */
 export function replaceVectorSource(map: maplibregl.Map, id: string, tilesUrl: string, layers: maplibregl.LayerSpecification[]) {
   for (const l of layers) if (map.getLayer(l.id)) map.removeLayer(l.id);
   if (map.getSource(id)) map.removeSource(id);
@@ -39,89 +42,23 @@ export function replaceVectorSource(map: maplibregl.Map, id: string, tilesUrl: s
   });
 }
 
-declare global {
-  interface Window {
-    __fieldrxPerf?: Record<string, { addedAt: number; idleMs: number | null }>;
-  }
-}
 
-/** Plan grid: cells shaded by swath parity so the back-and-forth order is visible. */
+const withSource = (source: string, layers: OverlayLayer[]) =>
+  layers.map((l) => ({ ...l, source }) as maplibregl.LayerSpecification);
+
+/** @deprecated use `<CellGrid>`: plan grid, cells shaded by swath parity. */
 export function planGridLayers(source: string): maplibregl.LayerSpecification[] {
-  return [
-    {
-      id: `${source}-fill`,
-      type: 'fill',
-      source,
-      'source-layer': 'cells',
-      paint: {
-        'fill-color': ['case', ['==', ['%', ['to-number', ['get', 'swath'], 0], 2], 0], '#9ccc65', '#c5e1a5'],
-        'fill-opacity': 0.6,
-      },
-    },
-    {
-      id: `${source}-line`,
-      type: 'line',
-      source,
-      'source-layer': 'cells',
-      minzoom: 14,
-      paint: { 'line-color': '#33691e', 'line-width': 0.5 },
-    },
-  ];
+  return withSource(source, cellGridLayers(source, { sourceLayer: 'cells' }));
 }
 
-/** Prescription grid coloured by rate (a step expression built from legend breaks). */
+/** @deprecated use `<CellGrid color clamped selectedSeq>`: prescription grid coloured by rate. */
 export function rxGridLayers(source: string, colorExpr: unknown): maplibregl.LayerSpecification[] {
-  return [
-    {
-      id: `${source}-fill`,
-      type: 'fill',
-      source,
-      'source-layer': 'cells',
-      paint: { 'fill-color': colorExpr as never, 'fill-opacity': 0.85 },
-    },
-    {
-      // Clamped cells (the implement cannot meter the computed rate) get a red outline.
-      id: `${source}-clamped`,
-      type: 'line',
-      source,
-      'source-layer': 'cells',
-      filter: ['==', ['get', 'clamped'], true],
-      paint: { 'line-color': '#d7263d', 'line-width': 2 },
-    },
-    {
-      id: `${source}-selected`,
-      type: 'line',
-      source,
-      'source-layer': 'cells',
-      filter: ['==', ['get', 'seq'], -1],
-      paint: { 'line-color': '#000', 'line-width': 3 },
-    },
-  ];
+  return withSource(source, cellGridLayers(source, { color: colorExpr, clamped: true, selectedSeq: null, sourceLayer: 'cells' }));
 }
 
-/** Route line with arrows along it (arrow icon points up; line placement aligns x with the line). */
+/** @deprecated use `<Track arrows>`: route line with arrows along it. */
 export function addRouteLayers(map: maplibregl.Map, source: string): void {
-  map.addLayer({
-    id: `${source}-line`,
-    type: 'line',
-    source,
-    paint: { 'line-color': '#1e3a8a', 'line-width': 1.5 },
-  });
-  map.addLayer({
-    id: `${source}-arrows`,
-    type: 'symbol',
-    source,
-    layout: {
-      'symbol-placement': 'line',
-      'symbol-spacing': 60,
-      'icon-image': 'arrow',
-      'icon-rotate': 90,
-      'icon-size': 0.45,
-      'icon-rotation-alignment': 'map',
-      'icon-allow-overlap': true,
-    },
-    paint: { 'icon-color': '#1e3a8a' },
-  });
+  for (const l of withSource(source, trackLayers(source, { arrows: true }))) map.addLayer(l);
 }
 
 /** Distinct features of a vector source currently loaded (deduplicated by seq). */

@@ -1,0 +1,29 @@
+import { useEffect, useRef } from 'react';
+import type { BBox } from '../../lib/geo';
+import { useMap } from '../context';
+import { fitTo } from '../setup';
+
+/**
+ * Fits the map to `bbox` whenever its value changes (not on every render); with `once`, only
+ * to the first non-null one (e.g. the fleet's first positions), so later pans are kept.
+ */
+export function FitBounds(props: {
+  bbox: BBox | null | undefined;
+  /** Pixels around the box (default 40). */
+  padding?: number;
+  /** Never zoom in further than this (default 18). */
+  maxZoom?: number;
+  once?: boolean;
+}) {
+  const map = useMap();
+  const done = useRef(false);
+  const key = props.bbox ? props.bbox.join(',') : '';
+  const { padding, maxZoom, once } = props;
+  useEffect(() => {
+    if (!map || !key || (once && done.current)) return;
+    fitTo(map, key.split(',').map(Number) as BBox, padding ?? 40);
+    if (maxZoom != null && map.getZoom() > maxZoom) map.setZoom(maxZoom);
+    done.current = true;
+  }, [map, key, padding, maxZoom, once]);
+  return null;
+}
