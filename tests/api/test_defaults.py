@@ -20,6 +20,7 @@ from fieldrx.agronomy.prescription import prescribe
 from fieldrx.apidocs import openapi_json, schema_defaults_json
 from fieldrx.geo.coverage import plan_coverage
 from fieldrx.geo.planning.kinematics import DEFAULT_HEADLAND_PASSES
+
 from tests.plans.helpers import API, make_field, make_plan, rectangle
 
 NB = {"target_yield_kg_ha": 2500, "e_kg_per_100kg": 5.8, "k_utilisation": 0.342, "n_fraction": 0.25}

@@ -94,11 +94,11 @@ def preview_lab_file(
     try:
         return run_bounded(
             svc.lab_preview,
-            session,
             field,
             name,
             data,
             m,
+            svc.count_samples(session, field.id),
             time_limit_s=get_settings().import_time_limit_s,
             what="the soil file preview",
         )

@@ -341,16 +341,21 @@ def lab_result(
     return table, suggested, used, apply_mapping(table, used, boundary)
 
 
+def count_samples(session: Session, field_id: int) -> int:
+    n = session.scalar(
+        select(func.count()).select_from(SoilSample).where(SoilSample.field_id == field_id)
+    )
+    return int(n or 0)
+
+
 def lab_preview(
-    session: Session, field: Field, filename: str, data: bytes, mapping: Mapping | None
+    field: Field, filename: str, data: bytes, mapping: Mapping | None, n_existing: int
 ) -> dict[str, Any]:
-    """What confirming this file with this mapping would store; nothing is written."""
+    """What confirming this file with this mapping would store (no database access: runs in
+    a bounded child process); ``n_existing`` is the field's sample count now."""
     table, suggested, used, res = lab_result(field, filename, data, mapping)
     c = to_shape(field.boundary).representative_point()
     summary = res.summary()
-    n_existing = session.scalar(
-        select(func.count()).select_from(SoilSample).where(SoilSample.field_id == field.id)
-    )
     mapped = {col: t for t, col in used.columns.items()}
     inside = res.inside_samples()
     mapping_errors = res.rejected and any(e.row == 1 for e in res.errors)
@@ -386,7 +391,7 @@ def lab_preview(
         "outside": summary["outside"],
         "outside_tolerance_m": OUTSIDE_TOLERANCE_M,
         "rows": [_sample_row(s) for s in res.samples[:PREVIEW_ROWS]],
-        "n_existing": int(n_existing or 0),
+        "n_existing": n_existing,
     }
 
 
