@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 from fieldrx.agronomy.soil import SoilFormatError
@@ -182,3 +184,28 @@ def test_example_file_reads_back_inside_the_field() -> None:
     assert m.epsg == 25832 and len(m.columns) == 9
     r = apply_mapping(t, m, FIELD)
     assert len(r.samples) == 9 and not r.errors and not r.outside
+
+
+def test_geojson_points_go_through_the_same_mapping() -> None:
+    fc = {
+        "type": "FeatureCollection",
+        "features": [
+            {
+                "type": "Feature",
+                "geometry": {"type": "Point", "coordinates": [9.9015, 51.551]},
+                "properties": {"Probe": "G1", "P2O5 (mg/100g)": 10, "pH": 6.1},
+            },
+            {"type": "Feature", "geometry": None, "properties": {"Probe": "G2"}},
+        ],
+    }
+    t = read_table("s.geojson", json.dumps(fc).encode())
+    assert t.kind == "feature" and t.header == ["lon", "lat", "Probe", "P2O5 (mg/100g)", "pH"]
+    m = suggest_mapping(t, NEAR)
+    assert m.epsg == 4326 and m.units == {"p": "P2O5 mg/100g"}
+    r = apply_mapping(t, m, FIELD)
+    assert [s.sample_id for s in r.samples] == ["G1"]
+    assert r.samples[0].p_mg_kg == pytest.approx(100 * P_PER_P2O5)
+    assert {(e.kind, e.row, e.column) for e in r.errors} == {
+        ("feature", 1, "lat"),
+        ("feature", 1, "lon"),
+    }

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import csv
 import io
+import json
 import math
 import re
 import unicodedata
@@ -234,13 +235,15 @@ class Mapping:
 
 @dataclass
 class Table:
-    """A lab file as text cells: header, data rows (1-based record number, header = 1)."""
+    """A lab file as text cells: header, data rows (CSV: 1-based record number, header = 1;
+    GeoJSON: 0-based feature index, ``kind`` "feature")."""
 
     header: list[str]
     rows: list[tuple[int, list[str]]]
     delimiter: str
     encoding: str
     decimal_comma: bool
+    kind: str = "row"
 
     def column(self, name: str) -> list[str]:
         j = self.header.index(name)
@@ -258,13 +261,17 @@ def read_table(filename: str, data: bytes) -> Table:
     """CSV/TXT text of a lab: delimiter sniffed from the header line (``;`` ``,`` tab), UTF-8
     or Windows-1252 (what Excel writes in Germany), blank lines and ``#`` comments skipped."""
     name = filename.lower()
+    if name.endswith((".geojson", ".json")):
+        return _geojson_table(filename, data)
     if name.endswith((".xlsx", ".xls", ".ods")):
         raise SoilFormatError(
             f"{filename!r}: spreadsheets are not read; save the sheet as CSV (Excel: 'CSV UTF-8' "
             "or 'CSV (Trennzeichen-getrennt)') and upload that"
         )
     if not name.endswith((".csv", ".txt", ".tsv")):
-        raise SoilFormatError(f"unsupported lab file {filename!r} (expected .csv or .txt)")
+        raise SoilFormatError(
+            f"unsupported lab file {filename!r} (expected .csv, .txt or .geojson)"
+        )
     text, encoding = _decode(data)
     lines = [ln for ln in text.splitlines()]
     start = next((i for i, ln in enumerate(lines) if ln.strip() and not ln.startswith("#")), None)
@@ -288,6 +295,34 @@ def read_table(filename: str, data: bytes) -> Table:
         bool(re.fullmatch(r"-?\d+\.\d+", c)) for c in cells
     )
     return Table(header, rows, delim, encoding, comma)
+
+
+def _geojson_table(filename: str, data: bytes) -> Table:
+    """A FeatureCollection of Points as a table: ``lon``/``lat`` from the geometry (RFC 7946),
+    then every property; a feature that is not a Point gets empty coordinates (rejected
+    with its index like any row without them)."""
+    try:
+        obj = json.loads(data)
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise SoilFormatError(f"{filename!r} is not valid JSON: {exc}") from exc
+    feats = obj.get("features") if isinstance(obj, dict) else None
+    if not isinstance(feats, list):
+        raise SoilFormatError(f"{filename!r}: expected a GeoJSON FeatureCollection of Points")
+    keys: dict[str, None] = {}
+    for f in feats:
+        props = f.get("properties") if isinstance(f, dict) else None
+        for k in props if isinstance(props, dict) else {}:
+            keys.setdefault(str(k), None)
+    header = ["lon", "lat", *(k for k in keys if k not in ("lon", "lat"))]
+    rows = []
+    for i, f in enumerate(feats):
+        f = f if isinstance(f, dict) else {}
+        g = f.get("geometry") if isinstance(f.get("geometry"), dict) else {}
+        c = g.get("coordinates") if g.get("type") == "Point" else None
+        xy = [str(c[0]), str(c[1])] if isinstance(c, list) and len(c) >= 2 else ["", ""]
+        props = f.get("properties") if isinstance(f.get("properties"), dict) else {}
+        rows.append((i, xy + ["" if props.get(k) is None else str(props[k]) for k in header[2:]]))
+    return Table(header, rows, "", "utf-8", False, kind="feature")
 
 
 def parse_number(raw: str, decimal_comma: bool) -> float:
@@ -345,30 +380,39 @@ def _floats(cells: list[str], decimal_comma: bool) -> np.ndarray:
     return np.array(out, float)
 
 
+HEADER = "header"  # RowError.kind of a mapping problem (not a data row)
+
+
 def check_mapping(table: Table, m: Mapping) -> list[RowError]:
-    """Errors of the mapping itself (reported at row 1, the header): unknown columns or
+    """Errors of the mapping itself (kind ``header``): unknown columns or
     units, a column used twice, no coordinates, no nutrient, no coordinate system."""
     errs: list[RowError] = []
     for t, col in m.columns.items():
         if t not in TARGETS:
-            errs.append(RowError(1, col, f"unknown target {t!r} (one of {', '.join(TARGETS)})"))
+            errs.append(
+                RowError(1, col, f"unknown target {t!r} (one of {', '.join(TARGETS)})", HEADER)
+            )
         elif col not in table.header:
-            errs.append(RowError(1, col, f"the file has no column {col!r} (mapped to {t})"))
+            errs.append(RowError(1, col, f"the file has no column {col!r} (mapped to {t})", HEADER))
     for col in {c for c in m.columns.values() if list(m.columns.values()).count(c) > 1}:
-        errs.append(RowError(1, col, "column mapped to more than one quantity"))
+        errs.append(RowError(1, col, "column mapped to more than one quantity", HEADER))
     for t, u in m.units.items():
         if t in UNITS and u not in UNITS[t]:
             msg = f"unit {u!r} of {t}: one of {list(UNITS[t])}"
-            errs.append(RowError(1, m.columns.get(t), msg))
+            errs.append(RowError(1, m.columns.get(t), msg, HEADER))
     for t in ("x", "y"):
         if t not in m.columns:
-            errs.append(RowError(1, None, f"no column mapped to {t} ({TARGETS[t][2].lower()})"))
+            errs.append(
+                RowError(1, None, f"no column mapped to {t} ({TARGETS[t][2].lower()})", HEADER)
+            )
     if not any(t in m.columns for t in NUTRIENTS):
-        errs.append(RowError(1, None, "no column mapped to a nutrient (N, P, K, humus or pH)"))
+        errs.append(
+            RowError(1, None, "no column mapped to a nutrient (N, P, K, humus or pH)", HEADER)
+        )
     if m.epsg is None:
-        errs.append(RowError(1, None, "no coordinate system chosen for x/y"))
+        errs.append(RowError(1, None, "no coordinate system chosen for x/y", HEADER))
     if not 0.5 <= m.bulk_density_g_cm3 <= 2.5:
-        errs.append(RowError(1, None, "bulk density must be 0.5-2.5 g/cm3"))
+        errs.append(RowError(1, None, "bulk density must be 0.5-2.5 g/cm3", HEADER))
     return errs
 
 
@@ -384,10 +428,13 @@ def apply_mapping(table: Table, m: Mapping, boundary_wgs84: Any) -> SoilImport:
     records: list[tuple[int, dict[str, Any]]] = []
     errors: list[RowError] = []
     nmin = m.unit("n") == KG_HA and "n" in idx
+    kind = table.kind
     for row, cells in table.rows:
         if len(cells) > len(table.header):
             errors.append(
-                RowError(row, None, f"{len(cells)} fields but the header has {len(table.header)}")
+                RowError(
+                    row, None, f"{len(cells)} fields but the header has {len(table.header)}", kind
+                )
             )
             continue
         rec: dict[str, Any] = {}
@@ -402,7 +449,7 @@ def apply_mapping(table: Table, m: Mapping, boundary_wgs84: Any) -> SoilImport:
                 v = (parse_depth if t == "depth" else parse_number)(raw, table.decimal_comma)
             except ValueError as exc:
                 msg = str(exc) if "limit" in str(exc) else f"expected a number, got {raw!r}"
-                errors.append(RowError(row, m.columns[t], msg))
+                errors.append(RowError(row, m.columns[t], msg, kind))
                 bad = True
                 continue
             f = UNITS[t][m.unit(t)]
@@ -416,7 +463,7 @@ def apply_mapping(table: Table, m: Mapping, boundary_wgs84: Any) -> SoilImport:
         if m.epsg == 4326:
             rec["lon"], rec["lat"] = rec.pop("x", None), rec.pop("y", None)
         records.append((row, rec))
-    samples, more = rows_to_samples(records, m.epsg, "row", value_column=None)
+    samples, more = rows_to_samples(records, m.epsg, kind, value_column=None)
     back = {TARGETS[t][0]: c for t, c in m.columns.items()} | (
         {"lon": m.columns.get("x"), "lat": m.columns.get("y")} if m.epsg == 4326 else {}
     )
@@ -428,7 +475,7 @@ def apply_mapping(table: Table, m: Mapping, boundary_wgs84: Any) -> SoilImport:
     errors.sort(key=lambda e: e.row)
     if not samples:
         if not errors:
-            errors = [RowError(1, None, "no samples in the file")]
+            errors = [RowError(1, None, "no samples in the file", HEADER)]
         return SoilImport([], errors, [], rejected=True)
     return finish_import(samples, errors, True, boundary_wgs84)
 

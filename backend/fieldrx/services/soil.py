@@ -24,6 +24,7 @@ from sqlalchemy.orm import Session
 from fieldrx.agronomy.soil import OUTSIDE_TOLERANCE_M, SoilImport, read_soil_samples
 from fieldrx.agronomy.soil_lab import (
     DEFAULT_UNIT,
+    HEADER,
     TARGETS,
     UNITS,
     Mapping,
@@ -358,7 +359,7 @@ def lab_preview(
     summary = res.summary()
     mapped = {col: t for t, col in used.columns.items()}
     inside = res.inside_samples()
-    mapping_errors = res.rejected and any(e.row == 1 for e in res.errors)
+    mapping_errors = res.rejected and any(e.kind == HEADER for e in res.errors)
     return {
         "filename": filename,
         "delimiter": table.delimiter,
@@ -385,7 +386,7 @@ def lab_preview(
         "n_rows": len(table.rows),
         "n_accepted": len(res.samples),
         "n_inside": len(inside),
-        "n_rejected": len({e.row for e in res.errors if e.row > 1}),
+        "n_rejected": len({e.row for e in res.errors if e.kind != HEADER}),
         "rejected": summary["errors"],
         "n_outside": len(res.outside),
         "outside": summary["outside"],
