@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Regenerate the browser's typed API client from the server's OpenAPI document (no server
 # needed): frontend/src/api/openapi.json, then frontend/src/api/generated/schema.ts
-# (openapi-typescript). Run after changing a route or a model in backend/fieldrx/api/;
+# (openapi-typescript) and generated/defaults.json (the models' defaults the forms start from). Run after changing a route or a model in backend/fieldrx/api/;
 # tests/api/test_contract.py fails while the committed files are stale.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -11,6 +11,9 @@ mkdir -p frontend/src/api/generated
 PYTHONPATH="$ROOT/backend:$ROOT/edge_agent${PYTHONPATH:+:$PYTHONPATH}" "$PY" -c \
   "from fieldrx.apidocs import openapi_json; print(openapi_json(), end='')" \
   >frontend/src/api/openapi.json
+PYTHONPATH="$ROOT/backend${PYTHONPATH:+:$PYTHONPATH}" "$PY" -c \
+  "from fieldrx.apidocs import schema_defaults_json; print(schema_defaults_json(open('frontend/src/api/openapi.json').read()), end='')" \
+  >frontend/src/api/generated/defaults.json
 (cd frontend && npx --no-install openapi-typescript src/api/openapi.json \
   -o src/api/generated/schema.ts --alphabetize --default-non-nullable false >/dev/null)
-echo "frontend/src/api/openapi.json and frontend/src/api/generated/schema.ts are current"
+echo "frontend/src/api/openapi.json, generated/schema.ts and generated/defaults.json are current"

@@ -111,3 +111,30 @@ def openapi_json(app: FastAPI | None = None) -> str:
 
         app = create_app()
     return json.dumps(app.openapi(), indent=2, ensure_ascii=False) + "\n"
+
+
+def schema_defaults_json(document: str) -> str:
+    """``{model: {field: default}}`` of every model field with a scalar default in the OpenAPI
+    ``document``, as committed in ``frontend/src/api/generated/defaults.json``.
+
+    The browser's forms start from these values instead of keeping copies (a copy drifted:
+    the plan form said 1 headland pass where the API said 0, the prescription form ``idw``
+    where the API said ``cell_mean``). The server's model is the one home of a default; the
+    OpenAPI document carries it, and this file carries it into the bundle without the
+    document's ~0.5 MB. ``tests/api/test_contract.py`` fails when the file is stale.
+    """
+    import json
+
+    schemas = json.loads(document).get("components", {}).get("schemas", {})
+    out: dict[str, dict[str, object]] = {}
+    for name in sorted(schemas):
+        props = schemas[name].get("properties") or {}
+        d = {
+            k: p["default"]
+            for k, p in sorted(props.items())
+            if "default" in p
+            and (p["default"] is None or isinstance(p["default"], str | int | float | bool))
+        }
+        if d:
+            out[name] = d
+    return json.dumps(out, indent=2, ensure_ascii=False) + "\n"

@@ -60,7 +60,14 @@ def test_explicit_fallback_and_errors():
 def test_prescribe_from_samples_cell_mean_and_uniform():
     cells = _cells()
     xy = cells.centroids_utm[:3]
-    p = prescribe(cells, "nutrient_balance", NB, xy, np.array([100.0, 100.0, 100.0]))
+    p = prescribe(
+        cells,
+        "nutrient_balance",
+        NB,
+        xy,
+        np.array([100.0, 100.0, 100.0]),
+        interpolation="cell_mean",
+    )
     assert p.rate_kg_ha[:3] == pytest.approx([700.367] * 3, abs=1e-3)
     assert (p.flags[3:] == FLAG_BITS["no_data"]).all()
     assert p.info["interpolation"]["method"] == "cell_mean"

@@ -301,12 +301,15 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
     writeFileSync(badFile, `${bad}\n`);
     writeFileSync(goodFile, `${good}\n`);
     await page.goto(`${BASE_URL}/#/fields/${S.fieldId}`);
+    // the import assistant previews each file: the bad row is listed, nothing is stored
     await page.setInputFiles('[data-testid=soil-file]', badFile);
-    await page.waitForSelector('[data-testid=soil-error]');
-    const errText = await page.textContent('[data-testid=soil-error]');
-    assert.match(errText, /row|line/i, `row error listed: ${errText}`);
+    await page.waitForSelector('[data-testid=soil-rejected]');
+    const errText = await page.textContent('[data-testid=soil-rejected]');
+    assert.match(errText, /row 6/i, `row error listed: ${errText}`);
+    assert.ok(await page.isDisabled('[data-testid=soil-confirm]'), 'a rejected row blocks the import');
     await shot(page, 'soil-error');
     await page.setInputFiles('[data-testid=soil-file]', goodFile);
+    await page.click('[data-testid=soil-confirm]:not([disabled])');
     await page.waitForSelector('[data-testid=soil-result]');
     await page.waitForSelector('[data-testid=soil-legend]');
     await page.waitForFunction(() => /^[1-9]/.test(document.querySelector('[data-testid=soil-count]')?.textContent ?? ''));
@@ -315,6 +318,7 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
     S.soil = true;
     // The same file again is recognised (nothing doubled).
     await page.setInputFiles('[data-testid=soil-file]', goodFile);
+    await page.click('[data-testid=soil-confirm]:not([disabled])');
     await page.waitForSelector('[data-testid=soil-error]:has-text("already imported")');
     assert.equal(await page.locator('[data-testid=soil-imports] tbody tr').count(), 1, 'one import listed');
     // A file from a field ~100 km away: its rows are listed with their distance and not stored.
@@ -323,11 +327,13 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
     await page.setInputFiles('[data-testid=soil-file]', farFile);
     await page.waitForSelector('[data-testid=soil-outside]');
     assert.match(await page.textContent('[data-testid=soil-outside]'), /\d{2},?\d{3} m away/);
+    assert.ok(await page.isDisabled('[data-testid=soil-confirm]'), 'no sample in the field: nothing to import');
     assert.equal(await page.locator('[data-testid=soil-imports] tbody tr').count(), 1, 'far file not stored');
     // A second small import, listed, then deleted in the UI.
     const extraFile = join(ARTIFACTS, 'soil-extra.csv');
     writeFileSync(extraFile, `${header}\n${rows[0].replace(/^S1,/, 'X1,')}\n`);
     await page.setInputFiles('[data-testid=soil-file]', extraFile);
+    await page.click('[data-testid=soil-confirm]:not([disabled])');
     await page.waitForFunction(() => document.querySelectorAll('[data-testid=soil-imports] tbody tr').length === 2);
     const before = Number((await page.textContent('[data-testid=soil-count]')).replace(/\D/g, ''));
     page.once('dialog', (d) => d.accept());

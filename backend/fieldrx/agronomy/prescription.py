@@ -15,7 +15,7 @@ import numpy as np
 import shapely
 
 from fieldrx.agronomy.cells import FLAG_BITS, CellTable
-from fieldrx.agronomy.interpolate import InterpolationResult, interpolate_to_cells
+from fieldrx.agronomy.interpolate import DEFAULT_METHOD, InterpolationResult, interpolate_to_cells
 from fieldrx.agronomy.rates import (
     MeterCheck,
     check_meter_range,
@@ -175,7 +175,7 @@ def prescribe(
     params: Mapping[str, Any],
     sample_xy_utm: np.ndarray | None = None,
     sample_values: np.ndarray | None = None,
-    interpolation: str = "cell_mean",
+    interpolation: str = DEFAULT_METHOD,
     interpolation_params: Mapping[str, Any] | None = None,
     meter: MeterCheck | None = None,
     fallback_rate_kg_ha: float | None = None,

@@ -29,10 +29,15 @@ from typing import Any
 
 import numpy as np
 import shapely
-from pyproj import CRS
-from pyproj.exceptions import CRSError
 
-from fieldrx.geo.crs import epsg_for_geometry, lonlat_to_utm_xy, to_utm, transform_xy
+from fieldrx.geo.crs import (
+    CrsError,
+    crs_name,
+    epsg_for_geometry,
+    lonlat_to_utm_xy,
+    to_utm,
+    transform_xy,
+)
 
 COLUMN_ALIASES: dict[str, tuple[str, ...]] = {
     "sample_id": ("sample_id", "id", "sample", "name"),
@@ -184,14 +189,16 @@ def _number(raw: Any, col: str, row: int, errs: list[RowError], kind: str) -> fl
     return v
 
 
-def _rows_to_samples(
+def rows_to_samples(
     records: list[tuple[int, dict[str, Any]]],
     epsg: int | None,
     kind: str,
     geometry_xy: dict[int, tuple[float, float]] | None = None,
-    value_column: str = "n_mg_kg",
+    value_column: str | None = "n_mg_kg",
 ) -> tuple[list[SoilSample], list[RowError]]:
-    """Validate normalised records; ``geometry_xy`` (GeoJSON) overrides columns."""
+    """Validate normalised records (canonical column -> raw text or number, in the units of
+    the canonical names); ``geometry_xy`` (GeoJSON) overrides columns. ``value_column`` is
+    the value every row must have (None: none is required, e.g. a P/K-only lab file)."""
     samples: list[SoilSample] = []
     errors: list[RowError] = []
     projected = epsg is not None and epsg != 4326
@@ -227,8 +234,12 @@ def _rows_to_samples(
         n = _number(rec.get("n_mg_kg"), "n_mg_kg", row, errs, kind)
         depth = _number(rec.get("depth_cm"), "depth_cm", row, errs, kind)
         opt = {c: _number(rec.get(c), c, row, errs, kind) for c in OPTIONAL}
-        required = n if value_column == "n_mg_kg" else opt.get(value_column)
-        if required is None and not any(e.column == value_column for e in errs):
+        required = n if value_column == "n_mg_kg" else opt.get(value_column or "")
+        if (
+            value_column is not None
+            and required is None
+            and not any(e.column == value_column for e in errs)
+        ):
             errs.append(RowError(row, value_column, "missing value", kind))
         if errs:
             errors.extend(errs)
@@ -260,16 +271,17 @@ def _rows_to_samples(
     return samples, errors
 
 
-def _check_epsg(epsg: int | None) -> None:
+def check_epsg(epsg: int | None) -> None:
+    """``SoilFormatError`` naming the code when pyproj does not know it."""
     if epsg is None:
         return
     try:
-        CRS.from_epsg(int(epsg))
-    except (CRSError, ValueError, TypeError) as exc:
+        crs_name(int(epsg))
+    except (CrsError, ValueError, TypeError) as exc:
         raise SoilFormatError(f"unknown EPSG code {epsg!r}") from exc
 
 
-def _finish(
+def finish_import(
     samples: list[SoilSample],
     errors: list[RowError],
     skip_bad_rows: bool,
@@ -336,7 +348,7 @@ def parse_soil_csv(
     Delimiter (comma, semicolon, tab) is sniffed. Errors name the row (header
     = row 1) and column; see the module docstring for the reject rule.
     """
-    _check_epsg(epsg)
+    check_epsg(epsg)
     _check_value_column(value_column)
     if isinstance(data, bytes):
         try:
@@ -366,7 +378,7 @@ def parse_soil_csv(
                 )
             )
     if errors:
-        return _finish([], errors, skip_bad_rows, boundary_wgs84, fatal=True)
+        return finish_import([], errors, skip_bad_rows, boundary_wgs84, fatal=True)
     records: list[tuple[int, dict[str, Any]]] = []
     for i, fields_ in enumerate(reader, start=2):
         if not any(f.strip() for f in fields_):
@@ -380,10 +392,10 @@ def parse_soil_csv(
             )
             continue
         records.append((i, rec))
-    samples, errs = _rows_to_samples(records, epsg, "row", value_column=value_column)
+    samples, errs = rows_to_samples(records, epsg, "row", value_column=value_column)
     errors.extend(errs)
     errors.sort(key=lambda e: e.row)
-    return _finish(samples, errors, skip_bad_rows, boundary_wgs84)
+    return finish_import(samples, errors, skip_bad_rows, boundary_wgs84)
 
 
 def parse_soil_geojson(
@@ -398,7 +410,7 @@ def parse_soil_geojson(
     Coordinates are lon/lat (RFC 7946) unless ``epsg`` says otherwise. Errors
     name the feature index (0-based) and the property.
     """
-    _check_epsg(epsg)
+    check_epsg(epsg)
     _check_value_column(value_column)
     try:
         obj = json.loads(data) if isinstance(data, bytes | str) else data
@@ -445,10 +457,10 @@ def parse_soil_geojson(
             errors.append(RowError(i, "geometry", f"bad coordinates {coords!r}", "feature"))
             continue
         records.append((i, rec))
-    samples, errs = _rows_to_samples(records, epsg, "feature", geom_xy, value_column)
+    samples, errs = rows_to_samples(records, epsg, "feature", geom_xy, value_column)
     errors.extend(errs)
     errors.sort(key=lambda e: e.row)
-    return _finish(samples, errors, skip_bad_rows, boundary_wgs84)
+    return finish_import(samples, errors, skip_bad_rows, boundary_wgs84)
 
 
 def read_soil_samples(

@@ -30,6 +30,7 @@ from fieldrx.formats import FormatError
 from fieldrx.formats.archive import read_zip
 from fieldrx.formats.isoxml_import import read_taskdata
 from fieldrx.geo import PlanningError
+from fieldrx.geo.planning.kinematics import DEFAULT_HEADLAND_PASSES
 from fieldrx.services import imports as svc
 from fieldrx.services.plans import PlanParams
 
@@ -77,7 +78,7 @@ def import_isoxml(
     confirm: str | None = Query(default=None, description="the preview's sha256"),
     swath_width_m: float = Query(default=PlanParams.swath_width_m, gt=0, le=100),
     cell_length_m: float = Query(default=PlanParams.cell_length_m, gt=0, le=500),
-    headland_passes: int = Query(default=0, ge=0, le=20),
+    headland_passes: int = Query(default=DEFAULT_HEADLAND_PASSES, ge=0, le=20),
 ) -> dict[str, Any]:
     """Preview (no ``confirm``) or store (``confirm`` = the preview's sha256) a TASKDATA set."""
     data, sha, names = _files(files)
@@ -130,7 +131,7 @@ def import_prescription_shapefile(
     confirm: str | None = Query(default=None, description="the preview's sha256"),
     swath_width_m: float = Query(default=PlanParams.swath_width_m, gt=0, le=100),
     cell_length_m: float = Query(default=PlanParams.cell_length_m, gt=0, le=500),
-    headland_passes: int = Query(default=0, ge=0, le=20),
+    headland_passes: int = Query(default=DEFAULT_HEADLAND_PASSES, ge=0, le=20),
 ) -> dict[str, Any]:
     """A zipped prescription Shapefile with an attribute-mapping step (preview, then confirm).
 

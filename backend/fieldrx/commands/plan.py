@@ -21,7 +21,7 @@ from fieldrx.geo import PlanningError
 from fieldrx.geo.coverage import CORNERS, HEADINGS, plan_coverage
 from fieldrx.geo.crs import epsg_for_geometry, to_utm, to_wgs84
 from fieldrx.geo.grid import build_grid
-from fieldrx.geo.planning.kinematics import DEFAULT_TURN_RADIUS_M
+from fieldrx.geo.planning.kinematics import DEFAULT_HEADLAND_PASSES, DEFAULT_TURN_RADIUS_M
 from fieldrx.geo.validate import BoundaryError, validate_boundary
 
 
@@ -77,7 +77,7 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
         default=None,
         help="swath azimuth, degrees clockwise from north (with --heading angle)",
     )
-    p.add_argument("--headland-passes", type=int, default=0)
+    p.add_argument("--headland-passes", type=int, default=DEFAULT_HEADLAND_PASSES)
     p.add_argument("--headland-order", choices=("first", "last"), default="first")
     p.add_argument("--start-corner", choices=CORNERS, default="sw")
     p.add_argument("--min-cell-fraction", type=float, default=0.1)

@@ -19,7 +19,9 @@ from typing import Any
 import numpy as np
 import shapely
 
+from fieldrx.agronomy.interpolate import DEFAULT_METHOD, METHODS
 from fieldrx.formats import EXPORT_FORMATS
+from fieldrx.geo.planning.kinematics import DEFAULT_HEADLAND_PASSES
 
 
 class RxError(ValueError):
@@ -45,7 +47,7 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     g.add_argument("--cell-length", type=float, default=5.0, help="cell length, m")
     g.add_argument("--heading", choices=HEADINGS, default="longest_edge")
     g.add_argument("--angle-deg", type=float, default=None, help="with --heading angle")
-    g.add_argument("--headland-passes", type=int, default=0)
+    g.add_argument("--headland-passes", type=int, default=DEFAULT_HEADLAND_PASSES)
     g.add_argument("--start-corner", choices=CORNERS, default="sw")
     g = p.add_argument_group("rate model")
     g.add_argument(
@@ -62,7 +64,7 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     g.add_argument("--rate-at-ndvi-high", type=float, default=180.0)
     g.add_argument("--fallback-rate", type=float, default=None, help="kg/ha for no-data cells")
     g = p.add_argument_group("interpolation")
-    g.add_argument("--interpolation", choices=("cell_mean", "idw", "kriging"), default="cell_mean")
+    g.add_argument("--interpolation", choices=METHODS, default=DEFAULT_METHOD)
     g.add_argument("--idw-power", type=float, default=2.0)
     g.add_argument("--idw-radius", type=float, default=None, help="m (default unlimited)")
     g.add_argument(

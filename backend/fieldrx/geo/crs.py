@@ -114,3 +114,73 @@ def epsg_for_geometry(geom_wgs84: BaseGeometry) -> int:
     """UTM zone of a lon/lat geometry, chosen from its centroid."""
     c = geom_wgs84.centroid
     return utm_epsg_for(c.x, c.y)
+
+
+# Coordinate systems a soil lab's file is offered in (German labs: Gauss-Krüger zone 3 from
+# older ATKIS data, ETRS89/UTM 32N since the 2010s switch, GNSS lon/lat from handhelds).
+WGS84 = 4326
+ETRS89_UTM32N = 25832
+ETRS89_UTM32N_ZONE_PREFIX = 4647  # easting written with the zone number in front (32xxxxxx)
+GAUSS_KRUEGER_3 = 31467
+
+
+class CrsError(ValueError):
+    """An EPSG code pyproj does not know, or one that is not a 2-D coordinate system."""
+
+
+@lru_cache(maxsize=128)
+def crs_name(epsg: int) -> str:
+    """pyproj's name of an EPSG code (``CrsError`` when it has none)."""
+    from pyproj import CRS
+    from pyproj.exceptions import CRSError
+
+    try:
+        return str(CRS.from_epsg(int(epsg)).name)
+    except (CRSError, ValueError, TypeError) as exc:
+        raise CrsError(f"unknown EPSG code {epsg!r}") from exc
+
+
+def etrs89_utm_epsg_for(lon: float, lat: float) -> int:
+    """ETRS89 / UTM code (258zz) of the zone at (lon, lat) in Europe (zones 28-38 north),
+    else the WGS84 / UTM code: the two datums differ by < 1 m in Europe, but a lab file in
+    Germany is in ETRS89 by law (AdV, since 2015) and is labelled so."""
+    wgs = utm_epsg_for(lon, lat)
+    zone = wgs % 100
+    if wgs // 100 == 326 and 28 <= zone <= 38 and 34.0 <= lat <= 72.0:
+        return 25800 + zone
+    return wgs
+
+
+def import_crs_choices(lon: float, lat: float) -> list[int]:
+    """The coordinate systems offered for a file of points near (lon, lat), most likely first."""
+    out = [WGS84, etrs89_utm_epsg_for(lon, lat), utm_epsg_for(lon, lat)]
+    out += [ETRS89_UTM32N, ETRS89_UTM32N_ZONE_PREFIX, GAUSS_KRUEGER_3]
+    return list(dict.fromkeys(out))
+
+
+def guess_epsg(x: np.ndarray, y: np.ndarray, lon: float, lat: float) -> int | None:
+    """The coordinate system a column pair's magnitudes point at, near a field at (lon, lat).
+
+    lon/lat ranges -> WGS84; an 8-digit easting starting with a zone number (32xxxxxx) ->
+    UTM with the zone prefix; 7 digits (2.5-5.9 million) -> Gauss-Krüger, zone = first
+    digit (EPSG 31466-31469); 6 digits with a northing below 10,000 km -> the field's UTM
+    zone (ETRS89 in Europe). None when nothing fits: the user chooses.
+    """
+    x = np.asarray(x, float)
+    y = np.asarray(y, float)
+    ok = np.isfinite(x) & np.isfinite(y)
+    if not ok.any():
+        return None
+    mx, my = float(np.median(x[ok])), float(np.median(y[ok]))
+    if np.all(np.abs(x[ok]) <= 180) and np.all(np.abs(y[ok]) <= 90):
+        return WGS84
+    if 1e7 <= mx < 1e8 and 0 <= my < 1e7:
+        zone = int(mx // 1e6)
+        if zone == 32:
+            return ETRS89_UTM32N_ZONE_PREFIX
+        return None
+    if 2.5e6 <= mx < 6e6 and 5.2e6 <= my < 6.2e6:
+        return 31464 + int(mx // 1e6)  # zone 2 -> 31466 ... zone 5 -> 31469
+    if 1e5 <= mx < 1e6 and 0 <= my < 1e7:
+        return etrs89_utm_epsg_for(lon, lat)
+    return None

@@ -26,6 +26,7 @@ from fieldrx.geo import PlanningError
 from fieldrx.geo.coverage import plan_coverage
 from fieldrx.geo.crs import to_utm, to_wgs84
 from fieldrx.geo.grid import MAX_CELLS, MIN_CELL_LENGTH_M, build_grid
+from fieldrx.geo.planning.kinematics import DEFAULT_HEADLAND_PASSES
 from fieldrx.store import load_cells, write_plan_cells
 
 
@@ -35,7 +36,7 @@ class PlanParams:
     cell_length_m: float = 5.0
     heading: str = "longest_edge"
     angle_deg: float | None = None
-    headland_passes: int = 0
+    headland_passes: int = DEFAULT_HEADLAND_PASSES
     start_corner: str = "sw"
     headland_order: str = "first"
     min_cell_fraction: float = 0.1

@@ -22,7 +22,7 @@ from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
 from fieldrx.agronomy.cells import FLAG_BITS, CellTable, flag_names
-from fieldrx.agronomy.interpolate import interpolate_to_cells
+from fieldrx.agronomy.interpolate import DEFAULT_METHOD, interpolate_to_cells
 from fieldrx.agronomy.prescription import (
     ATTENTION_MASK,
     MODEL_INPUT,
@@ -572,7 +572,7 @@ def create_from_request(
         product=b.get("product", ""),
         model=b.get("model", "nutrient_balance"),
         params=b.get("params") or {},
-        interpolation=b.get("interpolation", "cell_mean"),
+        interpolation=b.get("interpolation", DEFAULT_METHOD),
         interpolation_params=b.get("interpolation_params") or {},
         fallback_rate_kg_ha=b.get("fallback_rate_kg_ha"),
         meter=meter,

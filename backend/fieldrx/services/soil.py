@@ -22,8 +22,21 @@ from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from fieldrx.agronomy.soil import OUTSIDE_TOLERANCE_M, SoilImport, read_soil_samples
+from fieldrx.agronomy.soil_lab import (
+    DEFAULT_UNIT,
+    HEADER,
+    TARGETS,
+    UNITS,
+    Mapping,
+    Table,
+    apply_mapping,
+    example_lab_csv,
+    read_table,
+    suggest_mapping,
+)
 from fieldrx.db.models import Field, SoilSample
 from fieldrx.db.models import SoilImport as SoilImportRow
+from fieldrx.geo.crs import crs_name, import_crs_choices
 
 
 class ImportRefused(ValueError):
@@ -88,13 +101,17 @@ def store_import(
     result: SoilImport,
     include_outside: bool,
     user_id: int | None,
+    replace: bool = False,
 ) -> dict[str, Any]:
     """Store an accepted import (flush only; the caller commits) and describe it.
 
     Samples outside the field (beyond ``OUTSIDE_TOLERANCE_M``) are stored only
     with ``include_outside``; when none is left the import is refused (422) so
-    that nothing is stored. The same bytes twice on one field: 409.
+    that nothing is stored. The same bytes twice on one field: 409. ``replace``
+    deletes the field's samples and imports first, in the same transaction (a
+    refusal after it rolls the deletion back with everything else).
     """
+    replaced = delete_samples(session, field.id) if replace else 0
     digest = file_digest(data)
     same = session.scalar(
         select(SoilImportRow).where(
@@ -178,7 +195,9 @@ def store_import(
         "n_outside": n_out,
         "outside_stored": imp.outside_stored,
         "outside_tolerance_m": OUTSIDE_TOLERANCE_M,
+        "replaced": replaced,
         "message": f"{len(keep)} samples imported"
+        + (f", {replaced} earlier samples replaced" if replace else "")
         + (
             ""
             if not n_out
@@ -280,3 +299,103 @@ def delete_samples(session: Session, field_id: int) -> int:
     res = session.execute(delete(SoilSample).where(SoilSample.field_id == field_id))
     session.execute(delete(SoilImportRow).where(SoilImportRow.field_id == field_id))
     return int(res.rowcount or 0)
+
+
+PREVIEW_ROWS = 20  # converted rows shown in a preview
+
+
+def mapping_out(m: Mapping) -> dict[str, Any]:
+    return {
+        "columns": dict(m.columns),
+        "units": {t: m.unit(t) for t in m.columns if len(UNITS.get(t, {})) > 1},
+        "epsg": m.epsg,
+        "bulk_density_g_cm3": m.bulk_density_g_cm3,
+    }
+
+
+def _sample_row(s: Any) -> dict[str, Any]:
+    return {
+        "row": s.row,
+        "sample_id": s.sample_id,
+        "lon": round(s.lon, 7),
+        "lat": round(s.lat, 7),
+        "depth_cm": s.depth_cm,
+        "n_mg_kg": s.n_mg_kg,
+        "p_mg_kg": s.p_mg_kg,
+        "k_mg_kg": s.k_mg_kg,
+        "om_g_kg": s.om_g_kg,
+        "ph": s.ph,
+    }
+
+
+def lab_result(
+    field: Field, filename: str, data: bytes, mapping: Mapping | None
+) -> tuple[Table, Mapping, Mapping, SoilImport]:
+    """Read a lab file and apply ``mapping`` (None: the suggested one) with the field's
+    boundary; returns the table, the suggestion, the mapping used and the result. Pure
+    apart from reading ``field``; raises ``SoilFormatError`` for an unreadable file."""
+    boundary = to_shape(field.boundary)
+    c = boundary.representative_point()
+    table = read_table(filename, data)
+    suggested = suggest_mapping(table, (c.x, c.y))
+    used = mapping or suggested
+    return table, suggested, used, apply_mapping(table, used, boundary)
+
+
+def count_samples(session: Session, field_id: int) -> int:
+    n = session.scalar(
+        select(func.count()).select_from(SoilSample).where(SoilSample.field_id == field_id)
+    )
+    return int(n or 0)
+
+
+def lab_preview(
+    field: Field, filename: str, data: bytes, mapping: Mapping | None, n_existing: int
+) -> dict[str, Any]:
+    """What confirming this file with this mapping would store (no database access: runs in
+    a bounded child process); ``n_existing`` is the field's sample count now."""
+    table, suggested, used, res = lab_result(field, filename, data, mapping)
+    c = to_shape(field.boundary).representative_point()
+    summary = res.summary()
+    mapped = {col: t for t, col in used.columns.items()}
+    inside = res.inside_samples()
+    mapping_errors = res.rejected and any(e.kind == HEADER for e in res.errors)
+    return {
+        "filename": filename,
+        "delimiter": table.delimiter,
+        "encoding": table.encoding,
+        "decimal_comma": table.decimal_comma,
+        "columns": [
+            {"name": h, "examples": table.column(h)[:3], "target": mapped.get(h)}
+            for h in table.header
+        ],
+        "targets": [
+            {
+                "target": t,
+                "label": label,
+                "stored_unit": unit,
+                "units": list(UNITS[t]) if len(UNITS[t]) > 1 else [],
+                "default_unit": DEFAULT_UNIT[t] if len(UNITS[t]) > 1 else "",
+            }
+            for t, (_, unit, label) in TARGETS.items()
+        ],
+        "crs_options": [{"epsg": e, "name": crs_name(e)} for e in import_crs_choices(c.x, c.y)],
+        "suggested": mapping_out(suggested),
+        "mapping": mapping_out(used),
+        "mapping_ok": not mapping_errors,
+        "n_rows": len(table.rows),
+        "n_accepted": len(res.samples),
+        "n_inside": len(inside),
+        "n_rejected": len({e.row for e in res.errors if e.kind != HEADER}),
+        "rejected": summary["errors"],
+        "n_outside": len(res.outside),
+        "outside": summary["outside"],
+        "outside_tolerance_m": OUTSIDE_TOLERANCE_M,
+        "rows": [_sample_row(s) for s in res.samples[:PREVIEW_ROWS]],
+        "n_existing": n_existing,
+    }
+
+
+def example_file(field: Field) -> tuple[str, int]:
+    """An example lab file with points inside ``field`` (text, EPSG of its coordinates)."""
+    return example_lab_csv(to_shape(field.boundary))

@@ -4,6 +4,7 @@ import { defaultFields, rxBody, type FieldErrors, type RxFields } from '../lib/r
 import { useCatalogue } from '../lib/useCatalogue';
 import { RxModelFields } from './RxModelFields';
 import { ErrorBox } from './Status';
+import { serverDefault } from '../api/defaults';
 
 /**
  * Management zones from the field's soil samples (next to the imagery NDVI zones): the
@@ -16,8 +17,8 @@ export function SoilZonesForm(props: { planId: number; onCreated: (r: Prescripti
   const { planId, onCreated } = props;
   const cat = useCatalogue();
   const [model, setModel] = useState<'nutrient_balance' | 'ndvi'>('nutrient_balance');
-  const [interp, setInterp] = useState('idw');
-  const [k, setK] = useState(4);
+  const [interp, setInterp] = useState<string>(serverDefault('SoilZonesIn', 'interpolation'));
+  const [k, setK] = useState(serverDefault('SoilZonesIn', 'k'));
   const [minArea, setMinArea] = useState(0);
   const [fields, setFields] = useState<RxFields | null>(null);
   const [busy, setBusy] = useState(false);

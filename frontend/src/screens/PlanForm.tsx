@@ -2,6 +2,7 @@ import { useState } from 'react';
 import { call, client, type Plan, type Schemas, inline } from '../api/client';
 import { qk, useApiMutation } from '../api/hooks';
 import { ErrorBox } from '../components/Status';
+import { serverDefault } from '../api/defaults';
 
 /** Planning parameters (metres, degrees); the server validates and returns 422 with the field name. */
 export function PlanForm({ fieldId, onCreated }: { fieldId: number; onCreated: (p: Plan) => void }) {
@@ -9,7 +10,7 @@ export function PlanForm({ fieldId, onCreated }: { fieldId: number; onCreated: (
   const [cell, setCell] = useState('5'); // seed 001: L >= v_max * T_lag = 3.8 m
   const [rule, setRule] = useState('longest_edge');
   const [heading, setHeading] = useState('0');
-  const [headland, setHeadland] = useState('1');
+  const [headland, setHeadland] = useState(String(serverDefault('PlanIn', 'headland_passes')));
   const create = useApiMutation(
     (body: Schemas['PlanIn']) =>
       call(client.POST('/api/v1/fields/{field_id}/plans', { params: { path: { field_id: fieldId } }, body })).then(inline),

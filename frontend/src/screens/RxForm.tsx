@@ -4,13 +4,14 @@ import { RxModelFields } from '../components/RxModelFields';
 import { ErrorBox } from '../components/Status';
 import { defaultFields, rxBody, type FieldErrors, type RxFields, type RxModel } from '../lib/rxform';
 import { useCatalogue } from '../lib/useCatalogue';
+import { serverDefault } from '../api/defaults';
 
 /** New prescription: crop-aware typed fields with units (no JSON), product from the catalogue, clamp, note. */
 export function RxForm({ planId, onCreated }: { planId: number; onCreated: (r: Prescription) => void }) {
   const cat = useCatalogue();
   const [model, setModel] = useState<RxModel>('nutrient_balance');
   const [fields, setFields] = useState<RxFields | null>(null);
-  const [interp, setInterp] = useState('idw');
+  const [interp, setInterp] = useState<string>(serverDefault('PrescriptionIn', 'interpolation'));
   const [machines, setMachines] = useState<Machine[]>([]);
   const [machineId, setMachineId] = useState('');
   const [note, setNote] = useState('');

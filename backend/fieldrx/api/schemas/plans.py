@@ -8,6 +8,7 @@ from typing import Literal
 from pydantic import Field
 
 from fieldrx.api.schemas.base import Geometry, In, Open, Out
+from fieldrx.geo.planning.kinematics import DEFAULT_HEADLAND_PASSES
 
 
 class PlanIn(In):
@@ -21,7 +22,13 @@ class PlanIn(In):
     angle_deg: float | None = Field(
         default=None, description="swath azimuth, degrees clockwise from north (heading=angle)"
     )
-    headland_passes: int = Field(default=0, ge=0, le=20)
+    headland_passes: int = Field(
+        default=DEFAULT_HEADLAND_PASSES,
+        ge=0,
+        le=20,
+        description="rings driven round the field before the swaths (0: none; the plan's "
+        "metrics say how many its turns need)",
+    )
     start_corner: Literal["sw", "se", "nw", "ne"] = "sw"
     headland_order: Literal["first", "last"] = "first"
     min_cell_fraction: float = Field(default=0.1, ge=0, lt=1)
@@ -42,7 +49,7 @@ class PlanParamsOut(Open):
     cell_length_m: float
     heading: str
     angle_deg: float | None = None
-    headland_passes: int = 0
+    headland_passes: int = DEFAULT_HEADLAND_PASSES
 
 
 class PlanMetrics(Open):

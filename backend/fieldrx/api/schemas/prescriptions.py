@@ -7,6 +7,7 @@ from typing import Any, Literal
 
 from pydantic import Field, model_validator
 
+from fieldrx.agronomy.interpolate import DEFAULT_METHOD
 from fieldrx.api.schemas.base import Geometry, In, Open, Out
 
 
@@ -23,7 +24,9 @@ class PrescriptionIn(In):
         "k_utilisation; ndvi: ndvi_low, rate_at_low_kg_ha, ndvi_high, rate_at_high_kg_ha; "
         "uniform: rate_kg_ha",
     )
-    interpolation: Literal["cell_mean", "idw", "kriging"] = "cell_mean"
+    interpolation: Literal["cell_mean", "idw", "kriging"] = Field(
+        default=DEFAULT_METHOD, description="cell values from the samples (idw: inverse distance)"
+    )
     interpolation_params: dict[str, Any] = Field(
         default_factory=dict,
         description="idw: power, radius_m, k; kriging: variogram_model, nlags, max_distance_m",

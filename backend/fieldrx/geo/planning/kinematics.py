@@ -14,6 +14,10 @@ from dataclasses import dataclass
 from .. import PlanningError
 
 DEFAULT_TURN_RADIUS_M = 6.0
+# The one default of headland passes (API, CLI, UI through the OpenAPI document): none, so a
+# plan covers the field boundary to boundary; its metrics say how many passes the machine's
+# turns need (``required_headland_passes``) and warn when the plan has fewer.
+DEFAULT_HEADLAND_PASSES = 0
 MAX_TURN_RADIUS_M = 50.0
 
 

@@ -26,7 +26,7 @@ from .decomposition import layout
 from .frame import azimuth_to_phi, frame_for, phi_to_azimuth
 from .headings import longest_edge_phi, optimal_phi
 from .headland import headland_rings, inner_region
-from .kinematics import DEFAULT_TURN_RADIUS_M, Machine
+from .kinematics import DEFAULT_HEADLAND_PASSES, DEFAULT_TURN_RADIUS_M, Machine
 from .metrics import fill_metrics, turn_warnings
 from .model import CORNERS, HEADINGS, Corner, CoveragePlan, Heading
 from .order import PATTERNS, block_sequences, order_swaths
@@ -39,7 +39,7 @@ def plan_coverage(
     swath_width_m: float = 2.3,
     heading: Heading = "longest_edge",
     angle_deg: float | None = None,
-    headland_passes: int = 0,
+    headland_passes: int = DEFAULT_HEADLAND_PASSES,
     start_corner: Corner = "sw",
     headland_order: Literal["first", "last"] = "first",
     simplify_tolerance_m: float | None = None,

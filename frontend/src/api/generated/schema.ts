@@ -473,7 +473,13 @@ export interface paths {
          */
         get: operations["list_imports_api_v1_fields__field_id__soil_imports_get"];
         put?: never;
-        post?: never;
+        /**
+         * Import Lab File
+         * @description Import a lab file as its preview showed it, in one transaction: a rejected row (unless
+         *     ``skip_rejected``), a mapping problem, a file already imported or no sample in the
+         *     field stores nothing (and deletes nothing in ``replace`` mode).
+         */
+        post: operations["import_lab_file_api_v1_fields__field_id__soil_imports_post"];
         delete?: never;
         options?: never;
         head?: never;
@@ -495,6 +501,51 @@ export interface paths {
          * @description Delete one upload and its samples.
          */
         delete: operations["delete_import_api_v1_fields__field_id__soil_imports__import_id__delete"];
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/api/v1/fields/{field_id}/soil-imports/example.csv": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        /**
+         * Example Lab File
+         * @description A lab file as German labs write it (``;``, decimal commas, Rechtswert/Hochwert in the
+         *     field's ETRS89/UTM zone, Nmin kg/ha, P2O5/K2O mg/100 g, humus %), points inside the field:
+         *     download, look at it, upload it.
+         */
+        get: operations["example_lab_file_api_v1_fields__field_id__soil_imports_example_csv_get"];
+        put?: never;
+        post?: never;
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/api/v1/fields/{field_id}/soil-imports/preview": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        get?: never;
+        put?: never;
+        /**
+         * Preview Lab File
+         * @description Read a soil lab's CSV (``;`` or ``,``, decimal commas, German or English headers) and
+         *     show what it would import with ``mapping`` (or the suggested one): the columns, units,
+         *     coordinate systems to choose from, the converted rows, the rejected rows with their
+         *     reason and the rows outside the field. Nothing is stored.
+         */
+        post: operations["preview_lab_file_api_v1_fields__field_id__soil_imports_preview_post"];
+        delete?: never;
         options?: never;
         head?: never;
         patch?: never;
@@ -2133,6 +2184,16 @@ export interface components {
             /** Files */
             files: string[];
         };
+        /** Body_import_lab_file_api_v1_fields__field_id__soil_imports_post */
+        Body_import_lab_file_api_v1_fields__field_id__soil_imports_post: {
+            /** File */
+            file: string;
+            /**
+             * Mapping
+             * @description JSON of SoilMappingIn; omitted: the mapping the preview suggests
+             */
+            mapping?: string | null;
+        };
         /** Body_import_prescription_shapefile_api_v1_imports_prescription_shapefile_post */
         Body_import_prescription_shapefile_api_v1_imports_prescription_shapefile_post: {
             /** File */
@@ -2147,6 +2208,16 @@ export interface components {
         Body_import_timelog_api_v1_imports_timelog_post: {
             /** Files */
             files: string[];
+        };
+        /** Body_preview_lab_file_api_v1_fields__field_id__soil_imports_preview_post */
+        Body_preview_lab_file_api_v1_fields__field_id__soil_imports_preview_post: {
+            /** File */
+            file: string;
+            /**
+             * Mapping
+             * @description JSON of SoilMappingIn; omitted: the mapping the preview suggests
+             */
+            mapping?: string | null;
         };
         /** Body_upload_imagery_api_v1_fields__field_id__imagery_post */
         Body_upload_imagery_api_v1_fields__field_id__imagery_post: {
@@ -2367,6 +2438,13 @@ export interface components {
             source: string;
             /** Target Yield T Ha */
             target_yield_t_ha: number;
+        };
+        /** CrsOption */
+        CrsOption: {
+            /** Epsg */
+            epsg: number;
+            /** Name */
+            name: string;
         };
         /** CurrentIn */
         CurrentIn: {
@@ -3210,6 +3288,63 @@ export interface components {
                 [key: string]: components["schemas"]["KindInfo"];
             };
         };
+        /** LabColumn */
+        LabColumn: {
+            /**
+             * Examples
+             * @description the first values of the column, as in the file
+             */
+            examples: string[];
+            /** Name */
+            name: string;
+            /**
+             * Target
+             * @description quantity it is mapped to (None: not read)
+             */
+            target: string | null;
+        };
+        /**
+         * LabSampleRow
+         * @description One accepted row, converted: lon/lat WGS84, stored units.
+         */
+        LabSampleRow: {
+            /** Depth Cm */
+            depth_cm: number;
+            /** K Mg Kg */
+            k_mg_kg: number | null;
+            /** Lat */
+            lat: number;
+            /** Lon */
+            lon: number;
+            /** N Mg Kg */
+            n_mg_kg: number | null;
+            /** Om G Kg */
+            om_g_kg: number | null;
+            /** P Mg Kg */
+            p_mg_kg: number | null;
+            /** Ph */
+            ph: number | null;
+            /** Row */
+            row: number;
+            /** Sample Id */
+            sample_id: string;
+        };
+        /** LabTargetOut */
+        LabTargetOut: {
+            /** Default Unit */
+            default_unit: string;
+            /** Label */
+            label: string;
+            /** Stored Unit */
+            stored_unit: string;
+            /** Target */
+            target: string;
+            /**
+             * Units
+             * @description units a column of this quantity may be in
+             */
+            units: string[];
+        };
         /**
          * LegendClasses
          * @description The version's legend classes (fixed with it) and its zones table.
@@ -3615,6 +3750,7 @@ export interface components {
             headland_order?: "first" | "last";
             /**
              * Headland Passes
+             * @description rings driven round the field before the swaths (0: none; the plan's metrics say how many its turns need)
              * @default 0
              */
             headland_passes?: number;
@@ -3787,7 +3923,8 @@ export interface components {
             fallback_rate_kg_ha?: number | null;
             /**
              * Interpolation
-             * @default cell_mean
+             * @description cell values from the samples (idw: inverse distance)
+             * @default idw
              * @enum {string}
              */
             interpolation?: "cell_mean" | "idw" | "kriging";
@@ -4021,6 +4158,20 @@ export interface components {
             plan_id: number;
             /** Working Length M */
             working_length_m: number | null;
+        };
+        /**
+         * RowProblem
+         * @description A rejected row (``row`` = record number, header = 1) or a mapping problem (row 1).
+         */
+        RowProblem: {
+            /** Column */
+            column: string | null;
+            /** Kind */
+            kind: string;
+            /** Message */
+            message: string;
+            /** Row */
+            row: number;
         };
         /** RxCell */
         RxCell: {
@@ -4366,6 +4517,12 @@ export interface components {
             /** Outside Tolerance M */
             outside_tolerance_m: number;
             /**
+             * Replaced
+             * @description earlier samples deleted (mode=replace)
+             * @default 0
+             */
+            replaced?: number;
+            /**
              * Skipped
              * @description bad rows left out (skip_bad_rows)
              */
@@ -4398,6 +4555,76 @@ export interface components {
             outside_stored: boolean;
             /** Sha256 */
             sha256: string;
+        };
+        /**
+         * SoilLabPreview
+         * @description What confirming the file with this mapping would store (nothing is stored).
+         */
+        SoilLabPreview: {
+            /** Columns */
+            columns: components["schemas"]["LabColumn"][];
+            /** Crs Options */
+            crs_options: components["schemas"]["CrsOption"][];
+            /** Decimal Comma */
+            decimal_comma: boolean;
+            /** Delimiter */
+            delimiter: string;
+            /** Encoding */
+            encoding: string;
+            /** Filename */
+            filename: string;
+            /** @description the mapping this preview applied */
+            mapping: components["schemas"]["SoilMappingOut"];
+            /**
+             * Mapping Ok
+             * @description False: the mapping itself is wrong (see rejected)
+             */
+            mapping_ok: boolean;
+            /** N Accepted */
+            n_accepted: number;
+            /**
+             * N Existing
+             * @description samples the field has now (mode=replace deletes them)
+             */
+            n_existing: number;
+            /** N Inside */
+            n_inside: number;
+            /** N Outside */
+            n_outside: number;
+            /** N Rejected */
+            n_rejected: number;
+            /** N Rows */
+            n_rows: number;
+            /** Outside */
+            outside: components["schemas"]["OutsideRow"][];
+            /** Outside Tolerance M */
+            outside_tolerance_m: number;
+            /** Rejected */
+            rejected: components["schemas"]["RowProblem"][];
+            /**
+             * Rows
+             * @description the first accepted rows, converted
+             */
+            rows: components["schemas"]["LabSampleRow"][];
+            /** @description the mapping read from the headers */
+            suggested: components["schemas"]["SoilMappingOut"];
+            /** Targets */
+            targets: components["schemas"]["LabTargetOut"][];
+        };
+        /** SoilMappingOut */
+        SoilMappingOut: {
+            /** Bulk Density G Cm3 */
+            bulk_density_g_cm3: number;
+            /** Columns */
+            columns: {
+                [key: string]: string;
+            };
+            /** Epsg */
+            epsg: number | null;
+            /** Units */
+            units: {
+                [key: string]: string;
+            };
         };
         /**
          * SoilZonesIn
@@ -4434,7 +4661,8 @@ export interface components {
             fallback_rate_kg_ha?: number | null;
             /**
              * Interpolation
-             * @default cell_mean
+             * @description cell values from the samples (idw: inverse distance)
+             * @default idw
              * @enum {string}
              */
             interpolation?: "cell_mean" | "idw" | "kriging";
@@ -7758,6 +7986,102 @@ export interface operations {
             };
         };
     };
+    import_lab_file_api_v1_fields__field_id__soil_imports_post: {
+        parameters: {
+            query?: {
+                /** @description also store samples lying outside the field */
+                include_outside?: boolean;
+                /** @description replace: delete the field's samples first */
+                mode?: "append" | "replace";
+                /** @description store the good rows when some are rejected */
+                skip_rejected?: boolean;
+            };
+            header?: never;
+            path: {
+                field_id: number;
+            };
+            cookie?: never;
+        };
+        requestBody: {
+            content: {
+                "multipart/form-data": components["schemas"]["Body_import_lab_file_api_v1_fields__field_id__soil_imports_post"];
+            };
+        };
+        responses: {
+            /** @description Successful Response */
+            201: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["SoilImportResult"];
+                };
+            };
+            /** @description missing, invalid, expired or revoked bearer token */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description the token may not do this (a viewer writing, a device token on a user endpoint); the message names the role needed */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description no such resource in the caller's organisation */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description conflicts with stored state (a job state transition, evidence that must be kept) */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description request body or upload too large */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description invalid input: the message names the field, row or vertex */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description the database or the worker pool is busy or unreachable: retry (Retry-After) */
+            503: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+        };
+    };
     delete_import_api_v1_fields__field_id__soil_imports__import_id__delete: {
         parameters: {
             query?: never;
@@ -7777,6 +8101,180 @@ export interface operations {
                 };
                 content: {
                     "application/json": components["schemas"]["Deleted"];
+                };
+            };
+            /** @description missing, invalid, expired or revoked bearer token */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description the token may not do this (a viewer writing, a device token on a user endpoint); the message names the role needed */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description no such resource in the caller's organisation */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description conflicts with stored state (a job state transition, evidence that must be kept) */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description request body or upload too large */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description invalid input: the message names the field, row or vertex */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description the database or the worker pool is busy or unreachable: retry (Retry-After) */
+            503: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+        };
+    };
+    example_lab_file_api_v1_fields__field_id__soil_imports_example_csv_get: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                field_id: number;
+            };
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description an example lab file with points inside the field */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "text/csv": string;
+                };
+            };
+            /** @description missing, invalid, expired or revoked bearer token */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description the token may not do this (a viewer writing, a device token on a user endpoint); the message names the role needed */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description no such resource in the caller's organisation */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description conflicts with stored state (a job state transition, evidence that must be kept) */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description request body or upload too large */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description invalid input: the message names the field, row or vertex */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description the database or the worker pool is busy or unreachable: retry (Retry-After) */
+            503: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+        };
+    };
+    preview_lab_file_api_v1_fields__field_id__soil_imports_preview_post: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                field_id: number;
+            };
+            cookie?: never;
+        };
+        requestBody: {
+            content: {
+                "multipart/form-data": components["schemas"]["Body_preview_lab_file_api_v1_fields__field_id__soil_imports_preview_post"];
+            };
+        };
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["SoilLabPreview"];
                 };
             };
             /** @description missing, invalid, expired or revoked bearer token */
