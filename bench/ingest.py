@@ -19,10 +19,11 @@ Baseline, same run: a raw COPY BINARY of the same rows (prepared tuples,
 indexes. Ratio = our records/s / raw COPY records/s.
 
 HTTP, then the same machine-hours with uplink profile ``thin`` (issue 18: a
-1 Hz track plus one cell record per cell left, on two streams, as
-``fieldrx_edge.uplink.thin`` sends them): the server's CPU (API processes and
-the PostgreSQL backends of the bench database, process CPU time) per
-machine-hour of both, and their ratio (``thin``; ``--no-thin`` skips it).
+1 Hz track plus one cell record per cell left, on two streams, both in one request
+while both have records, as ``fieldrx_edge.uplink.thin`` and the HTTP sender send
+them): the server's CPU (API processes and the PostgreSQL backends of the bench
+database, process CPU time) per machine-hour of both, and their ratio (``thin``;
+``--no-thin`` skips it).
 
 Last line: one JSON object (records_per_s, raw_copy_records_per_s,
 ratio_to_copy, p50_latency_s, p99_latency_s, lost, duplicated, thin, ...).
@@ -262,9 +263,10 @@ def start(args: list[str], env: dict[str, str], log: Path | None = None) -> subp
     )
 
 
-def wait_log(paths: list[Path], text: str, timeout: float = 60.0) -> None:
+def wait_log(paths: list[Path], text: str, timeout: float = 180.0) -> None:
     """Wait until every log file contains ``text`` (e.g. each worker has subscribed:
-    a message published before any subscription exists is dropped by the broker)."""
+    a message published before any subscription exists is dropped by the broker). Long
+    timeouts: under load (8 helpers on 2 cores) importing the app took 40 s."""
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         if all(p.exists() and text in p.read_text(errors="replace") for p in paths):
@@ -286,7 +288,7 @@ def stop(p: subprocess.Popen[bytes]) -> str:
     return p.stderr.read().decode(errors="replace")
 
 
-def wait_http(url: str, proc: subprocess.Popen[bytes], timeout: float = 40.0) -> None:
+def wait_http(url: str, proc: subprocess.Popen[bytes], timeout: float = 180.0) -> None:
     import httpx
 
     deadline = time.monotonic() + timeout
@@ -451,14 +453,26 @@ def thin_bodies(fleet: Fleet, k: int, batch: int, t_now: float) -> list[str]:
                 "flags": [],
             }
         )  # fmt: skip
-    out = []
+    lanes = []
     for recs, head in ((track, f'"format":2,"stream":"thin{k}"'),
                        (cell_recs, f'"format":3,"kind":"cells","stream":"cells{k}"')):  # fmt: skip
+        lane = []
         for i in range(0, len(recs), batch):
             part = recs[i : i + batch]
-            out.append(
+            lane.append(
                 f'{{{head},"stream_start":1,"records":{json.dumps(part, separators=(",", ":"))}}}'
             )
+        lanes.append(lane)
+    # as fieldrx_edge.uplink.http.HttpSender sends them: the two queues' pending batches in
+    # one request while both have records (protocol.MULTI_KIND), else one batch alone
+    out = []
+    for i in range(max(map(len, lanes))):
+        parts = [lane[i] for lane in lanes if i < len(lane)]
+        out.append(
+            parts[0]
+            if len(parts) == 1
+            else '{"format":3,"kind":"batches","batches":[' + ",".join(parts) + "]}"
+        )
     return out
 
 
@@ -483,10 +497,11 @@ async def drive_http_thin(
                             break
                         print(f"HTTP {status}: {payload[:200]!r}", file=sys.stderr)
                         await asyncio.sleep(0.5)
-                ack = json.loads(payload)
-                assert not ack["rejected"], ack["rejected"][:3]
+                answer = json.loads(payload)
+                for ack in answer.get("acks", [answer]):
+                    assert not ack["rejected"], ack["rejected"][:3]
+                    stored += ack["stored"]
                 sent += body.count('"machine_id"')
-                stored += ack["stored"]
 
         await asyncio.gather(*(machine(k) for k in range(len(fleet.machines))))
         elapsed = time.time() - start
@@ -562,19 +577,13 @@ def drive_mqtt(
                 if count <= 0:
                     continue
             t_now = time.time()
-            recs = fleet.records(k, seq, count, t_now)
             if realtime:
-                for i, r in enumerate(recs):
-                    r["t"] = start + (seq + i) / fleet.hz
-            tstamps[k][seq : seq + count] = [r["t"] for r in recs]
-            info = clients[mid].publish(
-                telemetry_topic(mid),
-                json.dumps(
-                    {"format": 2, "stream": f"bench{k}", "stream_start": 1, "records": recs},
-                    separators=(",", ":"),
-                ),
-                qos=1,
-            )
+                times = [start + (seq + i) / fleet.hz for i in range(count)]
+            else:
+                times = [t_now - (count - 1 - i) * 1e-6 for i in range(count)]
+            tstamps[k][seq : seq + count] = times
+            # the pre-rendered JSON, as the HTTP driver sends it (Fleet.prepare)
+            info = clients[mid].publish(telemetry_topic(mid), fleet.body(k, seq, times), qos=1)
             if info.rc != mqtt.MQTT_ERR_SUCCESS:
                 raise SystemExit(f"publish failed rc={info.rc}")
             sent[k] = seq + count

@@ -47,6 +47,12 @@ TELEMETRY_FORMAT_VERSION = 2
 # "records": [CellRecord, ...]}. Track batches stay format 2, so a full-profile agent still
 # talks to a format 2 server; a thin agent needs a server that knows format 3.
 CELL_FORMAT_VERSION = 3
+# Several batches in one HTTP request (a thin agent's track and cell batches: one request,
+# one token check, instead of two): {"format": 3, "kind": "batches", "batches": [batch, ...]}
+# with each batch as above; the answer is {"acks": [TelemetryAck, ...]}, one per batch in
+# order, each batch stored in its own transaction (issue 18).
+MULTI_KIND = "batches"
+MAX_BATCHES = 8
 UPLINK_PROFILES = ("full", "thin")  # full: every fix; thin: 1 Hz track + one record per cell
 
 

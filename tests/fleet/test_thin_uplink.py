@@ -221,3 +221,44 @@ def test_cell_batches_dedup_and_ack_like_telemetry(client, db, job) -> None:  # 
         {"m": job.machine_id},
     ).scalar_one()
     assert n == 0
+
+
+def test_track_and_cells_in_one_request(client, db, job) -> None:  # noqa: ANN001
+    """A thin agent's track and cell batches in one request (protocol.MULTI_KIND): one
+    ack per batch, in order, each stored and deduplicated as if sent alone."""
+    from tests.fleet.helpers import record
+
+    t = time.time() - 100
+    track = {
+        "format": 2, "stream": "trackM", "stream_start": 1,
+        "records": [record(job, i, t=t + i, cell=None) for i in range(1, 6)],
+    }  # fmt: skip
+    cells = {
+        "format": 3, "kind": "cells", "stream": "cellsM", "stream_start": 1,
+        "records": [_cell(job, i, i - 1, t + 2 * i) for i in range(1, 4)],
+    }  # fmt: skip
+    body = {"format": 3, "kind": "batches", "batches": [track, cells]}
+    for stored, dups in ((5, 0), (0, 5)):  # then a resend: the acks were lost
+        r = client.post("/api/v1/telemetry", json=body, headers=job.device_headers)
+        assert r.status_code == 200, r.text
+        a, b = r.json()["acks"]
+        assert (a["stream"], a["acked_seq"], a["stored"], a["duplicates"]) == (
+            "trackM",
+            5,
+            stored,
+            dups,
+        )
+        assert (b["stream"], b["acked_seq"], b["stored"]) == ("cellsM", 3, 3 if not dups else 0)
+    n = db.execute(
+        text("SELECT (SELECT count(*) FROM telemetry WHERE machine_id = :m),"
+             " (SELECT count(*) FROM job_cell_records WHERE machine_id = :m)"),
+        {"m": job.machine_id},
+    ).one()  # fmt: skip
+    assert tuple(n) == (5, 3)
+    # a bad batch refuses the whole request, naming the batch; nothing more is stored
+    bad = {**body, "batches": [track, {**cells, "stream": "no spaces"}]}
+    r = client.post("/api/v1/telemetry", json=bad, headers=job.device_headers)
+    assert r.status_code == 422 and "batches[1]" in r.text, r.text
+    for wrong in ({**body, "format": 2}, {**body, "batches": []}, {**body, "batches": [body]}):
+        r = client.post("/api/v1/telemetry", json=wrong, headers=job.device_headers)
+        assert r.status_code == 422, r.text

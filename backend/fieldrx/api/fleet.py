@@ -32,6 +32,7 @@ from fieldrx.auth.deps import SessionDep, UserDep, WriterDep
 from fieldrx.db.models import Alert, Machine
 from fieldrx.fleet.alerts import ALERT_KINDS, LIVE_CHANNEL, check_no_data
 from fieldrx.fleet.db import raw_connection
+from fieldrx.fleet.partitions import machine_window
 from fieldrx.fleet.status import machine_status
 from fieldrx.settings import get_settings
 
@@ -212,6 +213,12 @@ def _range(
     return frm, to
 
 
+# a machine's track and chart rows: the machine, and a time range (fleet.partitions
+# .machine_window) that names the days read
+TRACK_WHERE = "machine_id = :m AND geom IS NOT NULL AND t BETWEEN :t0 AND :t1"
+CHART_WHERE = "machine_id = :m AND t BETWEEN :t0 AND :t1"
+
+
 @router.get("/machines/{machine_id:int}/track", response_model=PointPage)
 def machine_track(
     machine_id: int,
@@ -225,21 +232,18 @@ def machine_track(
     """History replay: the machine's positions in time order, one page at a time (GeoJSON)."""
     get_scoped(session, Machine, machine_id, principal)
     frm, to = _range(frm, to)
-    params = {"m": machine_id, "f": frm, "t": to, "lim": limit, "off": offset}
-    where = (
-        "machine_id = :m AND geom IS NOT NULL"
-        " AND (CAST(:f AS timestamptz) IS NULL OR t >= :f)"
-        " AND (CAST(:t AS timestamptz) IS NULL OR t <= :t)"
-    )
+    # bounded in time (no range: the machine's latest day), so only those days are read
+    params = {**machine_window(session, machine_id, frm, to), "m": machine_id}
+    params.update(lim=limit, off=offset)
     total = session.execute(
-        text(f"SELECT count(*) FROM telemetry WHERE {where}"), params
+        text(f"SELECT count(*) FROM telemetry WHERE {TRACK_WHERE}"), params
     ).scalar_one()
     rows = session.execute(
         text(
             f"SELECT seq, t, ST_X(geom) AS lon, ST_Y(geom) AS lat, fix_quality, hdop,"
             f" speed_raw_m_s, speed_filtered_m_s, heading_deg, job_id, cell_seq,"
             f" target_rate_kg_ha, applied_rate_kg_ha, target_shaft_rpm, actual_shaft_rpm,"
-            f" duty, implement_down, alarms FROM telemetry WHERE {where}"
+            f" duty, implement_down, alarms FROM telemetry WHERE {TRACK_WHERE}"
             f" ORDER BY t, seq LIMIT :lim OFFSET :off"
         ),
         params,
@@ -331,11 +335,10 @@ def machine_telemetry(
     latest = frm is None and to is None
     sql = (
         f"SELECT seq, extract(epoch FROM t)::float8 AS t, {cols} FROM telemetry"
-        " WHERE machine_id = :m AND (CAST(:f AS timestamptz) IS NULL OR t >= :f)"
-        " AND (CAST(:t AS timestamptz) IS NULL OR t <= :t)"
-        f" ORDER BY t {'DESC' if latest else 'ASC'}, seq LIMIT :lim"
+        f" WHERE {CHART_WHERE} ORDER BY t {'DESC' if latest else 'ASC'}, seq LIMIT :lim"
     )
-    rows = session.execute(text(sql), {"m": machine_id, "f": frm, "t": to, "lim": limit}).all()
+    window = machine_window(session, machine_id, frm, to)
+    rows = session.execute(text(sql), {**window, "m": machine_id, "lim": limit}).all()
     if latest:
         rows = rows[::-1]
     keys = ("seq", "t", *CHART_COLUMNS)

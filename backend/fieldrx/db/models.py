@@ -21,6 +21,7 @@ from sqlalchemy import (
     DateTime,
     Double,
     ForeignKey,
+    ForeignKeyConstraint,
     Index,
     Integer,
     LargeBinary,
@@ -313,6 +314,8 @@ class Job(Base):
             " OR (kind <> 'prescription_map' AND plan_id IS NOT NULL)",
             name="ck_job_source",
         ),
+        # job_cells_applied's (machine_id, job_id) foreign key (migration 0014_machine_keys)
+        UniqueConstraint("machine_id", "id", name="uq_jobs_machine_id_id"),
     )
     id: Mapped[int] = mapped_column(primary_key=True)
     organisation_id: Mapped[int] = mapped_column(
@@ -363,10 +366,21 @@ class JobEvent(Base):
 
 
 class JobCellApplied(Base):
-    """Per-cell as-applied aggregate of a job, kept up to date by telemetry ingest."""
+    """Per-cell as-applied aggregate of a job, kept up to date by telemetry ingest.
+    Keyed by machine first (the distribution column, migration 0014_machine_keys)."""
 
     __tablename__ = "job_cells_applied"
-    job_id: Mapped[int] = mapped_column(ForeignKey("jobs.id", ondelete="CASCADE"), primary_key=True)
+    __table_args__ = (
+        ForeignKeyConstraint(
+            ["machine_id", "job_id"],
+            ["jobs.machine_id", "jobs.id"],
+            name="job_cells_applied_machine_job_fkey",
+            ondelete="CASCADE",
+            onupdate="CASCADE",
+        ),
+    )
+    machine_id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    job_id: Mapped[int] = mapped_column(Integer, primary_key=True)
     seq: Mapped[int] = mapped_column(Integer, primary_key=True)
     n_records: Mapped[int] = mapped_column(Integer, default=0)
     target_rate_sum: Mapped[float] = mapped_column(Double, default=0.0)

@@ -28,8 +28,11 @@ SELECT organisation_id, kind, machine_id FROM tok
 
 def device_of(conn: psycopg.Connection[Any], token: str) -> tuple[str, int | None] | None:
     """(kind, machine_id) of a valid token, or None when unknown, revoked or expired."""
-    with conn.transaction():
+    if conn.autocommit:  # the statement is its own transaction: one round trip, not three
         row = conn.execute(_SQL, (token_digest(token),)).fetchone()
+    else:
+        with conn.transaction():
+            row = conn.execute(_SQL, (token_digest(token),)).fetchone()
     if row is None:
         return None
     return row[1], row[2]

@@ -18,7 +18,8 @@ twice:
    exit time), else the stream's numbering went backwards: nothing from there
    on is stored and the ack says ``stream_conflict``;
 4. ``acked_seq`` (``cell_record_streams``) advances over the contiguous stored
-   or rejected-for-good seqs and stops at the first gap;
+   or rejected-for-good seqs and stops at the first gap (``ACK_WALK_SQL``: one
+   statement, part of the stream row's upsert);
 5. per-cell aggregates and job progress move as for telemetry records
    (``ingest.cell_progress``), in the same transaction.
 """
@@ -36,14 +37,15 @@ from sqlalchemy.orm import Session
 
 from fieldrx.fleet import alerts as alert_rules
 from fieldrx.fleet.ingest import (
-    ACK_PAGE,
     FUTURE_TOLERANCE_S,
     INT8_MAX,
     PG_EPOCH,
     IngestError,
     IngestResult,
-    advance_over_stored,
+    begin,
     cell_progress,
+    commit,
+    pipelined,
 )
 
 COLUMNS = (
@@ -125,17 +127,19 @@ def ingest_cells(
         raise IngestError("a cells batch must name its stream")
     now = time.time()
     rows, rejected, dead, repeats = validate(raw, machine_id, stream, now)
-    with conn.transaction(), conn.cursor() as cur:
-        cur.execute(
-            "SELECT m.organisation_id, s.acked_seq,"
-            " (SELECT coalesce(array_agg(j.id), '{}') FROM jobs j WHERE j.machine_id = m.id"
-            "  AND j.id = ANY(%s))"
-            " FROM (SELECT pg_advisory_xact_lock(%s, %s)) AS lock, machines m"
-            " LEFT JOIN cell_record_streams s ON s.machine_id = m.id AND s.stream = %s"
-            " WHERE m.id = %s",
-            (list({r[3] for r in rows.values()}), LOCK_NS, machine_id, stream, machine_id),
-        )
-        info = cur.fetchone()
+    with pipelined(conn) as cur:
+        with conn.pipeline():  # BEGIN travels with the lock query: one round trip
+            begin(cur)
+            cur.execute(
+                "SELECT m.organisation_id, s.acked_seq,"
+                " (SELECT coalesce(array_agg(j.id), '{}') FROM jobs j WHERE j.machine_id = m.id"
+                "  AND j.id = ANY(%s))"
+                " FROM (SELECT pg_advisory_xact_lock(%s, %s)) AS lock, machines m"
+                " LEFT JOIN cell_record_streams s ON s.machine_id = m.id AND s.stream = %s"
+                " WHERE m.id = %s",
+                (list({r[3] for r in rows.values()}), LOCK_NS, machine_id, stream, machine_id),
+            )
+            info = cur.fetchone()
         if info is None:
             raise IngestError(f"machine {machine_id} does not exist")
         org, acked_db, mine = info[0], info[1], set(info[2])
@@ -182,16 +186,6 @@ def ingest_cells(
                 for r in new:
                     copy.write_row(r)
         result.stored = len(new)
-        result.acked_seq = _advance(cur, machine_id, stream, acked0, set(rows) | dead)
-        cur.execute(
-            "INSERT INTO cell_record_streams AS s (machine_id, stream, first_seq, acked_seq,"
-            " n_records) VALUES (%s, %s, %s, %s, %s) ON CONFLICT (machine_id, stream) DO UPDATE"
-            " SET acked_seq = excluded.acked_seq, last_seen_at = now(),"
-            " n_records = s.n_records + excluded.n_records",
-            (machine_id, stream, stream_start, result.acked_seq, len(new)),
-        )
-        if conflict is not None:
-            result.acked_seq = min(result.acked_seq, conflict - 1)
         agg: dict[tuple[int, int], list[Any]] = {}
         for r in new:
             n = r[7]
@@ -207,25 +201,45 @@ def ingest_cells(
                 a[1] += tsum
                 a[2] += asum
                 a[3], a[4] = min(a[3], t0), max(a[4], t1)
-        alert_rules.notify(cur, cell_progress(cur, machine_id, org, agg))
+        # the rest and the COMMIT in one pipeline; the ack walk is part of the stream's upsert
+        with conn.pipeline():
+            stream_cur = conn.cursor()
+            stream_cur.execute(
+                "INSERT INTO cell_record_streams AS s (machine_id, stream, first_seq, acked_seq,"
+                " n_records) VALUES (%(m)s, %(s)s::text, %(start)s, " + ACK_WALK_SQL + ", %(n)s)"
+                " ON CONFLICT (machine_id, stream) DO UPDATE"
+                " SET acked_seq = excluded.acked_seq, last_seen_at = now(),"
+                " n_records = s.n_records + excluded.n_records RETURNING acked_seq",
+                {
+                    "m": machine_id, "s": stream, "start": stream_start, "acked": acked0,
+                    "done": sorted(set(rows) | dead), "n": len(new),
+                },
+            )  # fmt: skip
+            alert_rules.notify(cur, cell_progress(cur, machine_id, org, agg))
+            commit(cur)
+        row = stream_cur.fetchone()
+        stream_cur.close()
+        assert row is not None
+        result.acked_seq = int(row[0])
+        if conflict is not None:
+            result.acked_seq = min(result.acked_seq, conflict - 1)
     return result
 
 
-def _advance(
-    cur: psycopg.Cursor[Any], machine_id: int, stream: str, acked: int, done: set[int]
-) -> int:
-    """Highest contiguous seq stored (or rejected for good), from the stored ack
-    (``ingest.advance_over_stored``, the rule telemetry acks follow)."""
-
-    def stored_above(after: int) -> list[int]:
-        cur.execute(
-            "SELECT seq FROM job_cell_records WHERE machine_id = %s AND stream = %s AND seq > %s"
-            " ORDER BY seq LIMIT %s",
-            (machine_id, stream, after, ACK_PAGE),
-        )
-        return [r[0] for r in cur.fetchall()]
-
-    return advance_over_stored(stored_above, acked, done)
+# The ack walk in one statement (``ingest.advance_over_stored``'s rule): from the stored
+# ack, over the contiguous seqs that are stored on the stream or done in this batch (stored
+# or rejected for good), to the first gap. Numbered in seq order, a seq is in the run from
+# ack + 1 exactly when it equals ack + its rank; the run is the count of those. At most
+# 100,000 stored seqs are read per batch: a longer run is walked on by the next batches
+# (an ack below what is stored only makes the agent resend, which is deduplicated).
+ACK_WALK_SQL = (
+    "(SELECT %(acked)s::int8 + count(*) FROM ("
+    " SELECT q, row_number() OVER (ORDER BY q) AS k FROM ("
+    "  SELECT seq AS q FROM job_cell_records WHERE machine_id = %(m)s AND stream = %(s)s::text"
+    "   AND seq > %(acked)s AND seq <= %(acked)s::int8 + 100000"
+    "  UNION SELECT d FROM unnest(%(done)s::int8[]) AS d WHERE d > %(acked)s) u) r"
+    " WHERE q = %(acked)s::int8 + k)"
+)
 
 
 def job_cell_totals(session: Session, job_id: int, machine_id: int) -> list[Any]:

@@ -5,6 +5,11 @@ pool pings on every checkout and rolls back on return; at hundreds of batches
 per second those round trips cost more than the batch's own statements, so
 ingest keeps its own LIFO pool of plain connections (``jit=off`` as everywhere).
 A connection that raised is closed, not reused.
+
+The connections are in autocommit mode: a single statement (the device-token check)
+is its own transaction in one round trip instead of three (BEGIN, statement,
+COMMIT), and ingest sends its own BEGIN and COMMIT inside pipelines
+(``fleet.ingest.pipelined``). Every multi-statement use opens ``conn.transaction()``.
 """
 
 from __future__ import annotations
@@ -24,6 +29,11 @@ _lock = threading.Lock()
 _idle: dict[str, list[psycopg.Connection[Any]]] = {}
 
 
+def connect(dsn: str) -> psycopg.Connection[Any]:
+    """A raw ingest connection (autocommit, ``jit=off``)."""
+    return psycopg.connect(dsn, options="-c jit=off", autocommit=True)
+
+
 @contextmanager
 def raw_connection(dsn: str | None = None) -> Iterator[psycopg.Connection[Any]]:
     dsn = dsn or raw_dsn()
@@ -31,7 +41,7 @@ def raw_connection(dsn: str | None = None) -> Iterator[psycopg.Connection[Any]]:
         stack = _idle.setdefault(dsn, [])
         conn = stack.pop() if stack else None
     if conn is None or conn.closed:
-        conn = psycopg.connect(dsn, options="-c jit=off")
+        conn = connect(dsn)
     try:
         yield conn
     except BaseException:

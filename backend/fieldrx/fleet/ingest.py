@@ -46,7 +46,8 @@ import datetime as dt
 import json
 import operator
 import time
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
+from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
@@ -58,7 +59,9 @@ from fieldrx_edge.protocol import (
     EXTRA_FIELDS,
     FIELD_SET,
     FLOAT_FIELDS,
+    MAX_BATCHES,
     MAX_FIX_PERIOD_S,
+    MULTI_KIND,
     STREAM_RE,
     TELEMETRY_FIELDS,
     TELEMETRY_FORMAT_VERSION,
@@ -152,7 +155,36 @@ def _loads(body: bytes | str) -> Any:
 def parse_batch(body: bytes | str) -> Batch:
     """``{"records": [...], "stream": id, "stream_start": n}`` (stream optional) -> Batch;
     anything else is an ``IngestError``."""
+    return _batch_of(_loads(body))
+
+
+def parse_request(body: bytes | str) -> list[Batch] | Batch:
+    """An HTTP body: one batch (``parse_batch``) or several in one request
+    (``{"format": 3, "kind": "batches", "batches": [batch, ...]}``, protocol.MULTI_KIND: a
+    thin agent's track and cell batches) -> their list."""
     obj = _loads(body)
+    if not isinstance(obj, dict) or obj.get("kind") != MULTI_KIND:
+        return _batch_of(obj)
+    if obj.get("format") != CELL_FORMAT_VERSION:
+        raise IngestError(
+            f"a {MULTI_KIND!r} request must be format {CELL_FORMAT_VERSION},"
+            f" got {obj.get('format')!r}"
+        )
+    items = obj.get("batches")
+    if not isinstance(items, list) or not 1 <= len(items) <= MAX_BATCHES:
+        raise IngestError(f'"batches" must be a list of 1..{MAX_BATCHES} batches')
+    out = []
+    for i, item in enumerate(items):
+        try:
+            if isinstance(item, dict) and item.get("kind") == MULTI_KIND:
+                raise IngestError("batches do not nest")
+            out.append(_batch_of(item))
+        except IngestError as exc:
+            raise IngestError(f"batches[{i}]: {exc}") from exc
+    return out
+
+
+def _batch_of(obj: Any) -> Batch:
     if not isinstance(obj, dict) or not isinstance(obj.get("records"), list):
         raise IngestError('body must be a JSON object {"records": [TelemetryRecord, ...]}')
     fmt = obj.get("format", 1)
@@ -416,8 +448,10 @@ def ingest(
     now = time.time()
     rows, rejected, dead, repeats = validate(raw, machine_id, stream, now)
     ensure_days(conn, [r.t for r in rows.values()])  # own transaction, before the batch's
-    with conn.transaction(), conn.cursor() as cur:
-        info = _lock_machine(cur, machine_id, stream)
+    with pipelined(conn) as cur:
+        with conn.pipeline():  # BEGIN travels with the lock query: one round trip
+            begin(cur)
+            info = _lock_machine(cur, machine_id, stream)
         if info is None:
             raise IngestError(f"machine {machine_id} does not exist")
         acked0 = info.acked_seq if info.acked_seq is not None else stream_start - 1
@@ -444,56 +478,98 @@ def ingest(
                     dead = {q for q in dead if q < conflict}
             new = [rows[s] for s in sorted(rows) if s not in existing]
         if new:
-            TELEMETRY_COPY.write_rows(cur, new)
-            record_job_spans(cur, machine_id, [r.t for r in new], [r.job_id for r in new])
-        result.stored = len(new)
-        result.acked_seq = _advance(cur, machine_id, stream, acked0, set(rows) | dead, info, new)
-        messages: list[dict[str, Any]] = []
-        _stream_row(cur, machine_id, stream, stream_start, result.acked_seq, new, info)
-        if conflict is not None:
-            # the agent may trim only below the conflict; it resends the rest on a new stream
-            result.acked_seq = min(result.acked_seq, conflict - 1)
-        _status(cur, machine_id, info, new, result.acked_seq, now)
-        if new:
-            latest = max(new, key=lambda r: r.t)
-            messages.append(_position(info.organisation_id, latest, result))
-            messages.extend(_cells(cur, machine_id, info.organisation_id, new))
-        messages.extend(_streams_alert(cur, machine_id, stream, info, new, now))
-        if new and _may_alert(new, info):
-            samples = [
-                alert_rules.Sample(
-                    r.t_s,
-                    r.fix_quality,
-                    r.speed_m_s,
-                    r.target_rate_kg_ha,
-                    r.applied_rate_kg_ha,
-                    r.implement_down,
-                    r.alarms,
-                )
-                for r in sorted(new, key=lambda r: r.t)
-            ]
-            messages.extend(
-                alert_rules.evaluate(
-                    cur,
-                    machine_id,
-                    info.organisation_id,
-                    latest.job_id,
-                    samples,
-                    info.speed_min_m_s,
-                    info.speed_max_m_s,
-                    info.open_alerts,
-                )
+            TELEMETRY_COPY.write_rows(cur, new)  # COPY cannot be pipelined: two round trips
+        # the rest of the transaction and its COMMIT in one pipeline: the statements whose
+        # results are read (ack walk, per-cell progress, alerts) sync it on the way
+        with conn.pipeline():
+            if new:
+                record_job_spans(cur, machine_id, [r.t for r in new], [r.job_id for r in new])
+            result.stored = len(new)
+            result.acked_seq = _advance(
+                cur, machine_id, stream, acked0, set(rows) | dead, info, new
             )
-        if new and any(r.depth_mm is not None for r in new):  # depths: seeding job (issue 13)
-            from fieldrx.fleet.seed_alerts import check_depth_window
+            messages: list[dict[str, Any]] = []
+            _stream_row(cur, machine_id, stream, stream_start, result.acked_seq, new, info)
+            if conflict is not None:
+                # the agent may trim only below the conflict; it resends the rest on a new stream
+                result.acked_seq = min(result.acked_seq, conflict - 1)
+            _status(cur, machine_id, info, new, result.acked_seq, now)
+            if new:
+                latest = max(new, key=lambda r: r.t)
+                messages.append(_position(info.organisation_id, latest, result))
+                messages.extend(_cells(cur, machine_id, info.organisation_id, new))
+            messages.extend(_streams_alert(cur, machine_id, stream, info, new, now))
+            if new and _may_alert(new, info):
+                samples = [
+                    alert_rules.Sample(
+                        r.t_s,
+                        r.fix_quality,
+                        r.speed_m_s,
+                        r.target_rate_kg_ha,
+                        r.applied_rate_kg_ha,
+                        r.implement_down,
+                        r.alarms,
+                    )
+                    for r in sorted(new, key=lambda r: r.t)
+                ]
+                messages.extend(
+                    alert_rules.evaluate(
+                        cur,
+                        machine_id,
+                        info.organisation_id,
+                        latest.job_id,
+                        samples,
+                        info.speed_min_m_s,
+                        info.speed_max_m_s,
+                        info.open_alerts,
+                    )
+                )
+            if new and any(r.depth_mm is not None for r in new):  # seeding job (issue 13)
+                from fieldrx.fleet.seed_alerts import check_depth_window
 
-            messages.extend(
-                check_depth_window(
-                    cur, machine_id, info.organisation_id, latest.job_id, info.open_alerts
+                messages.extend(
+                    check_depth_window(
+                        cur, machine_id, info.organisation_id, latest.job_id, info.open_alerts
+                    )
                 )
-            )
-        alert_rules.notify(cur, messages)
+            alert_rules.notify(cur, messages)
+            commit(cur)
     return result
+
+
+@contextmanager
+def pipelined(conn: psycopg.Connection[Any]) -> Iterator[psycopg.Cursor[Any]]:
+    """A cursor for one batch transaction sent in as few round trips as possible.
+
+    ``conn.transaction()`` costs a round trip for BEGIN and one for COMMIT; at a few
+    hundred batches per second those and the statements between them (each its own
+    round trip: a context switch on both sides) cost more CPU than the rows. Here the
+    caller queues ``begin`` with its first statement and ``commit`` with its last ones
+    inside ``conn.pipeline()`` blocks (libpq pipeline mode: statements are sent at once,
+    results read at the next sync; COPY runs between the blocks). Any error rolls the
+    transaction back, so a failed batch leaves nothing, as before."""
+    cur = conn.cursor()
+    try:
+        yield cur
+    except BaseException:
+        if not conn.closed and conn.info.transaction_status != psycopg.pq.TransactionStatus.IDLE:
+            conn.rollback()
+        raise
+    finally:
+        cur.close()
+    if conn.info.transaction_status != psycopg.pq.TransactionStatus.IDLE:
+        conn.rollback()  # the caller did not commit: leave nothing half done
+        raise RuntimeError("a pipelined batch transaction ended without commit")
+
+
+def begin(cur: psycopg.Cursor[Any]) -> None:
+    """BEGIN (an autocommit connection; without autocommit psycopg opens it itself)."""
+    if cur.connection.autocommit:
+        cur.execute("BEGIN")
+
+
+def commit(cur: psycopg.Cursor[Any]) -> None:
+    cur.execute("COMMIT")
 
 
 def _ts(us: int) -> dt.datetime:
@@ -832,18 +908,20 @@ def cell_progress(
     cur.execute(
         """
         WITH new AS (
-            SELECT * FROM unnest(%s::int[], %s::int[], %s::int[], %s::float8[], %s::float8[],
-                                 %s::timestamptz[], %s::timestamptz[])
+            SELECT * FROM unnest(%(job)s::int[], %(seq)s::int[], %(n)s::int[],
+                                 %(ts)s::float8[], %(aps)s::float8[],
+                                 %(ft)s::timestamptz[], %(lt)s::timestamptz[])
                 AS n(job_id, seq, n, ts, aps, ft, lt)
-            WHERE n.job_id IN (SELECT id FROM jobs WHERE machine_id = %s)  -- this machine's jobs
+            -- this machine's jobs
+            WHERE n.job_id IN (SELECT id FROM jobs WHERE machine_id = %(m)s)
         ), old AS (
             SELECT c.job_id, c.seq, c.applied_rate_sum FROM job_cells_applied c
-            JOIN new USING (job_id, seq)
+            JOIN new USING (job_id, seq) WHERE c.machine_id = %(m)s
         ), up AS (
-            INSERT INTO job_cells_applied AS c (job_id, seq, n_records, target_rate_sum,
-                applied_rate_sum, first_t, last_t)
-            SELECT job_id, seq, n, ts, aps, ft, lt FROM new
-            ON CONFLICT (job_id, seq) DO UPDATE SET
+            INSERT INTO job_cells_applied AS c (machine_id, job_id, seq, n_records,
+                target_rate_sum, applied_rate_sum, first_t, last_t)
+            SELECT %(m)s, job_id, seq, n, ts, aps, ft, lt FROM new
+            ON CONFLICT (machine_id, job_id, seq) DO UPDATE SET
                 n_records = c.n_records + excluded.n_records,
                 target_rate_sum = c.target_rate_sum + excluded.target_rate_sum,
                 applied_rate_sum = c.applied_rate_sum + excluded.applied_rate_sum,
@@ -859,23 +937,23 @@ def cell_progress(
             GROUP BY up.job_id
         )
         UPDATE jobs j SET cells_applied = j.cells_applied + g.k, updated_at = now()
-        FROM (SELECT g.job_id, CASE WHEN jk.kind = ANY(%s::text[]) THEN g.worked
+        FROM (SELECT g.job_id, CASE WHEN jk.kind = ANY(%(kinds)s::text[]) THEN g.worked
                                     ELSE g.applied END AS k
-              FROM gained g JOIN jobs jk ON jk.id = g.job_id) g
-        WHERE j.id = g.job_id AND g.k > 0
+              FROM gained g JOIN jobs jk ON jk.machine_id = %(m)s AND jk.id = g.job_id) g
+        WHERE j.machine_id = %(m)s AND j.id = g.job_id AND g.k > 0
         RETURNING j.id, j.state, j.cells_applied, j.n_cells
         """,
-        (
-            [k[0] for k, _ in items],
-            [k[1] for k, _ in items],
-            [v[0] for _, v in items],
-            [v[1] for _, v in items],
-            [v[2] for _, v in items],
-            [ts(v[3]) for _, v in items],
-            [ts(v[4]) for _, v in items],
-            machine_id,
-            list(PROGRESS_BY_WORK),
-        ),
+        {
+            "job": [k[0] for k, _ in items],
+            "seq": [k[1] for k, _ in items],
+            "n": [v[0] for _, v in items],
+            "ts": [v[1] for _, v in items],
+            "aps": [v[2] for _, v in items],
+            "ft": [ts(v[3]) for _, v in items],
+            "lt": [ts(v[4]) for _, v in items],
+            "m": machine_id,
+            "kinds": list(PROGRESS_BY_WORK),
+        },
     )
     return [
         {

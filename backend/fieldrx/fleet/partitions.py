@@ -199,6 +199,45 @@ def job_window(session: Session, machine_id: int, job_id: int) -> dict[str, Any]
     return {"t0": row[0], "t1": row[1]} if row is not None else {"t0": None, "t1": None}
 
 
+DEFAULT_WINDOW_S = 86_400.0  # a machine query without a range: its latest day of records
+
+
+def machine_window(
+    session: Session,
+    machine_id: int,
+    frm: dt.datetime | None,
+    to: dt.datetime | None,
+    default_s: float = DEFAULT_WINDOW_S,
+) -> dict[str, Any]:
+    """``{"t0", "t1"}`` bind parameters for ``t BETWEEN :t0 AND :t1`` of a machine's
+    telemetry query (track, chart series): never open-ended, so PostgreSQL plans and reads
+    only the days in it, not every day of the table (50 ms of planning alone at 400 days).
+
+    The open ends come from the machine's stored span: every record it stored lies between
+    the first and last record time of its streams (``telemetry_streams``) and its jobs
+    (``telemetry_job_spans``, which imports widen too). A range given in full is used as
+    it is; ``from`` alone runs to the machine's last record and ``to`` alone from its first
+    (the same records as an open range); no range at all is the ``default_s`` up to its
+    last record (its latest working day; the UI shows the newest points). Both None when
+    the machine has no record: the comparison is null and no partition is read."""
+    if frm is not None and to is not None:
+        return {"t0": frm, "t1": to}
+    first, last = session.execute(
+        text(
+            "SELECT min(first_t), max(last_t) FROM ("
+            " SELECT first_t, last_t FROM telemetry_streams WHERE machine_id = :m"
+            " UNION ALL"
+            " SELECT first_t, last_t FROM telemetry_job_spans WHERE machine_id = :m) s"
+        ),
+        {"m": machine_id},
+    ).one()
+    if first is None or last is None:
+        return {"t0": None, "t1": None}
+    if frm is None and to is None:
+        return {"t0": last - dt.timedelta(seconds=default_s), "t1": last}
+    return {"t0": first if frm is None else frm, "t1": last if to is None else to}
+
+
 @dataclass
 class MaintenanceResult:
     moved_rows: int  # rows moved out of the default partition into their day

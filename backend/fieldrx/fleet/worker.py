@@ -5,7 +5,8 @@ the broker gives each message to one of them, so they split the load. A
 message is acknowledged to the broker (manual PUBACK) only after its records
 are committed, so a worker that dies loses nothing: the broker redelivers, and
 ingest deduplicates by (machine, stream, seq). Messages that arrive within
-``batch_ms`` are grouped per machine and stream into one transaction, and the
+``batch_ms`` (or are already waiting: a busy worker does not wait out the window) are
+grouped per machine and stream into one transaction, and the
 ``TelemetryAck`` (naming the stream) goes back on ``ack_topic(machine_id)``.
 A record the protocol forbids (NaN, a far-future time) is rejected alone in
 the ack, never a reason to drop the message unanswered: an agent that gets no
@@ -54,6 +55,7 @@ from fieldrx.auth.mqtt import WORKER_USER, Broker
 from fieldrx.db.session import raw_dsn
 from fieldrx.fleet.alerts import check_no_data
 from fieldrx.fleet.cellrecords import ingest_cells
+from fieldrx.fleet.db import connect
 from fieldrx.fleet.ingest import Batch, IngestError, ingest, parse_batch
 from fieldrx.fleet.partitions import maintain
 from fieldrx.fleet.status import sweep_offline
@@ -61,6 +63,7 @@ from fieldrx.fleet.status import sweep_offline
 log = logging.getLogger(__name__)
 
 TOPIC = "fieldrx/machines/+/telemetry"
+BUSY_MESSAGES = 64  # this many waiting: process now, do not wait out the batching window
 
 
 @dataclass
@@ -194,7 +197,7 @@ class IngestWorker:
             self.host, self.port, keepalive=30, clean_start=not self.persistent, properties=props
         )
         self.client.loop_start()
-        conn = psycopg.connect(self.dsn, options="-c jit=off")
+        conn = connect(self.dsn)
         last_check = 0.0
         last_maintenance = -float("inf")
         try:
@@ -204,22 +207,7 @@ class IngestWorker:
                 except queue.Empty:
                     first = None
                 if first is not None:
-                    msgs = [first]
-                    deadline = time.monotonic() + self.batch_s
-                    while True:
-                        left = deadline - time.monotonic()
-                        if left <= 0:
-                            break
-                        try:
-                            msgs.append(self.inbox.get(timeout=left))
-                        except queue.Empty:
-                            break
-                    while True:  # whatever else is already waiting
-                        try:
-                            msgs.append(self.inbox.get_nowait())
-                        except queue.Empty:
-                            break
-                    conn = self._process(conn, msgs)
+                    conn = self._process(conn, self._gather(first))
                 now = time.monotonic()
                 if now - last_check >= self.no_data_every_s:
                     last_check = now
@@ -238,6 +226,30 @@ class IngestWorker:
             self.client.disconnect()
             conn.close()
         return self.stats
+
+    def _gather(self, first: mqtt.MQTTMessage) -> list[mqtt.MQTTMessage]:
+        """The messages of one processing round: ``first``, whatever is already waiting and,
+        while fewer than ``BUSY_MESSAGES`` are at hand, what arrives within ``batch_s``.
+
+        The window groups a machine's messages into one transaction when traffic is light.
+        Under load (a fleet replaying its backlog) the inbox already holds plenty: waiting
+        out the window there only left the worker idle between rounds (a third of the time
+        with 100 ms windows at 200 machines, issue 18), so a full inbox is taken at once."""
+        msgs = [first]
+        deadline = time.monotonic() + self.batch_s
+        while True:
+            while True:  # whatever is already waiting
+                try:
+                    msgs.append(self.inbox.get_nowait())
+                except queue.Empty:
+                    break
+            left = deadline - time.monotonic()
+            if len(msgs) >= BUSY_MESSAGES or left <= 0:
+                return msgs
+            try:
+                msgs.append(self.inbox.get(timeout=left))
+            except queue.Empty:
+                return msgs
 
     def _maintain(self, conn: psycopg.Connection[Any]) -> psycopg.Connection[Any]:
         """Telemetry partition maintenance, unless another worker is running it."""
@@ -270,7 +282,7 @@ class IngestWorker:
             conn.close()
         finally:
             time.sleep(0.5)
-        return psycopg.connect(self.dsn, options="-c jit=off")
+        return connect(self.dsn)
 
     def _process(
         self, conn: psycopg.Connection[Any], msgs: list[mqtt.MQTTMessage]

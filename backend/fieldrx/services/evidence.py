@@ -30,7 +30,8 @@ def unarchived_jobs_with_data(session: Session, kind: str, obj_id: int) -> list[
     data and have no archive."""
     sql = (
         f"SELECT j.id FROM jobs j WHERE {_SCOPES[kind]}"
-        " AND (EXISTS (SELECT 1 FROM job_cells_applied a WHERE a.job_id = j.id)"
+        " AND (EXISTS (SELECT 1 FROM job_cells_applied a"
+        "              WHERE a.machine_id = j.machine_id AND a.job_id = j.id)"
         "      OR EXISTS (SELECT 1 FROM telemetry_job_spans t"
         "                 WHERE t.machine_id = j.machine_id AND t.job_id = j.id))"
         " AND NOT EXISTS (SELECT 1 FROM job_archives x WHERE x.job_id = j.id)"

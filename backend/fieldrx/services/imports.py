@@ -313,9 +313,9 @@ def store_timelogs(
     )
     session.execute(
         text(
-            "INSERT INTO job_cells_applied (job_id, seq, n_records, target_rate_sum,"
-            " applied_rate_sum, first_t, last_t)"
-            " SELECT :j, cell_seq, count(*), sum(coalesce(target_rate_kg_ha, 0)),"
+            "INSERT INTO job_cells_applied (machine_id, job_id, seq, n_records,"
+            " target_rate_sum, applied_rate_sum, first_t, last_t)"
+            " SELECT :m, :j, cell_seq, count(*), sum(coalesce(target_rate_kg_ha, 0)),"
             " sum(applied_rate_kg_ha), min(t), max(t) FROM telemetry"
             " WHERE machine_id = :m AND t BETWEEN :t0 AND :t1 AND cell_seq IS NOT NULL"
             " AND implement_down GROUP BY cell_seq"

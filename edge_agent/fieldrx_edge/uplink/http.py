@@ -8,17 +8,21 @@ the unacknowledged records to a new stream.
 
 Uplink profile ``thin`` has two queues (the 1 Hz track and the cell records,
 ``fieldrx_edge.uplink.thin``), each on its own stream: ``extra_queues`` are
-sent in turn with the main one, each trimmed by its own acks.
+sent with the main one, each trimmed by its own acks. When more than one queue has
+records pending, their batches go in one request (``protocol.MULTI_KIND``): the
+server checks the token once and answers one ack per batch (issue 18: the thin
+profile's server cost per machine-hour).
 """
 
 from __future__ import annotations
 
 import logging
 import threading
+from typing import Any
 
 import httpx
 
-from fieldrx_edge.protocol import TelemetryAck
+from fieldrx_edge.protocol import CELL_FORMAT_VERSION, MULTI_KIND, TelemetryAck
 from fieldrx_edge.uplink.backoff import Backoff
 from fieldrx_edge.uplink.queue import TelemetryQueue
 
@@ -53,38 +57,59 @@ class HttpSender:
 
     def send_once(self) -> int | None:
         """One batch per queue. Returns records trimmed, 0 if nothing pending, None on failure."""
-        total = 0
+        pending = []
         for q in self.queues:
-            n = self._send(q)
-            if n is None:
-                return None
-            total += n
-        return total
+            body, n, _ = q.pending_batch(self.batch_size)
+            if n:
+                pending.append((q, body))
+        if len(pending) == 1:
+            return self._send(*pending[0])
+        if not pending:
+            return 0
+        body = (
+            f'{{"format":{CELL_FORMAT_VERSION},"kind":"{MULTI_KIND}","batches":['.encode()
+            + b",".join(b for _, b in pending)
+            + b"]}"
+        )
+        try:
+            acks = self._post(body)["acks"]
+            if not isinstance(acks, list) or len(acks) != len(pending):
+                raise ValueError(f"{len(pending)} batches sent, acks: {str(acks)[:200]}")
+            parsed = [TelemetryAck.from_dict(a) for a in acks]
+        except (httpx.HTTPError, ValueError, TypeError, AttributeError, KeyError) as exc:
+            return self._failed(exc)
+        self.sent_batches += 1
+        return sum(self._apply(q, ack) for (q, _), ack in zip(pending, parsed, strict=True))
 
     def backlog(self) -> int:
         return sum(q.backlog() for q in self.queues)
 
-    def _send(self, queue: TelemetryQueue) -> int | None:
-        body, n, _ = queue.pending_batch(self.batch_size)
-        if not n:
-            return 0
-        try:
-            resp = self._client.post(
-                self.url, content=body, headers={"Content-Type": "application/json"}
+    def _post(self, body: bytes) -> Any:
+        resp = self._client.post(
+            self.url, content=body, headers={"Content-Type": "application/json"}
+        )
+        if resp.status_code >= 400:
+            raise httpx.HTTPStatusError(
+                f"HTTP {resp.status_code}: {resp.text[:200]}",
+                request=resp.request,
+                response=resp,
             )
-            if resp.status_code >= 400:
-                raise httpx.HTTPStatusError(
-                    f"HTTP {resp.status_code}: {resp.text[:200]}",
-                    request=resp.request,
-                    response=resp,
-                )
-            ack = TelemetryAck.from_dict(resp.json())
+        return resp.json()
+
+    def _failed(self, exc: Exception) -> None:
+        self.failures += 1
+        self.last_error = str(exc)
+        log.info("telemetry upload failed: %s", exc)
+
+    def _send(self, queue: TelemetryQueue, body: bytes) -> int | None:
+        try:
+            ack = TelemetryAck.from_dict(self._post(body))
         except (httpx.HTTPError, ValueError, TypeError, AttributeError) as exc:
-            self.failures += 1
-            self.last_error = str(exc)
-            log.info("telemetry upload failed: %s", exc)
-            return None
+            return self._failed(exc)
         self.sent_batches += 1
+        return self._apply(queue, ack)
+
+    def _apply(self, queue: TelemetryQueue, ack: TelemetryAck) -> int:
         if ack.rejected:
             log.warning("server rejected %d records: %s", len(ack.rejected), ack.rejected[:3])
         trimmed = queue.ack(ack.acked_seq, rejected=ack.rejected, stream=ack.stream or None)
