@@ -12,7 +12,7 @@ API processes and workers on different hosts see the same file with no shared di
 download read it in slices (``substring``) without de-toasting the whole value.
 
 Revision ID: 0015_report_tasks
-Revises: 0013_cells
+Revises: 0014_machine_keys
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ import sqlalchemy as sa
 from alembic import op
 
 revision: str = "0015_report_tasks"
-down_revision: str | Sequence[str] | None = "0013_cells"
+down_revision: str | Sequence[str] | None = "0014_machine_keys"
 branch_labels: str | Sequence[str] | None = None
 depends_on: str | Sequence[str] | None = None
 
