@@ -214,6 +214,9 @@ export const queries = {
     queryOptions({
       queryKey: qk.jobReport(id, q),
       queryFn: () => call(client.GET('/api/v1/jobs/{job_id}/report', { params: { path: { job_id: id }, query: q } })),
+      // Not kept once no screen shows it: a report is a moving aggregate (and may be large),
+      // so a revisit reads it anew behind the loading state instead of opening on old totals.
+      gcTime: 0,
     }),
   asApplied: (id: number, q: AsAppliedQuery) =>
     queryOptions({
