@@ -56,6 +56,7 @@ export const qk = {
   planRoute: (id: number) => ['plans', id, 'route'] as const,
   planPrescriptions: (id: number) => ['plans', id, 'prescriptions'] as const,
   planCells: (id: number, q: PlanCellsQuery) => ['plans', id, 'cells', q] as const,
+  planCellsAll: (id: number) => ['plans', id, 'cells', 'all'] as const,
   prescription: (id: number) => ['prescriptions', id] as const,
   prescriptionVersion: (id: number, version: number) => ['prescriptions', id, 'versions', version] as const,
   machines: () => ['machines', 'list'] as const,
@@ -101,6 +102,10 @@ function poll<T>(o?: HookOptions<T>) {
     refetchInterval: typeof r === 'function' ? (q: { state: { data: T | undefined } }) => r(q.state.data) : r,
   };
 }
+
+/** `useAllPlanCells` reads pages this large, up to this many cells (larger grids use the tiles). */
+const PLAN_CELLS_PAGE = 1000;
+const PLAN_CELLS_MAX = 20_000;
 
 const has = (id: number | null | undefined): id is number => id != null && Number.isFinite(id);
 
@@ -159,6 +164,21 @@ export const queries = {
       queryKey: qk.planCells(id, q),
       queryFn: () => call(client.GET('/api/v1/plans/{plan_id}/cells', { params: { path: { plan_id: id }, query: q } })),
     }),
+  planCellsAll: (id: number) =>
+    queryOptions({
+      queryKey: qk.planCellsAll(id),
+      queryFn: async (): Promise<GeoJSON.FeatureCollection> => {
+        const features: GeoJSON.Feature[] = [];
+        for (let offset = 0; offset < PLAN_CELLS_MAX; offset += PLAN_CELLS_PAGE) {
+          const r = await call(
+            client.GET('/api/v1/plans/{plan_id}/cells', { params: { path: { plan_id: id }, query: { limit: PLAN_CELLS_PAGE, offset } } }),
+          );
+          features.push(...(r.features as unknown as GeoJSON.Feature[]));
+          if (r.features.length < PLAN_CELLS_PAGE) break;
+        }
+        return { type: 'FeatureCollection', features };
+      },
+    }),
   prescription: (id: number) =>
     queryOptions({
       queryKey: qk.prescription(id),
@@ -194,6 +214,9 @@ export const queries = {
     queryOptions({
       queryKey: qk.jobReport(id, q),
       queryFn: () => call(client.GET('/api/v1/jobs/{job_id}/report', { params: { path: { job_id: id }, query: q } })),
+      // Not kept once no screen shows it: a report is a moving aggregate (and may be large),
+      // so a revisit reads it anew behind the loading state instead of opening on old totals.
+      gcTime: 0,
     }),
   asApplied: (id: number, q: AsAppliedQuery) =>
     queryOptions({
@@ -248,6 +271,10 @@ export const usePlanPrescriptions = (id: number | null | undefined, o?: HookOpti
 /** One page of a plan's cells (GeoJSON). */
 export const usePlanCells = (id: number | null | undefined, q: PlanCellsQuery, o?: HookOptions<Data<typeof queries.planCells>>) =>
   useQuery({ ...queries.planCells(id ?? -1, q), ...poll(o), enabled: has(id) && o?.enabled !== false });
+
+/** Every cell of a plan as GeoJSON, in pages (at most 20 000): small grids drawn without tiles (sensor-job maps). */
+export const useAllPlanCells = (id: number | null | undefined, o?: HookOptions<Data<typeof queries.planCellsAll>>) =>
+  useQuery({ ...queries.planCellsAll(id ?? -1), ...poll(o), enabled: has(id) && o?.enabled !== false });
 
 export const usePrescription = (id: number | null | undefined, o?: HookOptions<Data<typeof queries.prescription>>) =>
   useQuery({ ...queries.prescription(id ?? -1), ...poll(o), enabled: has(id) && o?.enabled !== false });

@@ -1,6 +1,9 @@
+import { useEffect, useRef, useState, type MutableRefObject } from 'react';
+import { flushSync } from 'react-dom';
 import type * as maplibregl from 'maplibre-gl';
 import type { FieldFeature, Job, Prescription } from '../api/client';
 import type { LegendEntry } from '../lib/colors';
+import { useMap } from '../map/context';
 import { formatArea, formatDuration, formatMass, formatPercent } from '../lib/units';
 import { Legend } from './Legend';
 import type { AsAppliedReport } from './ReportLoader';
@@ -23,6 +26,41 @@ export function mapSnapshot(map: maplibregl.Map | null): string {
   } catch {
     return '';
   }
+}
+
+/** What takes a still of the map (set by `<MapStill>` inside the MapView); '' before the map is there. */
+export type StillRef = MutableRefObject<() => string>;
+
+/**
+ * Printing (the screen's button or the browser's own menu): `image` is a still of the map
+ * taken just before printing, for `<PrintReport mapImage>`; `still` goes to a `<MapStill>`
+ * inside the MapView. `print()` takes the still, lets React put it on the page, then prints.
+ */
+export function usePrintStill() {
+  const [image, setImage] = useState('');
+  const still: StillRef = useRef(() => '');
+  useEffect(() => {
+    const before = () => setImage(still.current());
+    window.addEventListener('beforeprint', before);
+    return () => window.removeEventListener('beforeprint', before);
+  }, []);
+  const print = () => {
+    flushSync(() => setImage(still.current()));
+    window.print();
+  };
+  return { image, still, print };
+}
+
+/** Inside a `<MapView>`: points `still` at a snapshot of that map (see `usePrintStill`). */
+export function MapStill({ still }: { still: StillRef }) {
+  const map = useMap();
+  useEffect(() => {
+    still.current = () => mapSnapshot(map);
+    return () => {
+      still.current = () => '';
+    };
+  }, [map, still]);
+  return null;
 }
 
 /**

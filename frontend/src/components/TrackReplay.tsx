@@ -1,83 +1,87 @@
-import { useEffect, useRef, useState } from 'react';
-import type * as maplibregl from 'maplibre-gl';
-import { call, client } from '../api/client';
+import { useEffect, useMemo, useRef, useState } from 'react';
+import { useQueryClient } from '@tanstack/react-query';
+import { qk, useAsApplied } from '../api/hooks';
 import { bearingDeg } from '../lib/geo';
 import { normaliseTrack, type TrackPoint } from '../lib/track';
 import { formatRate } from '../lib/units';
-import { setGeoJSON } from '../map/setup';
+import { Track, type TrackHead } from '../map/overlays';
 
 /** Records per page: the page holds at most this many points (not a whole job's 200k). */
 export const PAGE = 2000;
-const EMPTY: GeoJSON.FeatureCollection = { type: 'FeatureCollection', features: [] };
+/** A dragged slider asks for its page once it has rested this long. */
+const SETTLE_MS = 120;
+
+export type Replay = ReturnType<typeof useTrackReplay>;
 
 /**
  * Replay of a job's as-applied records, read one page at a time (GET /jobs/{id}/as-applied,
- * ``PAGE`` records): the slider spans every record, the page around its position is fetched
- * when it moves, and the map shows that page's trail up to the position (sources ``trail``
- * and ``replay``, which the screen created). While following, the last page is re-read on
- * every ``tick`` (new records of a running job). The cells themselves come as vector tiles.
+ * ``PAGE`` records, through the hooks' cache): the slider spans every record (the count from
+ * a one-record page), the page around its position is read when it rests, and the trail runs
+ * up to the position. While following the newest record (the slider at its end), the count
+ * and the last page are read again whenever `tick` changes (a running job's new records).
+ * The cells themselves come as vector tiles. The screen shows `<TrackReplay>` (the controls)
+ * and `<ReplayTrail>` (in its MapView) from the same `useTrackReplay`.
  */
-export function TrackReplay({ jobId, map, tick }: { jobId: number; map: maplibregl.Map | null; tick: number }) {
-  const [total, setTotal] = useState<number | null>(null);
-  const [page, setPage] = useState<{ offset: number; points: TrackPoint[] }>({ offset: 0, points: [] });
-  const [idx, setIdx] = useState(-1);
-  const [follow, setFollow] = useState(true);
-  const want = useRef(0);
+export function useTrackReplay(jobId: number, tick: number) {
+  /** The slider's record; null = following the newest one. */
+  const [pos, setPos] = useState<number | null>(null);
+  const countQ = useAsApplied(jobId, { limit: 1, offset: 0 });
+  const total = countQ.data ? (countQ.data.total ?? 0) : null;
+  const n = total ?? 0;
+  const following = pos == null;
 
-  const load = async (offset: number) => {
-    const path = { job_id: jobId };
-    want.current = offset;
-    const r = await call(client.GET('/api/v1/jobs/{job_id}/as-applied', { params: { path, query: { limit: PAGE, offset } } }));
-    if (want.current !== offset) return null; // a later move asked for another page
-    setTotal(r.total ?? 0);
-    setPage({ offset, points: normaliseTrack(r) });
-    return r.total ?? 0;
-  };
-
-  // Following: the newest page (its total first, from a one-record page).
+  const want = Math.floor(Math.max(0, pos ?? n - 1) / PAGE) * PAGE;
+  const [offset, setOffset] = useState(want);
   useEffect(() => {
-    if (!follow) return;
-    void (async () => {
-      const r = await call(
-        client.GET('/api/v1/jobs/{job_id}/as-applied', { params: { path: { job_id: jobId }, query: { limit: 1, offset: 0 } } }),
-      ).catch(() => null);
-      const n = r?.total ?? 0;
-      setTotal(n);
-      if (n > 0) {
-        await load(Math.floor((n - 1) / PAGE) * PAGE).catch(() => undefined);
-        setIdx(n - 1);
-      }
-    })();
-  }, [jobId, tick, follow]); // eslint-disable-line react-hooks/exhaustive-deps
-
-  // A move outside the page on screen fetches the page around it.
-  useEffect(() => {
-    if (idx < 0 || (idx >= page.offset && idx < page.offset + page.points.length)) return;
-    const t = setTimeout(() => void load(Math.floor(idx / PAGE) * PAGE).catch(() => undefined), 120);
+    if (want === offset) return;
+    if (following) return setOffset(want);
+    const t = setTimeout(() => setOffset(want), SETTLE_MS);
     return () => clearTimeout(t);
-  }, [idx]); // eslint-disable-line react-hooks/exhaustive-deps
+  }, [want, offset, following]);
+  const pageQ = useAsApplied(jobId, { limit: PAGE, offset }, { enabled: n > 0 });
+  const points = useMemo(() => (pageQ.data ? normaliseTrack(pageQ.data) : []), [pageQ.data]);
 
-  const local = idx - page.offset;
-  const cur = local >= 0 && local < page.points.length ? page.points[local] : undefined;
+  // New records of a running job: count and last page again (not on the first answer).
+  const qc = useQueryClient();
+  const seen = useRef(tick);
   useEffect(() => {
-    if (!map) return;
-    const upto = page.points.slice(0, Math.max(0, local + 1)).filter((p) => p.lon != null && p.lat != null);
-    setGeoJSON(map, 'trail', {
-      type: 'Feature',
-      properties: {},
-      geometry: { type: 'LineString', coordinates: upto.map((p) => [p.lon!, p.lat!]) },
-    });
-    const n = upto.length;
-    const heading = n > 1 ? bearingDeg([upto[n - 2].lon!, upto[n - 2].lat!], [upto[n - 1].lon!, upto[n - 1].lat!]) : 0;
-    setGeoJSON(
-      map,
-      'replay',
-      cur?.lon != null && cur.lat != null
-        ? { type: 'Feature', properties: { heading: cur.heading_deg ?? heading }, geometry: { type: 'Point', coordinates: [cur.lon, cur.lat] } }
-        : EMPTY,
-    );
-  }, [map, page, local, cur]);
+    if (tick === seen.current) return;
+    const first = seen.current === 0;
+    seen.current = tick;
+    if (!first && following) void qc.invalidateQueries({ queryKey: [...qk.job(jobId), 'as-applied'] });
+  }, [tick, following, jobId, qc]);
 
+  // Following: the newest record of the page on screen (the count may run a little ahead).
+  const idx = following ? (pageQ.data && offset === want ? Math.min(n - 1, offset + points.length - 1) : -1) : pos;
+  const local = idx - offset;
+  const cur: TrackPoint | undefined = local >= 0 && local < points.length ? points[local] : undefined;
+  const upto = useMemo(
+    () =>
+      points
+        .slice(0, Math.max(0, local + 1))
+        .filter((p) => p.lon != null && p.lat != null)
+        .map((p): [number, number] => [p.lon!, p.lat!]),
+    [points, local],
+  );
+  const paths = useMemo(() => [upto], [upto]);
+  const k = upto.length;
+  const head: TrackHead | null =
+    cur?.lon != null && cur.lat != null
+      ? { lon: cur.lon, lat: cur.lat, heading: cur.heading_deg ?? (k > 1 ? bearingDeg(upto[k - 2], upto[k - 1]) : 0) }
+      : null;
+  /** The slider moved: the end follows the newest record again. */
+  const seek = (v: number) => setPos(v >= n - 1 ? null : v);
+  return { total, idx, cur, paths, head, seek };
+}
+
+/** The replay's trail and position arrow (inside the report's MapView). */
+export function ReplayTrail({ replay }: { replay: Replay }) {
+  return <Track id="trail" paths={replay.paths} head={replay.head} color="#111" width={1.2} opacity={0.55} />;
+}
+
+/** The replay's slider and what it stands on (the screen, not the printed page). */
+export function TrackReplay({ replay }: { replay: Replay }) {
+  const { total, idx, cur, seek } = replay;
   const n = total ?? 0;
   return (
     <div className="screen-only">
@@ -90,11 +94,7 @@ export function TrackReplay({ jobId, map, tick }: { jobId: number; map: maplibre
         max={Math.max(0, n - 1)}
         value={Math.max(0, idx)}
         disabled={n === 0}
-        onChange={(e) => {
-          const v = Number(e.target.value);
-          setFollow(v >= n - 1);
-          setIdx(v);
-        }}
+        onChange={(e) => seek(Number(e.target.value))}
         style={{ width: '100%' }}
       />
       <p className="muted small" data-testid="replay-time">

@@ -119,9 +119,4 @@ export function setGeoJSON(map: maplibregl.Map, id: string, data: GeoJSON.GeoJSO
   else map.addSource(id, { type: 'geojson', data });
 }
 
-export function whenLoaded(map: maplibregl.Map, fn: () => void): void {
-  if (map.loaded() || map.isStyleLoaded()) fn();
-  else map.once('load', fn);
-}
-
 export { maplibregl };

@@ -1,92 +1,54 @@
-import { useCallback, useEffect, useMemo, useState } from 'react';
-import { flushSync } from 'react-dom';
-import type * as maplibregl from 'maplibre-gl';
-import { call, client, type FieldFeature, type Job, type Prescription } from '../api/client';
+import { useMemo, useState } from 'react';
+import { usePlan, usePrescription, useField, useJob } from '../api/hooks';
 import { ExportButtons } from '../components/ExportButtons';
 import { Legend } from '../components/Legend';
-import { PrintReport, mapSnapshot } from '../components/PrintReport';
-import { ReportLoading, useJobReport, type AsAppliedReport } from '../components/ReportLoader';
+import { MapStill, PrintReport, usePrintStill } from '../components/PrintReport';
+import { ReportLoading, useLiveReport, type AsAppliedReport } from '../components/ReportLoader';
 import { ErrorBox, Kv } from '../components/Status';
-import { TrackReplay } from '../components/TrackReplay';
+import { ReplayTrail, TrackReplay, useTrackReplay } from '../components/TrackReplay';
 import { ACCURACY_BREAKS, RED_GREEN, classColors, legendEntries, niceBreaks, stepExpression } from '../lib/colors';
-import { asGeoJSON, bboxOf } from '../lib/geo';
+import { bboxOf } from '../lib/geo';
 import { formatArea, formatDuration, formatMass, formatPercent } from '../lib/units';
 import { MapView } from '../map/MapView';
-import { absoluteApiUrl, fitTo, setGeoJSON } from '../map/setup';
-import { replaceVectorSource } from '../map/grid';
+import { CellGrid, FieldBoundary, FitBounds } from '../map/overlays';
+import { absoluteApiUrl } from '../map/setup';
 import { KindReport } from './KindReport';
 
 type View = 'applied' | 'accuracy';
-const EMPTY: GeoJSON.FeatureCollection = { type: 'FeatureCollection', features: [] };
-const FINAL = new Set(['completed', 'aborted']);
+const REPORT_QUERY = { cells: false } as const;
 
 /** As-applied map (job vector tiles), per-cell accuracy, totals, exports, a printable report
- * and a paged replay of the records. */
+ * and a paged replay of the records; a sensor job's report is `KindReport`. */
 export function JobReport({ jobId }: { jobId: number }) {
-  const [kindJob, setKindJob] = useState<Job | null | undefined>(undefined);
-  useEffect(() => {
-    call(client.GET('/api/v1/jobs/{job_id}', { params: { path: { job_id: jobId } } }))
-      .then((j) => setKindJob(j.kind && j.kind !== 'prescription_map' ? j : null))
-      .catch(() => setKindJob(null));
-  }, [jobId]);
-  if (kindJob === undefined) return <p className="muted">Loading…</p>;
-  if (kindJob) return <KindReport job={kindJob} />;
+  const jobQ = useJob(jobId);
+  const j = jobQ.data;
+  if (jobQ.isPending) return <p className="muted">Loading…</p>;
+  if (j?.kind && j.kind !== 'prescription_map') return <KindReport job={j} />;
   return <PrescriptionJobReport jobId={jobId} />;
 }
 
-/** The prescription-map (seed 001) job report. */
+/**
+ * The prescription-map (seed 001) job report. Job, report, count and last page of the replay
+ * are read again while the job runs (`useLiveReport`); the cell tiles are requested once the
+ * report is known (a large job's tiles then read the report task's snapshot instead of
+ * computing the report again) and re-requested with each new answer.
+ */
 function PrescriptionJobReport({ jobId }: { jobId: number }) {
-  const [job, setJob] = useState<Job | null>(null);
-  const [rx, setRx] = useState<Prescription | null>(null);
-  const [field, setField] = useState<FieldFeature | null>(null);
   const [view, setView] = useState<View>('applied');
-  const [error, setError] = useState<unknown>(null);
-  const [tick, setTick] = useState(0);
-  const [map, setMap] = useState<maplibregl.Map | null>(null);
-  const [printImage, setPrintImage] = useState('');
-  const { report, task, refresh: refreshReport } = useJobReport(jobId);
-
-  // Static context: job -> prescription (for the colour scale) -> plan -> field (to fit the map).
-  useEffect(() => {
-    (async () => {
-      try {
-        const j = await call(client.GET('/api/v1/jobs/{job_id}', { params: { path: { job_id: jobId } } }));
-        setJob(j);
-        if (j.prescription_id == null) return;
-        const r = await call(client.GET('/api/v1/prescriptions/{rx_id}', { params: { path: { rx_id: j.prescription_id } } }));
-        setRx(r);
-        const p = await call(client.GET('/api/v1/plans/{plan_id}', { params: { path: { plan_id: r.plan_id } } }));
-        setField(await call(client.GET('/api/v1/fields/{field_id}', { params: { path: { field_id: p.field_id } } })));
-      } catch (e) {
-        setError(e);
-      }
-    })();
-  }, [jobId]);
-
-  const refresh = useCallback(async () => {
-    try {
-      setJob(await call(client.GET('/api/v1/jobs/{job_id}', { params: { path: { job_id: jobId } } })));
-      await refreshReport();
-      setTick((t) => t + 1);
-    } catch (e) {
-      setError(e);
-    }
-  }, [jobId, refreshReport]);
-
-  useEffect(() => {
-    void refresh();
-  }, [refresh]);
-  useEffect(() => {
-    if (job && FINAL.has(job.state) && tick > 1) return;
-    const t = setTimeout(() => void refresh(), 4000);
-    return () => clearTimeout(t);
-  }, [tick, job, refresh]);
+  const { job, report, task, tick, error, refresh } = useLiveReport<AsAppliedReport>(jobId, REPORT_QUERY);
+  const rxQ = usePrescription(job?.prescription_id);
+  const rx = rxQ.data ?? null;
+  const planQ = usePlan(rx?.plan_id);
+  const fieldQ = useField(planQ.data?.field_id);
+  const field = fieldQ.data ?? null;
+  const replay = useTrackReplay(jobId, tick);
+  const printing = usePrintStill();
 
   const lo = rx?.summary.rate_min_kg_ha ?? 0;
   const hi = rx?.summary.rate_max_kg_ha ?? 1000;
   const rateBreaks = useMemo(() => niceBreaks(lo, hi === lo ? lo + 1 : hi, 6), [lo, hi]);
-  const rateColors = classColors(rateBreaks.length - 1);
-  const accColors = classColors(ACCURACY_BREAKS.length - 1, RED_GREEN);
+  const rateColors = useMemo(() => classColors(rateBreaks.length - 1), [rateBreaks]);
+  const accColors = useMemo(() => classColors(ACCURACY_BREAKS.length - 1, RED_GREEN), []);
   const fill = useMemo(() => {
     const byRate = stepExpression('applied_rate', rateBreaks, rateColors);
     const byAcc = stepExpression('accuracy', ACCURACY_BREAKS, accColors);
@@ -98,65 +60,8 @@ function PrescriptionJobReport({ jobId }: { jobId: number }) {
       ? legendEntries(rateBreaks, rateColors, (v) => v.toFixed(0))
       : legendEntries(ACCURACY_BREAKS, accColors, (v) => `${v} %`);
   const legendTitle = view === 'applied' ? 'Applied rate (kg/ha)' : 'Accuracy (100 % = target met)';
-
-  useEffect(() => {
-    if (map?.getLayer('job-fill')) map.setPaintProperty('job-fill', 'fill-color', fill as never);
-  }, [fill, map]);
-
-  // Reload tiles as records arrive (the server answers no-cache tiles).
-  useEffect(() => {
-    const src = map?.getSource('job') as maplibregl.VectorTileSource | undefined;
-    if (src && tick > 1 && !(job && FINAL.has(job.state) && tick > 3)) src.setTiles([tilesUrl(jobId, tick)]);
-  }, [tick]); // eslint-disable-line react-hooks/exhaustive-deps
-
-  const haveReport = report != null;
-  useEffect(() => {
-    if (!map || !field) return;
-    setGeoJSON(map, 'field', asGeoJSON(field));
-    fitTo(map, bboxOf(field));
-    // Cell tiles only once the view is on the field and the report is known (a large job's
-    // tiles then read the report task's snapshot instead of computing the report again);
-    // below the field outline and the replay.
-    if (haveReport && !map.getSource('job')) {
-      replaceVectorSource(map, 'job', tilesUrl(jobId, tick), [
-        { id: 'job-fill', type: 'fill', source: 'job', 'source-layer': 'cells', paint: { 'fill-color': fill as never, 'fill-opacity': 0.85 } },
-      ]);
-      for (const l of ['field-line', 'trail', 'replay']) if (map.getLayer(l)) map.moveLayer(l);
-    }
-  }, [field, map, haveReport]); // eslint-disable-line react-hooks/exhaustive-deps
-
-  // Printing (the button or the browser's own menu): a still of the map goes on the page.
-  useEffect(() => {
-    const before = () => setPrintImage(mapSnapshot(map));
-    window.addEventListener('beforeprint', before);
-    return () => window.removeEventListener('beforeprint', before);
-  }, [map]);
-  const print = () => {
-    flushSync(() => setPrintImage(mapSnapshot(map)));
-    window.print();
-  };
-
-  const onReady = (m: maplibregl.Map) => {
-    setGeoJSON(m, 'field', field ? asGeoJSON(field) : EMPTY);
-    m.addLayer({ id: 'field-line', type: 'line', source: 'field', paint: { 'line-color': '#222', 'line-width': 2 } });
-    setGeoJSON(m, 'trail', EMPTY);
-    m.addLayer({ id: 'trail', type: 'line', source: 'trail', paint: { 'line-color': '#111', 'line-width': 1.2, 'line-opacity': 0.55 } });
-    setGeoJSON(m, 'replay', EMPTY);
-    m.addLayer({
-      id: 'replay',
-      type: 'symbol',
-      source: 'replay',
-      layout: {
-        'icon-image': 'arrow',
-        'icon-rotate': ['get', 'heading'],
-        'icon-rotation-alignment': 'map',
-        'icon-size': 0.8,
-        'icon-allow-overlap': true,
-      },
-      paint: { 'icon-color': '#d7263d', 'icon-halo-color': '#fff', 'icon-halo-width': 2 },
-    });
-    setMap(m);
-  };
+  // Tiles once the view is on the field (or there is no field to fit to) and the report is known.
+  const showTiles = report != null && (field != null || fieldQ.isError || planQ.isError || rxQ.isError);
 
   const r: Partial<AsAppliedReport> = report ?? {};
   /** Before the first report: "…" (loading), not "–" or 0 that read as "nothing there". */
@@ -177,8 +82,8 @@ function PrescriptionJobReport({ jobId }: { jobId: number }) {
           <a href="#/jobs">← Jobs</a>
         </p>
         <h2>Job #{jobId} report</h2>
-        <ErrorBox error={error} />
-        {!report && <ReportLoading task={task} onDone={() => void refresh()} />}
+        <ErrorBox error={error ?? rxQ.error ?? planQ.error ?? fieldQ.error} />
+        {!report && <ReportLoading task={task} onDone={refresh} />}
         <div aria-busy={!report}>
           <Kv
             items={[
@@ -215,7 +120,7 @@ function PrescriptionJobReport({ jobId }: { jobId: number }) {
           <button data-testid="view-accuracy" className={view === 'accuracy' ? 'on' : ''} onClick={() => setView('accuracy')}>
             Accuracy
           </button>
-          <button data-testid="report-print" onClick={print} disabled={!report}>
+          <button data-testid="report-print" onClick={printing.print} disabled={!report}>
             Print report
           </button>
         </div>
@@ -228,14 +133,20 @@ function PrescriptionJobReport({ jobId }: { jobId: number }) {
           ]}
         />
         <Legend entries={legend} title={legendTitle} testid="report-legend" />
-        <TrackReplay jobId={jobId} map={map} tick={tick} />
+        <TrackReplay replay={replay} />
       </aside>
-      <MapView name="report" onReady={onReady} fieldId={field?.id} />
-      <PrintReport job={job} field={field} rx={rx} report={report} mapImage={printImage} legend={legend} legendTitle={legendTitle} />
+      <MapView name="report" fieldId={field?.id}>
+        <FitBounds bbox={field ? bboxOf(field) : null} />
+        {showTiles && <CellGrid id="job" tiles={tilesUrl(jobId)} color={fill} refreshKey={tick} />}
+        <FieldBoundary data={field} fill={false} />
+        <ReplayTrail replay={replay} />
+        <MapStill still={printing.still} />
+      </MapView>
+      <PrintReport job={job} field={field} rx={rx} report={report} mapImage={printing.image} legend={legend} legendTitle={legendTitle} />
     </div>
   );
 }
 
-function tilesUrl(jobId: number, v: number): string {
-  return absoluteApiUrl(`/api/v1/tiles/jobs/${jobId}/{z}/{x}/{y}.mvt?v=${v}`);
+function tilesUrl(jobId: number): string {
+  return absoluteApiUrl(`/api/v1/tiles/jobs/${jobId}/{z}/{x}/{y}.mvt`);
 }

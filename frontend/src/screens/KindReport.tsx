@@ -1,63 +1,33 @@
-import { useEffect, useMemo, useRef, useState } from 'react';
-import { ReportLoading } from '../components/ReportLoader';
-import type * as maplibregl from 'maplibre-gl';
-import { call, client, type FieldFeature, type Job } from '../api/client';
+import { useMemo, useState } from 'react';
+import type { Job } from '../api/client';
+import { useAllPlanCells, useField, usePlan } from '../api/hooks';
 import { Legend } from '../components/Legend';
+import { ReportLoading, useLiveReport } from '../components/ReportLoader';
 import { ErrorBox, Kv } from '../components/Status';
 import { classColors, legendEntries, niceBreaks, stepExpression } from '../lib/colors';
-import { asGeoJSON, bboxOf } from '../lib/geo';
+import { bboxOf } from '../lib/geo';
 import { cellValue, KIND_LABELS, type DepthBand, type JobKind, type ShaftBand } from '../lib/jobkinds';
 import { MapView } from '../map/MapView';
-import { fitTo, setGeoJSON } from '../map/setup';
+import { CellGrid, FieldBoundary, FitBounds } from '../map/overlays';
 
-const EMPTY: GeoJSON.FeatureCollection = { type: 'FeatureCollection', features: [] };
-const FINAL = new Set(['completed', 'aborted']);
 const f1 = (v: unknown, d = 1) => (typeof v === 'number' && Number.isFinite(v) ? v.toFixed(d) : '–');
 
-/** Report of a sensor job (seed 000 / 002): the paper's Table 3 and the NDVI / rate / depth maps. */
-export function KindReport({ job }: { job: Job }) {
-  const kind = job.kind as JobKind;
-  const [report, setReport] = useState<Record<string, unknown> | null>(null);
-  const [cells, setCells] = useState<GeoJSON.Feature[]>([]);
-  const [field, setField] = useState<FieldFeature | null>(null);
+/**
+ * Report of a sensor job (seed 000 / 002): the paper's Table 3 and the NDVI / rate / depth maps
+ * (the plan's cells as GeoJSON, coloured by the report's per-cell values). Job and report are
+ * read again while the job runs (`useLiveReport`).
+ */
+export function KindReport({ job: initial }: { job: Job }) {
+  const kind = initial.kind as JobKind;
   const [view, setView] = useState(kind === 'ndvi_topdress' ? 'ndvi' : 'depth');
-  const [error, setError] = useState<unknown>(null);
-  const [tick, setTick] = useState(0);
-  const mapRef = useRef<maplibregl.Map | null>(null);
-  const [mapReady, setMapReady] = useState(false);
-
-  useEffect(() => {
-    (async () => {
-      try {
-        if (job.plan_id == null) return;
-        const path = { plan_id: job.plan_id };
-        const p = await call(client.GET('/api/v1/plans/{plan_id}', { params: { path } }));
-        setField(await call(client.GET('/api/v1/fields/{field_id}', { params: { path: { field_id: p.field_id } } })));
-        const feats: GeoJSON.Feature[] = [];
-        for (let off = 0; off < 20000; off += 1000) {
-          const r = await call(client.GET('/api/v1/plans/{plan_id}/cells', { params: { path, query: { limit: 1000, offset: off } } }));
-          feats.push(...asGeoJSON(r).features);
-          if (r.features.length < 1000) break;
-        }
-        setCells(feats);
-      } catch (e) {
-        setError(e);
-      }
-    })();
-  }, [job.plan_id]);
-
-  useEffect(() => {
-    let stop = false;
-    call(client.GET('/api/v1/jobs/{job_id}/report', { params: { path: { job_id: job.id } } }))
-      .then((r) => !stop && setReport(r as Record<string, unknown>))
-      .catch((e) => !stop && setError(e));
-    if (FINAL.has(job.state) && tick > 0) return;
-    const t = setTimeout(() => setTick((x) => x + 1), 4000);
-    return () => {
-      stop = true;
-      clearTimeout(t);
-    };
-  }, [job.id, job.state, tick]);
+  const live = useLiveReport<Record<string, unknown>>(initial.id);
+  const job = live.job ?? initial;
+  const { report, task } = live;
+  const planQ = usePlan(job.plan_id);
+  const fieldQ = useField(planQ.data?.field_id);
+  const field = fieldQ.data ?? null;
+  const cellsQ = useAllPlanCells(job.plan_id);
+  const error = live.error ?? planQ.error ?? fieldQ.error ?? cellsQ.error;
 
   const byseq = useMemo(() => {
     const m = new Map<number, Record<string, unknown>>();
@@ -68,37 +38,22 @@ export function KindReport({ job }: { job: Job }) {
   const lo = values.length ? Math.min(...values) : 0;
   const hi = values.length ? Math.max(...values) : 1;
   const breaks = useMemo(() => niceBreaks(lo, hi > lo ? hi : lo + 1, 6), [lo, hi]);
-  const colors = classColors(breaks.length - 1);
-
-  useEffect(() => {
-    const map = mapRef.current;
-    if (!map || !mapReady) return;
-    const fc: GeoJSON.FeatureCollection = {
-      type: 'FeatureCollection',
-      features: cells.map((f) => {
-        const c = byseq.get(Number(f.properties?.seq));
-        return { ...f, properties: { ...f.properties, v: c ? cellValue(kind, view, c) : null } };
-      }),
-    };
-    setGeoJSON(map, 'kcells', fc);
-    const fill = ['case', ['==', ['get', 'v'], null], '#dddddd', stepExpression('v', breaks, colors)];
-    if (!map.getLayer('kcells-fill')) {
-      map.addLayer({ id: 'kcells-fill', type: 'fill', source: 'kcells', paint: { 'fill-color': fill as never, 'fill-opacity': 0.85 } });
-      if (map.getLayer('field-line')) map.moveLayer('field-line');
-    } else map.setPaintProperty('kcells-fill', 'fill-color', fill as never);
-    if (field) fitTo(map, bboxOf(field));
-  }, [cells, byseq, view, breaks, colors, field, mapReady, kind]);
-
-  const onReady = (map: maplibregl.Map) => {
-    mapRef.current = map;
-    setGeoJSON(map, 'field', field ? asGeoJSON(field) : EMPTY);
-    map.addLayer({ id: 'field-line', type: 'line', source: 'field', paint: { 'line-color': '#222', 'line-width': 2 } });
-    setMapReady(true);
-  };
-  useEffect(() => {
-    const map = mapRef.current;
-    if (map && field) setGeoJSON(map, 'field', asGeoJSON(field));
-  }, [field]);
+  const colors = useMemo(() => classColors(breaks.length - 1), [breaks]);
+  const fill = useMemo(() => ['case', ['==', ['get', 'v'], null], '#dddddd', stepExpression('v', breaks, colors)], [breaks, colors]);
+  const cells = cellsQ.data;
+  const fc = useMemo(
+    (): GeoJSON.FeatureCollection | null =>
+      cells
+        ? {
+            type: 'FeatureCollection',
+            features: cells.features.map((f) => {
+              const c = byseq.get(Number(f.properties?.seq));
+              return { ...f, properties: { ...f.properties, v: c ? cellValue(kind, view, c) : null } };
+            }),
+          }
+        : null,
+    [cells, byseq, view, kind],
+  );
 
   const r = report ?? {};
   const s = (job.settings ?? {}) as Record<string, unknown>;
@@ -123,7 +78,7 @@ export function KindReport({ job }: { job: Job }) {
         </p>
         <h2>Job #{job.id} report</h2>
         <ErrorBox error={error} />
-        {!report && !error && <ReportLoading task={null} onDone={() => undefined} />}
+        {!report && !error && <ReportLoading task={task} onDone={live.refresh} />}
         <Kv
           items={[
             ['Kind', KIND_LABELS[kind] ?? kind, 'report-kind'],
@@ -156,7 +111,11 @@ export function KindReport({ job }: { job: Job }) {
         </div>
         <Legend entries={legendEntries(breaks, colors, (v) => (view === 'ndvi' ? v.toFixed(2) : v.toFixed(0)))} title={views.find((v) => v[0] === view)?.[1] ?? ''} testid="report-legend" />
       </aside>
-      <MapView name="kind-report" onReady={onReady} />
+      <MapView name="kind-report" fieldId={field?.id}>
+        <FitBounds bbox={field ? bboxOf(field) : null} />
+        {fc && <CellGrid id="kcells" data={fc} color={fill} />}
+        <FieldBoundary data={field} fill={false} />
+      </MapView>
     </div>
   );
 }

@@ -11,7 +11,7 @@ import { describe, expect, it } from 'vitest';
  * Screens owned by other work in progress, not converted yet. The lead shrinks this list at
  * merge as each screen is converted (a converted screen left here is reported below).
  */
-export const ALLOWLIST = new Set(['FieldDetail', 'JobReport', 'KindReport', 'TrackReplay']);
+export const ALLOWLIST = new Set(['FieldDetail']);
 
 /** Screens and the components they are built from: the same two rules hold for both. */
 const read = (dir: string) =>

@@ -1,4 +1,4 @@
-import { useEffect, useMemo } from 'react';
+import { useEffect, useMemo, useRef } from 'react';
 import type * as maplibregl from 'maplibre-gl';
 import { GRID_MAXZOOM, GRID_MINZOOM } from '../grid';
 import { cellGridLayers, EMPTY_FC } from '../layers';
@@ -18,7 +18,8 @@ declare global {
  * or from GeoJSON cells (`data`). Layers `${id}-fill` and, as asked, `${id}-line`,
  * `${id}-clamped`, `${id}-selected`. A new `tiles` URL re-creates the source (and re-times
  * the first frame in `window.__fieldrxPerf[id]`); a new `refreshKey` re-requests the same
- * tiles in place (live as-applied data) without removing the layers.
+ * tiles in place (live as-applied data) without removing the layers (not the key the source
+ * was created with: those tiles are being loaded already).
  */
 export function CellGrid(props: {
   /** Source id and layer-id prefix ('grid', 'rx', 'job', ...). */
@@ -58,7 +59,11 @@ export function CellGrid(props: {
       layers: cellGridLayers(id, hasSel ? { ...style, selectedSeq: sel } : style),
     };
   }, [id, tiles, data, color, opacity, outline, clamped, hasSel, sel]);
+  const { refreshKey } = props;
+  // The key the source was (re)created with: its tiles are fresh, no need to ask again.
+  const keyAtAdd = useRef(refreshKey);
   useOverlay(spec, (map) => {
+    keyAtAdd.current = refreshKey;
     const t0 = performance.now();
     const perf = (window.__fieldrxPerf ??= {});
     perf[id] = { addedAt: t0, idleMs: null };
@@ -67,9 +72,9 @@ export function CellGrid(props: {
     });
   });
   const map = useMap();
-  const { refreshKey } = props;
   useEffect(() => {
-    if (!map || !tiles || refreshKey === undefined) return;
+    if (!map || !tiles || refreshKey === undefined || refreshKey === keyAtAdd.current) return;
+    keyAtAdd.current = refreshKey;
     const src = map.getSource(id) as maplibregl.VectorTileSource | undefined;
     src?.setTiles([`${tiles}${tiles.includes('?') ? '&' : '?'}v=${refreshKey}`]);
   }, [map, id, tiles, refreshKey]);
