@@ -40,11 +40,7 @@ def test_fixed_fields_grid_invariants(name, h):
     f = FIELDS[name]()
     plan = plan_coverage(f, 2.3, "optimal", headland_passes=h)
     grid = build_grid(plan, f, 5.0)
-    # headland rings have corners rounded to the turning radius (issue 16): the cells
-    # cover what the plan covers, the rest is reported uncovered
-    # and around a reflex corner the drivable ring swings into the inner area, where
-    # its cells (inner cells own that land) are empty: a few more ring breaks
-    check_grid(grid, f, min_cover=min(0.995, 0.995 * plan.coverage_pct / 100), ring_breaks=0.06)
+    check_grid(grid, f)
     check_cells_in_own_swath(grid, plan)
     # headland cells come first (headland_order "first"), then inner cells
     if h:
@@ -88,8 +84,7 @@ def test_wgs84_corners_and_geojson():
     ll = box(11.0, 48.0, 11.002, 48.001)
     epsg = utm_epsg_for(11.001, 48.0005)
     f = to_utm(ll, epsg)
-    plan = plan_coverage(f, 2.3, "optimal", headland_passes=1)
-    grid = build_grid(plan, f, 5.0, epsg=epsg)
+    grid = build_grid(plan_coverage(f, 2.3, "optimal", headland_passes=1), f, 5.0, epsg=epsg)
     c = grid.corners_wgs84
     assert c.shape == (len(grid), 4, 2)
     assert (np.abs(c[..., 0] - 11.001) < 0.002).all() and (
@@ -101,8 +96,7 @@ def test_wgs84_corners_and_geojson():
     cells = shapely.from_geojson(
         [__import__("json").dumps(ft["geometry"]) for ft in fc["features"]]
     )
-    covered = ll.area * plan.coverage_pct / 100  # rounded ring corners stay uncovered
-    assert shapely.union_all(cells).area == pytest.approx(covered, rel=1e-3)
+    assert shapely.union_all(cells).area == pytest.approx(ll.area, rel=1e-3)
 
 
 def test_bad_grid_parameters():

@@ -33,6 +33,12 @@ from .order import PATTERNS, block_sequences, order_swaths
 from .swaths import default_strip_tolerance, holes_of
 from .turns import connect
 
+# Rings rounded to the turning radius (headland.drivable_centre) are built and tested,
+# but not yet used: the grid's ring cells (geo/grid.py _ring_cells) leave up to 7.5 %
+# of a small field's swept headland out of the cells along strongly curved rings, and a
+# rounded ring can still kink on some random fields (issue 16 follow-up).
+ROUND_HEADLAND_RINGS = False
+
 
 def plan_coverage(
     boundary_utm: Polygon | MultiPolygon,
@@ -203,8 +209,11 @@ def _plan_field(fld_in: Polygon | MultiPolygon, st: _Settings, warnings: list[st
         holes_rot = frame.fwd_geom(holes_of(fld))
         subs, blocks = layout(parts_rot, w, with_full=True, holes_rot=holes_rot, tol=st.tol)
         blocks = block_sequences(subs, blocks, w, st.machine, h * w, st.pattern)
-        rings = headland_rings(fld, w, h, st.machine.turn_radius_m, warnings)
-        _corner_warning(fld, w, h, rings, st.machine, warnings)
+        if ROUND_HEADLAND_RINGS:
+            rings = headland_rings(fld, w, h, st.machine.turn_radius_m, warnings)
+            _corner_warning(fld, w, h, rings, st.machine, warnings)
+        else:
+            rings = headland_rings(fld, w, h)
     with _timed(timings, "order_route"):
         router = FieldRouter(fld, avoid=region if h else None)
         lead = 2.0 * st.machine.turn_radius_m

@@ -349,17 +349,24 @@ def connect(
             is_turn[k] = True
             cons.append(turn_between(p0, th0, p1, th1, machine, room, cache))
         else:
-            cons.append(_transfer_between(p0, th0, p1, th1, route, machine, env))
+            cons.append(Connection(LineString([p0, p1]), "routed"))  # set below
     rep = TurnReport(cons)
     rep.required_headland_m = _turn_depth(
         [c for c, t in zip(cons, is_turn, strict=True) if t], region
     )
+    # a headland too narrow for the turns lets transfers reach outside like the turns
+    outside_ok = headland_m + 1e-6 < rep.required_headland_m
+    for k in np.flatnonzero(~is_turn):
+        a, b = swaths[k], swaths[k + 1]
+        p0, p1 = np.asarray(a.line.coords[-1]), np.asarray(b.line.coords[0])
+        th0, th1 = _end_heading(a.line, True), _end_heading(b.line, False)
+        cons[k] = _transfer_between(p0, th0, p1, th1, route, machine, env, outside_ok)
     ok = _acceptable([c.line for c in cons], env, False)
     for k in np.flatnonzero(~ok & is_turn):
         a, b = swaths[k], swaths[k + 1]
         p0, p1 = np.asarray(a.line.coords[-1]), np.asarray(b.line.coords[0])
         th0, th1 = _end_heading(a.line, True), _end_heading(b.line, False)
-        cons[k] = _transfer_between(p0, th0, p1, th1, route, machine, env)
+        cons[k] = _transfer_between(p0, th0, p1, th1, route, machine, env, outside_ok)
     for c in cons:
         rep.kinds[c.kind] = rep.kinds.get(c.kind, 0) + 1
     rep.undrivable = rep.kinds.get("routed", 0)
@@ -374,17 +381,18 @@ def _transfer_between(
     route: Callable[[np.ndarray, np.ndarray], LineString],
     machine: Machine,
     env: _Env,
+    outside_ok: bool = False,
 ) -> Connection:
     """A drivable transfer (block to block, ring to ring, into and out of the rings).
 
     Options, in order: Dubins paths chained through the router's waypoints (follows
     the headland around corners and holes), then every direct Dubins word, shortest
     first. The first that avoids the holes and (with a headland) stays in the field is
-    taken; if none stays in the field, the first that avoids the holes is still taken
-    -- drivable, its reach beyond the field counted in ``route_outside_m`` like the turns
-    that need more headland -- then the old rule (the chain inside the field, clear of
-    the holes' cores w/2 in from their edges), and only when every option crosses a
-    hole is the routed polyline used (``routed``: not drivable, warned about).
+    taken; then the old rule (the chain inside the field, clear of the holes' cores w/2
+    in from their edges); without a headland, or with one too narrow for the turns
+    (``outside_ok``), the first that avoids the holes (its reach
+    beyond the field counted in ``route_outside_m`` like the turns). Otherwise the
+    routed polyline (``routed``: not drivable, warned about).
     """
     path = route(p0, p1)
     r = machine.turn_radius_m
@@ -396,7 +404,10 @@ def _transfer_between(
     strict = _Env(env.holes_full, env.field_ok)
     inside = _acceptable(lines, strict, True)
     clear = _acceptable(lines, strict, False)
-    for good in (inside, clear, _acceptable(lines[:1], env, True)):
+    # with a headland the route must stay in the field: a sharp routed polyline inside
+    # (counted, warned) beats a drivable one outside; without one, outside is allowed
+    checks = (inside, _acceptable(lines[:1], env, True))
+    for good in checks if env.field_ok is not None and not outside_ok else (*checks, clear):
         if good.any():
             return Connection(lines[int(np.argmax(good))], "transfer")
     return Connection(path, "routed")
