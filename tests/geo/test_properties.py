@@ -3,6 +3,7 @@
 import math
 
 import numpy as np
+import pytest
 import shapely
 import shapely.affinity
 from fieldrx.geo import PlanningError
@@ -165,7 +166,8 @@ def test_enough_headland_keeps_drivable_turns_inside_the_field(fw, radius, rever
         assert plan.route_outside_m < 1e-3 and plan.route_in_holes_m < 1e-3
     for c, kind in zip(plan.connections, _kinds(plan), strict=True):
         if kind != "routed":
-            assert min_turn_radius(np.asarray(c.coords)) >= 0.99 * radius
+            assert min_turn_radius(np.asarray(c.coords), 0.1 * radius) >= 0.999 * radius
+    # rings keep their mitred corners in plans for now (planner.ROUND_HEADLAND_RINGS)
 
 
 def _kinds(plan):
@@ -226,3 +228,19 @@ def test_analytic_heading_bound_never_exceeds_the_swath_count(fw, h):
     n = np.array([swath_count(region, w, float(a), field, tol) for a in phis])
     note(f"field={field.wkt} w={w} h={h}")
     assert (lb <= n).all(), np.degrees(phis[lb > n])
+
+
+@pytest.mark.xfail(strict=True, reason="known defect: a rounded ring kinks (issue 16)")
+def test_rounded_ring_kink_known_defect():
+    # found by the property test with rounded rings in plans: pass 1's rounded ring on
+    # this field (w 2.3 m, r 3 m) has a vertex triple of circumradius 0.15 m; not yet
+    # understood (the opening's polygonisation or a near-pinch of the r-discs)
+    from pathlib import Path
+
+    from tests.geo.cases import min_turn_radius
+
+    field = shapely.from_wkt((Path(__file__).parent / "ring_kink_field.wkt").read_text())
+    from fieldrx.geo.planning.headland import headland_rings
+
+    for _, line, _ in headland_rings(field, 2.3, 2, 3.0):
+        assert min_turn_radius(np.asarray(line.coords), 0.3) >= 0.999 * 3.0

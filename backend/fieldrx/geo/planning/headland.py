@@ -4,13 +4,26 @@ Pass ``k`` runs on the offset ``(k + 1/2) w`` inside the boundary (and outside e
 hole); its band is what its cells are clipped to. The inner region the swaths cover is
 the field shrunk by ``h w`` (mitre joins; a subset of the exact erosion, so anything
 within ``h w`` of the region stays inside the field).
+
+With a turning radius r the rings are made drivable (:func:`drivable_centre`): the
+mitred offset has sharp corners no machine with radius r can follow. Convex corners are
+rounded inwards by a morphological opening with r (the union of the r-discs inside the
+ring's polygon, J. Serra, *Image Analysis and Mathematical Morphology*, 1982, ch. 2);
+a reflex corner (an L's inner corner, the ring around a pond's corner) cannot be
+rounded on the boundary side without leaving the field or entering the pond, so the
+ring swings inwards around it: an r-disc through the corner is taken out of the
+polygon before the opening. Both only remove area, so the rounded ring stays inside
+the mitred one: inside the field and clear of every hole. What the rounded corners
+leave unworked is reported (``corner_loss``), not hidden in the band the cells use.
 """
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import shapely
-from shapely.geometry import LineString, MultiPolygon, Point, Polygon
+from shapely.geometry import LinearRing, LineString, MultiPolygon, Point, Polygon
 from shapely.geometry.base import BaseGeometry
 from shapely.geometry.polygon import orient
 from shapely.ops import substring
@@ -18,23 +31,155 @@ from shapely.ops import substring
 from .. import PlanningError
 from .boundary import max_extent, min_width, parts
 
+ARC_QUAD_SEGS = 90  # 1 degree steps in the morphology (chord sag 4e-5 r)
+BITE_SCALE = 1.02  # reflex bites: radius 1.02 r (curvature 1 / 1.02 r < 1 / r)
+RING_SLACK = 1.05  # rings are rounded to 1.05 r: room for the resampling's 3 % error
+RING_STEP = 0.1  # the rounded ring is resampled every 0.1 r (about 6 degree steps)
+
+
+def _reflex_bites(poly: Polygon, r: float) -> list[Polygon]:
+    """r-discs through each reflex vertex of poly that turns tighter than r.
+
+    A vertex turning by theta between edges a and b can be followed with radius r on a
+    fillet that uses at most half of each edge when min(a, b) / 2 / tan(theta / 2) >= r
+    (a sampled arc of radius >= r passes), but at a reflex vertex that fillet bulges
+    outwards, towards the boundary or into a hole; so a reflex vertex that turns tighter
+    than r or more than a 5 degree arc step gets a disc of radius
+    1.02 r centred r beyond the vertex on the outside bisector, so the boundary of
+    ``poly - disc`` passes 0.02 r inside the vertex on a concave arc of radius 1.02 r.
+    """
+    out = []
+    for ring in [poly.exterior, *poly.interiors]:
+        c = np.asarray(ring.coords)[:-1]
+        if len(c) < 3:
+            continue
+        e1 = c - np.roll(c, 1, axis=0)
+        e2 = np.roll(c, -1, axis=0) - c
+        l1, l2 = np.hypot(*e1.T), np.hypot(*e2.T)
+        ok = (l1 > 1e-9) & (l2 > 1e-9)
+        u1 = e1 / np.where(ok, l1, 1.0)[:, None]
+        u2 = e2 / np.where(ok, l2, 1.0)[:, None]
+        cross = u1[:, 0] * u2[:, 1] - u1[:, 1] * u2[:, 0]
+        theta = np.arctan2(np.abs(cross), (u1 * u2).sum(1))
+        fit = 0.5 * np.minimum(l1, l2) / np.maximum(np.tan(0.5 * theta), 1e-12)
+        # oriented polygon (exterior CCW, holes CW): its inside is on the left, so a
+        # right turn (cross < 0) is a reflex vertex
+        # a fillet of a reflex vertex would bulge outwards by r (sec(theta / 2) - 1):
+        # more than 0.001 r (a 5 degree arc step's own sag) needs the bite as well
+        bulge = r * (1.0 / np.cos(0.5 * theta) - 1.0)
+        tight = ok & (cross < -1e-12) & ((fit < r * (1.0 - 1e-9)) | (bulge > 1e-3 * r))
+        for i in np.flatnonzero(tight):
+            b = np.array([u1[i, 1] + u2[i, 1], -(u1[i, 0] + u2[i, 0])])
+            b /= max(float(np.hypot(*b)), 1e-12)
+            # radius 1.02 r, centred r out: the sampled disc (chords sag 0.001 r) covers
+            # the vertex, and the opening's erosion by r leaves a smooth 0.02 r arc
+            # (not a sliver) that its dilation turns back into the bite's arc
+            disc = Point(c[i] + r * b).buffer(BITE_SCALE * r, quad_segs=ARC_QUAD_SEGS)
+            out.append(disc)
+    return out
+
+
+def drivable_centre(poly: Polygon, r: float) -> BaseGeometry:
+    """The part of a ring's polygon whose boundary has no curvature tighter than 1 / r
+    (see module docstring): reflex bites taken out, then the opening with r. A subset
+    of ``poly``; empty where the polygon is narrower than 2 r (no loop fits)."""
+    poly = orient(poly, 1.0)
+    bites = _reflex_bites(poly, r)
+    cut = poly.difference(shapely.union_all(bites)) if bites else poly
+    opened = cut.buffer(-r, quad_segs=ARC_QUAD_SEGS).buffer(r, quad_segs=ARC_QUAD_SEGS)
+    return opened.intersection(poly) if not opened.is_empty else opened
+
+
+def _pass_bands(field_geom: BaseGeometry, w: float, k: int) -> tuple[BaseGeometry, BaseGeometry]:
+    centre = field_geom.buffer(-(k + 0.5) * w, join_style="mitre", mitre_limit=5.0)
+    outer = field_geom.buffer(-k * w, join_style="mitre", mitre_limit=5.0) if k else field_geom
+    inner = field_geom.buffer(-(k + 1) * w, join_style="mitre", mitre_limit=5.0)
+    return centre, outer.difference(inner)
+
 
 def headland_rings(
-    field_geom: Polygon | MultiPolygon, w: float, h: int
+    field_geom: Polygon | MultiPolygon,
+    w: float,
+    h: int,
+    turn_radius_m: float = 0.0,
+    warnings: list[str] | None = None,
 ) -> list[tuple[int, LineString, BaseGeometry]]:
-    """Rings (pass k, centre line, band) of the h headland passes around boundary and holes."""
+    """Rings (pass k, centre line, band) of the h headland passes around boundary and holes.
+
+    With ``turn_radius_m`` > 0 the rings are the drivable ones (:func:`drivable_centre`)
+    and each pass's band is cut to what its rings sweep, so the grid's headland cells
+    never claim a rounded-off corner; a ring polygon narrower than 2 r keeps its sharp
+    ring, with a warning.
+    """
     out = []
+    # with rounded rings each pass's band is what its rings sweep in the headland
+    # area and no earlier pass swept (a rounded corner of pass k sweeps into band k+1)
+    headland = field_geom.difference(field_geom.buffer(-h * w, join_style="mitre", mitre_limit=5.0))
+    taken: BaseGeometry = Polygon()
     for k in range(h):
-        centre = field_geom.buffer(-(k + 0.5) * w, join_style="mitre", mitre_limit=5.0)
-        outer = field_geom.buffer(-k * w, join_style="mitre", mitre_limit=5.0) if k else field_geom
-        inner = field_geom.buffer(-(k + 1) * w, join_style="mitre", mitre_limit=5.0)
-        band = outer.difference(inner)
+        centre, band = _pass_bands(field_geom, w, k)
+        rings: list[LineString] = []
         for poly in parts(centre):
             poly = orient(poly, 1.0)
-            for ring in [poly.exterior, *poly.interiors]:
-                if ring.length > w:
-                    out.append((k, LineString(ring.coords), band))
+            smooth: list[Polygon] = []
+            if turn_radius_m > 0:
+                smooth = parts(drivable_centre(poly, RING_SLACK * turn_radius_m))
+                smooth = [orient(p, 1.0) for p in smooth]
+                poly_list = smooth if smooth else [poly]
+                if not smooth and warnings is not None:
+                    warnings.append(
+                        f"headland pass {k + 1} has a ring narrower than two turning radii "
+                        f"({2 * turn_radius_m:g} m): it keeps its sharp corners (not drivable)"
+                    )
+            else:
+                poly_list = [poly]
+            for p in poly_list:
+                for ri in [p.exterior, *p.interiors]:
+                    rings.append(_resampled(ri, turn_radius_m) if smooth else LineString(ri.coords))
+        rings = [ri for ri in rings if ri.length > w]
+        if turn_radius_m > 0 and rings:
+            swept = shapely.union_all([_footprint(ri, w) for ri in rings])
+            band = headland.intersection(swept).difference(taken)
+            taken = taken.union(swept)
+        out += [(k, ri, band) for ri in rings]
     return out
+
+
+def _resampled(ring: BaseGeometry, r: float) -> LineString:
+    """The rounded ring as a polyline a curvature check can trust: points every 0.1 r
+    along the (1 degree) morphology result, then collinear runs merged (Douglas-Peucker
+    at 1e-4 r, far below the 1.2e-3 r sag of a 0.1 r chord on an arc of radius r). The
+    points lie on the curve, so every triple's circumradius is the curve's radius up to
+    the morphology's chord sag -- the junctions of its polygonised arcs (kinks and steps
+    of a few millimetres) no longer make tight triples."""
+    c = np.asarray(ring.coords)
+    cum = np.r_[0.0, np.cumsum(np.hypot(*np.diff(c, axis=0).T))]
+    n = max(8, math.ceil(cum[-1] / (RING_STEP * r)))
+    d = np.linspace(0.0, cum[-1], n + 1)
+    k = np.clip(np.searchsorted(cum, d, side="right") - 1, 0, len(c) - 2)
+    t = (d - cum[k]) / np.maximum(cum[k + 1] - cum[k], 1e-300)
+    pts = c[k] + np.clip(t, 0.0, 1.0)[:, None] * (c[k + 1] - c[k])
+    pts[-1] = pts[0]
+    return LineString(pts).simplify(1e-4 * r, preserve_topology=False)
+
+
+def _footprint(ring: LineString, w: float) -> BaseGeometry:
+    """What a closed ring's implement sweeps (a LinearRing: no cap gap at its start)."""
+    return LinearRing(ring.coords).buffer(0.5 * w, join_style="mitre", mitre_limit=5.0)
+
+
+def corner_loss(
+    field_geom: Polygon | MultiPolygon,
+    w: float,
+    h: int,
+    rings: list[tuple[int, LineString, BaseGeometry]],
+) -> float:
+    """Area (m²) of the headland bands that the (rounded) rings do not sweep."""
+    if not h:
+        return 0.0
+    bands = shapely.union_all([_pass_bands(field_geom, w, k)[1] for k in range(h)])
+    swept = shapely.union_all([_footprint(ri, w) for _, ri, _ in rings]) if rings else Polygon()
+    return float(bands.difference(swept).area)
 
 
 def rotate_ring(ring: LineString, pt: np.ndarray, lead: float = 0.0) -> LineString:
@@ -44,11 +189,26 @@ def rotate_ring(ring: LineString, pt: np.ndarray, lead: float = 0.0) -> LineStri
     ring with an S-curve instead of a loop.
     """
     d = (ring.project(Point(pt)) + lead) % ring.length if lead < ring.length else 0.0
+    if lead > 0:
+        d = _snapped_split(ring, d, lead)
     if d <= 1e-9 or d >= ring.length - 1e-9:
         return ring
     a = substring(ring, d, ring.length)
     b = substring(ring, 0.0, d)
     return LineString(np.concatenate([np.asarray(a.coords), np.asarray(b.coords)[1:]]))
+
+
+def _snapped_split(ring: LineString, d: float, lead: float) -> float:
+    """Where to re-start a ring near ``d``: at a vertex when one is within lead / 8, or
+    when d falls on a short edge (a rounded corner's 0.1 r chords). A new vertex a few
+    centimetres from a vertex that turns makes a triple tighter than the arc itself."""
+    c = np.asarray(ring.coords)
+    cum = np.r_[0.0, np.cumsum(np.hypot(*np.diff(c, axis=0).T))]
+    k = int(np.clip(np.searchsorted(cum, d, side="right") - 1, 0, len(c) - 2))
+    a, b = cum[k], cum[k + 1]
+    if min(d - a, b - d) <= lead / 8.0 or b - a <= lead / 4.0:
+        return float(a if d - a <= b - d else b)
+    return d
 
 
 def inner_region(

@@ -25,13 +25,19 @@ from .boundary import parts, polygonal, simplified, snapped
 from .decomposition import layout
 from .frame import azimuth_to_phi, frame_for, phi_to_azimuth
 from .headings import longest_edge_phi, optimal_phi
-from .headland import headland_rings, inner_region
+from .headland import corner_loss, headland_rings, inner_region
 from .kinematics import DEFAULT_HEADLAND_PASSES, DEFAULT_TURN_RADIUS_M, Machine
 from .metrics import fill_metrics, turn_warnings
 from .model import CORNERS, HEADINGS, Corner, CoveragePlan, Heading
 from .order import PATTERNS, block_sequences, order_swaths
 from .swaths import default_strip_tolerance, holes_of
 from .turns import connect
+
+# Rings rounded to the turning radius (headland.drivable_centre) are built and tested,
+# but not yet used: the grid's ring cells (geo/grid.py _ring_cells) leave up to 7.5 %
+# of a small field's swept headland out of the cells along strongly curved rings, and a
+# rounded ring can still kink on some random fields (issue 16 follow-up).
+ROUND_HEADLAND_RINGS = False
 
 
 def plan_coverage(
@@ -176,6 +182,19 @@ def _heading_phi(fld: BaseGeometry, region: BaseGeometry, st: _Settings) -> floa
     return optimal_phi(region, fld, st.w, tol=st.tol)[0]
 
 
+def _corner_warning(
+    fld: BaseGeometry, w: float, h: int, rings: list, m: Machine, warnings: list[str]
+) -> None:
+    """Say how much of the headland the rounded ring corners leave unworked."""
+    lost = corner_loss(fld, w, h, rings)
+    if lost > 1e-3 * max(fld.area, 1.0) or lost > 1.0:
+        warnings.append(
+            f"headland corners rounded to the {m.turn_radius_m:g} m turning radius leave "
+            f"{lost:.0f} m² of the headland unworked ({100 * lost / fld.area:.2f} % of the "
+            "field; counted as uncovered)"
+        )
+
+
 def _plan_field(fld_in: Polygon | MultiPolygon, st: _Settings, warnings: list[str]) -> CoveragePlan:
     """Plan one (clean) field; GEOS errors propagate to :func:`plan_coverage`."""
     w, timings = st.w, {}
@@ -190,7 +209,11 @@ def _plan_field(fld_in: Polygon | MultiPolygon, st: _Settings, warnings: list[st
         holes_rot = frame.fwd_geom(holes_of(fld))
         subs, blocks = layout(parts_rot, w, with_full=True, holes_rot=holes_rot, tol=st.tol)
         blocks = block_sequences(subs, blocks, w, st.machine, h * w, st.pattern)
-        rings = headland_rings(fld, w, h)
+        if ROUND_HEADLAND_RINGS:
+            rings = headland_rings(fld, w, h, st.machine.turn_radius_m, warnings)
+            _corner_warning(fld, w, h, rings, st.machine, warnings)
+        else:
+            rings = headland_rings(fld, w, h)
     with _timed(timings, "order_route"):
         router = FieldRouter(fld, avoid=region if h else None)
         lead = 2.0 * st.machine.turn_radius_m

@@ -99,6 +99,33 @@ def _segment(
     return pts, float(pts[-1, 0]), float(pts[-1, 1]), th + s * amount
 
 
+def dubins_words(
+    p0: np.ndarray, th0: float, p1: np.ndarray, th1: float, r: float
+) -> list[tuple[np.ndarray, str]]:
+    """Every Dubins word from pose (p0, th0) to (p1, th1), shortest first, as sampled
+    polylines (exact end points); words whose closed form misses the end pose (a wrong
+    branch on numerically degenerate input) are left out."""
+    dx, dy = float(p1[0] - p0[0]), float(p1[1] - p0[1])
+    d = math.hypot(dx, dy) / r
+    theta = math.atan2(dy, dx) if d > 1e-12 else 0.0
+    alpha, beta = _mod2pi(th0 - theta), _mod2pi(th1 - theta)
+    out = []
+    for word, params in sorted(_words(alpha, beta, d), key=lambda wp: sum(wp[1])):
+        x, y, th = float(p0[0]), float(p0[1]), th0
+        pts = [np.array([[x, y]])]
+        for kind, amount in zip(word, params, strict=True):
+            seg, x, y, th = _segment(x, y, th, kind, amount, r)
+            pts.append(seg)
+        if math.hypot(x - p1[0], y - p1[1]) > 1e-6 * max(1.0, r):
+            continue
+        if abs((th - th1 + math.pi) % TWO_PI - math.pi) > 1e-6:
+            continue
+        coords = np.concatenate(pts)
+        coords[-1] = p1
+        out.append((coords, word))
+    return out
+
+
 def dubins(
     p0: np.ndarray, th0: float, p1: np.ndarray, th1: float, r: float
 ) -> tuple[np.ndarray, str] | None:
@@ -107,27 +134,8 @@ def dubins(
     Returns the sampled polyline (exact end points) and the word, or None when no word
     reaches the end pose (numerically degenerate input).
     """
-    dx, dy = float(p1[0] - p0[0]), float(p1[1] - p0[1])
-    d = math.hypot(dx, dy) / r
-    theta = math.atan2(dy, dx) if d > 1e-12 else 0.0
-    alpha, beta = _mod2pi(th0 - theta), _mod2pi(th1 - theta)
-    best: tuple[float, np.ndarray, str] | None = None
-    for word, params in sorted(_words(alpha, beta, d), key=lambda wp: sum(wp[1])):
-        x, y, th = float(p0[0]), float(p0[1]), th0
-        pts = [np.array([[x, y]])]
-        for kind, amount in zip(word, params, strict=True):
-            seg, x, y, th = _segment(x, y, th, kind, amount, r)
-            pts.append(seg)
-        # guard against a wrong branch of the closed forms: the end pose must match
-        if math.hypot(x - p1[0], y - p1[1]) > 1e-6 * max(1.0, r):
-            continue
-        if abs((th - th1 + math.pi) % TWO_PI - math.pi) > 1e-6:
-            continue
-        coords = np.concatenate(pts)
-        coords[-1] = p1
-        best = (sum(params), coords, word)
-        break
-    return None if best is None else (best[1], best[2])
+    words = dubins_words(p0, th0, p1, th1, r)
+    return words[0] if words else None
 
 
 def fishtail(
@@ -286,6 +294,7 @@ class _Env:
 
     holes_core: BaseGeometry | None
     field_ok: BaseGeometry | None
+    holes_full: BaseGeometry | None = None
 
 
 def _acceptable(lines: list[LineString], env: _Env, in_field: np.ndarray | bool) -> np.ndarray:
@@ -318,13 +327,16 @@ def connect(
     """
     holes = [Polygon(ri) for p in shapely.get_parts(fld) for ri in getattr(p, "interiors", [])]
     core = shapely.union_all([h.buffer(-(w / 2 + 1e-6)) for h in holes]) if holes else None
+    full = shapely.union_all([h.buffer(-1e-6) for h in holes]) if holes else None
     env = _Env(
         None if core is None or core.is_empty else core,
         fld.buffer(1e-6) if headland_m > 0 else None,
+        None if full is None or full.is_empty else full,
     )
     room = headland_m
-    if env.holes_core is not None:
-        shapely.prepare(env.holes_core)
+    for g in (env.holes_core, env.holes_full):
+        if g is not None:
+            shapely.prepare(g)
     if env.field_ok is not None:
         shapely.prepare(env.field_ok)
     cons: list[Connection] = []
@@ -337,32 +349,67 @@ def connect(
             is_turn[k] = True
             cons.append(turn_between(p0, th0, p1, th1, machine, room, cache))
         else:
-            path = route(p0, p1)
-            tr = _transfer(np.asarray(path.coords), th0, th1, machine.turn_radius_m)
-            cons.append(
-                Connection(tr, "transfer") if tr is not None else Connection(path, "routed")
-            )
+            cons.append(Connection(LineString([p0, p1]), "routed"))  # set below
     rep = TurnReport(cons)
     rep.required_headland_m = _turn_depth(
         [c for c, t in zip(cons, is_turn, strict=True) if t], region
     )
-    ok = _acceptable([c.line for c in cons], env, ~is_turn)
-    for k in np.flatnonzero(~ok):
-        cons[k] = _fallback(swaths[k], swaths[k + 1], route, machine, env)
+    # a headland too narrow for the turns lets transfers reach outside like the turns
+    outside_ok = headland_m + 1e-6 < rep.required_headland_m
+    for k in np.flatnonzero(~is_turn):
+        a, b = swaths[k], swaths[k + 1]
+        p0, p1 = np.asarray(a.line.coords[-1]), np.asarray(b.line.coords[0])
+        th0, th1 = _end_heading(a.line, True), _end_heading(b.line, False)
+        cons[k] = _transfer_between(p0, th0, p1, th1, route, machine, env, outside_ok)
+    ok = _acceptable([c.line for c in cons], env, False)
+    for k in np.flatnonzero(~ok & is_turn):
+        a, b = swaths[k], swaths[k + 1]
+        p0, p1 = np.asarray(a.line.coords[-1]), np.asarray(b.line.coords[0])
+        th0, th1 = _end_heading(a.line, True), _end_heading(b.line, False)
+        cons[k] = _transfer_between(p0, th0, p1, th1, route, machine, env, outside_ok)
     for c in cons:
         rep.kinds[c.kind] = rep.kinds.get(c.kind, 0) + 1
     rep.undrivable = rep.kinds.get("routed", 0)
     return rep
 
 
-def _fallback(a, b, route, machine: Machine, env: _Env) -> Connection:  # noqa: ANN001
-    """A connection along the routed path: drivable if possible, else the polyline."""
-    p0, p1 = np.asarray(a.line.coords[-1]), np.asarray(b.line.coords[0])
+def _transfer_between(
+    p0: np.ndarray,
+    th0: float,
+    p1: np.ndarray,
+    th1: float,
+    route: Callable[[np.ndarray, np.ndarray], LineString],
+    machine: Machine,
+    env: _Env,
+    outside_ok: bool = False,
+) -> Connection:
+    """A drivable transfer (block to block, ring to ring, into and out of the rings).
+
+    Options, in order: Dubins paths chained through the router's waypoints (follows
+    the headland around corners and holes), then every direct Dubins word, shortest
+    first. The first that avoids the holes and (with a headland) stays in the field is
+    taken; then the old rule (the chain inside the field, clear of the holes' cores w/2
+    in from their edges); without a headland, or with one too narrow for the turns
+    (``outside_ok``), the first that avoids the holes (its reach
+    beyond the field counted in ``route_outside_m`` like the turns). Otherwise the
+    routed polyline (``routed``: not drivable, warned about).
+    """
     path = route(p0, p1)
-    th0, th1 = _end_heading(a.line, True), _end_heading(b.line, False)
-    tr = _transfer(np.asarray(path.coords), th0, th1, machine.turn_radius_m)
-    if tr is not None and _acceptable([tr], env, True)[0]:
-        return Connection(tr, "transfer")
+    r = machine.turn_radius_m
+    opts = [_transfer(np.asarray(path.coords), th0, th1, r)]
+    opts += [LineString(c) for c, _ in dubins_words(p0, th0, p1, th1, r)]
+    lines = [o for o in opts if o is not None]
+    if not lines:
+        return Connection(path, "routed")
+    strict = _Env(env.holes_full, env.field_ok)
+    inside = _acceptable(lines, strict, True)
+    clear = _acceptable(lines, strict, False)
+    # with a headland the route must stay in the field: a sharp routed polyline inside
+    # (counted, warned) beats a drivable one outside; without one, outside is allowed
+    checks = (inside, _acceptable(lines[:1], env, True))
+    for good in checks if env.field_ok is not None and not outside_ok else (*checks, clear):
+        if good.any():
+            return Connection(lines[int(np.argmax(good))], "transfer")
     return Connection(path, "routed")
 
 
