@@ -31,11 +31,6 @@ export { useMap };
 export function MapView(props: {
   /** Registry name (`window.__fieldrxMaps[name]`, `data-testid="map-<name>"`). */
   name: string;
-  /**
-   * @deprecated Screens compose overlay components instead. Kept while screens owned by
-   * others are converted; runs once after 'load', its return value runs on unmount.
-   */
-  onReady?: (map: maplibregl.Map) => void | (() => void);
   className?: string;
   /** Overlays (render nothing themselves) and any floating controls over the map. */
   children?: React.ReactNode;
@@ -46,25 +41,20 @@ export function MapView(props: {
 }) {
   const ref = useRef<HTMLDivElement>(null);
   const [map, setMap] = useState<maplibregl.Map | null>(null);
-  const readyRef = useRef(props.onReady);
-  readyRef.current = props.onReady;
   const movedRef = useRef(false);
   useEffect(() => {
     if (!ref.current) return;
     const m = createMap(ref.current, props.name);
-    let cleanup: void | (() => void);
     movedRef.current = false;
     m.once('movestart', () => {
       movedRef.current = true;
     });
     m.on('load', () => {
       addSlotAnchors(m);
-      cleanup = readyRef.current?.(m);
       setMap(m);
     });
     return () => {
       setMap(null);
-      if (typeof cleanup === 'function') cleanup();
       m.remove();
     };
   }, [props.name]);

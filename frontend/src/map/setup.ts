@@ -112,11 +112,4 @@ export function fitTo(map: maplibregl.Map, bbox: [number, number, number, number
   );
 }
 
-/** Set data on a GeoJSON source, creating it if needed. */
-export function setGeoJSON(map: maplibregl.Map, id: string, data: GeoJSON.GeoJSON): void {
-  const src = map.getSource(id) as maplibregl.GeoJSONSource | undefined;
-  if (src) src.setData(data);
-  else map.addSource(id, { type: 'geojson', data });
-}
-
 export { maplibregl };

@@ -7,12 +7,6 @@ import { readdirSync, readFileSync } from 'node:fs';
 import { join } from 'node:path';
 import { describe, expect, it } from 'vitest';
 
-/**
- * Screens owned by other work in progress, not converted yet. The lead shrinks this list at
- * merge as each screen is converted (a converted screen left here is reported below).
- */
-export const ALLOWLIST = new Set(['FieldDetail']);
-
 /** Screens and the components they are built from: the same two rules hold for both. */
 const read = (dir: string) =>
   readdirSync(dir)
@@ -31,7 +25,6 @@ describe('screens', () => {
 
   it('no screen adds or removes map sources/layers or creates a map itself', () => {
     const offenders = screens
-      .filter((s) => !ALLOWLIST.has(s.name))
       .map((s) => ({ name: s.name, calls: [...s.src.matchAll(DIRECT_MAP)].map((m) => m[0]) }))
       .filter((o) => o.calls.length);
     expect(offenders, 'compose overlay components from src/map/overlays instead').toEqual([]);
@@ -39,11 +32,7 @@ describe('screens', () => {
 
   it(`no screen keeps more than ${MAX_STATE} useState calls`, () => {
     const counts = screens.map((s) => ({ name: s.name, n: (s.src.match(/\buseState\s*[<(]/g) ?? []).length }));
-    const over = counts.filter((c) => c.n > MAX_STATE && !ALLOWLIST.has(c.name));
+    const over = counts.filter((c) => c.n > MAX_STATE);
     expect(over, 'derive from the data hooks (src/api/hooks.ts) or group related fields').toEqual([]);
-    const converted = counts.filter(
-      (c) => ALLOWLIST.has(c.name) && c.n <= MAX_STATE && !new RegExp(DIRECT_MAP.source).test(screens.find((s) => s.name === c.name)!.src),
-    );
-    if (converted.length) console.info(`ALLOWLIST entries that now pass both checks: ${converted.map((c) => c.name).join(', ')}`);
   });
 });
