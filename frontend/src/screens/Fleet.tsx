@@ -1,5 +1,6 @@
-import { useCallback, useEffect, useRef, useState } from 'react';
+import { useEffect, useRef, useState } from 'react';
 import { call, client } from '../api/client';
+import { qk, useAlertGroups, useApiMutation, useInvalidate, useMachineStatus } from '../api/hooks';
 import { FleetMap } from '../components/FleetMap';
 import { LastSeen } from '../components/LastSeen';
 import { ErrorBox } from '../components/Status';
@@ -13,36 +14,23 @@ const TRAIL = 300;
 
 /** Live fleet: positions over WebSocket, status colours, labels, last seen, job progress and coverage, alerts. */
 export function FleetScreen() {
+  // Status seeds the map once (the query is cached); the live stream moves it on from there.
+  const status = useMachineStatus();
+  const alerts = useAlertGroups({ limit: 50 }, { refetchInterval: 15_000 });
+  const refresh = useInvalidate();
   const [fleet, setFleet] = useState<Fleet>(new Map());
-  const [groups, setGroups] = useState<AlertGroup[]>([]);
-  const [error, setError] = useState<unknown>(null);
+  const [acked, setAcked] = useState<AlertGroup[] | null>(null);
   const trails = useRef(new Map<number, [number, number][]>());
 
-  const loadStatus = useCallback(async () => {
-    try {
-      const r = await call(client.GET('/api/v1/machines/status'));
-      setFleet(new Map(r.items.map((o) => [o.machine_id, fromStatusItem(o)])));
-    } catch (e) {
-      setError(e);
-    }
-  }, []);
-  const loadAlerts = useCallback(async () => {
-    try {
-      setGroups((await call(client.GET('/api/v1/alerts/groups', { params: { query: { limit: 50 } } }))).items);
-    } catch (e) {
-      setError(e);
-    }
-  }, []);
-
   useEffect(() => {
-    void loadStatus();
-    void loadAlerts();
-    const t = setInterval(() => void loadAlerts(), 15_000);
-    return () => clearInterval(t);
-  }, [loadStatus, loadAlerts]);
+    if (status.data) setFleet(new Map(status.data.items.map((o) => [o.machine_id, fromStatusItem(o)])));
+  }, [status.data]);
+  // an acknowledgement shows at once; the next answer of the alerts query replaces it
+  useEffect(() => setAcked(null), [alerts.data]);
+  const groups = acked ?? alerts.data?.items ?? [];
 
   const live = useLive((msg) => {
-    if (msg.type === 'alert') void loadAlerts();
+    if (msg.type === 'alert') void refresh(qk.alertGroups());
     if (msg.type === 'position' && typeof msg.lon === 'number' && typeof msg.lat === 'number') {
       const id = Number(msg.machine_id);
       const tr = trails.current.get(id) ?? [];
@@ -53,14 +41,14 @@ export function FleetScreen() {
     setFleet((cur) => applyLive(cur, msg));
   });
 
+  const ack = useApiMutation((g: AlertGroup) => call(client.POST('/api/v1/alerts/ack', { body: ackBody(g) })), {
+    invalidate: () => [qk.alertGroups()],
+  });
   const ackAll = async (g: AlertGroup) => {
-    try {
-      await call(client.POST('/api/v1/alerts/ack', { body: ackBody(g) }));
-      setGroups((cur) => markAcknowledged(cur, groupKey(g)));
-    } catch (e) {
-      setError(e);
-    }
+    setAcked(markAcknowledged(groups, groupKey(g)));
+    await ack.mutateAsync(g).catch(() => setAcked(null));
   };
+  const error = status.error ?? alerts.error ?? ack.error;
   return (
     <div className="split">
       <aside className="panel" aria-label="Fleet">

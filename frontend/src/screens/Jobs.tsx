@@ -1,5 +1,6 @@
-import { useCallback, useEffect, useState } from 'react';
+import { useState } from 'react';
 import { call, client, type Job, type Machine, type Schemas } from '../api/client';
+import { qk, useInvalidate, useJobs, useMachines } from '../api/hooks';
 import { ErrorBox } from '../components/Status';
 import { jobBody, KIND_LABELS, type JobKind } from '../lib/jobkinds';
 import { formatPercent } from '../lib/units';
@@ -33,35 +34,21 @@ function when(iso: string | null | undefined): string {
 /** Jobs with product, field, machine, when they ran and their states; send a prescription
  * version to a machine. */
 export function JobsScreen() {
-  const [jobs, setJobs] = useState<Job[]>([]);
-  const [machines, setMachines] = useState<Machine[]>([]);
+  const jobsQ = useJobs({}, { refetchInterval: 5000 });
+  const machinesQ = useMachines();
+  const refresh = useInvalidate();
+  const jobs: Job[] = jobsQ.data?.items ?? [];
+  const machines: Machine[] = machinesQ.data?.items ?? [];
   const [rxId, setRxId] = useState('');
   const [version, setVersion] = useState('');
-  const [machineId, setMachineId] = useState('');
+  const [chosenMachine, setMachineId] = useState('');
   const [kind, setKind] = useState<JobKind>('prescription_map');
-  const [error, setError] = useState<unknown>(null);
+  const [actionError, setError] = useState<unknown>(null);
+  const error = actionError ?? jobsQ.error;
   const created = hashQuery().get('created');
-
-  const load = useCallback(async () => {
-    try {
-      setJobs((await call(client.GET('/api/v1/jobs'))).items);
-    } catch (e) {
-      setError(e);
-    }
-  }, []);
-
-  useEffect(() => {
-    void load();
-    call(client.GET('/api/v1/machines'))
-      .then((r) => {
-        const ms = r.items;
-        setMachines(ms);
-        if (ms[0]) setMachineId(String(ms[0].id));
-      })
-      .catch(() => undefined);
-    const t = setInterval(() => void load(), 5000);
-    return () => clearInterval(t);
-  }, [load]);
+  // the first machine until the user picks one
+  const machineId = chosenMachine || (machines[0] ? String(machines[0].id) : '');
+  const load = () => refresh(qk.jobs());
 
   const mName = (id: number) => machines.find((m) => m.id === id)?.name ?? `#${id}`;
   return (

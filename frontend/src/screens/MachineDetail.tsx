@@ -1,5 +1,6 @@
 import { useCallback, useEffect, useMemo, useState } from 'react';
 import { call, client, type Machine } from '../api/client';
+import { qk, useInvalidate, useMachine } from '../api/hooks';
 import { ErrorBox, Kv } from '../components/Status';
 import { Busy, useBusy } from '../components/Busy';
 import { TimeChart } from '../components/TimeChart';
@@ -14,7 +15,9 @@ const MAX_POINTS = 3000;
 
 /** One machine: settings, device token, raw vs filtered speed and target vs actual shaft speed. */
 export function MachineDetail({ machineId }: { machineId: number }) {
-  const [machine, setMachine] = useState<Machine | null>(null);
+  const machineQ = useMachine(machineId);
+  const machine: Machine | null = machineQ.data ?? null;
+  const refresh = useInvalidate();
   const [track, setTrack] = useState<TrackPoint[]>([]);
   const [error, setError] = useState<unknown>(null);
 
@@ -35,9 +38,6 @@ export function MachineDetail({ machineId }: { machineId: number }) {
   }, [machineId]);
 
   useEffect(() => {
-    call(client.GET('/api/v1/machines/{machine_id}', { params: { path: { machine_id: machineId } } }))
-      .then(setMachine)
-      .catch(setError);
     void run(loadTrack);
   }, [machineId, loadTrack, run]);
 
@@ -78,7 +78,7 @@ export function MachineDetail({ machineId }: { machineId: number }) {
       </p>
       <h2 data-testid="machine-title">{machine?.name ?? `Machine #${machineId}`}</h2>
       <Busy busy={busy} label="loading the latest records…" testid="machine-busy" />
-      <ErrorBox error={error} />
+      <ErrorBox error={error ?? machineQ.error} />
       <Kv
         items={[
           ['Implement', String(machine?.implement_type ?? '–')],
@@ -89,7 +89,7 @@ export function MachineDetail({ machineId }: { machineId: number }) {
           ['Track points', String(track.length), 'machine-track-count'],
         ]}
       />
-      <CalibrationEditor machine={machine} onSaved={setMachine} />
+      <CalibrationEditor machine={machine} onSaved={() => void refresh(qk.machine(machineId), qk.machines())} />
       <DeviceToken machineId={machineId} />
       <RouteHistory machineId={machineId} />
       <TimeChart t={t} series={speed} title="Ground speed: raw vs Kalman-filtered" unit="km/h" testid="chart-speed" />
