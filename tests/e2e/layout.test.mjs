@@ -11,7 +11,12 @@ import { ARTIFACTS, BASE_URL, EMAIL, PASSWORD, ROOT, api, apiLogin, launch, mapI
 const up = await serverUp();
 const ui = up && (await uiServed());
 const SKIP = !up ? `no server at ${BASE_URL}` : !ui ? 'server does not serve the UI' : false;
-const SCREENS = join(ROOT, 'docs', 'screens');
+// Screenshots of each run go with the other artifacts; the reviewed set is committed in
+// docs/screens (refresh it with FIELDRX_SCREENS_DIR=docs/screens scripts/e2e.sh, look at
+// every image, commit). Writing into docs/ on every run left a clean checkout dirty.
+const SCREENS = process.env.FIELDRX_SCREENS_DIR
+  ? join(ROOT, process.env.FIELDRX_SCREENS_DIR)
+  : join(ROOT, 'tests', 'e2e', 'artifacts', 'screens');
 
 const PLOT = {
   type: 'Polygon',

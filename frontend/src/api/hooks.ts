@@ -93,12 +93,15 @@ export interface HookOptions<T> {
   refetchInterval?: number | false | ((data: T | undefined) => number | false);
   /** false = do not fetch yet (e.g. an id not known yet). */
   enabled?: boolean;
+  /** How long an answer counts as fresh (ms; default 10 s): 0 = refetch whenever the screen opens. */
+  staleTime?: number;
 }
 
 function poll<T>(o?: HookOptions<T>) {
   const r = o?.refetchInterval;
   return {
     enabled: o?.enabled,
+    ...(o?.staleTime !== undefined ? { staleTime: o.staleTime } : {}),
     refetchInterval: typeof r === 'function' ? (q: { state: { data: T | undefined } }) => r(q.state.data) : r,
   };
 }

@@ -35,7 +35,8 @@ function when(iso: string | null | undefined): string {
  * version to a machine. */
 export function JobsScreen() {
   const jobsQ = useJobs({}, { refetchInterval: 5000 });
-  const machinesQ = useMachines();
+  // a machine added a moment ago (here, in another tab or over the API) is offered at once
+  const machinesQ = useMachines({ staleTime: 0 });
   const refresh = useInvalidate();
   const jobs: Job[] = jobsQ.data?.items ?? [];
   const machines: Machine[] = machinesQ.data?.items ?? [];
