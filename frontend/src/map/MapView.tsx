@@ -59,6 +59,34 @@ export function MapView(props: {
     };
   }, [props.name]);
 
+  // A panel floating over the map (cab tablet, phone: .split > .panel is absolutely placed)
+  // hides part of it: the map's padding keeps centre and fitted bounds in the visible part.
+  useEffect(() => {
+    const box = ref.current;
+    if (!map || !box) return;
+    const panel = box.closest('.split')?.querySelector<HTMLElement>(':scope > .panel');
+    const update = () => {
+      const pad = { top: 0, right: 0, bottom: 0, left: 0 };
+      if (panel && getComputedStyle(panel).position === 'absolute' && panel.offsetParent) {
+        const m = box.getBoundingClientRect();
+        const p = panel.getBoundingClientRect();
+        // a side panel covers the left edge; a bottom sheet covers the lower edge
+        if (p.width < m.width * 0.9) pad.left = Math.max(0, Math.min(p.right - m.left, m.width * 0.8));
+        else pad.bottom = Math.max(0, Math.min(m.bottom - p.top, m.height * 0.8));
+      }
+      map.setPadding(pad);
+    };
+    update();
+    const ro = new ResizeObserver(update);
+    ro.observe(box);
+    if (panel) ro.observe(panel);
+    window.addEventListener('resize', update);
+    return () => {
+      ro.disconnect();
+      window.removeEventListener('resize', update);
+    };
+  }, [map]);
+
   // The organisation's extent as the opening view (the same cached query as the Fields screen's).
   const orgFields = useFields({ limit: 500 });
   useEffect(() => {
