@@ -675,6 +675,12 @@ def main() -> int:
     ap.add_argument("--concurrency", type=int, default=8, help="HTTP requests in flight")
     ap.add_argument("--batch-ms", type=int, default=100, help="MQTT worker batching window")
     ap.add_argument(
+        "--db-connections",
+        type=int,
+        default=0,
+        help="database connections per MQTT ingest worker (default: the worker's default)",
+    )
+    ap.add_argument(
         "--realtime", action="store_true", help="produce at --hz instead of replaying a backlog"
     )
     ap.add_argument(
@@ -752,6 +758,7 @@ def main() -> int:
             env["MQTT_URL"] = broker.url
             group = "bench"
             logs = [tmp / f"worker{i}.log" for i in range(workers)]
+            lanes = ["--db-connections", str(args.db_connections)] if args.db_connections else []
             for log in logs:
                 w = start(
                     [
@@ -765,6 +772,7 @@ def main() -> int:
                         str(args.batch_ms),
                         "--mqtt-url",
                         f"mqtt://127.0.0.1:{port}",
+                        *lanes,
                     ],
                     env,
                     log,
