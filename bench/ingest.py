@@ -3,8 +3,10 @@
 Everything runs against a throw-away database: this script starts its own API
 server (uvicorn, ``--workers`` processes on a free port) or, for MQTT, its own
 Mosquitto (the project's deploy/mosquitto.conf on a free port: no anonymous
-clients, each machine logs in with its device token) and two ``fieldrx worker``
-processes sharing the subscription.
+clients, each machine logs in with its device token) and ``--workers`` (default 2)
+``fieldrx worker`` processes sharing the subscription, each with its default lanes
+(FIELDRX_WORKER_DB_CONNECTIONS; ``--db-connections`` overrides): one worker per core,
+as docs/scale.md sizes them.
 
 Each machine has ``hz * seconds`` records (default 200 machines x 10 Hz x 60 s
 = 120,000). They are replayed as fast as the server accepts them (a fleet

@@ -45,7 +45,7 @@ def register(subparsers: Any) -> None:
         type=int,
         default=None,
         help="database connections (lanes) per ingest worker (default"
-        " FIELDRX_WORKER_DB_CONNECTIONS, 4)",
+        " FIELDRX_WORKER_DB_CONNECTIONS, 1)",
     )
     g.add_argument(
         "--client-id",
