@@ -3,8 +3,10 @@
 Everything runs against a throw-away database: this script starts its own API
 server (uvicorn, ``--workers`` processes on a free port) or, for MQTT, its own
 Mosquitto (the project's deploy/mosquitto.conf on a free port: no anonymous
-clients, each machine logs in with its device token) and two ``fieldrx worker``
-processes sharing the subscription.
+clients, each machine logs in with its device token) and ``--workers`` (default 2)
+``fieldrx worker`` processes sharing the subscription, each with its default lanes
+(FIELDRX_WORKER_DB_CONNECTIONS; ``--db-connections`` overrides): one worker per core,
+as docs/scale.md sizes them.
 
 Each machine has ``hz * seconds`` records (default 200 machines x 10 Hz x 60 s
 = 120,000). They are replayed as fast as the server accepts them (a fleet
@@ -675,6 +677,12 @@ def main() -> int:
     ap.add_argument("--concurrency", type=int, default=8, help="HTTP requests in flight")
     ap.add_argument("--batch-ms", type=int, default=100, help="MQTT worker batching window")
     ap.add_argument(
+        "--db-connections",
+        type=int,
+        default=0,
+        help="database connections per MQTT ingest worker (default: the worker's default)",
+    )
+    ap.add_argument(
         "--realtime", action="store_true", help="produce at --hz instead of replaying a backlog"
     )
     ap.add_argument(
@@ -752,6 +760,7 @@ def main() -> int:
             env["MQTT_URL"] = broker.url
             group = "bench"
             logs = [tmp / f"worker{i}.log" for i in range(workers)]
+            lanes = ["--db-connections", str(args.db_connections)] if args.db_connections else []
             for log in logs:
                 w = start(
                     [
@@ -765,6 +774,7 @@ def main() -> int:
                         str(args.batch_ms),
                         "--mqtt-url",
                         f"mqtt://127.0.0.1:{port}",
+                        *lanes,
                     ],
                     env,
                     log,

@@ -30,6 +30,10 @@ class Settings(BaseSettings):
     )
     worker_node: str = Field(default="", alias="FIELDRX_WORKER_NODE")
     worker_slot_dir: str = Field(default="", alias="FIELDRX_WORKER_SLOT_DIR")
+    # database connections (lanes) per ingest worker: batches of different machines commit
+    # at once (fleet/worker.py); 1: on one 2-core host more lanes only added contention
+    # (docs/scale.md section 5 for the measurements)
+    worker_db_connections: int = Field(default=1, ge=1, alias="FIELDRX_WORKER_DB_CONNECTIONS")
     secret_key: str = Field(default="dev-insecure-change-me", alias="SECRET_KEY")
     host: str = Field(default="127.0.0.1", alias="FIELDRX_HOST")
     port: int = Field(default=8000, alias="FIELDRX_PORT")

@@ -41,6 +41,13 @@ def register(subparsers: Any) -> None:
     g.add_argument("--batch-ms", type=float, default=100.0, help="batching window, ms")
     g.add_argument("--mqtt-url", default=None, help="default: settings MQTT_URL")
     g.add_argument(
+        "--db-connections",
+        type=int,
+        default=None,
+        help="database connections (lanes) per ingest worker (default"
+        " FIELDRX_WORKER_DB_CONNECTIONS, 1)",
+    )
+    g.add_argument(
         "--client-id",
         default=None,
         help="MQTT client id (default: fieldrx-worker-GROUP-HOST-SLOT, the lowest free slot)",
@@ -77,6 +84,7 @@ def _run_ingest(args: argparse.Namespace, stop: threading.Event) -> None:
         slot_dir=s.worker_slot_dir,
         maintenance_s=s.telemetry_maintenance_s,
         retention_days=s.telemetry_retention_days,
+        db_connections=args.db_connections or s.worker_db_connections,
     )
     stats = worker.run(stop)
     logging.getLogger(__name__).warning("ingest worker stopped: %s", stats)

@@ -130,14 +130,17 @@ def ingest_cells(
     with pipelined(conn) as cur:
         with conn.pipeline():  # BEGIN travels with the lock query: one round trip
             begin(cur)
+            # the lock alone first: a statement's snapshot predates its lock wait
+            # (ingest._lock_machine)
+            cur.execute("SELECT pg_advisory_xact_lock(%s, %s)", (LOCK_NS, machine_id))
             cur.execute(
                 "SELECT m.organisation_id, s.acked_seq,"
                 " (SELECT coalesce(array_agg(j.id), '{}') FROM jobs j WHERE j.machine_id = m.id"
                 "  AND j.id = ANY(%s))"
-                " FROM (SELECT pg_advisory_xact_lock(%s, %s)) AS lock, machines m"
+                " FROM machines m"
                 " LEFT JOIN cell_record_streams s ON s.machine_id = m.id AND s.stream = %s"
                 " WHERE m.id = %s",
-                (list({r[3] for r in rows.values()}), LOCK_NS, machine_id, stream, machine_id),
+                (list({r[3] for r in rows.values()}), stream, machine_id),
             )
             info = cur.fetchone()
         if info is None:

@@ -95,7 +95,7 @@ PROGRESS_BY_WORK = ("ndvi_topdress", "seeding_depth")
 INT4_MAX = 2**31 - 1
 INT8_MAX = 2**63 - 1
 _ALARM_SET = frozenset(ALARMS)
-_LOCK_NS = 7001  # advisory lock namespace for per-machine ingest
+LOCK_NS = 7001  # advisory lock namespace for per-machine ingest
 
 
 class IngestError(ValueError):
@@ -400,7 +400,14 @@ class MachineInfo:
 
 
 def _lock_machine(cur: psycopg.Cursor[Any], machine_id: int, stream: str) -> MachineInfo | None:
-    """Take the machine's ingest lock and read what this batch needs, in one round trip."""
+    """Take the machine's ingest lock and read what this batch needs, in one round trip
+    (the caller's pipeline).
+
+    The lock is its own statement: PostgreSQL takes a statement's snapshot when the
+    statement starts, so a read in the statement that waits for the lock would see the
+    stream as it was before the batch that held the lock committed (a resend stored
+    twice, an ack short of what is stored: tests/fleet/test_ingest_concurrency.py)."""
+    cur.execute("SELECT pg_advisory_xact_lock(%s, %s)", (LOCK_NS, machine_id))
     cur.execute(
         "SELECT m.organisation_id, m.speed_min_m_s, m.speed_max_m_s, ts.acked_seq,"
         " extract(epoch FROM s.last_t)::float8,"
@@ -410,11 +417,11 @@ def _lock_machine(cur: psycopg.Cursor[Any], machine_id: int, stream: str) -> Mac
         " (SELECT extract(epoch FROM max(o.last_seen_at))::float8 FROM telemetry_streams o"
         "   WHERE o.machine_id = m.id AND o.stream <> %s),"
         " ts.max_seq, ts.first_t, ts.last_t"
-        " FROM (SELECT pg_advisory_xact_lock(%s, %s)) AS lock, machines m"
+        " FROM machines m"
         " LEFT JOIN machine_status s ON s.machine_id = m.id"
         " LEFT JOIN telemetry_streams ts ON ts.machine_id = m.id AND ts.stream = %s"
         " WHERE m.id = %s",
-        (stream, _LOCK_NS, machine_id, stream, machine_id),
+        (stream, stream, machine_id),
     )
     r = cur.fetchone()
     if r is None:
