@@ -4,10 +4,9 @@
 // (The prescription-map kind is created through the UI in scenario.test.mjs.)
 import { after, before, describe, it } from 'node:test';
 import assert from 'node:assert/strict';
-import { spawn } from 'node:child_process';
 import { existsSync, writeFileSync } from 'node:fs';
 import { join } from 'node:path';
-import { ARTIFACTS, BASE_URL, EMAIL, PASSWORD, ROOT, api, apiLogin, launch, listOf, mapIdle, serverUp, shot, uiServed } from './lib.mjs';
+import { ARTIFACTS, BASE_URL, ROOT, api, apiLogin, launch, listOf, mapIdle, run, serverUp, shot, signIn, uiServed } from './lib.mjs';
 
 const up = await serverUp();
 const ui = up && (await uiServed());
@@ -20,19 +19,6 @@ const PLOT = {
 };
 const SEED000_TABLE = { kind: 'table', rpm: [6, 15, 25, 40], g_per_rev: [525, 510, 498, 488], min_rpm: 6, max_rpm: 40 };
 
-function run(cmd, args, timeout) {
-  return new Promise((resolve) => {
-    const p = spawn(cmd, args, { stdio: ['ignore', 'pipe', 'pipe'] });
-    let out = '';
-    p.stdout.on('data', (d) => (out += d));
-    p.stderr.on('data', (d) => (out += d));
-    const timer = setTimeout(() => p.kill('SIGTERM'), timeout);
-    p.on('close', (code) => {
-      clearTimeout(timer);
-      resolve({ code, out });
-    });
-  });
-}
 
 describe('job kinds in the browser', { skip: SKIP }, () => {
   let B;
@@ -42,11 +28,7 @@ describe('job kinds in the browser', { skip: SKIP }, () => {
     token = await apiLogin();
     B = await launch();
     page = B.page;
-    await page.goto(`${BASE_URL}/#/login`);
-    await page.fill('[data-testid=login-email]', EMAIL);
-    await page.fill('[data-testid=login-password]', PASSWORD);
-    await page.click('[data-testid=login-submit]');
-    await page.waitForSelector('[data-testid=field-list]');
+    await signIn(page);
   });
   after(async () => {
     if (B) {
@@ -94,7 +76,7 @@ describe('job kinds in the browser', { skip: SKIP }, () => {
     const file = join(ARTIFACTS, `kind-job-${job.id}.json`);
     writeFileSync(file, Buffer.from(await res.arrayBuffer()));
     const r = await run(EDGE, ['simulate', file, '--server', BASE_URL, '--token', dt.data.token, '--json'], 300_000);
-    writeFileSync(join(ARTIFACTS, `kind-simulate-${job.id}.log`), r.out);
+    writeFileSync(join(ARTIFACTS, `kind-simulate-${job.id}.log`), r.out + r.err);
     assert.equal(r.code, 0, 'simulator exit code');
     return JSON.parse(r.out.trim().split('\n').pop());
   }

@@ -6,7 +6,7 @@ import { after, before, describe, it } from 'node:test';
 import assert from 'node:assert/strict';
 import { mkdirSync, writeFileSync } from 'node:fs';
 import { join } from 'node:path';
-import { ARTIFACTS, BASE_URL, EMAIL, PASSWORD, ROOT, api, apiLogin, launch, mapIdle, serverUp, shot, uiServed } from './lib.mjs';
+import { ARTIFACTS, BASE_URL, ROOT, api, apiLogin, launch, mapIdle, serverUp, shot, signIn, uiServed } from './lib.mjs';
 
 const up = await serverUp();
 const ui = up && (await uiServed());
@@ -80,11 +80,7 @@ describe('fleet, route history and layouts in the browser', { skip: SKIP }, () =
 
     B = await launch({ width: 1280, height: 900 });
     page = B.page;
-    await page.goto(`${BASE_URL}/#/login`);
-    await page.fill('[data-testid=login-email]', EMAIL);
-    await page.fill('[data-testid=login-password]', PASSWORD);
-    await page.click('[data-testid=login-submit]');
-    await page.waitForSelector('[data-testid=field-list]');
+    await signIn(page);
   });
   after(async () => {
     if (B) {

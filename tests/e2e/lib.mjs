@@ -1,5 +1,6 @@
 // Shared helpers for the browser tests: playwright-core from frontend/node_modules
 // (one `npm ci` installs everything), Debian's chromium, screenshots, API calls.
+import { spawn } from 'node:child_process';
 import { createRequire } from 'node:module';
 import { mkdirSync, mkdtempSync, rmSync } from 'node:fs';
 import { tmpdir } from 'node:os';
@@ -159,3 +160,28 @@ export function listOf(r) {
 }
 
 export const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
+
+/** Run a command to its end (killed after `timeout` ms): `{ code, out, err }` (stdout, stderr). */
+export function run(cmd, args, timeout) {
+  return new Promise((resolve) => {
+    const p = spawn(cmd, args, { stdio: ['ignore', 'pipe', 'pipe'] });
+    let out = '';
+    let err = '';
+    p.stdout.on('data', (d) => (out += d));
+    p.stderr.on('data', (d) => (err += d));
+    const timer = setTimeout(() => p.kill('SIGTERM'), timeout);
+    p.on('close', (code) => {
+      clearTimeout(timer);
+      resolve({ code, out, err });
+    });
+  });
+}
+
+/** Sign in through the login screen as the demo agronomist (or EMAIL/PASSWORD). */
+export async function signIn(page) {
+  await page.goto(`${BASE_URL}/#/login`);
+  await page.fill('[data-testid=login-email]', EMAIL);
+  await page.fill('[data-testid=login-password]', PASSWORD);
+  await page.click('[data-testid=login-submit]');
+  await page.waitForSelector('[data-testid=field-list]');
+}

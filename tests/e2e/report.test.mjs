@@ -5,10 +5,9 @@
 // Set-up through the API and `fieldrx-edge simulate --server`; the report is what is tested.
 import { after, before, describe, it } from 'node:test';
 import assert from 'node:assert/strict';
-import { spawn } from 'node:child_process';
 import { existsSync, readFileSync, writeFileSync } from 'node:fs';
 import { join } from 'node:path';
-import { ARTIFACTS, BASE_URL, EMAIL, PASSWORD, ROOT, api, apiLogin, launch, mapIdle, serverUp, shot, uiServed } from './lib.mjs';
+import { ARTIFACTS, BASE_URL, ROOT, api, apiLogin, launch, mapIdle, run, serverUp, shot, signIn, uiServed } from './lib.mjs';
 
 const up = await serverUp();
 const ui = up && (await uiServed());
@@ -22,19 +21,6 @@ const PLOT = {
 const FIELD = 'report plot';
 const PRODUCT = 'Urea 46 % N';
 
-function run(cmd, args, timeout) {
-  return new Promise((resolve) => {
-    const p = spawn(cmd, args, { stdio: ['ignore', 'pipe', 'pipe'] });
-    let out = '';
-    p.stdout.on('data', (d) => (out += d));
-    p.stderr.on('data', (d) => (out += d));
-    const timer = setTimeout(() => p.kill('SIGTERM'), timeout);
-    p.on('close', (code) => {
-      clearTimeout(timer);
-      resolve({ code, out });
-    });
-  });
-}
 
 describe('job report: loading, print, exports', { skip: SKIP }, () => {
   let B;
@@ -69,16 +55,12 @@ describe('job report: loading, print, exports', { skip: SKIP }, () => {
     const file = join(ARTIFACTS, `report-job-${job.id}.json`);
     writeFileSync(file, Buffer.from(await res.arrayBuffer()));
     const r = await run(EDGE, ['simulate', file, '--server', BASE_URL, '--token', dt.data.token, '--json'], 300_000);
-    writeFileSync(join(ARTIFACTS, `report-simulate-${job.id}.log`), r.out);
+    writeFileSync(join(ARTIFACTS, `report-simulate-${job.id}.log`), r.out + r.err);
     assert.equal(r.code, 0, 'simulator exit code');
 
     B = await launch();
     page = B.page;
-    await page.goto(`${BASE_URL}/#/login`);
-    await page.fill('[data-testid=login-email]', EMAIL);
-    await page.fill('[data-testid=login-password]', PASSWORD);
-    await page.click('[data-testid=login-submit]');
-    await page.waitForSelector('[data-testid=field-list]');
+    await signIn(page);
   });
   after(async () => {
     if (B) {

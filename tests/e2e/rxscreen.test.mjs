@@ -6,7 +6,7 @@ import { after, before, describe, it } from 'node:test';
 import assert from 'node:assert/strict';
 import { writeFileSync } from 'node:fs';
 import { join } from 'node:path';
-import { ARTIFACTS, BASE_URL, EMAIL, PASSWORD, api, apiLogin, hasRoute, launch, mapIdle, serverUp, shot, uiServed } from './lib.mjs';
+import { ARTIFACTS, BASE_URL, api, apiLogin, hasRoute, launch, mapIdle, serverUp, shot, signIn, uiServed } from './lib.mjs';
 
 const up = await serverUp();
 const ui = up && (await uiServed());
@@ -64,11 +64,7 @@ describe('prescription screen (issue 15 scope 4)', { skip: SKIP }, () => {
     planId = p.data.id;
     B = await launch();
     page = B.page;
-    await page.goto(`${BASE_URL}/#/login`);
-    await page.fill('[data-testid=login-email]', EMAIL);
-    await page.fill('[data-testid=login-password]', PASSWORD);
-    await page.click('[data-testid=login-submit]');
-    await page.waitForSelector('[data-testid=field-list]');
+    await signIn(page);
   });
   after(async () => {
     if (B) {

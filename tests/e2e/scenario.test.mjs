@@ -18,6 +18,7 @@ import {
   launch,
   listOf,
   mapIdle,
+  run,
   serverUp,
   shot,
   sleep,
@@ -649,20 +650,6 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
   });
 });
 
-function run(cmd, args, timeout) {
-  return new Promise((resolve) => {
-    const p = spawn(cmd, args, { stdio: ['ignore', 'pipe', 'pipe'] });
-    let out = '';
-    let err = '';
-    p.stdout.on('data', (d) => (out += d));
-    p.stderr.on('data', (d) => (err += d));
-    const timer = setTimeout(() => p.kill('SIGTERM'), timeout);
-    p.on('close', (code) => {
-      clearTimeout(timer);
-      resolve({ code, out, err });
-    });
-  });
-}
 
 function waitExit(p, ms) {
   return new Promise((resolve) => {
