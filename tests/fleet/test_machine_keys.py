@@ -220,13 +220,19 @@ def test_track_reads_only_the_days_it_shows(
 
     # the route: no range shows the latest day's records; an open start reaches back
     base = f"/api/v1/machines/{job.machine_id}/track"
-    page = client.get(base, headers=org.headers()).json()
+    r = client.get(base, headers=org.headers())
+    page = r.json()
     assert page["total"] == 50
+    # ... and says which range it answered (not silently less than everything)
+    t_from = dt.datetime.fromisoformat(r.headers["X-FieldRx-From"])
+    t_to = dt.datetime.fromisoformat(r.headers["X-FieldRx-To"])
+    assert t_from.timestamp() > days[1]
+    assert t_to.timestamp() == pytest.approx(days[2] + 50, abs=1e-3)
     assert [f["properties"]["seq"] for f in page["features"]][:2] == [201, 202]
     to = dt.datetime.fromtimestamp(days[2] + 100, dt.UTC).isoformat()
     page = client.get(base, params={"to": to, "limit": 5}, headers=org.headers()).json()
     assert page["total"] == 150 and page["features"][0]["properties"]["seq"] == 1
-    chart = client.get(
-        f"/api/v1/machines/{job.machine_id}/telemetry?limit=3", headers=org.headers()
-    ).json()
+    r = client.get(f"/api/v1/machines/{job.machine_id}/telemetry?limit=3", headers=org.headers())
+    assert r.headers["X-FieldRx-From"] == t_from.isoformat()
+    chart = r.json()
     assert chart["seq"] == [248, 249, 250]

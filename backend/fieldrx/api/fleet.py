@@ -219,6 +219,16 @@ TRACK_WHERE = "machine_id = :m AND geom IS NOT NULL AND t BETWEEN :t0 AND :t1"
 CHART_WHERE = "machine_id = :m AND t BETWEEN :t0 AND :t1"
 
 
+def window_headers(window: dict[str, Any]) -> dict[str, str]:
+    """The time range a track or chart answer covers, as ``X-FieldRx-From`` /
+    ``X-FieldRx-To`` (ISO 8601): a request without a range gets the machine's latest day,
+    and says so, rather than silently answering less than "everything" (empty: no records)."""
+    return {
+        "X-FieldRx-From": window["t0"].isoformat() if window["t0"] else "",
+        "X-FieldRx-To": window["t1"].isoformat() if window["t1"] else "",
+    }
+
+
 @router.get("/machines/{machine_id:int}/track", response_model=PointPage)
 def machine_track(
     machine_id: int,
@@ -229,12 +239,16 @@ def machine_track(
     limit: int = Query(default=1000, ge=1, le=10000),
     offset: int = Query(default=0, ge=0),
 ) -> Response:
-    """History replay: the machine's positions in time order, one page at a time (GeoJSON)."""
+    """History replay: the machine's positions in time order, one page at a time (GeoJSON).
+
+    Without ``from``/``to``: the machine's latest day of records. The range answered is in
+    the ``X-FieldRx-From`` / ``X-FieldRx-To`` headers; ``/track/days`` lists every day.
+    """
     get_scoped(session, Machine, machine_id, principal)
     frm, to = _range(frm, to)
     # bounded in time (no range: the machine's latest day), so only those days are read
-    params = {**machine_window(session, machine_id, frm, to), "m": machine_id}
-    params.update(lim=limit, off=offset)
+    window = machine_window(session, machine_id, frm, to)
+    params = {**window, "m": machine_id, "lim": limit, "off": offset}
     total = session.execute(
         text(f"SELECT count(*) FROM telemetry WHERE {TRACK_WHERE}"), params
     ).scalar_one()
@@ -248,7 +262,9 @@ def machine_track(
         ),
         params,
     )
-    return point_page(rows, total or 0, limit, offset, machine_id=machine_id)
+    page = point_page(rows, total or 0, limit, offset, machine_id=machine_id)
+    page.headers.update(window_headers(window))
+    return page
 
 
 DAYS_SQL = """
@@ -321,13 +337,15 @@ def machine_telemetry(
     machine_id: int,
     principal: UserDep,
     session: SessionDep,
+    response: Response,
     frm: dt.datetime | None = Query(default=None, alias="from"),
     to: dt.datetime | None = None,
     limit: int = Query(default=5000, ge=1, le=50000),
 ) -> dict[str, Any]:
     """Column arrays for charts (raw vs filtered speed, target vs actual shaft speed, rates).
 
-    Without a range: the latest ``limit`` records; with one: the first ``limit`` in it.
+    Without a range: the latest ``limit`` records of the machine's latest day; with one: the
+    first ``limit`` in it. The range answered is in ``X-FieldRx-From`` / ``X-FieldRx-To``.
     """
     get_scoped(session, Machine, machine_id, principal)
     frm, to = _range(frm, to)
@@ -339,6 +357,7 @@ def machine_telemetry(
     )
     window = machine_window(session, machine_id, frm, to)
     rows = session.execute(text(sql), {**window, "m": machine_id, "lim": limit}).all()
+    response.headers.update(window_headers(window))
     if latest:
         rows = rows[::-1]
     keys = ("seq", "t", *CHART_COLUMNS)

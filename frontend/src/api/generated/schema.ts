@@ -1173,7 +1173,8 @@ export interface paths {
          * Machine Telemetry
          * @description Column arrays for charts (raw vs filtered speed, target vs actual shaft speed, rates).
          *
-         *     Without a range: the latest ``limit`` records; with one: the first ``limit`` in it.
+         *     Without a range: the latest ``limit`` records of the machine's latest day; with one: the
+         *     first ``limit`` in it. The range answered is in ``X-FieldRx-From`` / ``X-FieldRx-To``.
          */
         get: operations["machine_telemetry_api_v1_machines__machine_id__telemetry_get"];
         put?: never;
@@ -1216,6 +1217,9 @@ export interface paths {
         /**
          * Machine Track
          * @description History replay: the machine's positions in time order, one page at a time (GeoJSON).
+         *
+         *     Without ``from``/``to``: the machine's latest day of records. The range answered is in
+         *     the ``X-FieldRx-From`` / ``X-FieldRx-To`` headers; ``/track/days`` lists every day.
          */
         get: operations["machine_track_api_v1_machines__machine_id__track_get"];
         put?: never;
