@@ -8,11 +8,12 @@ brute-force scan.
 
 * :func:`extent_lower_bounds` -- every strip of a part holds at least one swath: the
   number of strips, from the part's width across phi (rotating calipers over the hull).
-* :func:`analytic_lower_bounds` -- the scan-line form, evaluated for all angles at once
-  from the vertices alone (no per-strip work, ``O(vertices x angles)``):
-  centre-line intervals (edge crossings / 2), minus an upper bound on the notches
-  narrower than w/2 that the planner bridges, plus the isolated spike tips that no
-  centre line reaches (each such tip is a strip piece of its own, hence a swath).
+* :class:`AnalyticBounds` (:func:`analytic_lower_bounds`) -- the scan-line form,
+  evaluated for all angles at once from the vertices alone (no per-strip work,
+  ``O(vertices x angles)``): centre-line intervals (edge crossings / 2), minus an upper
+  bound on the notches narrower than w/2 that the planner bridges (``weak``), plus
+  the isolated spike tips that no centre line reaches (each such tip is a strip piece
+  of its own, hence a swath; ``full``, asked for the angles the search may still take).
 * :func:`crossing_lower_bounds` -- the centre-line intervals with the exact w/2 bridging
   rule, per angle (finer, ~100x dearer than the analytic bound, ~30x cheaper than a
   layout); used on the few angles the analytic bound cannot prune.
@@ -355,6 +356,71 @@ def _spike_tips(
     return out
 
 
+class AnalyticBounds:
+    """The analytic swath-count lower bound of some parts at given angles, in two steps.
+
+    The constructor computes, per part and for every angle at once, the strips (their
+    number is :func:`extent_lower_bounds`' bound) and the centre-line intervals: each
+    edge crosses the centre lines between its end points' heights (a closed form), every
+    line crosses the boundary twice per interval, so the intervals summed over lines
+    are half the crossings; minus the narrow gaps the planner bridges
+    (:func:`_narrow_notch_lines`, an over-count). ``weak`` is the bound from these alone.
+    :meth:`full` adds, for the angles asked, the isolated spike tips no centre line
+    reaches (:func:`_spike_tips`): the dearest term (~70 % of the cost on a 40-vertex
+    field), so the heading search asks for it only on the angles it may still take.
+    The tips only add, so ``weak`` is never above the full bound: both are lower bounds.
+    ``holes`` are the field's holes (the planner cuts swaths at them; a tip near one is
+    not counted).
+    """
+
+    def __init__(
+        self,
+        parts: list[Polygon],
+        w: float,
+        phis: np.ndarray,
+        tol: float,
+        holes: BaseGeometry | None = None,
+    ) -> None:
+        self.w, self.tol = w, tol
+        self.phis = np.asarray(phis, float)
+        sn, cs = np.sin(self.phis), np.cos(self.phis)
+        hole_rings = [
+            np.asarray(h.exterior.coords)
+            for h in (shapely.get_parts(holes) if holes is not None and not holes.is_empty else [])
+        ]
+        ob_a = np.concatenate([r[:-1] for r in hole_rings] or [np.zeros((0, 2))])
+        ob_b = np.concatenate([r[1:] for r in hole_rings] or [np.zeros((0, 2))])
+        self.weak = np.zeros(len(self.phis), dtype=np.int64)
+        self._concave: list[tuple] = []  # per non-convex part: what the spike tips need
+        for p in parts:
+            v = _Vertices.of(p)
+            X = v.xy[:, :1] * cs + v.xy[:, 1:] * sn
+            Y = -v.xy[:, :1] * sn + v.xy[:, 1:] * cs
+            ye = Y[v.exterior]
+            y0 = ye.min(0)
+            n = np.maximum(1, np.ceil((ye.max(0) - y0 - tol) / w - N_EPS)).astype(np.int64)
+            if v.exterior.all() and v.convex.all():
+                self.weak += n  # a convex part: one piece per strip, the strip count
+                continue
+            lines = _Lines(y0, n, w)
+            Yn = Y[v.next]
+            crossings = lines.between(np.minimum(Y, Yn), np.maximum(Y, Yn)).sum(0)
+            intervals = crossings // 2 - _narrow_notch_lines(v, X, Y, lines, w)
+            self.weak += np.maximum(n, intervals)
+            self._concave.append((v, X, Y, y0, n, intervals, (ob_a - v.origin, ob_b - v.origin)))
+
+    def full(self, idx: np.ndarray) -> np.ndarray:
+        """The full analytic bound at the angles ``phis[idx]`` (``weak`` + spike tips)."""
+        lb = self.weak[idx].copy()
+        for v, X, Y, y0, n, intervals, obstacles in self._concave:
+            X_, Y_, n_, iv = X[:, idx], Y[:, idx], n[idx], intervals[idx]
+            tips = _spike_tips(
+                v, X_, Y_, _Lines(y0[idx], n_, self.w), self.tol, obstacles, self.phis[idx]
+            )
+            lb += np.maximum(n_, iv + tips) - np.maximum(n_, iv)
+        return lb
+
+
 def analytic_lower_bounds(
     parts: list[Polygon],
     w: float,
@@ -362,44 +428,10 @@ def analytic_lower_bounds(
     tol: float,
     holes: BaseGeometry | None = None,
 ) -> np.ndarray:
-    """Swath-count lower bound for every angle in ``phis`` at once, from the vertices.
-
-    Per part: the strips (their number is :func:`extent_lower_bounds`' bound) and the
-    centre-line intervals: each edge crosses the centre lines between its end points'
-    heights (a closed form), every line crosses the boundary twice per interval, so the
-    intervals summed over lines are half the crossings; minus the narrow gaps the
-    planner bridges (:func:`_narrow_notch_lines`, an over-count), plus the isolated
-    spike tips no centre line reaches (:func:`_spike_tips`). ``holes`` are the field's
-    holes (the planner cuts swaths at them; a tip near one is not counted).
-    """
-    phis = np.asarray(phis, float)
-    lb = np.zeros(len(phis), dtype=np.int64)
-    sn, cs = np.sin(phis), np.cos(phis)
-    hole_rings = [
-        np.asarray(h.exterior.coords)
-        for h in (shapely.get_parts(holes) if holes is not None and not holes.is_empty else [])
-    ]
-    for p in parts:
-        v = _Vertices.of(p)
-        X = v.xy[:, :1] * cs + v.xy[:, 1:] * sn
-        Y = -v.xy[:, :1] * sn + v.xy[:, 1:] * cs
-        ye = Y[v.exterior]
-        y0 = ye.min(0)
-        n = np.maximum(1, np.ceil((ye.max(0) - y0 - tol) / w - N_EPS)).astype(np.int64)
-        if v.exterior.all() and v.convex.all():
-            lb += n  # a convex part: one piece per strip, the strip count is the bound
-            continue
-        lines = _Lines(y0, n, w)
-        Yn = Y[v.next]
-        crossings = lines.between(np.minimum(Y, Yn), np.maximum(Y, Yn)).sum(0)
-        intervals = crossings // 2 - _narrow_notch_lines(v, X, Y, lines, w)
-        obstacles = (
-            np.concatenate([r[:-1] for r in hole_rings] or [np.zeros((0, 2))]) - v.origin,
-            np.concatenate([r[1:] for r in hole_rings] or [np.zeros((0, 2))]) - v.origin,
-        )
-        intervals += _spike_tips(v, X, Y, lines, tol, obstacles, phis)
-        lb += np.maximum(n, intervals)
-    return lb
+    """Swath-count lower bound for every angle in ``phis`` at once, from the vertices
+    (:class:`AnalyticBounds`, full bound everywhere)."""
+    ab = AnalyticBounds(parts, w, phis, tol, holes)
+    return ab.full(np.arange(len(ab.phis)))
 
 
 def crossing_lower_bounds(

@@ -8,6 +8,7 @@ whole degree with a branch and bound (see :func:`optimal_phi`).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import Protocol
 
 import numpy as np
@@ -15,7 +16,7 @@ from shapely.geometry import MultiPolygon, Polygon
 from shapely.geometry.base import BaseGeometry
 
 from .boundary import parts
-from .bounds import analytic_lower_bounds, crossing_lower_bounds
+from .bounds import AnalyticBounds, crossing_lower_bounds
 from .decomposition import layout
 from .frame import frame_for
 from .order import endpoints
@@ -161,12 +162,15 @@ def optimal_phi(
     (Fields2Cover's BruteForce with the swath-count objective).
 
     Branch and bound (issue 16): every candidate gets the analytic swath-count lower
-    bound (:func:`.bounds.analytic_lower_bounds`, all angles in one vectorised pass over
-    the vertices, no swath generation). Candidates are then taken in increasing bound
-    order and the objective (one swath layout) is evaluated only while the bound is
-    below the best count found; an angle whose analytic bound is below it gets the finer
-    scan-line bound (:func:`.bounds.crossing_lower_bounds`) first. The bound equals the
-    true count at the optimum on the bench fields, so one layout usually decides.
+    bound (:class:`.bounds.AnalyticBounds`, all angles in one vectorised pass over the
+    vertices, no swath generation), first without its dearest term (the spike tips),
+    which is added only for the angles the search may still take (see
+    :func:`_branch_and_bound`; about half the bounds' cost on the 40-vertex field at 2.3 m,
+    where the count prunes all but ~25 angles). Candidates are then taken in increasing
+    bound order and the objective (one swath layout) is evaluated only while the bound
+    is not above the best count found; an angle taken after the first gets the finer
+    scan-line bound (:func:`.bounds.crossing_lower_bounds`) first. The bound equals
+    the true count at the optimum on the bench fields, so one layout usually decides.
 
     Ties in the swath count are broken by the objective's next criterion (the
     non-working estimate): every candidate whose bounds do not exceed the best count is
@@ -175,6 +179,14 @@ def optimal_phi(
     irregular 40-vertex field at 12 m with one headland pass (2,394 -> 2,707 m). The
     longest edge is evaluated first among equal bounds and wins exact ties, so
     ``optimal`` is never worse than ``longest_edge`` by the objective.
+
+    Speed: the search costs the bounds plus one layout per evaluated candidate, and a
+    layout costs what one angle of the 1-degree brute force costs, so with k
+    evaluations the speed-up over that scan is below 180 / k: ~270x at k = 1, at most
+    90x at k = 2 (the L at 12 m) and 60x at k = 3 (pond, irregular, 500 ha at 12 m,
+    whose tied candidates' non-working estimates are 994 / 997 / 1,011 m,
+    2,071 / 2,129 / 3,444 m and 5,108 / 5,128 / 8,095 m: only an exact evaluation
+    tells the first two of each apart).
     """
     tol = default_strip_tolerance(w) if tol is None else tol
     objective = objective if objective is not None else SwathCountObjective()
@@ -186,21 +198,12 @@ def optimal_phi(
     near = np.abs((ints[:, None] - geo[None, :] + math.pi / 2) % math.pi - math.pi / 2)
     ints = ints[(near > 1e-9).all(axis=1)] if len(geo) else ints
     angles = np.r_[geo, ints]
-    lb = analytic_lower_bounds(polys, w, angles, tol, holes_of(field_geom))
-    results: dict[float, tuple[int, float]] = {}
-    best_n = math.inf
-    refined = 0
-    for j in np.lexsort((np.arange(len(angles)), lb)):  # le (index 0) first among ties
-        if lb[j] > best_n:
-            break
-        if results:
-            refined += 1
-            fine = int(crossing_lower_bounds(polys, w, angles[j : j + 1], tol)[0])
-            if fine > best_n:
-                continue
-        phi = float(angles[j])
-        results[phi] = objective(region, w, phi, field_geom, tol)
-        best_n = min(best_n, results[phi][0])
+    bounds = AnalyticBounds(polys, w, angles, tol, holes_of(field_geom))
+    results, refined = _branch_and_bound(
+        bounds,
+        lambda phi: int(crossing_lower_bounds(polys, w, np.array([phi]), tol)[0]),
+        lambda phi: objective(region, w, phi, field_geom, tol),
+    )
     best = min(results.items(), key=lambda kv: (kv[1][0], kv[1][1], kv[0] != le))
     ints_set = set(ints.tolist())
     return best[0], {
@@ -209,3 +212,49 @@ def optimal_phi(
         "integer_degree_checks": sum(1 for phi in results if phi in ints_set),
         "candidates": len(angles),
     }
+
+
+def _branch_and_bound(
+    bounds: AnalyticBounds,
+    fine_bound: Callable[[float], int],
+    evaluate_at: Callable[[float], tuple[int, float]],
+) -> tuple[dict[float, tuple[int, float]], int]:
+    """The objective at every angle whose lower bounds do not exceed the best swath
+    count, taken in increasing (bound, index) order; returns them and the number of
+    scan-line refinements.
+
+    Bounds are tightened lazily: every angle starts with the analytic bound without
+    spike tips (cheap, weaker); before an angle is refined or evaluated, it and every
+    other untightened angle that could still be taken (cheap bound <= best count, or <=
+    its own before the first evaluation) get the full analytic bound in one call. A
+    weak bound is never above the full one, so the angle taken next is the one the full
+    bounds alone would give: the same evaluations as tightening all angles up front.
+    """
+    angles = bounds.phis
+    lb = bounds.weak.copy()
+    full = np.zeros(len(angles), bool)
+    done = np.zeros(len(angles), bool)  # evaluated, or pruned by the scan-line bound
+    results: dict[float, tuple[int, float]] = {}
+    best_n = math.inf
+    refined = 0
+    while not done.all():
+        open_ = np.flatnonzero(~done)
+        j = int(open_[np.lexsort((open_, lb[open_]))[0]])  # le (index 0) first among ties
+        if lb[j] > best_n:
+            break
+        if not full[j]:
+            tight = full & ~done
+            cap = best_n if results else (lb[tight].min() if tight.any() else lb[j])
+            batch = ~full & ~done & (lb <= cap)
+            lb[batch] = bounds.full(np.flatnonzero(batch))
+            full |= batch
+            continue
+        done[j] = True
+        if results:
+            refined += 1
+            if fine_bound(float(angles[j])) > best_n:
+                continue
+        phi = float(angles[j])
+        results[phi] = evaluate_at(phi)
+        best_n = min(best_n, results[phi][0])
+    return results, refined
