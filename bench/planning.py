@@ -16,7 +16,10 @@ key figures.
 Turns are drivable (issue 16): every plan uses a machine with a 6 m turning radius
 (Dubins U / bulb turns), so ``nonwork_m`` and ``turn_s`` are real turn lengths and
 times; the heading table prints the speed-up of ``optimal`` over the 1-degree scan
-(target >= 100x), and the last table compares the 10 ha rectangle's turn length at
+(target >= 100x; with k layouts -- the ``evals`` column -- it is about 180 / k, see
+``optimal_phi``; on a loaded machine the fastest of a few millisecond runs finds a
+quiet moment more easily than the fastest of a few one-second scans, which flatters
+the ratio), and the last table compares the 10 ha rectangle's turn length at
 r = 5 m with Fields2Cover's recorded Dubins figure (3.66 km for 108 turns, issue 16).
 
 Run: .venv/bin/python bench/planning.py [--quick] [--repeats N]

@@ -181,12 +181,13 @@ def optimal_phi(
     ``optimal`` is never worse than ``longest_edge`` by the objective.
 
     Speed: the search costs the bounds plus one layout per evaluated candidate, and a
-    layout costs what one angle of the 1-degree brute force costs, so with k
-    evaluations the speed-up over that scan is below 180 / k: ~270x at k = 1, at most
-    90x at k = 2 (the L at 12 m) and 60x at k = 3 (pond, irregular, 500 ha at 12 m,
-    whose tied candidates' non-working estimates are 994 / 997 / 1,011 m,
+    layout costs what one angle of the 1-degree brute force costs (a little less at
+    the optimum, which tends to have fewer strip pieces than the average angle), so
+    with k evaluations the speed-up over that scan is about 180 / k: 180-290x at k = 1,
+    80-110x at k = 2 (the L) and 40-70x at k = 3 (pond, irregular, 500 ha at 12 m,
+    CPU time; their tied candidates' non-working estimates are 994 / 997 / 1,011 m,
     2,071 / 2,129 / 3,444 m and 5,108 / 5,128 / 8,095 m: only an exact evaluation
-    tells the first two of each apart).
+    tells the first two of each apart, so no cheap bound on the estimate prunes them).
     """
     tol = default_strip_tolerance(w) if tol is None else tol
     objective = objective if objective is not None else SwathCountObjective()
