@@ -7,11 +7,11 @@ and a worker holds dozens of batches at once. With CPython's default gen-0 thres
 hand again, then again in gen 1, and the full collections walked the whole imported
 heap (~130,000 objects: FastAPI, SQLAlchemy, pydantic, paho) as well: ``orjson.loads``
 showed up as 16 % of the worker's samples, and parsing + validating 64 held batches
-cost 9.4 µs per record against 6.2 µs with the collector off. Records hold no
+cost 9.4 µs per record against 6.5 µs with the collector off. Records hold no
 reference cycles, so the collector finds nothing in them; it only has to run rarely.
 
 ``tune_for_ingest``: the gen-0 threshold goes to ``GEN0_THRESHOLD`` (measured: 10,000
-still paid 7.1 µs, 50,000 as good as no collector; a collection of a few tens of
+still paid 7.1 µs, 50,000 6.2, as good as no collector; a collection of a few tens of
 thousands of young objects is a few ms) and the objects alive after start-up (modules,
 classes, settings) are frozen out of every later collection (``gc.freeze``). Cyclic
 garbage is still collected, at most ``GEN0_THRESHOLD`` allocations late.
