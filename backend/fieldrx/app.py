@@ -18,6 +18,7 @@ from fieldrx import __version__
 from fieldrx.apidocs import FIRST_CALL, install_docs
 from fieldrx.auth.mqtt import MqttCredentialError
 from fieldrx.errors import DomainError
+from fieldrx.fleet.gc_policy import tune_for_ingest
 from fieldrx.middleware import LimitsAndHeaders, install_log_redaction
 from fieldrx.services import bounded
 from fieldrx.settings import get_settings
@@ -200,4 +201,5 @@ def create_app() -> FastAPI:
             return FileResponse(index)
         return JSONResponse({"detail": f"not found: /{path}"}, status_code=404)
 
+    tune_for_ingest()  # telemetry bodies: the cyclic GC kept re-walking parsed records
     return app

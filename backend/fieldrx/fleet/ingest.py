@@ -57,7 +57,6 @@ from fieldrx_edge.protocol import (
     ALARMS,
     CELL_FORMAT_VERSION,
     EXTRA_FIELDS,
-    FIELD_SET,
     FLOAT_FIELDS,
     MAX_BATCHES,
     MAX_FIX_PERIOD_S,
@@ -237,12 +236,16 @@ def _fast_row(d: Any, machine_id: int, t_max: float, stream: str) -> TelemetryRo
     """
     if type(d) is not dict:
         return None
+    # n keys, all n fields present: exactly the fields (no subset test: issue 18)
     n = len(d)
-    if n == _N_FIELDS and d.keys() <= FIELD_SET:
-        values = _GET_ALL(d)
-    elif n == _N_FIELDS - 1 and d.keys() <= FIELD_SET and "fix_period_s" not in d:
-        values = (*_GET_V1(d), None)
-    else:
+    try:
+        if n == _N_FIELDS:
+            values = _GET_ALL(d)
+        elif n == _N_FIELDS - 1:
+            values = (*_GET_V1(d), None)
+        else:
+            return None
+    except KeyError:
         return None
     (m, s, t, lon, lat, fq, hdop, sraw, sfil, head, job, cell, trate, arate, trpm, arpm, duty,
      ndvi, depth, down, alarms, backlog, period) = values  # fmt: skip
