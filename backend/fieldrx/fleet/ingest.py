@@ -1019,9 +1019,7 @@ CELL_PROGRESS_CTE = """
 """
 
 
-def cell_progress_params(
-    machine_id: int, agg: dict[tuple[int, int], list[Any]]
-) -> dict[str, Any]:
+def cell_progress_params(machine_id: int, agg: dict[tuple[int, int], list[Any]]) -> dict[str, Any]:
     """``CELL_PROGRESS_CTE``'s parameters for these per-cell sums (``cell_progress``)."""
     items = list(agg.items())
 
