@@ -248,7 +248,7 @@ class CellWork:
         cur.execute(FINISH_SQL, {
             **cell_progress_params(self.machine_id, _per_cell(self.new)),
             "s": self.stream, "start": self.stream_start, "acked": self.result.acked_seq,
-            "done": sorted(set(self.rows) | self.dead), "nrec": len(self.new),
+            "done": _int_array(set(self.rows) | self.dead), "nrec": len(self.new),
         })  # fmt: skip
         row = cur.fetchone()
         assert row is not None
@@ -256,6 +256,11 @@ class CellWork:
         if self.conflict is not None:
             self.result.acked_seq = min(self.result.acked_seq, self.conflict - 1)
         return job_messages(self.machine_id, self.org, row[1] or [])
+
+
+def _int_array(values: set[int]) -> str:
+    """An int8[] parameter as its text (psycopg dumps a list element by element)."""
+    return "{" + ",".join(map(str, sorted(values))) + "}"
 
 
 def _per_cell(new: list[tuple[Any, ...]]) -> dict[tuple[int, int], list[Any]]:

@@ -981,12 +981,17 @@ def cell_progress(
 # n_cells): ``job_messages``
 CELL_PROGRESS_CTE = """
     new AS (
-        SELECT * FROM unnest(%(job)s::int[], %(seq)s::int[], %(n)s::int[],
-                             %(ts)s::float8[], %(aps)s::float8[],
-                             %(ft)s::timestamptz[], %(lt)s::timestamptz[])
-            AS n(job_id, seq, n, ts, aps, ft, lt)
+        -- [[job, cell, records, target sum, applied sum, first us, last us], ...]: one JSON
+        -- parameter (arrays are dumped element by element in Python: slower)
+        SELECT (c->>0)::int AS job_id, (c->>1)::int AS seq, (c->>2)::int AS n,
+            (c->>3)::float8 AS ts, (c->>4)::float8 AS aps,
+            timestamptz '2000-01-01 00:00:00+00' + (c->>5)::int8 * interval '1 microsecond'
+                AS ft,
+            timestamptz '2000-01-01 00:00:00+00' + (c->>6)::int8 * interval '1 microsecond'
+                AS lt
+        FROM json_array_elements(%(cells)s::json) AS c
         -- this machine's jobs
-        WHERE n.job_id IN (SELECT id FROM jobs WHERE machine_id = %(m)s)
+        WHERE (c->>0)::int IN (SELECT id FROM jobs WHERE machine_id = %(m)s)
     ), old AS (
         SELECT c.job_id, c.seq, c.applied_rate_sum FROM job_cells_applied c
         JOIN new USING (job_id, seq) WHERE c.machine_id = %(m)s
@@ -1021,19 +1026,8 @@ CELL_PROGRESS_CTE = """
 
 def cell_progress_params(machine_id: int, agg: dict[tuple[int, int], list[Any]]) -> dict[str, Any]:
     """``CELL_PROGRESS_CTE``'s parameters for these per-cell sums (``cell_progress``)."""
-    items = list(agg.items())
-
-    def ts(us: int) -> dt.datetime:
-        return dt.datetime.fromtimestamp(us / 1e6 + PG_EPOCH, dt.UTC)
-
     return {
-        "job": [k[0] for k, _ in items],
-        "seq": [k[1] for k, _ in items],
-        "n": [v[0] for _, v in items],
-        "ts": [v[1] for _, v in items],
-        "aps": [v[2] for _, v in items],
-        "ft": [ts(v[3]) for _, v in items],
-        "lt": [ts(v[4]) for _, v in items],
+        "cells": orjson.dumps([[*k, *v] for k, v in agg.items()]).decode(),
         "m": machine_id,
         "kinds": list(PROGRESS_BY_WORK),
     }
