@@ -326,3 +326,40 @@ def test_track_and_cells_share_one_transaction(client, db, job) -> None:  # noqa
         {"m": job.machine_id},
     ).one()  # fmt: skip
     assert tuple(n) == (8, 5)
+
+
+def test_cell_fast_path_agrees_with_cell_record_rules(monkeypatch) -> None:  # noqa: ANN001
+    """cellrecords.validate's fast path (plainly typed records) stores, rejects and repeats
+    exactly what ``CellRecord.from_dict`` alone does, record by record."""
+    from fieldrx.fleet import cellrecords
+
+    now = time.time()
+    base = {
+        "machine_id": 7, "seq": 1, "job_id": 3, "t_entry": now - 10.0, "t_exit": now - 8.5,
+        "cell_seq": 4, "n_fixes": 15, "worked_s": 1.5, "mass_g": 10.0, "driven_m": 5.0,
+        "mean_speed_m_s": 1.8, "mean_target_rate_kg_ha": 300.0,
+        "mean_applied_rate_kg_ha": 298.0, "flags": ["rate_error"],
+    }  # fmt: skip
+    variants = [
+        {}, {"cell_seq": None}, {"driven_m": None, "mean_speed_m_s": None}, {"flags": []},
+        {"n_fixes": 0, "worked_s": 0.0, "mass_g": 0.0}, {"t_entry": now - 8.5},
+        {"mass_g": -1.0}, {"mass_g": float("nan")}, {"worked_s": float("inf")},
+        {"driven_m": -0.1}, {"machine_id": True}, {"machine_id": 8}, {"seq": 0},
+        {"seq": 2**63}, {"job_id": 0}, {"t_entry": 10}, {"t_exit": now - 11.0},
+        {"t_exit": now + 1e4}, {"cell_seq": 2**31}, {"cell_seq": 1.0}, {"n_fixes": -1},
+        {"n_fixes": True}, {"flags": ["nope"]}, {"flags": "rate_error"}, {"mass_g": 10},
+        {"extra": 1}, {"t_entry": float("nan")},
+    ]  # fmt: skip
+    raw: list = [{**base, **v, "seq": v.get("seq", i + 1)} for i, v in enumerate(variants)]
+    raw += [dict(raw[0]), "not a record", {k: v for k, v in base.items() if k != "flags"}]
+    fast_path = cellrecords._fast_cell
+    taken = []
+    monkeypatch.setattr(
+        cellrecords, "_fast_cell", lambda *a: taken.append(fast_path(*a)) or taken[-1]
+    )
+    fast = cellrecords.validate(raw, 7, "cellsF", now)
+    monkeypatch.setattr(cellrecords, "_fast_cell", lambda *a: None)
+    slow = cellrecords.validate(raw, 7, "cellsF", now)
+    assert fast == slow
+    assert len(fast[0]) == 8 and fast[3] == 2  # stored-to-be, and the two repeats of seq 1
+    assert sum(r is not None for r in taken) == 7  # 6 plainly typed valid ones + a repeat

@@ -27,12 +27,14 @@ twice:
 from __future__ import annotations
 
 import datetime as dt
+import operator
+import sys
 import time
 from dataclasses import dataclass, field
 from typing import Any
 
 import psycopg
-from fieldrx_edge.protocol import CellRecord
+from fieldrx_edge.protocol import ALARMS, CELL_FIELDS, INT4_MAX, CellRecord
 from sqlalchemy import text
 from sqlalchemy.orm import Session
 
@@ -82,7 +84,15 @@ def validate(
     rejected: list[dict[str, Any]] = []
     dead: set[int] = set()
     repeats = 0
+    t_max = now + FUTURE_TOLERANCE_S
     for d in raw:
+        row = _fast_cell(d, machine_id, stream, t_max)
+        if row is not None:
+            if row[2] in rows:
+                repeats += 1
+            else:
+                rows[row[2]] = row
+            continue
         reason = None
         try:
             rec = CellRecord.from_dict(d)
@@ -113,6 +123,54 @@ def validate(
             _f(rec.mean_applied_rate_kg_ha), list(rec.flags),
         )  # fmt: skip
     return rows, rejected, dead, repeats
+
+
+_CELL_GET = operator.itemgetter(*CELL_FIELDS)
+_CELL_KEYS = frozenset(CELL_FIELDS)
+_ALARM_SET = frozenset(ALARMS)
+_FMAX = sys.float_info.max
+assert CELL_FIELDS == (
+    "machine_id", "seq", "job_id", "t_entry", "t_exit", "cell_seq", "n_fixes", "worked_s",
+    "mass_g", "driven_m", "mean_speed_m_s", "mean_target_rate_kg_ha",
+    "mean_applied_rate_kg_ha", "flags",
+)  # fmt: skip
+
+
+def _fast_cell(d: Any, machine_id: int, stream: str, t_max: float) -> tuple[Any, ...] | None:
+    """A complete, plainly typed cell record (what agents send) that passes
+    ``CellRecord``'s rules -> its COPY row; else None: ``CellRecord.from_dict`` decides
+    (same rules, and the reason). A quarter of the cost per record."""
+    if type(d) is not dict or len(d) != len(CELL_FIELDS) or not d.keys() <= _CELL_KEYS:
+        return None
+    (m, seq, job, t0, t1, cell, n, worked, mass, driven, speed, trate, arate,
+     flags) = _CELL_GET(d)  # fmt: skip
+    if (
+        type(m) is not int
+        or m != machine_id
+        or type(seq) is not int
+        or not 1 <= seq <= INT8_MAX
+        or type(job) is not int
+        or job < 1
+        or type(t0) is not float
+        or type(t1) is not float
+        or not 0.0 < t0 <= t1 < t_max
+        or (cell is not None and (type(cell) is not int or not -INT4_MAX <= cell <= INT4_MAX))
+        or type(n) is not int
+        or not 0 <= n <= INT4_MAX
+        or type(flags) is not list
+        or (flags and not _ALARM_SET.issuperset(flags))
+    ):
+        return None
+    for v in (worked, mass):
+        if type(v) is not float or not 0.0 <= v <= _FMAX:
+            return None
+    for v in (driven, speed, trate, arate):
+        if v is not None and (type(v) is not float or not 0.0 <= v <= _FMAX):
+            return None
+    return (
+        machine_id, stream, seq, job, cell, _ts(t0), _ts(t1), n, worked, mass, driven, speed,
+        trate, arate, list(flags),
+    )  # fmt: skip
 
 
 def _f(v: float | None) -> float | None:
