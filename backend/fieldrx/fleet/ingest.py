@@ -70,7 +70,7 @@ from fieldrx_edge.protocol import (
 )
 
 from fieldrx.fleet import alerts as alert_rules
-from fieldrx.fleet.partitions import ensure_days, record_job_spans
+from fieldrx.fleet.partitions import ensure_days, job_spans_sql
 from fieldrx.fleet.telemetry_row import (
     PG_EPOCH,
     TELEMETRY_COPY,
@@ -552,17 +552,21 @@ class TrackWork:
         info, new, result, now = self.info, self.new, self.result, self.now
         machine_id, stream = self.machine_id, self.stream
         assert info is not None
-        if new:
-            record_job_spans(cur, machine_id, [r.t for r in new], [r.job_id for r in new])
         result.acked_seq = _advance(
             cur, machine_id, stream, result.acked_seq, set(self.rows) | self.dead, info, new
         )
         messages: list[dict[str, Any]] = []
-        _stream_row(cur, machine_id, stream, self.stream_start, result.acked_seq, new, info)
+        stream_row = _stream_row(machine_id, stream, self.stream_start, result.acked_seq, new)
         if self.conflict is not None:
             # the agent may trim only below the conflict; it resends the rest on a new stream
             result.acked_seq = min(result.acked_seq, self.conflict - 1)
-        _status(cur, machine_id, info, new, result.acked_seq, now)
+        # the job spans, the stream's row and the machine's status: one statement
+        spans = job_spans_sql(machine_id, [r.t for r in new], [r.job_id for r in new])
+        cur.execute(
+            *_one_statement(
+                [spans, stream_row, _status(machine_id, info, new, result.acked_seq, now)]
+            )
+        )
         if not new:
             messages.extend(_streams_alert(cur, machine_id, stream, info, new, now))
             return messages
@@ -692,21 +696,16 @@ def _conflict_reason(seq: int, stream: str, clash: bool) -> str:
 
 
 def _stream_row(
-    cur: psycopg.Cursor[Any],
-    machine_id: int,
-    stream: str,
-    stream_start: int,
-    acked: int,
-    new: list[TelemetryRow],
-    info: MachineInfo,
-) -> None:
-    """Upsert the stream's acknowledged seq, last batch time, record count and time span."""
+    machine_id: int, stream: str, stream_start: int, acked: int, new: list[TelemetryRow]
+) -> tuple[str, tuple[Any, ...]]:
+    """The upsert of the stream's acknowledged seq, last batch time, record count and time
+    span (statement, parameters)."""
     t0 = t1 = None
     if new:
         us = [r.t for r in new]
         t0 = dt.datetime.fromtimestamp(min(us) / 1e6 + PG_EPOCH, dt.UTC)
         t1 = dt.datetime.fromtimestamp(max(us) / 1e6 + PG_EPOCH, dt.UTC)
-    cur.execute(
+    return (
         "INSERT INTO telemetry_streams AS ts (machine_id, stream, first_seq, acked_seq,"
         " n_records, first_t, last_t, max_seq) VALUES (%s, %s, %s, %s, %s, %s, %s, %s)"
         " ON CONFLICT (machine_id, stream) DO UPDATE SET acked_seq = excluded.acked_seq,"
@@ -719,6 +718,21 @@ def _stream_row(
             max(r.seq for r in new) if new else None,
         ),
     )  # fmt: skip
+
+
+def _one_statement(
+    parts: list[tuple[str, tuple[Any, ...]] | None],
+) -> tuple[str, tuple[Any, ...]]:
+    """Data-modifying statements (positional parameters) as one: the first ones as common
+    table expressions of the last (each runs once, all in one snapshot: they must not
+    touch the same rows). One statement instead of several: each costs its own parse,
+    plan, executor start and result, on both sides."""
+    todo = [p for p in parts if p is not None]
+    *ctes, (sql, params) = todo
+    if not ctes:
+        return sql, params
+    head = "WITH " + ", ".join(f"w{i} AS ({q})" for i, (q, _) in enumerate(ctes)) + " "
+    return head + sql, tuple(x for _, p in ctes for x in p) + tuple(params)
 
 
 def _streams_alert(
@@ -834,34 +848,32 @@ def advance_over_stored(
 
 
 def _status(
-    cur: psycopg.Cursor[Any],
     machine_id: int,
     info: MachineInfo,
     new: list[TelemetryRow],
     acked: int,
     now: float,
-) -> None:
-    """Upsert the machine's latest state; position fields only move forward in record time
-    (a stored latest time beyond the future tolerance is a clock error, not a reason to
-    freeze the machine's state: newer real records replace it)."""
+) -> tuple[str, tuple[Any, ...]]:
+    """The upsert of the machine's latest state (statement, parameters); position fields
+    only move forward in record time (a stored latest time beyond the future tolerance is
+    a clock error, not a reason to freeze the machine's state: newer real records replace
+    it)."""
     if not new:
-        cur.execute(
+        return (
             "INSERT INTO machine_status (machine_id, last_seen_at, acked_seq, queue_backlog,"
             " alarms) VALUES (%s, now(), %s, 0, '{}') ON CONFLICT (machine_id) DO UPDATE"
             " SET last_seen_at = now(), acked_seq = excluded.acked_seq",
             (machine_id, acked),
         )
-        return
     r = max(new, key=lambda r: r.t)
     t = r.t_s
     if info.last_t is not None and t < info.last_t <= now + FUTURE_TOLERANCE_S:
-        cur.execute(
+        return (
             "UPDATE machine_status SET last_seen_at = now(), acked_seq = %s WHERE machine_id = %s",
             (acked, machine_id),
         )
-        return
     lon, lat = r.lonlat
-    cur.execute(
+    return (
         """
         INSERT INTO machine_status (machine_id, last_seen_at, last_t, acked_seq, lon, lat,
             speed_m_s, heading_deg, job_id, cell_seq, target_rate_kg_ha, applied_rate_kg_ha,
