@@ -21,7 +21,9 @@ twice:
    or rejected-for-good seqs and stops at the first gap (``ACK_WALK_SQL``: one
    statement, part of the stream row's upsert);
 5. per-cell aggregates and job progress move as for telemetry records
-   (``ingest.cell_progress``), in the same transaction.
+   (``ingest.CELL_PROGRESS_CTE``), in the same statement as the stream's row
+   (``FINISH_SQL``). A thin request's track batch and cell batch share one
+   transaction (``fleet.multibatch``).
 """
 
 from __future__ import annotations
