@@ -993,17 +993,14 @@ def cell_progress(
 # n_cells): ``job_messages``
 CELL_PROGRESS_CTE = """
     new AS (
-        -- [[job, cell, records, target sum, applied sum, first us, last us], ...]: one JSON
-        -- parameter (arrays are dumped element by element in Python: slower)
-        SELECT (c->>0)::int AS job_id, (c->>1)::int AS seq, (c->>2)::int AS n,
-            (c->>3)::float8 AS ts, (c->>4)::float8 AS aps,
-            timestamptz '2000-01-01 00:00:00+00' + (c->>5)::int8 * interval '1 microsecond'
-                AS ft,
-            timestamptz '2000-01-01 00:00:00+00' + (c->>6)::int8 * interval '1 microsecond'
-                AS lt
-        FROM json_array_elements(%(cells)s::json) AS c
+        -- one JSON parameter, parsed once (arrays are dumped element by element in Python)
+        SELECT n.job_id, n.seq, n.n, n.ts, n.aps,
+            timestamptz '2000-01-01 00:00:00+00' + n.ft * interval '1 microsecond' AS ft,
+            timestamptz '2000-01-01 00:00:00+00' + n.lt * interval '1 microsecond' AS lt
+        FROM json_to_recordset(%(cells)s::json)
+            AS n(job_id int, seq int, n int, ts float8, aps float8, ft int8, lt int8)
         -- this machine's jobs
-        WHERE (c->>0)::int IN (SELECT id FROM jobs WHERE machine_id = %(m)s)
+        WHERE n.job_id IN (SELECT id FROM jobs WHERE machine_id = %(m)s)
     ), old AS (
         SELECT c.job_id, c.seq, c.applied_rate_sum FROM job_cells_applied c
         JOIN new USING (job_id, seq) WHERE c.machine_id = %(m)s
@@ -1039,7 +1036,12 @@ CELL_PROGRESS_CTE = """
 def cell_progress_params(machine_id: int, agg: dict[tuple[int, int], list[Any]]) -> dict[str, Any]:
     """``CELL_PROGRESS_CTE``'s parameters for these per-cell sums (``cell_progress``)."""
     return {
-        "cells": orjson.dumps([[*k, *v] for k, v in agg.items()]).decode(),
+        "cells": orjson.dumps(
+            [
+                {"job_id": j, "seq": c, "n": n, "ts": ts, "aps": aps, "ft": ft, "lt": lt}
+                for (j, c), (n, ts, aps, ft, lt) in agg.items()
+            ]
+        ).decode(),
         "m": machine_id,
         "kinds": list(PROGRESS_BY_WORK),
     }
