@@ -620,10 +620,11 @@ def start_broker() -> ProjectBroker:
     return broker
 
 
-def cpu_seconds(db_name: str) -> dict[str, float]:
-    """CPU time (user+sys) so far of this client, its child processes (API servers,
-    workers, broker) and the PostgreSQL backends serving the bench database; other
-    processes on the machine are not counted."""
+def cpu_seconds(db_name: str) -> dict[int, tuple[str, float]]:
+    """CPU time (user+sys) so far per process (pid -> (category, s)) of this client
+    ("client"), its child processes (API servers, workers, broker: "server") and the
+    PostgreSQL backends serving the bench database ("postgres"); other processes on the
+    machine are not listed. ``cpu_used`` takes the difference of two samples."""
     tick = os.sysconf("SC_CLK_TCK")
     me = os.getpid()
     procs: dict[int, tuple[int, float, str]] = {}
@@ -637,19 +638,31 @@ def cpu_seconds(db_name: str) -> dict[str, float]:
             continue
         fields = stat[stat.rindex(")") + 2 :].split()
         procs[int(d.name)] = (int(fields[1]), (int(fields[11]) + int(fields[12])) / tick, cmd)
-    out = {"postgres": 0.0, "server": 0.0, "client": 0.0}
+    out: dict[int, tuple[str, float]] = {}
     for pid, (ppid, cpu, cmd) in procs.items():
         if pid == me:
-            out["client"] += cpu
+            out[pid] = ("client", cpu)
         elif cmd.startswith("postgres:") and f" {db_name} " in cmd:
-            out["postgres"] += cpu
+            out[pid] = ("postgres", cpu)
         else:
             p = ppid
             while p > 1 and p in procs:
                 if p == me:
-                    out["server"] += cpu
+                    out[pid] = ("server", cpu)
                     break
                 p = procs[p][0]
+    return out
+
+
+def cpu_used(a: dict[int, tuple[str, float]], b: dict[int, tuple[str, float]]) -> dict[str, float]:
+    """CPU s per category between two ``cpu_seconds`` samples, process by process. A process
+    gone by ``b`` counts nothing: subtracting its whole CPU so far (as a difference of
+    totals did) made the window's figure depend on whether a finished connection's
+    backend, e.g. the VACUUM before the thin window, had exited before or after ``a``."""
+    out = {"postgres": 0.0, "server": 0.0, "client": 0.0}
+    for pid, (kind, cpu) in b.items():
+        before = a.get(pid)
+        out[kind] += cpu - (before[1] if before is not None and before[0] == kind else 0.0)
     return out
 
 
@@ -795,7 +808,8 @@ def main() -> int:
             print(f"records stored per worker: {worker_records}")
         if args.transport == "http":
             cpu1 = cpu_seconds(db_name)
-        cpu_us = {k: round((cpu1[k] - cpu0[k]) / total * 1e6, 1) for k in cpu0}
+        used = cpu_used(cpu0, cpu1)
+        cpu_us = {k: round(v / total * 1e6, 1) for k, v in used.items()}
         print(f"CPU per record (us): {cpu_us}")
         machine_h = len(machines) * args.seconds / 3600.0
         thin: dict[str, Any] = {}
@@ -813,9 +827,10 @@ def main() -> int:
                 drive_http_thin(base, fleet, batch, args.concurrency)
             )
             t1 = cpu_seconds(db_name)
-            srv_full = (cpu1["server"] - cpu0["server"]) + (cpu1["postgres"] - cpu0["postgres"])
-            srv_thin = (t1["server"] - t0["server"]) + (t1["postgres"] - t0["postgres"])
-            api_full, api_thin = cpu1["server"] - cpu0["server"], t1["server"] - t0["server"]
+            used_thin = cpu_used(t0, t1)
+            srv_full = used["server"] + used["postgres"]
+            srv_thin = used_thin["server"] + used_thin["postgres"]
+            api_full, api_thin = used["server"], used_thin["server"]
             thin = {
                 "machine_hours": round(machine_h, 3),
                 "records": t_sent,
@@ -825,13 +840,17 @@ def main() -> int:
                 "server_cpu_s_per_machine_hour_thin": round(srv_thin / machine_h, 3),
                 "cpu_ratio_full_to_thin": round(srv_full / max(srv_thin, 1e-9), 2),
                 "api_cpu_ratio_full_to_thin": round(api_full / max(api_thin, 1e-9), 2),
+                "postgres_cpu_ratio_full_to_thin": round(
+                    (srv_full - api_full) / max(srv_thin - api_thin, 1e-9), 2
+                ),
             }
             print(
                 f"thin profile: {t_sent} records for the same {machine_h:.2f} machine-hours,"
                 f" server CPU (API + PostgreSQL) {thin['server_cpu_s_per_machine_hour_full']}"
                 f" s/machine-hour full vs {thin['server_cpu_s_per_machine_hour_thin']} thin:"
                 f" {thin['cpu_ratio_full_to_thin']} x lower (API processes alone"
-                f" {thin['api_cpu_ratio_full_to_thin']} x)"
+                f" {thin['api_cpu_ratio_full_to_thin']} x, PostgreSQL alone"
+                f" {thin['postgres_cpu_ratio_full_to_thin']} x)"
             )
         import psycopg
         from fieldrx.db.session import raw_dsn

@@ -50,7 +50,8 @@ CELL_FORMAT_VERSION = 3
 # Several batches in one HTTP request (a thin agent's track and cell batches: one request,
 # one token check, instead of two): {"format": 3, "kind": "batches", "batches": [batch, ...]}
 # with each batch as above; the answer is {"acks": [TelemetryAck, ...]}, one per batch in
-# order, each batch stored in its own transaction (issue 18).
+# order (issue 18). An ack with "error" is a batch the server could not store (acked_seq 0:
+# nothing is trimmed, the batch is resent); the others are stored and acked as usual.
 MULTI_KIND = "batches"
 MAX_BATCHES = 8
 UPLINK_PROFILES = ("full", "thin")  # full: every fix; thin: 1 Hz track + one record per cell

@@ -305,3 +305,31 @@ def test_queue_database_from_before_streams_migrates(tmp_path):
     body = q.pending_batch(10)[0].decode()
     assert '"stream_start":7' in body and body.count("NaN") == 4  # sent as queued
     assert q.put(rec(11)) == 11
+
+
+def test_http_sender_error_ack_trims_only_the_stored_batch(tmp_path, caplog):
+    """A multi-batch answer where the server could not store one batch (its ack carries
+    ``error`` and acked_seq 0, fleet.multibatch): the other queue is trimmed, this one
+    keeps everything for the resend, and the server's reason is logged."""
+    import httpx
+
+    track = TelemetryQueue(tmp_path / "t.sqlite", machine_id=3)
+    cells = TelemetryQueue(tmp_path / "c.sqlite", machine_id=3)
+    track.put_many([rec(i) for i in range(5)])
+    cells.put_many([rec(i) for i in range(3)])
+
+    def answer(request: httpx.Request) -> httpx.Response:
+        a, b = json.loads(request.content)["batches"]
+        ok = {"machine_id": 3, "acked_seq": 5, "stored": 5, "duplicates": 0, "rejected": [],
+              "stream": a["stream"], "stream_conflict": False}  # fmt: skip
+        err = {**ok, "acked_seq": 0, "stored": 0, "stream": b["stream"],
+               "error": "batches[1] (cells, stream x) not stored: no"}  # fmt: skip
+        return httpx.Response(200, json={"acks": [ok, err]})
+
+    s = HttpSender(track, "http://server", "t", extra_queues=(cells,))
+    s._client = httpx.Client(transport=httpx.MockTransport(answer))
+    with caplog.at_level("WARNING"):
+        assert s.send_once() == 5
+    assert (track.backlog(), cells.backlog()) == (0, 3)
+    assert "batches[1] (cells, stream x) not stored" in caplog.text
+    s.close()

@@ -262,3 +262,104 @@ def test_track_and_cells_in_one_request(client, db, job) -> None:  # noqa: ANN00
     for wrong in ({**body, "format": 2}, {**body, "batches": []}, {**body, "batches": [body]}):
         r = client.post("/api/v1/telemetry", json=wrong, headers=job.device_headers)
         assert r.status_code == 422, r.text
+
+
+def test_track_and_cells_share_one_transaction(client, db, job) -> None:  # noqa: ANN001
+    """A track and a cell batch in one request are stored in one transaction (one lock
+    round, one NOTIFY, one COMMIT: fleet.multibatch); a cell batch the database refuses
+    does not take the track batch down: the track is stored and acked once, the cell batch
+    gets an error naming it and the record, and none of its rows are stored."""
+    from tests.fleet.helpers import record
+
+    t = time.time() - 100
+    track = {
+        "format": 2, "stream": "trackT", "stream_start": 1,
+        "records": [record(job, i, t=t + i, cell=None) for i in range(1, 6)],
+    }  # fmt: skip
+    cells = {
+        "format": 3, "kind": "cells", "stream": "cellsT", "stream_start": 1,
+        "records": [_cell(job, i, i - 1, t + 2 * i) for i in range(1, 4)],
+    }  # fmt: skip
+    body = {"format": 3, "kind": "batches", "batches": [track, cells]}
+    r = client.post("/api/v1/telemetry", json=body, headers=job.device_headers)
+    assert r.status_code == 200, r.text
+    assert [a["stored"] for a in r.json()["acks"]] == [5, 3]
+    xids = db.execute(
+        text("SELECT xmin::text FROM telemetry WHERE machine_id = :m AND stream = 'trackT'"
+             " UNION SELECT xmin::text FROM job_cell_records WHERE machine_id = :m"),
+        {"m": job.machine_id},
+    ).scalars().all()  # fmt: skip
+    assert len(xids) == 1, xids  # one transaction wrote both batches
+
+    # a cell record the database refuses (a constraint this test adds): the shared
+    # transaction fails, and each batch is stored on its own
+    db.execute(text("ALTER TABLE job_cell_records ADD CONSTRAINT test_mass CHECK (mass_g < 1e6)"))
+    db.commit()
+    try:
+        track2 = {**track, "records": [record(job, i, t=t + i, cell=None) for i in range(6, 9)]}
+        bad_cells = [_cell(job, 4, 3, t + 8), _cell(job, 5, 4, t + 10, mass=5e6)]
+        body2 = {**body, "batches": [track2, {**cells, "records": bad_cells}]}
+        r = client.post("/api/v1/telemetry", json=body2, headers=job.device_headers)
+        assert r.status_code == 200, r.text
+        a, b = r.json()["acks"]
+        assert (a["stream"], a["acked_seq"], a["stored"], a["duplicates"]) == ("trackT", 8, 3, 0)
+        assert "error" not in a
+        assert (b["stream"], b["acked_seq"], b["stored"]) == ("cellsT", 0, 0)
+        assert "batches[1]" in b["error"] and "cellsT" in b["error"], b["error"]
+        assert "test_mass" in b["error"] and "line 2" in b["error"], b["error"]
+        n = db.execute(
+            text("SELECT count(*) FROM job_cell_records WHERE machine_id = :m AND seq > 3"),
+            {"m": job.machine_id},
+        ).scalar_one()
+        assert n == 0  # not the first, valid record either: the batch is all or nothing
+    finally:
+        db.execute(text("ALTER TABLE job_cell_records DROP CONSTRAINT test_mass"))
+        db.commit()
+    # the agent resends both: the track batch is a duplicate (stored once), the cells go in
+    r = client.post("/api/v1/telemetry", json=body2, headers=job.device_headers)
+    a, b = r.json()["acks"]
+    assert (a["acked_seq"], a["stored"], a["duplicates"]) == (8, 0, 3)
+    assert (b["acked_seq"], b["stored"], "error" in b) == (5, 2, False)
+    n = db.execute(
+        text("SELECT (SELECT count(*) FROM telemetry WHERE machine_id = :m),"
+             " (SELECT count(*) FROM job_cell_records WHERE machine_id = :m)"),
+        {"m": job.machine_id},
+    ).one()  # fmt: skip
+    assert tuple(n) == (8, 5)
+
+
+def test_cell_fast_path_agrees_with_cell_record_rules(monkeypatch) -> None:  # noqa: ANN001
+    """cellrecords.validate's fast path (plainly typed records) stores, rejects and repeats
+    exactly what ``CellRecord.from_dict`` alone does, record by record."""
+    from fieldrx.fleet import cellrecords
+
+    now = time.time()
+    base = {
+        "machine_id": 7, "seq": 1, "job_id": 3, "t_entry": now - 10.0, "t_exit": now - 8.5,
+        "cell_seq": 4, "n_fixes": 15, "worked_s": 1.5, "mass_g": 10.0, "driven_m": 5.0,
+        "mean_speed_m_s": 1.8, "mean_target_rate_kg_ha": 300.0,
+        "mean_applied_rate_kg_ha": 298.0, "flags": ["rate_error"],
+    }  # fmt: skip
+    variants = [
+        {}, {"cell_seq": None}, {"driven_m": None, "mean_speed_m_s": None}, {"flags": []},
+        {"n_fixes": 0, "worked_s": 0.0, "mass_g": 0.0}, {"t_entry": now - 8.5},
+        {"mass_g": -1.0}, {"mass_g": float("nan")}, {"worked_s": float("inf")},
+        {"driven_m": -0.1}, {"machine_id": True}, {"machine_id": 8}, {"seq": 0},
+        {"seq": 2**63}, {"job_id": 0}, {"t_entry": 10}, {"t_exit": now - 11.0},
+        {"t_exit": now + 1e4}, {"cell_seq": 2**31}, {"cell_seq": 1.0}, {"n_fixes": -1},
+        {"n_fixes": True}, {"flags": ["nope"]}, {"flags": "rate_error"}, {"mass_g": 10},
+        {"extra": 1}, {"t_entry": float("nan")},
+    ]  # fmt: skip
+    raw: list = [{**base, **v, "seq": v.get("seq", i + 1)} for i, v in enumerate(variants)]
+    raw += [dict(raw[0]), "not a record", {k: v for k, v in base.items() if k != "flags"}]
+    fast_path = cellrecords._fast_cell
+    taken = []
+    monkeypatch.setattr(
+        cellrecords, "_fast_cell", lambda *a: taken.append(fast_path(*a)) or taken[-1]
+    )
+    fast = cellrecords.validate(raw, 7, "cellsF", now)
+    monkeypatch.setattr(cellrecords, "_fast_cell", lambda *a: None)
+    slow = cellrecords.validate(raw, 7, "cellsF", now)
+    assert fast == slow
+    assert len(fast[0]) == 8 and fast[3] == 2  # stored-to-be, and the two repeats of seq 1
+    assert sum(r is not None for r in taken) == 7  # 6 plainly typed valid ones + a repeat

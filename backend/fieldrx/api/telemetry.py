@@ -10,10 +10,10 @@ machine's legacy stream. A thin-profile agent's cell records come as cell
 batches (format 3, ``"kind": "cells"``) on their own stream: ``fleet.cellrecords``.
 It sends both in one request (``{"format": 3, "kind": "batches", "batches": [...]}``,
 ``protocol.MULTI_KIND``): one token check and one request instead of two; the answer is
-``{"acks": [...]}``, one ack per batch, each batch stored in its own transaction (a
-failure after the first leaves it stored: the agent resends, ingest deduplicates). The
-OpenAPI description still shows the single-batch form only (issue 18: the lead
-regenerates the API files).
+``{"acks": [...]}``, one ack per batch; a track and a cell batch share one transaction,
+and a batch the database refuses does not take the other down (``fleet.multibatch``:
+its ack carries ``error``). The OpenAPI description still shows the single-batch form
+only (issue 18: the lead regenerates the API files).
 
 Authentication: ``Authorization: Bearer <device token>`` with the same rules
 as every endpoint (401 unknown/revoked/expired, 403 for a person's token),
@@ -22,7 +22,7 @@ checked on the ingest connection in one statement (fieldrx.fleet.auth).
 
 from __future__ import annotations
 
-from typing import Annotated, Any
+from typing import Annotated
 
 from fastapi import APIRouter, Depends, HTTPException, Request, status
 from fastapi.responses import Response
@@ -35,9 +35,9 @@ from fieldrx.api.schemas.telemetry import StreamOut, TelemetryAckOut, TelemetryB
 from fieldrx.auth.deps import SessionDep, UserDep, bearer_token
 from fieldrx.db.models import Machine, TelemetryStream
 from fieldrx.fleet.auth import device_of
-from fieldrx.fleet.cellrecords import ingest_cells
 from fieldrx.fleet.db import raw_connection
-from fieldrx.fleet.ingest import Batch, IngestError, IngestResult, ingest, parse_request
+from fieldrx.fleet.ingest import IngestError, parse_request
+from fieldrx.fleet.multibatch import ingest_batches, store
 
 router = APIRouter(tags=["telemetry"], responses=ERRORS)
 
@@ -64,16 +64,9 @@ def _ingest(token: str, body: bytes) -> bytes:
         n = sum(len(b.records) for b in batches)
         if n > MAX_RECORDS:
             raise ApiError(413, f"at most {MAX_RECORDS} records per request, got {n}")
-        acks = [_store(conn, machine_id, b).to_json() for b in batches]
         if isinstance(parsed, list):
-            return b'{"acks":[' + b",".join(acks) + b"]}"
-        return acks[0]
-
-
-def _store(conn: Any, machine_id: int, batch: Batch) -> IngestResult:
-    if batch.kind == "cells":  # uplink profile thin: its cell records
-        return ingest_cells(conn, machine_id, batch.records, batch.stream, batch.stream_start)
-    return ingest(conn, machine_id, batch.records, batch.stream, batch.stream_start, batch.streamed)
+            return b'{"acks":[' + b",".join(ingest_batches(conn, machine_id, batches)) + b"]}"
+        return store(conn, machine_id, parsed).to_json()
 
 
 @router.post(

@@ -238,11 +238,15 @@ def alert_message(
 
 
 def notify(cur: psycopg.Cursor[Any], messages: list[dict[str, Any]]) -> None:
-    """Queue live messages; PostgreSQL delivers them to every listener at commit."""
+    """Queue live messages; PostgreSQL delivers them to every listener at commit.
+
+    The messages go as one JSON array (``json`` keeps each element's text as written):
+    a ``text[]`` parameter is escaped element by element in Python, which cost more than
+    the NOTIFY itself on a thin request."""
     if messages:
         cur.execute(
-            "SELECT pg_notify(%s, m) FROM unnest(%s::text[]) AS m",
-            (LIVE_CHANNEL, [json.dumps(m, default=str) for m in messages]),
+            "SELECT pg_notify(%s, m::text) FROM json_array_elements(%s::json) AS m",
+            (LIVE_CHANNEL, "[" + ",".join(json.dumps(m, default=str) for m in messages) + "]"),
         )
 
 

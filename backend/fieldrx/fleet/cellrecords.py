@@ -21,30 +21,38 @@ twice:
    or rejected-for-good seqs and stops at the first gap (``ACK_WALK_SQL``: one
    statement, part of the stream row's upsert);
 5. per-cell aggregates and job progress move as for telemetry records
-   (``ingest.cell_progress``), in the same transaction.
+   (``ingest.CELL_PROGRESS_CTE``), in the same statement as the stream's row
+   (``FINISH_SQL``). A thin request's track batch and cell batch share one
+   transaction (``fleet.multibatch``).
 """
 
 from __future__ import annotations
 
 import datetime as dt
+import operator
+import sys
 import time
+from dataclasses import dataclass, field
 from typing import Any
 
 import psycopg
-from fieldrx_edge.protocol import CellRecord
+from fieldrx_edge.protocol import ALARMS, CELL_FIELDS, INT4_MAX, CellRecord
 from sqlalchemy import text
 from sqlalchemy.orm import Session
 
 from fieldrx.fleet import alerts as alert_rules
 from fieldrx.fleet.ingest import (
+    CELL_PROGRESS_CTE,
     FUTURE_TOLERANCE_S,
     INT8_MAX,
+    LOCK_SQL,
     PG_EPOCH,
     IngestError,
     IngestResult,
     begin,
-    cell_progress,
+    cell_progress_params,
     commit,
+    job_messages,
     pipelined,
 )
 
@@ -78,7 +86,15 @@ def validate(
     rejected: list[dict[str, Any]] = []
     dead: set[int] = set()
     repeats = 0
+    t_max = now + FUTURE_TOLERANCE_S
     for d in raw:
+        row = _fast_cell(d, machine_id, stream, t_max)
+        if row is not None:
+            if row[2] in rows:
+                repeats += 1
+            else:
+                rows[row[2]] = row
+            continue
         reason = None
         try:
             rec = CellRecord.from_dict(d)
@@ -111,6 +127,54 @@ def validate(
     return rows, rejected, dead, repeats
 
 
+_CELL_GET = operator.itemgetter(*CELL_FIELDS)
+_CELL_KEYS = frozenset(CELL_FIELDS)
+_ALARM_SET = frozenset(ALARMS)
+_FMAX = sys.float_info.max
+assert CELL_FIELDS == (
+    "machine_id", "seq", "job_id", "t_entry", "t_exit", "cell_seq", "n_fixes", "worked_s",
+    "mass_g", "driven_m", "mean_speed_m_s", "mean_target_rate_kg_ha",
+    "mean_applied_rate_kg_ha", "flags",
+)  # fmt: skip
+
+
+def _fast_cell(d: Any, machine_id: int, stream: str, t_max: float) -> tuple[Any, ...] | None:
+    """A complete, plainly typed cell record (what agents send) that passes
+    ``CellRecord``'s rules -> its COPY row; else None: ``CellRecord.from_dict`` decides
+    (same rules, and the reason). A quarter of the cost per record."""
+    if type(d) is not dict or len(d) != len(CELL_FIELDS) or not d.keys() <= _CELL_KEYS:
+        return None
+    (m, seq, job, t0, t1, cell, n, worked, mass, driven, speed, trate, arate,
+     flags) = _CELL_GET(d)  # fmt: skip
+    if (
+        type(m) is not int
+        or m != machine_id
+        or type(seq) is not int
+        or not 1 <= seq <= INT8_MAX
+        or type(job) is not int
+        or job < 1
+        or type(t0) is not float
+        or type(t1) is not float
+        or not 0.0 < t0 <= t1 < t_max
+        or (cell is not None and (type(cell) is not int or not -INT4_MAX <= cell <= INT4_MAX))
+        or type(n) is not int
+        or not 0 <= n <= INT4_MAX
+        or type(flags) is not list
+        or (flags and not _ALARM_SET.issuperset(flags))
+    ):
+        return None
+    for v in (worked, mass):
+        if type(v) is not float or not 0.0 <= v <= _FMAX:
+            return None
+    for v in (driven, speed, trate, arate):
+        if v is not None and (type(v) is not float or not 0.0 <= v <= _FMAX):
+            return None
+    return (
+        machine_id, stream, seq, job, cell, _ts(t0), _ts(t1), n, worked, mass, driven, speed,
+        trate, arate, list(flags),
+    )  # fmt: skip
+
+
 def _f(v: float | None) -> float | None:
     return None if v is None else float(v)
 
@@ -123,53 +187,101 @@ def ingest_cells(
     stream_start: int = 1,
 ) -> IngestResult:
     """Store one cell batch of ``stream`` for ``machine_id`` (already authenticated); the ack."""
-    if not stream:
-        raise IngestError("a cells batch must name its stream")
-    now = time.time()
-    rows, rejected, dead, repeats = validate(raw, machine_id, stream, now)
+    work = CellWork.of(machine_id, raw, stream, stream_start)
     with pipelined(conn) as cur:
         with conn.pipeline():  # BEGIN travels with the lock query: one round trip
             begin(cur)
             # the lock alone first: a statement's snapshot predates its lock wait
-            # (ingest._lock_machine)
-            cur.execute("SELECT pg_advisory_xact_lock(%s, %s)", (LOCK_NS, machine_id))
-            cur.execute(
-                "SELECT m.organisation_id, s.acked_seq,"
-                " (SELECT coalesce(array_agg(j.id), '{}') FROM jobs j WHERE j.machine_id = m.id"
-                "  AND j.id = ANY(%s))"
-                " FROM machines m"
-                " LEFT JOIN cell_record_streams s ON s.machine_id = m.id AND s.stream = %s"
-                " WHERE m.id = %s",
-                (list({r[3] for r in rows.values()}), stream, machine_id),
-            )
-            info = cur.fetchone()
-        if info is None:
-            raise IngestError(f"machine {machine_id} does not exist")
-        org, acked_db, mine = info[0], info[1], set(info[2])
-        for q in [q for q, r in rows.items() if r[3] not in mine]:
-            rejected.append({"seq": q, "reason": f"job {rows[q][3]} is not this machine's job"})
-            dead.add(q)
-            del rows[q]
-        acked0 = acked_db if acked_db is not None else stream_start - 1
+            # (ingest.ingest)
+            cur.execute(LOCK_SQL, (work.lock_ns, machine_id))
+            work.read(cur)
+            work.opened(cur.fetchone())
+        work.store(cur)
+        # the rest and the COMMIT in one pipeline: one statement, then NOTIFY and COMMIT
+        with conn.pipeline():
+            alert_rules.notify(cur, work.finish(cur))
+            commit(cur)
+    return work.result
+
+
+@dataclass
+class CellWork:
+    """One cell batch's part of a transaction, in the order ``ingest.TrackWork`` documents
+    (``prepare``, the caller's BEGIN and lock on ``lock_ns``, ``read`` / ``opened``,
+    ``store``, ``finish``, the caller's NOTIFY and COMMIT); ``result`` is the ack, true
+    once the caller committed."""
+
+    machine_id: int
+    stream: str
+    stream_start: int
+    rows: dict[int, tuple[Any, ...]]
+    dead: set[int]
+    result: IngestResult
+    org: int = 0
+    acked_db: int | None = None
+    new: list[tuple[Any, ...]] = field(default_factory=list)
+    conflict: int | None = None
+    lock_ns: int = LOCK_NS
+
+    @classmethod
+    def of(cls, machine_id: int, raw: list[Any], stream: str, stream_start: int = 1) -> CellWork:
+        """Validate the batch's records (no database)."""
+        if not stream:
+            raise IngestError("a cells batch must name its stream")
+        rows, rejected, dead, repeats = validate(raw, machine_id, stream, time.time())
         result = IngestResult(
-            machine_id, acked0, rejected=rejected, duplicates=repeats, stream=stream, streamed=True
+            machine_id, stream_start - 1, rejected=rejected, duplicates=repeats, stream=stream,
+            streamed=True,
+        )  # fmt: skip
+        return cls(machine_id, stream, stream_start, rows, dead, result)
+
+    def prepare(self, conn: psycopg.Connection[Any]) -> None:
+        """Nothing to make before the transaction (``job_cell_records`` is not partitioned)."""
+
+    def read(self, cur: psycopg.Cursor[Any]) -> None:
+        """Queue the read of the machine, the stream's ack and which jobs are the machine's."""
+        cur.execute(
+            "SELECT m.organisation_id, s.acked_seq,"
+            " (SELECT coalesce(array_agg(j.id), '{}') FROM jobs j WHERE j.machine_id = m.id"
+            "  AND j.id = ANY(%s))"
+            " FROM machines m"
+            " LEFT JOIN cell_record_streams s ON s.machine_id = m.id AND s.stream = %s"
+            " WHERE m.id = %s",
+            (list({r[3] for r in self.rows.values()}), self.stream, self.machine_id),
         )
-        conflict: int | None = None
-        new: list[tuple[Any, ...]] = []
+
+    def opened(self, info: Any) -> None:
+        """The read's row; records of another machine's job are rejected for good."""
+        if info is None:
+            raise IngestError(f"machine {self.machine_id} does not exist")
+        self.org, self.acked_db, mine = info[0], info[1], set(info[2])
+        rows = self.rows
+        for q in [q for q, r in rows.items() if r[3] not in mine]:
+            self.result.rejected.append(
+                {"seq": q, "reason": f"job {rows[q][3]} is not this machine's job"}
+            )
+            self.dead.add(q)
+            del rows[q]
+        if self.acked_db is not None:
+            self.result.acked_seq = self.acked_db
+
+    def store(self, cur: psycopg.Cursor[Any]) -> None:
+        """Sort out duplicates and a stream conflict; COPY the new rows."""
+        rows, result, stream = self.rows, self.result, self.stream
         if rows:
             existing: dict[int, tuple[Any, ...]] = {}
-            if acked_db is not None:  # a new stream holds nothing yet
+            if self.acked_db is not None:  # a new stream holds nothing yet
                 cur.execute(
                     "SELECT seq, cell_seq, t_exit FROM job_cell_records WHERE machine_id = %s"
                     " AND stream = %s AND seq BETWEEN %s AND %s",
-                    (machine_id, stream, min(rows), max(rows)),
+                    (self.machine_id, stream, min(rows), max(rows)),
                 )
                 existing = {q: (c, t) for q, c, t in cur.fetchall()}
             same = [q for q, k in existing.items() if q in rows and (rows[q][4], rows[q][6]) == k]
             result.duplicates += len(same)
             clash = [q for q in existing if q in rows and q not in same]
             if clash:
-                conflict = min(clash)
+                conflict = self.conflict = min(clash)
                 result.stream_conflict = True
                 for q in sorted(rows):
                     if (q >= conflict and q not in existing) or q in clash:
@@ -180,53 +292,56 @@ def ingest_cells(
                                 " a different record: continue on a new stream",
                             }
                         )
-                rows = {q: r for q, r in rows.items() if q < conflict}
-                dead = {q for q in dead if q < conflict}
-            new = [rows[q] for q in sorted(rows) if q not in existing]
-        if new:
+                rows = self.rows = {q: r for q, r in rows.items() if q < conflict}
+                self.dead = {q for q in self.dead if q < conflict}
+            self.new = [rows[q] for q in sorted(rows) if q not in existing]
+        if self.new:
             with cur.copy(COPY_SQL) as copy:
                 copy.set_types(COPY_TYPES)
-                for r in new:
+                for r in self.new:
                     copy.write_row(r)
-        result.stored = len(new)
-        agg: dict[tuple[int, int], list[Any]] = {}
-        for r in new:
-            n = r[7]
-            if r[4] is None or n == 0:
-                continue
-            t0, t1 = _us(r[5].timestamp()), _us(r[6].timestamp())
-            a = agg.get((r[3], r[4]))
-            tsum, asum = (r[12] or 0.0) * n, (r[13] or 0.0) * n
-            if a is None:
-                agg[(r[3], r[4])] = [n, tsum, asum, t0, t1]
-            else:
-                a[0] += n
-                a[1] += tsum
-                a[2] += asum
-                a[3], a[4] = min(a[3], t0), max(a[4], t1)
-        # the rest and the COMMIT in one pipeline; the ack walk is part of the stream's upsert
-        with conn.pipeline():
-            stream_cur = conn.cursor()
-            stream_cur.execute(
-                "INSERT INTO cell_record_streams AS s (machine_id, stream, first_seq, acked_seq,"
-                " n_records) VALUES (%(m)s, %(s)s::text, %(start)s, " + ACK_WALK_SQL + ", %(n)s)"
-                " ON CONFLICT (machine_id, stream) DO UPDATE"
-                " SET acked_seq = excluded.acked_seq, last_seen_at = now(),"
-                " n_records = s.n_records + excluded.n_records RETURNING acked_seq",
-                {
-                    "m": machine_id, "s": stream, "start": stream_start, "acked": acked0,
-                    "done": sorted(set(rows) | dead), "n": len(new),
-                },
-            )  # fmt: skip
-            alert_rules.notify(cur, cell_progress(cur, machine_id, org, agg))
-            commit(cur)
-        row = stream_cur.fetchone()
-        stream_cur.close()
+        result.stored = len(self.new)
+
+    def finish(self, cur: psycopg.Cursor[Any]) -> list[dict[str, Any]]:
+        """The stream's row with its ack walk (``ACK_WALK_SQL``) and the per-cell sums and
+        job progress (``ingest.CELL_PROGRESS_CTE``), in one statement; the live messages."""
+        cur.execute(FINISH_SQL, {
+            **cell_progress_params(self.machine_id, _per_cell(self.new)),
+            "s": self.stream, "start": self.stream_start, "acked": self.result.acked_seq,
+            "done": _int_array(set(self.rows) | self.dead), "nrec": len(self.new),
+        })  # fmt: skip
+        row = cur.fetchone()
         assert row is not None
-        result.acked_seq = int(row[0])
-        if conflict is not None:
-            result.acked_seq = min(result.acked_seq, conflict - 1)
-    return result
+        self.result.acked_seq = int(row[0])
+        if self.conflict is not None:
+            self.result.acked_seq = min(self.result.acked_seq, self.conflict - 1)
+        return job_messages(self.machine_id, self.org, row[1] or [])
+
+
+def _int_array(values: set[int]) -> str:
+    """An int8[] parameter as its text (psycopg dumps a list element by element)."""
+    return "{" + ",".join(map(str, sorted(values))) + "}"
+
+
+def _per_cell(new: list[tuple[Any, ...]]) -> dict[tuple[int, int], list[Any]]:
+    """New cell records summed per (job, cell) as ``ingest.cell_progress`` takes them: fixes,
+    target and applied rate sums over the fixes, first and last time (COPY us)."""
+    agg: dict[tuple[int, int], list[Any]] = {}
+    for r in new:
+        n = r[7]
+        if r[4] is None or n == 0:
+            continue
+        t0, t1 = _us(r[5].timestamp()), _us(r[6].timestamp())
+        a = agg.get((r[3], r[4]))
+        tsum, asum = (r[12] or 0.0) * n, (r[13] or 0.0) * n
+        if a is None:
+            agg[(r[3], r[4])] = [n, tsum, asum, t0, t1]
+        else:
+            a[0] += n
+            a[1] += tsum
+            a[2] += asum
+            a[3], a[4] = min(a[3], t0), max(a[4], t1)
+    return agg
 
 
 # The ack walk in one statement (``ingest.advance_over_stored``'s rule): from the stored
@@ -242,6 +357,20 @@ ACK_WALK_SQL = (
     "   AND seq > %(acked)s AND seq <= %(acked)s::int8 + 100000"
     "  UNION SELECT d FROM unnest(%(done)s::int8[]) AS d WHERE d > %(acked)s) u) r"
     " WHERE q = %(acked)s::int8 + k)"
+)
+
+# ``CellWork.finish``: the stream's row (its ack walked by ``ACK_WALK_SQL``) and the per-cell
+# sums with job progress (``ingest.CELL_PROGRESS_CTE``) in one statement: the acked seq and
+# the moved jobs as rows of (id, state, cells_applied, n_cells)
+FINISH_SQL = (
+    "WITH st AS (INSERT INTO cell_record_streams AS s (machine_id, stream, first_seq,"
+    " acked_seq, n_records) VALUES (%(m)s, %(s)s::text, %(start)s, " + ACK_WALK_SQL + ","
+    " %(nrec)s) ON CONFLICT (machine_id, stream) DO UPDATE"
+    " SET acked_seq = excluded.acked_seq, last_seen_at = now(),"
+    " n_records = s.n_records + excluded.n_records RETURNING acked_seq), "
+    + CELL_PROGRESS_CTE
+    + " SELECT (SELECT acked_seq FROM st),"
+    " (SELECT json_agg(json_build_array(id, state, cells_applied, n_cells)) FROM moved)"
 )
 
 

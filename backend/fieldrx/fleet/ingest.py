@@ -69,7 +69,7 @@ from fieldrx_edge.protocol import (
 )
 
 from fieldrx.fleet import alerts as alert_rules
-from fieldrx.fleet.partitions import ensure_days, record_job_spans
+from fieldrx.fleet.partitions import ensure_days, job_spans_sql
 from fieldrx.fleet.telemetry_row import (
     PG_EPOCH,
     TELEMETRY_COPY,
@@ -402,31 +402,24 @@ class MachineInfo:
     last_us: int | None = None
 
 
-def _lock_machine(cur: psycopg.Cursor[Any], machine_id: int, stream: str) -> MachineInfo | None:
-    """Take the machine's ingest lock and read what this batch needs, in one round trip
-    (the caller's pipeline).
+LOCK_SQL = "SELECT pg_advisory_xact_lock(%s, %s)"
+_MACHINE_SQL = (
+    "SELECT m.organisation_id, m.speed_min_m_s, m.speed_max_m_s, ts.acked_seq,"
+    " extract(epoch FROM s.last_t)::float8,"
+    " (SELECT coalesce(json_object_agg(a.kind, a.id), '{}') FROM alerts a"
+    "   WHERE a.machine_id = m.id AND a.ended_at IS NULL),"
+    " extract(epoch FROM ts.last_seen_at)::float8,"
+    " (SELECT extract(epoch FROM max(o.last_seen_at))::float8 FROM telemetry_streams o"
+    "   WHERE o.machine_id = m.id AND o.stream <> %s),"
+    " ts.max_seq, ts.first_t, ts.last_t"
+    " FROM machines m"
+    " LEFT JOIN machine_status s ON s.machine_id = m.id"
+    " LEFT JOIN telemetry_streams ts ON ts.machine_id = m.id AND ts.stream = %s"
+    " WHERE m.id = %s"
+)
 
-    The lock is its own statement: PostgreSQL takes a statement's snapshot when the
-    statement starts, so a read in the statement that waits for the lock would see the
-    stream as it was before the batch that held the lock committed (a resend stored
-    twice, an ack short of what is stored: tests/fleet/test_ingest_concurrency.py)."""
-    cur.execute("SELECT pg_advisory_xact_lock(%s, %s)", (LOCK_NS, machine_id))
-    cur.execute(
-        "SELECT m.organisation_id, m.speed_min_m_s, m.speed_max_m_s, ts.acked_seq,"
-        " extract(epoch FROM s.last_t)::float8,"
-        " (SELECT coalesce(json_object_agg(a.kind, a.id), '{}') FROM alerts a"
-        "   WHERE a.machine_id = m.id AND a.ended_at IS NULL),"
-        " extract(epoch FROM ts.last_seen_at)::float8,"
-        " (SELECT extract(epoch FROM max(o.last_seen_at))::float8 FROM telemetry_streams o"
-        "   WHERE o.machine_id = m.id AND o.stream <> %s),"
-        " ts.max_seq, ts.first_t, ts.last_t"
-        " FROM machines m"
-        " LEFT JOIN machine_status s ON s.machine_id = m.id"
-        " LEFT JOIN telemetry_streams ts ON ts.machine_id = m.id AND ts.stream = %s"
-        " WHERE m.id = %s",
-        (stream, stream, machine_id),
-    )
-    r = cur.fetchone()
+
+def _machine_info(r: Any) -> MachineInfo | None:
     if r is None:
         return None
     alerts = r[5] if isinstance(r[5], dict) else orjson.loads(r[5])
@@ -455,96 +448,169 @@ def ingest(
 
     ``stream_start``: the stream's first seq, used when the stream is new.
     ``streamed``: the batch was format 2 (default: a stream was named)."""
-    now = time.time()
-    rows, rejected, dead, repeats = validate(raw, machine_id, stream, now)
-    ensure_days(conn, [r.t for r in rows.values()])  # own transaction, before the batch's
+    work = TrackWork.of(machine_id, raw, stream, stream_start, streamed)
+    work.prepare(conn)
     with pipelined(conn) as cur:
         with conn.pipeline():  # BEGIN travels with the lock query: one round trip
             begin(cur)
-            info = _lock_machine(cur, machine_id, stream)
-        if info is None:
-            raise IngestError(f"machine {machine_id} does not exist")
-        acked0 = info.acked_seq if info.acked_seq is not None else stream_start - 1
+            # the lock is its own statement: PostgreSQL takes a statement's snapshot when
+            # the statement starts, so a read in the statement that waits for the lock
+            # would see the stream as it was before the batch that held the lock committed
+            # (a resend stored twice, an ack short of what is stored:
+            # tests/fleet/test_ingest_concurrency.py)
+            cur.execute(LOCK_SQL, (work.lock_ns, machine_id))
+            work.read(cur)
+            work.opened(cur.fetchone())
+        work.store(cur)
+        # the rest of the transaction and its COMMIT in one pipeline: the statements whose
+        # results are read (ack walk, per-cell progress, alerts) sync it on the way
+        with conn.pipeline():
+            alert_rules.notify(cur, work.finish(cur))
+            commit(cur)
+    return work.result
+
+
+@dataclass
+class TrackWork:
+    """One telemetry batch's part of a transaction, in the order the caller runs it:
+    ``prepare`` (before the transaction), the caller's BEGIN and ``LOCK_SQL`` with
+    ``lock_ns``, ``read`` / ``opened`` (after the lock), ``store`` (COPY), ``finish`` (the
+    rest; returns the live messages), the caller's NOTIFY and COMMIT. ``result`` is the
+    ack, true only once the caller committed. ``ingest`` runs one batch so;
+    ``fleet.multibatch`` runs a thin request's track and cell batches in one transaction.
+    """
+
+    machine_id: int
+    stream: str
+    stream_start: int
+    now: float
+    rows: dict[int, TelemetryRow]
+    dead: set[int]
+    result: IngestResult
+    info: MachineInfo | None = None
+    new: list[TelemetryRow] = field(default_factory=list)
+    conflict: int | None = None
+    lock_ns: int = LOCK_NS
+
+    @classmethod
+    def of(
+        cls,
+        machine_id: int,
+        raw: list[Any],
+        stream: str = "",
+        stream_start: int = 1,
+        streamed: bool | None = None,
+    ) -> TrackWork:
+        """Validate the batch's records (no database)."""
+        now = time.time()
+        rows, rejected, dead, repeats = validate(raw, machine_id, stream, now)
         result = IngestResult(
-            machine_id, acked0, rejected=rejected, duplicates=repeats, stream=stream,
+            machine_id, stream_start - 1, rejected=rejected, duplicates=repeats, stream=stream,
             streamed=bool(stream) if streamed is None else streamed,
         )  # fmt: skip
-        new: list[TelemetryRow] = []
-        conflict: int | None = None
+        return cls(machine_id, stream, stream_start, now, rows, dead, result)
+
+    def prepare(self, conn: psycopg.Connection[Any]) -> None:
+        """Make the records' days (own transaction, before the batch's)."""
+        ensure_days(conn, [r.t for r in self.rows.values()])
+
+    def read(self, cur: psycopg.Cursor[Any]) -> None:
+        """Queue the read of what the batch needs (after the caller's lock statement)."""
+        cur.execute(_MACHINE_SQL, (self.stream, self.stream, self.machine_id))
+
+    def opened(self, row: Any) -> None:
+        """The read's row (``read``'s cursor's ``fetchone()``)."""
+        info = self.info = _machine_info(row)
+        if info is None:
+            raise IngestError(f"machine {self.machine_id} does not exist")
+        if info.acked_seq is not None:
+            self.result.acked_seq = info.acked_seq
+
+    def store(self, cur: psycopg.Cursor[Any]) -> None:
+        """Sort out duplicates and a stream conflict; COPY the new rows."""
+        assert self.info is not None
+        result, rows, stream = self.result, self.rows, self.stream
         if rows:
-            existing = _stored(cur, machine_id, stream, info, rows)
+            existing = _stored(cur, self.machine_id, stream, self.info, rows)
             if existing:
                 same = [q for q, t_us in existing.items() if q in rows and rows[q].t == t_us]
                 result.duplicates += len(same)
                 clash = [q for q in existing if q in rows and rows[q].t != existing[q]]
                 if clash:
-                    conflict = min(clash)
+                    conflict = self.conflict = min(clash)
                     result.stream_conflict = True
                     for q in sorted(rows):
                         if (q >= conflict and q not in existing) or q in clash:
                             result.rejected.append({"seq": q, "reason": _conflict_reason(
                                 q, stream, q in clash)})  # fmt: skip
-                    rows = {q: r for q, r in rows.items() if q < conflict}
-                    dead = {q for q in dead if q < conflict}
-            new = [rows[s] for s in sorted(rows) if s not in existing]
-        if new:
-            TELEMETRY_COPY.write_rows(cur, new)  # COPY cannot be pipelined: two round trips
-        # the rest of the transaction and its COMMIT in one pipeline: the statements whose
-        # results are read (ack walk, per-cell progress, alerts) sync it on the way
-        with conn.pipeline():
-            if new:
-                record_job_spans(cur, machine_id, [r.t for r in new], [r.job_id for r in new])
-            result.stored = len(new)
-            result.acked_seq = _advance(
-                cur, machine_id, stream, acked0, set(rows) | dead, info, new
-            )
-            messages: list[dict[str, Any]] = []
-            _stream_row(cur, machine_id, stream, stream_start, result.acked_seq, new, info)
-            if conflict is not None:
-                # the agent may trim only below the conflict; it resends the rest on a new stream
-                result.acked_seq = min(result.acked_seq, conflict - 1)
-            _status(cur, machine_id, info, new, result.acked_seq, now)
-            if new:
-                latest = max(new, key=lambda r: r.t)
-                messages.append(_position(info.organisation_id, latest, result))
-                messages.extend(_cells(cur, machine_id, info.organisation_id, new))
-            messages.extend(_streams_alert(cur, machine_id, stream, info, new, now))
-            if new and _may_alert(new, info):
-                samples = [
-                    alert_rules.Sample(
-                        r.t_s,
-                        r.fix_quality,
-                        r.speed_m_s,
-                        r.target_rate_kg_ha,
-                        r.applied_rate_kg_ha,
-                        r.implement_down,
-                        r.alarms,
-                    )
-                    for r in sorted(new, key=lambda r: r.t)
-                ]
-                messages.extend(
-                    alert_rules.evaluate(
-                        cur,
-                        machine_id,
-                        info.organisation_id,
-                        latest.job_id,
-                        samples,
-                        info.speed_min_m_s,
-                        info.speed_max_m_s,
-                        info.open_alerts,
-                    )
-                )
-            if new and any(r.depth_mm is not None for r in new):  # seeding job (issue 13)
-                from fieldrx.fleet.seed_alerts import check_depth_window
+                    rows = self.rows = {q: r for q, r in rows.items() if q < conflict}
+                    self.dead = {q for q in self.dead if q < conflict}
+            self.new = [rows[s] for s in sorted(rows) if s not in existing]
+        if self.new:
+            TELEMETRY_COPY.write_rows(cur, self.new)  # COPY cannot be pipelined: two round trips
+        result.stored = len(self.new)
 
-                messages.extend(
-                    check_depth_window(
-                        cur, machine_id, info.organisation_id, latest.job_id, info.open_alerts
-                    )
+    def finish(self, cur: psycopg.Cursor[Any]) -> list[dict[str, Any]]:
+        """Job spans, ack walk, stream row, status, per-cell sums, alerts; the live messages."""
+        info, new, result, now = self.info, self.new, self.result, self.now
+        machine_id, stream = self.machine_id, self.stream
+        assert info is not None
+        result.acked_seq = _advance(
+            cur, machine_id, stream, result.acked_seq, set(self.rows) | self.dead, info, new
+        )
+        messages: list[dict[str, Any]] = []
+        stream_row = _stream_row(machine_id, stream, self.stream_start, result.acked_seq, new)
+        if self.conflict is not None:
+            # the agent may trim only below the conflict; it resends the rest on a new stream
+            result.acked_seq = min(result.acked_seq, self.conflict - 1)
+        # the job spans, the stream's row and the machine's status: one statement
+        spans = job_spans_sql(machine_id, [r.t for r in new], [r.job_id for r in new])
+        cur.execute(
+            *_one_statement(
+                [spans, stream_row, _status(machine_id, info, new, result.acked_seq, now)]
+            )
+        )
+        if not new:
+            messages.extend(_streams_alert(cur, machine_id, stream, info, new, now))
+            return messages
+        latest = max(new, key=lambda r: r.t)
+        messages.append(_position(info.organisation_id, latest, result))
+        messages.extend(_cells(cur, machine_id, info.organisation_id, new))
+        messages.extend(_streams_alert(cur, machine_id, stream, info, new, now))
+        if _may_alert(new, info):
+            samples = [
+                alert_rules.Sample(
+                    r.t_s,
+                    r.fix_quality,
+                    r.speed_m_s,
+                    r.target_rate_kg_ha,
+                    r.applied_rate_kg_ha,
+                    r.implement_down,
+                    r.alarms,
                 )
-            alert_rules.notify(cur, messages)
-            commit(cur)
-    return result
+                for r in sorted(new, key=lambda r: r.t)
+            ]
+            messages.extend(
+                alert_rules.evaluate(
+                    cur,
+                    machine_id,
+                    info.organisation_id,
+                    latest.job_id,
+                    samples,
+                    info.speed_min_m_s,
+                    info.speed_max_m_s,
+                    info.open_alerts,
+                )
+            )
+        if any(r.depth_mm is not None for r in new):  # seeding job (issue 13)
+            from fieldrx.fleet.seed_alerts import check_depth_window
+
+            messages.extend(
+                check_depth_window(
+                    cur, machine_id, info.organisation_id, latest.job_id, info.open_alerts
+                )
+            )
+        return messages
 
 
 @contextmanager
@@ -633,21 +699,16 @@ def _conflict_reason(seq: int, stream: str, clash: bool) -> str:
 
 
 def _stream_row(
-    cur: psycopg.Cursor[Any],
-    machine_id: int,
-    stream: str,
-    stream_start: int,
-    acked: int,
-    new: list[TelemetryRow],
-    info: MachineInfo,
-) -> None:
-    """Upsert the stream's acknowledged seq, last batch time, record count and time span."""
+    machine_id: int, stream: str, stream_start: int, acked: int, new: list[TelemetryRow]
+) -> tuple[str, tuple[Any, ...]]:
+    """The upsert of the stream's acknowledged seq, last batch time, record count and time
+    span (statement, parameters)."""
     t0 = t1 = None
     if new:
         us = [r.t for r in new]
         t0 = dt.datetime.fromtimestamp(min(us) / 1e6 + PG_EPOCH, dt.UTC)
         t1 = dt.datetime.fromtimestamp(max(us) / 1e6 + PG_EPOCH, dt.UTC)
-    cur.execute(
+    return (
         "INSERT INTO telemetry_streams AS ts (machine_id, stream, first_seq, acked_seq,"
         " n_records, first_t, last_t, max_seq) VALUES (%s, %s, %s, %s, %s, %s, %s, %s)"
         " ON CONFLICT (machine_id, stream) DO UPDATE SET acked_seq = excluded.acked_seq,"
@@ -660,6 +721,21 @@ def _stream_row(
             max(r.seq for r in new) if new else None,
         ),
     )  # fmt: skip
+
+
+def _one_statement(
+    parts: list[tuple[str, tuple[Any, ...]] | None],
+) -> tuple[str, tuple[Any, ...]]:
+    """Data-modifying statements (positional parameters) as one: the first ones as common
+    table expressions of the last (each runs once, all in one snapshot: they must not
+    touch the same rows). One statement instead of several: each costs its own parse,
+    plan, executor start and result, on both sides."""
+    todo = [p for p in parts if p is not None]
+    *ctes, (sql, params) = todo
+    if not ctes:
+        return sql, params
+    head = "WITH " + ", ".join(f"w{i} AS ({q})" for i, (q, _) in enumerate(ctes)) + " "
+    return head + sql, tuple(x for _, p in ctes for x in p) + tuple(params)
 
 
 def _streams_alert(
@@ -775,34 +851,32 @@ def advance_over_stored(
 
 
 def _status(
-    cur: psycopg.Cursor[Any],
     machine_id: int,
     info: MachineInfo,
     new: list[TelemetryRow],
     acked: int,
     now: float,
-) -> None:
-    """Upsert the machine's latest state; position fields only move forward in record time
-    (a stored latest time beyond the future tolerance is a clock error, not a reason to
-    freeze the machine's state: newer real records replace it)."""
+) -> tuple[str, tuple[Any, ...]]:
+    """The upsert of the machine's latest state (statement, parameters); position fields
+    only move forward in record time (a stored latest time beyond the future tolerance is
+    a clock error, not a reason to freeze the machine's state: newer real records replace
+    it)."""
     if not new:
-        cur.execute(
+        return (
             "INSERT INTO machine_status (machine_id, last_seen_at, acked_seq, queue_backlog,"
             " alarms) VALUES (%s, now(), %s, 0, '{}') ON CONFLICT (machine_id) DO UPDATE"
             " SET last_seen_at = now(), acked_seq = excluded.acked_seq",
             (machine_id, acked),
         )
-        return
     r = max(new, key=lambda r: r.t)
     t = r.t_s
     if info.last_t is not None and t < info.last_t <= now + FUTURE_TOLERANCE_S:
-        cur.execute(
+        return (
             "UPDATE machine_status SET last_seen_at = now(), acked_seq = %s WHERE machine_id = %s",
             (acked, machine_id),
         )
-        return
     lon, lat = r.lonlat
-    cur.execute(
+    return (
         """
         INSERT INTO machine_status (machine_id, last_seen_at, last_t, acked_seq, lon, lat,
             speed_m_s, heading_deg, job_id, cell_seq, target_rate_kg_ha, applied_rate_kg_ha,
@@ -906,65 +980,78 @@ def cell_progress(
     """Add per-cell sums ((job, cell) -> [records, target rate sum, applied rate sum,
     first t, last t], times as COPY microseconds) of this machine's jobs to
     ``job_cells_applied`` and move job progress (``_cells`` for the rules); the job
-    messages for the live view. Shared with the thin profile's cell records
-    (``fleet.cellrecords``)."""
+    messages for the live view. The thin profile's cell records (``fleet.cellrecords``)
+    run ``CELL_PROGRESS_CTE`` inside their stream row's statement instead."""
     if not agg:
         return []
-    items = list(agg.items())
-
-    def ts(us: int) -> dt.datetime:
-        return dt.datetime.fromtimestamp(us / 1e6 + PG_EPOCH, dt.UTC)
-
     cur.execute(
-        """
-        WITH new AS (
-            SELECT * FROM unnest(%(job)s::int[], %(seq)s::int[], %(n)s::int[],
-                                 %(ts)s::float8[], %(aps)s::float8[],
-                                 %(ft)s::timestamptz[], %(lt)s::timestamptz[])
-                AS n(job_id, seq, n, ts, aps, ft, lt)
-            -- this machine's jobs
-            WHERE n.job_id IN (SELECT id FROM jobs WHERE machine_id = %(m)s)
-        ), old AS (
-            SELECT c.job_id, c.seq, c.applied_rate_sum FROM job_cells_applied c
-            JOIN new USING (job_id, seq) WHERE c.machine_id = %(m)s
-        ), up AS (
-            INSERT INTO job_cells_applied AS c (machine_id, job_id, seq, n_records,
-                target_rate_sum, applied_rate_sum, first_t, last_t)
-            SELECT %(m)s, job_id, seq, n, ts, aps, ft, lt FROM new
-            ON CONFLICT (machine_id, job_id, seq) DO UPDATE SET
-                n_records = c.n_records + excluded.n_records,
-                target_rate_sum = c.target_rate_sum + excluded.target_rate_sum,
-                applied_rate_sum = c.applied_rate_sum + excluded.applied_rate_sum,
-                first_t = least(c.first_t, excluded.first_t),
-                last_t = greatest(c.last_t, excluded.last_t)
-            RETURNING c.job_id, c.seq, c.applied_rate_sum
-        ), gained AS (
-            SELECT up.job_id,
-                count(*) FILTER (WHERE old.seq IS NULL) AS worked,  -- first record in the cell
-                count(*) FILTER (WHERE up.applied_rate_sum > 0
-                                 AND coalesce(old.applied_rate_sum, 0) <= 0) AS applied
-            FROM up LEFT JOIN old USING (job_id, seq)
-            GROUP BY up.job_id
-        )
+        "WITH " + CELL_PROGRESS_CTE + " SELECT id, state, cells_applied, n_cells FROM moved",
+        cell_progress_params(machine_id, agg),
+    )
+    return job_messages(machine_id, org, cur.fetchall())
+
+
+# ``cell_progress`` as common table expressions (parameters: ``cell_progress_params``); the
+# last one, ``moved``, returns the jobs whose progress moved (id, state, cells_applied,
+# n_cells): ``job_messages``
+CELL_PROGRESS_CTE = """
+    new AS (
+        -- one JSON parameter, parsed once (arrays are dumped element by element in Python)
+        SELECT n.job_id, n.seq, n.n, n.ts, n.aps,
+            timestamptz '2000-01-01 00:00:00+00' + n.ft * interval '1 microsecond' AS ft,
+            timestamptz '2000-01-01 00:00:00+00' + n.lt * interval '1 microsecond' AS lt
+        FROM json_to_recordset(%(cells)s::json)
+            AS n(job_id int, seq int, n int, ts float8, aps float8, ft int8, lt int8)
+        -- this machine's jobs
+        WHERE n.job_id IN (SELECT id FROM jobs WHERE machine_id = %(m)s)
+    ), old AS (
+        SELECT c.job_id, c.seq, c.applied_rate_sum FROM job_cells_applied c
+        JOIN new USING (job_id, seq) WHERE c.machine_id = %(m)s
+    ), up AS (
+        INSERT INTO job_cells_applied AS c (machine_id, job_id, seq, n_records,
+            target_rate_sum, applied_rate_sum, first_t, last_t)
+        SELECT %(m)s, job_id, seq, n, ts, aps, ft, lt FROM new
+        ON CONFLICT (machine_id, job_id, seq) DO UPDATE SET
+            n_records = c.n_records + excluded.n_records,
+            target_rate_sum = c.target_rate_sum + excluded.target_rate_sum,
+            applied_rate_sum = c.applied_rate_sum + excluded.applied_rate_sum,
+            first_t = least(c.first_t, excluded.first_t),
+            last_t = greatest(c.last_t, excluded.last_t)
+        RETURNING c.job_id, c.seq, c.applied_rate_sum
+    ), gained AS (
+        SELECT up.job_id,
+            count(*) FILTER (WHERE old.seq IS NULL) AS worked,  -- first record in the cell
+            count(*) FILTER (WHERE up.applied_rate_sum > 0
+                             AND coalesce(old.applied_rate_sum, 0) <= 0) AS applied
+        FROM up LEFT JOIN old USING (job_id, seq)
+        GROUP BY up.job_id
+    ), moved AS (
         UPDATE jobs j SET cells_applied = j.cells_applied + g.k, updated_at = now()
         FROM (SELECT g.job_id, CASE WHEN jk.kind = ANY(%(kinds)s::text[]) THEN g.worked
                                     ELSE g.applied END AS k
               FROM gained g JOIN jobs jk ON jk.machine_id = %(m)s AND jk.id = g.job_id) g
         WHERE j.machine_id = %(m)s AND j.id = g.job_id AND g.k > 0
         RETURNING j.id, j.state, j.cells_applied, j.n_cells
-        """,
-        {
-            "job": [k[0] for k, _ in items],
-            "seq": [k[1] for k, _ in items],
-            "n": [v[0] for _, v in items],
-            "ts": [v[1] for _, v in items],
-            "aps": [v[2] for _, v in items],
-            "ft": [ts(v[3]) for _, v in items],
-            "lt": [ts(v[4]) for _, v in items],
-            "m": machine_id,
-            "kinds": list(PROGRESS_BY_WORK),
-        },
     )
+"""
+
+
+def cell_progress_params(machine_id: int, agg: dict[tuple[int, int], list[Any]]) -> dict[str, Any]:
+    """``CELL_PROGRESS_CTE``'s parameters for these per-cell sums (``cell_progress``)."""
+    return {
+        "cells": orjson.dumps(
+            [
+                {"job_id": j, "seq": c, "n": n, "ts": ts, "aps": aps, "ft": ft, "lt": lt}
+                for (j, c), (n, ts, aps, ft, lt) in agg.items()
+            ]
+        ).decode(),
+        "m": machine_id,
+        "kinds": list(PROGRESS_BY_WORK),
+    }
+
+
+def job_messages(machine_id: int, org: int, moved: Iterable[Any]) -> list[dict[str, Any]]:
+    """Live messages of the jobs whose progress moved (``CELL_PROGRESS_CTE``'s ``moved``)."""
     return [
         {
             "type": "job",
@@ -976,7 +1063,7 @@ def cell_progress(
             "n_cells": n,
             "progress": (applied / n) if n else 0.0,
         }
-        for jid, state, applied, n in cur.fetchall()
+        for jid, state, applied, n in moved
     ]
 
 

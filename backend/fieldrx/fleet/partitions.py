@@ -150,8 +150,18 @@ def record_job_spans(
     cur: psycopg.Cursor[Any], machine_id: int, t_us: Iterable[int], job_ids: Iterable[int | None]
 ) -> None:
     """Widen the (machine, job) time spans by these stored records (int8 us ``t`` and their
-    ``job_id``; records without a job are skipped). Every writer of telemetry calls this in
-    the transaction that stores the rows: job queries read only inside the span."""
+    ``job_id``; records without a job are skipped). Every writer of telemetry calls this
+    (or runs ``job_spans_sql`` itself) in the transaction that stores the rows: job
+    queries read only inside the span."""
+    stmt = job_spans_sql(machine_id, t_us, job_ids)
+    if stmt is not None:
+        cur.execute(*stmt)
+
+
+def job_spans_sql(
+    machine_id: int, t_us: Iterable[int], job_ids: Iterable[int | None]
+) -> tuple[str, tuple[Any, ...]] | None:
+    """``record_job_spans``'s statement and its (positional) parameters; None: no job."""
     spans: dict[int, list[int]] = {}
     for t, j in zip(t_us, job_ids, strict=True):
         if j is None:
@@ -166,9 +176,9 @@ def record_job_spans(
                 s[1] = t
             s[2] += 1
     if not spans:
-        return
+        return None
     ids = sorted(spans)
-    cur.execute(
+    return (
         "INSERT INTO telemetry_job_spans AS s (machine_id, job_id, first_t, last_t, n_records)"
         " SELECT %s, j, t0, t1, n FROM unnest(%s::int[], %s::timestamptz[], %s::timestamptz[],"
         " %s::int8[]) AS u(j, t0, t1, n)"

@@ -76,6 +76,9 @@ class HttpSender:
             if not isinstance(acks, list) or len(acks) != len(pending):
                 raise ValueError(f"{len(pending)} batches sent, acks: {str(acks)[:200]}")
             parsed = [TelemetryAck.from_dict(a) for a in acks]
+            for a in acks:  # a batch the server could not store: acked_seq 0, resent later
+                if a.get("error"):
+                    log.warning("server did not store a batch: %s", a["error"])
         except (httpx.HTTPError, ValueError, TypeError, AttributeError, KeyError) as exc:
             return self._failed(exc)
         self.sent_batches += 1

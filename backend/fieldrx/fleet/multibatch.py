@@ -1,0 +1,132 @@
+"""Several batches of one machine in one request (``protocol.MULTI_KIND``), in one transaction.
+
+A thin agent (uplink profile ``thin``) sends its 1 Hz track batch and its cell batch in
+one HTTP request. Stored one transaction each (``ingest.ingest``, then
+``cellrecords.ingest_cells``) that is two BEGIN / lock / read / NOTIFY / COMMIT rounds per
+request; here a track batch and a cell batch share one transaction: both locks in one
+statement, both reads in one round trip, one NOTIFY, one COMMIT (issue 18: the thin
+profile's server CPU per machine-hour).
+
+An ack is true only once its batch is durably stored, and one batch must not take
+another down with it: if the shared transaction fails (a batch the database refuses,
+``IngestError``), nothing of it was committed and no ack was sent, so every batch is
+stored again on its own, as before. A batch that fails alone then gets an error ack
+naming the batch, its stream and the database's reason (``error``; ``acked_seq`` 0 and
+nothing rejected: the agent trims nothing of that queue and resends it), and the other
+batches are stored and acknowledged as usual. A request with other batches than one
+track and one cell batch (``MAX_BATCHES`` allows more) is stored one transaction per
+batch.
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import Any
+
+import orjson
+import psycopg
+
+from fieldrx.fleet import alerts as alert_rules
+from fieldrx.fleet.cellrecords import CellWork, ingest_cells
+from fieldrx.fleet.ingest import (
+    Batch,
+    IngestError,
+    IngestResult,
+    TrackWork,
+    begin,
+    commit,
+    ingest,
+    pipelined,
+)
+
+log = logging.getLogger(__name__)
+
+
+def ingest_batches(
+    conn: psycopg.Connection[Any], machine_id: int, batches: list[Batch]
+) -> list[bytes]:
+    """Store a request's batches for ``machine_id`` (already authenticated); one ack (JSON)
+    per batch, in order."""
+    kinds = [b.kind for b in batches]
+    if len(batches) == 2 and sorted(kinds) == ["cells", "telemetry"]:
+        try:
+            results = _together(conn, machine_id, batches)
+        except (IngestError, psycopg.Error) as exc:
+            if conn.closed or conn.broken:
+                raise
+            log.info("machine %s: batches stored one by one (%s)", machine_id, _reason(exc))
+        else:
+            return [r.to_json() for r in results]
+    return [_alone(conn, machine_id, i, b) for i, b in enumerate(batches)]
+
+
+def store(conn: psycopg.Connection[Any], machine_id: int, batch: Batch) -> IngestResult:
+    """One batch in its own transaction (the single-batch request's path too)."""
+    if batch.kind == "cells":  # uplink profile thin: its cell records
+        return ingest_cells(conn, machine_id, batch.records, batch.stream, batch.stream_start)
+    return ingest(conn, machine_id, batch.records, batch.stream, batch.stream_start, batch.streamed)
+
+
+def _together(
+    conn: psycopg.Connection[Any], machine_id: int, batches: list[Batch]
+) -> list[IngestResult]:
+    """A track and a cell batch in one transaction; their acks, once it committed."""
+    works: list[TrackWork | CellWork] = [
+        CellWork.of(machine_id, b.records, b.stream, b.stream_start)
+        if b.kind == "cells"
+        else TrackWork.of(machine_id, b.records, b.stream, b.stream_start, b.streamed)
+        for b in batches
+    ]
+    for w in works:
+        w.prepare(conn)
+    ordered = sorted(works, key=lambda w: w.lock_ns)
+    with pipelined(conn) as cur:
+        cursors = [conn.cursor() for _ in works]
+        try:
+            with conn.pipeline():  # BEGIN, the locks and both reads: one round trip
+                begin(cur)
+                # both locks in one statement, always in lock_ns order (a select list is
+                # evaluated left to right): two such requests cannot deadlock; a lone
+                # batch takes one. The reads follow it (their snapshot after the wait).
+                cur.execute(
+                    "SELECT " + ", ".join(["pg_advisory_xact_lock(%s, %s)"] * len(ordered)),
+                    [x for w in ordered for x in (w.lock_ns, machine_id)],
+                )
+                for w, c in zip(works, cursors, strict=True):
+                    w.read(c)
+                for w, c in zip(works, cursors, strict=True):
+                    w.opened(c.fetchone())
+        finally:
+            for c in cursors:
+                c.close()
+        for w in works:
+            w.store(cur)  # COPY: outside the pipeline
+        with conn.pipeline():
+            messages = [m for w in works for m in w.finish(cur)]
+            alert_rules.notify(cur, messages)
+            commit(cur)
+    return [w.result for w in works]
+
+
+def _alone(conn: psycopg.Connection[Any], machine_id: int, i: int, batch: Batch) -> bytes:
+    """One batch in its own transaction; a batch that fails gets an error ack."""
+    try:
+        return store(conn, machine_id, batch).to_json()
+    except (IngestError, psycopg.Error) as exc:
+        if conn.closed or conn.broken:
+            raise
+        what = f"batches[{i}] ({batch.kind}, stream {batch.stream or '(legacy)'})"
+        reason = f"{what} not stored: {_reason(exc)}"
+        log.warning("machine %s: %s", machine_id, reason)
+        ack = IngestResult(machine_id, 0, stream=batch.stream, streamed=True).to_json()
+        return ack[:-1] + b',"error":' + orjson.dumps(reason) + b"}"
+
+
+def _reason(exc: Exception) -> str:
+    """The error's text; for the database's, its detail and where (e.g. the COPY line:
+    the record's place in the batch, from 1)."""
+    if not isinstance(exc, psycopg.Error):
+        return str(exc)
+    d = exc.diag
+    parts = [d.message_primary or str(exc), d.message_detail, d.context]
+    return "; ".join(p.strip() for p in parts if p)
