@@ -32,6 +32,7 @@ import datetime as dt
 import operator
 import sys
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -267,6 +268,21 @@ class CellWork:
 
     def store(self, cur: psycopg.Cursor[Any]) -> None:
         """Sort out duplicates and a stream conflict; COPY the new rows."""
+        self.sort(cur)
+        self.copy_all(cur, [self])
+
+    @staticmethod
+    def copy_all(cur: psycopg.Cursor[Any], works: Sequence[CellWork]) -> None:
+        """One COPY of the sorted works' new rows (``ingest.TrackWork.copy_all``)."""
+        if any(w.new for w in works):
+            with cur.copy(COPY_SQL) as copy:
+                copy.set_types(COPY_TYPES)
+                for w in works:
+                    for r in w.new:
+                        copy.write_row(r)
+
+    def sort(self, cur: psycopg.Cursor[Any]) -> None:
+        """Sort out duplicates and a stream conflict: ``new``, the rows to COPY."""
         rows, result, stream = self.rows, self.result, self.stream
         if rows:
             existing: dict[int, tuple[Any, ...]] = {}
@@ -295,11 +311,6 @@ class CellWork:
                 rows = self.rows = {q: r for q, r in rows.items() if q < conflict}
                 self.dead = {q for q in self.dead if q < conflict}
             self.new = [rows[q] for q in sorted(rows) if q not in existing]
-        if self.new:
-            with cur.copy(COPY_SQL) as copy:
-                copy.set_types(COPY_TYPES)
-                for r in self.new:
-                    copy.write_row(r)
         result.stored = len(self.new)
 
     def finish(self, cur: psycopg.Cursor[Any]) -> list[dict[str, Any]]:

@@ -46,7 +46,7 @@ import datetime as dt
 import json
 import operator
 import time
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field
 from typing import Any
@@ -528,6 +528,18 @@ class TrackWork:
 
     def store(self, cur: psycopg.Cursor[Any]) -> None:
         """Sort out duplicates and a stream conflict; COPY the new rows."""
+        self.sort(cur)
+        self.copy_all(cur, [self])
+
+    @staticmethod
+    def copy_all(cur: psycopg.Cursor[Any], works: Sequence[TrackWork]) -> None:
+        """One COPY of the sorted works' new rows (several machines' batches in one
+        transaction: ``fleet.multibatch.store_together``)."""
+        if any(w.new for w in works):  # COPY cannot be pipelined: two round trips
+            TELEMETRY_COPY.write_rows(cur, (r for w in works for r in w.new))
+
+    def sort(self, cur: psycopg.Cursor[Any]) -> None:
+        """Sort out duplicates and a stream conflict: ``new``, the rows to COPY."""
         assert self.info is not None
         result, rows, stream = self.result, self.rows, self.stream
         if rows:
@@ -546,8 +558,6 @@ class TrackWork:
                     rows = self.rows = {q: r for q, r in rows.items() if q < conflict}
                     self.dead = {q for q in self.dead if q < conflict}
             self.new = [rows[s] for s in sorted(rows) if s not in existing]
-        if self.new:
-            TELEMETRY_COPY.write_rows(cur, self.new)  # COPY cannot be pipelined: two round trips
         result.stored = len(self.new)
 
     def finish(self, cur: psycopg.Cursor[Any]) -> list[dict[str, Any]]:

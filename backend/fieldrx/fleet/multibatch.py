@@ -54,7 +54,7 @@ def ingest_batches(
         except (IngestError, psycopg.Error) as exc:
             if conn.closed or conn.broken:
                 raise
-            log.info("machine %s: batches stored one by one (%s)", machine_id, _reason(exc))
+            log.info("machine %s: batches stored one by one (%s)", machine_id, reason_of(exc))
         else:
             return [r.to_json() for r in results]
     return [_alone(conn, machine_id, i, b) for i, b in enumerate(batches)]
@@ -71,26 +71,45 @@ def _together(
     conn: psycopg.Connection[Any], machine_id: int, batches: list[Batch]
 ) -> list[IngestResult]:
     """A track and a cell batch in one transaction; their acks, once it committed."""
-    works: list[TrackWork | CellWork] = [
-        CellWork.of(machine_id, b.records, b.stream, b.stream_start)
-        if b.kind == "cells"
-        else TrackWork.of(machine_id, b.records, b.stream, b.stream_start, b.streamed)
-        for b in batches
-    ]
+    return store_together(conn, [work_of(machine_id, b) for b in batches])
+
+
+Work = TrackWork | CellWork
+
+
+def work_of(machine_id: int, batch: Batch) -> Work:
+    """The batch's part of a transaction (its records validated: no database)."""
+    if batch.kind == "cells":
+        return CellWork.of(machine_id, batch.records, batch.stream, batch.stream_start)
+    return TrackWork.of(machine_id, batch.records, batch.stream, batch.stream_start, batch.streamed)
+
+
+def store_together(conn: psycopg.Connection[Any], works: list[Work]) -> list[IngestResult]:
+    """Several batches, of one machine or of several, in one transaction; their acks (true
+    once this returns: it committed). Any error rolls all of them back (``pipelined``).
+
+    One statement takes every lock, ordered by (machine, lock namespace): a select list is
+    evaluated left to right, and every caller takes its locks in that order (a lone batch
+    takes one), so two such transactions cannot deadlock. The caller gives at most one
+    work per (machine, lock namespace): each work reads its machine's state after the
+    locks, before any work of the transaction writes, so a second batch of the same
+    machine and kind would read what the first is about to change (``fleet.worker`` keeps
+    it for its next transaction). The reads follow the lock statement in the same round
+    trip (their snapshot after the wait), then one COPY per table, every work's finishing
+    statements, one NOTIFY and the COMMIT in one pipeline."""
     for w in works:
         w.prepare(conn)
-    ordered = sorted(works, key=lambda w: w.lock_ns)
+    locks = sorted({(w.machine_id, w.lock_ns) for w in works})
+    if len(locks) != len(works):
+        raise ValueError("two batches of one machine and kind in one transaction")
     with pipelined(conn) as cur:
         cursors = [conn.cursor() for _ in works]
         try:
-            with conn.pipeline():  # BEGIN, the locks and both reads: one round trip
+            with conn.pipeline():  # BEGIN, the locks and every read: one round trip
                 begin(cur)
-                # both locks in one statement, always in lock_ns order (a select list is
-                # evaluated left to right): two such requests cannot deadlock; a lone
-                # batch takes one. The reads follow it (their snapshot after the wait).
                 cur.execute(
-                    "SELECT " + ", ".join(["pg_advisory_xact_lock(%s, %s)"] * len(ordered)),
-                    [x for w in ordered for x in (w.lock_ns, machine_id)],
+                    "SELECT " + ", ".join(["pg_advisory_xact_lock(%s, %s)"] * len(locks)),
+                    [x for m, ns in locks for x in (ns, m)],
                 )
                 for w, c in zip(works, cursors, strict=True):
                     w.read(c)
@@ -100,7 +119,10 @@ def _together(
             for c in cursors:
                 c.close()
         for w in works:
-            w.store(cur)  # COPY: outside the pipeline
+            w.sort(cur)
+        # one COPY per table for all the works' rows (COPY is outside the pipeline)
+        TrackWork.copy_all(cur, [w for w in works if isinstance(w, TrackWork)])
+        CellWork.copy_all(cur, [w for w in works if isinstance(w, CellWork)])
         with conn.pipeline():
             messages = [m for w in works for m in w.finish(cur)]
             alert_rules.notify(cur, messages)
@@ -116,15 +138,21 @@ def _alone(conn: psycopg.Connection[Any], machine_id: int, i: int, batch: Batch)
         if conn.closed or conn.broken:
             raise
         what = f"batches[{i}] ({batch.kind}, stream {batch.stream or '(legacy)'})"
-        reason = f"{what} not stored: {_reason(exc)}"
-        log.warning("machine %s: %s", machine_id, reason)
-        ack = IngestResult(machine_id, 0, stream=batch.stream, streamed=True).to_json()
-        return ack[:-1] + b',"error":' + orjson.dumps(reason) + b"}"
+        log.warning("machine %s: %s not stored: %s", machine_id, what, reason_of(exc))
+        return error_ack(machine_id, batch, what, exc)
 
 
-def _reason(exc: Exception) -> str:
+def error_ack(machine_id: int, batch: Batch, what: str, exc: Exception) -> bytes:
+    """The ack of a batch that was not stored: ``acked_seq`` 0, nothing rejected (the agent
+    trims nothing of that queue and resends it) and ``error`` naming ``what`` and why."""
+    reason = f"{what} not stored: {reason_of(exc)}"
+    ack = IngestResult(machine_id, 0, stream=batch.stream, streamed=True).to_json()
+    return ack[:-1] + b',"error":' + orjson.dumps(reason) + b"}"
+
+
+def reason_of(exc: Exception) -> str:
     """The error's text; for the database's, its detail and where (e.g. the COPY line:
-    the record's place in the batch, from 1)."""
+    the record's place in the batch, from 1; in a shared COPY, its place in all of them)."""
     if not isinstance(exc, psycopg.Error):
         return str(exc)
     d = exc.diag

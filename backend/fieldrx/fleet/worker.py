@@ -62,9 +62,9 @@ from paho.mqtt.properties import Properties
 from fieldrx.auth.mqtt import WORKER_USER, Broker
 from fieldrx.db.session import raw_dsn
 from fieldrx.fleet.alerts import check_no_data
-from fieldrx.fleet.cellrecords import ingest_cells
 from fieldrx.fleet.db import connect
-from fieldrx.fleet.ingest import Batch, IngestError, ingest, parse_batch
+from fieldrx.fleet.ingest import Batch, IngestError, IngestResult, parse_batch
+from fieldrx.fleet.multibatch import error_ack, reason_of, store, store_together, work_of
 from fieldrx.fleet.partitions import maintain
 from fieldrx.fleet.status import sweep_offline
 
@@ -367,32 +367,110 @@ class IngestWorker:
                 entry[0].records.extend(batch.records)
                 entry[0].stream_start = min(entry[0].stream_start, batch.stream_start)
                 entry[1].append(m)
-        for (machine_id, stream), (batch, ms) in by_stream.items():
-            records = batch.records
-            while True:
-                try:
-                    if batch.kind == "cells":  # uplink profile thin: its cell records
-                        result = ingest_cells(conn, machine_id, records, stream, batch.stream_start)
-                    else:
-                        result = ingest(
-                            conn, machine_id, records, stream, batch.stream_start, batch.streamed
-                        )
-                    break
-                except IngestError as exc:
-                    log.warning("dropping batch of machine %s: %s", machine_id, exc)
-                    result = None
-                    break
-                except psycopg.Error as exc:
-                    stats.errors += 1
-                    log.warning("ingest failed (%s); retrying", exc)
-                    conn = self._reconnect(conn)
-            if result is not None:
-                stats.batches += 1
-                stats.records += len(records)
-                stats.stored += result.stored
-                stats.duplicates += result.duplicates
-                stats.rejected += len(result.rejected)
-                self.client.publish(ack_topic(machine_id), result.to_json(), qos=1)
-            for m in ms:
-                self.client.ack(m.mid, m.qos)
+        for group in _rounds(list(by_stream.items())):
+            conn = self._store_group(conn, group, stats)
         return conn
+
+    def _store_group(
+        self, conn: psycopg.Connection[Any], group: list[_Entry], stats: WorkerStats
+    ) -> psycopg.Connection[Any]:
+        """A round's batches in one transaction (``multibatch.store_together``: one lock
+        statement, one read round trip, one COPY, one NOTIFY, one COMMIT instead of each
+        batch's own, issue 18); the acks only after the commit. If it fails, nothing of it
+        was committed or acked, and every batch is stored on its own (``_store_alone``), so
+        one machine's bad batch neither loses nor blocks another machine's."""
+        if len(group) > 1:
+            try:
+                works = [work_of(mid, batch) for (mid, _), (batch, _) in group]
+                results = store_together(conn, works)
+            except (IngestError, psycopg.Error) as exc:
+                log.info("%d batches stored one by one (%s)", len(group), reason_of(exc))
+                if conn.closed or conn.broken:
+                    stats.errors += 1
+                    conn = self._reconnect(conn)
+            else:
+                for ((mid, _), (batch, ms)), result in zip(group, results, strict=True):
+                    self._acked(stats, mid, batch, ms, result.to_json(), result)
+                return conn
+        for (mid, _), (batch, ms) in group:
+            conn = self._store_alone(conn, mid, batch, ms, stats)
+        return conn
+
+    def _store_alone(
+        self,
+        conn: psycopg.Connection[Any],
+        machine_id: int,
+        batch: Batch,
+        ms: list[mqtt.MQTTMessage],
+        stats: WorkerStats,
+    ) -> psycopg.Connection[Any]:
+        """One batch in its own transaction, retried while the database is unreachable. A
+        batch the database refuses (a constraint, a value it cannot take) gets an error ack
+        naming it and the reason (``acked_seq`` 0: the agent trims nothing and resends),
+        like a thin HTTP request's batch (``multibatch``); before, it was retried here
+        forever and held up every other machine of the lane."""
+        while True:
+            try:
+                result = store(conn, machine_id, batch)
+            except IngestError as exc:
+                log.warning("dropping batch of machine %s: %s", machine_id, exc)
+                break
+            except (psycopg.errors.DataError, psycopg.errors.IntegrityError) as exc:
+                if conn.closed or conn.broken:
+                    stats.errors += 1
+                    conn = self._reconnect(conn)
+                    continue
+                what = f"batch ({batch.kind}, stream {batch.stream or '(legacy)'})"
+                log.warning("machine %s: %s not stored: %s", machine_id, what, reason_of(exc))
+                ack = error_ack(machine_id, batch, what, exc)
+                self._acked(stats, machine_id, batch, ms, ack, None)
+                return conn
+            except psycopg.Error as exc:
+                stats.errors += 1
+                log.warning("ingest failed (%s); retrying", exc)
+                conn = self._reconnect(conn)
+            else:
+                self._acked(stats, machine_id, batch, ms, result.to_json(), result)
+                return conn
+        for m in ms:
+            self.client.ack(m.mid, m.qos)
+        return conn
+
+    def _acked(
+        self,
+        stats: WorkerStats,
+        machine_id: int,
+        batch: Batch,
+        ms: list[mqtt.MQTTMessage],
+        ack: bytes,
+        result: IngestResult | None,
+    ) -> None:
+        """Count a committed (or refused) batch, publish its ack, then PUBACK its messages."""
+        if result is not None:
+            stats.batches += 1
+            stats.records += len(batch.records)
+            stats.stored += result.stored
+            stats.duplicates += result.duplicates
+            stats.rejected += len(result.rejected)
+        self.client.publish(ack_topic(machine_id), ack, qos=1)
+        for m in ms:
+            self.client.ack(m.mid, m.qos)
+
+
+_Entry = tuple[tuple[int, str], tuple[Batch, list[mqtt.MQTTMessage]]]
+
+
+def _rounds(entries: list[_Entry]) -> list[list[_Entry]]:
+    """The batches in transactions: at most one per machine and kind in each (a batch reads
+    its machine's state before any batch of the transaction writes: ``store_together``).
+    A machine's second stream of one kind goes to the next round, so its batches are
+    still stored in the order they arrived."""
+    rounds: list[list[_Entry]] = []
+    seen: dict[tuple[int, str], int] = {}
+    for e in entries:
+        key = (e[0][0], e[1][0].kind)
+        i = seen[key] = seen.get(key, -1) + 1
+        if i == len(rounds):
+            rounds.append([])
+        rounds[i].append(e)
+    return rounds
