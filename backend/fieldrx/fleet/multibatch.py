@@ -97,37 +97,60 @@ def store_together(conn: psycopg.Connection[Any], works: list[Work]) -> list[Ing
     it for its next transaction). The reads follow the lock statement in the same round
     trip (their snapshot after the wait), then one COPY per table, every work's finishing
     statements, one NOTIFY and the COMMIT in one pipeline."""
+    results = _store(conn, works, wait=True)
+    return [r for r in results if r is not None]
+
+
+def store_free(conn: psycopg.Connection[Any], works: list[Work]) -> list[IngestResult | None]:
+    """``store_together`` for the works whose machines no other transaction holds; None for
+    the others (not stored: the caller stores them after this). A transaction of many
+    machines that waited for each lock would wait for every other worker's transaction
+    holding one of them (shared subscriptions spread a machine's messages over the
+    workers), and with it every machine it holds: the workers would take turns."""
+    return _store(conn, works, wait=False)
+
+
+def _store(
+    conn: psycopg.Connection[Any], works: list[Work], wait: bool
+) -> list[IngestResult | None]:
     for w in works:
         w.prepare(conn)
     locks = sorted({(w.machine_id, w.lock_ns) for w in works})
     if len(locks) != len(works):
         raise ValueError("two batches of one machine and kind in one transaction")
+    fn = "pg_advisory_xact_lock" if wait else "pg_try_advisory_xact_lock"
     with pipelined(conn) as cur:
         cursors = [conn.cursor() for _ in works]
         try:
             with conn.pipeline():  # BEGIN, the locks and every read: one round trip
                 begin(cur)
                 cur.execute(
-                    "SELECT " + ", ".join(["pg_advisory_xact_lock(%s, %s)"] * len(locks)),
+                    "SELECT " + ", ".join([f"{fn}(%s, %s)"] * len(locks)),
                     [x for m, ns in locks for x in (ns, m)],
                 )
                 for w, c in zip(works, cursors, strict=True):
                     w.read(c)
-                for w, c in zip(works, cursors, strict=True):
-                    w.opened(c.fetchone())
+                got = cur.fetchone()
+                rows = [c.fetchone() for c in cursors]
         finally:
             for c in cursors:
                 c.close()
-        for w in works:
+        held = dict(zip(locks, [True] * len(locks) if wait else got or (), strict=True))
+        mine = [held[(w.machine_id, w.lock_ns)] for w in works]
+        done = [w for w, h in zip(works, mine, strict=True) if h]
+        for w, row, h in zip(works, rows, mine, strict=True):
+            if h:  # a read without its lock is not used
+                w.opened(row)
+        for w in done:
             w.sort(cur)
         # one COPY per table for all the works' rows (COPY is outside the pipeline)
-        TrackWork.copy_all(cur, [w for w in works if isinstance(w, TrackWork)])
-        CellWork.copy_all(cur, [w for w in works if isinstance(w, CellWork)])
+        TrackWork.copy_all(cur, [w for w in done if isinstance(w, TrackWork)])
+        CellWork.copy_all(cur, [w for w in done if isinstance(w, CellWork)])
         with conn.pipeline():
-            messages = [m for w in works for m in w.finish(cur)]
+            messages = [m for w in done for m in w.finish(cur)]
             alert_rules.notify(cur, messages)
             commit(cur)
-    return [w.result for w in works]
+    return [w.result if h else None for w, h in zip(works, mine, strict=True)]
 
 
 def _alone(conn: psycopg.Connection[Any], machine_id: int, i: int, batch: Batch) -> bytes:

@@ -64,7 +64,14 @@ from fieldrx.db.session import raw_dsn
 from fieldrx.fleet.alerts import check_no_data
 from fieldrx.fleet.db import connect
 from fieldrx.fleet.ingest import Batch, IngestError, IngestResult, parse_batch
-from fieldrx.fleet.multibatch import error_ack, reason_of, store, store_together, work_of
+from fieldrx.fleet.multibatch import (
+    error_ack,
+    reason_of,
+    store,
+    store_free,
+    store_together,
+    work_of,
+)
 from fieldrx.fleet.partitions import maintain
 from fieldrx.fleet.status import sweep_offline
 
@@ -379,19 +386,25 @@ class IngestWorker:
         batch's own, issue 18); the acks only after the commit. If it fails, nothing of it
         was committed or acked, and every batch is stored on its own (``_store_alone``), so
         one machine's bad batch neither loses nor blocks another machine's."""
-        if len(group) > 1:
+        wait = False  # first the machines no other worker holds, then the rest (store_free)
+        while len(group) > 1:
             try:
                 works = [work_of(mid, batch) for (mid, _), (batch, _) in group]
-                results = store_together(conn, works)
+                results = (store_together if wait else store_free)(conn, works)
             except (IngestError, psycopg.Error) as exc:
                 log.info("%d batches stored one by one (%s)", len(group), reason_of(exc))
                 if conn.closed or conn.broken:
                     stats.errors += 1
                     conn = self._reconnect(conn)
-            else:
-                for ((mid, _), (batch, ms)), result in zip(group, results, strict=True):
+                break
+            busy = []
+            for e, result in zip(group, results, strict=True):
+                if result is None:
+                    busy.append(e)
+                else:
+                    (mid, _), (batch, ms) = e
                     self._acked(stats, mid, batch, ms, result.to_json(), result)
-                return conn
+            group, wait = busy, True
         for (mid, _), (batch, ms) in group:
             conn = self._store_alone(conn, mid, batch, ms, stats)
         return conn
