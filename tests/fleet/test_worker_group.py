@@ -203,3 +203,28 @@ def test_a_busy_machine_is_left_for_later_not_waited_for(conn, org, database_url
         conn, [work_of(b.machine_id, parse_batch(_msg(1, b, "s", range(1, 4), t0).payload))]
     )
     assert (rb.acked_seq, rb.stored) == (3, 3)
+
+
+def test_a_busy_machines_batch_is_held_over_once(worker, conn, org, database_url) -> None:  # noqa: ANN001
+    """In the lane, a batch whose machine another transaction holds waits for the next
+    round (unacked, nothing stored), the others are stored and acked at once; held over
+    again, it is waited for."""
+    from fieldrx.fleet.ingest import LOCK_NS
+
+    a, b = make_job(org.id, state="running"), make_job(org.id, state="running")
+    t0 = time.time() - 100
+    msgs = [_msg(1, a, "s", range(1, 4), t0), _msg(2, b, "s", range(1, 4), t0)]
+    held: dict[Any, Any] = {}
+    rec: Recorder = worker.client  # type: ignore[assignment]
+    with psycopg.connect(raw_dsn(database_url), autocommit=True) as holder:
+        holder.execute("BEGIN")
+        holder.execute("SELECT pg_advisory_xact_lock(%s, %s)", (LOCK_NS, b.machine_id))
+        worker._process(conn, msgs, WorkerStats(), held)
+        holder.execute("COMMIT")
+    assert list(held) == [(b.machine_id, "s")]
+    assert _pubacks(worker) == [1] and rec.acks(b.machine_id) == []
+    assert _xmins(conn, b.machine_id, "s") == set()
+    worker._process(conn, [_msg(3, b, "s", range(4, 6), t0)], WorkerStats(), held)
+    assert held == {}
+    assert [(x["acked_seq"], x["stored"]) for x in rec.acks(b.machine_id)] == [(5, 5)]
+    assert _pubacks(worker) == [1, 2, 3]

@@ -275,13 +275,16 @@ class IngestWorker:
         inbox, stats = self.inboxes[i], self.lane_stats[i]
         try:
             conn = connect(self.dsn)
+            held: dict[tuple[int, str], _Batch] = {}  # busy machines' batches (store_free)
             try:
                 while not halt.is_set():
                     try:
-                        first = inbox.get(timeout=0.2)
+                        first = inbox.get(timeout=0.0 if held else 0.2)
                     except queue.Empty:
+                        if held:  # nothing new: store them now, waiting for their locks
+                            conn = self._process(conn, [], stats, held)
                         continue
-                    conn = self._process(conn, self._gather(inbox, first), stats)
+                    conn = self._process(conn, self._gather(inbox, first), stats, held)
             finally:
                 conn.close()
         except BaseException as exc:  # the worker stops: its unacked messages are redelivered
@@ -349,9 +352,19 @@ class IngestWorker:
         return connect(self.dsn)
 
     def _process(
-        self, conn: psycopg.Connection[Any], msgs: list[mqtt.MQTTMessage], stats: WorkerStats
+        self,
+        conn: psycopg.Connection[Any],
+        msgs: list[mqtt.MQTTMessage],
+        stats: WorkerStats,
+        held: dict[tuple[int, str], _Batch] | None = None,
     ) -> psycopg.Connection[Any]:
-        by_stream: dict[tuple[int, str], tuple[Batch, list[mqtt.MQTTMessage]]] = {}
+        """Store ``msgs`` and the batches ``held`` over from the previous round (first, so a
+        machine's records stay in order); a batch whose machine another transaction holds
+        is held over once (put back into ``held``), the second time waited for."""
+        by_stream: dict[tuple[int, str], _Batch] = dict(held or {})
+        again = set(by_stream)
+        if held is not None:
+            held.clear()
         for m in msgs:
             stats.messages += 1
             mid = _machine_of(m.topic)
@@ -375,11 +388,16 @@ class IngestWorker:
                 entry[0].stream_start = min(entry[0].stream_start, batch.stream_start)
                 entry[1].append(m)
         for group in _rounds(list(by_stream.items())):
-            conn = self._store_group(conn, group, stats)
+            conn = self._store_group(conn, group, stats, held, again)
         return conn
 
     def _store_group(
-        self, conn: psycopg.Connection[Any], group: list[_Entry], stats: WorkerStats
+        self,
+        conn: psycopg.Connection[Any],
+        group: list[_Entry],
+        stats: WorkerStats,
+        held: dict[tuple[int, str], _Batch] | None = None,
+        again: set[tuple[int, str]] | frozenset[tuple[int, str]] = frozenset(),
     ) -> psycopg.Connection[Any]:
         """A round's batches in one transaction (``multibatch.store_together``: one lock
         statement, one read round trip, one COPY, one NOTIFY, one COMMIT instead of each
@@ -399,7 +417,9 @@ class IngestWorker:
                 break
             busy = []
             for e, result in zip(group, results, strict=True):
-                if result is None:
+                if result is None and held is not None and e[0] not in again and not wait:
+                    held[e[0]] = e[1]  # the next round tries it again (its machine is busy)
+                elif result is None:
                     busy.append(e)
                 else:
                     (mid, _), (batch, ms) = e
@@ -470,7 +490,8 @@ class IngestWorker:
             self.client.ack(m.mid, m.qos)
 
 
-_Entry = tuple[tuple[int, str], tuple[Batch, list[mqtt.MQTTMessage]]]
+_Batch = tuple[Batch, list[mqtt.MQTTMessage]]  # a stream's batch and the messages it holds
+_Entry = tuple[tuple[int, str], _Batch]
 
 
 def _rounds(entries: list[_Entry]) -> list[list[_Entry]]:
