@@ -6,8 +6,13 @@ message is acknowledged to the broker (manual PUBACK) only after its records
 are committed, so a worker that dies loses nothing: the broker redelivers, and
 ingest deduplicates by (machine, stream, seq). Messages that arrive within
 ``batch_ms`` (or are already waiting: a busy worker does not wait out the window) are
-grouped per machine and stream into one transaction, and the
-``TelemetryAck`` (naming the stream) goes back on ``ack_topic(machine_id)``.
+grouped per machine and stream into one batch, and a round's batches of several machines
+into one transaction (``multibatch.store_free``: one lock statement, one COPY, one COMMIT
+instead of each batch's own; a machine another worker's transaction holds is held over to
+the next round rather than waited for); the ``TelemetryAck`` (naming the stream) goes back
+on ``ack_topic(machine_id)`` after that commit. If the shared transaction fails, each batch
+is stored on its own; one the database refuses gets an ack with ``error`` (as a thin HTTP
+request's batch), so it neither blocks nor takes down another machine's.
 A record the protocol forbids (NaN, a far-future time) is rejected alone in
 the ack, never a reason to drop the message unanswered: an agent that gets no
 ack resends forever (issue 20).
