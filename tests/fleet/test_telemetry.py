@@ -326,3 +326,22 @@ def test_fast_ingest_route_answers_as_the_documented_route(app, client, org, job
                 assert a.headers.get("www-authenticate") == b.headers.get("www-authenticate")
                 assert a.headers["content-type"] == b.headers["content-type"]
         assert client.get("/api/v1/telemetry").json() == slow.get("/api/v1/telemetry").json()
+
+
+@pytest.mark.parametrize("streamed", [True, False])
+def test_ack_json_is_the_protocol_ack(streamed: bool) -> None:
+    """IngestResult.to_json writes the ack without ``asdict``: the same bytes as before,
+    format 1 acks without the stream fields."""
+    from dataclasses import asdict
+
+    import orjson
+    from fieldrx.fleet.ingest import IngestResult
+
+    r = IngestResult(
+        7, 41, stored=3, duplicates=2, rejected=[{"seq": 5, "reason": "bad é"}],
+        stream="s1", stream_conflict=True, streamed=streamed,
+    )  # fmt: skip
+    want = asdict(r.ack())
+    if not streamed:
+        del want["stream"], want["stream_conflict"]
+    assert r.to_json() == orjson.dumps(want)
