@@ -738,24 +738,20 @@ def main() -> int:
         env = {"DATABASE_URL": url, "FIELDRX_HEARTBEAT_TIMEOUT_S": "3600"}
         if args.transport == "http":
             port = free_port()
+            # as production starts it (scripts/run.sh, docker-compose.yml: ``fieldrx serve``,
+            # uvicorn's event loop and HTTP parser "auto": uvloop and httptools, both in
+            # requirements.lock); --quiet: no access log line per request
             api = start(
                 [
-                    str(BIN / "uvicorn"),
-                    "fieldrx.app:create_app",
-                    "--factory",
+                    str(BIN / "fieldrx"),
+                    "serve",
                     "--host",
                     "127.0.0.1",
                     "--port",
                     str(port),
                     "--workers",
                     str(workers),
-                    "--log-level",
-                    "warning",
-                    "--no-access-log",
-                    "--loop",
-                    "uvloop",
-                    "--http",
-                    "httptools",
+                    "--quiet",
                 ],
                 env,
             )

@@ -15,6 +15,7 @@ from sqlalchemy import exc as sa_exc
 from sqlalchemy.orm import exc as orm_exc
 
 from fieldrx import __version__
+from fieldrx.api import telemetry
 from fieldrx.apidocs import FIRST_CALL, install_docs
 from fieldrx.auth.mqtt import MqttCredentialError
 from fieldrx.errors import DomainError
@@ -165,6 +166,9 @@ def create_app() -> FastAPI:
                 continue
             raise
         app.include_router(module.router, prefix=API_PREFIX)
+    # device ingest, the busiest endpoint: matched first, without FastAPI's per-request
+    # dependency solving (fieldrx.api.telemetry: the documented route stays for OpenAPI)
+    app.router.routes.insert(0, telemetry.ingest_route(API_PREFIX))
 
     @app.api_route(
         f"{API_PREFIX}/{{path:path}}",

@@ -12,6 +12,7 @@ from typing import Annotated
 
 from fastapi import Depends, HTTPException, status
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
+from fastapi.security.utils import get_authorization_scheme_param
 from sqlalchemy import select, update
 from sqlalchemy.orm import Session
 
@@ -49,13 +50,26 @@ def bearer_token(
 ) -> str:
     """The token of ``Authorization: Bearer <token>`` (declared as the OpenAPI bearer scheme,
     so /docs shows Authorize); 401 saying how to send it when missing."""
-    if credentials is None or not credentials.credentials.strip():
+    return token_of(credentials.credentials if credentials is not None else None)
+
+
+def bearer_token_of(authorization: str | None) -> str:
+    """``bearer_token`` for an endpoint that reads the header itself (the device ingest fast
+    path, ``fieldrx.api.telemetry``): the same parsing as ``HTTPBearer`` (scheme, a space,
+    the token; scheme case-insensitive) and the same 401."""
+    scheme, credentials = get_authorization_scheme_param(authorization)
+    return token_of(credentials if scheme.lower() == "bearer" else None)
+
+
+def token_of(credentials: str | None) -> str:
+    """The token, stripped; 401 saying how to send it when missing or blank."""
+    if credentials is None or not credentials.strip():
         raise HTTPException(
             status.HTTP_401_UNAUTHORIZED,
             "missing bearer token (Authorization: Bearer <token>)",
             headers={"WWW-Authenticate": "Bearer"},
         )
-    return credentials.credentials.strip()
+    return credentials.strip()
 
 
 def resolve_token(session: Session, token: str) -> Principal | None:
