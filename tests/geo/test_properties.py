@@ -252,17 +252,20 @@ def test_optimal_heading_is_the_exact_minimum_over_whole_degrees(fw, h):
     assert heading_objective(region, w, phi, field) <= brute
 
 
-@pytest.mark.xfail(strict=True, reason="known defect: a rounded ring kinks (issue 16)")
-def test_rounded_ring_kink_known_defect():
-    # found by the property test with rounded rings in plans: pass 1's rounded ring on
-    # this field (w 2.3 m, r 3 m) has a vertex triple of circumradius 0.15 m; not yet
-    # understood (the opening's polygonisation or a near-pinch of the r-discs)
+def test_rounded_ring_has_no_kink_at_a_neck():
+    # found by the property test with rounded rings in plans: pass 1's ring polygon on
+    # this field (w 2.3 m, r 3 m) has a neck narrower than 2 r between the pond and the
+    # field edge; the opening's r-discs on either side of it overlap and their circles
+    # crossed at a 142 degree kink (circumradius 0.15 m) until the closing filled it
     from pathlib import Path
+
+    from fieldrx.geo.planning.headland import headland_rings
 
     from tests.geo.cases import min_turn_radius
 
     field = shapely.from_wkt((Path(__file__).parent / "ring_kink_field.wkt").read_text())
-    from fieldrx.geo.planning.headland import headland_rings
-
-    for _, line, _ in headland_rings(field, 2.3, 2, 3.0):
+    rings = headland_rings(field, 2.3, 2, 3.0)
+    assert {k for k, _, _ in rings} == {0, 1}
+    for _, line, _ in rings:
+        assert field.contains(line)
         assert min_turn_radius(np.asarray(line.coords), 0.3) >= 0.999 * 3.0

@@ -81,13 +81,29 @@ def _reflex_bites(poly: Polygon, r: float) -> list[Polygon]:
 
 def drivable_centre(poly: Polygon, r: float) -> BaseGeometry:
     """The part of a ring's polygon whose boundary has no curvature tighter than 1 / r
-    (see module docstring): reflex bites taken out, then the opening with r. A subset
-    of ``poly``; empty where the polygon is narrower than 2 r (no loop fits)."""
+    (see module docstring): reflex bites taken out, the opening with r, then the
+    closing with r. A subset of ``poly``; empty where the polygon is narrower than 2 r
+    (no loop fits).
+
+    The opening alone only bounds the convex curvature: it is the union of the r-discs
+    inside the polygon, and where the polygon has a neck narrower than 2 r (the ring
+    between a pond and the field edge) the erosion's two tips on either side of the
+    neck are less than 2 r apart, so their discs overlap and the two circles cross at a
+    sharp reflex corner (issue 16: a 142 degree kink, circumradius 0.15 m, in
+    tests/geo/ring_kink_field.wkt). The closing rolls an r-disc into that wedge and
+    replaces the corner with a concave arc of radius r, tangent to both circles; it
+    leaves the bites' arcs (radius 1.02 r) and every other r-smooth stretch alone, and
+    what it adds lies in the neck, inside the polygon (clipped to the bitten polygon,
+    which only trims GEOS rounding).
+    """
     poly = orient(poly, 1.0)
     bites = _reflex_bites(poly, r)
     cut = poly.difference(shapely.union_all(bites)) if bites else poly
     opened = cut.buffer(-r, quad_segs=ARC_QUAD_SEGS).buffer(r, quad_segs=ARC_QUAD_SEGS)
-    return opened.intersection(poly) if not opened.is_empty else opened
+    if opened.is_empty:
+        return opened
+    closed = opened.buffer(r, quad_segs=ARC_QUAD_SEGS).buffer(-r, quad_segs=ARC_QUAD_SEGS)
+    return closed.intersection(cut)
 
 
 def _pass_bands(field_geom: BaseGeometry, w: float, k: int) -> tuple[BaseGeometry, BaseGeometry]:
