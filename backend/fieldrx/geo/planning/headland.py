@@ -35,6 +35,43 @@ ARC_QUAD_SEGS = 90  # 1 degree steps in the morphology (chord sag 4e-5 r)
 BITE_SCALE = 1.02  # reflex bites: radius 1.02 r (curvature 1 / 1.02 r < 1 / r)
 RING_SLACK = 1.05  # rings are rounded to 1.05 r: room for the resampling's 3 % error
 RING_STEP = 0.1  # the rounded ring is resampled every 0.1 r (about 6 degree steps)
+KINK_ROUNDS = 3  # bite-and-open rounds for kinks the closing cannot fill
+
+
+def _vertex_turns(c: np.ndarray) -> tuple[np.ndarray, ...]:
+    """At each vertex of a closed ring (coords without the repeated first point): the
+    incoming and outgoing edge lengths and unit vectors, the cross product of those (< 0:
+    a right turn), the turning angle and whether both edges have a length."""
+    e1 = c - np.roll(c, 1, axis=0)
+    e2 = np.roll(c, -1, axis=0) - c
+    l1, l2 = np.hypot(*e1.T), np.hypot(*e2.T)
+    ok = (l1 > 1e-9) & (l2 > 1e-9)
+    u1 = e1 / np.where(ok, l1, 1.0)[:, None]
+    u2 = e2 / np.where(ok, l2, 1.0)[:, None]
+    cross = u1[:, 0] * u2[:, 1] - u1[:, 1] * u2[:, 0]
+    theta = np.arctan2(np.abs(cross), (u1 * u2).sum(1))
+    return l1, l2, u1, u2, cross, theta, ok
+
+
+def _kinks(geom: BaseGeometry, r: float) -> tuple[list[Point], list[Polygon]]:
+    """Reflex vertices of geom's rings, resampled as the rings are (:func:`_resampled`),
+    whose triple is tighter than 0.99 r -- where two of an opening's r-discs cross --
+    and a bite (:func:`_bites`) at each."""
+    points: list[Point] = []
+    discs: list[Polygon] = []
+    for p in parts(geom):
+        p = orient(p, 1.0)
+        for ring in [p.exterior, *p.interiors]:
+            c = np.asarray(_resampled(ring, r).coords)[:-1]
+            if len(c) < 3:
+                continue
+            _, _, u1, u2, cross, theta, ok = _vertex_turns(c)
+            chord = np.hypot(*(np.roll(c, -1, axis=0) - np.roll(c, 1, axis=0)).T)
+            radius = chord / np.maximum(2.0 * np.sin(theta), 1e-12)
+            idx = np.flatnonzero(ok & (cross < 0) & (radius < 0.99 * r))
+            points += [Point(q) for q in c[idx]]
+            discs += _bites(c, u1, u2, idx, r)
+    return points, discs
 
 
 def _reflex_bites(poly: Polygon, r: float) -> list[Polygon]:
@@ -53,14 +90,7 @@ def _reflex_bites(poly: Polygon, r: float) -> list[Polygon]:
         c = np.asarray(ring.coords)[:-1]
         if len(c) < 3:
             continue
-        e1 = c - np.roll(c, 1, axis=0)
-        e2 = np.roll(c, -1, axis=0) - c
-        l1, l2 = np.hypot(*e1.T), np.hypot(*e2.T)
-        ok = (l1 > 1e-9) & (l2 > 1e-9)
-        u1 = e1 / np.where(ok, l1, 1.0)[:, None]
-        u2 = e2 / np.where(ok, l2, 1.0)[:, None]
-        cross = u1[:, 0] * u2[:, 1] - u1[:, 1] * u2[:, 0]
-        theta = np.arctan2(np.abs(cross), (u1 * u2).sum(1))
+        l1, l2, u1, u2, cross, theta, ok = _vertex_turns(c)
         fit = 0.5 * np.minimum(l1, l2) / np.maximum(np.tan(0.5 * theta), 1e-12)
         # oriented polygon (exterior CCW, holes CW): its inside is on the left, so a
         # right turn (cross < 0) is a reflex vertex
@@ -68,14 +98,20 @@ def _reflex_bites(poly: Polygon, r: float) -> list[Polygon]:
         # more than 0.001 r (a 5 degree arc step's own sag) needs the bite as well
         bulge = r * (1.0 / np.cos(0.5 * theta) - 1.0)
         tight = ok & (cross < -1e-12) & ((fit < r * (1.0 - 1e-9)) | (bulge > 1e-3 * r))
-        for i in np.flatnonzero(tight):
-            b = np.array([u1[i, 1] + u2[i, 1], -(u1[i, 0] + u2[i, 0])])
-            b /= max(float(np.hypot(*b)), 1e-12)
-            # radius 1.02 r, centred r out: the sampled disc (chords sag 0.001 r) covers
-            # the vertex, and the opening's erosion by r leaves a smooth 0.02 r arc
-            # (not a sliver) that its dilation turns back into the bite's arc
-            disc = Point(c[i] + r * b).buffer(BITE_SCALE * r, quad_segs=ARC_QUAD_SEGS)
-            out.append(disc)
+        out += _bites(c, u1, u2, np.flatnonzero(tight), r)
+    return out
+
+
+def _bites(c: np.ndarray, u1: np.ndarray, u2: np.ndarray, idx: np.ndarray, r: float) -> list:
+    """A disc of radius 1.02 r centred r beyond each vertex c[idx] on the outside
+    bisector of its edges (unit vectors u1 in, u2 out): the sampled disc (chords sag
+    0.001 r) covers the vertex, and the opening's erosion by r leaves a smooth 0.02 r
+    arc (not a sliver) that its dilation turns back into the bite's arc."""
+    out = []
+    for i in idx:
+        b = np.array([u1[i, 1] + u2[i, 1], -(u1[i, 0] + u2[i, 0])])
+        b /= max(float(np.hypot(*b)), 1e-12)
+        out.append(Point(c[i] + r * b).buffer(BITE_SCALE * r, quad_segs=ARC_QUAD_SEGS))
     return out
 
 
@@ -91,19 +127,49 @@ def drivable_centre(poly: Polygon, r: float) -> BaseGeometry:
     neck are less than 2 r apart, so their discs overlap and the two circles cross at a
     sharp reflex corner (issue 16: a 142 degree kink, circumradius 0.15 m, in
     tests/geo/ring_kink_field.wkt). The closing rolls an r-disc into that wedge and
-    replaces the corner with a concave arc of radius r, tangent to both circles; it
-    leaves the bites' arcs (radius 1.02 r) and every other r-smooth stretch alone, and
-    what it adds lies in the neck, inside the polygon (clipped to the bitten polygon,
-    which only trims GEOS rounding).
+    replaces the corner with a concave arc of radius r, tangent to both circles, and
+    leaves the bites' arcs (radius 1.02 r) and every other r-smooth stretch alone. Only
+    the fills at such a corner that lie inside the polygon are kept (a fill may reach
+    into a bite: the bite only keeps the ring from bulging at a reflex vertex, and the
+    fill is smooth): across an inlet narrower than 2 r the closing would also bridge
+    the inlet, outside the field. A kink the closing cannot fill inside the polygon is
+    bitten like a reflex vertex and the result opened again (at most ``KINK_ROUNDS``
+    times): the ring swings inwards there.
     """
     poly = orient(poly, 1.0)
     bites = _reflex_bites(poly, r)
     cut = poly.difference(shapely.union_all(bites)) if bites else poly
-    opened = cut.buffer(-r, quad_segs=ARC_QUAD_SEGS).buffer(r, quad_segs=ARC_QUAD_SEGS)
-    if opened.is_empty:
-        return opened
+    opened = cut
+    for _ in range(KINK_ROUNDS):
+        opened = cut.buffer(-r, quad_segs=ARC_QUAD_SEGS).buffer(r, quad_segs=ARC_QUAD_SEGS)
+        if opened.is_empty:
+            return opened
+        corners, _ = _kinks(opened, r)
+        if not corners:
+            return opened
+        opened = _filled(opened, poly, corners, r)
+        corners, discs = _kinks(opened, r)
+        if not corners:
+            return opened
+        cut = opened.difference(shapely.union_all(discs))
+    return opened
+
+
+def _filled(opened: BaseGeometry, poly: Polygon, corners: list[Point], r: float) -> BaseGeometry:
+    """The opening with the closing's fills at its kinks that lie inside ``poly``."""
     closed = opened.buffer(r, quad_segs=ARC_QUAD_SEGS).buffer(-r, quad_segs=ARC_QUAD_SEGS)
-    return closed.intersection(cut)
+    at = shapely.union_all(corners)
+    fills = [
+        p
+        for p in parts(closed.difference(opened))
+        if p.distance(at) < 0.2 * r and _inside(p, poly)
+    ]
+    return shapely.union_all([opened, *fills]).intersection(poly) if fills else opened
+
+
+def _inside(piece: Polygon, region: BaseGeometry) -> bool:
+    """Whether piece lies in region up to GEOS rounding (1e-6 of its area)."""
+    return piece.difference(region).area <= 1e-6 * piece.area + 1e-9
 
 
 def _pass_bands(field_geom: BaseGeometry, w: float, k: int) -> tuple[BaseGeometry, BaseGeometry]:
