@@ -485,13 +485,18 @@ async def drive_http_thin(
     records sent, records stored."""
     sem = asyncio.Semaphore(concurrency)
     sent = stored = 0
+    # rendered before the connections open, as the full profile's bodies are: rendering a
+    # long drive's bodies inside the window took longer than the server's keep-alive
+    # timeout at --seconds 600, and the idle connections were closed under the client
+    now = time.time()
+    bodies = [thin_bodies(fleet, k, batch, now) for k in range(len(fleet.machines))]
     async with LeanHttp(base, concurrency) as client:
         start = time.time()
 
         async def machine(k: int) -> None:
             nonlocal sent, stored
             token = fleet.machines[k][2]
-            for body in thin_bodies(fleet, k, batch, time.time()):
+            for body in bodies[k]:
                 async with sem:
                     while True:
                         status, payload = await client.post("/api/v1/telemetry", body, token)
