@@ -41,20 +41,16 @@ from fieldrx_edge.protocol import ALARMS, CELL_FIELDS, INT4_MAX, CellRecord
 from sqlalchemy import text
 from sqlalchemy.orm import Session
 
-from fieldrx.fleet import alerts as alert_rules
 from fieldrx.fleet.ingest import (
     CELL_PROGRESS_CTE,
     FUTURE_TOLERANCE_S,
     INT8_MAX,
-    LOCK_SQL,
     PG_EPOCH,
     IngestError,
     IngestResult,
-    begin,
     cell_progress_params,
-    commit,
     job_messages,
-    pipelined,
+    store_alone,
 )
 
 COLUMNS = (
@@ -188,21 +184,7 @@ def ingest_cells(
     stream_start: int = 1,
 ) -> IngestResult:
     """Store one cell batch of ``stream`` for ``machine_id`` (already authenticated); the ack."""
-    work = CellWork.of(machine_id, raw, stream, stream_start)
-    with pipelined(conn) as cur:
-        with conn.pipeline():  # BEGIN travels with the lock query: one round trip
-            begin(cur)
-            # the lock alone first: a statement's snapshot predates its lock wait
-            # (ingest.ingest)
-            cur.execute(LOCK_SQL, (work.lock_ns, machine_id))
-            work.read(cur)
-            work.opened(cur.fetchone())
-        work.store(cur)
-        # the rest and the COMMIT in one pipeline: one statement, then NOTIFY and COMMIT
-        with conn.pipeline():
-            alert_rules.notify(cur, work.finish(cur))
-            commit(cur)
-    return work.result
+    return store_alone(conn, CellWork.of(machine_id, raw, stream, stream_start))
 
 
 @dataclass

@@ -49,7 +49,7 @@ import time
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Protocol
 
 import orjson
 import psycopg
@@ -459,7 +459,26 @@ def ingest(
 
     ``stream_start``: the stream's first seq, used when the stream is new.
     ``streamed``: the batch was format 2 (default: a stream was named)."""
-    work = TrackWork.of(machine_id, raw, stream, stream_start, streamed)
+    return store_alone(conn, TrackWork.of(machine_id, raw, stream, stream_start, streamed))
+
+
+class BatchWork(Protocol):
+    """What :func:`store_alone` and ``fleet.multibatch`` run: a batch's part of a
+    transaction (``TrackWork`` here, ``cellrecords.CellWork`` for cell batches)."""
+
+    machine_id: int
+    lock_ns: int
+    result: IngestResult
+
+    def prepare(self, conn: psycopg.Connection[Any]) -> None: ...
+    def read(self, cur: psycopg.Cursor[Any]) -> None: ...
+    def opened(self, row: Any) -> None: ...
+    def store(self, cur: psycopg.Cursor[Any]) -> None: ...
+    def finish(self, cur: psycopg.Cursor[Any]) -> list[dict[str, Any]]: ...
+
+
+def store_alone(conn: psycopg.Connection[Any], work: BatchWork) -> IngestResult:
+    """Run one batch's work in its own transaction; its ack (true: committed)."""
     work.prepare(conn)
     with pipelined(conn) as cur:
         with conn.pipeline():  # BEGIN travels with the lock query: one round trip
@@ -469,7 +488,7 @@ def ingest(
             # would see the stream as it was before the batch that held the lock committed
             # (a resend stored twice, an ack short of what is stored:
             # tests/fleet/test_ingest_concurrency.py)
-            cur.execute(LOCK_SQL, (work.lock_ns, machine_id))
+            cur.execute(LOCK_SQL, (work.lock_ns, work.machine_id))
             work.read(cur)
             work.opened(cur.fetchone())
         work.store(cur)
