@@ -231,3 +231,26 @@ def test_a_busy_machines_batch_is_held_over_once(worker, conn, org, database_url
     assert held == {}
     assert [(x["acked_seq"], x["stored"]) for x in rec.acks(b.machine_id)] == [(5, 5)]
     assert _pubacks(worker) == [1, 2, 3]
+
+
+def test_a_batch_of_a_deleted_machine_gets_an_error_ack(worker, conn, org, db) -> None:  # noqa: ANN001
+    """A machine deleted while its messages were in flight: its batch was PUBACKed with no
+    ack at all (the agent waited out its ack timeout and resent it, nothing said why). It
+    gets an error ack naming the reason, and the other machines' batches are stored."""
+    from sqlalchemy import text
+
+    a, b = (make_job(org.id, state="running") for _ in range(2))
+    t0 = time.time() - 100
+    msgs = [_msg(1, a, "s", range(1, 4), t0), _msg(2, b, "s", range(1, 4), t0)]
+    db.execute(text("DELETE FROM machines WHERE id = :m"), {"m": b.machine_id})
+    db.commit()
+    stats = WorkerStats()
+    worker._process(conn, msgs, stats)
+    rec: Recorder = worker.client  # type: ignore[assignment]
+    (aa,) = rec.acks(a.machine_id)
+    assert (aa["acked_seq"], aa["stored"], "error" in aa) == (3, 3, False)
+    (bb,) = rec.acks(b.machine_id)
+    assert (bb["stream"], bb["acked_seq"], bb["stored"]) == ("s", 0, 0)
+    assert f"machine {b.machine_id} does not exist" in bb["error"], bb["error"]
+    assert _pubacks(worker) == [1, 2]
+    assert (stats.batches, stats.stored) == (1, 3)

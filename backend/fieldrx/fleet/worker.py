@@ -446,13 +446,18 @@ class IngestWorker:
         batch the database refuses (a constraint, a value it cannot take) gets an error ack
         naming it and the reason (``acked_seq`` 0: the agent trims nothing and resends),
         like a thin HTTP request's batch (``multibatch``); before, it was retried here
-        forever and held up every other machine of the lane."""
+        forever and held up every other machine of the lane. A batch of a machine that
+        does not exist (deleted while its messages were in flight) gets one too: it was
+        PUBACKed without any ack, so its agent waited out its ack timeout and sent it
+        again, with nothing in its log to say why."""
         while True:
             try:
                 result = store(conn, machine_id, batch)
             except IngestError as exc:
-                log.warning("dropping batch of machine %s: %s", machine_id, exc)
-                break
+                what = f"batch ({batch.kind}, stream {batch.stream or '(legacy)'})"
+                log.warning("machine %s: %s not stored: %s", machine_id, what, exc)
+                self._acked(stats, machine_id, batch, ms, error_ack(machine_id, batch, what, exc))
+                return conn
             except (psycopg.errors.DataError, psycopg.errors.IntegrityError) as exc:
                 if conn.closed or conn.broken:
                     stats.errors += 1
@@ -460,8 +465,7 @@ class IngestWorker:
                     continue
                 what = f"batch ({batch.kind}, stream {batch.stream or '(legacy)'})"
                 log.warning("machine %s: %s not stored: %s", machine_id, what, reason_of(exc))
-                ack = error_ack(machine_id, batch, what, exc)
-                self._acked(stats, machine_id, batch, ms, ack, None)
+                self._acked(stats, machine_id, batch, ms, error_ack(machine_id, batch, what, exc))
                 return conn
             except psycopg.Error as exc:
                 stats.errors += 1
@@ -470,9 +474,6 @@ class IngestWorker:
             else:
                 self._acked(stats, machine_id, batch, ms, result.to_json(), result)
                 return conn
-        for m in ms:
-            self.client.ack(m.mid, m.qos)
-        return conn
 
     def _acked(
         self,
@@ -481,7 +482,7 @@ class IngestWorker:
         batch: Batch,
         ms: list[mqtt.MQTTMessage],
         ack: bytes,
-        result: IngestResult | None,
+        result: IngestResult | None = None,
     ) -> None:
         """Count a committed (or refused) batch, publish its ack, then PUBACK its messages."""
         if result is not None:

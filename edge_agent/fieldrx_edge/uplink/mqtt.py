@@ -130,12 +130,15 @@ class MqttSender:
 
     def _on_message(self, client, userdata, msg) -> None:  # noqa: ANN001
         try:
-            ack = TelemetryAck.from_dict(json.loads(msg.payload))
+            obj = json.loads(msg.payload)
+            ack = TelemetryAck.from_dict(obj)
             acked = int(ack.acked_seq)
             rejected = [r for r in ack.rejected if isinstance(r, dict)]
         except (ValueError, KeyError, TypeError, AttributeError):
             log.warning("bad ack payload on %s", msg.topic)
             return
+        if obj.get("error"):  # not stored (acked_seq 0): resent after the ack timeout
+            log.warning("server did not store a batch: %s", obj["error"])
         with self._cv:
             if ack.stream:
                 lane = next((x for x in self.lanes if x.stream == ack.stream), None)
