@@ -234,7 +234,7 @@ def timed(fn: Any, repeat: int, db_name: str) -> dict[str, float]:
     for it (this process, the API server, the database's backends; ``bench.ingest``'s
     accounting): on a shared machine the wall time includes waiting for a core, the CPU
     time is the call's own cost."""
-    from bench.ingest import cpu_seconds
+    from bench.ingest import cpu_seconds, cpu_used
 
     fn()  # warm: plans, caches
     ms = []
@@ -249,7 +249,7 @@ def timed(fn: Any, repeat: int, db_name: str) -> dict[str, float]:
         "p50_ms": round(statistics.median(ms), 1),
         "p90_ms": round(ms[int(0.9 * (len(ms) - 1))], 1),
         "max_ms": round(ms[-1], 1),
-        "cpu_ms": round(sum(cpu1[k] - cpu0[k] for k in cpu0) / repeat * 1000.0, 1),
+        "cpu_ms": round(sum(cpu_used(cpu0, cpu1).values()) / repeat * 1000.0, 1),
     }
 
 
