@@ -20,12 +20,16 @@ Baseline, same run: a raw COPY BINARY of the same rows (prepared tuples,
 10,000 rows per COPY) into a copy of the telemetry table with the same
 indexes. Ratio = our records/s / raw COPY records/s.
 
-HTTP, then the same machine-hours with uplink profile ``thin`` (issue 18: a
-1 Hz track plus one cell record per cell left, on two streams, both in one request
-while both have records, as ``fieldrx_edge.uplink.thin`` and the HTTP sender send
-them): the server's CPU (API processes and the PostgreSQL backends of the bench
-database, process CPU time) per machine-hour of both, and their ratio (``thin``;
-``--no-thin`` skips it).
+Then the same machine-hours with uplink profile ``thin`` (issue 18: a 1 Hz track plus
+one cell record per cell left, on two streams; over HTTP both in one request while both
+have records, as the HTTP sender sends them; over MQTT one batch per message, as the MQTT
+sender does): the server's CPU (API processes or MQTT workers and broker, and the
+PostgreSQL backends of the bench database, process CPU time) per machine-hour of both,
+and their ratio (``thin``; ``--no-thin`` skips it). Each machine's drive is replayed as a
+backlog in batches of ``--batch`` records, so the thin ratio depends on ``--seconds``: a
+request's fixed cost (token, transaction, statements) is paid per batch, and a
+one-minute thin backlog is a single small request where the full profile sends two
+large ones (docs/scale.md section 5, seventh round).
 
 Last line: one JSON object (records_per_s, raw_copy_records_per_s,
 ratio_to_copy, p50_latency_s, p99_latency_s, lost, duplicated, thin, ...).
@@ -46,6 +50,7 @@ import tempfile
 import threading
 import time
 import uuid
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -427,12 +432,12 @@ async def drive_http(
     return elapsed, latencies, stored
 
 
-def thin_bodies(fleet: Fleet, k: int, batch: int, t_now: float) -> list[str]:
+def thin_lanes(fleet: Fleet, k: int, batch: int, t_now: float) -> list[list[str]]:
     """Machine k's same drive as the thin profile sends it (fieldrx_edge.uplink.thin): every
     10th fix as its 1 Hz track (no cell: the cell records count the cells), then one cell
     record per cell left (the bench's cells last 3 s), each on its own stream, in batches
-    of ``batch`` as the agent's two queues send them. Stamped ``t_now`` like the full
-    profile's records (a backlog being replayed)."""
+    of ``batch`` (the agent's two queues): the track lane's batch bodies, then the cell
+    lane's. Stamped ``t_now`` like the full profile's records (a backlog being replayed)."""
     mid, jid, _ = fleet.machines[k]
     full = fleet.records(k, 1, fleet.n, t_now)
     step = max(1, int(round(fleet.hz)))
@@ -465,8 +470,14 @@ def thin_bodies(fleet: Fleet, k: int, batch: int, t_now: float) -> list[str]:
                 f'{{{head},"stream_start":1,"records":{json.dumps(part, separators=(",", ":"))}}}'
             )
         lanes.append(lane)
-    # as fieldrx_edge.uplink.http.HttpSender sends them: the two queues' pending batches in
-    # one request while both have records (protocol.MULTI_KIND), else one batch alone
+    return lanes
+
+
+def thin_bodies(fleet: Fleet, k: int, batch: int, t_now: float) -> list[str]:
+    """``thin_lanes`` as fieldrx_edge.uplink.http.HttpSender sends them: the two queues'
+    pending batches in one request while both have records (protocol.MULTI_KIND), else one
+    batch alone."""
+    lanes = thin_lanes(fleet, k, batch, t_now)
     out = []
     for i in range(max(map(len, lanes))):
         parts = [lane[i] for lane in lanes if i < len(lane)]
@@ -516,13 +527,86 @@ async def drive_http_thin(
 
 
 # MQTT --------------------------------------------------------------------------------
+def mqtt_clients(
+    port: int, fleet: Fleet, max_inflight: int, on_message: Callable[..., None]
+) -> dict[int, Any]:
+    """One connected client per machine, logged in as itself (machine-<id>, its device
+    token), as agents do: the broker lets it publish only its own telemetry and read only
+    its own acks (subscribed, ``on_message``)."""
+    import paho.mqtt.client as mqtt
+    from fieldrx_edge.protocol import ack_topic, mqtt_client_id, mqtt_username
+
+    clients: dict[int, mqtt.Client] = {}
+    for mid, _, token in fleet.machines:
+        c = mqtt.Client(
+            mqtt.CallbackAPIVersion.VERSION2, client_id=mqtt_client_id(mid), protocol=mqtt.MQTTv5
+        )
+        c.username_pw_set(mqtt_username(mid), token)
+        c.max_inflight_messages_set(max_inflight)
+        c.max_queued_messages_set(0)
+        c.on_message = on_message
+        c.connect("127.0.0.1", port)
+        c.subscribe(ack_topic(mid), qos=1)
+        c.loop_start()
+        clients[mid] = c
+    time.sleep(0.5)
+    return clients
+
+
+def drive_mqtt_thin(port: int, fleet: Fleet, batch: int) -> tuple[float, int, int]:
+    """The thin profile over MQTT: each machine publishes its two lanes' batches
+    (``thin_lanes``; one batch per message, as fieldrx_edge.uplink.mqtt sends them) and
+    waits for the acks of both streams; elapsed s, records sent, records stored."""
+    import paho.mqtt.client as mqtt
+    from fieldrx_edge.protocol import telemetry_topic
+
+    now = time.time()
+    lanes = [thin_lanes(fleet, k, batch, now) for k in range(len(fleet.machines))]
+    want = {
+        (mid, f"{kind}{k}"): sum(body.count('"machine_id"') for body in lane)
+        for k, (mid, _, _) in enumerate(fleet.machines)
+        for kind, lane in zip(("thin", "cells"), lanes[k], strict=True)
+    }
+    acked = dict.fromkeys(want, 0)
+    stored = 0
+    cv = threading.Condition()
+
+    def on_message(client, userdata, msg) -> None:  # noqa: ANN001
+        nonlocal stored
+        ack = json.loads(msg.payload)
+        assert not ack.get("error") and not ack["rejected"], ack
+        with cv:
+            stored += ack["stored"]
+            key = (ack["machine_id"], ack["stream"])
+            acked[key] = max(acked[key], ack["acked_seq"])
+            cv.notify_all()
+
+    clients = mqtt_clients(port, fleet, 1000, on_message)
+    start = time.time()
+    for k, (mid, _, _) in enumerate(fleet.machines):
+        for lane in lanes[k]:
+            for body in lane:
+                info = clients[mid].publish(telemetry_topic(mid), body, qos=1)
+                if info.rc != mqtt.MQTT_ERR_SUCCESS:
+                    raise SystemExit(f"publish failed rc={info.rc}")
+    with cv:
+        ok = cv.wait_for(lambda: acked == want, timeout=300)
+    elapsed = time.time() - start
+    for c in clients.values():
+        c.disconnect()
+        c.loop_stop()
+    if not ok:
+        print(f"thin: timed out waiting for acks: {sum(acked.values())} / {sum(want.values())}",
+              file=sys.stderr)  # fmt: skip
+    return elapsed, sum(want.values()), stored
+
+
 def drive_mqtt(
     port: int, fleet: Fleet, batch: int, max_inflight: int, realtime: bool
 ) -> tuple[float, list[float], int]:
-    """Every machine logs in as itself (machine-<id>, its device token), as agents do:
-    the broker lets it publish only its own telemetry and read only its own acks."""
+    """Every machine logs in as itself (``mqtt_clients``)."""
     import paho.mqtt.client as mqtt
-    from fieldrx_edge.protocol import ack_topic, mqtt_client_id, mqtt_username, telemetry_topic
+    from fieldrx_edge.protocol import telemetry_topic
 
     n_m = len(fleet.machines)
     acked = {m[0]: 0 for m in fleet.machines}
@@ -548,20 +632,7 @@ def drive_mqtt(
                 acked[mid] = a
             cv.notify_all()
 
-    clients: dict[int, mqtt.Client] = {}
-    for mid, _, token in fleet.machines:
-        c = mqtt.Client(
-            mqtt.CallbackAPIVersion.VERSION2, client_id=mqtt_client_id(mid), protocol=mqtt.MQTTv5
-        )
-        c.username_pw_set(mqtt_username(mid), token)
-        c.max_inflight_messages_set(max_inflight)
-        c.max_queued_messages_set(0)
-        c.on_message = on_message
-        c.connect("127.0.0.1", port)
-        c.subscribe(ack_topic(mid), qos=1)
-        c.loop_start()
-        clients[mid] = c
-    time.sleep(0.5)
+    clients = mqtt_clients(port, fleet, max_inflight, on_message)
     sent = [1] * n_m
     start = time.time()
     # each machine keeps at most `window` unacked batches (the agent's in-flight cap)
@@ -671,6 +742,54 @@ def cpu_used(a: dict[int, tuple[str, float]], b: dict[int, tuple[str, float]]) -
     return out
 
 
+def thin_phase(
+    url: str,
+    db_name: str,
+    used: dict[str, float],
+    machine_h: float,
+    server: str,
+    drive: Callable[[], tuple[float, int, int]],
+) -> dict[str, Any]:
+    """The same machine-hours with the thin profile (issue 18), sent by ``drive``: the
+    server's CPU (``server`` processes and PostgreSQL backends) per machine-hour, full
+    (``used``, the full phase's window) against thin, and their ratios."""
+    import psycopg
+    from fieldrx.db.session import raw_dsn
+
+    # the maintenance the full phase left behind (autovacuum / autoanalyze of its rows),
+    # outside both windows: else it lands in the thin window
+    with psycopg.connect(raw_dsn(url), autocommit=True) as conn:
+        conn.execute("VACUUM (ANALYZE)")
+    t0 = cpu_seconds(db_name)
+    t_el, t_sent, t_stored = drive()
+    used_thin = cpu_used(t0, cpu_seconds(db_name))
+    srv_full = used["server"] + used["postgres"]
+    srv_thin = used_thin["server"] + used_thin["postgres"]
+    api_full, api_thin = used["server"], used_thin["server"]
+    thin = {
+        "machine_hours": round(machine_h, 3),
+        "records": t_sent,
+        "stored": t_stored,
+        "elapsed_s": round(t_el, 3),
+        "server_cpu_s_per_machine_hour_full": round(srv_full / machine_h, 3),
+        "server_cpu_s_per_machine_hour_thin": round(srv_thin / machine_h, 3),
+        "cpu_ratio_full_to_thin": round(srv_full / max(srv_thin, 1e-9), 2),
+        "api_cpu_ratio_full_to_thin": round(api_full / max(api_thin, 1e-9), 2),
+        "postgres_cpu_ratio_full_to_thin": round(
+            (srv_full - api_full) / max(srv_thin - api_thin, 1e-9), 2
+        ),
+    }
+    print(
+        f"thin profile: {t_sent} records for the same {machine_h:.2f} machine-hours,"
+        f" server CPU ({server} + PostgreSQL) {thin['server_cpu_s_per_machine_hour_full']}"
+        f" s/machine-hour full vs {thin['server_cpu_s_per_machine_hour_thin']} thin:"
+        f" {thin['cpu_ratio_full_to_thin']} x lower ({server} alone"
+        f" {thin['api_cpu_ratio_full_to_thin']} x, PostgreSQL alone"
+        f" {thin['postgres_cpu_ratio_full_to_thin']} x)"
+    )
+    return thin
+
+
 # main --------------------------------------------------------------------------------
 def main() -> int:
     ap = argparse.ArgumentParser(
@@ -711,7 +830,7 @@ def main() -> int:
         "--thin",
         action=argparse.BooleanOptionalAction,
         default=True,
-        help="http: also send the same machine-hours with the thin profile (server CPU ratio)",
+        help="also send the same machine-hours with the thin profile (server CPU ratio)",
     )
     args = ap.parse_args()
     workers = args.workers or 2
@@ -741,6 +860,8 @@ def main() -> int:
         fleet.prepare()
         print(f"raw COPY BINARY baseline: {raw:,.0f} records/s")
         env = {"DATABASE_URL": url, "FIELDRX_HEARTBEAT_TIMEOUT_S": "3600"}
+        machine_h = len(machines) * args.seconds / 3600.0
+        thin: dict[str, Any] = {}
         if args.transport == "http":
             port = free_port()
             # as production starts it (scripts/run.sh, docker-compose.yml: ``fieldrx serve``,
@@ -798,6 +919,12 @@ def main() -> int:
             cpu0 = cpu_seconds(db_name)
             elapsed, lat, stored = drive_mqtt(port, fleet, batch, 1000, args.realtime)
             cpu1 = cpu_seconds(db_name)
+            used = cpu_used(cpu0, cpu1)
+            if args.thin:
+                thin = thin_phase(
+                    url, db_name, used, machine_h, "workers + broker",
+                    lambda: drive_mqtt_thin(port, fleet, batch),
+                )  # fmt: skip
             for w in procs:
                 stop(w)  # the workers log their totals when they stop
             for log in logs:
@@ -809,50 +936,14 @@ def main() -> int:
             print(f"records stored per worker: {worker_records}")
         if args.transport == "http":
             cpu1 = cpu_seconds(db_name)
-        used = cpu_used(cpu0, cpu1)
+            used = cpu_used(cpu0, cpu1)
         cpu_us = {k: round(v / total * 1e6, 1) for k, v in used.items()}
         print(f"CPU per record (us): {cpu_us}")
-        machine_h = len(machines) * args.seconds / 3600.0
-        thin: dict[str, Any] = {}
         if args.transport == "http" and args.thin:
-            # the same machine-hours, thin profile (issue 18): server CPU per machine-hour.
-            # First the maintenance the full phase left behind (autovacuum / autoanalyze of
-            # its 120,000 rows), outside both windows: else it lands in the thin window
-            import psycopg
-            from fieldrx.db.session import raw_dsn
-
-            with psycopg.connect(raw_dsn(url), autocommit=True) as conn:
-                conn.execute("VACUUM (ANALYZE)")
-            t0 = cpu_seconds(db_name)
-            t_el, t_sent, t_stored = asyncio.run(
-                drive_http_thin(base, fleet, batch, args.concurrency)
-            )
-            t1 = cpu_seconds(db_name)
-            used_thin = cpu_used(t0, t1)
-            srv_full = used["server"] + used["postgres"]
-            srv_thin = used_thin["server"] + used_thin["postgres"]
-            api_full, api_thin = used["server"], used_thin["server"]
-            thin = {
-                "machine_hours": round(machine_h, 3),
-                "records": t_sent,
-                "stored": t_stored,
-                "elapsed_s": round(t_el, 3),
-                "server_cpu_s_per_machine_hour_full": round(srv_full / machine_h, 3),
-                "server_cpu_s_per_machine_hour_thin": round(srv_thin / machine_h, 3),
-                "cpu_ratio_full_to_thin": round(srv_full / max(srv_thin, 1e-9), 2),
-                "api_cpu_ratio_full_to_thin": round(api_full / max(api_thin, 1e-9), 2),
-                "postgres_cpu_ratio_full_to_thin": round(
-                    (srv_full - api_full) / max(srv_thin - api_thin, 1e-9), 2
-                ),
-            }
-            print(
-                f"thin profile: {t_sent} records for the same {machine_h:.2f} machine-hours,"
-                f" server CPU (API + PostgreSQL) {thin['server_cpu_s_per_machine_hour_full']}"
-                f" s/machine-hour full vs {thin['server_cpu_s_per_machine_hour_thin']} thin:"
-                f" {thin['cpu_ratio_full_to_thin']} x lower (API processes alone"
-                f" {thin['api_cpu_ratio_full_to_thin']} x, PostgreSQL alone"
-                f" {thin['postgres_cpu_ratio_full_to_thin']} x)"
-            )
+            thin = thin_phase(
+                url, db_name, used, machine_h, "API",
+                lambda: asyncio.run(drive_http_thin(base, fleet, batch, args.concurrency)),
+            )  # fmt: skip
         import psycopg
         from fieldrx.db.session import raw_dsn
 
