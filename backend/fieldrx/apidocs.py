@@ -8,12 +8,16 @@ without internet still gets working docs, and no request leaves the server's hos
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
 
 from fastapi import FastAPI
 from fastapi.openapi.docs import get_redoc_html, get_swagger_ui_html
 from fastapi.responses import HTMLResponse
 from fastapi.staticfiles import StaticFiles
+from pydantic import TypeAdapter
+from pydantic.json_schema import GenerateJsonSchema
 
 ASSETS_URL = "/docs-assets"
 
@@ -99,6 +103,44 @@ def install_docs(app: FastAPI, openapi_url: str) -> None:
             redoc_favicon_url=f"{ASSETS_URL}/favicon.png",
             with_google_fonts=False,
         )
+
+
+COMPONENT_REF = "#/components/schemas/{model}"
+
+
+def schema_and_components(
+    tp: Any, generator: type[GenerateJsonSchema] = GenerateJsonSchema
+) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The JSON schema of ``tp`` (a model, a union of models) for a route's ``openapi_extra``,
+    its references pointing into ``components/schemas``, and the schemas they name (for
+    ``add_components``). For a request body FastAPI must not parse (a route that reads the
+    body itself and answers its own way): FastAPI registers the models only of the bodies
+    it validates and of responses, and pydantic's own ``$defs`` left inside an operation
+    would be references to nowhere."""
+    schema = TypeAdapter(tp).json_schema(ref_template=COMPONENT_REF, schema_generator=generator)
+    return schema, schema.pop("$defs", {})
+
+
+def add_components(app: FastAPI, schemas: Mapping[str, dict[str, Any]]) -> None:
+    """Put ``schemas`` (``schema_and_components``) into ``app``'s OpenAPI document, by name,
+    next to the models FastAPI registers itself (kept sorted as FastAPI sorts them). A name
+    FastAPI already uses for another schema is an error, not a silent overwrite."""
+    generate = app.openapi
+
+    def openapi() -> dict[str, Any]:
+        if app.openapi_schema is not None:  # FastAPI's cache: the schemas are in
+            return app.openapi_schema
+        doc = generate()
+        components = doc.setdefault("components", {})
+        have = components.setdefault("schemas", {})
+        for name, schema in schemas.items():
+            if have.setdefault(name, schema) != schema:
+                app.openapi_schema = None  # not cached half made
+                raise ValueError(f"two OpenAPI component schemas named {name!r}")
+        components["schemas"] = dict(sorted(have.items()))
+        return doc
+
+    app.openapi = openapi  # type: ignore[method-assign]
 
 
 def openapi_json(app: FastAPI | None = None) -> str:

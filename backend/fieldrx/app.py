@@ -16,7 +16,7 @@ from sqlalchemy.orm import exc as orm_exc
 
 from fieldrx import __version__
 from fieldrx.api import telemetry
-from fieldrx.apidocs import FIRST_CALL, install_docs
+from fieldrx.apidocs import FIRST_CALL, add_components, install_docs
 from fieldrx.auth.mqtt import MqttCredentialError
 from fieldrx.errors import DomainError
 from fieldrx.fleet.gc_policy import tune_for_ingest
@@ -169,6 +169,9 @@ def create_app() -> FastAPI:
     # device ingest, the busiest endpoint: matched first, without FastAPI's per-request
     # dependency solving (fieldrx.api.telemetry: the documented route stays for OpenAPI)
     app.router.routes.insert(0, telemetry.ingest_route(API_PREFIX))
+    # the schemas its documented request body refers to (FastAPI registers only the models
+    # of bodies it validates, and this route's body must reach it unparsed)
+    add_components(app, telemetry.REQUEST_COMPONENTS)
 
     @app.api_route(
         f"{API_PREFIX}/{{path:path}}",

@@ -12,8 +12,8 @@ It sends both in one request (``{"format": 3, "kind": "batches", "batches": [...
 ``protocol.MULTI_KIND``): one token check and one request instead of two; the answer is
 ``{"acks": [...]}``, one ack per batch; a track and a cell batch share one transaction,
 and a batch the database refuses does not take the other down (``fleet.multibatch``:
-its ack carries ``error``). The OpenAPI description still shows the single-batch form
-only (issue 18: the lead regenerates the API files).
+its ack carries ``error``). The OpenAPI document describes every form
+(``api.schemas.telemetry.TelemetryRequestIn``) and both answers.
 
 Authentication: ``Authorization: Bearer <device token>`` with the same rules
 as every endpoint (401 unknown/revoked/expired, 403 for a person's token),
@@ -38,7 +38,15 @@ from starlette.routing import Route
 
 from fieldrx.api.common import ApiError, get_scoped
 from fieldrx.api.schemas.errors import ERRORS
-from fieldrx.api.schemas.telemetry import StreamOut, TelemetryAckOut, TelemetryBatchIn
+from fieldrx.api.schemas.telemetry import (
+    MAX_RECORDS,
+    ProtocolRecordSchema,
+    StreamOut,
+    TelemetryAckOut,
+    TelemetryAcksOut,
+    TelemetryRequestIn,
+)
+from fieldrx.apidocs import schema_and_components
 from fieldrx.auth.deps import SessionDep, UserDep, bearer_token, bearer_token_of
 from fieldrx.db.models import Machine, TelemetryStream
 from fieldrx.fleet.auth import device_of
@@ -48,7 +56,9 @@ from fieldrx.fleet.multibatch import ingest_batches, store
 
 router = APIRouter(tags=["telemetry"], responses=ERRORS)
 
-MAX_RECORDS = 20_000
+# the request body's schema for ``openapi_extra`` (the route reads the body itself) and the
+# schemas it refers to: ``create_app`` adds them to the document (``apidocs.add_components``)
+REQUEST_SCHEMA, REQUEST_COMPONENTS = schema_and_components(TelemetryRequestIn, ProtocolRecordSchema)
 
 
 def _ingest(token: str, body: bytes) -> bytes:
@@ -87,14 +97,16 @@ def _ingest(token: str, body: bytes) -> bytes:
         "requestBody": {
             "required": True,
             "content": {
-                "application/json": {"schema": TelemetryBatchIn.model_json_schema()},
+                "application/json": {"schema": REQUEST_SCHEMA},
             },
         }
     },
     responses={
         200: {
-            "description": "what was stored, deduplicated and rejected (record by record)",
-            "content": {"application/json": {"schema": TelemetryAckOut.model_json_schema()}},
+            # documentation only: FastAPI validates no answer of a ``Response``
+            "model": TelemetryAckOut | TelemetryAcksOut,
+            "description": "what was stored, deduplicated and rejected (record by record): "
+            'one ack, or ``{"acks": [...]}`` for several batches',
         }
     },
 )

@@ -2260,12 +2260,121 @@ export interface components {
             /** Products */
             products: components["schemas"]["ProductOut"][];
         };
+        /**
+         * CellBatchIn
+         * @description A batch of cell records (uplink profile ``thin``, ``protocol.cell_batch_json``): one
+         *     record per cell the tractor left, on its own stream, deduplicated and acknowledged as
+         *     telemetry records are.
+         */
+        CellBatchIn: {
+            /**
+             * Format
+             * @description ``protocol.CELL_FORMAT_VERSION``
+             * @constant
+             */
+            format: 3;
+            /**
+             * Kind
+             * @constant
+             */
+            kind: "cells";
+            /** Records */
+            records: components["schemas"]["CellRecord"][];
+            /**
+             * Stream
+             * @description the id of the agent queue that numbered the records (``protocol.new_stream_id``); records are deduplicated and acknowledged per (machine, stream, seq)
+             */
+            stream: string;
+            /**
+             * Stream Start
+             * @description the stream's first seq: its acknowledgement starts just below it when new
+             * @default 1
+             */
+            stream_start?: number;
+        } & {
+            [key: string]: unknown;
+        };
         /** CellEdit */
         CellEdit: {
             /** Rate Kg Ha */
             rate_kg_ha: number;
             /** Seq */
             seq: number;
+        };
+        /**
+         * CellRecord
+         * @description Uplink profile ``thin``: the as-applied figures of one cell, sent once the tractor has
+         *     left it (and everything metered into it has landed: seed 001 eq. 16's lag).
+         *
+         *     Computed on the tractor by the one as-applied kernel (``fieldrx_edge.asapplied``,
+         *     seed 001 eq. 16-18) over the full 10 Hz log, which stays on the tractor, so the
+         *     server's report from these records equals the report from the full log:
+         *
+         *     * ``mass_g``: metered mass that landed in the cell (eq. 16-17: flow from the shaft
+         *       speed over each fix period, landing T_lag later, antenna offset ahead); on the
+         *       record with ``cell_seq`` null, the mass that landed in no cell;
+         *     * ``driven_m``: the cell's driven length (eq. 17's v t, ``asapplied.driven_length``);
+         *     * ``n_fixes``, ``worked_s``, ``t_entry``/``t_exit``, the means: the fixes whose own
+         *       cell (the one the agent metered for) is this one, implement down; their fix
+         *       periods, first/last fix time, mean speed and mean target/applied rate;
+         *     * ``flags``: the alarms raised in those fixes.
+         *
+         *     A cell can get more than one record (re-entered later, or a little mass landing
+         *     after its record left): the server adds them up.
+         */
+        CellRecord: {
+            /**
+             * Cell Seq
+             * @default null
+             */
+            cell_seq?: number | null;
+            /**
+             * Driven M
+             * @default null
+             */
+            driven_m?: number | null;
+            /** Flags */
+            flags?: string[];
+            /** Job Id */
+            job_id: number;
+            /** Machine Id */
+            machine_id: number;
+            /**
+             * Mass G
+             * @default 0
+             */
+            mass_g?: number;
+            /**
+             * Mean Applied Rate Kg Ha
+             * @default null
+             */
+            mean_applied_rate_kg_ha?: number | null;
+            /**
+             * Mean Speed M S
+             * @default null
+             */
+            mean_speed_m_s?: number | null;
+            /**
+             * Mean Target Rate Kg Ha
+             * @default null
+             */
+            mean_target_rate_kg_ha?: number | null;
+            /**
+             * N Fixes
+             * @default 0
+             */
+            n_fixes?: number;
+            /** Seq */
+            seq: number;
+            /** T Entry */
+            t_entry: number;
+            /** T Exit */
+            t_exit: number;
+            /**
+             * Worked S
+             * @default 0
+             */
+            worked_s?: number;
         };
         /**
          * CellReportOut
@@ -4132,6 +4241,19 @@ export interface components {
              */
             records: number;
         };
+        /**
+         * RejectedOut
+         * @description A record that was not stored, and why.
+         */
+        RejectedOut: {
+            /** Reason */
+            reason: string;
+            /**
+             * Seq
+             * @description the record's seq; null when it has no usable one
+             */
+            seq: number | null;
+        };
         /** RouteOut */
         RouteOut: {
             /** Geometry */
@@ -4904,6 +5026,259 @@ export interface components {
              * @description this task's API path (poll it)
              */
             url: string;
+        };
+        /**
+         * TelemetryAckOut
+         * @description ``fieldrx_edge.protocol.TelemetryAck``: everything up to ``acked_seq`` of ``stream`` is
+         *     stored (or rejected for good). ``stream`` and ``stream_conflict`` are sent only when the
+         *     batch named its stream, and in error acks (a format 1 agent reads its ack strictly).
+         */
+        TelemetryAckOut: {
+            /** Acked Seq */
+            acked_seq: number;
+            /** Duplicates */
+            duplicates: number;
+            /**
+             * Error
+             * @description only in a multi-batch answer: the batch could not be stored (acked_seq 0, nothing rejected: the agent resends it); which batch and why
+             */
+            error?: string;
+            /** Machine Id */
+            machine_id: number;
+            /** Rejected */
+            rejected: components["schemas"]["RejectedOut"][];
+            /** Stored */
+            stored: number;
+            /**
+             * Stream
+             * @description the batch's stream ('': the legacy stream)
+             * @default
+             */
+            stream?: string;
+            /**
+             * Stream Conflict
+             * @description the stream's numbering went backwards (seqs already stored with other records): nothing from there on was stored; the agent moves to a new stream
+             * @default false
+             */
+            stream_conflict?: boolean;
+        };
+        /**
+         * TelemetryAcksOut
+         * @description The answer to several batches in one request.
+         */
+        TelemetryAcksOut: {
+            /**
+             * Acks
+             * @description one per batch, in the request's order
+             */
+            acks: components["schemas"]["TelemetryAckOut"][];
+        };
+        /**
+         * TelemetryBatchesIn
+         * @description Several batches in one request (``protocol.MULTI_KIND``: a thin agent's track and
+         *     cell batches with one token check); the answer is ``{"acks": [...]}``, one per batch.
+         *     A batch whose own fields break these rules refuses the whole request (422 naming
+         *     ``batches[i]``); its records are checked one by one, as in a batch sent alone.
+         */
+        TelemetryBatchesIn: {
+            /** Batches */
+            batches: (components["schemas"]["TelemetryBatchIn"] | components["schemas"]["CellBatchIn"])[];
+            /**
+             * Format
+             * @description ``protocol.CELL_FORMAT_VERSION``
+             * @constant
+             */
+            format: 3;
+            /**
+             * Kind
+             * @constant
+             */
+            kind: "batches";
+        } & {
+            [key: string]: unknown;
+        };
+        /**
+         * TelemetryBatchIn
+         * @description A batch of telemetry records (``protocol.telemetry_batch_json``). Format 2 names its
+         *     stream; a batch without ``stream`` (format 1: ``{"records": [...]}``) belongs to the
+         *     machine's legacy stream '' and its ``stream_start`` is not read. Each record is
+         *     checked on its own: a bad one is rejected in the ack, the others are stored.
+         */
+        TelemetryBatchIn: {
+            /**
+             * Format
+             * @description telemetry format
+             * @default 1
+             */
+            format?: number;
+            /**
+             * Kind
+             * @default telemetry
+             * @constant
+             */
+            kind?: "telemetry";
+            /** Records */
+            records: components["schemas"]["TelemetryRecord"][];
+            /**
+             * Stream
+             * @description the id of the agent queue that numbered the records (``protocol.new_stream_id``); records are deduplicated and acknowledged per (machine, stream, seq)
+             * @default null
+             */
+            stream?: string | null;
+            /**
+             * Stream Start
+             * @description the stream's first seq: its acknowledgement starts just below it when new
+             * @default 1
+             */
+            stream_start?: number;
+        } & {
+            [key: string]: unknown;
+        };
+        /**
+         * TelemetryRecord
+         * @description One record per GNSS fix (or per NDVI/depth sample), as stored on the server.
+         *
+         *     (machine_id, stream, seq) is the deduplication key (the stream travels with
+         *     the batch); seq increases by one per record, so the server can acknowledge
+         *     the highest contiguous seq of the stream.
+         *
+         *     ``t`` is the time of the GNSS fix the record describes (receiver time, unix
+         *     seconds), never the time the record was written or sent: the as-applied
+         *     report integrates metered mass over record time. ``fix_period_s`` is the
+         *     fix period the record stands for (the receiver's fix interval): metering
+         *     described by this record lasts that long. The report integrates over it
+         *     when given (``fieldrx_edge.asapplied.fix_periods``), so compressed or
+         *     stretched time stamps cannot scale the applied mass.
+         */
+        TelemetryRecord: {
+            /**
+             * Actual Shaft Rpm
+             * @default null
+             */
+            actual_shaft_rpm?: number | null;
+            /**
+             * Actuator Mm
+             * @default null
+             */
+            actuator_mm?: number | null;
+            /** Alarms */
+            alarms?: string[];
+            /**
+             * Applied Rate Kg Ha
+             * @default null
+             */
+            applied_rate_kg_ha?: number | null;
+            /**
+             * Cell Seq
+             * @default null
+             */
+            cell_seq?: number | null;
+            /**
+             * Depth Mm
+             * @default null
+             */
+            depth_mm?: number | null;
+            /**
+             * Duty
+             * @default null
+             */
+            duty?: number | null;
+            /**
+             * Fix Period S
+             * @default null
+             */
+            fix_period_s?: number | null;
+            /**
+             * Fix Quality
+             * @default 0
+             */
+            fix_quality?: number;
+            /**
+             * Gain Kd
+             * @default null
+             */
+            gain_kd?: number | null;
+            /**
+             * Gain Ki
+             * @default null
+             */
+            gain_ki?: number | null;
+            /**
+             * Gain Kp
+             * @default null
+             */
+            gain_kp?: number | null;
+            /**
+             * Hdop
+             * @default null
+             */
+            hdop?: number | null;
+            /**
+             * Heading Deg
+             * @default null
+             */
+            heading_deg?: number | null;
+            /**
+             * Implement Down
+             * @default false
+             */
+            implement_down?: boolean;
+            /**
+             * Job Id
+             * @default null
+             */
+            job_id?: number | null;
+            /**
+             * Lat
+             * @default null
+             */
+            lat?: number | null;
+            /**
+             * Lon
+             * @default null
+             */
+            lon?: number | null;
+            /** Machine Id */
+            machine_id: number;
+            /**
+             * Ndvi
+             * @default null
+             */
+            ndvi?: number | null;
+            /**
+             * Ndvi Raw
+             * @default null
+             */
+            ndvi_raw?: number | null;
+            /**
+             * Queue Backlog
+             * @default 0
+             */
+            queue_backlog?: number;
+            /** Seq */
+            seq: number;
+            /**
+             * Speed Filtered M S
+             * @default null
+             */
+            speed_filtered_m_s?: number | null;
+            /**
+             * Speed Raw M S
+             * @default null
+             */
+            speed_raw_m_s?: number | null;
+            /** T */
+            t: number;
+            /**
+             * Target Rate Kg Ha
+             * @default null
+             */
+            target_rate_kg_ha?: number | null;
+            /**
+             * Target Shaft Rpm
+             * @default null
+             */
+            target_shaft_rpm?: number | null;
         };
         /** TimelogImportOut */
         TimelogImportOut: {
@@ -14238,54 +14613,17 @@ export interface operations {
         };
         requestBody: {
             content: {
-                "application/json": {
-                    /** Format */
-                    format?: number | null;
-                    /** Records */
-                    records: {
-                        [key: string]: unknown;
-                    }[];
-                    /** Stream */
-                    stream?: string | null;
-                    /** Stream Start */
-                    stream_start?: number | null;
-                } & {
-                    [key: string]: unknown;
-                };
+                "application/json": components["schemas"]["TelemetryBatchIn"] | components["schemas"]["CellBatchIn"] | components["schemas"]["TelemetryBatchesIn"];
             };
         };
         responses: {
-            /** @description what was stored, deduplicated and rejected (record by record) */
+            /** @description what was stored, deduplicated and rejected (record by record): one ack, or ``{"acks": [...]}`` for several batches */
             200: {
                 headers: {
                     [name: string]: unknown;
                 };
                 content: {
-                    "application/json": {
-                        /** Acked Seq */
-                        acked_seq: number;
-                        /**
-                         * Duplicates
-                         * @default 0
-                         */
-                        duplicates?: number;
-                        /** Machine Id */
-                        machine_id: number;
-                        /**
-                         * Rejected
-                         * @description {seq, reason}
-                         */
-                        rejected?: {
-                            [key: string]: unknown;
-                        }[];
-                        /**
-                         * Stored
-                         * @default 0
-                         */
-                        stored?: number;
-                    } & {
-                        [key: string]: unknown;
-                    };
+                    "application/json": components["schemas"]["TelemetryAckOut"] | components["schemas"]["TelemetryAcksOut"];
                 };
             };
             /** @description missing, invalid, expired or revoked bearer token */
