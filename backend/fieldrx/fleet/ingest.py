@@ -204,10 +204,12 @@ def _batch_of(obj: Any) -> Batch:
             raise IngestError(f"a cells batch must be format {CELL_FORMAT_VERSION}, got {fmt!r}")
     elif kind != "telemetry":
         raise IngestError(f"kind {kind!r} is not 'telemetry' or 'cells'")
-    elif type(fmt) is not int or not 1 <= fmt <= TELEMETRY_FORMAT_VERSION:
+    elif type(fmt) is int and fmt > TELEMETRY_FORMAT_VERSION:  # a newer agent
         raise IngestError(
             f"format {fmt!r} not supported (1..{TELEMETRY_FORMAT_VERSION}): upgrade the server"
         )
+    elif type(fmt) is not int or fmt < 1:  # not a format at all: upgrading would not help
+        raise IngestError(f"format must be an integer 1..{TELEMETRY_FORMAT_VERSION}, got {fmt!r}")
     stream = obj.get("stream")
     if stream is None:
         if kind == "cells":
