@@ -14,7 +14,9 @@ catching up after being offline): each machine sends its records in order in
 batches (``--batch``, the edge agent's default), waiting for the ack before
 the next batch like the real agent; records are stamped when their batch is
 built, so latency = ack received - record time. With ``--realtime`` machines
-produce at ``hz`` and send every ``--send-every`` seconds instead.
+produce at ``hz`` and send every ``--send-every`` seconds instead (HTTP; the thin phase
+too: each period's track records and the cells left in it, ``thin_realtime_bodies``; over
+MQTT each machine publishes whatever it has produced, as the agent's sender does).
 
 Baseline, same run: a raw COPY BINARY of the same rows (prepared tuples,
 10,000 rows per COPY) into a copy of the telemetry table with the same
@@ -365,6 +367,12 @@ class LeanHttp:
             w.write(head + data)
             await w.drain()
             status_line = await r.readline()
+            if not status_line:  # the server closed the idle keep-alive connection
+                w.close()  # (--realtime, uploads further apart than its timeout): again,
+                r, w = await asyncio.open_connection(self.host, self.port)  # on a new one
+                w.write(head + data)  # (ingest deduplicates a batch stored twice)
+                await w.drain()
+                status_line = await r.readline()
             status = int(status_line.split()[1])
             length = 0
             while True:
@@ -432,12 +440,14 @@ async def drive_http(
     return elapsed, latencies, stored
 
 
-def thin_lanes(fleet: Fleet, k: int, batch: int, t_now: float) -> list[list[str]]:
-    """Machine k's same drive as the thin profile sends it (fieldrx_edge.uplink.thin): every
-    10th fix as its 1 Hz track (no cell: the cell records count the cells), then one cell
-    record per cell left (the bench's cells last 3 s), each on its own stream, in batches
-    of ``batch`` (the agent's two queues): the track lane's batch bodies, then the cell
-    lane's. Stamped ``t_now`` like the full profile's records (a backlog being replayed)."""
+def thin_records(
+    fleet: Fleet, k: int, t_now: float
+) -> tuple[list[dict[str, Any]], list[dict[str, Any]], list[float]]:
+    """Machine k's same drive as the thin profile produces it (fieldrx_edge.uplink.thin):
+    every 10th fix as its 1 Hz track (no cell: the cell records count the cells), and one
+    cell record per cell left (the bench's cells last 3 s); stamped ``t_now`` like the full
+    profile's records (a backlog being replayed). Also each cell record's time into the
+    drive (s) when its cell was left (``--realtime``)."""
     mid, jid, _ = fleet.machines[k]
     full = fleet.records(k, 1, fleet.n, t_now)
     step = max(1, int(round(fleet.hz)))
@@ -447,9 +457,11 @@ def thin_lanes(fleet: Fleet, k: int, batch: int, t_now: float) -> list[list[str]
     cells: dict[int, list[dict[str, Any]]] = {}
     for r in full:
         cells.setdefault(r["cell_seq"], []).append(r)
-    cell_recs = []
+    cell_recs, left_at, fixes = [], [], 0
     for i, (cell, rs) in enumerate(cells.items(), start=1):
         n = len(rs)
+        fixes += n
+        left_at.append(fixes / fleet.hz)
         cell_recs.append(
             {
                 "machine_id": mid, "seq": i, "job_id": jid, "cell_seq": cell,
@@ -460,54 +472,100 @@ def thin_lanes(fleet: Fleet, k: int, batch: int, t_now: float) -> list[list[str]
                 "flags": [],
             }
         )  # fmt: skip
-    lanes = []
-    for recs, head in ((track, f'"format":2,"stream":"thin{k}"'),
-                       (cell_recs, f'"format":3,"kind":"cells","stream":"cells{k}"')):  # fmt: skip
-        lane = []
-        for i in range(0, len(recs), batch):
-            part = recs[i : i + batch]
-            lane.append(
-                f'{{{head},"stream_start":1,"records":{json.dumps(part, separators=(",", ":"))}}}'
-            )
-        lanes.append(lane)
-    return lanes
+    return track, cell_recs, left_at
+
+
+def lane_body(k: int, kind: str, recs: list[dict[str, Any]]) -> str:
+    """One batch of machine k's thin ``kind`` lane ("track" or "cells") as the agent sends
+    it."""
+    head = (
+        f'"format":2,"stream":"thin{k}"'
+        if kind == "track"
+        else f'"format":3,"kind":"cells","stream":"cells{k}"'
+    )
+    return f'{{{head},"stream_start":1,"records":{json.dumps(recs, separators=(",", ":"))}}}'
+
+
+def thin_lanes(fleet: Fleet, k: int, batch: int, t_now: float) -> list[list[str]]:
+    """``thin_records`` in batches of ``batch`` (the agent's two queues): the track lane's
+    batch bodies, then the cell lane's."""
+    track, cell_recs, _ = thin_records(fleet, k, t_now)
+    return [
+        [lane_body(k, kind, recs[i : i + batch]) for i in range(0, len(recs), batch)]
+        for kind, recs in (("track", track), ("cells", cell_recs))
+    ]
+
+
+def multi_body(parts: list[str]) -> str:
+    """The two queues' pending batches in one request (protocol.MULTI_KIND) when both have
+    records, else the one batch alone, as fieldrx_edge.uplink.http.HttpSender sends them."""
+    if len(parts) == 1:
+        return parts[0]
+    return '{"format":3,"kind":"batches","batches":[' + ",".join(parts) + "]}"
 
 
 def thin_bodies(fleet: Fleet, k: int, batch: int, t_now: float) -> list[str]:
-    """``thin_lanes`` as fieldrx_edge.uplink.http.HttpSender sends them: the two queues'
-    pending batches in one request while both have records (protocol.MULTI_KIND), else one
-    batch alone."""
+    """``thin_lanes`` as the HTTP sender sends them (``multi_body``)."""
     lanes = thin_lanes(fleet, k, batch, t_now)
-    out = []
-    for i in range(max(map(len, lanes))):
-        parts = [lane[i] for lane in lanes if i < len(lane)]
-        out.append(
-            parts[0]
-            if len(parts) == 1
-            else '{"format":3,"kind":"batches","batches":[' + ",".join(parts) + "]}"
-        )
+    return [
+        multi_body([lane[i] for lane in lanes if i < len(lane)])
+        for i in range(max(map(len, lanes)))
+    ]
+
+
+def thin_realtime_bodies(
+    fleet: Fleet, k: int, batch: int, send_every: float
+) -> list[tuple[float, str]]:
+    """``--realtime``: what machine k's thin agent sends every ``send_every`` s while it
+    drives (the track records of the last period, the cells left in it; at most ``batch``
+    per lane per request), each with its time into the drive."""
+    track, cell_recs, left_at = thin_records(fleet, k, time.time())
+    out: list[tuple[float, str]] = []
+    ti = ci = 0
+    t = 0.0
+    while ti < len(track) or ci < len(cell_recs):
+        t += send_every
+        tj = min(len(track), int(t + 1e-9), ti + batch)  # 1 Hz: record i at i s
+        cj = ci
+        while cj < len(cell_recs) and cj - ci < batch and left_at[cj] <= t + 1e-9:
+            cj += 1
+        parts = []
+        if tj > ti:
+            parts.append(lane_body(k, "track", track[ti:tj]))
+        if cj > ci:
+            parts.append(lane_body(k, "cells", cell_recs[ci:cj]))
+        if parts:
+            out.append((t, multi_body(parts)))
+        ti, ci = tj, cj
     return out
 
 
 async def drive_http_thin(
-    base: str, fleet: Fleet, batch: int, concurrency: int
+    base: str, fleet: Fleet, batch: int, concurrency: int, realtime: bool, send_every: float
 ) -> tuple[float, int, int]:
-    """The same machine-hours as the thin profile sends them (``thin_bodies``): elapsed s,
-    records sent, records stored."""
+    """The same machine-hours as the thin profile sends them (``thin_bodies``, or with
+    ``realtime`` ``thin_realtime_bodies`` at their times): elapsed s, records sent,
+    records stored."""
     sem = asyncio.Semaphore(concurrency)
     sent = stored = 0
     # rendered before the connections open, as the full profile's bodies are: rendering a
     # long drive's bodies inside the window took longer than the server's keep-alive
     # timeout at --seconds 600, and the idle connections were closed under the client
     now = time.time()
-    bodies = [thin_bodies(fleet, k, batch, now) for k in range(len(fleet.machines))]
+    bodies = [
+        thin_realtime_bodies(fleet, k, batch, send_every)
+        if realtime
+        else [(0.0, b) for b in thin_bodies(fleet, k, batch, now)]
+        for k in range(len(fleet.machines))
+    ]
     async with LeanHttp(base, concurrency) as client:
         start = time.time()
 
         async def machine(k: int) -> None:
             nonlocal sent, stored
             token = fleet.machines[k][2]
-            for body in bodies[k]:
+            for due, body in bodies[k]:
+                await asyncio.sleep(max(0.0, start + due - time.time()))
                 async with sem:
                     while True:
                         status, payload = await client.post("/api/v1/telemetry", body, token)
@@ -942,7 +1000,11 @@ def main() -> int:
         if args.transport == "http" and args.thin:
             thin = thin_phase(
                 url, db_name, used, machine_h, "API",
-                lambda: asyncio.run(drive_http_thin(base, fleet, batch, args.concurrency)),
+                lambda: asyncio.run(
+                    drive_http_thin(
+                        base, fleet, batch, args.concurrency, args.realtime, args.send_every
+                    )
+                ),
             )  # fmt: skip
         import psycopg
         from fieldrx.db.session import raw_dsn
