@@ -60,6 +60,8 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+from fieldrx_edge.protocol import UPLOAD_PERIOD_S  # noqa: E402
+
 from tests.mqtt_broker import ProjectBroker  # noqa: E402
 
 BIN = Path(sys.executable).parent
@@ -881,7 +883,17 @@ def main() -> int:
         "--realtime", action="store_true", help="produce at --hz instead of replaying a backlog"
     )
     ap.add_argument(
-        "--send-every", type=float, default=1.0, help="realtime: seconds between uploads"
+        "--send-every",
+        type=float,
+        default=UPLOAD_PERIOD_S["full"],
+        help="realtime: seconds between uploads (default: the agent's full profile's period)",
+    )
+    ap.add_argument(
+        "--thin-send-every",
+        type=float,
+        default=UPLOAD_PERIOD_S["thin"],
+        help="realtime: seconds between the thin phase's uploads (default: the agent's thin"
+        " profile's period, fieldrx_edge.protocol.UPLOAD_PERIOD_S)",
     )
     ap.add_argument("--keep-db", action="store_true")
     ap.add_argument(
@@ -1002,8 +1014,9 @@ def main() -> int:
                 url, db_name, used, machine_h, "API",
                 lambda: asyncio.run(
                     drive_http_thin(
-                        base, fleet, batch, args.concurrency, args.realtime, args.send_every
-                    )
+                        base, fleet, batch, args.concurrency, args.realtime,
+                        args.thin_send_every,
+                    )  # fmt: skip
                 ),
             )  # fmt: skip
         import psycopg

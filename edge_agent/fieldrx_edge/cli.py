@@ -31,13 +31,18 @@ from pathlib import Path
 from typing import Any
 
 from fieldrx_edge.jobs import JobStore, pull, report_state
-from fieldrx_edge.protocol import UPLINK_PROFILES, JobPackage, mqtt_username
+from fieldrx_edge.protocol import UPLINK_PROFILES, UPLOAD_PERIOD_S, JobPackage, mqtt_username
 
 log = logging.getLogger("fieldrx_edge")
 UPLINK_HELP = (
     "telemetry profile: full (every fix) or thin (1 Hz track + one record per cell left; the"
     " 10 Hz log stays in the state dir, `upload-log` sends it). Default: the config's"
     ' "uplink" (set by `pull --uplink`), else full'
+)
+
+UPLOAD_PERIOD_HELP = (
+    "seconds between uploads of a batch that is not full (a backlog is sent at once)."
+    " Default: the uplink profile's, " + ", ".join(f"{k} {v:g}" for k, v in UPLOAD_PERIOD_S.items())
 )
 
 
@@ -125,10 +130,21 @@ def _thin_uplink(job: JobPackage, root: Path, queue: Any) -> tuple[Any, Any]:
     return ThinUplink(job, queue, cells, raw_log_path(root, job.job_id)), cells
 
 
+def _upload_period(a: argparse.Namespace, profile: str) -> float:
+    """--upload-period, else the uplink profile's (``protocol.UPLOAD_PERIOD_S``)."""
+    asked = getattr(a, "upload_period", None)
+    return UPLOAD_PERIOD_S[profile] if asked is None else asked
+
+
 def _make_sender(
-    a: argparse.Namespace, store: JobStore, queue: Any, extra: tuple[Any, ...] = ()
+    a: argparse.Namespace,
+    store: JobStore,
+    queue: Any,
+    extra: tuple[Any, ...] = (),
+    profile: str = "full",
 ) -> Any:
     cfg = store.config()
+    period = _upload_period(a, profile)
     server = a.server or cfg.get("server")
     token = a.token or cfg.get("token")
     if a.mqtt:
@@ -147,11 +163,12 @@ def _make_sender(
             password=token,
             tls_ca=ca,
             extra_queues=extra,
+            upload_period_s=period,
         )
     if server and token and not a.offline:
         from fieldrx_edge.uplink import HttpSender
 
-        return HttpSender(queue, server, token, extra_queues=extra)
+        return HttpSender(queue, server, token, extra_queues=extra, upload_period_s=period)
     return None
 
 
@@ -219,7 +236,7 @@ def cmd_run(a: argparse.Namespace) -> int:
         sink, cells = _thin_uplink(job, store.root, queue)
         extra = (cells,)
     agent = Agent(job, sink, motor, rcfg, progress.get("finished", []), save_progress)
-    sender = _make_sender(a, store, queue, extra)
+    sender = _make_sender(a, store, queue, extra, profile)
     stop = threading.Event()
     th = None
     if sender is not None:
@@ -447,7 +464,10 @@ def cmd_simulate(a: argparse.Namespace) -> int:
             thin, cells = _thin_uplink(job, qdir, queue)
             extra = (cells,)
             sink = thin.put_many
-        sender = HttpSender(queue, a.server, a.token, extra_queues=extra)
+        sender = HttpSender(
+            queue, a.server, a.token, extra_queues=extra,
+            upload_period_s=_upload_period(a, a.uplink),
+        )  # fmt: skip
     stop = threading.Event()
     sth = None
     if sender is not None:  # sends while the tractor drives, exactly like `run`
@@ -772,6 +792,7 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--mqtt-ca", help="CA certificate file: connect to the broker over TLS")
     sp.add_argument("--offline", action="store_true", help="queue telemetry only")
     sp.add_argument("--uplink", choices=UPLINK_PROFILES, help=UPLINK_HELP)
+    sp.add_argument("--upload-period", type=float, help=UPLOAD_PERIOD_HELP)
     sp.add_argument("--motor", default="sim", help="sim or serial:DEV")
     sp.add_argument("--controller")
     sp.add_argument("--lag-compensation", type=_on_off, default=True)
@@ -819,6 +840,7 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--state-dir")
     sp.add_argument("--drain-timeout", type=float, default=60.0)
     sp.add_argument("--uplink", choices=UPLINK_PROFILES, default="full", help=UPLINK_HELP)
+    sp.add_argument("--upload-period", type=float, help=UPLOAD_PERIOD_HELP)
     sp.add_argument("--realtime", type=float, default=0.0, help="pace: 1 = real time, 10 = 10x")
     sp.add_argument(
         "--sensor-fault", type=float, nargs=2, metavar=("FROM_S", "TO_S"),

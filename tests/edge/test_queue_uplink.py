@@ -87,6 +87,40 @@ def test_http_sender_retries_until_server_answers(tmp_path):
         peer.stop()
 
 
+def test_http_sender_uploads_a_partial_batch_once_per_period(tmp_path):
+    """Online, the sender sent whenever anything was pending (every 0.2 s at 10 Hz): in
+    real time a request's fixed server cost dwarfed its few records (docs/scale.md section
+    5, seventh round). A batch that is not full now waits for the upload period; a full
+    batch (a backlog) still goes at once; nothing is lost either way."""
+    peer = Peer().start()
+    stop = threading.Event()
+    try:
+        q = TelemetryQueue(tmp_path / "q.sqlite", machine_id=3)
+        s = HttpSender(q, peer.url, "dev-token", batch_size=500, upload_period_s=0.5)
+        th = threading.Thread(target=s.run, args=(stop,), daemon=True)
+        th.start()
+        t0 = time.monotonic()
+        for i in range(40):  # 20 Hz for 2 s
+            q.put(rec(i))
+            time.sleep(0.05)
+        uploads = s.sent_batches
+        assert 3 <= uploads <= 2.0 / 0.5 + 2, uploads  # the first at once, then one per 0.5 s
+        # a full batch right after an upload is not held for the period
+        while q.backlog():
+            time.sleep(0.02)
+        s.upload_period_s = 30.0
+        q.put_many([rec(100 + i) for i in range(500)])
+        t1 = time.monotonic()
+        while q.backlog() and time.monotonic() - t1 < 10:
+            time.sleep(0.02)
+        assert q.backlog() == 0 and time.monotonic() - t1 < 5
+        assert sorted(k[1] for k in peer.records) == list(range(1, 541))
+        assert time.monotonic() - t0 < 20
+    finally:
+        stop.set()
+        peer.stop()
+
+
 def test_http_sender_unreachable_keeps_everything(tmp_path):
     q = TelemetryQueue(tmp_path / "q.sqlite", machine_id=3)
     q.put_many([rec(i) for i in range(10)])
@@ -154,6 +188,42 @@ def test_mqtt_sender_delivers_everything_once(tmp_path):
         assert sorted(srv.records) == list(range(1, 5001))
         assert q.backlog() == 0
     finally:
+        s.close()
+        srv.stop()
+
+
+def test_mqtt_sender_publishes_a_partial_batch_once_per_period(tmp_path):
+    """As the HTTP sender: online, a batch that is not full waits for the upload period."""
+    machine_id = 900_000_000 + uuid.uuid4().int % 99_999_999
+    token = f"frx_d_{uuid.uuid4().hex}"
+    provision_device(machine_id, token)
+    srv = MqttServerPeer(machine_id)
+    q = TelemetryQueue(tmp_path / "q.sqlite", machine_id=machine_id)
+    s = _sender(q, token, batch_size=100, upload_period_s=0.5)
+    messages = []
+    srv_on_message = srv.on_message
+
+    def counting(client, userdata, msg):
+        messages.append(time.monotonic())
+        srv_on_message(client, userdata, msg)
+
+    srv.c.on_message = counting
+    stop = threading.Event()
+    th = threading.Thread(target=s.run, args=(stop,), daemon=True)
+    th.start()
+    try:
+        time.sleep(0.5)  # connected
+        for i in range(40):  # 20 Hz for 2 s
+            q.put(rec(i))
+            time.sleep(0.05)
+        deadline = time.monotonic() + 10
+        while q.backlog() and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert sorted(srv.records) == list(range(1, 41)) and q.backlog() == 0
+        assert 3 <= len(messages) <= 2.0 / 0.5 + 2, len(messages)
+    finally:
+        stop.set()
+        th.join(5)
         s.close()
         srv.stop()
 

@@ -17,7 +17,9 @@ profile's server cost per machine-hour).
 from __future__ import annotations
 
 import logging
+import math
 import threading
+import time
 from typing import Any
 
 import httpx
@@ -41,8 +43,13 @@ class HttpSender:
         timeout_s: float = 10.0,
         backoff: Backoff | None = None,
         extra_queues: tuple[TelemetryQueue, ...] = (),
+        upload_period_s: float = 0.0,
     ) -> None:
+        """``upload_period_s``: in ``run``, a batch that is not full waits this long after
+        the previous upload (``protocol.UPLOAD_PERIOD_S``; 0: sent as soon as pending)."""
         self.queue = queue
+        self.upload_period_s = upload_period_s
+        self._last_upload = -math.inf
         self.queues = (queue, *extra_queues)
         self.url = base_url.rstrip("/") + "/api/v1/telemetry"
         self.batch_size = batch_size
@@ -120,9 +127,26 @@ class HttpSender:
             queue.new_stream()
         return trimmed
 
+    def due_in(self) -> float:
+        """Seconds until ``run`` may upload: 0 once the upload period since the previous
+        upload has passed, or at once when a full batch is pending (a backlog)."""
+        wait = self._last_upload + self.upload_period_s - time.monotonic()
+        if wait <= 0 or any(q.backlog() >= self.batch_size for q in self.queues):
+            return 0.0
+        return wait
+
     def run(self, stop: threading.Event, idle_s: float = 0.2) -> None:
-        """Drain forever until ``stop``; exponential backoff while the server is unreachable."""
+        """Drain forever until ``stop``, a batch that is not full at most once per upload
+        period; exponential backoff while the server is unreachable."""
         while not stop.is_set():
+            wait = self.due_in()
+            if wait > 0:
+                stop.wait(min(wait, idle_s))
+                continue
+            if self.backlog() == 0:
+                stop.wait(idle_s)
+                continue
+            self._last_upload = time.monotonic()
             n = self.send_once()
             if n is None:
                 stop.wait(self.backoff.next_delay())

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import json
 import logging
+import math
 import threading
 import time
 from typing import Any
@@ -75,7 +76,12 @@ class MqttSender:
         password: str | None = None,
         tls_ca: str | None = None,
         extra_queues: tuple[TelemetryQueue, ...] = (),
+        upload_period_s: float = 0.0,
     ) -> None:
+        """``upload_period_s``: in ``run``, a batch that is not full waits this long after
+        the previous upload (``protocol.UPLOAD_PERIOD_S``; 0: sent as soon as pending)."""
+        self.upload_period_s = upload_period_s
+        self._last_upload = -math.inf
         self.queue = queue
         self.lanes = [_Lane(q) for q in (queue, *extra_queues)]
         self.batch_size = batch_size
@@ -203,9 +209,27 @@ class MqttSender:
                 room -= 1
         return published
 
+    def due_in(self) -> float:
+        """Seconds until ``run`` may publish: 0 once the upload period since the previous
+        upload has passed, or at once when a batch's worth is unacknowledged (a backlog)."""
+        wait = self._last_upload + self.upload_period_s - time.monotonic()
+        if wait <= 0 or any(lane.queue.backlog() >= self.batch_size for lane in self.lanes):
+            return 0.0
+        return wait
+
     def run(self, stop: threading.Event) -> None:
+        """Publish until ``stop``, a batch that is not full at most once per upload period
+        (acks are applied meanwhile)."""
         while not stop.is_set():
+            wait = self.due_in()
+            if wait > 0:
+                self._apply_ack()
+                with self._cv:
+                    self._cv.wait(min(wait, 0.2))
+                continue
             n = self.send_some()
+            if n:
+                self._last_upload = time.monotonic()
             with self._cv:
                 if n == 0:
                     self._cv.wait(0.2)
