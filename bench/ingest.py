@@ -14,9 +14,9 @@ catching up after being offline): each machine sends its records in order in
 batches (``--batch``, the edge agent's default), waiting for the ack before
 the next batch like the real agent; records are stamped when their batch is
 built, so latency = ack received - record time. With ``--realtime`` machines
-produce at ``hz`` and send every ``--send-every`` seconds instead (HTTP; the thin phase
-too: each period's track records and the cells left in it, ``thin_realtime_bodies``; over
-MQTT each machine publishes whatever it has produced, as the agent's sender does).
+produce at ``hz`` and send every ``--send-every`` seconds instead (over HTTP the thin
+phase too, every ``--thin-send-every`` s: each period's track records and the cells left
+in it, ``thin_realtime_bodies``; both default to the agents' upload periods).
 
 Baseline, same run: a raw COPY BINARY of the same rows (prepared tuples,
 10,000 rows per COPY) into a copy of the telemetry table with the same
@@ -42,6 +42,7 @@ from __future__ import annotations
 import argparse
 import asyncio
 import json
+import math
 import os
 import re
 import shutil
@@ -662,9 +663,16 @@ def drive_mqtt_thin(port: int, fleet: Fleet, batch: int) -> tuple[float, int, in
 
 
 def drive_mqtt(
-    port: int, fleet: Fleet, batch: int, max_inflight: int, realtime: bool
+    port: int,
+    fleet: Fleet,
+    batch: int,
+    max_inflight: int,
+    realtime: bool,
+    send_every: float = 0.0,
 ) -> tuple[float, list[float], int]:
-    """Every machine logs in as itself (``mqtt_clients``)."""
+    """Every machine logs in as itself (``mqtt_clients``); with ``realtime`` a machine
+    publishes what it produced once per ``send_every`` s (a full batch at once), as the
+    agent's sender does with its upload period."""
     import paho.mqtt.client as mqtt
     from fieldrx_edge.protocol import telemetry_topic
 
@@ -697,6 +705,7 @@ def drive_mqtt(
     start = time.time()
     # each machine keeps at most `window` unacked batches (the agent's in-flight cap)
     window = 4
+    last = [-math.inf] * n_m  # realtime: each machine's previous upload
     while True:
         progressed = False
         all_done = True
@@ -712,8 +721,9 @@ def drive_mqtt(
             if realtime:
                 produced = int((time.time() - start) * fleet.hz)
                 count = min(count, produced - seq + 1)
-                if count <= 0:
+                if count <= 0 or (count < batch and time.time() - last[k] < send_every):
                     continue
+                last[k] = time.time()
             t_now = time.time()
             if realtime:
                 times = [start + (seq + i) / fleet.hz for i in range(count)]
@@ -987,7 +997,9 @@ def main() -> int:
                 procs.append(w)
             wait_log(logs, "subscribed to")
             cpu0 = cpu_seconds(db_name)
-            elapsed, lat, stored = drive_mqtt(port, fleet, batch, 1000, args.realtime)
+            elapsed, lat, stored = drive_mqtt(
+                port, fleet, batch, 1000, args.realtime, args.send_every
+            )
             cpu1 = cpu_seconds(db_name)
             used = cpu_used(cpu0, cpu1)
             if args.thin:
