@@ -32,6 +32,7 @@ from typing import Any
 
 from fieldrx_edge.jobs import JobStore, pull, report_state
 from fieldrx_edge.protocol import UPLINK_PROFILES, UPLOAD_PERIOD_S, JobPackage, mqtt_username
+from fieldrx_edge.uplink.pacing import upload_period
 
 log = logging.getLogger("fieldrx_edge")
 UPLINK_HELP = (
@@ -130,12 +131,6 @@ def _thin_uplink(job: JobPackage, root: Path, queue: Any) -> tuple[Any, Any]:
     return ThinUplink(job, queue, cells, raw_log_path(root, job.job_id)), cells
 
 
-def _upload_period(a: argparse.Namespace, profile: str) -> float:
-    """--upload-period, else the uplink profile's (``protocol.UPLOAD_PERIOD_S``)."""
-    asked = getattr(a, "upload_period", None)
-    return UPLOAD_PERIOD_S[profile] if asked is None else asked
-
-
 def _make_sender(
     a: argparse.Namespace,
     store: JobStore,
@@ -144,7 +139,7 @@ def _make_sender(
     profile: str = "full",
 ) -> Any:
     cfg = store.config()
-    period = _upload_period(a, profile)
+    period = upload_period(profile, getattr(a, "upload_period", None))
     server = a.server or cfg.get("server")
     token = a.token or cfg.get("token")
     if a.mqtt:
@@ -466,7 +461,7 @@ def cmd_simulate(a: argparse.Namespace) -> int:
             sink = thin.put_many
         sender = HttpSender(
             queue, a.server, a.token, extra_queues=extra,
-            upload_period_s=_upload_period(a, a.uplink),
+            upload_period_s=upload_period(a.uplink, a.upload_period),
         )  # fmt: skip
     stop = threading.Event()
     sth = None

@@ -40,6 +40,19 @@ CHECKS = [
 ]
 
 
+def _fuzz_settings(max_examples: int) -> Any:
+    """Hypothesis settings of every fuzzing run here: repeatable (derandomised, no example
+    database), no deadline (the API answers over the network), every health check off."""
+    return settings(
+        max_examples=max_examples,
+        deadline=None,
+        phases=[Phase.explicit, Phase.generate],
+        suppress_health_check=list(HealthCheck),
+        derandomize=True,
+        database=None,
+    )
+
+
 def _seed(url: str, headers: dict[str, str]) -> dict[str, int]:
     """One of each main resource, created through the API as a farm software would."""
 
@@ -114,14 +127,7 @@ def test_no_server_errors_and_answers_match_the_schema(
 
     for operation in operations:
 
-        @settings(
-            max_examples=MAX_EXAMPLES,
-            deadline=None,
-            phases=[Phase.explicit, Phase.generate],
-            suppress_health_check=list(HealthCheck),
-            derandomize=True,
-            database=None,
-        )
+        @_fuzz_settings(MAX_EXAMPLES)
         @given(case=operation.as_strategy())
         def run(case: schemathesis.Case) -> None:
             for key in list(case.path_parameters or {}):
@@ -167,14 +173,7 @@ def test_device_ingest_fuzzed_with_a_device_token(
     failures: list[str] = []
     codes: list[int] = []
 
-    @settings(
-        max_examples=INGEST_EXAMPLES,
-        deadline=None,
-        phases=[Phase.explicit, Phase.generate],
-        suppress_health_check=list(HealthCheck),
-        derandomize=True,
-        database=None,
-    )
+    @_fuzz_settings(INGEST_EXAMPLES)
     @given(case=operation.as_strategy())
     def run(case: schemathesis.Case) -> None:
         _own_records(case.body, ids)

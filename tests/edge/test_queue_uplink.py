@@ -108,7 +108,7 @@ def test_http_sender_uploads_a_partial_batch_once_per_period(tmp_path):
         # a full batch right after an upload is not held for the period
         while q.backlog():
             time.sleep(0.02)
-        s.upload_period_s = 30.0
+        s.pacer.period_s = 30.0
         q.put_many([rec(100 + i) for i in range(500)])
         t1 = time.monotonic()
         while q.backlog() and time.monotonic() - t1 < 10:

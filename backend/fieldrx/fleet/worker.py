@@ -450,11 +450,11 @@ class IngestWorker:
         does not exist (deleted while its messages were in flight) gets one too: it was
         PUBACKed without any ack, so its agent waited out its ack timeout and sent it
         again, with nothing in its log to say why."""
+        what = f"batch ({batch.kind}, stream {batch.stream or '(legacy)'})"
         while True:
             try:
                 result = store(conn, machine_id, batch)
             except IngestError as exc:
-                what = f"batch ({batch.kind}, stream {batch.stream or '(legacy)'})"
                 log.warning("machine %s: %s not stored: %s", machine_id, what, exc)
                 self._acked(stats, machine_id, batch, ms, error_ack(machine_id, batch, what, exc))
                 return conn
@@ -463,7 +463,6 @@ class IngestWorker:
                     stats.errors += 1
                     conn = self._reconnect(conn)
                     continue
-                what = f"batch ({batch.kind}, stream {batch.stream or '(legacy)'})"
                 log.warning("machine %s: %s not stored: %s", machine_id, what, reason_of(exc))
                 self._acked(stats, machine_id, batch, ms, error_ack(machine_id, batch, what, exc))
                 return conn

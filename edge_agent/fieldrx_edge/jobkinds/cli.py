@@ -39,17 +39,16 @@ def simulate_kind(a: argparse.Namespace, job: JobPackage) -> int:
     sink = sender = queue = None
     if a.server:
         from fieldrx_edge.jobs import post_state
-        from fieldrx_edge.protocol import UPLOAD_PERIOD_S
         from fieldrx_edge.uplink import HttpSender, TelemetryQueue
+        from fieldrx_edge.uplink.pacing import upload_period
 
         if not a.token:
             raise SystemExit("--server needs --token")
         qdir = Path(a.state_dir) if a.state_dir else Path(tempfile.mkdtemp(prefix="fieldrx-sim-"))
         queue = TelemetryQueue(qdir / "queue.sqlite", job.machine_id)
-        period = getattr(a, "upload_period", None)
         sender = HttpSender(
             queue, a.server, a.token,
-            upload_period_s=UPLOAD_PERIOD_S["full"] if period is None else period,
+            upload_period_s=upload_period("full", getattr(a, "upload_period", None)),
         )  # fmt: skip
         sink = queue.put_many
         post_state(a.server, a.token, job.job_id, "running")

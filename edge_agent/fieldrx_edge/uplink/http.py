@@ -17,15 +17,14 @@ profile's server cost per machine-hour).
 from __future__ import annotations
 
 import logging
-import math
 import threading
-import time
 from typing import Any
 
 import httpx
 
 from fieldrx_edge.protocol import CELL_FORMAT_VERSION, MULTI_KIND, TelemetryAck
 from fieldrx_edge.uplink.backoff import Backoff
+from fieldrx_edge.uplink.pacing import UploadPacer
 from fieldrx_edge.uplink.queue import TelemetryQueue
 
 log = logging.getLogger(__name__)
@@ -46,10 +45,9 @@ class HttpSender:
         upload_period_s: float = 0.0,
     ) -> None:
         """``upload_period_s``: in ``run``, a batch that is not full waits this long after
-        the previous upload (``protocol.UPLOAD_PERIOD_S``; 0: sent as soon as pending)."""
+        the previous upload (``pacing.UploadPacer``; 0: sent as soon as pending)."""
         self.queue = queue
-        self.upload_period_s = upload_period_s
-        self._last_upload = -math.inf
+        self.pacer = UploadPacer(upload_period_s, batch_size)
         self.queues = (queue, *extra_queues)
         self.url = base_url.rstrip("/") + "/api/v1/telemetry"
         self.batch_size = batch_size
@@ -127,26 +125,16 @@ class HttpSender:
             queue.new_stream()
         return trimmed
 
-    def due_in(self) -> float:
-        """Seconds until ``run`` may upload: 0 once the upload period since the previous
-        upload has passed, or at once when a full batch is pending (a backlog)."""
-        wait = self._last_upload + self.upload_period_s - time.monotonic()
-        if wait <= 0 or any(q.backlog() >= self.batch_size for q in self.queues):
-            return 0.0
-        return wait
-
     def run(self, stop: threading.Event, idle_s: float = 0.2) -> None:
         """Drain forever until ``stop``, a batch that is not full at most once per upload
         period; exponential backoff while the server is unreachable."""
         while not stop.is_set():
-            wait = self.due_in()
+            backlogs = [q.backlog() for q in self.queues]
+            wait = self.pacer.due_in(backlogs) if any(backlogs) else idle_s
             if wait > 0:
                 stop.wait(min(wait, idle_s))
                 continue
-            if self.backlog() == 0:
-                stop.wait(idle_s)
-                continue
-            self._last_upload = time.monotonic()
+            self.pacer.uploaded()
             n = self.send_once()
             if n is None:
                 stop.wait(self.backoff.next_delay())

@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import json
 import logging
-import math
 import threading
 import time
 from typing import Any
@@ -38,6 +37,7 @@ import paho.mqtt.client as mqtt
 
 from fieldrx_edge.protocol import TelemetryAck, ack_topic, mqtt_client_id, telemetry_topic
 from fieldrx_edge.uplink.backoff import Backoff
+from fieldrx_edge.uplink.pacing import UploadPacer
 from fieldrx_edge.uplink.queue import TelemetryQueue
 
 log = logging.getLogger(__name__)
@@ -79,9 +79,8 @@ class MqttSender:
         upload_period_s: float = 0.0,
     ) -> None:
         """``upload_period_s``: in ``run``, a batch that is not full waits this long after
-        the previous upload (``protocol.UPLOAD_PERIOD_S``; 0: sent as soon as pending)."""
-        self.upload_period_s = upload_period_s
-        self._last_upload = -math.inf
+        the previous upload (``pacing.UploadPacer``; 0: sent as soon as pending)."""
+        self.pacer = UploadPacer(upload_period_s, batch_size)
         self.queue = queue
         self.lanes = [_Lane(q) for q in (queue, *extra_queues)]
         self.batch_size = batch_size
@@ -209,19 +208,11 @@ class MqttSender:
                 room -= 1
         return published
 
-    def due_in(self) -> float:
-        """Seconds until ``run`` may publish: 0 once the upload period since the previous
-        upload has passed, or at once when a batch's worth is unacknowledged (a backlog)."""
-        wait = self._last_upload + self.upload_period_s - time.monotonic()
-        if wait <= 0 or any(lane.queue.backlog() >= self.batch_size for lane in self.lanes):
-            return 0.0
-        return wait
-
     def run(self, stop: threading.Event) -> None:
         """Publish until ``stop``, a batch that is not full at most once per upload period
-        (acks are applied meanwhile)."""
+        (a batch's worth unacknowledged is a backlog: at once; acks are applied meanwhile)."""
         while not stop.is_set():
-            wait = self.due_in()
+            wait = self.pacer.due_in(lane.queue.backlog() for lane in self.lanes)
             if wait > 0:
                 self._apply_ack()
                 with self._cv:
@@ -229,7 +220,7 @@ class MqttSender:
                 continue
             n = self.send_some()
             if n:
-                self._last_upload = time.monotonic()
+                self.pacer.uploaded()
             with self._cv:
                 if n == 0:
                     self._cv.wait(0.2)
