@@ -161,6 +161,10 @@ def _notch_tip_lines(
     k0 = np.clip(np.ceil((lo - y0) / w - 0.5), 0, n).astype(np.int64)
     k1 = np.clip(np.ceil((hi - y0) / w - 0.5), 0, n).astype(np.int64)
     cnt = np.maximum(k1 - k0, 0)
+    live = np.flatnonzero(cnt)  # most tips are crossed by no line in their zone
+    y, x, kp, kn, sgn, reach, y0, k0, cnt, ai = (
+        t[live] for t in (y, x, kp, kn, sgn, reach, y0, k0, cnt, ai)
+    )
     for m in range(int(cnt.max(initial=0))):
         yk = y0 + (k0 + m + 0.5) * w
         ba, bb = yk - 0.5 * w, yk + 0.5 * w
@@ -240,7 +244,8 @@ def _edges_meet_boxes(
     """Per box (angle column ``ai``), whether any edge except the box's ``own`` edges
     (per step, -1 for none) meets it: bounding boxes first, exact clipping on the rest."""
     x0, x1, y0, y1 = box
-    xa, ya, xb, yb = X[:, ai], Y[:, ai], X[nxt][:, ai], Y[nxt][:, ai]
+    xa, ya = X[:, ai], Y[:, ai]
+    xb, yb = xa[nxt], ya[nxt]
     near = (
         (np.minimum(xa, xb) <= x1)
         & (np.maximum(xa, xb) >= x0)
@@ -250,7 +255,8 @@ def _edges_meet_boxes(
     cols = np.arange(len(ai))
     for e in own:
         m = e >= 0
-        near[e[m], cols[m]] = False
+        if m.any():
+            near[e[m], cols[m]] = False
     ei, ci = np.nonzero(near)
     out = np.zeros(len(ai), bool)
     if len(ei):
@@ -274,27 +280,36 @@ def _tip_chain(
     monotonically away from the tip, until it leaves the band at ``edge_y``.
 
     Returns (monotone and left within _CHAIN_STEPS, x min, x max of the chain inside
-    the band, the chain's edge indices per step (-1 once left))."""
+    the band, the chain's edge indices per step (-1 once left or given up)).
+
+    Only the chains still walking are stepped: most leave the band within a step or two."""
+    n = len(vi)
     cur = vi.copy()
     y, x = Y[vi, ai], X[vi, ai]
     xmin, xmax = x.copy(), x.copy()
-    ok = np.ones(len(vi), bool)
-    done = np.zeros(len(vi), bool)
+    ok = np.ones(n, bool)
+    done = np.zeros(n, bool)
     edges = []
     fwd = step is v.next
+    act = np.arange(n)  # chains still walking: monotone so far and inside the band
     for _ in range(_CHAIN_STEPS):
-        nb = step[cur]
-        yn, xn = Y[nb, ai], X[nb, ai]
-        edges.append(np.where(done, -1, cur if fwd else nb))
-        ok &= done | np.where(down, yn < y, yn > y)
-        left = np.where(down, yn < edge_y - _EPS, yn > edge_y + _EPS)
+        c, a = cur[act], ai[act]
+        nb = step[c]
+        yn, xn, yc, xc0, dn, ey = Y[nb, a], X[nb, a], y[act], x[act], down[act], edge_y[act]
+        e = np.full(n, -1)
+        e[act] = c if fwd else nb
+        edges.append(e)
+        mono = np.where(dn, yn < yc, yn > yc)
+        left = np.where(dn, yn < ey - _EPS, yn > ey + _EPS)
         with np.errstate(divide="ignore", invalid="ignore"):
-            xc = np.where(left, x + (edge_y - y) / (yn - y) * (xn - x), xn)
-        xmin = np.where(done, xmin, np.minimum(xmin, xc))
-        xmax = np.where(done, xmax, np.maximum(xmax, xc))
-        done |= left
-        cur, y, x = nb, yn, xn
-        if done.all():
+            xc = np.where(left, xc0 + (ey - yc) / (yn - yc) * (xn - xc0), xn)
+        xmin[act] = np.minimum(xmin[act], xc)
+        xmax[act] = np.maximum(xmax[act], xc)
+        ok[act] &= mono
+        done[act] |= left
+        cur[act], y[act], x[act] = nb, yn, xn
+        act = act[mono & ~left]
+        if not len(act):
             break
     return ok & done, xmin, xmax, edges
 
@@ -336,14 +351,15 @@ def _spike_tips(
     edge_y = np.where(down, a, a + w)
     ok1, lo1, hi1, e1 = _tip_chain(v, X, Y, vi, ai, edge_y, down, v.prev)
     ok2, lo2, hi2, e2 = _tip_chain(v, X, Y, vi, ai, edge_y, down, v.next)
-    keep = ok1 & ok2
+    sel = np.flatnonzero(ok1 & ok2)  # only these can count: test just their boxes
+    ai, a = ai[sel], a[sel]
     box = (
-        np.minimum(lo1, lo2) - 0.5 * w,
-        np.maximum(hi1, hi2) + 0.5 * w,
+        np.minimum(lo1[sel], lo2[sel]) - 0.5 * w,
+        np.maximum(hi1[sel], hi2[sel]) + 0.5 * w,
         a - _EPS,
         a + w + _EPS,
     )
-    keep &= ~_edges_meet_boxes(X, Y, v.next, ai, box, e1 + e2)
+    keep = ~_edges_meet_boxes(X, Y, v.next, ai, box, [e[sel] for e in e1 + e2])
     ob_a, ob_b = obstacles
     if len(ob_a) and keep.any():
         sn, cs = np.sin(phis[ai]), np.cos(phis[ai])

@@ -16,11 +16,11 @@ from shapely.geometry import MultiPolygon, Polygon
 from shapely.geometry.base import BaseGeometry
 
 from .boundary import parts
-from .bounds import AnalyticBounds, crossing_lower_bounds
+from .bounds import AnalyticBounds
+from .centrelines import CentreLines, centre_lines, nonworking_estimate
 from .decomposition import layout
 from .frame import frame_for
-from .order import endpoints
-from .swaths import StripPiece, default_strip_tolerance, holes_of
+from .swaths import default_strip_tolerance, holes_of
 
 
 def edge_angles(geom: BaseGeometry, max_ring_edges: int = 64) -> np.ndarray:
@@ -53,40 +53,20 @@ def longest_edge_phi(field_geom: Polygon | MultiPolygon) -> float:
     return float(math.atan2(e[k, 1], e[k, 0]) % math.pi)
 
 
-def estimate_nonworking(subs: list[StripPiece], blocks: list[list[int]]) -> float:
-    """Euclidean turn lengths inside blocks + greedy block-to-block hops (heading tie-break)."""
-    total = 0.0
-    ends = []
-    for b in blocks:
-        for j in range(len(b) - 1):
-            s, t = subs[b[j]], subs[b[j + 1]]
-            x_s, x_t = (s.x1, t.x1) if j % 2 == 0 else (s.x0, t.x0)
-            total += math.hypot(x_s - x_t, t.y - s.y)
-        ends.append(endpoints(subs, b, 1))
-    if len(ends) > 1:
-        left = set(range(1, len(ends)))
-        cur = ends[0][1]
-        while left:
-            k = min(left, key=lambda k: math.dist(cur, ends[k][0]))
-            total += math.dist(cur, ends[k][0])
-            cur = ends[k][1]
-            left.remove(k)
-    return total
-
-
 def evaluate(
     region: BaseGeometry,
     w: float,
     phi: float,
     field_geom: BaseGeometry | None = None,
     tol: float | None = None,
-) -> tuple[int, float]:
+) -> int:
+    """Number of inner swaths of the swath layout of region at math angle phi."""
     tol = default_strip_tolerance(w) if tol is None else tol
     fr = frame_for(region, phi)
     parts_rot = [fr.fwd_geom(p) for p in parts(region)]
     holes = fr.fwd_geom(holes_of(field_geom if field_geom is not None else region))
-    subs, blocks = layout(parts_rot, w, with_full=False, holes_rot=holes, tol=tol)
-    return len(subs), estimate_nonworking(subs, blocks)
+    subs, _ = layout(parts_rot, w, with_full=False, holes_rot=holes, tol=tol)
+    return len(subs)
 
 
 def swath_count(
@@ -100,7 +80,14 @@ def swath_count(
 
     ``tol`` is the strip tolerance (default :func:`default_strip_tolerance`).
     """
-    return evaluate(region, swath_width_m, phi, field_geom, tol)[0]
+    return evaluate(region, swath_width_m, phi, field_geom, tol)
+
+
+def region_lines(region: BaseGeometry, w: float, phi: float, tol: float) -> CentreLines:
+    """The centre-line layout of region at phi, in the planning frame's rotation (about
+    the region's centroid, :func:`.frame.frame_for`)."""
+    c = region.centroid
+    return centre_lines(parts(region), w, phi, tol, np.array([c.x, c.y]))
 
 
 def heading_objective(
@@ -111,15 +98,20 @@ def heading_objective(
     tol: float | None = None,
 ) -> tuple[int, float]:
     """The objective ``optimal`` minimises at math angle phi, lexicographically: the
-    number of inner swaths (each costs a turn), then the estimated non-working distance."""
-    n, nonwork = evaluate(region, w, phi, field_geom, tol)
-    return n, round(nonwork, 6)
+    number of inner swaths of the swath layout (each costs a turn), then the estimated
+    non-working distance of the centre-line layout (:func:`.centrelines.nonworking_estimate`:
+    turns and block-to-block hops, from the vertices alone)."""
+    tol = default_strip_tolerance(w) if tol is None else tol
+    n = evaluate(region, w, phi, field_geom, tol)
+    return n, round(float(nonworking_estimate(region_lines(region, w, phi, tol))), 6)
 
 
 class Objective(Protocol):
     """A heading objective: a value to minimise, lexicographically, whose first element
     is the inner swath count (the branch and bound of :func:`optimal_phi` prunes with
-    swath-count lower bounds)."""
+    swath-count lower bounds) and whose second is a function of the centre-line layout
+    alone (``secondary``: the search ranks angles of equal count bounds by it before it
+    pays for a swath layout)."""
 
     def __call__(
         self,
@@ -129,6 +121,10 @@ class Objective(Protocol):
         field_geom: BaseGeometry | None,
         tol: float | None,
     ) -> tuple[int, float]: ...
+
+    def secondary(self, lines: CentreLines) -> float:
+        """The second element of ``__call__`` at the angle of ``lines`` (exactly)."""
+        ...
 
 
 class SwathCountObjective:
@@ -143,6 +139,22 @@ class SwathCountObjective:
         tol: float | None = None,
     ) -> tuple[int, float]:
         return heading_objective(region, w, phi, field_geom, tol)
+
+    def secondary(self, lines: CentreLines) -> float:
+        return round(float(nonworking_estimate(lines)), 6)
+
+
+def _candidates(
+    region: BaseGeometry, field_geom: BaseGeometry, check_integer_degrees: bool
+) -> tuple[np.ndarray, np.ndarray]:
+    """(all candidate angles, longest edge first; the whole degrees among them)."""
+    le = longest_edge_phi(field_geom)
+    geo = edge_angles(region)
+    geo = np.r_[le, geo[np.abs((geo - le + math.pi / 2) % math.pi - math.pi / 2) > 1e-9]]
+    ints = np.radians(np.arange(180.0)) if check_integer_degrees else np.zeros(0)
+    near = np.abs((ints[:, None] - geo[None, :] + math.pi / 2) % math.pi - math.pi / 2)
+    ints = ints[(near > 1e-9).all(axis=1)] if len(geo) else ints
+    return np.r_[geo, ints], ints
 
 
 def optimal_phi(
@@ -161,101 +173,107 @@ def optimal_phi(
     which guarantees never needing more swaths than a 1-degree brute-force scan
     (Fields2Cover's BruteForce with the swath-count objective).
 
-    Branch and bound (issue 16): every candidate gets the analytic swath-count lower
-    bound (:class:`.bounds.AnalyticBounds`, all angles in one vectorised pass over the
-    vertices, no swath generation), first without its dearest term (the spike tips),
-    which is added only for the angles the search may still take (see
-    :func:`_branch_and_bound`; about half the bounds' cost on the 40-vertex field at 2.3 m,
-    where the count prunes all but ~25 angles). Candidates are then taken in increasing
-    bound order and the objective (one swath layout) is evaluated only while the bound
-    is not above the best count found; an angle taken after the first gets the finer
-    scan-line bound (:func:`.bounds.crossing_lower_bounds`) first. The bound equals
-    the true count at the optimum on the bench fields, so one layout usually decides.
-
-    Ties in the swath count are broken by the objective's next criterion (the
-    non-working estimate): every candidate whose bounds do not exceed the best count is
-    evaluated (the bound is tight, so these are a handful: 1-4 whole degrees on the
-    bench fields). Keeping the first of equal counts cost 313 m of turns on the
-    irregular 40-vertex field at 12 m with one headland pass (2,394 -> 2,707 m). The
-    longest edge is evaluated first among equal bounds and wins exact ties, so
-    ``optimal`` is never worse than ``longest_edge`` by the objective.
-
-    Speed: the search costs the bounds plus one layout per evaluated candidate, and a
-    layout costs what one angle of the 1-degree brute force costs (a little less at
-    the optimum, which tends to have fewer strip pieces than the average angle), so
-    with k evaluations the speed-up over that scan is about 180 / k: 180-290x at k = 1,
-    80-110x at k = 2 (the L) and 40-70x at k = 3 (pond, irregular, 500 ha at 12 m,
-    CPU time; their tied candidates' non-working estimates are 994 / 997 / 1,011 m,
-    2,071 / 2,129 / 3,444 m and 5,108 / 5,128 / 8,095 m: only an exact evaluation
-    tells the first two of each apart, so no cheap bound on the estimate prunes them).
+    Branch and bound (issue 16) on the lexicographic key (swath-count lower bound,
+    second criterion), which is a lower bound on the objective at every candidate: every
+    candidate gets the analytic swath-count lower bound (:class:`.bounds.AnalyticBounds`,
+    all angles in one vectorised pass over the vertices, no swath generation), first
+    without its dearest term (the spike tips), which is added only for the angles the
+    search may still take. The candidate of least key is then, in turn: tightened (full
+    analytic bound), probed (its centre-line layout, :mod:`.centrelines`: the scan-line
+    count bound, a few per cent of a layout), given its second criterion (exact, from
+    the same centre lines), and only then evaluated (one swath layout). The search stops
+    when the least key is not below the best value found. The count bound equals the
+    true count at the optimum on the bench fields, so one layout usually decides, ties
+    in the count included: they are ranked by the exact second criterion before any
+    layout (with the layout-based estimate, each tied whole degree cost a layout: 2-3
+    on four bench fields at 12 m, about 180 / k times faster than the 1-degree scan).
+    The longest edge is first among equal keys and wins exact ties, so ``optimal`` is
+    never worse than ``longest_edge`` by the objective.
     """
     tol = default_strip_tolerance(w) if tol is None else tol
     objective = objective if objective is not None else SwathCountObjective()
     polys = parts(region)
-    le = longest_edge_phi(field_geom)
-    geo = edge_angles(region)
-    geo = np.r_[le, geo[np.abs((geo - le + math.pi / 2) % math.pi - math.pi / 2) > 1e-9]]
-    ints = np.radians(np.arange(180.0)) if check_integer_degrees else np.zeros(0)
-    near = np.abs((ints[:, None] - geo[None, :] + math.pi / 2) % math.pi - math.pi / 2)
-    ints = ints[(near > 1e-9).all(axis=1)] if len(geo) else ints
-    angles = np.r_[geo, ints]
+    angles, ints = _candidates(region, field_geom, check_integer_degrees)
+    le = float(angles[0])
     bounds = AnalyticBounds(polys, w, angles, tol, holes_of(field_geom))
-    results, refined = _branch_and_bound(
+    results, probed = _branch_and_bound(
         bounds,
-        lambda phi: int(crossing_lower_bounds(polys, w, np.array([phi]), tol)[0]),
+        lambda phi: region_lines(region, w, phi, tol),
+        objective.secondary,
         lambda phi: objective(region, w, phi, field_geom, tol),
     )
     best = min(results.items(), key=lambda kv: (kv[1][0], kv[1][1], kv[0] != le))
     ints_set = set(ints.tolist())
     return best[0], {
         "evaluated": len(results),
-        "refined": refined,
+        "refined": probed,
         "integer_degree_checks": sum(1 for phi in results if phi in ints_set),
         "candidates": len(angles),
     }
 
 
+def _tighten(
+    bounds: AnalyticBounds,
+    lb: np.ndarray,
+    full: np.ndarray,
+    open_: np.ndarray,
+    j: int,
+    best_n: float,
+) -> None:
+    """Give angle j, and every other open angle that could still be taken, the full
+    analytic bound in one call: those whose weak bound is <= the best count, or before
+    the first evaluation <= the least full bound among open angles (or j's own)."""
+    tight = full & open_
+    if math.isfinite(best_n):
+        cap = best_n
+    else:
+        cap = lb[tight].min() if tight.any() else lb[j]
+    batch = ~full & open_ & (lb <= cap)
+    batch[j] = True
+    lb[batch] = bounds.full(np.flatnonzero(batch))
+    full |= batch
+
+
 def _branch_and_bound(
     bounds: AnalyticBounds,
-    fine_bound: Callable[[float], int],
+    probe: Callable[[float], CentreLines],
+    secondary: Callable[[CentreLines], float],
     evaluate_at: Callable[[float], tuple[int, float]],
 ) -> tuple[dict[float, tuple[int, float]], int]:
-    """The objective at every angle whose lower bounds do not exceed the best swath
-    count, taken in increasing (bound, index) order; returns them and the number of
-    scan-line refinements.
+    """The objective at every angle whose key (count lower bound, second criterion) is
+    below the best value found, taken in increasing (key, index) order; returns them and
+    the number of probes.
 
-    Bounds are tightened lazily: every angle starts with the analytic bound without
-    spike tips (cheap, weaker); before an angle is refined or evaluated, it and every
-    other untightened angle that could still be taken (cheap bound <= best count, or <=
-    its own before the first evaluation) get the full analytic bound in one call. A
-    weak bound is never above the full one, so the angle taken next is the one the full
-    bounds alone would give: the same evaluations as tightening all angles up front.
+    Each step does the cheapest thing that can raise the least key: full analytic bound
+    (lazily, :func:`_tighten`: a weak bound is never above the full one, so the angle
+    taken is the one the full bounds alone would give), then the probe's scan-line
+    bound, then the second criterion (-inf until known), then the layout. A key only
+    rises towards the objective, so an angle left when the least key reaches the best
+    value cannot beat it.
     """
     angles = bounds.phis
     lb = bounds.weak.copy()
+    sec = np.full(len(angles), -np.inf)
     full = np.zeros(len(angles), bool)
-    done = np.zeros(len(angles), bool)  # evaluated, or pruned by the scan-line bound
+    open_ = np.ones(len(angles), bool)
+    lines: dict[int, CentreLines] = {}
     results: dict[float, tuple[int, float]] = {}
-    best_n = math.inf
-    refined = 0
-    while not done.all():
-        open_ = np.flatnonzero(~done)
-        j = int(open_[np.lexsort((open_, lb[open_]))[0]])  # le (index 0) first among ties
-        if lb[j] > best_n:
+    best: tuple[float, float] = (math.inf, math.inf)
+    while open_.any():
+        idx = np.flatnonzero(open_)
+        j = int(idx[np.lexsort((idx, sec[idx], lb[idx]))[0]])
+        if (int(lb[j]), float(sec[j])) >= best:
             break
         if not full[j]:
-            tight = full & ~done
-            cap = best_n if results else (lb[tight].min() if tight.any() else lb[j])
-            batch = ~full & ~done & (lb <= cap)
-            lb[batch] = bounds.full(np.flatnonzero(batch))
-            full |= batch
-            continue
-        done[j] = True
-        if results:
-            refined += 1
-            if fine_bound(float(angles[j])) > best_n:
-                continue
-        phi = float(angles[j])
-        results[phi] = evaluate_at(phi)
-        best_n = min(best_n, results[phi][0])
-    return results, refined
+            _tighten(bounds, lb, full, open_, j, best[0])
+        elif j not in lines:
+            lines[j] = probe(float(angles[j]))
+            lb[j] = max(int(lb[j]), lines[j].count)
+        elif sec[j] == -np.inf:
+            sec[j] = secondary(lines[j])
+        else:
+            phi = float(angles[j])
+            results[phi] = evaluate_at(phi)
+            best = min(best, results[phi])
+            open_[j] = False
+    return results, len(lines)
