@@ -5,7 +5,7 @@ For a rectangle, an L, a U, a field with a pond, an irregular 40-vertex field an
 time of each stage. Then the time to plan and grid a 1,000 ha field at 5 m x 2.3 m
 (~870,000 cells; target < 5 s), and the heading search against the baseline measured in
 the same run: a brute-force scan at 1-degree steps of the objective ``optimal``
-minimises (swath count, then the non-working estimate; what Fields2Cover's BruteForce +
+minimises (swath count, then the centre-line non-working estimate; what Fields2Cover's BruteForce +
 NSwath does), using FieldRx's own swath generator so both count the same thing. Both are
 timed the same way (fastest of ``--repeats`` runs in this process; the machine is shared,
 so the fastest run is the least disturbed one). The table also prints the coverage of
@@ -16,11 +16,13 @@ key figures.
 Turns are drivable (issue 16): every plan uses a machine with a 6 m turning radius
 (Dubins U / bulb turns), so ``nonwork_m`` and ``turn_s`` are real turn lengths and
 times; the heading table prints the speed-up of ``optimal`` over the 1-degree scan
-(target >= 100x; with k layouts -- the ``evals`` column -- it is about 180 / k, see
-``optimal_phi``; on a loaded machine the fastest of a few millisecond runs finds a
-quiet moment more easily than the fastest of a few one-second scans, which flatters
-the ratio), and the last table compares the 10 ha rectangle's turn length at
-r = 5 m with Fields2Cover's recorded Dubins figure (3.66 km for 108 turns, issue 16).
+(target >= 100x; with k layouts -- the ``evals`` column, 1 on every bench field since
+count ties are ranked by the centre-line estimate before any layout -- it is about
+180 / k less the bounds' overhead, see ``optimal_phi``; on a loaded machine the fastest
+of a few millisecond runs finds a quiet moment more easily than the fastest of a few
+one-second scans, which flatters the ratio), and the last table compares the 10 ha
+rectangle's turn length at r = 5 m with Fields2Cover's recorded Dubins figure (3.66 km
+for 108 turns, issue 16).
 
 Run: .venv/bin/python bench/planning.py [--quick] [--repeats N]
 """
@@ -90,9 +92,9 @@ FIELDS = {
 
 def brute_force(field: Polygon, w: float, repeats: int) -> tuple[int, float, float]:
     """The baseline: the heading objective ``optimal`` minimises (swath count, then the
-    non-working estimate; :func:`heading_objective`, one swath layout per angle) at every
-    whole degree, the lexicographic minimum kept. Returns (swaths, azimuth, seconds):
-    the fastest of ``repeats`` full scans, timed exactly like ``optimal``."""
+    centre-line non-working estimate; :func:`heading_objective`, one swath layout per
+    angle) at every whole degree, the lexicographic minimum kept. Returns (swaths,
+    azimuth, seconds): the fastest of ``repeats`` full scans, timed exactly like ``optimal``."""
     best_t = math.inf
     for _ in range(repeats):
         t = time.perf_counter()
