@@ -24,6 +24,10 @@ one-second scans, which flatters the ratio), and the last table compares the 10 
 rectangle's turn length at r = 5 m with Fields2Cover's recorded Dubins figure (3.66 km
 for 108 turns, issue 16).
 
+``loss_m2`` is the headland the rings, rounded to the turning radius, cannot reach (at
+the boundary's corners; reported by the plan as ``corner_loss_m2``, part of its
+uncovered area).
+
 Run: .venv/bin/python bench/planning.py [--quick] [--repeats N]
 """
 
@@ -126,7 +130,7 @@ def main() -> None:
     hdr = (
         f"{'field':15s} {'w':>5s} {'h':>2s} {'heading':>12s} {'az':>7s} {'swaths':>6s} "
         f"{'turns':>5s} {'blocks':>6s} {'work_m':>9s} {'nonwork_m':>9s} {'cov%':>8s} "
-        f"{'ovl%':>6s} {'out%':>6s} {'rt_out':>6s} {'turn_s':>7s} {'hl_need':>7s} "
+        f"{'ovl%':>6s} {'out%':>6s} {'loss_m2':>7s} {'rt_out':>6s} {'turn_s':>7s} {'hl_need':>7s} "
         f"{'cells':>7s}  stages(s)"
     )
     print(hdr)
@@ -147,6 +151,7 @@ def main() -> None:
                     f"{p.n_swaths:6d} {p.n_turns:5d} {p.n_blocks:6d} "
                     f"{p.working_length_m:9.0f} {p.nonworking_length_m:9.0f} "
                     f"{p.coverage_pct:8.4f} {p.overlap_pct:6.3f} {p.outside_pct:6.3f} "
+                    f"{p.corner_loss_m2:7.1f} "
                     f"{p.route_outside_m:6.1f} {p.turn_time_s:7.0f} "
                     f"{p.required_headland_passes:7d} {len(g):7d}  {st}"
                 )
@@ -158,6 +163,7 @@ def main() -> None:
                         "heading": heading,
                         "n_swaths": p.n_swaths,
                         "coverage_pct": round(p.coverage_pct, 4),
+                        "corner_loss_m2": round(p.corner_loss_m2, 1),
                         "nonworking_m": round(p.nonworking_length_m, 1),
                         "turn_time_s": round(p.turn_time_s, 1),
                         "total_s": st["total"],

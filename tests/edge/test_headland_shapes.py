@@ -44,11 +44,16 @@ def job_cells(request):
 
 
 def _effective(job: JobPackage) -> np.ndarray:
-    """The cells as the tractor sees them: the shape where given, else the rectangle."""
+    """The cells as the tractor sees them: the shape where given (even-odd over all its
+    rings, as the locator reads it: a cell split in two parts or one with a hole), else
+    the rectangle."""
     geoms = shapely.polygons(np.asarray(job.corners_utm).reshape(-1, 4, 2))
     for i, rings in job.cell_shapes().items():
-        rs = [np.asarray(r).reshape(-1, 2) for r in rings]
-        geoms[i] = shapely.Polygon(rs[0], rs[1:]) if len(rs) > 1 else shapely.Polygon(rs[0])
+        polys = [shapely.Polygon(np.asarray(r).reshape(-1, 2)) for r in rings]
+        g = polys[0]
+        for q in polys[1:]:
+            g = shapely.symmetric_difference(g, q)
+        geoms[i] = g
     return geoms
 
 

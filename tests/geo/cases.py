@@ -180,10 +180,15 @@ def min_turn_radius(
 
 
 def check_grid(
-    grid: Grid, field: Polygon, min_cover: float = 0.995, ring_breaks: float = 0.02
+    grid: Grid,
+    field: Polygon,
+    min_cover: float = 0.995,
+    ring_breaks: float = 0.02,
+    unworked_m2: float = 0.0,
 ) -> None:
-    """Cells: no overlap, cover the field, centres inside, one walk, CCW corners, the
-    uncovered area reported."""
+    """Cells: no overlap, cover the field (less ``unworked_m2``, the headland corners the
+    plan reports its rounded rings cannot reach), centres inside, one walk, CCW corners,
+    the uncovered area reported."""
     n = len(grid)
     assert n > 0
     # uncovered area is relative to the planned field (a traced boundary is simplified
@@ -202,7 +207,10 @@ def check_grid(
         full_cell = grid.cell_length_m * grid.swath_width_m
         assert (inter <= 1e-6 * full_cell).all(), f"cells overlap: max {inter.max()} m2"
     covered = shapely.union_all(polys).intersection(field).area
-    assert covered >= min_cover * field.area, f"cells cover {covered / field.area:.5f}"
+    assert covered >= min_cover * (field.area - unworked_m2), (
+        f"cells cover {covered / field.area:.5f} ({unworked_m2:.1f} m2 reported unworked)"
+    )
+    assert grid.uncovered_m2 >= unworked_m2 - 1e-6 * field.area - 1e-6
     assert shapely.contains_xy(field, grid.centroids_utm[:, 0], grid.centroids_utm[:, 1]).all()
     # consecutive cells of one swath share an edge
     same = grid.swath[1:] == grid.swath[:-1]

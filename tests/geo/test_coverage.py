@@ -59,7 +59,10 @@ def test_angle_heading_convention():
 def test_u_shape_decomposes_into_blocks_and_routes_inside():
     f = u_shape()
     p = plan_coverage(f, 2.3, "angle", angle_deg=90.0, headland_passes=1)
-    assert p.n_blocks == 3  # base + two arms: the scan line crosses the arms twice
+    # base + two arms: the scan line crosses the arms twice (the ring rounded around the
+    # notch's inner corners leaves a 0.65 m strip below the notch its own short swath)
+    sizes = np.bincount([s.block for s in p.swaths if s.kind == "inner"])
+    assert sorted(sizes[sizes > 1]) == [41, 88, 88] and (sizes <= 1).sum() <= 1
     check_plan(p, f)
     # with two blocks side by side a scan line gives two swaths: count > strips
     assert p.n_swaths - 1 > math.ceil((300 - 2 * 2.3) / 2.3)
@@ -106,7 +109,9 @@ def test_headland_first_and_last():
     assert first.swaths[1].line.distance(f.exterior) == pytest.approx(3.45, abs=1e-6)
     for p in (first, last):
         check_plan(p, f)
-        assert p.coverage_pct > 99.9
+        # all but the headland corners the rounded rings cannot reach (reported)
+        assert 0 < p.corner_loss_m2 < 0.003 * f.area
+        assert p.coverage_pct + 100 * p.corner_loss_m2 / f.area > 99.9
 
 
 def test_headland_around_holes():
@@ -221,13 +226,13 @@ def test_narrow_fields_get_a_one_pass_or_headland_only_plan():
     ring = plan_coverage(f, 2.3, "optimal", headland_passes=6)
     assert {s.kind for s in ring.swaths} == {"headland"}
     assert any("headland-only" in m for m in ring.warnings)
-    assert ring.coverage_pct > 99.0
+    assert ring.coverage_pct + 100 * ring.corner_loss_m2 / f.area > 99.0
     none = plan_coverage(f, 36.0, "optimal", headland_passes=1)
     assert none.n_swaths == 1 and none.headland_passes == 0
     assert any("without headland" in m for m in none.warnings)
     for p in (one, ring, none):
         grid = build_grid(p, f, 5.0)
-        assert len(grid) > 0 and grid.uncovered_m2 < 0.01 * f.area
+        assert len(grid) > 0 and grid.uncovered_m2 - p.corner_loss_m2 < 0.01 * f.area
 
 
 def test_geos_failure_is_retried_on_a_snapped_boundary(monkeypatch):
@@ -269,7 +274,7 @@ def test_traced_boundary_simplification_is_reported():
 
 @pytest.mark.parametrize("radius", [4.0, 6.0, 8.0])
 @pytest.mark.parametrize("reverse", [False, True])
-@pytest.mark.parametrize("passes", [0, 1])
+@pytest.mark.parametrize("passes", [0, 1, 2])
 @pytest.mark.parametrize("field", [rect(), l_shape(), u_shape(), irregular(40)])
 def test_turns_are_drivable_curvature_never_tighter_than_r(field, radius, reverse, passes):
     # issue 16: swath ends were joined by a 2.3 m sideways jump; every connection is now
@@ -283,14 +288,10 @@ def test_turns_are_drivable_curvature_never_tighter_than_r(field, radius, revers
         field, 2.3, "optimal", turn_radius_m=radius, reverse=reverse, headland_passes=passes
     )
     assert p.undrivable_connections == 0
-    if not passes:
-        route = np.asarray(p.route().coords)
-        assert min_turn_radius(route, 0.1 * radius) >= 0.999 * radius
-    else:
-        # rings keep their mitred corners in plans for now (planner.ROUND_HEADLAND_RINGS):
-        # every connection -- turns, transfers into and out of the rings -- is drivable
-        for c in p.connections:
-            assert min_turn_radius(np.asarray(c.coords), 0.1 * radius) >= 0.999 * radius
+    # the whole route: swaths, headland rings (rounded to r), turns, transfers into and
+    # out of the rings (the rings had the mitred offset's 90 degree corners)
+    route = np.asarray(p.route().coords)
+    assert min_turn_radius(route, 0.1 * radius, sag_tol_m=1e-3 * radius) >= 0.999 * radius
     kinds = p.turn_kinds
     assert kinds.get("fishtail", 0) > 0 if reverse else kinds.get("bulb", 0) > 0
     # real turn lengths: a bulb turn at gap 2.3 m and r is at least a 3/2 circle of r
@@ -378,8 +379,12 @@ def test_heading_ties_in_the_swath_count_go_to_less_non_working_travel(field, w,
     brute = min(heading_objective(region, w, math.radians(a), field) for a in range(180))
     assert ours <= brute
     if h:
+        # with the ring rounded to r = 6 m its corners no longer reach the spikes and
+        # the region is what the ring does not sweep: one heading (10 deg) has the
+        # fewest swaths, 2,916 m; the 78 deg heading the old tie-break lost to cost
+        # 3,444 m by the estimate
         p = plan_coverage(field, w, "optimal", headland_passes=h)
-        assert p.nonworking_length_m < 2500.0
+        assert p.nonworking_length_m < 3000.0
 
 
 @pytest.mark.parametrize("radius", [4.0, 6.0])
@@ -405,13 +410,15 @@ def test_headland_rings_are_rounded_to_r_inside_the_field_and_clear_of_holes(fie
         c = np.asarray(line.coords)
         assert min_turn_radius(c, 0.1 * radius) >= 0.999 * radius
         assert np.allclose(c[0], c[-1])  # a closed loop
-        assert field.buffer(-(k + 0.5) * 2.3 + 1e-6).covers(line)
-        assert all(line.distance(h) >= (k + 0.5) * 2.3 - 1e-6 for h in holes)
+        # (passes are offsets of pass 0's polygon: a 1 mm numerical allowance)
+        assert field.buffer(-(k + 0.5) * 2.3 + 1e-3).covers(line)
+        assert all(line.distance(h) >= (k + 0.5) * 2.3 - 1e-3 for h in holes)
         # the band the cells are clipped to is what the ring sweeps, not the corners
-        # (the pass's band is shared by its rings; footprints have mitred joins: +mm)
+        # (the pass's band is shared by its rings and follows them to 1 cm: headland's
+        # BAND_TOLERANCE_M)
         same = [ln for j, ln, _ in rings if j == k]
-        swept = shapely.union_all(shapely.buffer(same, 1.15 + 1e-3))
-        assert band.difference(swept).area < 1e-4 * band.area
+        swept = shapely.union_all(shapely.buffer(same, 1.15 + 0.02 + 1e-3))
+        assert band.difference(swept).area < 1e-5 * band.area
     assert corner_loss(field, 2.3, 2, rings) > 0  # reported, not hidden
     if field.area < 1000:  # the 35 m x 23 m plot: 10 swaths without headland
         assert plan_coverage(field, 2.3, "optimal", turn_radius_m=radius).n_swaths == 10

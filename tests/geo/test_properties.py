@@ -78,11 +78,15 @@ def _check_all(field, w, h, heading):
     # a headland-only plan (passes leave no inner area: a small field, issue 16) has
     # rings in places narrower than their offsets: looser ring and coverage checks
     ring_only = plan.region.is_empty
+    # inner swaths stretched over their strip pieces also sweep a little of the headland
+    # corners the rounded rings leave unworked (no cell holds that: reported uncovered)
+    lost = plan.corner_loss_m2
+    cover = 0.995 * min(working, field.area - lost) / (field.area - lost)
     check_grid(
-        grid, field, min_cover=0.995 * working / field.area, ring_breaks=0.3 if ring_only else 0.02
+        grid, field, min_cover=cover, ring_breaks=0.3 if ring_only else 0.02, unworked_m2=lost
     )
     check_cells_in_own_swath(grid, plan)
-    assert working >= (0.8 if ring_only else 0.9) * field.area
+    assert working + lost >= (0.8 if ring_only else 0.9) * field.area
     return plan
 
 
@@ -166,7 +170,17 @@ def test_enough_headland_keeps_drivable_turns_inside_the_field(fw, radius, rever
     for c, kind in zip(plan.connections, _kinds(plan), strict=True):
         if kind != "routed":
             assert min_turn_radius(np.asarray(c.coords), 0.1 * radius) >= 0.999 * radius
-    # rings keep their mitred corners in plans for now (planner.ROUND_HEADLAND_RINGS)
+    # the headland rings are rounded to r too (a ring polygon narrower than 2 r keeps
+    # its sharp corners, and the plan says so)
+    sharp = any("keeps its sharp corners" in m for m in plan.warnings)
+    for s in plan.swaths:
+        if s.kind == "headland" and not sharp:
+            c = np.asarray(s.line.coords)
+            assert min_turn_radius(c, 0.1 * radius, sag_tol_m=1e-3 * radius) >= 0.999 * radius
+    if not sharp and "routed" not in _kinds(plan):
+        # and the whole route, where swaths, rings and connections join
+        c = np.asarray(plan.route().coords)
+        assert min_turn_radius(c, 0.1 * radius, sag_tol_m=1e-3 * radius) >= 0.999 * radius
 
 
 def _kinds(plan):

@@ -65,6 +65,8 @@ def _part_lines(
     order = np.lexsort((x, line))
     line, x = line[order], x[order]
     li, x0, x1 = line[0::2], x[0::2], x[1::2]
+    if not len(li):  # a part no centre line crosses (a sliver thinner than w / 2)
+        return li, ys, x0, x1, n
     bridged = (li[1:] == li[:-1]) & (x0[1:] - x1[:-1] < 0.5 * w)
     return li[np.r_[True, ~bridged]], ys, x0[np.r_[True, ~bridged]], x1[np.r_[~bridged, True]], n
 

@@ -15,6 +15,18 @@ ring swings inwards around it: an r-disc through the corner is taken out of the
 polygon before the opening. Both only remove area, so the rounded ring stays inside
 the mitred one: inside the field and clear of every hole. What the rounded corners
 leave unworked is reported (``corner_loss``), not hidden in the band the cells use.
+
+Several passes are concentric: pass k is pass 0's ring polygon offset k w inwards, so
+pass 0 rounds its convex corners to r + (h - 1) w and every pass turns no tighter than
+r, and consecutive passes share their band edges (no gaps between them; what the
+rounding leaves unworked lies at the boundary's corners). Where pass 0 is too narrow
+for that radius, each pass is rounded on its own.
+
+One owner per square metre: each pass's band is what its rings sweep and no earlier
+pass swept, and the inner region gives up what any ring sweeps (:func:`carve`), so the
+rings' cells and the inner swaths' cells are two tilings that never overlap (the last
+pass's rounded corners sweep into the mitred inner region, and a ring swinging inwards
+around a reflex corner dents it).
 """
 
 from __future__ import annotations
@@ -36,6 +48,7 @@ BITE_SCALE = 1.02  # reflex bites: radius 1.02 r (curvature 1 / 1.02 r < 1 / r)
 RING_SLACK = 1.05  # rings are rounded to 1.05 r: room for the resampling's 3 % error
 RING_STEP = 0.1  # the rounded ring is resampled every 0.1 r (about 6 degree steps)
 KINK_ROUNDS = 3  # bite-and-open rounds for kinks the closing cannot fill
+BAND_TOLERANCE_M = 0.01  # concentric passes' bands follow their rings to within 1 cm
 
 
 def _vertex_turns(c: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -115,7 +128,7 @@ def _bites(c: np.ndarray, u1: np.ndarray, u2: np.ndarray, idx: np.ndarray, r: fl
     return out
 
 
-def drivable_centre(poly: Polygon, r: float) -> BaseGeometry:
+def drivable_centre(poly: Polygon, r: float, convex_r: float | None = None) -> BaseGeometry:
     """The part of a ring's polygon whose boundary has no curvature tighter than 1 / r
     (see module docstring): reflex bites taken out, the opening with r, then the
     closing with r. A subset of ``poly``; empty where the polygon is narrower than 2 r
@@ -135,13 +148,18 @@ def drivable_centre(poly: Polygon, r: float) -> BaseGeometry:
     the inlet, outside the field. A kink the closing cannot fill inside the polygon is
     bitten like a reflex vertex and the result opened again (at most ``KINK_ROUNDS``
     times): the ring swings inwards there.
+
+    ``convex_r`` (>= r, default r) rounds the convex corners wider than the reflex ones:
+    the outer ring of several concentric passes, whose inward offsets by w, 2 w, ... must
+    still turn no tighter than r (:func:`headland_rings`).
     """
     poly = orient(poly, 1.0)
+    rc = r if convex_r is None else max(float(convex_r), r)
     bites = _reflex_bites(poly, r)
     cut = poly.difference(shapely.union_all(bites)) if bites else poly
     opened = cut
     for _ in range(KINK_ROUNDS):
-        opened = cut.buffer(-r, quad_segs=ARC_QUAD_SEGS).buffer(r, quad_segs=ARC_QUAD_SEGS)
+        opened = cut.buffer(-rc, quad_segs=ARC_QUAD_SEGS).buffer(rc, quad_segs=ARC_QUAD_SEGS)
         if opened.is_empty:
             return opened
         corners, _ = _kinks(opened, r)
@@ -188,43 +206,159 @@ def headland_rings(
 ) -> list[tuple[int, LineString, BaseGeometry]]:
     """Rings (pass k, centre line, band) of the h headland passes around boundary and holes.
 
-    With ``turn_radius_m`` > 0 the rings are the drivable ones (:func:`drivable_centre`)
-    and each pass's band is cut to what its rings sweep, so the grid's headland cells
-    never claim a rounded-off corner; a ring polygon narrower than 2 r keeps its sharp
-    ring, with a warning.
+    With ``turn_radius_m`` > 0 the rings are the drivable ones and each pass's band is
+    cut to what its rings sweep, so the grid's headland cells never claim a rounded-off
+    corner. The passes are concentric (:func:`_concentric_centres`): pass k is the
+    outer ring offset k w inwards, so the passes' bands tile the headland without gaps
+    between them and what the rounding leaves unworked lies at the boundary's corners.
+    Where that does not fit (a ring polygon narrower than twice the outer radius), each
+    pass is rounded on its own (:func:`_own_centres`); a ring polygon narrower than 2 r
+    keeps its sharp ring, with a warning.
     """
+    if h <= 0:
+        return []
+    if turn_radius_m <= 0:
+        centres = [
+            [orient(p, 1.0) for p in parts(_pass_bands(field_geom, w, k)[0])] for k in range(h)
+        ]
+        return [
+            (k, LineString(ri.coords), _pass_bands(field_geom, w, k)[1])
+            for k in range(h)
+            for p in centres[k]
+            for ri in [p.exterior, *p.interiors]
+            if ri.length > w
+        ]
+    r = RING_SLACK * turn_radius_m
+    smooth = _concentric_centres(field_geom, w, h, r)
+    concentric = smooth is not None
+    if smooth is None:
+        smooth = _own_centres(field_geom, w, h, r)
     out = []
-    # with rounded rings each pass's band is what its rings sweep in the headland
-    # area and no earlier pass swept (a rounded corner of pass k sweeps into band k+1)
-    headland = field_geom.difference(field_geom.buffer(-h * w, join_style="mitre", mitre_limit=5.0))
+    # each pass's band is what its rings sweep in the field and no earlier pass swept:
+    # the last pass's rounded corners sweep into the mitred inner region (which
+    # :func:`carve` then gives up). Concentric passes share their edges exactly: band k
+    # runs from pass k - 1's inner edge to its own (no slivers between the bands).
     taken: BaseGeometry = Polygon()
-    for k in range(h):
-        centre, band = _pass_bands(field_geom, w, k)
-        rings: list[LineString] = []
-        for poly in parts(centre):
-            poly = orient(poly, 1.0)
-            smooth: list[Polygon] = []
-            if turn_radius_m > 0:
-                smooth = parts(drivable_centre(poly, RING_SLACK * turn_radius_m))
-                smooth = [orient(p, 1.0) for p in smooth]
-                poly_list = smooth if smooth else [poly]
-                if not smooth and warnings is not None:
-                    warnings.append(
-                        f"headland pass {k + 1} has a ring narrower than two turning radii "
-                        f"({2 * turn_radius_m:g} m): it keeps its sharp corners (not drivable)"
-                    )
-            else:
-                poly_list = [poly]
-            for p in poly_list:
-                for ri in [p.exterior, *p.interiors]:
-                    rings.append(_resampled(ri, turn_radius_m) if smooth else LineString(ri.coords))
-        rings = [ri for ri in rings if ri.length > w]
-        if turn_radius_m > 0 and rings:
-            swept = shapely.union_all([_footprint(ri, w) for ri in rings])
-            band = headland.intersection(swept).difference(taken)
+    edge = field_geom
+    for k, polys in enumerate(smooth):
+        rings = _pass_rings(k, polys, w, turn_radius_m, warnings)
+        if not rings:
+            continue
+        swept = shapely.union_all([_footprint(ri, w) for ri in rings])
+        if concentric:
+            # the morphology's 1 degree arcs are far finer than a cell needs: bands (and
+            # the carved region) follow them to within BAND_TOLERANCE_M, with a few
+            # hundred vertices instead of tens of thousands on a 40-vertex field; where
+            # a kink's fix moved a ring off the concentric offset, what it does not
+            # sweep is left out (reported with the corners)
+            ring_poly = shapely.union_all([p for p, _ in polys]).simplify(BAND_TOLERANCE_M)
+            if k == 0:
+                edge = field_geom.intersection(ring_poly.buffer(0.5 * w))
+            inner = ring_poly.buffer(-0.5 * w)
+            band = edge.difference(inner).intersection(swept.buffer(2 * BAND_TOLERANCE_M))
+            edge = inner
+        else:
+            band = field_geom.intersection(swept).difference(taken)
             taken = taken.union(swept)
         out += [(k, ri, band) for ri in rings]
     return out
+
+
+def _pass_rings(
+    k: int,
+    polys: list[tuple[Polygon, bool]],
+    w: float,
+    turn_radius_m: float,
+    warnings: list[str] | None,
+) -> list[LineString]:
+    """The rings of pass k (every ring of its polygons longer than w); a polygon kept
+    sharp is said in ``warnings``."""
+    rings: list[LineString] = []
+    for p, is_smooth in polys:
+        for ri in [p.exterior, *p.interiors]:
+            rings.append(_resampled(ri, turn_radius_m) if is_smooth else LineString(ri.coords))
+        if not is_smooth and warnings is not None:
+            warnings.append(
+                f"headland pass {k + 1} has a ring narrower than two turning radii "
+                f"({2 * turn_radius_m:g} m): it keeps its sharp corners (not drivable)"
+            )
+    return [ri for ri in rings if ri.length > w]
+
+
+def _concentric_centres(
+    field_geom: BaseGeometry, w: float, h: int, r: float
+) -> list[list[tuple[Polygon, bool]]] | None:
+    """Per pass, its ring polygons (all smooth), pass k being pass 0's offset k w inwards.
+
+    An inward offset by d turns a convex arc of radius R into one of R - d and a reflex
+    arc of radius R into one of R + d, so pass 0 rounds its convex corners to
+    r + (h - 1) w and its reflex ones to r, and every pass then turns no tighter than r.
+    Where an offset's two sides meet (a neck) it makes a sharp reflex corner; each
+    offset is therefore passed through :func:`drivable_centre` with r, which leaves the
+    r-smooth stretches alone and fills or bites only such kinks. None when a pass-0
+    polygon is too narrow for the outer radius, or a later pass loses a ring polygon
+    the mitred pass keeps (the caller then rounds each pass on its own).
+    """
+    outer = r + (h - 1) * w
+    base = []
+    for p in parts(_pass_bands(field_geom, w, 0)[0]):
+        d = parts(drivable_centre(orient(p, 1.0), r, convex_r=outer))
+        if not d:
+            return None
+        base += d
+    out: list[list[tuple[Polygon, bool]]] = []
+    for k in range(h):
+        polys: list[tuple[Polygon, bool]] = []
+        for d in base:
+            shrunk = d.buffer(-k * w, quad_segs=ARC_QUAD_SEGS) if k else d
+            for q in parts(shrunk):
+                polys += [(orient(x, 1.0), True) for x in parts(drivable_centre(q, r))]
+        if len(polys) < len(parts(_pass_bands(field_geom, w, k)[0])):
+            return None
+        out.append(polys)
+    return out
+
+
+def _own_centres(
+    field_geom: BaseGeometry, w: float, h: int, r: float
+) -> list[list[tuple[Polygon, bool]]]:
+    """Per pass, its mitred ring polygons each rounded with r on its own (smooth), or
+    kept sharp where a polygon is narrower than 2 r (not smooth)."""
+    out = []
+    for k in range(h):
+        polys: list[tuple[Polygon, bool]] = []
+        for poly in parts(_pass_bands(field_geom, w, k)[0]):
+            poly = orient(poly, 1.0)
+            smooth = [orient(p, 1.0) for p in parts(drivable_centre(poly, r))]
+            polys += [(p, True) for p in smooth] if smooth else [(poly, False)]
+        out.append(polys)
+    return out
+
+
+def carve(
+    region: BaseGeometry, rings: list[tuple[int, LineString, BaseGeometry]], w: float
+) -> tuple[BaseGeometry, float]:
+    """The inner region without what the (rounded) rings sweep, and the area (m²) of the
+    pieces it drops.
+
+    A ring rounded to the turning radius cuts its convex corners inwards, so its
+    implement sweeps a little of the mitred inner region there (and, swinging around a
+    pond's corner, along the pond). Two tilings must not claim the same ground: the
+    ring's cells keep it (they are driven there), the inner swaths stop short of it.
+    What is left of the region beyond a ring's sweep (a sharp corner of the mitred
+    region outside the rounded ring) is a piece smaller than w x w that no swath can
+    reach without crossing the ring: it is dropped, and counted with the corners the
+    rings leave unworked.
+    """
+    if region.is_empty or not rings:
+        return region, 0.0
+    swept = shapely.union_all([band for _, _, band in rings])
+    rest = parts(region.difference(swept))
+    keep = [p for p in rest if p.area >= w * w]
+    dropped = float(sum(p.area for p in rest if p.area < w * w))
+    if not keep:
+        return Polygon(), dropped
+    return (shapely.union_all(keep) if len(keep) > 1 else keep[0]), dropped
 
 
 def _resampled(ring: BaseGeometry, r: float) -> LineString:
@@ -256,11 +390,12 @@ def corner_loss(
     h: int,
     rings: list[tuple[int, LineString, BaseGeometry]],
 ) -> float:
-    """Area (m²) of the headland bands that the (rounded) rings do not sweep."""
+    """Area (m²) of the mitred headland bands that the (rounded) rings' bands -- what
+    their cells hold -- leave out."""
     if not h:
         return 0.0
     bands = shapely.union_all([_pass_bands(field_geom, w, k)[1] for k in range(h)])
-    swept = shapely.union_all([_footprint(ri, w) for _, ri, _ in rings]) if rings else Polygon()
+    swept = shapely.union_all([band for _, _, band in rings]) if rings else Polygon()
     return float(bands.difference(swept).area)
 
 

@@ -88,6 +88,9 @@ class CoveragePlan:
     required_headland_m: float = 0.0
     undrivable_connections: int = 0
     uncovered_m2: float = 0.0
+    # headland the rounded rings do not sweep (corners cut to the turning radius): part
+    # of uncovered_m2, said apart so the user sees why (issue 16)
+    corner_loss_m2: float = 0.0
     strip_tolerance_m: float = 0.0
     timings_s: dict[str, float] = field(default_factory=dict)
 
@@ -119,6 +122,7 @@ class CoveragePlan:
             "route_outside_m": round(self.route_outside_m, 3),
             "route_in_holes_m": round(self.route_in_holes_m, 3),
             "uncovered_m2": round(self.uncovered_m2, 3),
+            "corner_loss_m2": round(self.corner_loss_m2, 3),
             "strip_tolerance_m": round(self.strip_tolerance_m, 4),
             "turn_radius_m": self.machine.turn_radius_m,
             "reverse": self.machine.reverse,

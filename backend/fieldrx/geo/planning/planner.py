@@ -1,8 +1,9 @@
 """The coverage planner: a short chain of the stages in this package (issue 16).
 
-boundary (clean, report changes) -> headland (rings, inner region) -> headings (the
-driving direction) -> swaths + decomposition (strips, pieces, blocks) -> order (rings
-and blocks in driving order) -> turns (drivable connections) -> metrics.
+boundary (clean, report changes) -> headland (rings rounded to the turning radius, the
+inner region less what they sweep) -> headings (the driving direction) -> swaths +
+decomposition (strips, pieces, blocks) -> order (rings and blocks in driving order) ->
+turns (drivable connections) -> metrics.
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ from .boundary import parts, polygonal, simplified, snapped
 from .decomposition import layout
 from .frame import azimuth_to_phi, frame_for, phi_to_azimuth
 from .headings import longest_edge_phi, optimal_phi
-from .headland import corner_loss, headland_rings, inner_region
+from .headland import carve, corner_loss, headland_rings, inner_region
 from .kinematics import DEFAULT_HEADLAND_PASSES, DEFAULT_TURN_RADIUS_M, Machine
 from .metrics import fill_metrics, turn_warnings
 from .model import CORNERS, HEADINGS, Corner, CoveragePlan, Heading
@@ -33,11 +34,9 @@ from .order import PATTERNS, block_sequences, order_swaths
 from .swaths import default_strip_tolerance, holes_of
 from .turns import connect
 
-# Rings rounded to the turning radius (headland.drivable_centre) are built and tested,
-# but not yet used: the grid's ring cells (geo/grid.py _ring_cells) leave up to 7.5 %
-# of a small field's swept headland out of the cells along strongly curved rings, and a
-# rounded ring can still kink on some random fields (issue 16 follow-up).
-ROUND_HEADLAND_RINGS = False
+# Headland rings are rounded to the turning radius (headland.drivable_centre); False
+# keeps the mitred offsets' sharp corners (a machine that can pivot, or a comparison).
+ROUND_HEADLAND_RINGS = True
 
 
 def plan_coverage(
@@ -182,11 +181,9 @@ def _heading_phi(fld: BaseGeometry, region: BaseGeometry, st: _Settings) -> floa
     return optimal_phi(region, fld, st.w, tol=st.tol)[0]
 
 
-def _corner_warning(
-    fld: BaseGeometry, w: float, h: int, rings: list, m: Machine, warnings: list[str]
-) -> None:
-    """Say how much of the headland the rounded ring corners leave unworked."""
-    lost = corner_loss(fld, w, h, rings)
+def _corner_warning(fld: BaseGeometry, lost: float, m: Machine, warnings: list[str]) -> None:
+    """Say how much of the field the rounded rings leave unworked (``lost`` m²) when it
+    is more than 1 m² or 0.1 % of the field."""
     if lost > 1e-3 * max(fld.area, 1.0) or lost > 1.0:
         warnings.append(
             f"headland corners rounded to the {m.turn_radius_m:g} m turning radius leave "
@@ -201,6 +198,14 @@ def _plan_field(fld_in: Polygon | MultiPolygon, st: _Settings, warnings: list[st
     with _timed(timings, "validate"):
         fld = simplified(fld_in, st.simplify_tol, warnings)
         region, h = inner_region(fld, w, st.h, warnings)
+    with _timed(timings, "headland"):
+        if ROUND_HEADLAND_RINGS:
+            rings = headland_rings(fld, w, h, st.machine.turn_radius_m, warnings)
+            region, dropped = carve(region, rings, w)
+            lost = corner_loss(fld, w, h, rings) + dropped
+            _corner_warning(fld, lost, st.machine, warnings)
+        else:
+            rings, lost = headland_rings(fld, w, h), 0.0
     with _timed(timings, "heading"):
         phi = _heading_phi(fld, region, st)
     with _timed(timings, "swaths"):
@@ -209,11 +214,6 @@ def _plan_field(fld_in: Polygon | MultiPolygon, st: _Settings, warnings: list[st
         holes_rot = frame.fwd_geom(holes_of(fld))
         subs, blocks = layout(parts_rot, w, with_full=True, holes_rot=holes_rot, tol=st.tol)
         blocks = block_sequences(subs, blocks, w, st.machine, h * w, st.pattern)
-        if ROUND_HEADLAND_RINGS:
-            rings = headland_rings(fld, w, h, st.machine.turn_radius_m, warnings)
-            _corner_warning(fld, w, h, rings, st.machine, warnings)
-        else:
-            rings = headland_rings(fld, w, h)
     with _timed(timings, "order_route"):
         router = FieldRouter(fld, avoid=region if h else None)
         lead = 2.0 * st.machine.turn_radius_m
@@ -246,6 +246,7 @@ def _plan_field(fld_in: Polygon | MultiPolygon, st: _Settings, warnings: list[st
         reverse_m=sum(c.reverse_m for c in turns.connections),
         required_headland_m=turns.required_headland_m,
         undrivable_connections=turns.undrivable,
+        corner_loss_m2=lost,
     )
     with _timed(timings, "metrics"):
         fill_metrics(plan)

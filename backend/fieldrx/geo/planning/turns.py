@@ -361,7 +361,12 @@ def connect(
         p0, p1 = np.asarray(a.line.coords[-1]), np.asarray(b.line.coords[0])
         th0, th1 = _end_heading(a.line, True), _end_heading(b.line, False)
         cons[k] = _transfer_between(p0, th0, p1, th1, route, machine, env, outside_ok)
-    ok = _acceptable([c.line for c in cons], env, False)
+    # a turn's driving line never enters a hole (its implement may overhang the edge),
+    # and with a headland wide enough for the turns it stays in the field: a turn
+    # between staggered swath ends can cut across a notch of the boundary however
+    # close to the region it stays (issue 16), and is then driven as a transfer
+    strict = _Env(env.holes_full, None if outside_ok else env.field_ok)
+    ok = _acceptable([c.line for c in cons], strict, is_turn)
     for k in np.flatnonzero(~ok & is_turn):
         a, b = swaths[k], swaths[k + 1]
         p0, p1 = np.asarray(a.line.coords[-1]), np.asarray(b.line.coords[0])
