@@ -264,10 +264,19 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
     await page.fill('[data-testid=plan-cell]', '5');
     await page.selectOption('[data-testid=plan-heading-rule]', 'longest_edge');
     await page.fill('[data-testid=plan-headland]', '1');
+    await page.fill('[data-testid=plan-turn-radius]', '5'); // the machine's turning radius
     await page.click('[data-testid=plan-submit]');
     await page.waitForURL(/#\/plans\/\d+$/, { timeout: 60_000 });
     S.planId = Number(page.url().match(/#\/plans\/(\d+)/)[1]);
     await page.waitForFunction(() => /\d/.test(document.querySelector('[data-testid=plan-cells]')?.textContent ?? ''));
+    // issue 16: the radius reaches the planner; what the rounded ring cannot reach and
+    // the headland the turns need are said on the plan, not only in the API
+    const stored = (await api(token, 'GET', `/plans/${S.planId}`)).data;
+    assert.equal(stored.params.turn_radius_m, 5);
+    assert.ok(stored.metrics.corner_loss_m2 > 0, `corner loss ${stored.metrics.corner_loss_m2}`);
+    assert.match(await page.textContent('[data-testid=plan-corner-loss]'), /\d+ m²/);
+    const warned = await page.textContent('[data-testid=plan-warnings]');
+    assert.match(warned, /headland passes of 2\.3 m hold them/);
     await page.waitForFunction(() => window.__fieldrxPerf?.grid?.idleMs != null, null, { timeout: 30_000 });
     await mapIdle(page, 'plan');
     const cells = Number((await page.textContent('[data-testid=plan-cells]')).replace(/\D/g, ''));

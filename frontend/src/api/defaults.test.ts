@@ -19,6 +19,9 @@ function sources(dir: string): string[] {
 describe('form defaults are the API\'s (issue 15: headland 1 vs 0, idw vs cell_mean)', () => {
   it.each([
     ['PlanIn', 'headland_passes'],
+    ['PlanIn', 'turn_radius_m'],
+    ['PlanIn', 'reverse'],
+    ['PlanIn', 'pattern'],
     ['PrescriptionIn', 'interpolation'],
     ['SoilZonesIn', 'interpolation'],
     ['SoilZonesIn', 'k'],
@@ -36,7 +39,7 @@ describe('form defaults are the API\'s (issue 15: headland 1 vs 0, idw vs cell_m
     const copies: string[] = [];
     for (const f of sources(join(__dirname, '..'))) {
       const text = readFileSync(f, 'utf8');
-      for (const m of text.matchAll(/\[(interp\w*|headland\w*), set\w+\] = useState(?:<[^>]*>)?\(([^)]*)\)/g)) {
+      for (const m of text.matchAll(/\[(interp\w*|headland\w*|radius|reverse|pattern), set\w+\] = useState(?:<[^>]*>)?\(([^)]*)\)/g)) {
         if (!m[2].includes('serverDefault')) copies.push(`${f}: ${m[0]}`);
       }
     }

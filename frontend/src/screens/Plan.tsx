@@ -2,7 +2,7 @@ import { call, client } from '../api/client';
 import { qk, useApiMutation, useField, useInvalidate, usePlan, usePlanPrescriptions, usePlanRoute } from '../api/hooks';
 import { ErrorBox, Kv } from '../components/Status';
 import { bboxOf } from '../lib/geo';
-import { formatDistance, formatPercent } from '../lib/units';
+import { formatArea, formatDistance, formatPercent } from '../lib/units';
 import { ImageryRxForm } from '../components/ImageryRxForm';
 import { SoilZonesForm } from '../components/SoilZonesForm';
 import { MapView } from '../map/MapView';
@@ -53,8 +53,18 @@ export function PlanScreen({ planId }: { planId: number }) {
               ['Working length', formatDistance(m?.working_length_m ?? undefined), 'plan-length'],
               ['Turns / transit', formatDistance(m?.nonworking_length_m ?? undefined)],
               ['Overlap', m?.overlap_pct != null ? formatPercent(m.overlap_pct / 100) : '–'],
+              ['Turning radius', plan.params.turn_radius_m != null ? `${plan.params.turn_radius_m} m` : '–'],
+              ['Unworked corners', formatArea(m?.corner_loss_m2 ?? undefined), 'plan-corner-loss'],
+              ['Uncovered', formatArea(m?.uncovered_m2 ?? undefined), 'plan-uncovered'],
             ]}
           />
+        )}
+        {!!m?.warnings?.length && (
+          <ul className="warn small" data-testid="plan-warnings">
+            {m.warnings.map((w) => (
+              <li key={w}>{w}</li>
+            ))}
+          </ul>
         )}
         <button
           className="danger"

@@ -11,6 +11,9 @@ export function PlanForm({ fieldId, onCreated }: { fieldId: number; onCreated: (
   const [rule, setRule] = useState('longest_edge');
   const [heading, setHeading] = useState('0');
   const [headland, setHeadland] = useState(String(serverDefault('PlanIn', 'headland_passes')));
+  const [radius, setRadius] = useState(String(serverDefault('PlanIn', 'turn_radius_m')));
+  const [reverse, setReverse] = useState(serverDefault('PlanIn', 'reverse'));
+  const [pattern, setPattern] = useState<string>(serverDefault('PlanIn', 'pattern'));
   const create = useApiMutation(
     (body: Schemas['PlanIn']) =>
       call(client.POST('/api/v1/fields/{field_id}/plans', { params: { path: { field_id: fieldId } }, body })).then(inline),
@@ -28,6 +31,9 @@ export function PlanForm({ fieldId, onCreated }: { fieldId: number; onCreated: (
           heading: rule as Schemas['PlanIn']['heading'],
           headland_passes: Number(headland),
           angle_deg: rule === 'angle' ? Number(heading) : undefined,
+          turn_radius_m: Number(radius),
+          reverse,
+          pattern: pattern as Schemas['PlanIn']['pattern'],
         };
         create.mutate(body, { onSuccess: onCreated });
       }}
@@ -65,6 +71,30 @@ export function PlanForm({ fieldId, onCreated }: { fieldId: number; onCreated: (
           value={headland}
           onChange={(e) => setHeadland(e.target.value)}
         />
+      </label>
+      <label title="The machine's minimum turning radius: turns and headland rings never curve tighter">
+        Turning radius (m)
+        <input
+          data-testid="plan-turn-radius"
+          name="turn_radius_m"
+          type="number"
+          step="0.5"
+          min="0"
+          value={radius}
+          onChange={(e) => setRadius(e.target.value)}
+        />
+      </label>
+      <label>
+        <input data-testid="plan-reverse" type="checkbox" checked={reverse} onChange={(e) => setReverse(e.target.checked)} />{' '}
+        Machine may reverse (K-turns)
+      </label>
+      <label>
+        Swath order
+        <select data-testid="plan-pattern" value={pattern} onChange={(e) => setPattern(e.target.value)}>
+          <option value="boustrophedon">Back and forth</option>
+          <option value="skip">Skip rows (U-turns only)</option>
+          <option value="auto">Whichever turns faster</option>
+        </select>
       </label>
       <button data-testid="plan-submit" disabled={create.isPending}>
         {create.isPending ? 'Planning…' : 'Plan coverage'}

@@ -8,7 +8,7 @@ from typing import Literal
 from pydantic import Field
 
 from fieldrx.api.schemas.base import Geometry, In, Open, Out
-from fieldrx.geo.planning.kinematics import DEFAULT_HEADLAND_PASSES
+from fieldrx.geo.planning.kinematics import DEFAULT_HEADLAND_PASSES, DEFAULT_TURN_RADIUS_M
 
 
 class PlanIn(In):
@@ -33,7 +33,11 @@ class PlanIn(In):
     headland_order: Literal["first", "last"] = "first"
     min_cell_fraction: float = Field(default=0.1, ge=0, lt=1)
     turn_radius_m: float = Field(
-        default=6.0, gt=0, le=50, description="minimum turning radius of the machine, m"
+        default=DEFAULT_TURN_RADIUS_M,
+        gt=0,
+        le=50,
+        description="minimum turning radius of the machine, m: turns and headland rings "
+        "never curve tighter",
     )
     reverse: bool = Field(default=False, description="the machine may reverse (fishtail turns)")
     pattern: Literal["boustrophedon", "skip", "auto"] = Field(
@@ -50,6 +54,9 @@ class PlanParamsOut(Open):
     heading: str
     angle_deg: float | None = None
     headland_passes: int = DEFAULT_HEADLAND_PASSES
+    turn_radius_m: float | None = None
+    reverse: bool | None = None
+    pattern: str | None = None
 
 
 class PlanMetrics(Open):
@@ -64,6 +71,18 @@ class PlanMetrics(Open):
     coverage_pct: float | None = None
     overlap_pct: float | None = None
     outside_pct: float | None = None
+    uncovered_m2: float | None = Field(
+        default=None, description="field area no swath or ring sweeps, m²"
+    )
+    corner_loss_m2: float | None = Field(
+        default=None,
+        description="part of uncovered_m2: headland corners the rings, rounded to the "
+        "turning radius, cannot reach, m²",
+    )
+    turn_time_s: float | None = None
+    required_headland_passes: int | None = Field(
+        default=None, description="headland passes whose width holds the turns"
+    )
     warnings: list[str] | None = None
 
 

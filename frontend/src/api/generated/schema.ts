@@ -3899,7 +3899,7 @@ export interface components {
             swath_width_m?: number;
             /**
              * Turn Radius M
-             * @description minimum turning radius of the machine, m
+             * @description minimum turning radius of the machine, m: turns and headland rings never curve tighter
              * @default 6
              */
             turn_radius_m?: number;
@@ -3916,6 +3916,11 @@ export interface components {
          * @description What the planner measured (``geo.planning``); keys grow with the planner.
          */
         PlanMetrics: {
+            /**
+             * Corner Loss M2
+             * @description part of uncovered_m2: headland corners the rings, rounded to the turning radius, cannot reach, m²
+             */
+            corner_loss_m2?: number | null;
             /** Coverage Pct */
             coverage_pct?: number | null;
             /** Heading Deg */
@@ -3932,6 +3937,18 @@ export interface components {
             outside_pct?: number | null;
             /** Overlap Pct */
             overlap_pct?: number | null;
+            /**
+             * Required Headland Passes
+             * @description headland passes whose width holds the turns
+             */
+            required_headland_passes?: number | null;
+            /** Turn Time S */
+            turn_time_s?: number | null;
+            /**
+             * Uncovered M2
+             * @description field area no swath or ring sweeps, m²
+             */
+            uncovered_m2?: number | null;
             /** Warnings */
             warnings?: string[] | null;
             /** Working Length M */
@@ -3973,8 +3990,14 @@ export interface components {
              * @default 0
              */
             headland_passes?: number;
+            /** Pattern */
+            pattern?: string | null;
+            /** Reverse */
+            reverse?: boolean | null;
             /** Swath Width M */
             swath_width_m: number;
+            /** Turn Radius M */
+            turn_radius_m?: number | null;
         } & {
             [key: string]: unknown;
         };
