@@ -25,8 +25,8 @@ rectangle's turn length at r = 5 m with Fields2Cover's recorded Dubins figure (3
 for 108 turns, issue 16).
 
 ``loss_m2`` is the headland the rings, rounded to the turning radius, cannot reach (at
-the boundary's corners; reported by the plan as ``corner_loss_m2``, part of its
-uncovered area).
+the boundary's corners; reported by the plan as ``corner_loss_m2``: field area no cell
+holds).
 
 Run: .venv/bin/python bench/planning.py [--quick] [--repeats N]
 """

@@ -76,8 +76,8 @@ class PlanMetrics(Open):
     )
     corner_loss_m2: float | None = Field(
         default=None,
-        description="part of uncovered_m2: headland corners the rings, rounded to the "
-        "turning radius, cannot reach, m²",
+        description="headland corners the rings, rounded to the turning radius, cannot "
+        "reach: field area no cell holds (in the grid's uncovered area), m²",
     )
     turn_time_s: float | None = None
     required_headland_passes: int | None = Field(

@@ -3918,7 +3918,7 @@ export interface components {
         PlanMetrics: {
             /**
              * Corner Loss M2
-             * @description part of uncovered_m2: headland corners the rings, rounded to the turning radius, cannot reach, m²
+             * @description headland corners the rings, rounded to the turning radius, cannot reach: field area no cell holds (in the grid's uncovered area), m²
              */
             corner_loss_m2?: number | null;
             /** Coverage Pct */
