@@ -111,8 +111,11 @@ def _build_grid(
     inner_cells = _inner_cells(plan, inner, cell) if inner else None
     timings["inner_cells"] = time.perf_counter() - t
     t = time.perf_counter()
-    head = [_ring_cells(s, w, cell) for s in plan.swaths if s.kind == "headland"]
+    rings = [s for s in plan.swaths if s.kind == "headland"]
+    head = [_ring_cells(s, w, cell) for s in rings]
     head_cells = _resolve_overlaps(head) if head else []
+    if head_cells:
+        _fill_bands(head_cells, [s.strip for s in rings])
     timings["headland_cells"] = time.perf_counter() - t
 
     # put the pieces back into path order
@@ -422,6 +425,41 @@ def _resolve_overlaps(rings: list[_Cells]) -> list[_Cells]:
         out.append(_Cells(r.swath, r.idx, r.corners, allp[o : o + n], area[o : o + n], True))
         o += n
     return out
+
+
+def _fill_bands(rings: list[_Cells], strips: list) -> None:
+    """Give each pass's band area that none of its rings' cells hold to the adjacent cell.
+
+    The cut-line quads follow a ring's offset curves; where a ring is narrower than its
+    offsets (a small sharp loop of a headland-only plan, 13 m long for an 8 m implement)
+    they miss part of the band the pass sweeps. That area is worked, so it belongs to a
+    cell: each missing piece joins the cell of the same pass sharing most of its
+    boundary (the nearest when none touches). Bands are grouped by pass number
+    (``StripGeometry.ring_pass``), the documented strip geometry.
+    """
+    by_pass: dict[int, list[int]] = {}
+    for i, st in enumerate(strips):
+        by_pass.setdefault(st.ring_pass, []).append(i)
+    for members in by_pass.values():
+        band = strips[members[0]].band
+        if band is None or band.is_empty:
+            continue
+        polys = np.concatenate([rings[i].polys for i in members])
+        owner = np.concatenate([np.full(len(rings[i].polys), i) for i in members])
+        local = np.concatenate([np.arange(len(rings[i].polys)) for i in members])
+        rest = band.difference(shapely.union_all(polys))
+        for piece in shapely.get_parts(rest):
+            if piece.area <= 1e-6:
+                continue
+            shared = shapely.length(shapely.intersection(polys, piece.buffer(1e-6)))
+            k = int(np.argmax(shared)) if shared.max() > 1e-6 else int(
+                np.argmin(shapely.distance(polys, piece))
+            )
+            merged = _only_polygons(np.array([shapely.union(polys[k], piece)]))[0]
+            polys[k] = merged
+            r = rings[owner[k]]
+            r.polys[local[k]] = merged
+            r.area[local[k]] = shapely.area(merged)
 
 
 def _merge_slivers(cat: dict[str, np.ndarray], min_area: float) -> np.ndarray:
