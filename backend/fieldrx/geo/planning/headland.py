@@ -190,6 +190,12 @@ def _inside(piece: Polygon, region: BaseGeometry) -> bool:
     return piece.difference(region).area <= 1e-6 * piece.area + 1e-9
 
 
+def _pass_centre(field_geom: BaseGeometry, w: float, k: int) -> list[Polygon]:
+    """The mitred polygons (interior on the left) whose rings pass k drives."""
+    centre = field_geom.buffer(-(k + 0.5) * w, join_style="mitre", mitre_limit=5.0)
+    return [orient(p, 1.0) for p in parts(centre)]
+
+
 def _pass_bands(field_geom: BaseGeometry, w: float, k: int) -> tuple[BaseGeometry, BaseGeometry]:
     centre = field_geom.buffer(-(k + 0.5) * w, join_style="mitre", mitre_limit=5.0)
     outer = field_geom.buffer(-k * w, join_style="mitre", mitre_limit=5.0) if k else field_geom
@@ -218,16 +224,16 @@ def headland_rings(
     if h <= 0:
         return []
     if turn_radius_m <= 0:
-        centres = [
-            [orient(p, 1.0) for p in parts(_pass_bands(field_geom, w, k)[0])] for k in range(h)
-        ]
-        return [
-            (k, LineString(ri.coords), _pass_bands(field_geom, w, k)[1])
-            for k in range(h)
-            for p in centres[k]
-            for ri in [p.exterior, *p.interiors]
-            if ri.length > w
-        ]
+        out = []
+        for k in range(h):
+            centre, band = _pass_bands(field_geom, w, k)
+            out += [
+                (k, LineString(ri.coords), band)
+                for p in (orient(q, 1.0) for q in parts(centre))
+                for ri in [p.exterior, *p.interiors]
+                if ri.length > w
+            ]
+        return out
     r = RING_SLACK * turn_radius_m
     smooth = _concentric_centres(field_geom, w, h, r)
     concentric = smooth is not None
@@ -301,8 +307,8 @@ def _concentric_centres(
     """
     outer = r + (h - 1) * w
     base = []
-    for p in parts(_pass_bands(field_geom, w, 0)[0]):
-        d = parts(drivable_centre(orient(p, 1.0), r, convex_r=outer))
+    for p in _pass_centre(field_geom, w, 0):
+        d = parts(drivable_centre(p, r, convex_r=outer))
         if not d:
             return None
         base += d
@@ -313,7 +319,7 @@ def _concentric_centres(
             shrunk = d.buffer(-k * w, quad_segs=ARC_QUAD_SEGS) if k else d
             for q in parts(shrunk):
                 polys += [(orient(x, 1.0), True) for x in parts(drivable_centre(q, r))]
-        if len(polys) < len(parts(_pass_bands(field_geom, w, k)[0])):
+        if len(polys) < len(_pass_centre(field_geom, w, k)):
             return None
         out.append(polys)
     return out
@@ -327,8 +333,7 @@ def _own_centres(
     out = []
     for k in range(h):
         polys: list[tuple[Polygon, bool]] = []
-        for poly in parts(_pass_bands(field_geom, w, k)[0]):
-            poly = orient(poly, 1.0)
+        for poly in _pass_centre(field_geom, w, k):
             smooth = [orient(p, 1.0) for p in parts(drivable_centre(poly, r))]
             polys += [(p, True) for p in smooth] if smooth else [(poly, False)]
         out.append(polys)
@@ -356,9 +361,7 @@ def carve(
     rest = parts(region.difference(swept))
     keep = [p for p in rest if p.area >= w * w]
     dropped = float(sum(p.area for p in rest if p.area < w * w))
-    if not keep:
-        return Polygon(), dropped
-    return (shapely.union_all(keep) if len(keep) > 1 else keep[0]), dropped
+    return (shapely.union_all(keep) if keep else Polygon()), dropped
 
 
 def _resampled(ring: BaseGeometry, r: float) -> LineString:
