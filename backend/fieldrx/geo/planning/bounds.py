@@ -91,7 +91,8 @@ class _Lines:
 
     def below(self, y: np.ndarray) -> np.ndarray:
         """Number of centre lines strictly below y (per angle column)."""
-        return np.clip(np.ceil((y - self.y0) / self.w - 0.5), 0, self.n).astype(np.int64)
+        k = np.ceil((y - self.y0) / self.w - 0.5)
+        return np.minimum(np.maximum(k, 0), self.n).astype(np.int64)
 
     def between(self, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
         """Number of centre lines with lo <= y < hi (0 where hi <= lo)."""
@@ -158,31 +159,29 @@ def _notch_tip_lines(
     y0, n = lines.y0[ai], lines.n[ai]
     lo = np.where(sgn > 0, y - _EPS, y - zone)
     hi = np.where(sgn > 0, y + zone, y + _EPS)
-    k0 = np.clip(np.ceil((lo - y0) / w - 0.5), 0, n).astype(np.int64)
-    k1 = np.clip(np.ceil((hi - y0) / w - 0.5), 0, n).astype(np.int64)
+    k0 = np.minimum(np.maximum(np.ceil((lo - y0) / w - 0.5), 0), n).astype(np.int64)
+    k1 = np.minimum(np.maximum(np.ceil((hi - y0) / w - 0.5), 0), n).astype(np.int64)
     cnt = np.maximum(k1 - k0, 0)
-    live = np.flatnonzero(cnt)  # most tips are crossed by no line in their zone
-    y, x, kp, kn, sgn, reach, y0, k0, cnt, ai = (
-        t[live] for t in (y, x, kp, kn, sgn, reach, y0, k0, cnt, ai)
+    # one row per (tip, line in its zone); most tips are crossed by no line in their zone
+    t = np.repeat(np.arange(len(cnt)), cnt)
+    m = np.arange(len(t)) - np.repeat(np.cumsum(cnt) - cnt, cnt)
+    y, x, kp, kn, sgn, reach = (a[t] for a in (y, x, kp, kn, sgn, reach))
+    yk = y0[t] + (k0[t] + m + 0.5) * w
+    ba, bb = yk - 0.5 * w, yk + 0.5 * w
+    d_near = np.where(sgn > 0, ba - y, y - bb)  # tip to the band, along the notch
+    d_far = np.where(sgn > 0, bb - y, y - ba)
+    spans = (d_near > _EPS) & (d_far < reach - _EPS)
+    xpa, xpb, xna, xnb = (
+        x + (ba - y) * kp,
+        x + (bb - y) * kp,
+        x + (ba - y) * kn,
+        x + (bb - y) * kn,
     )
-    for m in range(int(cnt.max(initial=0))):
-        yk = y0 + (k0 + m + 0.5) * w
-        ba, bb = yk - 0.5 * w, yk + 0.5 * w
-        d_near = np.where(sgn > 0, ba - y, y - bb)  # tip to the band, along the notch
-        d_far = np.where(sgn > 0, bb - y, y - ba)
-        spans = (d_near > _EPS) & (d_far < reach - _EPS)
-        xpa, xpb, xna, xnb = (
-            x + (ba - y) * kp,
-            x + (bb - y) * kp,
-            x + (ba - y) * kn,
-            x + (bb - y) * kn,
-        )
-        p_left = (xpa + xpb) < (xna + xnb)
-        left_max = np.where(p_left, np.maximum(xpa, xpb), np.maximum(xna, xnb))
-        right_min = np.where(p_left, np.minimum(xna, xnb), np.minimum(xpa, xpb))
-        bridged = ~(spans & (left_max > right_min + 1e-7))
-        np.add.at(out, ai[(m < cnt) & bridged], 1)
-    return out
+    p_left = (xpa + xpb) < (xna + xnb)
+    left_max = np.where(p_left, np.maximum(xpa, xpb), np.maximum(xna, xnb))
+    right_min = np.where(p_left, np.minimum(xna, xnb), np.minimum(xpa, xpb))
+    bridged = ~(spans & (left_max > right_min + 1e-7))
+    return np.bincount(ai[t[bridged]], minlength=len(out)).astype(np.int64)
 
 
 def _closer_than(
@@ -205,7 +204,7 @@ def _closer_than(
     same = ~flat & ((dk == 0) | ~np.isfinite(y1) | ~np.isfinite(y2))
     a = np.where(same, np.where(np.abs(d_lo) < d, lo, hi), np.maximum(lo, np.minimum(y1, y2)))
     b = np.where(same, hi, np.minimum(hi, np.maximum(y1, y2)))
-    return np.where(flat, hi, a), b
+    return np.where(flat, np.inf, a), np.where(flat, -np.inf, b)  # flat: an empty set
 
 
 def _segments_hit_boxes(
@@ -215,58 +214,76 @@ def _segments_hit_boxes(
     yb: np.ndarray,
     box: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
 ) -> np.ndarray:
-    """Whether segment (xa, ya)-(xb, yb) meets the closed box (x0, x1, y0, y1), by
-    Liang-Barsky clipping; arrays broadcast (segments along axis 0, boxes along axis 1)."""
+    """Whether segment (xa, ya)-(xb, yb) meets the closed box (x0, x1, y0, y1); arrays
+    broadcast (segments along axis 0, boxes along axis 1). Separating axes: the
+    segment's bounding box overlaps the box, and the box's corners are not all strictly
+    on one side of the segment's line."""
     x0, x1, y0, y1 = box
+    hit = (np.minimum(xa, xb) <= x1) & (np.maximum(xa, xb) >= x0)
+    hit &= (np.minimum(ya, yb) <= y1) & (np.maximum(ya, yb) >= y0)
     dx, dy = xb - xa, yb - ya
-    t0 = np.zeros(np.broadcast_shapes(xa.shape, x0.shape))
-    t1 = np.ones_like(t0)
-    inside = np.ones(t0.shape, bool)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        for p, q in ((-dx, xa - x0), (dx, x1 - xa), (-dy, ya - y0), (dy, y1 - ya)):
-            p, q = np.broadcast_to(p, t0.shape), np.broadcast_to(q, t0.shape)
-            zero = p == 0
-            inside &= ~(zero & (q < 0))
-            t = q / np.where(zero, 1.0, p)
-            t0 = np.where(~zero & (p < 0), np.maximum(t0, t), t0)
-            t1 = np.where(~zero & (p > 0), np.minimum(t1, t), t1)
-    return inside & (t0 <= t1)
+    u0, u1 = (x0 - xa) * dy, (x1 - xa) * dy  # side of corner (x, y): (x-xa)dy - (y-ya)dx
+    v0, v1 = (y0 - ya) * dx, (y1 - ya) * dx
+    s00, s01, s10, s11 = u0 - v0, u0 - v1, u1 - v0, u1 - v1
+    lo = np.minimum(np.minimum(s00, s01), np.minimum(s10, s11))
+    hi = np.maximum(np.maximum(s00, s01), np.maximum(s10, s11))
+    return hit & (lo <= 0) & (hi >= 0)
+
+
+@dataclass(frozen=True)
+class _EdgeBoxes:
+    """The edges i -> next[i] of one part at every angle, one row per angle (so that a
+    tip's row is one contiguous read): end points and bounding boxes."""
+
+    xa: np.ndarray  # (angles, V)
+    ya: np.ndarray
+    xb: np.ndarray
+    yb: np.ndarray
+    xlo: np.ndarray
+    xhi: np.ndarray
+    ylo: np.ndarray
+    yhi: np.ndarray
+
+    @classmethod
+    def of(cls, X: np.ndarray, Y: np.ndarray, nxt: np.ndarray) -> _EdgeBoxes:
+        xa, ya = np.ascontiguousarray(X.T), np.ascontiguousarray(Y.T)
+        xb, yb = xa[:, nxt], ya[:, nxt]
+        return cls(
+            xa,
+            ya,
+            xb,
+            yb,
+            np.minimum(xa, xb),
+            np.maximum(xa, xb),
+            np.minimum(ya, yb),
+            np.maximum(ya, yb),
+        )
 
 
 def _edges_meet_boxes(
-    X: np.ndarray,
-    Y: np.ndarray,
-    nxt: np.ndarray,
-    ai: np.ndarray,
+    edges: _EdgeBoxes,
+    rows: np.ndarray,
     box: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
-    own: list[np.ndarray],
+    own: np.ndarray,
 ) -> np.ndarray:
-    """Per box (angle column ``ai``), whether any edge except the box's ``own`` edges
-    (per step, -1 for none) meets it: bounding boxes first, exact clipping on the rest."""
+    """Per box (at the angle of row ``rows`` of ``edges``), whether any edge except the
+    box's ``own`` edges (a row per box, -1 for none) meets it: bounding boxes first,
+    exact clipping on the rest."""
     x0, x1, y0, y1 = box
-    xa, ya = X[:, ai], Y[:, ai]
-    xb, yb = xa[nxt], ya[nxt]
-    near = (
-        (np.minimum(xa, xb) <= x1)
-        & (np.maximum(xa, xb) >= x0)
-        & (np.minimum(ya, yb) <= y1)
-        & (np.maximum(ya, yb) >= y0)
-    )
-    cols = np.arange(len(ai))
-    for e in own:
-        m = e >= 0
-        if m.any():
-            near[e[m], cols[m]] = False
-    ei, ci = np.nonzero(near)
-    out = np.zeros(len(ai), bool)
-    if len(ei):
-        sub = (x0[ci], x1[ci], y0[ci], y1[ci])
-        hit = _segments_hit_boxes(xa[ei, ci], ya[ei, ci], xb[ei, ci], yb[ei, ci], sub)
-        out[ci[hit]] = True
+    near = edges.ylo[rows] <= y1[:, None]  # the band is thin: few edges reach it
+    near &= edges.yhi[rows] >= y0[:, None]
+    t, k = np.nonzero(own >= 0)
+    near[t, own[t, k]] = False
+    ti, ei = np.nonzero(near)
+    r = rows[ti]
+    ends = (edges.xa[r, ei], edges.ya[r, ei], edges.xb[r, ei], edges.yb[r, ei])
+    hit = _segments_hit_boxes(*ends, (x0[ti], x1[ti], y0[ti], y1[ti]))
+    out = np.zeros(len(rows), bool)
+    out[ti[hit]] = True
     return out
 
 
-def _tip_chain(
+def _tip_chains(
     v: _Vertices,
     X: np.ndarray,
     Y: np.ndarray,
@@ -274,44 +291,51 @@ def _tip_chain(
     ai: np.ndarray,
     edge_y: np.ndarray,
     down: np.ndarray,
-    step: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[np.ndarray]]:
-    """Walk from each tip vertex along ``step`` (prev or next) while the boundary moves
-    monotonically away from the tip, until it leaves the band at ``edge_y``.
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Walk from each tip vertex along both sides of the ring (previous and next
+    vertices) while the boundary moves monotonically away from the tip, until it leaves
+    the band at ``edge_y``.
 
-    Returns (monotone and left within _CHAIN_STEPS, x min, x max of the chain inside
-    the band, the chain's edge indices per step (-1 once left or given up)).
+    Returns (both sides monotone and left within _CHAIN_STEPS, x min, x max of the two
+    chains inside the band, the chains' edge indices: a row per tip, -1 where none).
 
-    Only the chains still walking are stepped: most leave the band within a step or two."""
+    Both sides walk in one set of arrays and only the chains still walking are stepped
+    (most leave the band within a step or two): the cost is numpy's per-call overhead."""
     n = len(vi)
-    cur = vi.copy()
-    y, x = Y[vi, ai], X[vi, ai]
+    fwd = np.arange(2 * n) >= n  # the first n walk to the previous vertex
+    ai, edge_y, down, cur = (np.concatenate([t, t]) for t in (ai, edge_y, down, vi))
+    y, x = Y[cur, ai], X[cur, ai]
     xmin, xmax = x.copy(), x.copy()
-    ok = np.ones(n, bool)
-    done = np.zeros(n, bool)
-    edges = []
-    fwd = step is v.next
-    act = np.arange(n)  # chains still walking: monotone so far and inside the band
-    for _ in range(_CHAIN_STEPS):
-        c, a = cur[act], ai[act]
-        nb = step[c]
-        yn, xn, yc, xc0, dn, ey = Y[nb, a], X[nb, a], y[act], x[act], down[act], edge_y[act]
-        e = np.full(n, -1)
-        e[act] = c if fwd else nb
-        edges.append(e)
-        mono = np.where(dn, yn < yc, yn > yc)
-        left = np.where(dn, yn < ey - _EPS, yn > ey + _EPS)
-        with np.errstate(divide="ignore", invalid="ignore"):
+    ok = np.ones(2 * n, bool)
+    done = np.zeros(2 * n, bool)
+    edges = np.full((2 * n, _CHAIN_STEPS), -1)
+    act = np.arange(2 * n)  # chains still walking: monotone so far and inside the band
+    steps = 0
+    with np.errstate(divide="ignore", invalid="ignore"):  # once: it costs a few microseconds
+        for k in range(_CHAIN_STEPS):
+            steps = k + 1
+            c, a, f = cur[act], ai[act], fwd[act]
+            nb = np.where(f, v.next[c], v.prev[c])
+            edges[act, k] = np.where(f, c, nb)
+            yn, xn, yc, xc0, dn, ey = Y[nb, a], X[nb, a], y[act], x[act], down[act], edge_y[act]
+            mono = np.where(dn, yn < yc, yn > yc)
+            left = np.where(dn, yn < ey - _EPS, yn > ey + _EPS)
             xc = np.where(left, xc0 + (ey - yc) / (yn - yc) * (xn - xc0), xn)
-        xmin[act] = np.minimum(xmin[act], xc)
-        xmax[act] = np.maximum(xmax[act], xc)
-        ok[act] &= mono
-        done[act] |= left
-        cur[act], y[act], x[act] = nb, yn, xn
-        act = act[mono & ~left]
-        if not len(act):
-            break
-    return ok & done, xmin, xmax, edges
+            xmin[act] = np.minimum(xmin[act], xc)
+            xmax[act] = np.maximum(xmax[act], xc)
+            ok[act] &= mono
+            done[act] |= left
+            cur[act], y[act], x[act] = nb, yn, xn
+            act = act[mono & ~left]
+            if not len(act):
+                break
+    ok &= done
+    return (
+        ok[:n] & ok[n:],
+        np.minimum(xmin[:n], xmin[n:]),
+        np.maximum(xmax[:n], xmax[n:]),
+        np.hstack([edges[:n, :steps], edges[n:, :steps]]),
+    )
 
 
 def _spike_tips(
@@ -322,6 +346,8 @@ def _spike_tips(
     tol: float,
     obstacles: tuple[np.ndarray, np.ndarray],
     phis: np.ndarray,
+    edges: _EdgeBoxes,
+    idx: np.ndarray,
 ) -> np.ndarray:
     """Per angle, the spike tips of the exterior ring that no centre line reaches and
     that stand alone in their strip (each is a swath the crossing count misses).
@@ -349,17 +375,11 @@ def _spike_tips(
         return out
     vi, down, a = rows[ri], up[ri, ai], a[ri, ai]
     edge_y = np.where(down, a, a + w)
-    ok1, lo1, hi1, e1 = _tip_chain(v, X, Y, vi, ai, edge_y, down, v.prev)
-    ok2, lo2, hi2, e2 = _tip_chain(v, X, Y, vi, ai, edge_y, down, v.next)
-    sel = np.flatnonzero(ok1 & ok2)  # only these can count: test just their boxes
+    ok, lo, hi, own = _tip_chains(v, X, Y, vi, ai, edge_y, down)
+    sel = np.flatnonzero(ok)  # only these can count: test just their boxes
     ai, a = ai[sel], a[sel]
-    box = (
-        np.minimum(lo1[sel], lo2[sel]) - 0.5 * w,
-        np.maximum(hi1[sel], hi2[sel]) + 0.5 * w,
-        a - _EPS,
-        a + w + _EPS,
-    )
-    keep = ~_edges_meet_boxes(X, Y, v.next, ai, box, [e[sel] for e in e1 + e2])
+    box = (lo[sel] - 0.5 * w, hi[sel] + 0.5 * w, a - _EPS, a + w + _EPS)
+    keep = ~_edges_meet_boxes(edges, idx[ai], box, own[sel])
     ob_a, ob_b = obstacles
     if len(ob_a) and keep.any():
         sn, cs = np.sin(phis[ai]), np.cos(phis[ai])
@@ -368,8 +388,7 @@ def _spike_tips(
         ox_b = ob_b[:, :1] * cs + ob_b[:, 1:] * sn
         oy_b = -ob_b[:, :1] * sn + ob_b[:, 1:] * cs
         keep &= ~_segments_hit_boxes(ox_a, oy_a, ox_b, oy_b, box).any(0)
-    np.add.at(out, ai[keep], 1)
-    return out
+    return np.bincount(ai[keep], minlength=len(out)).astype(np.int64)
 
 
 class AnalyticBounds:
@@ -423,15 +442,18 @@ class AnalyticBounds:
             crossings = lines.between(np.minimum(Y, Yn), np.maximum(Y, Yn)).sum(0)
             intervals = crossings // 2 - _narrow_notch_lines(v, X, Y, lines, w)
             self.weak += np.maximum(n, intervals)
-            self._concave.append((v, X, Y, y0, n, intervals, (ob_a - v.origin, ob_b - v.origin)))
+            obstacles = (ob_a - v.origin, ob_b - v.origin)
+            edges = _EdgeBoxes.of(X, Y, v.next)
+            self._concave.append((v, X, Y, y0, n, intervals, obstacles, edges))
 
     def full(self, idx: np.ndarray) -> np.ndarray:
         """The full analytic bound at the angles ``phis[idx]`` (``weak`` + spike tips)."""
         lb = self.weak[idx].copy()
-        for v, X, Y, y0, n, intervals, obstacles in self._concave:
+        for v, X, Y, y0, n, intervals, obstacles, edges in self._concave:
             X_, Y_, n_, iv = X[:, idx], Y[:, idx], n[idx], intervals[idx]
+            lines = _Lines(y0[idx], n_, self.w)
             tips = _spike_tips(
-                v, X_, Y_, _Lines(y0[idx], n_, self.w), self.tol, obstacles, self.phis[idx]
+                v, X_, Y_, lines, self.tol, obstacles, self.phis[idx], edges, idx
             )
             lb += np.maximum(n_, iv + tips) - np.maximum(n_, iv)
         return lb

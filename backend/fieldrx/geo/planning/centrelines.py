@@ -42,14 +42,28 @@ class CentreLines:
     count: int
 
 
+@dataclass(frozen=True)
+class _Rings:
+    """One part's rings relative to the frame's origin: edges a -> b, exterior vertices."""
+
+    a: np.ndarray
+    b: np.ndarray
+    ext: np.ndarray
+
+    @classmethod
+    def of(cls, p: Polygon, origin: np.ndarray) -> _Rings:
+        ext = np.asarray(p.exterior.coords) - origin
+        rings = [ext] + [np.asarray(r.coords) - origin for r in p.interiors]
+        a = np.concatenate([r[:-1] for r in rings])
+        b = np.concatenate([r[1:] for r in rings])
+        return cls(a, b, ext)
+
+
 def _part_lines(
-    p: Polygon, origin: np.ndarray, w: float, sn: float, cs: float, tol: float
+    r: _Rings, w: float, sn: float, cs: float, tol: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
     """(line, y, x0, x1) of one part's centre-line intervals, and its number of strips."""
-    ext = np.asarray(p.exterior.coords) - origin
-    rings = [ext] + [np.asarray(r.coords) - origin for r in p.interiors]
-    a = np.concatenate([r[:-1] for r in rings])
-    b = np.concatenate([r[1:] for r in rings])
+    a, b, ext = r.a, r.b, r.ext
     ya, yb = -a[:, 0] * sn + a[:, 1] * cs, -b[:, 0] * sn + b[:, 1] * cs
     ye = -ext[:, 0] * sn + ext[:, 1] * cs
     y0 = ye.min()
@@ -67,31 +81,38 @@ def _part_lines(
     li, x0, x1 = line[0::2], x[0::2], x[1::2]
     if not len(li):  # a part no centre line crosses (a sliver thinner than w / 2)
         return li, ys, x0, x1, n
-    bridged = (li[1:] == li[:-1]) & (x0[1:] - x1[:-1] < 0.5 * w)
-    return li[np.r_[True, ~bridged]], ys, x0[np.r_[True, ~bridged]], x1[np.r_[~bridged, True]], n
+    kept = ~((li[1:] == li[:-1]) & (x0[1:] - x1[:-1] < 0.5 * w))  # gap not bridged
+    starts, ends = np.concatenate(([True], kept)), np.concatenate((kept, [True]))
+    return li[starts], ys, x0[starts], x1[ends], n
 
 
-def centre_lines(
-    parts: list[Polygon], w: float, phi: float, tol: float, origin: np.ndarray
-) -> CentreLines:
-    """The centre-line intervals of ``parts`` at heading phi, in the frame rotating about
-    ``origin`` (the planning frame's, so brute force and search see the same numbers)."""
-    sn, cs = math.sin(phi), math.cos(phi)
-    lines, ys, x0s, x1s = [], [], [], []
-    off, count = 0, 0
-    for p in parts:
-        li, yk, x0, x1, n = _part_lines(p, origin, w, sn, cs, tol)
-        count += int(np.maximum(1, np.bincount(li, minlength=n)).sum())
-        lines.append(li + off)
-        ys.append(yk[li])
-        x0s.append(x0)
-        x1s.append(x1)
-        off += n + 1
-    cat = np.concatenate
-    if not lines:
-        z = np.zeros(0)
-        return CentreLines(z.astype(np.int64), z, z, z, 0)
-    return CentreLines(cat(lines), cat(ys), cat(x0s), cat(x1s), count)
+class CentreLineCutter:
+    """The centre-line layout of some parts at any heading, in the frame rotating about
+    ``origin`` (the planning frame's, so brute force and search see the same numbers);
+    the rings are read once (the heading search cuts a few headings of one region)."""
+
+    def __init__(self, parts: list[Polygon], w: float, tol: float, origin: np.ndarray) -> None:
+        self.w, self.tol = w, tol
+        self._rings = [_Rings.of(p, origin) for p in parts]
+
+    def __call__(self, phi: float) -> CentreLines:
+        """The centre-line intervals at heading phi."""
+        sn, cs = math.sin(phi), math.cos(phi)
+        lines, ys, x0s, x1s = [], [], [], []
+        off, count = 0, 0
+        for r in self._rings:
+            li, yk, x0, x1, n = _part_lines(r, self.w, sn, cs, self.tol)
+            count += int(np.maximum(1, np.bincount(li, minlength=n)).sum())
+            lines.append(li + off)
+            ys.append(yk[li])
+            x0s.append(x0)
+            x1s.append(x1)
+            off += n + 1
+        cat = np.concatenate
+        if not lines:
+            z = np.zeros(0)
+            return CentreLines(z.astype(np.int64), z, z, z, 0)
+        return CentreLines(cat(lines), cat(ys), cat(x0s), cat(x1s), count)
 
 
 def chains(cl: CentreLines) -> tuple[np.ndarray, np.ndarray]:
@@ -134,7 +155,7 @@ def _block_turns(cl: CentreLines, order: np.ndarray, starts: np.ndarray) -> floa
     planner chooses whether a block's first pass runs +x or -x)."""
     if len(order) < 2:
         return 0.0
-    block = np.repeat(np.arange(len(starts)), np.diff(np.r_[starts, len(order)]))
+    block = np.repeat(np.arange(len(starts)), np.diff(starts, append=len(order)))
     pos = np.arange(len(order)) - starts[block]
     same = block[1:] == block[:-1]  # turn from order[t] to order[t + 1]
     a, b = order[:-1][same], order[1:][same]
@@ -152,19 +173,18 @@ def _hops(cl: CentreLines, order: np.ndarray, starts: np.ndarray) -> float:
     """Greedy block-to-block hops: from the end of the first block to the nearest block
     entry, and so on (each block entered at its first interval's x0 and left at its last
     one's far end, first pass +x)."""
-    nb = len(starts)
-    first, last = order[starts], order[np.r_[starts[1:], len(order)] - 1]
-    odd = (np.diff(np.r_[starts, len(order)]) % 2) == 1
-    entry = np.stack([cl.x0[first], cl.y[first]], 1)
-    exit_ = np.stack([np.where(odd, cl.x1[last], cl.x0[last]), cl.y[last]], 1)
-    d = np.hypot(*(exit_[:, None, :] - entry[None, :, :]).transpose(2, 0, 1))
-    d[:, 0] = np.inf
+    size = np.diff(starts, append=len(order))
+    first, last = order[starts], order[starts + size - 1]
+    ex = np.where(size % 2 == 1, cl.x1[last], cl.x0[last])
+    d = np.hypot(ex[:, None] - cl.x0[first][None, :], cl.y[last][:, None] - cl.y[first][None, :])
+    rows = d.tolist()  # a few dozen blocks: plain Python beats a numpy call per step
+    left = list(range(1, len(starts)))  # ascending: min() keeps the lowest of equals
     total, cur = 0.0, 0
-    for _ in range(nb - 1):
-        k = int(np.argmin(d[cur]))
-        total += float(d[cur, k])
-        d[:, k] = np.inf
-        cur = k
+    while left:
+        row = rows[cur]
+        cur = min(left, key=row.__getitem__)
+        total += row[cur]
+        left.remove(cur)
     return total
 
 
