@@ -452,8 +452,10 @@ def _fill_bands(rings: list[_Cells], strips: list) -> None:
             if piece.area <= 1e-6:
                 continue
             shared = shapely.length(shapely.intersection(polys, piece.buffer(1e-6)))
-            k = int(np.argmax(shared)) if shared.max() > 1e-6 else int(
-                np.argmin(shapely.distance(polys, piece))
+            k = (
+                int(np.argmax(shared))
+                if shared.max() > 1e-6
+                else int(np.argmin(shapely.distance(polys, piece)))
             )
             merged = _only_polygons(np.array([shapely.union(polys[k], piece)]))[0]
             polys[k] = merged

@@ -452,9 +452,7 @@ class AnalyticBounds:
         for v, X, Y, y0, n, intervals, obstacles, edges in self._concave:
             X_, Y_, n_, iv = X[:, idx], Y[:, idx], n[idx], intervals[idx]
             lines = _Lines(y0[idx], n_, self.w)
-            tips = _spike_tips(
-                v, X_, Y_, lines, self.tol, obstacles, self.phis[idx], edges, idx
-            )
+            tips = _spike_tips(v, X_, Y_, lines, self.tol, obstacles, self.phis[idx], edges, idx)
             lb += np.maximum(n_, iv + tips) - np.maximum(n_, iv)
         return lb
 

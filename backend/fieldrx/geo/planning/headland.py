@@ -178,9 +178,7 @@ def _filled(opened: BaseGeometry, poly: Polygon, corners: list[Point], r: float)
     closed = opened.buffer(r, quad_segs=ARC_QUAD_SEGS).buffer(-r, quad_segs=ARC_QUAD_SEGS)
     at = shapely.union_all(corners)
     fills = [
-        p
-        for p in parts(closed.difference(opened))
-        if p.distance(at) < 0.2 * r and _inside(p, poly)
+        p for p in parts(closed.difference(opened)) if p.distance(at) < 0.2 * r and _inside(p, poly)
     ]
     return shapely.union_all([opened, *fills]).intersection(poly) if fills else opened
 
