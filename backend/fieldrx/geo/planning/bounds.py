@@ -338,48 +338,61 @@ def _tip_chains(
     )
 
 
-def _spike_tips(
-    v: _Vertices,
-    X: np.ndarray,
-    Y: np.ndarray,
-    lines: _Lines,
-    tol: float,
-    obstacles: tuple[np.ndarray, np.ndarray],
-    phis: np.ndarray,
-    edges: _EdgeBoxes,
-    idx: np.ndarray,
-) -> np.ndarray:
-    """Per angle, the spike tips of the exterior ring that no centre line reaches and
-    that stand alone in their strip (each is a swath the crossing count misses).
+@dataclass(frozen=True)
+class _SpikeCandidates:
+    """Spike tips of one part, at every angle, whose two chains leave the band: the
+    angle column of each, its box (x0, x1, y0, y1) and its chains' own edges (a row per
+    tip, -1 for none). Whether a tip counts is its isolation (:func:`_isolated`)."""
+
+    ai: np.ndarray
+    box: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+    own: np.ndarray
+
+
+def _spike_candidates(
+    v: _Vertices, X: np.ndarray, Y: np.ndarray, lines: _Lines, tol: float
+) -> _SpikeCandidates:
+    """The spike tips of the exterior ring that no centre line reaches, per angle
+    (before the isolation test of :func:`_isolated`; each isolated one is a swath the
+    crossing count misses).
 
     A convex local maximum v of the exterior ring with a + tol <= y_v < centre (a: its
     strip's lower edge), from which the boundary falls monotonically on both sides until
     it leaves the band below a: the part of the field between these two chains is a
     strip piece (or several) that the centre line misses, at least tol high (so the
-    planner keeps it). If no other edge (of any ring, or of a field hole) meets the
-    band within w/2 of the chains in x, the planner can join it to no neighbour, and it
-    is a swath of its own. Minima mirror this.
+    planner keeps it). Its box is the band, within w/2 of the chains in x. Minima
+    mirror this.
     """
     w = lines.w
     rows = np.flatnonzero(v.convex & v.exterior)
-    out = np.zeros(Y.shape[1], dtype=np.int64)
-    if not len(rows):
-        return out
     Yr, Yp, Yn = Y[rows], Y[v.prev[rows]], Y[v.next[rows]]
     a = lines.y0 + np.floor((Yr - lines.y0) / w) * w
     ok = (a >= lines.y0 - _EPS) & (a < lines.y0 + lines.n * w - _EPS)
     up = ok & (Yp < Yr) & (Yn < Yr) & (Yr >= a + tol) & (Yr < a + 0.5 * w - _EPS)
     dn = ok & (Yp > Yr) & (Yn > Yr) & (Yr > a + 0.5 * w + _EPS) & (Yr <= a + w - tol)
     ri, ai = np.nonzero(up | dn)
-    if not len(ri):
-        return out
     vi, down, a = rows[ri], up[ri, ai], a[ri, ai]
     edge_y = np.where(down, a, a + w)
     ok, lo, hi, own = _tip_chains(v, X, Y, vi, ai, edge_y, down)
-    sel = np.flatnonzero(ok)  # only these can count: test just their boxes
-    ai, a = ai[sel], a[sel]
+    sel = np.flatnonzero(ok)  # only these can count
+    a = a[sel]
     box = (lo[sel] - 0.5 * w, hi[sel] + 0.5 * w, a - _EPS, a + w + _EPS)
-    keep = ~_edges_meet_boxes(edges, idx[ai], box, own[sel])
+    return _SpikeCandidates(ai[sel], box, own[sel])
+
+
+def _isolated(
+    tips: _SpikeCandidates,
+    sel: np.ndarray,
+    edges: _EdgeBoxes,
+    obstacles: tuple[np.ndarray, np.ndarray],
+    phis: np.ndarray,
+) -> np.ndarray:
+    """Per tip ``sel``, whether no other edge (of any ring, or of a field hole) meets its
+    box: then the planner can join its strip piece to no neighbour, and it is a swath
+    of its own."""
+    ai = tips.ai[sel]
+    box = (tips.box[0][sel], tips.box[1][sel], tips.box[2][sel], tips.box[3][sel])
+    keep = ~_edges_meet_boxes(edges, ai, box, tips.own[sel])
     ob_a, ob_b = obstacles
     if len(ob_a) and keep.any():
         sn, cs = np.sin(phis[ai]), np.cos(phis[ai])
@@ -388,7 +401,18 @@ def _spike_tips(
         ox_b = ob_b[:, :1] * cs + ob_b[:, 1:] * sn
         oy_b = -ob_b[:, :1] * sn + ob_b[:, 1:] * cs
         keep &= ~_segments_hit_boxes(ox_a, oy_a, ox_b, oy_b, box).any(0)
-    return np.bincount(ai[keep], minlength=len(out)).astype(np.int64)
+    return keep
+
+
+@dataclass(frozen=True)
+class _ConcavePart:
+    """What :meth:`AnalyticBounds.full` needs of a non-convex part (all angles)."""
+
+    n: np.ndarray  # strips
+    intervals: np.ndarray  # centre-line intervals, narrow gaps bridged (an under-count)
+    tips: _SpikeCandidates
+    edges: _EdgeBoxes
+    obstacles: tuple[np.ndarray, np.ndarray]  # the field's hole edges, relative to the part
 
 
 class AnalyticBounds:
@@ -400,12 +424,12 @@ class AnalyticBounds:
     line crosses the boundary twice per interval, so the intervals summed over lines
     are half the crossings; minus the narrow gaps the planner bridges
     (:func:`_narrow_notch_lines`, an over-count). ``weak`` is the bound from these alone.
-    :meth:`full` adds, for the angles asked, the isolated spike tips no centre line
-    reaches (:func:`_spike_tips`): the dearest term (~70 % of the cost on a 40-vertex
-    field), so the heading search asks for it only on the angles it may still take.
-    The tips only add, so ``weak`` is never above the full bound: both are lower bounds.
-    ``holes`` are the field's holes (the planner cuts swaths at them; a tip near one is
-    not counted).
+    It also finds the spike tips no centre line reaches (:func:`_spike_candidates`).
+    :meth:`full` adds, for the angles asked, those of them that stand alone in their
+    strip (:func:`_isolated`: every tip against every edge, the dearest test), so the
+    heading search asks for it only on the angles it may still take. The tips only add,
+    so ``weak`` is never above the full bound: both are lower bounds. ``holes`` are the
+    field's holes (the planner cuts swaths at them; a tip near one is not counted).
     """
 
     def __init__(
@@ -426,7 +450,7 @@ class AnalyticBounds:
         ob_a = np.concatenate([r[:-1] for r in hole_rings] or [np.zeros((0, 2))])
         ob_b = np.concatenate([r[1:] for r in hole_rings] or [np.zeros((0, 2))])
         self.weak = np.zeros(len(self.phis), dtype=np.int64)
-        self._concave: list[tuple] = []  # per non-convex part: what the spike tips need
+        self._concave: list[_ConcavePart] = []
         for p in parts:
             v = _Vertices.of(p)
             X = v.xy[:, :1] * cs + v.xy[:, 1:] * sn
@@ -442,18 +466,28 @@ class AnalyticBounds:
             crossings = lines.between(np.minimum(Y, Yn), np.maximum(Y, Yn)).sum(0)
             intervals = crossings // 2 - _narrow_notch_lines(v, X, Y, lines, w)
             self.weak += np.maximum(n, intervals)
-            obstacles = (ob_a - v.origin, ob_b - v.origin)
-            edges = _EdgeBoxes.of(X, Y, v.next)
-            self._concave.append((v, X, Y, y0, n, intervals, obstacles, edges))
+            self._concave.append(
+                _ConcavePart(
+                    n,
+                    intervals,
+                    _spike_candidates(v, X, Y, lines, tol),
+                    _EdgeBoxes.of(X, Y, v.next),
+                    (ob_a - v.origin, ob_b - v.origin),
+                )
+            )
 
     def full(self, idx: np.ndarray) -> np.ndarray:
-        """The full analytic bound at the angles ``phis[idx]`` (``weak`` + spike tips)."""
+        """The full analytic bound at the angles ``phis[idx]`` (``weak`` + isolated
+        spike tips)."""
         lb = self.weak[idx].copy()
-        for v, X, Y, y0, n, intervals, obstacles, edges in self._concave:
-            X_, Y_, n_, iv = X[:, idx], Y[:, idx], n[idx], intervals[idx]
-            lines = _Lines(y0[idx], n_, self.w)
-            tips = _spike_tips(v, X_, Y_, lines, self.tol, obstacles, self.phis[idx], edges, idx)
-            lb += np.maximum(n_, iv + tips) - np.maximum(n_, iv)
+        asked = np.zeros(len(self.phis), bool)
+        asked[idx] = True
+        for part in self._concave:
+            sel = np.flatnonzero(asked[part.tips.ai])
+            keep = _isolated(part.tips, sel, part.edges, part.obstacles, self.phis)
+            tips = np.bincount(part.tips.ai[sel[keep]], minlength=len(self.phis))[idx]
+            n, iv = part.n[idx], part.intervals[idx]
+            lb += np.maximum(n, iv + tips) - np.maximum(n, iv)
         return lb
 
 
