@@ -109,21 +109,40 @@ def _narrow_notch_lines(
     bound a gap only at a reflex local extremum (a notch tip): the gap widens linearly
     from the tip, so the lines closer to it than where the width reaches w/2 are counted
     (:func:`_notch_tip_lines`). Two edges not sharing a vertex bound a narrow gap only
-    if they come closer than w/2 (angle-independent, found once with an STRtree); every
+    if they come closer than w/2 (angle-independent, :func:`_edge_pairs_within`); every
     line on which they are less than w/2 apart is counted. The sum over-counts, which
     keeps the bound a lower bound.
     """
     gaps = _notch_tip_lines(v, X, Y, lines, w)
-    a = v.xy
-    b = v.xy[v.next]
-    segs = shapely.linestrings(np.stack([a, b], 1))
-    i, j = shapely.STRtree(segs).query(segs, predicate="dwithin", distance=0.5 * w + _EPS)
-    keep = (i < j) & (v.next[i] != j) & (v.next[j] != i)
-    i, j = i[keep], j[keep]
+    i, j = _edge_pairs_within(v, 0.5 * w + _EPS)
     if len(i):
         lo, hi = _closer_than(X, Y, v.next, i, j, 0.5 * w)
         gaps += lines.between(lo - _EPS, hi + _EPS).sum(0)
     return gaps
+
+
+_PAIRWISE_MAX_EDGES = 256  # up to here all edge pairs' boxes are compared at once
+
+
+def _edge_pairs_within(v: _Vertices, d: float) -> tuple[np.ndarray, np.ndarray]:
+    """The pairs (i, j), i < j, of edges not sharing a vertex that come within d.
+
+    Candidates are the pairs whose bounding boxes, grown by d, overlap: all pairs at
+    once up to ``_PAIRWISE_MAX_EDGES`` edges (cheaper than building a tree for a few
+    dozen), an STRtree beyond; GEOS decides the distance of the candidates."""
+    a, b = v.xy, v.xy[v.next]
+    segs = shapely.linestrings(np.stack([a, b], 1))
+    if len(segs) > _PAIRWISE_MAX_EDGES:
+        i, j = shapely.STRtree(segs).query(segs, predicate="dwithin", distance=d)
+    else:
+        lo, hi = np.minimum(a, b) - d, np.maximum(a, b) + d
+        near = (lo[:, None, 0] <= hi[None, :, 0]) & (lo[None, :, 0] <= hi[:, None, 0])
+        near &= (lo[:, None, 1] <= hi[None, :, 1]) & (lo[None, :, 1] <= hi[:, None, 1])
+        i, j = np.nonzero(np.triu(near, 1))
+        close = shapely.dwithin(segs[i], segs[j], d)
+        i, j = i[close], j[close]
+    keep = (i < j) & (v.next[i] != j) & (v.next[j] != i)
+    return i[keep], j[keep]
 
 
 def _notch_tip_lines(
@@ -233,14 +252,12 @@ def _segments_hit_boxes(
 @dataclass(frozen=True)
 class _EdgeBoxes:
     """The edges i -> next[i] of one part at every angle, one row per angle (so that a
-    tip's row is one contiguous read): end points and bounding boxes."""
+    tip's row is one contiguous read): end points and height ranges."""
 
     xa: np.ndarray  # (angles, V)
     ya: np.ndarray
     xb: np.ndarray
     yb: np.ndarray
-    xlo: np.ndarray
-    xhi: np.ndarray
     ylo: np.ndarray
     yhi: np.ndarray
 
@@ -248,16 +265,7 @@ class _EdgeBoxes:
     def of(cls, X: np.ndarray, Y: np.ndarray, nxt: np.ndarray) -> _EdgeBoxes:
         xa, ya = np.ascontiguousarray(X.T), np.ascontiguousarray(Y.T)
         xb, yb = xa[:, nxt], ya[:, nxt]
-        return cls(
-            xa,
-            ya,
-            xb,
-            yb,
-            np.minimum(xa, xb),
-            np.maximum(xa, xb),
-            np.minimum(ya, yb),
-            np.maximum(ya, yb),
-        )
+        return cls(xa, ya, xb, yb, np.minimum(ya, yb), np.maximum(ya, yb))
 
 
 def _edges_meet_boxes(
@@ -462,8 +470,8 @@ class AnalyticBounds:
                 self.weak += n  # a convex part: one piece per strip, the strip count
                 continue
             lines = _Lines(y0, n, w)
-            Yn = Y[v.next]
-            crossings = lines.between(np.minimum(Y, Yn), np.maximum(Y, Yn)).sum(0)
+            k = lines.below(Y)  # edge i crosses the lines between k[i] and k[next[i]]
+            crossings = np.abs(k[v.next] - k).sum(0)
             intervals = crossings // 2 - _narrow_notch_lines(v, X, Y, lines, w)
             self.weak += np.maximum(n, intervals)
             self._concave.append(

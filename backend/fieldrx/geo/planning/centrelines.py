@@ -108,10 +108,12 @@ class CentreLineCutter:
             x0s.append(x0)
             x1s.append(x1)
             off += n + 1
-        cat = np.concatenate
+        if len(lines) == 1:
+            return CentreLines(lines[0], ys[0], x0s[0], x1s[0], count)
         if not lines:
             z = np.zeros(0)
             return CentreLines(z.astype(np.int64), z, z, z, 0)
+        cat = np.concatenate
         return CentreLines(cat(lines), cat(ys), cat(x0s), cat(x1s), count)
 
 

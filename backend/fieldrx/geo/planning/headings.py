@@ -35,7 +35,8 @@ def edge_angles(geom: BaseGeometry, max_ring_edges: int = 64) -> np.ndarray:
             lens.append(np.hypot(e[:, 0], e[:, 1]))
     a = np.concatenate(angs) if angs else np.zeros(0)
     ln = np.concatenate(lens) if lens else np.zeros(0)
-    a = a[np.argsort(-ln)][:max_ring_edges][ln[np.argsort(-ln)][:max_ring_edges] > 1e-6]
+    top = np.argsort(-ln)[:max_ring_edges]
+    a = a[top[ln[top] > 1e-6]]
     hull = geom.convex_hull
     if isinstance(hull, Polygon) and not hull.is_empty:
         e = np.diff(np.asarray(hull.exterior.coords), axis=0)
@@ -272,18 +273,19 @@ def _branch_and_bound(
 
     Each step does the cheapest thing that can raise the least key: full analytic bound
     (lazily, :func:`_tighten`: a weak bound is never above the full one, so the angle
-    taken is the one the full bounds alone would give), then the probe's scan-line
-    bound, then the second criterion (-inf until known), then the layout (``count_at``:
-    the objective there is the swath count and the second criterion already known, so
-    the centre lines are not cut twice). A key only rises towards the objective, so an
-    angle left when the least key reaches the best value cannot beat it.
+    taken is the one the full bounds alone would give), then the probe (the centre
+    lines: their scan-line bound, and the second criterion, -inf until known), then the
+    layout (``count_at``: the objective there is the swath count and the second
+    criterion already known, so the centre lines are not cut twice). A key only rises
+    towards the objective, so an angle left when the least key reaches the best value
+    cannot beat it.
     """
     angles = bounds.phis
     lb = bounds.weak.copy()
     sec = np.full(len(angles), -np.inf)
     full = np.zeros(len(angles), bool)
+    probed = np.zeros(len(angles), bool)
     open_ = np.ones(len(angles), bool)
-    lines: dict[int, CentreLines] = {}
     results: dict[float, tuple[int, float]] = {}
     best: tuple[float, float] = (math.inf, math.inf)
     while open_.any():
@@ -294,14 +296,14 @@ def _branch_and_bound(
             break
         if not full[j]:
             _tighten(bounds, lb, full, open_, j, best[0])
-        elif j not in lines:
-            lines[j] = probe(float(angles[j]))
-            lb[j] = max(int(lb[j]), lines[j].count)
-        elif sec[j] == -np.inf:
-            sec[j] = secondary(lines[j])
+        elif not probed[j]:
+            lines = probe(float(angles[j]))
+            probed[j] = True
+            lb[j] = max(int(lb[j]), lines.count)
+            sec[j] = secondary(lines)
         else:
             phi = float(angles[j])
             results[phi] = (count_at(phi), float(sec[j]))
             best = min(best, results[phi])
             open_[j] = False
-    return results, len(lines)
+    return results, int(probed.sum())
