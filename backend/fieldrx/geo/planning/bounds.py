@@ -181,7 +181,9 @@ def _notch_tip_lines(
     k0 = np.minimum(np.maximum(np.ceil((lo - y0) / w - 0.5), 0), n).astype(np.int64)
     k1 = np.minimum(np.maximum(np.ceil((hi - y0) / w - 0.5), 0), n).astype(np.int64)
     cnt = np.maximum(k1 - k0, 0)
-    # one row per (tip, line in its zone); most tips are crossed by no line in their zone
+    if not cnt.any():  # most tips are crossed by no line in their zone, often all
+        return out
+    # one row per (tip, line in its zone)
     t = np.repeat(np.arange(len(cnt)), cnt)
     m = np.arange(len(t)) - np.repeat(np.cumsum(cnt) - cnt, cnt)
     y, x, kp, kn, sgn, reach = (a[t] for a in (y, x, kp, kn, sgn, reach))

@@ -152,12 +152,13 @@ def chains(cl: CentreLines) -> tuple[np.ndarray, np.ndarray]:
     return np.asarray(order, np.int64), np.asarray(starts, np.int64)
 
 
-def _block_turns(cl: CentreLines, order: np.ndarray, starts: np.ndarray) -> float:
-    """Straight turn lengths inside the blocks, each block in its better parity (the
-    planner chooses whether a block's first pass runs +x or -x)."""
+def _block_turns(cl: CentreLines, order: np.ndarray, starts: np.ndarray, size: np.ndarray) -> float:
+    """Straight turn lengths inside the blocks (``size`` intervals from ``starts`` in
+    ``order``), each block in its better parity (the planner chooses whether a block's
+    first pass runs +x or -x)."""
     if len(order) < 2:
         return 0.0
-    block = np.repeat(np.arange(len(starts)), np.diff(starts, append=len(order)))
+    block = np.repeat(np.arange(len(starts)), size)
     pos = np.arange(len(order)) - starts[block]
     same = block[1:] == block[:-1]  # turn from order[t] to order[t + 1]
     a, b = order[:-1][same], order[1:][same]
@@ -171,11 +172,10 @@ def _block_turns(cl: CentreLines, order: np.ndarray, starts: np.ndarray) -> floa
     return float(np.minimum(par_a, par_b).sum())
 
 
-def _hops(cl: CentreLines, order: np.ndarray, starts: np.ndarray) -> float:
+def _hops(cl: CentreLines, order: np.ndarray, starts: np.ndarray, size: np.ndarray) -> float:
     """Greedy block-to-block hops: from the end of the first block to the nearest block
     entry, and so on (each block entered at its first interval's x0 and left at its last
     one's far end, first pass +x)."""
-    size = np.diff(starts, append=len(order))
     first, last = order[starts], order[starts + size - 1]
     ex = np.where(size % 2 == 1, cl.x1[last], cl.x0[last])
     d = np.hypot(ex[:, None] - cl.x0[first][None, :], cl.y[last][:, None] - cl.y[first][None, :])
@@ -200,4 +200,7 @@ def nonworking_estimate(cl: CentreLines) -> float:
     if not len(cl.line):
         return 0.0
     order, starts = chains(cl)
-    return _block_turns(cl, order, starts) + _hops(cl, order, starts)
+    size = np.empty_like(starts)
+    size[:-1] = starts[1:] - starts[:-1]
+    size[-1] = len(order) - starts[-1]
+    return _block_turns(cl, order, starts, size) + _hops(cl, order, starts, size)
