@@ -13,15 +13,16 @@ brute-force scan.
   ``O(vertices x angles)``): centre-line intervals (edge crossings / 2), minus an upper
   bound on the notches narrower than w/2 that the planner bridges (``weak``), plus
   the isolated spike tips that no centre line reaches (each such tip is a strip piece
-  of its own, hence a swath; ``full``, asked for the angles the search may still take).
-* :func:`crossing_lower_bounds` -- the centre-line intervals with the exact w/2 bridging
-  rule, per angle (finer, ~100x dearer than the analytic bound, ~30x cheaper than a
-  layout); used on the few angles the analytic bound cannot prune.
+  of its own, hence a swath; ``full``: the tips are found for every angle at once, their
+  isolation tested only for the angles the search may still take).
+
+The finer, per-angle scan-line bound (the centre-line intervals with the exact w/2
+bridging rule) is the heading search's probe, ``CentreLines.count`` of
+:mod:`.centrelines`.
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -30,7 +31,7 @@ from shapely.geometry import Polygon
 from shapely.geometry.base import BaseGeometry
 from shapely.geometry.polygon import orient
 
-from .swaths import N_EPS, n_strips
+from .swaths import N_EPS
 
 _EPS = 1e-9  # metres: ties at band edges are resolved towards the smaller bound
 _CHAIN_STEPS = 12  # vertices followed from a spike tip before giving the tip up
@@ -512,57 +513,3 @@ def analytic_lower_bounds(
     (:class:`AnalyticBounds`, full bound everywhere)."""
     ab = AnalyticBounds(parts, w, phis, tol, holes)
     return ab.full(np.arange(len(ab.phis)))
-
-
-def crossing_lower_bounds(
-    parts: list[Polygon], w: float, phis: np.ndarray, tol: float = 0.0
-) -> np.ndarray:
-    """Swath-count lower bound per angle, from scan-line crossings (pure numpy).
-
-    Every strip of a part holds at least one swath, and at least one per interval its
-    centre line cuts out of the part (the planner splits a strip piece wherever its centre
-    line leaves the region), except intervals closer than w/2, which the planner may
-    bridge and which count once here; so the sum over strips is <= the swath count.
-    """
-    lb = np.zeros(len(phis), dtype=np.int64)
-    for p in parts:
-        c0 = np.asarray(p.centroid.coords[0])
-        ext = np.asarray(p.exterior.coords) - c0
-        rings = [ext] + [np.asarray(r.coords) - c0 for r in p.interiors]
-        a = np.concatenate([r[:-1] for r in rings])
-        b = np.concatenate([r[1:] for r in rings])
-        for k, phi in enumerate(phis):
-            sn, cs = math.sin(phi), math.cos(phi)
-            ya = -a[:, 0] * sn + a[:, 1] * cs
-            yb = -b[:, 0] * sn + b[:, 1] * cs
-            ye = -ext[:, 0] * sn + ext[:, 1] * cs
-            y0 = ye.min()
-            n = n_strips(ye.max() - y0, w, tol)
-            ys = y0 + (np.arange(n) + 0.5) * w
-            lo = np.searchsorted(ys, np.minimum(ya, yb), side="left")
-            hi = np.searchsorted(ys, np.maximum(ya, yb), side="left")
-            cnt = hi - lo
-            e = np.repeat(np.arange(len(a)), cnt)
-            line = np.repeat(lo, cnt) + (
-                np.arange(cnt.sum()) - np.repeat(np.cumsum(cnt) - cnt, cnt)
-            )
-            xa = a[e, 0] * cs + a[e, 1] * sn
-            xb = b[e, 0] * cs + b[e, 1] * sn
-            t = (ys[line] - ya[e]) / (yb[e] - ya[e])
-            x = xa + t * (xb - xa)
-            order = np.lexsort((x, line))
-            line, x = line[order], x[order]
-            # crossings pair up into intervals; intervals closer than w/2 count once
-            # (the planner bridges such notches), so this stays a lower bound
-            starts = np.r_[0, np.flatnonzero(np.diff(line)) + 1]
-            pos = np.arange(len(line)) - np.repeat(starts, np.diff(np.r_[starts, len(line)]))
-            n_int = np.bincount(line, minlength=n) // 2
-            gap_start = (pos % 2 == 1) & (
-                pos + 1
-                < np.repeat(np.diff(np.r_[starts, len(line)]), np.diff(np.r_[starts, len(line)]))
-            )
-            gi = np.flatnonzero(gap_start)
-            small = (x[gi + 1] - x[gi]) < 0.5 * w
-            n_int = n_int - np.bincount(line[gi[small]], minlength=n)
-            lb[k] += int(np.maximum(1, n_int).sum())
-    return lb

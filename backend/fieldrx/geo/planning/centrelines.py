@@ -6,8 +6,8 @@ numpy, no GEOS) gives the centre-line intervals; gaps narrower than w/2 are brid
 the planner bridges such notches (:func:`.swaths._group`). Two uses:
 
 * the scan-line swath-count lower bound (``CentreLines.count``): every strip holds at
-  least one swath, and one per centre-line interval (:func:`.bounds.crossing_lower_bounds`
-  computes the same count for many angles);
+  least one swath, and one per centre-line interval (the heading search's probe, on the
+  few angles the analytic bounds of :mod:`.bounds` cannot prune);
 * the heading objective's second criterion (:func:`nonworking_estimate`): the turn and
   transfer distance of the intervals driven as swaths. It needs no swath layout, so the
   heading search can rank angles with equal swath-count bounds by it and lay out only

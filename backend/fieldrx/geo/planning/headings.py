@@ -190,16 +190,19 @@ def optimal_phi(
     second criterion), which is a lower bound on the objective at every candidate: every
     candidate gets the analytic swath-count lower bound (:class:`.bounds.AnalyticBounds`,
     all angles in one vectorised pass over the vertices, no swath generation), first
-    without its dearest term (the spike tips), which is added only for the angles the
-    search may still take. The candidate of least key is then, in turn: tightened (full
-    analytic bound), probed (its centre-line layout, :mod:`.centrelines`: the scan-line
-    count bound, a few per cent of a layout), given its second criterion (exact, from
-    the same centre lines), and only then evaluated (one swath layout). The search stops
-    when the least key is not below the best value found. The count bound equals the
-    true count at the optimum on the bench fields, so one layout usually decides, ties
-    in the count included: they are ranked by the exact second criterion before any
-    layout (with the layout-based estimate, each tied whole degree cost a layout: 2-3
-    on four bench fields at 12 m, about 180 / k times faster than the 1-degree scan).
+    without its dearest term (the isolation test of the spike tips), which is added
+    only for the angles the search may still take. The candidate of least key is then,
+    in turn: tightened (full analytic bound), probed (its centre-line layout,
+    :mod:`.centrelines`: the scan-line count bound and the exact second criterion, a few
+    per cent of a layout), and only then evaluated (one swath layout: the count; the
+    second criterion is the probe's). The search stops when the least key is not below
+    the best value found. The count bound equals the true count at the optimum on the
+    bench fields, so one layout usually decides, ties in the count included: they are
+    ranked by the exact second criterion before any layout (with the layout-based
+    estimate, each tied whole degree cost a layout: 2-3 on four bench fields at 12 m).
+    What is left is the bounds' and probes' own cost, numpy's per-call overhead mostly
+    (about 2 ms on the irregular 40-vertex field at 12 m beside a 3.2 ms layout, 0.9 ms
+    beside 0.8 ms on the L at 12 m; ``bench/planning.py`` prints the speed-ups).
     The longest edge is first among equal keys and wins exact ties, so ``optimal`` is
     never worse than ``longest_edge`` by the objective.
     """

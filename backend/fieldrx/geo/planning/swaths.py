@@ -238,7 +238,7 @@ def _group(st: _Strips, y: float, cand: list[tuple]) -> list[list]:
     A notch narrower than half the working width does not split a swath: the implement
     cannot work it anyway, and traced boundaries are full of such teeth. Two swaths on
     the centre line merge when the gap between the centre-line intervals is < w/2 (the
-    rule crossing_lower_bounds counts with); a piece the centre line misses joins a
+    rule the centre-line count of :mod:`.centrelines` uses); a piece the centre line misses joins a
     neighbour closer than w/2.
     """
     groups: list[list] = []
