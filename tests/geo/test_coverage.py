@@ -422,3 +422,28 @@ def test_headland_rings_are_rounded_to_r_inside_the_field_and_clear_of_holes(fie
     assert corner_loss(field, 2.3, 2, rings) > 0  # reported, not hidden
     if field.area < 1000:  # the 35 m x 23 m plot: 10 swaths without headland
         assert plan_coverage(field, 2.3, "optimal", turn_radius_m=radius).n_swaths == 10
+
+
+def test_analytic_bound_survives_a_flat_edge_near_another():
+    # issue 16: a slot whose flat top lies 15 m below the field's flat top edge (closer
+    # than w/2). At heading 0 both edges are horizontal; the narrow-gap term gave the
+    # pair a NaN height, whose int cast is INT64_MIN, and INT64_MIN minus the two lines
+    # below the pair wrapped round to a huge gap count: the bound fell to the strip
+    # count (3) at the angle the search tries first, the longest edge's
+    import warnings
+
+    from fieldrx.geo.planning.bounds import AnalyticBounds
+    from fieldrx.geo.planning.swaths import default_strip_tolerance
+
+    f = Polygon(
+        [(0, 0), (140, 0), (140, 85), (160, 85), (160, 0), (300, 0), (300, 100), (0, 100)]
+    )
+    w = 36.0
+    tol = default_strip_tolerance(w)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no "invalid value encountered in cast"
+        bounds = AnalyticBounds([f], w, np.array([0.0]), tol)
+        full = bounds.full(np.array([0]))
+    n = swath_count(f, w, 0.0, f, tol)
+    assert n == 5  # three strips, the lower two split by the 20 m slot
+    assert bounds.weak[0] == full[0] == 5
