@@ -278,8 +278,8 @@ def _edges_meet_boxes(
     own: np.ndarray,
 ) -> np.ndarray:
     """Per box (at the angle of row ``rows`` of ``edges``), whether any edge except the
-    box's ``own`` edges (a row per box, -1 for none) meets it: bounding boxes first,
-    exact clipping on the rest."""
+    box's ``own`` edges (a row per box, -1 for none) meets it: height ranges first,
+    the exact test (:func:`_segments_hit_boxes`) on the rest."""
     x0, x1, y0, y1 = box
     near = edges.ylo[rows] <= y1[:, None]  # the band is thin: few edges reach it
     near &= edges.yhi[rows] >= y0[:, None]

@@ -179,14 +179,13 @@ def _hops(cl: CentreLines, order: np.ndarray, starts: np.ndarray, size: np.ndarr
     first, last = order[starts], order[starts + size - 1]
     ex = np.where(size % 2 == 1, cl.x1[last], cl.x0[last])
     d = np.hypot(ex[:, None] - cl.x0[first][None, :], cl.y[last][:, None] - cl.y[first][None, :])
-    rows = d.tolist()  # a few dozen blocks: plain Python beats a numpy call per step
-    left = list(range(1, len(starts)))  # ascending: min() keeps the lowest of equals
+    d[:, 0] = np.inf
     total, cur = 0.0, 0
-    while left:
-        row = rows[cur]
-        cur = min(left, key=row.__getitem__)
-        total += row[cur]
-        left.remove(cur)
+    for _ in range(len(starts) - 1):
+        k = int(np.argmin(d[cur]))
+        total += float(d[cur, k])
+        d[:, k] = np.inf
+        cur = k
     return total
 
 
@@ -200,7 +199,5 @@ def nonworking_estimate(cl: CentreLines) -> float:
     if not len(cl.line):
         return 0.0
     order, starts = chains(cl)
-    size = np.empty_like(starts)
-    size[:-1] = starts[1:] - starts[:-1]
-    size[-1] = len(order) - starts[-1]
+    size = np.diff(starts, append=len(order))
     return _block_turns(cl, order, starts, size) + _hops(cl, order, starts, size)
