@@ -12,6 +12,15 @@ from fieldrx_edge.sim.simulator import SimConfig, simulate
 from .jobfactory import trial_plot
 
 
+class FakeDecision:
+    """A metering decision as the runtime makes it (the fields the TC reads and writes)."""
+
+    def __init__(self, rate: float = 700.0) -> None:
+        self.target_rate_kg_ha, self.metering, self.speed_m_s = rate, True, 2.0
+        self.target_rpm, self.reason = 80.0, "metering"
+        self.alarms: list[str] = []
+
+
 class Recorder:
     """Wraps the pair: records what the ECU had applied after every fix."""
 
@@ -84,13 +93,16 @@ def test_client_loss_raises_the_alarm_and_pauses_metering():
     pair.close()
 
 
-def test_wrong_ddop_is_refused_with_an_alarm():
+def test_a_valid_pool_this_tc_cannot_drive_is_activated_with_an_alarm_not_refused():
+    """Before, a volume-rate pool with a kg/ha job and no density was refused as "errors in
+    the DDOP" (activation error 0x01), after which clients give up for good; it is a valid
+    pool, so it is activated, nothing is metered and the record says why."""
     from fieldrx_edge.isobus.ddop import DeviceDescriptor
 
     job = trial_plot()
     pair = IsobusPair(job)
     ecu = pair.ecu
-    # the implement only offers volume per area: this TC has no density to convert kg/ha
+    # the implement only offers volume per area: this job is kg/ha without a density
     objs = []
     for o in ecu.ddop.objects:
         if getattr(o, "ddi", None) == pdm.DDI_SETPOINT_MASS_PER_AREA:
@@ -98,14 +110,15 @@ def test_wrong_ddop_is_refused_with_an_alarm():
         objs.append(o)
     ecu.ddop = DeviceDescriptor(objs)
     ecu.pool = ecu.ddop.to_bytes()
-    try:
-        pair.connect(max_s=3.0)
-        raise AssertionError("a volume-only implement must not be activated without a density")
-    except RuntimeError:
-        pass
-    assert ecu.state == "rejected" and "isobus_ddop_rejected" in ecu.alarms
-    assert "isobus_wrong_ddop" in pair.tc.alarms and pair.tc.client is None
-    assert "DDI 1" in next(iter(pair.tc.clients.values())).error
+    pair.connect(max_s=3.0)
+    assert ecu.state == "connected" and "isobus_ddop_rejected" not in ecu.alarms
+    c = pair.tc.client
+    assert c is not None and not c.drivable and "DDI 1" in c.error
+    assert "isobus_cannot_drive" in pair.tc.alarms and "isobus_wrong_ddop" not in pair.tc.alarms
+    d = FakeDecision()
+    pair.step(0.1, d, 0.0)
+    assert d.metering is False and d.reason == "isobus_cannot_drive"
+    assert "isobus_cannot_drive" in d.alarms and ecu.rate_mg_m2 == 0
     # garbage instead of a pool: refused at transfer, never a crash
     pair2 = IsobusPair(job)
     pair2.ecu.pool = b"DVC\x01\x00\x05abc"  # truncated

@@ -30,10 +30,10 @@ from .test_isobus_network import Clock, channel, settle
 
 def seeder_ddop(name: Name) -> DeviceDescriptor:
     objs = [
-        Device(1, "Seeder 6m", "v2.1", name, "SN99", b"SEED001"),
+        Device(0, "Seeder 6m", "v2.1", name, "SN99", b"SEED001"),
         Presentation(50, 0, 0.01, 0, "kg/ha"),
-        Element(10, ELEMENT_DEVICE, "Seeder", 0, 1, [11]),
-        Element(11, ELEMENT_FUNCTION, "Boom", 1, 10, [20, 21, 22, 12]),
+        Element(10, ELEMENT_DEVICE, "Seeder", 0, 0, []),
+        Element(11, ELEMENT_FUNCTION, "Boom", 1, 10, [20, 21, 22]),
         ProcessData(20, pdm.DDI_SETPOINT_CONDENSED_WORK_STATE, PROP_SETTABLE, TRIG_CHANGE, "SC"),
         ProcessData(21, pdm.DDI_ACTUAL_CONDENSED_WORK_STATE, 0, TRIG_CHANGE, "AC"),
         Property(22, pdm.DDI_ACTUAL_WORKING_WIDTH, 6000, "Width"),
@@ -43,7 +43,6 @@ def seeder_ddop(name: Name) -> DeviceDescriptor:
     ]
     for k in range(8):
         objs.append(Element(100 + k, ELEMENT_SECTION, f"S{k + 1}", 20 + k, 11, []))
-        objs[3].children.append(100 + k)
     return DeviceDescriptor(objs)
 
 

@@ -1,15 +1,27 @@
 """ISO 11783-10 device descriptor object pool (DDOP), binary transfer format.
 
 Every object starts with its three-letter table id and its 16-bit object id; all integers
-are little-endian, strings are length-prefixed (1 byte) UTF-8/ISO 8859-1:
+are little-endian, strings are length-prefixed (1 byte) UTF-8 (ISO 11783-10:2015 Annex A,
+object definitions; Annex B.1 binary format):
 
     DVC  id | designator | software version | working-set NAME (8) | serial number |
-         structure label (7) | localization label (7) [| ext. structure label length + bytes]
+         structure label (7) | localization label (7) |
+         [version >= 4: extended structure label length (1, always present, 0 when
+          there is none) + up to 32 bytes]
     DET  id | element type (1) | designator | element number (2) | parent object id (2) |
-         number of children (2) | child object ids (2 each)
+         number of objects to follow (2) | object ids (2 each) of its DPD / DPT objects
     DPD  id | DDI (2) | properties (1) | trigger methods (1) | designator | DVP object id (2)
     DPT  id | DDI (2) | value (int32) | designator | DVP object id (2)
     DVP  id | offset (int32) | scale (float32) | number of decimals (1) | unit designator
+
+Pool rules checked (Annex A: A.2 DVC, A.3 DET, A.4 DPD, A.5 DPT, A.6 DVP): one DVC, and it
+is object 0; exactly one device element (type 1), whose parent is the DVC; every other
+element's parent is an element, and the parents lead to the device element without a
+cycle (the element tree is given by the parent ids, never by child lists); an element's
+"objects to follow" are its own DPD and DPT objects only; element numbers unique and at
+most 4095 (12 bits in a process data message); object ids unique and not 0xFFFF ("no
+object"); every DVP reference resolves to a DVP; designators at most 32 bytes before
+version 4 and 128 bytes from version 4 on; reserved property / trigger bits clear.
 
 Element types: 1 device, 2 function, 3 bin, 4 section, 5 unit, 6 connector, 7 navigation.
 DPD properties: bit 0 member of default set, bit 1 settable, bit 2 control source.
@@ -19,9 +31,13 @@ scale with the given decimals and unit); the value on the bus stays in the DDI's
 resolution. Object id 0xFFFF means "no object".
 
 Public descriptions used: AgIsoStack++ ``isobus_task_controller_client_objects.cpp``
-(``get_binary_object`` of DeviceObject, DeviceElementObject, DeviceProcessDataObject,
-DevicePropertyObject, DeviceValuePresentationObject) and the isoxml package's DDI table
-(isoxml.models.ddi_entities, from isobus.net's data dictionary) for DDI units.
+(``get_binary_object`` of DeviceObject with its version-4 extended structure label byte,
+DeviceElementObject, DeviceProcessDataObject, DevicePropertyObject,
+DeviceValuePresentationObject) and ``isobus_device_descriptor_object_pool.cpp``
+(designator limits per version, child references of elements), its task controller
+client example pool (device object 0, device element parent 0, element children = its
+DPD/DPT objects), and the isoxml package's DDI table (isoxml.models.ddi_entities, from
+isobus.net's data dictionary) for DDI units.
 """
 
 from __future__ import annotations
@@ -33,11 +49,14 @@ from dataclasses import dataclass, field
 from fieldrx_edge.isobus.j1939 import Name
 
 NULL_ID = 0xFFFF
+DEVICE_OBJECT_ID = 0  # the DVC's object id (ISO 11783-10 Annex A.2)
 
 ELEMENT_DEVICE = 1
 ELEMENT_FUNCTION = 2
 ELEMENT_BIN = 3
 ELEMENT_SECTION = 4
+ELEMENT_NAVIGATION = 7
+MAX_ELEMENT_NUMBER = 4095
 
 PROP_DEFAULT_SET = 0x01
 PROP_SETTABLE = 0x02
@@ -49,14 +68,37 @@ TRIG_THRESHOLD = 0x04
 TRIG_CHANGE = 0x08
 TRIG_TOTAL = 0x10
 
+DDOP_VERSION = 4  # the TC / client version whose layout FieldRx writes
+MAX_EXT_LABEL = 32
+
+# activation response byte 6, "object pool error codes" (ISO 11783-10 B.5.17, AgIsoStack++
+# ObjectPoolErrorCodes)
+POOL_ERR_NOT_SUPPORTED = 0x01
+POOL_ERR_UNKNOWN_REFERENCE = 0x02
+POOL_ERR_OTHER = 0x04
+
+
+def max_designator(version: int) -> int:
+    """Designator bytes allowed: 32 up to version 3, 128 (UTF-8) from version 4."""
+    return 128 if version >= 4 else 32
+
 
 class DdopError(ValueError):
-    """A device descriptor that cannot be parsed or used; ``object_id`` names the culprit."""
+    """A device descriptor that cannot be parsed or used; ``object_id`` names the culprit,
+    ``parent_id`` its parent, ``code`` the object-pool error code for the activation
+    response."""
 
-    def __init__(self, msg: str, object_id: int = NULL_ID, parent_id: int = NULL_ID) -> None:
+    def __init__(
+        self,
+        msg: str,
+        object_id: int = NULL_ID,
+        parent_id: int = NULL_ID,
+        code: int = POOL_ERR_OTHER,
+    ) -> None:
         super().__init__(msg)
         self.object_id = object_id
         self.parent_id = parent_id
+        self.code = code
 
 
 @dataclass
@@ -115,10 +157,10 @@ class Presentation:
 Obj = Device | Element | ProcessData | Property | Presentation
 
 
-def _s(text: str | bytes) -> bytes:
+def _s(text: str | bytes, limit: int = 255) -> bytes:
     b = text.encode("utf-8") if isinstance(text, str) else text
-    if len(b) > 255:
-        raise DdopError(f"designator longer than 255 bytes: {b[:20]!r}...")
+    if len(b) > limit:
+        raise DdopError(f"designator longer than {limit} bytes: {b[:20]!r}...")
     return bytes((len(b),)) + b
 
 
@@ -126,35 +168,40 @@ def _label(b: bytes) -> bytes:
     return (bytes(b) + b" " * 7)[:7]
 
 
-def encode_object(o: Obj) -> bytes:
+def encode_object(o: Obj, version: int = DDOP_VERSION) -> bytes:
+    """One object in the binary layout of TC ``version`` (module docstring)."""
+    lim = max_designator(version)
     if isinstance(o, Device):
-        out = b"DVC" + struct.pack("<H", o.object_id) + _s(o.designator) + _s(o.software_version)
-        out += o.name.to_bytes() + _s(o.serial_number)
+        out = b"DVC" + struct.pack("<H", o.object_id) + _s(o.designator, lim)
+        out += _s(o.software_version, lim) + o.name.to_bytes() + _s(o.serial_number, lim)
         out += _label(o.structure_label) + _label(o.localization_label)
-        if o.extended_structure_label is not None:
-            out += _s(o.extended_structure_label)
+        if version >= 4:  # A.2: the length byte is always there from version 4 on
+            out += _s(o.extended_structure_label or b"", MAX_EXT_LABEL)
+        elif o.extended_structure_label:
+            raise DdopError("an extended structure label needs TC version 4", o.object_id)
         return out
     if isinstance(o, Element):
-        out = b"DET" + struct.pack("<HB", o.object_id, o.element_type) + _s(o.designator)
+        out = b"DET" + struct.pack("<HB", o.object_id, o.element_type) + _s(o.designator, lim)
         out += struct.pack("<HHH", o.element_number, o.parent_id, len(o.children))
         return out + b"".join(struct.pack("<H", c) for c in o.children)
     if isinstance(o, ProcessData):
         out = b"DPD" + struct.pack("<HHBB", o.object_id, o.ddi, o.properties, o.triggers)
-        return out + _s(o.designator) + struct.pack("<H", o.presentation_id)
+        return out + _s(o.designator, lim) + struct.pack("<H", o.presentation_id)
     if isinstance(o, Property):
         out = b"DPT" + struct.pack("<HHi", o.object_id, o.ddi, o.value)
-        return out + _s(o.designator) + struct.pack("<H", o.presentation_id)
+        return out + _s(o.designator, lim) + struct.pack("<H", o.presentation_id)
     if isinstance(o, Presentation):
         out = b"DVP" + struct.pack("<Hif", o.object_id, o.offset, o.scale)
-        return out + bytes((o.decimals & 0xFF,)) + _s(o.unit)
+        return out + bytes((o.decimals & 0xFF,)) + _s(o.unit, lim)
     raise TypeError(f"not a DDOP object: {o!r}")
 
 
 class _Reader:
-    def __init__(self, data: bytes) -> None:
+    def __init__(self, data: bytes, version: int) -> None:
         self.d = data
         self.i = 0
         self.obj = NULL_ID
+        self.limit = max_designator(version)
 
     def take(self, n: int) -> bytes:
         if self.i + n > len(self.d):
@@ -177,51 +224,65 @@ class _Reader:
     def f32(self) -> float:
         return struct.unpack("<f", self.take(4))[0]
 
-    def text(self) -> str:
-        return self.take(self.u8()).decode("utf-8", errors="replace")
+    def text(self, what: str = "designator", limit: int | None = None) -> str:
+        at = self.i
+        n = self.u8()
+        lim = self.limit if limit is None else limit
+        if n > lim:
+            raise DdopError(
+                f"object {self.obj}: {what} of {n} bytes at byte {at} (at most {lim})", self.obj
+            )
+        raw = self.take(n)
+        try:
+            return raw.decode("utf-8")
+        except UnicodeDecodeError:
+            return raw.decode("latin-1")  # ISO 8859-1 designators of version 3 pools
 
 
-def parse(data: bytes, version: int = 4) -> DeviceDescriptor:
-    """Parse a binary DDOP (ISO 11783-10 version >= 4 reads the DVC's extended label only
-    when bytes remain before the next object). Raises ``DdopError`` on any inconsistency."""
-    r = _Reader(bytes(data))
+def _read_object(r: _Reader, tag: bytes, oid: int, version: int) -> Obj:
+    if tag == b"DVC":
+        desig, sw = r.text(), r.text("software version")
+        name = Name.from_bytes(r.take(8))
+        serial = r.text("serial number")
+        sl, ll = r.take(7), r.take(7)
+        ext = None
+        if version >= 4:  # always present at version 4 (0 = no extended label)
+            n = r.u8()
+            if n > MAX_EXT_LABEL:
+                raise DdopError(
+                    f"DVC {oid}: extended structure label of {n} bytes (at most 32)", oid
+                )
+            ext = r.take(n) if n else None
+        return Device(oid, desig, sw, name, serial, sl, ll, ext)
+    if tag == b"DET":
+        et = r.u8()
+        desig = r.text()
+        num, parent, n = r.u16(), r.u16(), r.u16()
+        return Element(oid, et, desig, num, parent, [r.u16() for _ in range(n)])
+    if tag == b"DPD":
+        ddi, props, trig = r.u16(), r.u8(), r.u8()
+        return ProcessData(oid, ddi, props, trig, r.text(), r.u16())
+    if tag == b"DPT":
+        ddi, val = r.u16(), r.i32()
+        return Property(oid, ddi, val, r.text(), r.u16())
+    if tag == b"DVP":
+        off, scale, dec = r.i32(), r.f32(), r.u8()
+        return Presentation(oid, off, scale, dec, r.text("unit designator"))
+    raise DdopError(f"unknown object type {tag!r} at byte {r.i - 5}", oid)
+
+
+def parse(data: bytes, version: int = DDOP_VERSION) -> DeviceDescriptor:
+    """Parse a binary DDOP in the layout of the client's TC ``version`` and check the pool
+    rules (module docstring). Raises ``DdopError`` naming the object on any violation."""
+    r = _Reader(bytes(data), version)
     objs: list[Obj] = []
     while r.i < len(r.d):
         tag = r.take(3)
         r.obj = NULL_ID
         oid = r.u16()
         r.obj = oid
-        o: Obj
-        if tag == b"DVC":
-            desig, sw = r.text(), r.text()
-            name = Name.from_bytes(r.take(8))
-            serial = r.text()
-            sl, ll = r.take(7), r.take(7)
-            ext = None
-            if version >= 4 and r.i < len(r.d) and r.d[r.i : r.i + 3] not in _TAGS:
-                ext = r.take(r.u8())
-            o = Device(oid, desig, sw, name, serial, sl, ll, ext)
-        elif tag == b"DET":
-            et = r.u8()
-            desig = r.text()
-            num, parent, n = r.u16(), r.u16(), r.u16()
-            o = Element(oid, et, desig, num, parent, [r.u16() for _ in range(n)])
-        elif tag == b"DPD":
-            ddi, props, trig = r.u16(), r.u8(), r.u8()
-            o = ProcessData(oid, ddi, props, trig, r.text(), r.u16())
-        elif tag == b"DPT":
-            ddi, val = r.u16(), r.i32()
-            o = Property(oid, ddi, val, r.text(), r.u16())
-        elif tag == b"DVP":
-            off, scale, dec = r.i32(), r.f32(), r.u8()
-            o = Presentation(oid, off, scale, dec, r.text())
-        else:
-            raise DdopError(f"unknown object type {tag!r} at byte {r.i - 5}", r.obj)
-        objs.append(o)
-    return DeviceDescriptor(objs)
-
-
-_TAGS = (b"DVC", b"DET", b"DPD", b"DPT", b"DVP")
+        objs.append(_read_object(r, tag, oid, version))
+    return DeviceDescriptor(objs, version)
 
 
 @dataclass
@@ -236,44 +297,110 @@ class Binding:
 
 
 class DeviceDescriptor:
-    """A parsed pool with the references checked (ISO 11783-10 object-pool rules used:
-    exactly one DVC, object ids unique, every child and DVP reference resolves, every
-    element's parent is an element or the device)."""
+    """A pool with the ISO 11783-10 pool rules checked (module docstring); raises
+    ``DdopError`` naming the faulty object and its parent."""
 
-    def __init__(self, objects: list[Obj]) -> None:
+    def __init__(self, objects: list[Obj], version: int = DDOP_VERSION) -> None:
         self.objects = objects
+        self.version = version
         self.by_id: dict[int, Obj] = {}
         for o in objects:
-            if o.object_id in self.by_id:
-                raise DdopError(f"object id {o.object_id} used twice", o.object_id)
+            if o.object_id in self.by_id or o.object_id == NULL_ID:
+                raise DdopError(f"object id {o.object_id} used twice or reserved", o.object_id)
             self.by_id[o.object_id] = o
         devs = [o for o in objects if isinstance(o, Device)]
         if len(devs) != 1:
             raise DdopError(f"a DDOP needs exactly one DVC object, found {len(devs)}")
         self.device = devs[0]
+        if self.device.object_id != DEVICE_OBJECT_ID:
+            raise DdopError(
+                f"the DVC object has id {self.device.object_id}; the device object is object 0",
+                self.device.object_id,
+            )
         self.elements = [o for o in objects if isinstance(o, Element)]
-        for e in self.elements:
-            for c in e.children:
-                ch = self.by_id.get(c)
-                if not isinstance(ch, ProcessData | Property | Element):
-                    raise DdopError(
-                        f"element {e.object_id} references missing child {c}", c, e.object_id
-                    )
-            if e.element_type != ELEMENT_DEVICE:
-                par = self.by_id.get(e.parent_id)
-                if not isinstance(par, Element | Device):
-                    raise DdopError(
-                        f"element {e.object_id} has no parent {e.parent_id}", e.object_id
-                    )
+        self._check_elements()
+        self._check_children()
         for o in objects:
             pid = getattr(o, "presentation_id", NULL_ID)
             if pid != NULL_ID and not isinstance(self.by_id.get(pid), Presentation):
                 raise DdopError(
-                    f"object {o.object_id} references missing DVP {pid}", pid, o.object_id
+                    f"object {o.object_id} references missing DVP {pid}",
+                    pid,
+                    o.object_id,
+                    POOL_ERR_UNKNOWN_REFERENCE,
+                )
+            if isinstance(o, ProcessData) and (o.properties & ~0x07 or o.triggers & ~0x1F):
+                raise DdopError(
+                    f"DPD {o.object_id}: reserved property/trigger bits set "
+                    f"(0x{o.properties:02X} / 0x{o.triggers:02X})",
+                    o.object_id,
+                    code=POOL_ERR_NOT_SUPPORTED,
                 )
 
-    def to_bytes(self) -> bytes:
-        return b"".join(encode_object(o) for o in self.objects)
+    def _check_elements(self) -> None:
+        devices = [e for e in self.elements if e.element_type == ELEMENT_DEVICE]
+        if len(devices) != 1:
+            raise DdopError(f"a DDOP needs exactly one device element, found {len(devices)}")
+        numbers: set[int] = set()
+        for e in self.elements:
+            if not 1 <= e.element_type <= ELEMENT_NAVIGATION:
+                raise DdopError(f"element {e.object_id} has type {e.element_type}", e.object_id)
+            if e.element_number > MAX_ELEMENT_NUMBER or e.element_number in numbers:
+                raise DdopError(
+                    f"element {e.object_id}: element number {e.element_number} repeated or "
+                    f"above {MAX_ELEMENT_NUMBER}",
+                    e.object_id,
+                    e.parent_id,
+                )
+            numbers.add(e.element_number)
+            if e.element_type == ELEMENT_DEVICE:
+                if e.parent_id != self.device.object_id:
+                    raise DdopError(
+                        f"device element {e.object_id} has parent {e.parent_id}; "
+                        f"its parent is the DVC ({self.device.object_id})",
+                        e.object_id,
+                        e.parent_id,
+                    )
+                continue
+            seen = {e.object_id}
+            par = self.by_id.get(e.parent_id)
+            while isinstance(par, Element) and par.element_type != ELEMENT_DEVICE:
+                if par.object_id in seen:
+                    raise DdopError(f"element {e.object_id}: parent cycle", e.object_id)
+                seen.add(par.object_id)
+                par = self.by_id.get(par.parent_id)
+            if not isinstance(par, Element):
+                raise DdopError(
+                    f"element {e.object_id} has no parent element {e.parent_id} leading to "
+                    "the device element",
+                    e.object_id,
+                    e.parent_id,
+                    POOL_ERR_UNKNOWN_REFERENCE,
+                )
+
+    def _check_children(self) -> None:
+        for e in self.elements:
+            for c in e.children:
+                ch = self.by_id.get(c)
+                if ch is None:
+                    raise DdopError(
+                        f"element {e.object_id} references missing child {c}",
+                        c,
+                        e.object_id,
+                        POOL_ERR_UNKNOWN_REFERENCE,
+                    )
+                if not isinstance(ch, ProcessData | Property):
+                    raise DdopError(
+                        f"element {e.object_id} lists object {c} ({type(ch).__name__}) among "
+                        "its objects; an element's objects are its DPD/DPT only (the tree "
+                        "is given by parent ids)",
+                        c,
+                        e.object_id,
+                    )
+
+    def to_bytes(self, version: int | None = None) -> bytes:
+        v = self.version if version is None else version
+        return b"".join(encode_object(o, v) for o in self.objects)
 
     def find(self, ddi: int, settable: bool | None = None) -> list[Binding]:
         """Every element that carries ``ddi`` (as process data or property)."""
@@ -285,6 +412,8 @@ class DeviceDescriptor:
                     if settable is not None and isinstance(pd, ProcessData):
                         if bool(pd.properties & PROP_SETTABLE) != settable:
                             continue
+                    if settable and isinstance(pd, Property):
+                        continue  # a property is a constant, never settable
                     pres = self.by_id.get(pd.presentation_id)
                     out.append(
                         Binding(
@@ -322,7 +451,15 @@ def rate_ecu_ddop(
     is derived from the pool's own bytes: "FX" + 5 hex digits of their SHA-1."""
     from fieldrx_edge.isobus import process_data as pdm
 
-    dvc = Device(1, "FieldRx rate ECU", "fieldrx-edge 0.1", name, serial, b"FX00000")
+    dvc = Device(
+        DEVICE_OBJECT_ID,
+        "FieldRx rate ECU",
+        "fieldrx-edge 0.1",
+        name,
+        serial,
+        b"FX00000",
+        pdm.LOCALIZATION_LABEL,
+    )
     objs: list[Obj] = [dvc]
     nid = [100]
 
@@ -334,9 +471,9 @@ def rate_ecu_ddop(
     dvp_mm = Presentation(new_id(), 0, 0.001, 2, "m")
     dvp_rpm = Presentation(new_id(), 0, 0.0001, 1, "r/min")
     objs += [dvp_rate, dvp_mm, dvp_rpm]
-    dev = Element(2, ELEMENT_DEVICE, "FieldRx spreader", 0, 1)
-    meter = Element(3, ELEMENT_FUNCTION, "Metering", 1, 2)
-    dev.children.append(meter.object_id)
+    # the element tree by parent ids: device element under the DVC, metering under it
+    dev = Element(1, ELEMENT_DEVICE, "FieldRx spreader", 0, DEVICE_OBJECT_ID)
+    meter = Element(2, ELEMENT_FUNCTION, "Metering", 1, dev.object_id)
     objs += [dev, meter]
     width_mm = int(round(width_m * 1000))
     for ddi, props, trig, label, pres in (
@@ -379,7 +516,6 @@ def rate_ecu_ddop(
     sw = width_mm // max(1, sections)
     for k in range(sections):
         sec = Element(new_id(), ELEMENT_SECTION, f"Section {k + 1}", 2 + k, meter.object_id)
-        meter.children.append(sec.object_id)
         objs.append(sec)
         y = int(-width_mm / 2 + sw * (k + 0.5))
         for ddi, val, label in (

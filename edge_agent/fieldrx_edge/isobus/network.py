@@ -13,7 +13,18 @@ contention: the numerically lower NAME wins and re-sends its claim; the loser, i
 self-configurable, claims the next free address in 128..247, else sends Cannot Claim
 (SA 0xFE). A node that loses an address it already owned re-claims the same way. A
 Request (PGN 0xEA00) for PGN 0xEE00 is answered with the claim; a frame from another
-node carrying our own source address triggers a new claim (a conflict).
+node carrying our own source address triggers a new claim (a conflict). At start the
+node first sends a Request for Address Claimed to global (from the null address, ISO
+11783-5 sec. 4.4.3 / J1939-81 sec. 4.4.2.2), so every node that claimed before it answers
+and ``peers`` knows their NAMEs (a TC keys stored pools by NAME).
+
+Requests (ISO 11783-3 sec. 5.4.4, PGN 0xEA00): a role answers the PGNs it provides through
+``responders``; a destination-specific request for any other PGN is answered with a
+negative acknowledgement (ISO 11783-3 sec. 5.4.5, J1939-21 sec. 5.4.4: PGN 0xE800,
+control byte 1 = NACK, group function 0xFF, bytes 2-3 0xFF, byte 4 the requester's
+address, bytes 5-7 the PGN; sent to global), so the requester need not wait for a
+time-out. Global requests for unknown PGNs get no answer (the standard forbids NACKing
+them).
 
 Transport protocol (ISO 11783-3 sec. 5.10, J1939-21 sec. 5.10), 9..1785 bytes, PGN
 0xEC00 connection management, data in PGN 0xEB00 frames (byte 0 sequence 1..255, 7 data
@@ -57,6 +68,7 @@ from typing import Any
 from fieldrx_edge.isobus.j1939 import (
     GLOBAL_ADDRESS,
     NULL_ADDRESS,
+    PGN_ACKNOWLEDGE,
     PGN_ADDRESS_CLAIM,
     PGN_ETP_CM,
     PGN_ETP_DT,
@@ -191,6 +203,8 @@ class Node:
         self.state = "idle"  # idle, claiming, claimed, failed
         self.peers: dict[int, Name] = {}
         self.handlers: list[Callable[[Message], None]] = []
+        # PGN -> answer a request from ``sa`` (the PGNs this node provides on request)
+        self.responders: dict[int, Callable[[int], None]] = {}
         self.on_address_change: list[Callable[[int, int], None]] = []
         self.stats = NodeStats()
         self.alarms: set[str] = set()
@@ -249,6 +263,7 @@ class Node:
     def start(self) -> None:
         """Begin the address claim from the preferred address."""
         with self.lock:
+            self.request(PGN_ADDRESS_CLAIM)  # from the null address: who is already here
             self._claim(self.preferred_address)
 
     @property
@@ -397,6 +412,8 @@ class Node:
             if _u24(data) == PGN_ADDRESS_CLAIM and da in (GLOBAL_ADDRESS, self.address):
                 self._send_claim()
                 return
+            if self.claimed and da in (GLOBAL_ADDRESS, self.address) and sa != self.address:
+                self._on_request(_u24(data), sa, da)
         if self.claimed and sa == self.address:
             # someone else transmits with our source address: re-assert our claim
             self.stats.address_conflicts += 1
@@ -416,6 +433,18 @@ class Node:
             self._on_dt("etp", sa, da, data, now)
         else:
             self._deliver(Message(pgn, data, sa, da, prio, now))
+
+    def _on_request(self, pgn: int, sa: int, da: int) -> None:
+        responder = self.responders.get(pgn)
+        if responder is not None:
+            responder(sa)
+        elif da == self.address and sa != NULL_ADDRESS:
+            self.nack(pgn, sa)
+
+    def nack(self, pgn: int, requester: int) -> None:
+        """Negative acknowledgement of ``pgn`` to ``requester`` (module docstring)."""
+        data = bytes((0x01, 0xFF, 0xFF, 0xFF, requester & 0xFF)) + _pgn3(pgn)
+        self.send_frame(PGN_ACKNOWLEDGE, data, GLOBAL_ADDRESS, 6)
 
     def _deliver(self, msg: Message) -> None:
         self.stats.messages_rx += 1

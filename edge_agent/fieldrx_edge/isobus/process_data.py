@@ -25,6 +25,22 @@ the high nibble as a sub-command instead of the element number:
     PDACK           0x?D | element | DDI (2) | error bits | 0xF0 | command acknowledged
     client task     0xFF | 0xFF 0xFF 0xFF | status bits (bit 0 task active) | 0 0 0
 
+Version message options (byte 3): bit 0 documentation, bit 1 TC-GEO without position-based
+control, bit 2 TC-GEO with position-based control, bit 3 peer control assignment, bit 4
+implement section control; a client announces in it what its pool offers (section control
+when it has a settable setpoint condensed work state and section elements), bytes 5-6 its
+booms and sections for section control.
+
+Activation response byte 1 (ISO 11783-10 B.5.17): bit 0 errors in the DDOP, bit 1 TC out of
+memory, bit 2 any other error, bit 3 a different DDOP with the same structure label.
+
+Language command (ISO 11783-7 sec. 8.5.2, PGN 0xFE0F, broadcast; provided on request by a
+TC, ISO 11783-10 Annex B connection procedure): bytes 0-1 language code (ISO 639), byte 2
+bits 7-6 decimal symbol (01 point) and 5-4 time format (00 24 h), byte 3 date format (0
+ddmmyyyy), byte 4 distance / area / volume / mass units, byte 5 temperature / pressure /
+force / generic units (00 metric each), bytes 6-7 reserved. A DDOP's localization label
+is the first 7 bytes of the language command it was written for.
+
 Working set master (ISO 11783-7, PGN 0xFE0D): byte 0 number of working-set members.
 Machine selected speed (ISO 11783-7, PGN 0xF022): bytes 0-1 speed (1 mm/s), bytes 2-5
 distance (1 mm), byte 6 exit code, byte 7 bits 0-1 direction, 2-4 source, 5-6 limit status.
@@ -81,6 +97,10 @@ DDI_ACTUAL_WORKING_WIDTH = 67  # mm
 DDI_OFFSET_X = 134  # mm
 DDI_OFFSET_Y = 135  # mm
 DDI_ACTUAL_WORK_STATE = 141
+DDI_PRESCRIPTION_CONTROL_STATE = 158  # 0 manual, 1 auto, 2 error, 3 not available
+DDI_SECTION_CONTROL_STATE = 160  # 0 manual, 1 auto, 2 error, 3 not available
+DDI_SETPOINT_WORK_STATE = 289  # the element's master on/off set by the TC
+DDI_REQUEST_DEFAULT_PD = 0xDFFF  # request value on it: the client sends its default set
 DDI_ACTUAL_CONDENSED_WORK_STATE = 161  # sections 1-16, 2 bits each
 DDI_SETPOINT_CONDENSED_WORK_STATE = 290  # sections 1-16, 2 bits each
 DDI_ACTUAL_REVOLUTIONS = 390  # 0.0001 r/min
@@ -96,7 +116,27 @@ TC_VERSION = 4  # ISO 11783-10 version 4 (second edition, final draft)
 SERVER_OPTION_TCGEO_NO_PBC = 0x02
 SERVER_OPTION_SECTION_CONTROL = 0x10
 
+SERVER_OPTION_DOCUMENTATION = 0x01
+SERVER_OPTION_PEER_CONTROL = 0x08
+
 WS_STATE_OFF, WS_STATE_ON, WS_STATE_ERROR, WS_STATE_NOT_INSTALLED = 0, 1, 2, 3
+
+ACTIVATION_OK = 0x00
+ACTIVATION_DDOP_ERRORS = 0x01
+ACTIVATION_OTHER_ERROR = 0x04
+
+PGN_LANGUAGE_COMMAND = 0xFE0F
+# "en", decimal point, 24 h, ddmmyyyy, metric units throughout, reserved
+LANGUAGE_COMMAND = b"en\x4f\x00\x00\x00\xff\xff"
+LOCALIZATION_LABEL = LANGUAGE_COMMAND[:7]
+
+
+def version_message(options: int, booms: int, sections: int, channels: int = 0) -> bytes:
+    """Technical capabilities version response (0x10), TC version ``TC_VERSION``, boot time
+    not available."""
+    return bytes(
+        (0x10, TC_VERSION, 0xFF, options & 0xFF, 0x00, booms & 0xFF, sections & 0xFF, channels)
+    )
 
 
 @dataclass(frozen=True)

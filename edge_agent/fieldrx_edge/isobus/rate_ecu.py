@@ -188,7 +188,7 @@ class RateEcu:
                 self.tc_version = d[1]
                 self._request_label()
             elif sub == pdm.TECH_REQUEST_VERSION:
-                self._send_pd(bytes((0x10, pdm.TC_VERSION, 0xFF, 0, 0, 0, 0, 0)))
+                self._send_pd(self.version_response())
             return
         if cmd == pdm.CMD_DEVICE_DESCRIPTOR:
             self._on_dd(sub, d)
@@ -246,6 +246,17 @@ class RateEcu:
         b0 = pdm.CMD_PDACK | ((pd.element & 0x0F) << 4)
         data = bytes((b0, (pd.element >> 4) & 0xFF)) + pd.ddi.to_bytes(2, "little")
         self._send_pd(data + bytes((err, 0xF0 | pd.command, 0xFF, 0xFF)))
+
+    def version_response(self) -> bytes:
+        """The client's version message announces what its pool offers (ISO 11783-10
+        B.4 technical capabilities): implement section control, 1 boom and its sections,
+        when the pool has a settable setpoint condensed work state (DDI 290) and section
+        elements."""
+        sc = self.ddop.find(pdm.DDI_SETPOINT_CONDENSED_WORK_STATE, settable=True)
+        n = len(self.ddop.sections())
+        if sc and n:
+            return pdm.version_message(pdm.SERVER_OPTION_SECTION_CONTROL, 1, min(255, n))
+        return pdm.version_message(0, 0, 0)
 
     def _on_dd(self, sub: int, d: bytes) -> None:
         if sub == pdm.DD_STRUCTURE and self.state == "wait_label":

@@ -2,40 +2,49 @@
 implement that connects as a TC client (ISO 11783-10, TC-GEO without position-based
 control, with section control).
 
-Server side of the connection procedure (message layouts in ``process_data``): TC status
-broadcast every 2 s; working set master registers a client; version request answered
-(version 4, options TC-GEO + section control, 1 boom, 16 sections); structure and
-localization label requests answered with the stored pool's label when this TC already
-holds the client's pool (same NAME and label), else 0xFF; object-pool transfer accepted
-up to ``max_pool_bytes``; the pool is parsed on arrival (``ddop.parse``) and activation
-checks that it can be driven:
+Server side of the connection procedure (ISO 11783-10 Annex B; message layouts in
+``process_data``), with no wait of the TC's own at any step: TC status broadcast every
+2 s; working set master registers a client; the client's version request is answered
+(version 4, options TC-GEO + section control, 1 boom, 16 sections) and the TC at once
+requests the client's version (B.4: the client waits for that request before it goes on);
+a request for the Language Command (PGN 0xFE0F) is answered (ISO 11783-7 sec. 8.5.2: the
+TC provides it), other destination-specific requests are NACKed by the node; structure and
+localization label requests are answered with the labels of the pool this TC already
+holds for the client's NAME (so a reconnecting client activates without an upload), else
+0xFF x 7; object-pool transfer accepted up to ``max_pool_bytes``; the pool is parsed on
+arrival in the layout of the client's version (``ddop.parse``, the standard's pool rules).
 
-* a settable setpoint mass per area (DDI 6, mg/m^2) or volume per area (DDI 1,
-  0.01 mm^3/m^2; needs ``density_kg_l`` to convert the job's kg/ha);
-* optional: actual rate (DDI 7 / 2), actual shaft speed (DDI 390), the implement's
-  ground speed (DDI 397), setpoint condensed
-  work state (DDI 290) for section control, actual condensed work state (DDI 161),
-  working width (DDI 67) checked against the job's.
-
-A pool that fails is refused with activation error 0x01 (errors in the DDOP) and the
-faulty object id, the alarm ``isobus_wrong_ddop`` is raised and nothing is metered.
+Activation: a pool that breaks the rules is refused with activation error 0x01 (errors in
+the DDOP), the faulty object, its parent and the pool error code (B.5.17), alarm
+``isobus_wrong_ddop``. A valid pool is activated; when this TC cannot drive it (no rate
+setpoint it can convert the job's unit to, see ``tc_mapping``) it says so with the alarm
+``isobus_cannot_drive`` and meters nothing, rather than calling a valid pool faulty.
+Mapping, all optional but the rate: actual rate (DDI 7 / 2), shaft speed (DDI 390),
+ground speed (DDI 397), setpoint / actual condensed work state (DDI 290 / 161) for section
+control, setpoint work state (DDI 289, the element's master switch), section control
+state (DDI 160) and prescription control state (DDI 158): while the implement reports
+0 (manual) the TC leaves that function to the operator (no section / rate setpoints) and
+alarms ``isobus_sections_manual`` / ``isobus_rate_manual``; request default process data
+(DDI 0xDFFF): requested once after activation, the client then reports its default set.
+Working width (DDI 67) as a property or as process data (requested after activation) is
+checked against the job's (``isobus_width_mismatch``); a pool without one is said so
+(``isobus_width_unknown``).
 
 Active, the server sends: the rate setpoint on the setpoint's element when the job's rate
-changes (the runtime's locator decides per GNSS fix with the lag look-ahead, so a new
-cell reaches the bus at the fix it is decided), all sections on/off by the setpoint
-condensed work state (off outside the field, over applied cells, implement raised,
-zero rate), both refreshed every second; the machine selected speed (PGN 0xF022,
-navigation-based) from the filtered GNSS speed at every fix; and measurement commands
-so the client reports the actual rate by time (200 ms) and distance (1 m) triggers when
-its DDOP offers them, shaft speed by time, section state on change.
+changes, all sections on/off by the setpoint condensed work state (off outside the field,
+over applied cells, implement raised, zero rate), both refreshed every second; the
+machine selected speed (PGN 0xF022, navigation-based) at every fix; and measurement
+commands so the client reports the actual rate by time (200 ms) and distance (1 m)
+triggers when its DDOP offers them, shaft speed by time, section state on change.
 
 A client whose client task message stops for 6 s is dropped: alarm
 ``isobus_client_lost``, metering paused; it must connect again to be driven.
 
 Public descriptions used: AgIsoStack++ ``isobus_task_controller_server.cpp`` (status,
 version, label, transfer, activation, PDACK and NACK payloads; the 6 s client timeout and
-2 s status period) and ``isobus_task_controller_server.hpp`` (enums, options bits,
-PDACK error bits).
+2 s status period), ``isobus_task_controller_server.hpp`` (enums, options bits, PDACK
+error bits) and ``isobus_task_controller_client.cpp`` (the client's waits: 6 s for the
+server's version request, then the language command request).
 """
 
 from __future__ import annotations
@@ -46,33 +55,33 @@ from typing import Any
 
 from fieldrx_edge.isobus import process_data as pdm
 from fieldrx_edge.isobus.ddop import (
-    ELEMENT_DEVICE,
     TRIG_CHANGE,
     TRIG_DISTANCE,
     TRIG_TIME,
     Binding,
     DdopError,
     DeviceDescriptor,
-    Element,
     ProcessData,
     Property,
     parse,
 )
 from fieldrx_edge.isobus.j1939 import (
     GLOBAL_ADDRESS,
-    PGN_ACKNOWLEDGE,
     PGN_MACHINE_SELECTED_SPEED,
     PGN_PROCESS_DATA,
     PGN_WORKING_SET_MASTER,
     Name,
 )
 from fieldrx_edge.isobus.network import Message, Node
+from fieldrx_edge.isobus.tc_mapping import RateUnits, choose_rate, from_raw, to_raw, width_binding
 
 log = logging.getLogger(__name__)
 
 STATUS_PERIOD_S = 2.0
 CLIENT_TIMEOUT_S = 6.0
 REFRESH_S = 1.0
+CONTROL_STATE_MANUAL = 0
+CONTROL_STATE_AUTO = 1
 
 
 @dataclass
@@ -84,6 +93,7 @@ class Client:
     pool_size: int = 0
     pool: bytearray = field(default_factory=bytearray)
     ddop: DeviceDescriptor | None = None
+    held: DeviceDescriptor | None = None  # the stored pool its structure label matched
     active: bool = False
     error: str = ""
     kind: str = "mass"  # or "volume"
@@ -92,22 +102,41 @@ class Client:
     rpm: Binding | None = None
     work_state: Binding | None = None
     actual_ws: Binding | None = None
+    master: Binding | None = None  # DDI 289
+    section_state: Binding | None = None  # DDI 160
+    rx_state: Binding | None = None  # DDI 158
+    default_pd: Binding | None = None  # DDI 0xDFFF
+    width_pd: Binding | None = None  # DDI 67 as process data: its value is requested
     speed: Binding | None = None
     n_sections: int = 1
     width_m: float | None = None
+    sections_auto: bool = True
+    rate_auto: bool = True
     measurements_sent: bool = False
     actual_rate_kg_ha: float | None = None
     actual_rpm: float | None = None
     actual_sections: list[bool] | None = None
     actual_speed_m_s: float | None = None
     values_rx: int = 0
-    sent_rate: int | None = None
-    sent_ws: int | None = None
+    sent: dict[int, int] = field(default_factory=dict)  # DDI -> last value sent
     sent_t: float = -1e9
+
+    @property
+    def drivable(self) -> bool:
+        return self.setpoint is not None
+
+    @property
+    def sent_rate(self) -> int | None:
+        return self.sent.get(self.setpoint.ddi) if self.setpoint else None
+
+
+def _first(bs: list[Binding]) -> Binding | None:
+    return bs[0] if bs else None
 
 
 class TaskControllerServer:
-    """See module docstring. ``update()`` after every ``node.poll``; ``command()`` per fix."""
+    """See module docstring. ``update()`` after every ``node.poll``; ``command()`` per fix.
+    ``units``: the job's rate unit and its product's density (from the job package)."""
 
     def __init__(
         self,
@@ -117,16 +146,18 @@ class TaskControllerServer:
         measure_time_ms: int = 200,
         measure_distance_mm: int = 1000,
         max_pool_bytes: int = 1_000_000,
+        units: RateUnits | None = None,
     ) -> None:
         self.node = node
         self.clock = node.clock
         self.implement_width_m = implement_width_m
-        self.density_kg_l = density_kg_l
+        self.units = units or RateUnits("kg/ha", density_kg_l)
         self.measure_time_ms = measure_time_ms
         self.measure_distance_mm = measure_distance_mm
         self.max_pool_bytes = max_pool_bytes
         self.clients: dict[int, Client] = {}
-        self.stored: dict[tuple[int, bytes], bytes] = {}  # (NAME, structure label) -> pool
+        # (NAME, structure label) -> the pool as received and parsed
+        self.stored: dict[tuple[int, bytes], tuple[bytes, DeviceDescriptor]] = {}
         self.alarms: set[str] = set()
         self.lost: list[int] = []
         self._status_t = -1e9
@@ -136,6 +167,11 @@ class TaskControllerServer:
         self.values_rx = 0
         self.task_active = False  # set by the first command(): a job is running
         node.handlers.append(self._on_message)
+        node.responders[pdm.PGN_LANGUAGE_COMMAND] = self._send_language
+
+    @property
+    def density_kg_l(self) -> float | None:
+        return self.units.density_kg_l
 
     # -- state for the runtime ------------------------------------------------------
 
@@ -157,6 +193,10 @@ class TaskControllerServer:
 
     def _pd(self, c: Client, data: bytes, priority: int = 5) -> None:
         self.node.send(PGN_PROCESS_DATA, data, c.address, priority)
+
+    def _send_language(self, requester: int) -> None:
+        # PGN 0xFE0F is a PDU2 (broadcast) message: the answer goes to everyone
+        self.node.send(pdm.PGN_LANGUAGE_COMMAND, pdm.LANGUAGE_COMMAND, GLOBAL_ADDRESS, 6)
 
     def _status(self) -> None:
         # byte 4 bit 0: task totals active (a job is running); no command in progress
@@ -188,13 +228,21 @@ class TaskControllerServer:
                 elif c.active and not c.measurements_sent:
                     self._start_measurements(c)
 
+    def _request_value(self, c: Client, b: Binding | None) -> None:
+        if b is not None and isinstance(b.pd, ProcessData):
+            self._pd(c, pdm.encode(pdm.CMD_REQUEST_VALUE, b.element_number, b.ddi, 0))
+
     def _start_measurements(self, c: Client) -> None:
         c.measurements_sent = True
+        # the client answers with every member of its default set (ISO 11783-10 DDI 0xDFFF)
+        self._request_value(c, c.default_pd)
         for b, time_ms, dist_mm, change in (
             (c.actual, self.measure_time_ms, self.measure_distance_mm, 0),
             (c.rpm, self.measure_time_ms, 0, 0),
             (c.actual_ws, 0, 0, 1),
             (c.speed, self.measure_time_ms, 0, 0),
+            (c.section_state, 0, 0, 1),
+            (c.rx_state, 0, 0, 1),
         ):
             if b is None or not isinstance(b.pd, ProcessData):
                 continue
@@ -205,48 +253,47 @@ class TaskControllerServer:
                 self._pd(c, pdm.encode(pdm.CMD_MEAS_DISTANCE, b.element_number, b.ddi, dist_mm))
             if change and trig & TRIG_CHANGE:
                 self._pd(c, pdm.encode(pdm.CMD_MEAS_CHANGE, b.element_number, b.ddi, change))
+        for b in (c.width_pd, c.section_state, c.rx_state):
+            self._request_value(c, b)
         # start from a known state: sections off, rate 0
         self._send_setpoints(c, 0, False, force=True)
 
+    def _put(self, c: Client, b: Binding | None, value: int, refresh: bool) -> None:
+        if b is None or (not refresh and c.sent.get(b.ddi) == value):
+            return
+        self._pd(c, pdm.encode(pdm.CMD_VALUE, b.element_number, b.ddi, value), 3)
+        c.sent[b.ddi] = value
+        self.setpoints_sent += 1
+
     def _send_setpoints(self, c: Client, rate_raw: int, on: bool, force: bool = False) -> None:
+        """Rate, master switch (DDI 289) and sections (DDI 290); switching off, sections
+        first; switching on, rate first. A function the implement reports in manual
+        (DDI 160 / 158 = 0) gets no setpoints: the operator has it."""
         now = self.clock()
         refresh = force or now - c.sent_t >= REFRESH_S
-        ws = None
-        if c.work_state is not None:
-            ws = pdm.condensed_work_state([on] * c.n_sections)
-        rate_raw = rate_raw if (on or c.work_state is not None) else 0
-        assert c.setpoint is not None
-        # switching off: sections first; switching on: rate first
-        if ws is not None and not on and (refresh or ws != c.sent_ws):
-            self._pd(
-                c, pdm.encode(pdm.CMD_VALUE, c.work_state.element_number, c.work_state.ddi, ws), 3
-            )
-            c.sent_ws = ws
-            self.setpoints_sent += 1
-        if refresh or rate_raw != c.sent_rate:
-            self._pd(
-                c, pdm.encode(pdm.CMD_VALUE, c.setpoint.element_number, c.setpoint.ddi, rate_raw), 3
-            )
-            c.sent_rate = rate_raw
-            self.setpoints_sent += 1
-        if ws is not None and on and (refresh or ws != c.sent_ws):
-            self._pd(
-                c, pdm.encode(pdm.CMD_VALUE, c.work_state.element_number, c.work_state.ddi, ws), 3
-            )
-            c.sent_ws = ws
-            self.setpoints_sent += 1
+        ws_b = c.work_state if c.sections_auto else None
+        rate_b = c.setpoint if c.rate_auto else None
+        ws = pdm.condensed_work_state([on] * c.n_sections)
+        master = pdm.WS_STATE_ON if on else pdm.WS_STATE_OFF
+        if c.work_state is None and not on:
+            rate_raw = 0  # no section control: a zero rate is the only way to stop
+        if not on:
+            self._put(c, ws_b, ws, refresh)
+            self._put(c, c.master, master, refresh)
+        self._put(c, rate_b, rate_raw, refresh)
+        if on:
+            self._put(c, c.master, master, refresh)
+            self._put(c, ws_b, ws, refresh)
         if refresh:
             c.sent_t = now
 
-    def rate_raw(self, c: Client, rate_kg_ha: float) -> int:
-        """The job's kg/ha in the setpoint DDI's resolution."""
-        if c.kind == "mass":
-            return int(round(rate_kg_ha * pdm.MG_M2_PER_KG_HA))
-        assert self.density_kg_l
-        return int(round(rate_kg_ha / self.density_kg_l * pdm.DDI1_BITS_PER_L_HA))
+    def rate_raw(self, c: Client, rate: float) -> int:
+        """The job's rate (in its unit) in the setpoint DDI's resolution."""
+        return to_raw(c.kind, rate, self.units)
 
     def command(self, rate_kg_ha: float, metering: bool, speed_m_s: float | None) -> None:
-        """One fix's decision: speed broadcast, rate setpoint and section state."""
+        """One fix's decision: speed broadcast, rate setpoint and section state. The rate
+        is in the job's unit (``units.unit``)."""
         with self.node.lock:
             now = self.clock()
             if not self.task_active:
@@ -262,19 +309,13 @@ class TaskControllerServer:
                 PGN_MACHINE_SELECTED_SPEED, pdm.mss_payload(v, self.distance_m), GLOBAL_ADDRESS, 3
             )
             c = self.client
-            if c is None:
+            if c is None or not c.drivable:
                 return
             on = bool(metering and rate_kg_ha > 0)
             raw = self.rate_raw(c, rate_kg_ha) if on else (c.sent_rate or 0)
-            if c.work_state is None and not on:
-                raw = 0  # no section control: a zero rate is the only way to stop
             self._send_setpoints(c, raw, on)
 
     # -- receiving -----------------------------------------------------------------------
-
-    def _nack(self, sa: int, pgn: int) -> None:
-        data = bytes((0x01, 0xFF, 0xFF, 0xFF, sa)) + pgn.to_bytes(3, "little")
-        self.node.send(PGN_ACKNOWLEDGE, data, sa, 6)
 
     def _on_message(self, msg: Message) -> None:
         now = msg.t
@@ -287,7 +328,7 @@ class TaskControllerServer:
             return
         c = self.clients.get(msg.sa)
         if c is None:
-            self._nack(msg.sa, PGN_PROCESS_DATA)  # clients announce themselves first
+            self.node.nack(PGN_PROCESS_DATA, msg.sa)  # clients announce themselves first
             return
         d = msg.data
         if len(d) < 8:
@@ -297,11 +338,7 @@ class TaskControllerServer:
         if cmd == pdm.CMD_CLIENT_TASK:
             c.last_task_t = now
         elif cmd == pdm.CMD_TECHNICAL:
-            if sub == pdm.TECH_REQUEST_VERSION:
-                opts = pdm.SERVER_OPTION_TCGEO_NO_PBC | pdm.SERVER_OPTION_SECTION_CONTROL
-                self._pd(c, bytes((0x10, pdm.TC_VERSION, 0xFF, opts, 0x00, 1, 16, 0)))
-            elif sub == pdm.TECH_VERSION:
-                c.version = d[1]
+            self._on_technical(c, sub, d)
         elif cmd == pdm.CMD_DEVICE_DESCRIPTOR:
             self._on_dd(c, sub, d)
         elif cmd == pdm.CMD_VALUE and c.active:
@@ -320,144 +357,144 @@ class TaskControllerServer:
                     d[4],
                 )
 
+    def _on_technical(self, c: Client, sub: int, d: bytes) -> None:
+        if sub == pdm.TECH_REQUEST_VERSION:
+            opts = pdm.SERVER_OPTION_TCGEO_NO_PBC | pdm.SERVER_OPTION_SECTION_CONTROL
+            self._pd(c, pdm.version_message(opts, 1, 16))
+            # the client waits (6 s in AgIsoStack++) for the TC to ask its version
+            self._pd(c, bytes((pdm.TECH_REQUEST_VERSION,)) + b"\xff" * 7)
+        elif sub == pdm.TECH_VERSION:
+            c.version = d[1]
+
     def _on_value(self, c: Client, pd: pdm.PD) -> None:
         c.values_rx += 1
         self.values_rx += 1
         if c.actual is not None and pd.ddi == c.actual.ddi:
-            if c.kind == "mass":
-                c.actual_rate_kg_ha = pd.value / pdm.MG_M2_PER_KG_HA
-            elif self.density_kg_l:
-                c.actual_rate_kg_ha = pd.value / pdm.DDI1_BITS_PER_L_HA * self.density_kg_l
+            c.actual_rate_kg_ha = from_raw(c.kind, pd.value, self.units)
         elif pd.ddi == pdm.DDI_ACTUAL_REVOLUTIONS:
             c.actual_rpm = pd.value / pdm.RPM_BITS
         elif pd.ddi == pdm.DDI_ACTUAL_SPEED:
             c.actual_speed_m_s = pd.value / 1000.0
         elif pd.ddi == pdm.DDI_ACTUAL_CONDENSED_WORK_STATE:
             c.actual_sections = pdm.sections_on(pd.value & 0xFFFFFFFF, c.n_sections)
+        elif pd.ddi == pdm.DDI_ACTUAL_WORKING_WIDTH and c.width_pd is not None:
+            if pd.element == c.width_pd.element_number:
+                c.width_m = pd.value / 1000.0
+                self._check_width(c)
+        elif pd.ddi == pdm.DDI_SECTION_CONTROL_STATE:
+            c.sections_auto = self._control_state(c, pd.value, "isobus_sections_manual")
+        elif pd.ddi == pdm.DDI_PRESCRIPTION_CONTROL_STATE:
+            c.rate_auto = self._control_state(c, pd.value, "isobus_rate_manual")
+
+    def _control_state(self, c: Client, value: int, alarm: str) -> bool:
+        """DDI 160 / 158: 1 auto (the TC drives it), 0 manual or 2 error (the operator
+        has it: alarm), 3 not available (no such switch: the TC drives it)."""
+        auto = value not in (CONTROL_STATE_MANUAL, pdm.WS_STATE_ERROR)
+        if auto:
+            self.alarms.discard(alarm)
+        elif alarm not in self.alarms:
+            self.alarms.add(alarm)
+            log.warning(
+                "[%s] client 0x%02X reports %s = %d (manual): no setpoints for it",
+                self.node.label,
+                c.address,
+                alarm.removeprefix("isobus_"),
+                value,
+            )
+        if auto:
+            c.sent.clear()  # resend everything now that the TC drives it again
+        return auto
+
+    def _held_pool(self, c: Client, want: bytes) -> tuple[bytes, bytes, DeviceDescriptor] | None:
+        """The pool stored for the client's NAME: with label ``want``, or any (0xFF x 7)."""
+        nv = c.name.value if c.name else 0
+        hit = [
+            (lbl, raw, dd)
+            for (n, lbl), (raw, dd) in self.stored.items()
+            if n == nv and (want == b"\xff" * 7 or lbl == want)
+        ]
+        return hit[-1] if hit else None
 
     def _on_dd(self, c: Client, sub: int, d: bytes) -> None:
         if sub == pdm.DD_REQ_STRUCTURE:
             # the request may carry the client's label (AgIsoStack++ reads it) or 0xFFs;
             # either way the reply is the label of the pool stored for this NAME, if any
-            nv = c.name.value if c.name else 0
-            want = bytes(d[1:8])
-            hit = [
-                (lbl, pool)
-                for (n, lbl), pool in self.stored.items()
-                if n == nv and (want == b"\xff" * 7 or lbl == want)
-            ]
-            if hit:
-                c.pool = bytearray(hit[-1][1])
-                self._pd(c, b"\x11" + hit[-1][0])
-            else:
-                self._pd(c, b"\x11" + b"\xff" * 7)
+            held = self._held_pool(c, bytes(d[1:8]))
+            c.held = held[2] if held else None
+            if held:
+                c.pool = bytearray(held[1])
+                c.ddop = held[2]
+            self._pd(c, b"\x11" + (held[0] if held else b"\xff" * 7))
         elif sub == pdm.DD_REQ_LOCALIZATION:
-            self._pd(c, b"\x31" + b"\xff" * 7)
+            # B.5.5: the localization label of the pool held for the client (so a client
+            # whose language did not change activates it as it is)
+            lbl = c.held.device.localization_label if c.held else b"\xff" * 7
+            self._pd(c, b"\x31" + bytes(lbl))
         elif sub == pdm.DD_REQ_TRANSFER:
             size = int.from_bytes(d[1:5], "little")
             ok = 0 < size <= self.max_pool_bytes
             c.pool_size = size if ok else 0
             c.pool = bytearray()
+            c.held = None
             self._pd(c, bytes((0x51, 0 if ok else 1)) + b"\xff" * 6)
         elif sub == pdm.DD_TRANSFER:
-            part = bytes(d[1:])
-            c.pool += part
-            err = 0
-            try:
-                c.ddop = parse(bytes(c.pool), c.version or 4)
-            except DdopError as e:
-                c.ddop = None
-                c.error = str(e)
-                err = 0x02  # "any other error" in AgIsoStack++'s usage; pool unusable
-                log.error(
-                    "[%s] client 0x%02X pool does not parse: %s", self.node.label, c.address, e
-                )
-            self._pd(c, bytes((0x71, err)) + len(part).to_bytes(4, "little") + b"\xff\xff")
+            self._on_transfer(c, bytes(d[1:]))
         elif sub == pdm.DD_ACTIVATE:
-            if d[1] == 0xFF:
-                err, obj = self._activate(c)
-                if err:
-                    self.alarms.add("isobus_wrong_ddop")
-                    self._pd(
-                        c, bytes((0x91, 0x01, 0xFF, 0xFF)) + obj.to_bytes(2, "little") + b"\x04\xff"
-                    )
-                else:
-                    self._pd(c, b"\x91\x00\xff\xff\xff\xff\x00\xff")
-            else:
-                c.active = False
-                self._pd(c, b"\x91\x00\xff\xff\xff\xff\x00\xff")
+            self._on_activate(c, d[1] == 0xFF)
         elif sub == pdm.DD_DELETE:
             c.pool = bytearray()
             c.ddop = None
+            c.held = None
             c.active = False
             self._pd(c, b"\xb1\x00\xff" + b"\xff" * 5)
 
-    @staticmethod
-    def _width_m(dd: DeviceDescriptor, element_id: int) -> float | None:
-        """Working width (DDI 67 property) of the setpoint's element or, as in most pools
-        where the rate sits on a bin, of the nearest element above it (boom, device)."""
-        seen: set[int] = set()
-        eid = element_id
-        while eid not in seen:
-            seen.add(eid)
-            w = _element_width(dd, eid)
-            if w is not None:
-                return w
-            el = dd.by_id.get(eid)
-            if not isinstance(el, Element) or el.element_type == ELEMENT_DEVICE:
-                return None
-            eid = el.parent_id
-        return None
+    def _on_transfer(self, c: Client, part: bytes) -> None:
+        c.pool += part
+        err = 0
+        try:
+            c.ddop = parse(bytes(c.pool), c.version or pdm.TC_VERSION)
+        except DdopError as e:
+            c.ddop = None
+            c.error = str(e)
+            err = 0x02  # "any other error" in AgIsoStack++'s usage; pool unusable
+            log.error("[%s] client 0x%02X pool does not parse: %s", self.node.label, c.address, e)
+        self._pd(c, bytes((0x71, err)) + len(part).to_bytes(4, "little") + b"\xff\xff")
 
-    def _activate(self, c: Client) -> tuple[int, int]:
-        """Map the client's pool to the job; (error, faulty object id)."""
+    def _on_activate(self, c: Client, activate: bool) -> None:
+        if not activate:
+            c.active = False
+            self._pd(c, b"\x91\x00\xff\xff\xff\xff\x00\xff")
+            return
+        e = self._activate(c)
+        if e is None:
+            self._pd(c, b"\x91\x00\xff\xff\xff\xff\x00\xff")
+            return
+        self.alarms.add("isobus_wrong_ddop")
+        self._pd(
+            c,
+            bytes((0x91, pdm.ACTIVATION_DDOP_ERRORS))
+            + e.parent_id.to_bytes(2, "little")
+            + e.object_id.to_bytes(2, "little")
+            + bytes((e.code, 0xFF)),
+        )
+
+    def _activate(self, c: Client) -> DdopError | None:
+        """Map the client's pool to the job; the pool's error when it breaks the rules."""
         if c.ddop is None and c.pool:
             try:
-                c.ddop = parse(bytes(c.pool), c.version or 4)
+                c.ddop = parse(bytes(c.pool), c.version or pdm.TC_VERSION)
             except DdopError as e:
                 c.error = str(e)
+                log.error("[%s] client 0x%02X pool refused: %s", self.node.label, c.address, e)
+                return e
         dd = c.ddop
         if dd is None:
+            c.error = c.error or "no pool transferred"
             log.error(
                 "[%s] client 0x%02X: no usable pool (%s)", self.node.label, c.address, c.error
             )
-            return 1, 0xFFFF
-        mass = dd.find(pdm.DDI_SETPOINT_MASS_PER_AREA, settable=True)
-        vol = dd.find(pdm.DDI_SETPOINT_VOLUME_PER_AREA, settable=True)
-        if mass:
-            c.kind, c.setpoint = "mass", mass[0]
-            act = dd.find(pdm.DDI_ACTUAL_MASS_PER_AREA)
-        elif vol and self.density_kg_l:
-            c.kind, c.setpoint = "volume", vol[0]
-            act = dd.find(pdm.DDI_ACTUAL_VOLUME_PER_AREA)
-        else:
-            c.error = (
-                "volume-rate implement (DDI 1): set the product density to convert kg/ha"
-                if vol
-                else "no settable setpoint mass or volume per area (DDI 6 / DDI 1)"
-            )
-            log.error("[%s] client 0x%02X DDOP refused: %s", self.node.label, c.address, c.error)
-            return 1, dd.device.object_id
-        c.actual = act[0] if act else None
-        rpm = dd.find(pdm.DDI_ACTUAL_REVOLUTIONS)
-        c.rpm = rpm[0] if rpm else None
-        ws = dd.find(pdm.DDI_SETPOINT_CONDENSED_WORK_STATE, settable=True)
-        c.work_state = ws[0] if ws else None
-        aws = dd.find(pdm.DDI_ACTUAL_CONDENSED_WORK_STATE)
-        c.actual_ws = aws[0] if aws else None
-        spd = dd.find(pdm.DDI_ACTUAL_SPEED)  # an implement's own ground speed, if it has one
-        c.speed = spd[0] if spd else None
-        c.n_sections = max(1, min(16, len(dd.sections())))
-        c.width_m = self._width_m(dd, c.setpoint.element_id)
-        if c.width_m and self.implement_width_m:
-            if abs(c.width_m - self.implement_width_m) > 0.02 * self.implement_width_m:
-                self.alarms.add("isobus_width_mismatch")
-                log.warning(
-                    "[%s] implement reports %.2f m working width, the job plans %.2f m",
-                    self.node.label,
-                    c.width_m,
-                    self.implement_width_m,
-                )
+            return DdopError(c.error)
+        self._map(c, dd)
         other = self.client
         if other is not None and other is not c:
             log.warning(
@@ -469,30 +506,79 @@ class TaskControllerServer:
             )
         c.active = True
         c.measurements_sent = False
-        c.sent_rate = c.sent_ws = None
+        c.sent.clear()
         if c.name is not None:
-            self.stored[(c.name.value, bytes(dd.device.structure_label))] = bytes(c.pool)
+            self.stored[(c.name.value, bytes(dd.device.structure_label))] = (bytes(c.pool), dd)
         self.alarms.discard("isobus_wrong_ddop")
         self.alarms.discard("isobus_client_lost")
-        pres = c.setpoint.presentation
+        pres = c.setpoint.presentation if c.setpoint else None
         log.info(
-            "[%s] client 0x%02X active: %s per area on element %d (%s), %d section(s)%s",
+            "[%s] client 0x%02X active: %s per area on element %s (%s), %d section(s)%s",
             self.node.label,
             c.address,
             c.kind,
-            c.setpoint.element_number,
+            c.setpoint.element_number if c.setpoint else "-",
             pres.unit if pres else "no presentation",
             c.n_sections,
             "" if c.work_state else ", no section control",
         )
-        return 0, 0xFFFF
+        return None
 
+    def _map(self, c: Client, dd: DeviceDescriptor) -> None:
+        rm = choose_rate(dd, self.units)
+        c.kind, c.setpoint, c.actual, c.error = rm.kind, rm.setpoint, rm.actual, rm.error
+        if c.setpoint is None:
+            self.alarms.add("isobus_cannot_drive")
+            log.error(
+                "[%s] client 0x%02X activated but cannot be driven: %s; nothing is metered",
+                self.node.label,
+                c.address,
+                c.error,
+            )
+        else:
+            self.alarms.discard("isobus_cannot_drive")
+        c.rpm = _first(dd.find(pdm.DDI_ACTUAL_REVOLUTIONS))
+        c.work_state = _first(dd.find(pdm.DDI_SETPOINT_CONDENSED_WORK_STATE, settable=True))
+        c.actual_ws = _first(dd.find(pdm.DDI_ACTUAL_CONDENSED_WORK_STATE))
+        c.master = _first(dd.find(pdm.DDI_SETPOINT_WORK_STATE, settable=True))
+        c.section_state = _first(dd.find(pdm.DDI_SECTION_CONTROL_STATE))
+        c.rx_state = _first(dd.find(pdm.DDI_PRESCRIPTION_CONTROL_STATE))
+        c.default_pd = _first(dd.find(pdm.DDI_REQUEST_DEFAULT_PD))
+        c.speed = _first(dd.find(pdm.DDI_ACTUAL_SPEED))  # an implement's own ground speed
+        c.n_sections = max(1, min(16, len(dd.sections())))
+        c.sections_auto = c.rate_auto = True
+        anchor = c.setpoint or c.work_state
+        wb = width_binding(dd, anchor.element_id) if anchor else None
+        c.width_m, c.width_pd = None, None
+        if wb is not None and isinstance(wb.pd, Property):
+            c.width_m = wb.pd.value / 1000.0
+            self._check_width(c)
+        elif wb is not None:
+            c.width_pd = wb  # process data: asked for with the measurements
+        else:
+            self.alarms.add("isobus_width_unknown")
+            log.warning(
+                "[%s] client 0x%02X states no working width (DDI 67): the job's %s m is "
+                "not checked against the implement",
+                self.node.label,
+                c.address,
+                self.implement_width_m,
+            )
 
-def _element_width(dd: DeviceDescriptor, element_id: int) -> float | None:
-    for b in dd.find(pdm.DDI_ACTUAL_WORKING_WIDTH):
-        if b.element_id == element_id and isinstance(b.pd, Property):
-            return b.pd.value / 1000.0
-    return None
+    def _check_width(self, c: Client) -> None:
+        self.alarms.discard("isobus_width_unknown")
+        if not c.width_m or not self.implement_width_m:
+            return
+        if abs(c.width_m - self.implement_width_m) > 0.02 * self.implement_width_m:
+            self.alarms.add("isobus_width_mismatch")
+            log.warning(
+                "[%s] implement reports %.2f m working width, the job plans %.2f m",
+                self.node.label,
+                c.width_m,
+                self.implement_width_m,
+            )
+        else:
+            self.alarms.discard("isobus_width_mismatch")
 
 
 class IsobusImplement:
@@ -517,10 +603,11 @@ class IsobusImplement:
         self.decisions += 1
         self.tc.command(d.target_rate_kg_ha, d.metering, d.speed_m_s)
         alarms = self.tc.alarm_list()
-        if self.tc.client is None and d.metering:
+        c = self.tc.client
+        if d.metering and (c is None or not c.drivable):
             d.metering = False  # nothing can meter: say so in the record
             d.target_rpm = 0.0
-            d.reason = "isobus_no_client"
+            d.reason = "isobus_no_client" if c is None else "isobus_cannot_drive"
         d.alarms.extend(a for a in alarms if a not in d.alarms)
 
     def run(self, stop: Any) -> None:
