@@ -121,3 +121,29 @@ def test_ecu_connects_to_a_scripted_tc_and_follows_setpoints():
     assert "isobus_tc_lost" in ecu.alarms and ecu.state == "wait_tc" and ecu.target_rpm == 0.0
     tc.close()
     node.close()
+
+
+def test_the_ecus_version_response_announces_its_section_control():
+    """Before, the rate ECU answered a version request with no options at all although its
+    pool has a settable DDI 290 and section elements."""
+    from fieldrx_edge.isobus.pair import IsobusPair
+
+    from .jobfactory import trial_plot
+
+    for sections, booms in ((16, 1), (130, 1)):
+        pair = IsobusPair(trial_plot(), sections=sections)
+        v = pair.ecu.version_response()
+        assert v[0] == 0x10 and v[1] == pdm.TC_VERSION
+        assert v[3] & pdm.SERVER_OPTION_SECTION_CONTROL
+        assert (v[5], v[6]) == (booms, sections)
+        pair.connect()
+        pair.close()
+
+
+def test_socketcand_buses_are_opened_with_tcp_nodelay():
+    """Before, socketcand was opened without python-can's ``tcp_tune``: Nagle's algorithm
+    held each set point behind the frame sent just before it (47 ms p95 measured)."""
+    from fieldrx_edge.isobus.transport import parse_can_spec
+
+    kw = parse_can_spec("socketcand:127.0.0.1:29536:can0")
+    assert kw["tcp_tune"] is True and kw["interface"] == "socketcand"
