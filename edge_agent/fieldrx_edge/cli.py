@@ -191,6 +191,11 @@ def cmd_run(a: argparse.Namespace) -> int:
     if a.implement == "isobus":
         motor = _isobus_implement(a, job)
     else:
+        if job.rate_unit != "kg/ha":
+            raise SystemExit(
+                f"job {job.job_id} is in {job.rate_unit}: the meter's calibration is in kg per"
+                " revolution; run it with --implement isobus on a volume-rate implement"
+            )
         if a.motor == "sim":
             driver: Any = simulated_motor(period)
         else:
@@ -326,9 +331,28 @@ def _isobus_implement(a: argparse.Namespace, job: JobPackage) -> Any:
 
     if not a.can:
         raise SystemExit("--implement isobus needs --can INTERFACE:CHANNEL (e.g. socketcan:can0)")
+    units = job_rate_units(job, a.density)
     node = Node(_open_can(a), tc_name(), a.tc_address, label="tc")
-    tc = TaskControllerServer(node, implement_width_m=job.implement_width_m, density_kg_l=a.density)
+    tc = TaskControllerServer(node, implement_width_m=job.implement_width_m, units=units)
     return IsobusImplement(tc)
+
+
+def job_rate_units(job: JobPackage, density_kg_l: float | None = None) -> Any:
+    """The job's rate unit and its product's density, from the package (the product
+    carries its density); ``--density`` only fills in for a package without one, and a
+    different value is refused rather than silently overriding the product's."""
+    from fieldrx_edge.isobus.tc_mapping import RateUnits
+
+    d = job.product_density_kg_l or None
+    if density_kg_l is not None and d is not None and abs(density_kg_l - d) > 1e-9:
+        raise SystemExit(
+            f"--density {density_kg_l} kg/l contradicts the job package's product density "
+            f"{d} kg/l ({job.product or 'product'}): leave --density out"
+        )
+    try:
+        return RateUnits(job.rate_unit, d if d is not None else density_kg_l)
+    except ValueError as e:
+        raise SystemExit(f"job {job.job_id}: {e}") from None
 
 
 def _isobus_stats(tc: Any) -> dict[str, Any]:
@@ -799,7 +823,10 @@ def build_parser() -> argparse.ArgumentParser:
     _isobus_args(sp)
     sp.add_argument("--tc-address", type=_address, default=0xF7, help="preferred TC source address")
     sp.add_argument(
-        "--density", type=float, help="kg/l: lets volume-rate implements (DDI 1) be driven"
+        "--density",
+        type=float,
+        help="kg/l, only for job packages without the product's density: lets volume-rate"
+        " implements (DDI 1) take a kg/ha job",
     )
     sp.add_argument("--sensor", help="sensor jobs: NDVI / depth sensor source (serial: or file:)")
     sp.set_defaults(func=cmd_run)

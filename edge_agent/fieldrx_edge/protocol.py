@@ -145,6 +145,12 @@ class JobPackage:
     # canonical JSON when default, so prescription-map packages keep their bytes and checksum.
     kind: str = "prescription_map"
     kind_settings: dict[str, Any] = field(default_factory=dict)
+    # the unit of ``rate_kg_ha`` ("kg/ha", or "l/ha" for a liquid product's volume
+    # prescription) and the product's density in kg/l (0: not known). They travel with the
+    # product so an ISOBUS TC converts between mass (DDI 6) and volume (DDI 1) implements
+    # without a number typed in the cab; left out of the canonical JSON when default.
+    rate_unit: str = "kg/ha"
+    product_density_kg_l: float = 0.0
     format_version: int = FORMAT_VERSION
     checksum: str = ""
 
@@ -162,6 +168,8 @@ class JobPackage:
                 del body[name]
         if self.kind == "prescription_map" and not self.kind_settings:
             del body["kind"], body["kind_settings"]
+        if self.rate_unit == "kg/ha" and not self.product_density_kg_l:
+            del body["rate_unit"], body["product_density_kg_l"]
         return body
 
     def cell_shapes(self) -> dict[int, list[list[float]]]:
@@ -201,6 +209,13 @@ class JobPackage:
             raise ProtocolError("job package: kind_settings must be an object")
         if self.implement_width_m <= 0:
             raise ProtocolError("job package: implement_width_m must be positive")
+        if self.rate_unit not in ("kg/ha", "l/ha"):
+            raise ProtocolError(f"job package: rate_unit {self.rate_unit!r} is not kg/ha or l/ha")
+        d = self.product_density_kg_l
+        if not math.isfinite(d) or (d and not 0.05 <= d <= 5.0):
+            raise ProtocolError(
+                f"job package: product_density_kg_l {d!r} must be 0 (unknown) or 0.05-5 kg/l"
+            )
         if self.lag_s < 0:
             raise ProtocolError("job package: lag_s must not be negative")
         for i, r in enumerate(self.rate_kg_ha):

@@ -101,3 +101,35 @@ def test_bad_can_option_and_address_are_clear_errors(tmp_path, capsys):
     with pytest.raises(SystemExit):
         cli.main(["ecu", "--can", "virtual:x", "--address", "0xFE"])
     assert "outside 0..253" in capsys.readouterr().err
+
+
+def test_the_product_density_and_rate_unit_travel_in_the_job_package(tmp_path):
+    """Before, a volume-rate implement could only be driven with --density typed in the
+    cab; the package now carries the product's density and the prescription's unit."""
+    import dataclasses
+
+    from fieldrx_edge.protocol import JobPackage
+
+    job = trial_plot()
+    plain = job.to_json()
+    assert b"rate_unit" not in plain  # defaults stay out: older packages keep their checksum
+    uan = dataclasses.replace(job, product_density_kg_l=1.28, checksum="").seal()
+    back = JobPackage.from_json(uan.to_json())
+    units = cli.job_rate_units(back)
+    assert units.unit == "kg/ha" and units.density_kg_l == 1.28
+    with pytest.raises(SystemExit, match="contradicts"):
+        cli.job_rate_units(back, 1.0)
+    lha = dataclasses.replace(job, rate_unit="l/ha", checksum="").seal()
+    assert cli.job_rate_units(JobPackage.from_json(lha.to_json())).unit == "l/ha"
+    assert cli.job_rate_units(job, 1.1).density_kg_l == 1.1  # an old package: --density fills in
+    from fieldrx_edge.protocol import ProtocolError
+
+    with pytest.raises(ProtocolError, match="rate_unit"):
+        dataclasses.replace(job, rate_unit="gal/ac", checksum="").seal()
+    with pytest.raises(ProtocolError, match="density"):
+        dataclasses.replace(job, product_density_kg_l=40.0, checksum="").seal()
+    # an l/ha job cannot go to the kg-per-revolution meter: refused, not metered wrongly
+    pkg = tmp_path / "job.json"
+    pkg.write_bytes(lha.to_json())
+    with pytest.raises(SystemExit, match="l/ha"):
+        cli.main(["run", str(pkg), "--state-dir", str(tmp_path), "--source", "file:/dev/null"])

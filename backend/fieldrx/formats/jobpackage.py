@@ -168,6 +168,8 @@ def build_job_package(
     shape_decimals: int = 6,
     kind: str = "prescription_map",
     kind_settings: dict[str, Any] | None = None,
+    rate_unit: str = "kg/ha",
+    product_density_kg_l: float = 0.0,
 ) -> JobPackage:
     """A sealed (validated, checksummed) JobPackage; ``ProtocolError`` names a bad field.
 
@@ -216,6 +218,8 @@ def build_job_package(
         **_shape_fields(cells, shape_decimals),
         kind=kind,
         kind_settings=dict(kind_settings or {}),
+        rate_unit=str(rate_unit),
+        product_density_kg_l=float(product_density_kg_l),
     )
     return pkg.seal()
 
