@@ -298,7 +298,11 @@ ALARMS = (
     # ISOBUS implement (fieldrx_edge.isobus): the TC server's view of the bus and client
     "isobus_no_client",  # no implement connected: nothing is metered
     "isobus_client_lost",  # the connected implement went silent: metering paused
-    "isobus_wrong_ddop",  # an implement's device description cannot be driven
+    "isobus_wrong_ddop",  # an implement's device description breaks the pool rules: refused
+    "isobus_cannot_drive",  # a valid pool the TC cannot drive (no rate it converts to)
+    "isobus_width_unknown",  # the implement states no working width: not checked
+    "isobus_sections_manual",  # the implement's section control is in manual (DDI 160)
+    "isobus_rate_manual",  # the implement's prescription control is in manual (DDI 158)
     "isobus_pdack_error",  # the implement refused a process data command
     "isobus_width_mismatch",  # implement working width differs from the job's
     "isobus_bus_off",  # CAN send/receive failing

@@ -378,6 +378,9 @@ def test_default_process_data_work_state_and_control_states_are_honoured(bench):
     pump([bench.tc_node, peer.node])
     assert 1 not in [p.ddi for p in bench.sent_by_tc() if p.command == 3]
     assert "isobus_rate_manual" in tc.alarms
+    from fieldrx_edge.protocol import ALARMS
+
+    assert set(tc.alarm_list()) <= set(ALARMS)  # telemetry records accept them
 
 
 def test_a_kg_ha_job_with_the_products_density_drives_the_volume_implement():
