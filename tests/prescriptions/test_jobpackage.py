@@ -69,3 +69,57 @@ def test_job_package_from_database(client, org, db) -> None:
     assert set(v1.rate_kg_ha) == {700.0}
     with pytest.raises(LookupError):
         build_package(db, rx["id"], 5, db.get(Machine, m["id"]))
+
+
+def test_a_liquid_products_density_travels_in_the_job_package(client, org, db) -> None:
+    """The density belongs to the product: a prescription of a liquid (a default product or
+    the organisation's own) carries it into the package, so an ISOBUS volume-rate implement
+    is driven without a number typed in the cab; solids carry none."""
+    from fieldrx.db.models import Machine
+    from fieldrx.services.jobpackage import build_package
+
+    h = org.headers()
+    plan = setup_plan(client, h)
+    m = client.post(
+        f"{API}/machines",
+        headers=h,
+        json={"name": "Sprayer", "width_m": 2.3, "lag_s": 1.0, "calibration": SEED001_CAL},
+    ).json()
+    machine = db.get(Machine, m["id"])
+    uan = make_rx(
+        client,
+        h,
+        plan["id"],
+        model="uniform",
+        params={"rate_kg_ha": 192},
+        product_key="default:uan28",
+    )
+    pkg = build_package(db, uan["id"], None, machine)
+    assert pkg.product_density_kg_l == 1.28 and pkg.rate_unit == "kg/ha"
+    assert JobPackage.from_json(pkg.to_json()).product_density_kg_l == 1.28
+    r = client.post(
+        f"{API}/products", headers=h, json={"name": "ATS 12-0-0", "n_pct": 12, "density_kg_l": 1.32}
+    )
+    assert r.status_code == 201 and r.json()["density_kg_l"] == 1.32
+    own = make_rx(
+        client,
+        h,
+        plan["id"],
+        model="uniform",
+        params={"rate_kg_ha": 100},
+        product_key=r.json()["key"],
+    )
+    assert build_package(db, own["id"], None, machine).product_density_kg_l == 1.32
+    bad = client.post(
+        f"{API}/products", headers=h, json={"name": "x", "n_pct": 1, "density_kg_l": 40}
+    )
+    assert bad.status_code == 422 and "density_kg_l" in bad.text
+    urea = make_rx(
+        client,
+        h,
+        plan["id"],
+        model="uniform",
+        params={"rate_kg_ha": 200},
+        product_key="default:urea",
+    )
+    assert build_package(db, urea["id"], None, machine).product_density_kg_l == 0.0

@@ -63,6 +63,7 @@ class Product:
     price_per_t: float | None = None
     source: str = ANALYSIS
     id: int | None = None
+    density_kg_l: float | None = None  # liquids only: kg/l, for volume-rate implements
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -76,6 +77,8 @@ DEFAULT_PRODUCTS: tuple[Product, ...] = (
     Product("default:an", "Ammonium nitrate 34-0-0", 34.0),
     Product("default:dap", "Diammonium phosphate 18-46-0", 18.0, 46.0),
     Product("default:npk15", "NPK 15-15-15", 15.0, 15.0, 15.0),
+    # a liquid: UAN-28 weighs 10.66 lb per US gallon = 1.28 kg/l (nominal, 15 degC)
+    Product("default:uan28", "UAN 28-0-0 (liquid)", 28.0, density_kg_l=1.28),
 )
 
 NUTRIENTS = (("N", "n_pct"), ("P2O5", "p2o5_pct"), ("K2O", "k2o_pct"))

@@ -263,6 +263,10 @@ class Product(Base):
             name="ck_product_pct",
         ),
         CheckConstraint("price_per_t IS NULL OR price_per_t >= 0", name="ck_product_price"),
+        CheckConstraint(
+            "density_kg_l IS NULL OR (density_kg_l >= 0.05 AND density_kg_l <= 5)",
+            name="ck_product_density",
+        ),
     )
     id: Mapped[int] = mapped_column(primary_key=True)
     organisation_id: Mapped[int] = mapped_column(
@@ -273,6 +277,8 @@ class Product(Base):
     p2o5_pct: Mapped[float] = mapped_column(Double, default=0.0)
     k2o_pct: Mapped[float] = mapped_column(Double, default=0.0)
     price_per_t: Mapped[float | None] = mapped_column(Double)
+    # a liquid's density (kg/l), for ISOBUS volume-rate implements; NULL for solids
+    density_kg_l: Mapped[float | None] = mapped_column(Double)
     created_at: Mapped[dt.datetime] = _now()
 
 

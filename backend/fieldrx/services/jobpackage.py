@@ -73,6 +73,10 @@ def build_package(
         field_name=field.name,
         **machine_fields(machine),
         product=rx.product,
+        # the product's density travels with it (ISOBUS volume-rate implements, DDI 1)
+        product_density_kg_l=float(
+            ((rx.params or {}).get("product_info") or {}).get("density_kg_l") or 0.0
+        ),
     )
 
 

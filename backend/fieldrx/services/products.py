@@ -23,6 +23,7 @@ def product_dict(p: Product) -> dict[str, Any]:
         "p2o5_pct": p.p2o5_pct,
         "k2o_pct": p.k2o_pct,
         "price_per_t": p.price_per_t,
+        "density_kg_l": p.density_kg_l,
         "source": ORG_SOURCE,
         "created_at": p.created_at,
     }

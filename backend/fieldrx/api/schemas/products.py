@@ -15,6 +15,12 @@ class ProductIn(In):
     p2o5_pct: float = Field(default=0.0, ge=0, le=100, description="P2O5 in %")
     k2o_pct: float = Field(default=0.0, ge=0, le=100, description="K2O in %")
     price_per_t: float | None = Field(default=None, ge=0, le=1e9, description="price per tonne")
+    density_kg_l: float | None = Field(
+        default=None,
+        ge=0.05,
+        le=5,
+        description="a liquid's density in kg/l (lets ISOBUS volume-rate implements take kg/ha)",
+    )
 
     @model_validator(mode="after")
     def _sum(self) -> ProductIn:
@@ -32,6 +38,7 @@ class ProductOut(Out):
     p2o5_pct: float
     k2o_pct: float
     price_per_t: float | None
+    density_kg_l: float | None = Field(default=None, description="kg/l; null: a solid")
     source: str = Field(description="where the figures come from")
     created_at: dt.datetime | None = None
 

@@ -4170,6 +4170,11 @@ export interface components {
         /** ProductIn */
         ProductIn: {
             /**
+             * Density Kg L
+             * @description a liquid's density in kg/l (lets ISOBUS volume-rate implements take kg/ha)
+             */
+            density_kg_l?: number | null;
+            /**
              * K2O Pct
              * @description K2O in %
              * @default 0
@@ -4198,6 +4203,11 @@ export interface components {
         ProductOut: {
             /** Created At */
             created_at?: string | null;
+            /**
+             * Density Kg L
+             * @description kg/l; null: a solid
+             */
+            density_kg_l?: number | null;
             /**
              * Id
              * @description the row id of an organisation's product; null: default
