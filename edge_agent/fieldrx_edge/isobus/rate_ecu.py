@@ -3,10 +3,11 @@
 Connection procedure (ISO 11783-10 Annex B as implemented by AgIsoStack++'s
 ``TaskControllerClient`` state machine): wait for a TC status message -> working set
 master (PGN 0xFE0D, one member) -> client task every 2 s -> request the TC's version ->
-request the structure label (a TC that already holds this pool answers it, the upload
-is skipped) -> request object-pool transfer (size) -> transfer the pool (TP or ETP) ->
-activate -> connected. Any step that gets no answer within 6 s starts again from the
-beginning; an activation refused by the TC is logged and alarmed and metering stays off.
+request the structure label and, when it matches, the localization label (a TC that
+already holds this pool answers both, the upload is skipped) -> request object-pool
+transfer (size) -> transfer the pool (TP or ETP) -> activate -> connected. Any step that
+gets no answer within 6 s starts again from the beginning; an activation refused by the
+TC is logged and alarmed and metering stays off.
 
 Connected, the ECU accepts from whatever TC it connected to: value / set-value-and-ack
 commands for the setpoint mass per area (DDI 6) and the setpoint condensed work state
@@ -261,13 +262,18 @@ class RateEcu:
     def _on_dd(self, sub: int, d: bytes) -> None:
         if sub == pdm.DD_STRUCTURE and self.state == "wait_label":
             if bytes(d[1:8]) == bytes(self.ddop.device.structure_label):
+                # same structure: the localization label decides whether the TC's copy
+                # still presents our designators and units (ISO 11783-10 B.5.5)
+                self._send_pd(b"\x21" + b"\xff" * 7)
+                self._to("wait_localization")
+            else:
+                self._upload()
+        elif sub == pdm.DD_LOCALIZATION and self.state == "wait_localization":
+            if bytes(d[1:8]) == bytes(self.ddop.device.localization_label):
                 log.info("[%s] TC already holds our pool: activating", self.node.label)
                 self._activate()
             else:
-                self._send_pd(
-                    bytes((0x41,)) + len(self.pool).to_bytes(4, "little") + b"\xff\xff\xff"
-                )
-                self._to("wait_transfer_ok")
+                self._upload()
         elif sub == pdm.DD_REQ_TRANSFER_RESP and self.state == "wait_transfer_ok":
             if d[1] != 0:
                 self.alarms.add("isobus_tc_no_memory")
@@ -302,6 +308,10 @@ class RateEcu:
             self.alarms.discard("isobus_ddop_rejected")
             log.info("[%s] pool active on TC 0x%02X", self.node.label, self.tc_addr or 0)
             self._to("connected")
+
+    def _upload(self) -> None:
+        self._send_pd(bytes((0x41,)) + len(self.pool).to_bytes(4, "little") + b"\xff\xff\xff")
+        self._to("wait_transfer_ok")
 
     def _request_label(self) -> None:
         self._send_pd(b"\x01" + b"\xff" * 7)
