@@ -191,11 +191,7 @@ def cmd_run(a: argparse.Namespace) -> int:
     if a.implement == "isobus":
         motor = _isobus_implement(a, job)
     else:
-        if job.rate_unit != "kg/ha":
-            raise SystemExit(
-                f"job {job.job_id} is in {job.rate_unit}: the meter's calibration is in kg per"
-                " revolution; run it with --implement isobus on a volume-rate implement"
-            )
+        _check_motor_units(job)
         if a.motor == "sim":
             driver: Any = simulated_motor(period)
         else:
@@ -335,6 +331,16 @@ def _isobus_implement(a: argparse.Namespace, job: JobPackage) -> Any:
     node = Node(_open_can(a), tc_name(), a.tc_address, label="tc")
     tc = TaskControllerServer(node, implement_width_m=job.implement_width_m, units=units)
     return IsobusImplement(tc)
+
+
+def _check_motor_units(job: JobPackage) -> None:
+    """The meter's calibration is in kg per revolution: an l/ha job is refused for it
+    rather than metered as if its litres were kilograms."""
+    if job.rate_unit != "kg/ha":
+        raise SystemExit(
+            f"job {job.job_id} is in {job.rate_unit}: the meter's calibration is in kg per"
+            " revolution; run it with --implement isobus on a volume-rate implement"
+        )
 
 
 def job_rate_units(job: JobPackage, density_kg_l: float | None = None) -> Any:
