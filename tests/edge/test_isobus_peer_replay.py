@@ -378,6 +378,17 @@ def test_default_process_data_work_state_and_control_states_are_honoured(bench):
     pump([bench.tc_node, peer.node])
     assert 1 not in [p.ddi for p in bench.sent_by_tc() if p.command == 3]
     assert "isobus_rate_manual" in tc.alarms
+    # both back to auto: the TC drives them again at the next fix, without waiting
+    for el, ddi in ((2, pdm.DDI_SECTION_CONTROL_STATE), (3, pdm.DDI_PRESCRIPTION_CONTROL_STATE)):
+        peer.pd(pdm.encode(pdm.CMD_VALUE, el, ddi, 1))
+    pump([bench.tc_node, peer.node])
+    peer.got.clear()
+    bench.clock.t += 0.1
+    tc.command(120.0, True, 2.0)
+    pump([bench.tc_node, peer.node])
+    vals = {(p.element, p.ddi): p.value for p in bench.sent_by_tc() if p.command == 3}
+    assert vals[(3, 1)] == 1_200_000 and vals[(2, 290)] & 0xFFFFFFFF == 0x55555555
+    assert not {"isobus_sections_manual", "isobus_rate_manual"} & tc.alarms
     from fieldrx_edge.protocol import ALARMS
 
     assert set(tc.alarm_list()) <= set(ALARMS)  # telemetry records accept them

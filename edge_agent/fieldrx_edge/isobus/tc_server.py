@@ -382,9 +382,15 @@ class TaskControllerServer:
                 c.width_m = pd.value / 1000.0
                 self._check_width(c)
         elif pd.ddi == pdm.DDI_SECTION_CONTROL_STATE:
-            c.sections_auto = self._control_state(c, pd.value, "isobus_sections_manual")
+            auto = self._control_state(c, pd.value, "isobus_sections_manual")
+            if auto and not c.sections_auto:
+                c.sent.clear()  # back in auto: resend everything at the next fix
+            c.sections_auto = auto
         elif pd.ddi == pdm.DDI_PRESCRIPTION_CONTROL_STATE:
-            c.rate_auto = self._control_state(c, pd.value, "isobus_rate_manual")
+            auto = self._control_state(c, pd.value, "isobus_rate_manual")
+            if auto and not c.rate_auto:
+                c.sent.clear()
+            c.rate_auto = auto
 
     def _control_state(self, c: Client, value: int, alarm: str) -> bool:
         """DDI 160 / 158: 1 auto (the TC drives it), 0 manual or 2 error (the operator
@@ -401,8 +407,6 @@ class TaskControllerServer:
                 alarm.removeprefix("isobus_"),
                 value,
             )
-        if auto:
-            c.sent.clear()  # resend everything now that the TC drives it again
         return auto
 
     def _held_pool(self, c: Client, want: bytes) -> tuple[bytes, bytes, DeviceDescriptor] | None:
