@@ -10,6 +10,12 @@ capacity / volume, lifetime volume, prescription control state (DDI 158), setpoi
 actual volume per area (DDI 1 / 2) and the cultural practice; 16 section elements 4-19 on
 the boom with offsets and widths; six presentations).
 
+Two deliberate differences from the example, so the replay exercises what a TC must honour:
+the example gives its "Request Default PD" object its object id as DDI (here DDI 0xDFFF, as
+ISO 11783-10 defines it) and lists the boom's setpoint work state (DDI 289) and area total
+in no element (here the boom lists them). Run against the example itself (by hand), it
+answers a request for DDI 67 with 0.
+
 Packed byte by byte here (ISO 11783-10 Annex A, version 4 layout), sharing no code with
 FieldRx's encoder; ``ddop_strict.decode`` reads it.
 """

@@ -345,6 +345,10 @@ def test_width_as_process_data_is_read_and_checked(bench):
     pump([bench.tc_node, peer.node])
     assert bench.tc.client.width_m == pytest.approx(36.576)
     assert "isobus_width_mismatch" in bench.tc.alarms
+    # the AgIsoStack++ example answers 0 for DDI 67 (it tracks no width): said, not checked
+    peer.pd(pdm.encode(pdm.CMD_VALUE, 2, pdm.DDI_ACTUAL_WORKING_WIDTH, 0))
+    pump([bench.tc_node, peer.node])
+    assert "isobus_width_unknown" in bench.tc.alarms
 
 
 def test_default_process_data_work_state_and_control_states_are_honoured(bench):

@@ -570,8 +570,18 @@ class TaskControllerServer:
             )
 
     def _check_width(self, c: Client) -> None:
+        if c.width_m is None or c.width_m <= 0:
+            # a width of 0 (some clients answer 0 for a value they do not track) is no width
+            self.alarms.add("isobus_width_unknown")
+            log.warning(
+                "[%s] client 0x%02X reports a working width of %s m: not checked",
+                self.node.label,
+                c.address,
+                c.width_m,
+            )
+            return
         self.alarms.discard("isobus_width_unknown")
-        if not c.width_m or not self.implement_width_m:
+        if not self.implement_width_m:
             return
         if abs(c.width_m - self.implement_width_m) > 0.02 * self.implement_width_m:
             self.alarms.add("isobus_width_mismatch")
