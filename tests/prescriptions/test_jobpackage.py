@@ -123,3 +123,57 @@ def test_a_liquid_products_density_travels_in_the_job_package(client, org, db) -
         product_key="default:urea",
     )
     assert build_package(db, urea["id"], None, machine).product_density_kg_l == 0.0
+
+
+def test_an_l_ha_prescription_goes_out_by_volume(client, org, db, tmp_path) -> None:
+    """A liquid prescribed in l/ha: its job package carries l/ha rates (a volume-rate
+    implement takes them as they are) and its ISOXML task DDI 0001 setpoints in
+    0.01 mm^3/m^2 (1 l/ha = 10 000); without a product density it is refused."""
+    import io
+    import xml.etree.ElementTree as ET
+    import zipfile
+
+    from fieldrx.db.models import Machine
+    from fieldrx.services.jobpackage import build_package
+
+    h = org.headers()
+    plan = setup_plan(client, h)
+    m = client.post(
+        f"{API}/machines",
+        headers=h,
+        json={"name": "Sprayer", "width_m": 2.3, "lag_s": 1.0, "calibration": SEED001_CAL},
+    ).json()
+    body = {"model": "uniform", "params": {"rate_kg_ha": 192}, "product_key": "default:uan28"}
+    rx = make_rx(client, h, plan["id"], rate_unit="l/ha", **body)
+    assert rx["rate_unit"] == "l/ha" and rx["density_kg_l"] == 1.28
+    pkg = build_package(db, rx["id"], None, db.get(Machine, m["id"]))
+    back = JobPackage.from_json(pkg.to_json())
+    assert back.rate_unit == "l/ha" and back.product_density_kg_l == 1.28
+    assert set(back.rate_kg_ha) == {150.0}  # 192 kg/ha / 1.28 kg/l
+    r = client.get(f"{API}/prescriptions/{rx['id']}/export?format=isoxml-zones", headers=h)
+    assert r.status_code == 200, r.text
+    xml = zipfile.ZipFile(io.BytesIO(r.content)).read("TASKDATA/TASKDATA.XML")
+    pdvs = ET.fromstring(xml).findall(".//TZN/PDV")
+    assert {p.get("A") for p in pdvs} == {"0001"}
+    assert {int(p.get("B") or 0) for p in pdvs} == {0, 1_500_000}
+    zones = {t.get("B") for t in ET.fromstring(xml).findall(".//TZN")}
+    assert "150.00 l/ha" in zones
+    g = client.get(f"{API}/prescriptions/{rx['id']}/export?format=isoxml", headers=h)
+    z = zipfile.ZipFile(io.BytesIO(g.content))
+    grid = np.frombuffer(z.read("TASKDATA/GRD00001.BIN"), dtype="<i4")
+    assert set(np.unique(grid).tolist()) <= {0, 1_500_000} and grid.max() == 1_500_000
+    # the same product in kg/ha stays a mass prescription that carries the density
+    kg = make_rx(client, h, plan["id"], **body)
+    assert kg["rate_unit"] == "kg/ha"
+    r = client.get(f"{API}/prescriptions/{kg['id']}/export?format=isoxml-zones", headers=h)
+    xml = zipfile.ZipFile(io.BytesIO(r.content)).read("TASKDATA/TASKDATA.XML")
+    assert {p.get("A") for p in ET.fromstring(xml).findall(".//TZN/PDV")} == {"0006"}
+    for bad in ({**body, "product_key": "default:urea"}, {k: body[k] for k in ("model", "params")}):
+        r = client.post(
+            f"{API}/plans/{plan['id']}/prescriptions", headers=h, json={**bad, "rate_unit": "l/ha"}
+        )
+        assert r.status_code == 422 and "l/ha needs a liquid product" in r.text, r.text
+    r = client.post(
+        f"{API}/plans/{plan['id']}/prescriptions", headers=h, json={**body, "rate_unit": "gal/ac"}
+    )
+    assert r.status_code == 422 and "rate_unit" in r.text

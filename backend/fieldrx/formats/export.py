@@ -23,6 +23,7 @@ def export_prescription(
     zone_classes: int | None = None,
     max_polygons: int | None = None,
     info: dict[str, Any] | None = None,
+    volume_density_kg_l: float | None = None,
 ) -> tuple[bytes, str, str]:
     """Return (file bytes, media type, suggested file name) for one export format.
 
@@ -32,6 +33,8 @@ def export_prescription(
     zone exports (``isoxml-zones`` and the terminal profiles) take the rate
     class count and polygon limit, and put how they dissolved the cells into
     ``info["zones"]`` (``ZoneSummary.to_dict``) when ``info`` is given.
+    ``volume_density_kg_l`` (an l/ha prescription's product density): the ISOXML task
+    carries volume setpoints (DDI 0001) instead of mass ones; the other formats stay kg/ha.
     """
     from fieldrx.formats.zones import DEFAULT_MAX_POLYGONS, DEFAULT_ZONE_CLASSES
 
@@ -57,7 +60,14 @@ def export_prescription(
     elif fmt == "isoxml":
         from fieldrx.formats.isoxml import write_isoxml_grid
 
-        data = write_isoxml_grid(cells, field_name, boundary_wgs84, product_name, grid_cell_m)
+        data = write_isoxml_grid(
+            cells,
+            field_name,
+            boundary_wgs84,
+            product_name,
+            grid_cell_m,
+            _setpoint(volume_density_kg_l),
+        )
     elif fmt == "isoxml-zones":
         from fieldrx.formats.isoxml import write_isoxml_zones
 
@@ -68,6 +78,7 @@ def export_prescription(
             product_name,
             n_classes,
             DEFAULT_MAX_POLYGONS if max_polygons is None else int(max_polygons),
+            setpoint=_setpoint(volume_density_kg_l),
         )
     else:
         raise FormatError(f"unknown export format {fmt!r} (expected one of {list(FILE_FORMATS)})")
@@ -76,3 +87,9 @@ def export_prescription(
         info["note"] = summary.note()
     media, filename = MEDIA_TYPES[fmt]
     return data, media, filename
+
+
+def _setpoint(volume_density_kg_l: float | None) -> Any:
+    from fieldrx.formats.isoxml import MASS, volume_setpoint
+
+    return MASS if volume_density_kg_l is None else volume_setpoint(volume_density_kg_l)

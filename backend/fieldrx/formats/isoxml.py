@@ -4,7 +4,9 @@ Two variants, both a zip holding ``TASKDATA/TASKDATA.XML`` (version 4.3):
 
 * ``write_isoxml_grid``: a type-2 grid (``GRD`` + binary ``GRD00001.BIN``).
   Each grid cell holds one little-endian int32: DDI 0006 "Setpoint Mass Per
-  Area Application Rate" in mg/m^2 (1 kg/ha = 10^6 mg / 10^4 m^2 = 100 mg/m^2).
+  Area Application Rate" in mg/m^2 (1 kg/ha = 10^6 mg / 10^4 m^2 = 100 mg/m^2);
+  a liquid prescribed in l/ha carries DDI 0001 "Setpoint Volume Per Area" instead
+  (``Setpoint``).
   The grid origin (GRD A/B) is its south-west corner, row 0 is the southern
   row and each row runs west to east. The cell size in degrees comes from a
   size in metres at the field's latitude; each grid cell takes the rate of the
@@ -48,7 +50,11 @@ from fieldrx.formats.zones import (
 from fieldrx.geo.crs import lonlat_to_utm_xy
 
 DDI_SETPOINT_MASS_PER_AREA = 0x0006  # mg/m^2
+DDI_SETPOINT_VOLUME_PER_AREA = 0x0001  # 0.01 mm^3/m^2
 MG_M2_PER_KG_HA = 100.0
+# 1 l/ha = 1e6 mm^3 / 1e4 m^2 = 100 mm^3/m^2 = 10 000 bits of DDI 1 (resolution 0.01 mm^3/m^2,
+# ISO 11783-11 data dictionary)
+DDI1_BITS_PER_L_HA = 10_000.0
 MAX_GRID_CELLS = 25_000_000
 SOFTWARE = ("FieldRx", "0.1.0")
 _GEOD = Geod(ellps="WGS84")
@@ -57,6 +63,42 @@ _GEOD = Geod(ellps="WGS84")
 def rate_to_mg_m2(rate_kg_ha: np.ndarray) -> np.ndarray:
     """kg/ha -> integer mg/m^2 (DDI 0006 resolution 1 mg/m^2 = 0.01 kg/ha)."""
     return np.rint(np.asarray(rate_kg_ha, dtype=float) * MG_M2_PER_KG_HA).astype(np.int64)
+
+
+@dataclass(frozen=True)
+class Setpoint:
+    """Which setpoint DDI a task carries and how a kg/ha rate becomes its integer value.
+
+    A solid (no density) goes out as mass per area (DDI 0006, mg/m^2); a liquid prescribed
+    in l/ha as volume per area (DDI 0001, 0.01 mm^3/m^2) with l/ha = kg/ha / density, so a
+    sprayer's volume-rate controller takes it without a conversion at the terminal.
+    """
+
+    ddi: int = DDI_SETPOINT_MASS_PER_AREA
+    density_kg_l: float | None = None
+
+    @property
+    def unit(self) -> str:
+        return "kg/ha" if self.density_kg_l is None else "l/ha"
+
+    def shown(self, rate_kg_ha: float) -> float:
+        return rate_kg_ha if self.density_kg_l is None else rate_kg_ha / self.density_kg_l
+
+    def values(self, rate_kg_ha: np.ndarray) -> np.ndarray:
+        if self.density_kg_l is None:
+            return rate_to_mg_m2(rate_kg_ha)
+        l_ha = np.asarray(rate_kg_ha, dtype=float) / self.density_kg_l
+        return np.rint(l_ha * DDI1_BITS_PER_L_HA).astype(np.int64)
+
+
+MASS = Setpoint()
+
+
+def volume_setpoint(density_kg_l: float) -> Setpoint:
+    """DDI 0001 setpoints of a liquid of ``density_kg_l`` (kg/l)."""
+    if not density_kg_l > 0:
+        raise FormatError(f"a volume setpoint needs a positive density, got {density_kg_l!r}")
+    return Setpoint(DDI_SETPOINT_VOLUME_PER_AREA, float(density_kg_l))
 
 
 def deg(v: float) -> str:
@@ -131,12 +173,8 @@ def _tzn(parent: ET.Element, code: int, designator: str) -> ET.Element:
     return ET.SubElement(parent, "TZN", {"A": str(code), "B": designator[:32]})
 
 
-def _pdv(tzn: ET.Element, value_mg_m2: int) -> None:
-    ET.SubElement(
-        tzn,
-        "PDV",
-        {"A": f"{DDI_SETPOINT_MASS_PER_AREA:04X}", "B": str(int(value_mg_m2)), "C": "PDT1"},
-    )
+def _pdv(tzn: ET.Element, value: int, ddi: int = DDI_SETPOINT_MASS_PER_AREA) -> None:
+    ET.SubElement(tzn, "PDV", {"A": f"{ddi:04X}", "B": str(int(value)), "C": "PDT1"})
 
 
 def xml_bytes(root: ET.Element) -> bytes:
@@ -229,8 +267,10 @@ def write_isoxml_grid(
     boundary_wgs84: Any = None,
     product_name: str = "fertilizer",
     grid_cell_m: float | None = None,
+    setpoint: Setpoint = MASS,
 ) -> bytes:
-    """TASKDATA.zip with a type-2 grid of DDI 0006 setpoints (see module docstring)."""
+    """TASKDATA.zip with a type-2 grid of DDI 0006 setpoints (see module docstring), or
+    DDI 0001 ones with a volume ``setpoint``."""
     if len(cells) == 0:
         raise FormatError("prescription has no cells")
     cell_m = default_grid_cell_m(cells) if grid_cell_m is None else float(grid_cell_m)
@@ -240,13 +280,13 @@ def write_isoxml_grid(
         else tuple(boundary_wgs84.bounds)
     )
     spec = grid_spec(bounds, cell_m)  # type: ignore[arg-type]
-    values = rate_to_mg_m2(rasterise_rates(cells, spec))
+    values = setpoint.values(rasterise_rates(cells, spec))
     if values.max(initial=0) > np.iinfo(np.int32).max:
         raise FormatError("a rate is too large for an ISO 11783 setpoint")
     binary = values.astype("<i4").tobytes(order="C")
     root, tsk = _common(field_name, cells.total_area_m2, boundary_wgs84, product_name)
-    _pdv(_tzn(tsk, 0, "no rate"), 0)
-    _pdv(_tzn(tsk, 1, "prescription grid"), 0)
+    _pdv(_tzn(tsk, 0, "no rate"), 0, setpoint.ddi)
+    _pdv(_tzn(tsk, 1, "prescription grid"), 0, setpoint.ddi)
     ET.SubElement(
         tsk,
         "GRD",
@@ -274,6 +314,7 @@ def write_isoxml_zones(
     n_classes: int = DEFAULT_ZONE_CLASSES,
     max_polygons: int = DEFAULT_MAX_POLYGONS,
     min_patch_m2: float | None = None,
+    setpoint: Setpoint = MASS,
 ) -> tuple[bytes, ZoneSummary]:
     """TASKDATA.zip with one treatment zone (TZN + PLN polygons) per rate class.
 
@@ -283,11 +324,11 @@ def write_isoxml_zones(
     """
     zones, summary = dissolve_zones(cells, n_classes, max_polygons, min_patch_m2)
     root, tsk = _common(field_name, cells.total_area_m2, boundary_wgs84, product_name)
-    _pdv(_tzn(tsk, 0, "no rate"), 0)
+    _pdv(_tzn(tsk, 0, "no rate"), 0, setpoint.ddi)
     for code, zone in enumerate(zones, start=1):
-        value = int(rate_to_mg_m2(np.asarray([zone.rate_kg_ha]))[0])
-        tzn = _tzn(tsk, code, f"{zone.rate_kg_ha:.2f} kg/ha")
+        value = int(setpoint.values(np.asarray([zone.rate_kg_ha]))[0])
+        tzn = _tzn(tsk, code, f"{setpoint.shown(zone.rate_kg_ha):.2f} {setpoint.unit}")
         for part in zone.polygons:
             polygon_element(tzn, part, "2")
-        _pdv(tzn, value)
+        _pdv(tzn, value, setpoint.ddi)
     return taskdata_zip({"TASKDATA.XML": xml_bytes(root)}), summary

@@ -9,7 +9,7 @@ from geoalchemy2.shape import to_shape
 from sqlalchemy.orm import Session
 
 from fieldrx.db.models import Field, Plan, Prescription, PrescriptionVersion
-from fieldrx.services.prescriptions import RxError, version_cells
+from fieldrx.services.prescriptions import RxError, rx_rate_unit, version_cells
 
 FORMATS = ("geojson", "csv", "shapefile", "isoxml", "isoxml-zones")
 
@@ -45,6 +45,7 @@ def export_version(
     field = session.get(Field, plan.field_id) if plan is not None else None
     boundary = None if field is None else to_shape(field.boundary)
     props = {"prescription_id": rx.id, "version": ver.version, "model": rx.model}
+    unit, density = rx_rate_unit(rx)
     data, media, _ = export_prescription(
         cells,
         fmt,
@@ -56,6 +57,7 @@ def export_version(
         zone_classes=zone_classes,
         max_polygons=max_polygons,
         info=info,
+        volume_density_kg_l=density if unit == "l/ha" else None,
     )
     stem = _stem(rx, ver)
     if fmt == "isoxml" or fmt == "isoxml-zones":

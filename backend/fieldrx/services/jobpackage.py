@@ -25,7 +25,7 @@ from sqlalchemy.orm import Session
 
 from fieldrx.db.models import Field, Job, Machine, Plan, Prescription
 from fieldrx.services.plans import field_utm
-from fieldrx.services.prescriptions import get_version, version_cells
+from fieldrx.services.prescriptions import get_version, rx_rate_unit, version_cells
 from fieldrx.store import load_cells
 
 
@@ -63,6 +63,12 @@ def build_package(
     if plan is None or field is None:
         raise LookupError(f"prescription {prescription_id}: plan or field is gone")
     cells = version_cells(session, rx, ver)
+    unit, density = rx_rate_unit(rx)
+    if unit == "l/ha":
+        # stored in kg/ha (the agronomy counts mass); a liquid goes out by volume, so an
+        # ISOBUS volume-rate implement (DDI 1) takes the rates as they are
+        assert density, "an l/ha prescription has a product density (check_rate_unit)"
+        cells = cells.with_rates(cells.rate_kg_ha / density)
     return build(
         cells,
         field_utm(field),
@@ -74,9 +80,8 @@ def build_package(
         **machine_fields(machine),
         product=rx.product,
         # the product's density travels with it (ISOBUS volume-rate implements, DDI 1)
-        product_density_kg_l=float(
-            ((rx.params or {}).get("product_info") or {}).get("density_kg_l") or 0.0
-        ),
+        rate_unit=unit,
+        product_density_kg_l=density or 0.0,
     )
 
 

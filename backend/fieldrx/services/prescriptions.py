@@ -64,6 +64,7 @@ PARAM_ALIASES = {
     "rate": "rate_kg_ha",
 }
 IGNORED_PARAMS = {"nutrient"}
+RATE_UNITS = ("kg/ha", "l/ha")
 
 
 class RxError(ValueError):
@@ -380,6 +381,8 @@ def prescription_summary(session: Session, rx: Prescription) -> dict[str, Any]:
         "interpolation_params": p.get("interpolation_params", {}),
         "fallback_rate_kg_ha": p.get("fallback_rate_kg_ha"),
         "meter": p.get("meter"),
+        "rate_unit": rx_rate_unit(rx)[0],
+        "density_kg_l": rx_rate_unit(rx)[1],
         "current_version": rx.current_version,
         "versions": [
             {
@@ -451,6 +454,7 @@ def create_prescription(
     clamp_max_kg_ha: float | None = None,
     class_count: int = 6,
     note: str = "",
+    rate_unit: str = "kg/ha",
 ) -> Prescription:
     """Interpolate, rate, clamp and store version 1 (flush only). Raises ValueError subclasses.
 
@@ -524,6 +528,7 @@ def create_prescription(
             "product_info": product_info,
             "clamp": {"min_kg_ha": clamp_min_kg_ha, "max_kg_ha": clamp_max_kg_ha},
             **({"source": source} if source else {}),
+            **({"rate_unit": rate_unit} if rate_unit != "kg/ha" else {}),
         },
         current_version=1,
     )
@@ -533,6 +538,27 @@ def create_prescription(
         session, rx, 1, note or "created", user_id, seq, p.rate_kg_ha, p.flags, values, summary
     )
     return rx
+
+
+def check_rate_unit(unit: str, product_info: dict[str, Any] | None) -> None:
+    """An l/ha prescription needs a product with a density: the rates are worked out in
+    kg/ha (nutrient balance, meter range, product and cost figures all count mass) and
+    sent to machines as l/ha = kg/ha / density."""
+    if unit not in RATE_UNITS:
+        raise RxError(f"rate_unit {unit!r} is not one of {list(RATE_UNITS)}")
+    if unit == "l/ha" and not (product_info or {}).get("density_kg_l"):
+        what = "no product_key" if product_info is None else f"product {product_info['name']!r}"
+        raise RxError(
+            f"rate_unit l/ha needs a liquid product with a density (kg/l), got {what}: "
+            "choose one or give the product a density"
+        )
+
+
+def rx_rate_unit(rx: Prescription) -> tuple[str, float | None]:
+    """The prescription's rate unit and its product's density in kg/l (None: not known)."""
+    p = rx.params or {}
+    d = (p.get("product_info") or {}).get("density_kg_l")
+    return str(p.get("rate_unit") or "kg/ha"), float(d) if d else None
 
 
 def create_from_request(
@@ -564,10 +590,13 @@ def create_from_request(
         product_info = resolve_product(session, organisation_id, b["product_key"])
         if product_info is None:
             raise RxError(f"product_key {b['product_key']!r} is not in this catalogue")
+    unit = str(b.get("rate_unit") or "kg/ha")
+    check_rate_unit(unit, product_info)
     return create_prescription(
         session,
         plan,
         field,
+        rate_unit=unit,
         name=b.get("name", "") if name is None else name,
         product=b.get("product", ""),
         model=b.get("model", "nutrient_balance"),

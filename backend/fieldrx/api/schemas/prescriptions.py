@@ -56,6 +56,12 @@ class PrescriptionIn(In):
     )
     class_count: int = Field(default=6, ge=1, le=20, description="legend classes of version 1")
     note: str = Field(default="", max_length=2000, description="note of version 1")
+    rate_unit: Literal["kg/ha", "l/ha"] = Field(
+        default="kg/ha",
+        description="l/ha: a liquid product (one with a density, product_key) applied by "
+        "volume; the rates are worked out in kg/ha and its job packages and ISOXML carry "
+        "l/ha (DDI 1)",
+    )
 
     @model_validator(mode="after")
     def _clamp_order(self) -> PrescriptionIn:
@@ -202,6 +208,12 @@ class PrescriptionOut(Out):
     interpolation_params: dict[str, Any]
     fallback_rate_kg_ha: float | None
     meter: dict[str, Any] | None = Field(description="the meter the rates were checked against")
+    rate_unit: str = Field(
+        default="kg/ha", description="kg/ha, or l/ha: sent to machines by volume (DDI 1)"
+    )
+    density_kg_l: float | None = Field(
+        default=None, description="the product's density: l/ha = kg/ha / density"
+    )
     current_version: int
     versions: list[VersionRef]
     summary: RxSummary = Field(description="the current version's summary")

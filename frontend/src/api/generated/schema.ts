@@ -2654,6 +2654,11 @@ export interface components {
             created_at: string | null;
             /** Current Version */
             current_version: number;
+            /**
+             * Density Kg L
+             * @description the product's density: l/ha = kg/ha / density
+             */
+            density_kg_l?: number | null;
             /** Edited Cells */
             edited_cells: number;
             /** Fallback Rate Kg Ha */
@@ -2692,6 +2697,12 @@ export interface components {
             plan_id: number;
             /** Product */
             product: string;
+            /**
+             * Rate Unit
+             * @description kg/ha, or l/ha: sent to machines by volume (DDI 1)
+             * @default kg/ha
+             */
+            rate_unit?: string;
             stats: components["schemas"]["RxStats"];
             /** @description the current version's summary */
             summary: components["schemas"]["RxSummary"];
@@ -4107,6 +4118,13 @@ export interface components {
              * @description a product key of GET /products: names the product, gives n_fraction (nutrient_balance) and the version's nutrient and cost figures
              */
             product_key?: string | null;
+            /**
+             * Rate Unit
+             * @description l/ha: a liquid product (one with a density, product_key) applied by volume; the rates are worked out in kg/ha and its job packages and ISOXML carry l/ha (DDI 1)
+             * @default kg/ha
+             * @enum {string}
+             */
+            rate_unit?: "kg/ha" | "l/ha";
             /** Speed Max Kmh */
             speed_max_kmh?: number | null;
             /** Speed Min Kmh */
@@ -4127,6 +4145,11 @@ export interface components {
             created_at: string | null;
             /** Current Version */
             current_version: number;
+            /**
+             * Density Kg L
+             * @description the product's density: l/ha = kg/ha / density
+             */
+            density_kg_l?: number | null;
             /** Fallback Rate Kg Ha */
             fallback_rate_kg_ha: number | null;
             /** Id */
@@ -4161,6 +4184,12 @@ export interface components {
             plan_id: number;
             /** Product */
             product: string;
+            /**
+             * Rate Unit
+             * @description kg/ha, or l/ha: sent to machines by volume (DDI 1)
+             * @default kg/ha
+             */
+            rate_unit?: string;
             stats: components["schemas"]["RxStats"];
             /** @description the current version's summary */
             summary: components["schemas"]["RxSummary"];
@@ -4880,6 +4909,13 @@ export interface components {
              * @description a product key of GET /products: names the product, gives n_fraction (nutrient_balance) and the version's nutrient and cost figures
              */
             product_key?: string | null;
+            /**
+             * Rate Unit
+             * @description l/ha: a liquid product (one with a density, product_key) applied by volume; the rates are worked out in kg/ha and its job packages and ISOXML carry l/ha (DDI 1)
+             * @default kg/ha
+             * @enum {string}
+             */
+            rate_unit?: "kg/ha" | "l/ha";
             /** Speed Max Kmh */
             speed_max_kmh?: number | null;
             /** Speed Min Kmh */
