@@ -20,6 +20,7 @@ export function ProductPicker(props: {
   const [name, setName] = useState('');
   const [npk, setNpk] = useState({ n: '', p: '0', k: '0' });
   const [price, setPrice] = useState('');
+  const [density, setDensity] = useState('');
   const [addError, setAddError] = useState<unknown>(null);
   const chosen = products.find((p) => p.key === value);
   const save = async () => {
@@ -33,6 +34,7 @@ export function ProductPicker(props: {
             p2o5_pct: Number(npk.p || 0),
             k2o_pct: Number(npk.k || 0),
             price_per_t: price.trim() === '' ? null : Number(price),
+            density_kg_l: density.trim() === '' ? null : Number(density),
           },
         }),
       );
@@ -40,6 +42,7 @@ export function ProductPicker(props: {
       onChange(p.key);
       setAdding(false);
       setName('');
+      setDensity('');
     } catch (e) {
       setAddError(e);
     }
@@ -102,6 +105,19 @@ export function ProductPicker(props: {
             <label>
               Price per t
               <input data-testid="product-price" type="number" min={0} step="any" value={price} onChange={(e) => setPrice(e.target.value)} />
+            </label>
+            <label>
+              Density kg/l (liquids)
+              <input
+                data-testid="product-density"
+                type="number"
+                min={0.05}
+                max={5}
+                step="any"
+                placeholder="solid: empty"
+                value={density}
+                onChange={(e) => setDensity(e.target.value)}
+              />
             </label>
           </div>
           <div className="row">

@@ -1,5 +1,5 @@
 import type { ReactNode } from 'react';
-import { NDVI_SOURCE, withCrop, type Crop, type FieldErrors, type Product, type RxFields, type RxModel } from '../lib/rxform';
+import { NDVI_SOURCE, withCrop, withProduct, type Crop, type FieldErrors, type Product, type RxFields, type RxModel } from '../lib/rxform';
 import { ProductPicker } from './ProductPicker';
 
 /** A number input with its unit and, under it, where its default comes from or what is wrong. */
@@ -87,7 +87,7 @@ export function RxModelFields(props: {
           <ProductPicker
             products={products}
             value={f.productKey}
-            onChange={(k) => set({ ...f, productKey: k })}
+            onChange={(k) => set(withProduct(f, products, k))}
             onAdded={onProductAdded}
             error={errors.productKey}
             testid={`${tid}-product`}
@@ -112,11 +112,21 @@ export function RxModelFields(props: {
         <ProductPicker
           products={products}
           value={f.productKey}
-          onChange={(k) => set({ ...f, productKey: k })}
+          onChange={(k) => set(withProduct(f, products, k))}
           onAdded={onProductAdded}
           testid={`${tid}-product`}
         />
       )}
+      {products.find((p) => p.key === f.productKey)?.density_kg_l ? (
+        <label>
+          Send to machines in
+          <select data-testid={`${tid}-rate-unit`} value={f.rateUnit} onChange={(e) => set({ ...f, rateUnit: e.target.value })}>
+            <option value="kg/ha">kg/ha (mass-rate implements)</option>
+            <option value="l/ha">l/ha (volume-rate sprayers, through the product's density)</option>
+          </select>
+          <span className="small muted source">rates are worked out in kg/ha either way</span>
+        </label>
+      ) : null}
       <div className="row wrap">
         <Num label="Min rate (clamp)" unit="kg/ha" k="clampMin" source="empty: no minimum" {...common} />
         <Num label="Max rate (clamp)" unit="kg/ha" k="clampMax" source="empty: no maximum" {...common} />

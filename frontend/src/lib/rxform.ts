@@ -4,7 +4,7 @@
  * the agronomist's min / max clamp. Pure: turns the fields into a PrescriptionIn body.
  */
 import type { Schemas } from '../api/client';
-import { formatRate } from './units';
+import { formatRate, formatVolumeRate } from './units';
 
 export type Crop = Schemas['CropOut'];
 export type Product = Schemas['ProductOut'];
@@ -24,6 +24,8 @@ export interface RxFields {
   rateAtHigh: string;
   clampMin: string;
   clampMax: string;
+  /** 'l/ha': a liquid (a product with a density) goes to machines by volume. */
+  rateUnit: string;
 }
 
 /** Seed 000 NDVI curve (0.24 -> 375 kg/ha, 0.65 -> 180 kg/ha, SCIENCE.md). */
@@ -44,7 +46,14 @@ export function defaultFields(crops: Crop[], products: Product[], cropKey?: stri
     ...NDVI_DEFAULTS,
     clampMin: '',
     clampMax: '',
+    rateUnit: 'kg/ha',
   };
+}
+
+/** Another product: a rate unit of l/ha stays only while the product has a density. */
+export function withProduct(f: RxFields, products: Product[], key: string): RxFields {
+  const p = products.find((x) => x.key === key);
+  return { ...f, productKey: key, rateUnit: p?.density_kg_l ? f.rateUnit : 'kg/ha' };
 }
 
 /** A new crop's defaults replace the crop-dependent fields only (yield, e, k). */
@@ -72,6 +81,7 @@ export interface RxBody {
   product_key?: string;
   clamp_min_kg_ha?: number;
   clamp_max_kg_ha?: number;
+  rate_unit?: 'l/ha';
 }
 
 /** The request body parts from the fields, or the errors per field (nothing is sent then). */
@@ -110,13 +120,23 @@ export function rxBody(model: RxModel, f: RxFields): { body: RxBody | null; erro
   if (f.productKey) body.product_key = f.productKey;
   if (lo != null) body.clamp_min_kg_ha = lo;
   if (hi != null) body.clamp_max_kg_ha = hi;
+  if (f.rateUnit === 'l/ha') body.rate_unit = 'l/ha';
   return { body, errors };
+}
+
+/** How a prescription goes to machines: "kg/ha", or "l/ha through 1.28 kg/l · mean 150.0 l/ha"
+ * (the server works its rates out in kg/ha; job packages and ISOXML carry l/ha). */
+export function rateUnitText(rx: { rate_unit?: string; density_kg_l?: number | null } | undefined, meanKgHa?: number | null): string {
+  if (!rx) return '–';
+  if (rx.rate_unit !== 'l/ha' || !rx.density_kg_l) return 'kg/ha';
+  return `l/ha through ${rx.density_kg_l} kg/l · mean ${formatVolumeRate(meanKgHa, rx.density_kg_l)}`;
 }
 
 /** "46 % N, 0 % P2O5, 0 % K2O · 420 /t" */
 export function productText(p: Product): string {
   const npk = `${p.n_pct} % N, ${p.p2o5_pct} % P2O5, ${p.k2o_pct} % K2O`;
-  return p.price_per_t == null ? `${npk} · no price` : `${npk} · ${p.price_per_t} /t`;
+  const liquid = p.density_kg_l ? ` · liquid, ${p.density_kg_l} kg/l` : '';
+  return (p.price_per_t == null ? `${npk} · no price` : `${npk} · ${p.price_per_t} /t`) + liquid;
 }
 
 /** kg below 10 t, else t (3 decimals). */

@@ -18,6 +18,12 @@ export function formatRate(kgHa: number | null | undefined, digits = 1): string 
   return `${num(kgHa, digits)} kg/ha`;
 }
 
+/** A liquid's kg/ha as l/ha through its density (kg/l): "150.0 l/ha". */
+export function formatVolumeRate(kgHa: number | null | undefined, densityKgL: number, digits = 1): string {
+  if (kgHa == null || !Number.isFinite(kgHa) || !(densityKgL > 0)) return '–';
+  return `${num(kgHa / densityKgL, digits)} l/ha`;
+}
+
 export function msToKmh(ms: number): number {
   return ms * 3.6;
 }

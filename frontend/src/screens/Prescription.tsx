@@ -15,6 +15,7 @@ import { ZonesTable } from '../components/ZonesTable';
 import { classColors, classify, legendEntries, niceBreaks, stepExpression } from '../lib/colors';
 import { attentionLines, attentionOf, attentionSummary } from '../lib/flags';
 import { bboxOf, type PolygonGeom } from '../lib/geo';
+import { rateUnitText } from '../lib/rxform';
 import { formatRate } from '../lib/units';
 import { MapView } from '../map/MapView';
 import { rxTilesUrl } from '../map/grid';
@@ -162,6 +163,7 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
             ['Model', String(rx?.model ?? '–'), 'rx-model-name'],
             ['Cells', String(shown?.n_cells ?? '–'), 'rx-cell-count'],
             ['Flagged cells', rx ? attentionSummary(attention) : '–', 'rx-flagged'],
+            ['Sent to machines in', rateUnitText(rx, shown?.rate_mean_kg_ha), 'rx-rate-unit'],
           ]}
         />
         <RxSummaryPanel summary={shown} version={version} />
