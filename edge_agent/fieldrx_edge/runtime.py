@@ -405,6 +405,10 @@ def make_record(
         lon, lat = fix.lon, fix.lat
     elif d.x is not None and d.y is not None:
         lon, lat = pipe.proj.inverse(d.x, d.y)
+    # records are kg/ha (the server's as-applied maps): an l/ha job's rates back to mass
+    # through the product's density its package carries
+    job = pipe.job
+    kg = job.product_density_kg_l if job.rate_unit == "l/ha" and job.product_density_kg_l else 1.0
     rec = TelemetryRecord(
         machine_id=pipe.job.machine_id,
         seq=1,
@@ -418,8 +422,8 @@ def make_record(
         heading_deg=d.heading_deg,
         job_id=pipe.job.job_id,
         cell_seq=d.cell_seq,
-        target_rate_kg_ha=d.target_rate_kg_ha,
-        applied_rate_kg_ha=pipe.applied_rate(d, actual_rpm),
+        target_rate_kg_ha=d.target_rate_kg_ha * kg,
+        applied_rate_kg_ha=pipe.applied_rate(d, actual_rpm) * kg,
         target_shaft_rpm=d.target_rpm,
         actual_shaft_rpm=actual_rpm,
         duty=duty,

@@ -145,3 +145,12 @@ def test_a_liquid_prescription_drives_a_volume_implement_with_no_cab_option(
     # 192 kg/ha of UAN-28 at 1.28 kg/l = 150 l/ha = 1 500 000 x 0.01 mm^3/m^2 (DDI 1)
     assert ddi1 and set(ddi1) <= {0, 1_500_000} and 1_500_000 in ddi1, ddi1
     assert "isobus_cannot_drive" not in json.dumps(run_out)
+    # the telemetry stays in kg/ha whatever the job's unit (the server's as-applied maps)
+    from fieldrx_edge.protocol import TelemetryRecord
+    from fieldrx_edge.uplink import TelemetryQueue
+
+    q = TelemetryQueue(tmp_path / "state" / "queue.sqlite", pkg.machine_id)
+    recs = [TelemetryRecord.from_dict(r) for r in q.pending(limit=5000)]
+    q.close()
+    targets = {round(r.target_rate_kg_ha, 6) for r in recs if r.target_rate_kg_ha}
+    assert targets == {192.0}, targets
