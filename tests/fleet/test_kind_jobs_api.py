@@ -6,13 +6,13 @@ from __future__ import annotations
 from fieldrx_edge.ndvi import SEED000_TABLE
 from fieldrx_edge.protocol import JobPackage
 
-from tests.support import SMALL_PLOT, feature, machine_body
+from tests.support import BOTH_KINDS, SMALL_PLOT, feature, machine_body
 
 
 def _plan(client, org, width: float) -> tuple[int, int]:  # noqa: ANN001
     h = org.headers()
     f = client.post("/api/v1/fields", json=feature(SMALL_PLOT, name="api plot"), headers=h).json()
-    body = machine_body("api kinds", width, calibration=SEED000_TABLE.to_dict())
+    body = machine_body("api kinds", width, calibration=SEED000_TABLE.to_dict(), **BOTH_KINDS)
     m = client.post("/api/v1/machines", json=body, headers=h).json()
     p = client.post(
         f"/api/v1/fields/{f['id']}/plans",

@@ -52,6 +52,10 @@ class Organisation(Base):
     __tablename__ = "organisations"
     id: Mapped[int] = mapped_column(primary_key=True)
     name: Mapped[str] = mapped_column(String(200), unique=True)
+    # plausibility settings: {"ceilings_kg_ha": {crop key or "*": {"N": ...}}, "curve_share_max"}
+    agronomy: Mapped[dict[str, Any]] = mapped_column(
+        JSONB, default=dict, server_default=text("'{}'::jsonb")
+    )
     created_at: Mapped[dt.datetime] = _now()
 
 
@@ -155,6 +159,10 @@ class Machine(Base):
     antenna_lateral_m: Mapped[float] = mapped_column(Double, default=0.0)
     speed_min_m_s: Mapped[float] = mapped_column(Double, default=0.8)
     speed_max_m_s: Mapped[float] = mapped_column(Double, default=2.5)
+    # what the implement can do beyond metering: sections, depth actuator, sensors
+    capabilities: Mapped[dict[str, Any]] = mapped_column(
+        JSONB, default=dict, server_default=text("'{}'::jsonb")
+    )
     created_at: Mapped[dt.datetime] = _now()
 
 
