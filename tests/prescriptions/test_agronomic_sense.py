@@ -207,3 +207,51 @@ def test_organisation_ceiling_flags_model_output_and_zone_paint(client, make_org
     cur = client.get(f"{API}/prescriptions/{rx['id']}", headers=h).json()["summary"]
     assert cur["plausibility"]["above_ceiling"]["count"] == 0
     assert cur["attention"]["count"] == 0
+
+
+def test_ndvi_curve_cap_share_is_flagged(client, org) -> None:
+    """An NDVI prescription whose input sits below the curve's low end on most of the field
+    (seed 000: NDVI <= 0.24 -> 375 kg/ha) puts that share at the cap: flagged, counted."""
+    h = org.headers()
+    (lon0, lat0), (lon1, lat1) = FIELD["coordinates"][0][0], FIELD["coordinates"][0][2]
+    rows = ["sample_id,lon,lat,n_mg_kg,ndvi"]
+    for i in range(4):
+        for j in range(4):
+            lon = lon0 + (lon1 - lon0) * (i + 0.5) / 4
+            lat = lat0 + (lat1 - lat0) * (j + 0.5) / 4
+            rows.append(f"V{i}{j},{lon:.8f},{lat:.8f},100,{0.12 if i < 3 else 0.5}")
+    r = client.post(f"{API}/fields", headers=h, json=feature(FIELD))
+    fid = r.json()["id"]
+    up = client.post(
+        f"{API}/fields/{fid}/soil-samples",
+        headers=h,
+        files={"file": ("ndvi.csv", "\n".join(rows) + "\n", "text/csv")},
+    )
+    assert up.status_code == 201, up.text
+    plan = make_plan(client, h, fid)
+    rx = make_rx(client, h, plan["id"], model="ndvi", params={}, interpolation="idw")
+    s = rx["summary"]
+    cap = s["plausibility"]["curve_limits"]["cap"]
+    assert cap["flagged"] and cap["share"] > 0.5, cap
+    assert s["flagged"]["at_curve_limit"] == cap["count"]
+    assert s["attention"]["count"] >= cap["count"]
+    assert s["plausibility"]["curve_limits"]["floor"]["flagged"] is False
+
+
+def test_form_defaults_come_from_the_field(client, org) -> None:
+    h = org.headers()
+    fid, plan = wheat_field(client, h)
+    d = client.get(f"{API}/fields/{fid}/rx-defaults", headers=h).json()
+    assert d["crop"] == "winter_wheat" and d["crop_from"] == "field"
+    assert d["product_key"] is None and d["target_yield_t_ha"] is None
+    make_rx(
+        client,
+        h,
+        plan["id"],
+        model="nutrient_balance",
+        params={"target_yield_kg_ha": 7500},
+        product_key="default:can",
+    )
+    d = client.get(f"{API}/fields/{fid}/rx-defaults", headers=h).json()
+    assert d["product_key"] == "default:can" and d["target_yield_t_ha"] == 7.5
+    assert client.get(f"{API}/fields/{10**7}/rx-defaults", headers=h).status_code == 404

@@ -235,6 +235,11 @@ class SoilSample(Base):
     om_pct: Mapped[float | None] = mapped_column(Double)
     ph: Mapped[float | None] = mapped_column(Double)
     ndvi: Mapped[float | None] = mapped_column(Double)
+    # which N n_mg_kg is (agronomy.soil.N_FORMS): the nutrient-balance model reads only
+    # alkali-hydrolysable N (seed 001 eq. 19-21)
+    n_form: Mapped[str] = mapped_column(
+        String(24), default="alkali_hydrolysable", server_default="alkali_hydrolysable"
+    )
     geom: Mapped[Any] = mapped_column(Geometry("POINT", srid=4326, spatial_index=True))
     import_batch: Mapped[str] = mapped_column(String(64), default="")
     import_id: Mapped[int | None] = mapped_column(

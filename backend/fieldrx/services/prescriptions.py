@@ -353,11 +353,12 @@ def field_samples(
 ) -> tuple[np.ndarray, np.ndarray]:
     """UTM xy and values of the field's samples that have ``column``."""
     col = getattr(SoilSample, column)
-    rows = session.execute(
-        select(func.ST_X(SoilSample.geom), func.ST_Y(SoilSample.geom), col)
-        .where(SoilSample.field_id == field_id, col.is_not(None))
-        .order_by(SoilSample.id)
-    ).all()
+    stmt = select(func.ST_X(SoilSample.geom), func.ST_Y(SoilSample.geom), col).where(
+        SoilSample.field_id == field_id, col.is_not(None)
+    )
+    if column == "n_mg_kg":  # seed 001 eq. 19-21 read alkali-hydrolysable N only
+        stmt = stmt.where(SoilSample.n_form == "alkali_hydrolysable")
+    rows = session.execute(stmt.order_by(SoilSample.id)).all()
     if not rows:
         return np.zeros((0, 2)), np.zeros(0)
     a = np.asarray(rows, dtype=float)
@@ -380,6 +381,21 @@ def interpolate_field_samples(
     xy, z = field_samples(session, field.id, column, field.utm_epsg)
     if len(z) == 0:
         what = "soil samples with n_mg_kg" if column == "n_mg_kg" else "samples with ndvi"
+        other = (
+            session.scalars(
+                select(SoilSample.n_form)
+                .where(SoilSample.field_id == field.id, SoilSample.n_mg_kg.is_not(None))
+                .distinct()
+            ).all()
+            if column == "n_mg_kg"
+            else []
+        )
+        if other:
+            raise RxError(
+                f"model {model!r} needs alkali-hydrolysable soil N (seed 001 eq. 19-21); "
+                f"field {field.id}'s samples hold {' and '.join(sorted(other))} N, which the "
+                "model cannot read as such: import alkali-hydrolysable N, or use another model"
+            )
         raise RxError(
             f"model {model!r} needs {what} on field {field.id}: import them first "
             f"(POST /api/v1/fields/{field.id}/soil-samples)"

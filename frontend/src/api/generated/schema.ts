@@ -4979,6 +4979,13 @@ export interface components {
             };
             /** Epsg */
             epsg: number | null;
+            /**
+             * N Form
+             * @description which N the N column holds
+             * @default alkali_hydrolysable
+             * @enum {string}
+             */
+            n_form?: "alkali_hydrolysable" | "mineral" | "total";
             /** Units */
             units: {
                 [key: string]: string;
