@@ -28,11 +28,14 @@ export function MachinesScreen() {
   const [speedMin, setSpeedMin] = useState('3');
   const [speedMax, setSpeedMax] = useState('9');
   const [cal, setCal] = useState<CalibrationForm>(EMPTY_CALIBRATION);
-  const [implement, setImplement] = useState<Schemas['MachineIn']['implement_type']>('spreader');
-  const [depthActuator, setDepthActuator] = useState(false);
-  const [sensors, setSensors] = useState<Schemas['CapabilitiesIn']['sensors']>([]);
+  // the implement and what it can do beyond metering (checked when a job is made and sent)
+  const [impl, setImpl] = useState<{ type: Schemas['MachineIn']['implement_type']; caps: Schemas['CapabilitiesIn'] }>({
+    type: 'spreader',
+    caps: { depth_actuator: false, sensors: [] },
+  });
+  const sensors = impl.caps.sensors ?? [];
   const toggleSensor = (x: 'canopy_ndvi' | 'depth') =>
-    setSensors((sensors ?? []).includes(x) ? (sensors ?? []).filter((y) => y !== x) : [...(sensors ?? []), x]);
+    setImpl({ ...impl, caps: { ...impl.caps, sensors: sensors.includes(x) ? sensors.filter((y) => y !== x) : [...sensors, x] } });
   const [calErrors, setCalErrors] = useState<CalibrationErrors>({});
   const create = useApiMutation((body: Schemas['MachineIn']) => call(client.POST('/api/v1/machines', { body })), {
     invalidate: () => [qk.machines(), qk.machineStatus()],
@@ -59,8 +62,8 @@ export function MachinesScreen() {
           if (!r.value) return;
           const body = {
             name,
-            implement_type: implement,
-            capabilities: { depth_actuator: depthActuator, sensors },
+            implement_type: impl.type,
+            capabilities: impl.caps,
             width_m: Number(width),
             lag_s: r.value.lag_s,
             calibration: r.value.calibration,
@@ -90,7 +93,11 @@ export function MachinesScreen() {
         <div className="row wrap" data-testid="machine-capabilities">
           <label className="inline">
             implement{' '}
-            <select data-testid="machine-implement" value={implement} onChange={(e) => setImplement(e.target.value as typeof implement)}>
+            <select
+              data-testid="machine-implement"
+              value={impl.type}
+              onChange={(e) => setImpl({ ...impl, type: e.target.value as typeof impl.type })}
+            >
               <option value="spreader">spreader</option>
               <option value="seeder">seeder</option>
               <option value="seed_fertiliser_drill">seed + fertiliser drill</option>
@@ -98,15 +105,20 @@ export function MachinesScreen() {
             </select>
           </label>
           <label className="inline">
-            <input data-testid="machine-depth-actuator" type="checkbox" checked={depthActuator} onChange={(e) => setDepthActuator(e.target.checked)} /> depth
+            <input
+              data-testid="machine-depth-actuator"
+              type="checkbox"
+              checked={!!impl.caps.depth_actuator}
+              onChange={(e) => setImpl({ ...impl, caps: { ...impl.caps, depth_actuator: e.target.checked } })}
+            /> depth
             actuator
           </label>
           <label className="inline">
-            <input data-testid="machine-sensor-ndvi" type="checkbox" checked={(sensors ?? []).includes('canopy_ndvi')} onChange={() => toggleSensor('canopy_ndvi')} />{' '}
+            <input data-testid="machine-sensor-ndvi" type="checkbox" checked={sensors.includes('canopy_ndvi')} onChange={() => toggleSensor('canopy_ndvi')} />{' '}
             canopy NDVI sensors
           </label>
           <label className="inline">
-            <input data-testid="machine-sensor-depth" type="checkbox" checked={(sensors ?? []).includes('depth')} onChange={() => toggleSensor('depth')} /> depth
+            <input data-testid="machine-sensor-depth" type="checkbox" checked={sensors.includes('depth')} onChange={() => toggleSensor('depth')} /> depth
             sensor
           </label>
         </div>
