@@ -592,8 +592,9 @@ def create_prescription(
     if model not in MODEL_INPUT:
         raise RxError(f"unknown model {model!r} (expected one of {sorted(MODEL_INPUT)})")
     crop_from = "request" if crop is not None else None
-    if crop is None and find_crop(field.crop) is not None:
-        crop, crop_from = find_crop(field.crop).key, "field"  # type: ignore[union-attr]
+    field_crop = find_crop(field.crop) if crop is None else None
+    if field_crop is not None:
+        crop, crop_from = field_crop.key, "field"
     params, crop_d, param_sources, param_origin = crop_params(model, params, crop, product_info)
     plaus = plausibility_spec(session, organisation_id, crop, model, params, product_info)
     column = MODEL_INPUT[model]
