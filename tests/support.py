@@ -52,6 +52,20 @@ SEED001_CAL = {
 }
 
 
+# What the sensor job kinds need of a machine (services.implements): seed 000's NDVI
+# topdressing a fertiliser implement with canopy sensors, seed 002's seeding a seeder with
+# a depth actuator and depth sensor.
+NDVI_SPREADER = {"implement_type": "spreader", "capabilities": {"sensors": ["canopy_ndvi"]}}
+DEPTH_SEEDER = {
+    "implement_type": "seeder",
+    "capabilities": {"depth_actuator": True, "sensors": ["depth"]},
+}
+BOTH_KINDS = {
+    "implement_type": "seed_fertiliser_drill",
+    "capabilities": {"depth_actuator": True, "sensors": ["canopy_ndvi", "depth"]},
+}
+
+
 def machine_body(name: str = "Spreader", width_m: float = 2.3, **extra: object) -> dict:
     """A POST /machines body with an explicit calibration and lag (seed 001: 1.52 s)."""
     return {"name": name, "width_m": width_m, "lag_s": 1.52, "calibration": SEED001_CAL, **extra}

@@ -209,3 +209,26 @@ def test_geojson_points_go_through_the_same_mapping() -> None:
         ("feature", 1, "lat"),
         ("feature", 1, "lon"),
     }
+
+
+@pytest.mark.parametrize(
+    ("header", "form"),
+    [
+        ("alkali_n_mg_kg", "alkali_hydrolysable"),
+        ("alkali_hydrolysable_n", "alkali_hydrolysable"),
+        ("Nmin (kg/ha)", "mineral"),
+        ("mineral_n", "mineral"),
+        ("N gesamt", "total"),
+        ("total_n", "total"),
+    ],
+)
+def test_seed_columns_and_the_n_form_are_suggested(header: str, form: str) -> None:
+    """Seed 001's own soil N (alkali-hydrolysable, ``alkali_n_mg_kg``) is recognised, and
+    the N form a header names becomes part of the mapping (mineral N is not the seed's N)."""
+    t = read_table(
+        "s.csv",
+        f"sample_id,lon,lat,{header},available_p_mg_kg,ak_mg_kg\nA,9.9,51.5,80,20,90\n".encode(),
+    )
+    m = suggest_mapping(t, (9.9, 51.5))
+    assert m.columns["n"] == header and m.n_form == form
+    assert m.columns["p"] == "available_p_mg_kg" and m.columns["k"] == "ak_mg_kg"

@@ -38,10 +38,11 @@ describe('job kinds in the browser', { skip: SKIP }, () => {
   });
 
   /** Set-up through the API (field, machine, plan); the job and its report through the UI. */
-  async function setup(name, width, calibration) {
+  /** A machine that can do the kind (an NDVI job needs canopy sensors, a seeding job a depth actuator and sensor). */
+  async function setup(name, width, calibration, machine) {
     const f = await api(token, 'POST', '/fields', { type: 'Feature', properties: { name }, geometry: PLOT });
     assert.ok(f.ok, `field ${f.status}`);
-    const m = await api(token, 'POST', '/machines', { name, width_m: width, lag_s: 1.52, calibration });
+    const m = await api(token, 'POST', '/machines', { name, width_m: width, lag_s: 1.52, calibration, ...machine });
     assert.ok(m.ok, `machine ${m.status} ${JSON.stringify(m.data)}`);
     const p = await api(token, 'POST', `/fields/${f.data.id}/plans`, { swath_width_m: width, cell_length_m: 5, headland_passes: 0 });
     assert.ok(p.ok, `plan ${p.status}`);
@@ -82,7 +83,7 @@ describe('job kinds in the browser', { skip: SKIP }, () => {
   }
 
   it('creates an NDVI topdressing job in its form and reads its report', async () => {
-    const s = await setup('ndvi plot', 3.6, SEED000_TABLE);
+    const s = await setup('ndvi plot', 3.6, SEED000_TABLE, { implement_type: 'spreader', capabilities: { sensors: ['canopy_ndvi'] } });
     const job = await createThroughUi('ndvi_topdress', s, async () => {
       // the paper's values are named; the preview follows an edited curve
       assert.match(await page.textContent('[data-testid=job-form-ndvi_topdress]'), /paper default: 0\.24 NDVI/);
@@ -109,7 +110,7 @@ describe('job kinds in the browser', { skip: SKIP }, () => {
   });
 
   it('creates a depth-controlled seeding job in its form and reads its report', async () => {
-    const s = await setup('seeding plot', 2.3, { kind: 'linear', slope_g_min_per_rpm: 237.2, intercept_g_min: -404.4, min_rpm: 30, max_rpm: 130 });
+    const s = await setup('seeding plot', 2.3, { kind: 'linear', slope_g_min_per_rpm: 237.2, intercept_g_min: -404.4, min_rpm: 30, max_rpm: 130 }, { implement_type: 'seeder', capabilities: { depth_actuator: true, sensors: ['depth'] } });
     const job = await createThroughUi('seeding_depth', s, async () => {
       assert.match(await page.textContent('[data-testid=depth-band]'), /20–40 mm/);
     });

@@ -15,7 +15,7 @@ from fieldrx_edge.ndvi import SEED000_TABLE
 from fieldrx_edge.protocol import JobPackage
 
 from tests.fleet.procs import BIN, ROOT, start_api
-from tests.support import SMALL_PLOT, feature, machine_body
+from tests.support import DEPTH_SEEDER, NDVI_SPREADER, SMALL_PLOT, feature, machine_body
 
 SEED000_CAL = SEED000_TABLE.to_dict()
 
@@ -24,9 +24,11 @@ def _rel(a: float, b: float) -> float:
     return abs(a - b) / max(abs(b), 1e-9)
 
 
-def _setup(c: httpx.Client, width: float, cal: dict) -> tuple[dict, dict, str]:
+def _setup(c: httpx.Client, width: float, cal: dict, kind: dict) -> tuple[dict, dict, str]:
     field = c.post("/api/v1/fields", json=feature(SMALL_PLOT, name="kind plot")).json()
-    m = c.post("/api/v1/machines", json=machine_body("kinds", width, calibration=cal)).json()
+    m = c.post("/api/v1/machines", json=machine_body("kinds", width, calibration=cal, **kind))
+    assert m.status_code == 201, m.text
+    m = m.json()
     token = c.post(f"/api/v1/machines/{m['id']}/device-token").json()["token"]
     plan = c.post(
         f"/api/v1/fields/{field['id']}/plans",
@@ -59,7 +61,7 @@ def test_ndvi_topdress_job_end_to_end(database_url, org, tmp_path: Path) -> None
     api, url = start_api(database_url)
     try:
         c = httpx.Client(base_url=url, headers=org.headers(), timeout=60)
-        plan, m, token = _setup(c, 3.6, SEED000_CAL)
+        plan, m, token = _setup(c, 3.6, SEED000_CAL, NDVI_SPREADER)
         kinds = c.get("/api/v1/jobs/kinds").json()["kinds"]
         assert kinds["ndvi_topdress"]["defaults"]["rate_curve"]["rate_at_lo_kg_ha"] == 375.0
         bad = c.post(
@@ -107,7 +109,7 @@ def test_seeding_depth_job_end_to_end(database_url, org, tmp_path: Path, fault: 
     api, url = start_api(database_url)
     try:
         c = httpx.Client(base_url=url, headers=org.headers(), timeout=60)
-        plan, m, token = _setup(c, 2.3, {**machine_body()["calibration"]})
+        plan, m, token = _setup(c, 2.3, {**machine_body()["calibration"]}, DEPTH_SEEDER)
         settings = {"alert_min_qualified_pct": 99.9} if fault else {}
         r = c.post(
             "/api/v1/jobs",

@@ -6,13 +6,13 @@ from __future__ import annotations
 from fieldrx_edge.ndvi import SEED000_TABLE
 from fieldrx_edge.protocol import JobPackage
 
-from tests.support import SMALL_PLOT, feature, machine_body
+from tests.support import BOTH_KINDS, DEPTH_SEEDER, SMALL_PLOT, feature, machine_body
 
 
 def _plan(client, org, width: float) -> tuple[int, int]:  # noqa: ANN001
     h = org.headers()
     f = client.post("/api/v1/fields", json=feature(SMALL_PLOT, name="api plot"), headers=h).json()
-    body = machine_body("api kinds", width, calibration=SEED000_TABLE.to_dict())
+    body = machine_body("api kinds", width, calibration=SEED000_TABLE.to_dict(), **BOTH_KINDS)
     m = client.post("/api/v1/machines", json=body, headers=h).json()
     p = client.post(
         f"/api/v1/fields/{f['id']}/plans",
@@ -77,3 +77,61 @@ def test_kind_job_validation_and_defaults(client, org, make_org) -> None:  # noq
         assert r.status_code == 409 and f"/jobs/{job['id']}/report" in r.json()["detail"], path
     r = client.get(f"/api/v1/jobs/{job['id']}/report", headers=h)
     assert r.status_code == 200 and r.json()["n_records"] == 0 and r.json()["cells"] == []
+
+
+def test_job_refused_for_a_machine_that_cannot_do_it(client, org) -> None:  # noqa: ANN001
+    """A disc spreader was given a seeding-depth and an NDVI job; both are refused with the
+    reason (what the machine lacks), nothing is stored, and a machine that has what the kind
+    needs gets the job. Sending re-checks the machine (its sensors may have gone)."""
+    h = org.headers()
+    plan_id, _ = _plan(client, org, 2.3)
+    spreader = client.post(
+        "/api/v1/machines",
+        json=machine_body("disc spreader", 2.3, calibration=SEED000_TABLE.to_dict()),
+        headers=h,
+    ).json()
+    assert spreader["implement_type"] == "spreader"
+    assert spreader["capabilities"] == {"sections": 1, "depth_actuator": False, "sensors": []}
+    n_jobs = client.get("/api/v1/jobs", headers=h).json()["total"]
+    seed = {"kind": "seeding_depth", "plan_id": plan_id, "machine_id": spreader["id"]}
+    r = client.post("/api/v1/jobs", json=seed, headers=h)
+    assert r.status_code == 422 and r.json()["where"] == "machine_id", r.text
+    d = r.json()["detail"]
+    assert "implement type 'spreader' does not sow" in d and "no depth actuator" in d, d
+    ndvi = {**seed, "kind": "ndvi_topdress"}
+    r = client.post("/api/v1/jobs", json=ndvi, headers=h)
+    assert r.status_code == 422 and r.json()["where"] == "machine_id", r.text
+    assert "no canopy NDVI sensors" in r.json()["detail"]
+    assert "does not apply fertiliser" not in r.json()["detail"]  # a spreader does
+    assert client.get("/api/v1/jobs", headers=h).json()["total"] == n_jobs
+
+    # the same spreader with canopy sensors may topdress
+    r = client.patch(
+        f"/api/v1/machines/{spreader['id']}",
+        json={"capabilities": {"sensors": ["canopy_ndvi"]}},
+        headers=h,
+    )
+    assert r.status_code == 200 and r.json()["capabilities"]["sensors"] == ["canopy_ndvi"]
+    r = client.post("/api/v1/jobs", json=ndvi, headers=h)
+    assert r.status_code == 201, r.text
+    job = r.json()
+    # its sensors are removed before it is sent: sending is refused, the job stays planned
+    client.patch(
+        f"/api/v1/machines/{spreader['id']}", json={"capabilities": {"sensors": []}}, headers=h
+    )
+    r = client.post(f"/api/v1/jobs/{job['id']}/state", json={"state": "sent"}, headers=h)
+    assert r.status_code == 422 and "no canopy NDVI sensors" in r.json()["detail"], r.text
+    assert client.get(f"/api/v1/jobs/{job['id']}", headers=h).json()["state"] == "planned"
+
+    # a seeder with a depth actuator and sensor gets the seeding job; a bad type is a 422
+    seeder = client.post(
+        "/api/v1/machines",
+        json=machine_body("depth seeder", 2.3, calibration=SEED000_TABLE.to_dict(), **DEPTH_SEEDER),
+        headers=h,
+    ).json()
+    r = client.post("/api/v1/jobs", json={**seed, "machine_id": seeder["id"]}, headers=h)
+    assert r.status_code == 201, r.text
+    bad = client.post(
+        "/api/v1/machines", json=machine_body("x", implement_type="plough"), headers=h
+    )
+    assert bad.status_code == 422 and "implement_type" in bad.text

@@ -84,7 +84,9 @@ def test_crop_and_product_fill_parameters_and_say_where_from(client, org) -> Non
     assert rx["product"] == "Compound 25 % N (seed 001 example)"
     s = rx["summary"]
     assert s["rate_mean_kg_ha"] == pytest.approx(WORKED_F, abs=0.01)
-    assert s["param_sources"]["target_yield_kg_ha"] == "given"
+    # 2500 kg/ha is the crop's own default yield: recorded as the default, not an override
+    assert "seed 001" in s["param_sources"]["target_yield_kg_ha"]
+    assert s["param_origin"]["target_yield_kg_ha"] == "default"
     assert "seed 001" in s["param_sources"]["e_kg_per_100kg"]
     assert "Compound 25" in s["param_sources"]["n_fraction"]
     assert s["crop"]["key"] == "winter_rape"

@@ -200,3 +200,49 @@ def test_example_file_round_trips(client, org) -> None:
     up = _post(client, h, fid, "", r.content, name="example.csv")
     assert up.status_code == 201, up.text
     assert up.json()["imported"] == 9 and up.json()["n_outside"] == 0
+
+
+def test_n_form_is_part_of_the_mapping_and_the_model_reads_only_alkali_n(client, org) -> None:
+    """Nmin went into n_mg_kg and fed seed 001's model as if it were alkali-hydrolysable N;
+    the mapping now says which N a column holds and the model refuses another form."""
+    h = org.headers()
+    fid = make_field(client, h, FIELD)
+    p = _post(client, h, fid, "/preview", german_csv()).json()
+    assert p["mapping"]["n_form"] == "mineral"  # "Nmin (kg/ha)"
+    r = _post(client, h, fid, "", german_csv())
+    assert r.status_code == 201, r.text
+    plan = client.post(
+        f"{API}/fields/{fid}/plans", headers=h, json={"swath_width_m": 12, "cell_length_m": 10}
+    ).json()
+    r = client.post(
+        f"{API}/plans/{plan['id']}/prescriptions",
+        headers=h,
+        json={"model": "nutrient_balance", "params": {"target_yield_kg_ha": 8000},
+              "crop": "winter_wheat", "product_key": "default:can"},
+    )  # fmt: skip
+    assert r.status_code == 422, r.text
+    assert "alkali-hydrolysable" in r.json()["detail"] and "mineral" in r.json()["detail"]
+
+    # the seed's own column name is recognised as alkali-hydrolysable N
+    pts = _points()
+    seed = "sample_id,lon,lat,alkali_n_mg_kg\n" + "".join(
+        f"S{k},{lon:.7f},{lat:.7f},{90 + k}\n" for k, (lon, lat) in enumerate(pts)
+    )
+    fid2 = make_field(client, h, FIELD)
+    p = _post(client, h, fid2, "/preview", seed.encode()).json()
+    assert p["mapping"]["columns"]["n"] == "alkali_n_mg_kg", p["mapping"]
+    assert p["mapping"]["n_form"] == "alkali_hydrolysable"
+    # a user who says the column is total N is believed and the model refuses it
+    m = {**p["mapping"], "n_form": "total"}
+    r = _post(client, h, fid2, "", seed.encode(), mapping=m)
+    assert r.status_code == 201, r.text
+    plan2 = client.post(
+        f"{API}/fields/{fid2}/plans", headers=h, json={"swath_width_m": 12, "cell_length_m": 10}
+    ).json()
+    r = client.post(
+        f"{API}/plans/{plan2['id']}/prescriptions",
+        headers=h,
+        json={"model": "nutrient_balance", "params": {"target_yield_kg_ha": 8000},
+              "crop": "winter_wheat", "product_key": "default:can"},
+    )  # fmt: skip
+    assert r.status_code == 422 and "total N" in r.json()["detail"], r.text

@@ -23,6 +23,10 @@ FLAG_BITS: dict[str, int] = {
     "zone": 16,  # rate set by zone painting
     "clamped_min": 32,  # model rate raised to the agronomist's minimum (reported)
     "clamped_max": 64,  # model rate lowered to the agronomist's maximum (reported)
+    # kg of a nutrient per ha above the crop's / organisation's ceiling (agronomy.plausibility)
+    "above_nutrient_ceiling": 128,
+    # at a rate curve's cap or floor when more of the field than allowed is (plausibility)
+    "at_curve_limit": 256,
 }
 
 

@@ -62,7 +62,13 @@ class Prescription:
 
 # Flags that mean "the machine will not apply what this cell asks for, or the
 # rate is a guess": a job with such cells is sent only on explicit confirmation.
-ATTENTION_FLAGS = ("no_data", "below_meter_range", "above_meter_range")
+ATTENTION_FLAGS = (
+    "no_data",
+    "below_meter_range",
+    "above_meter_range",
+    "above_nutrient_ceiling",
+    "at_curve_limit",
+)
 ATTENTION_MASK = sum(FLAG_BITS[n] for n in ATTENTION_FLAGS)
 
 

@@ -1,5 +1,5 @@
-"""Crops and fertiliser products the prescription forms start from, each value named by
-its source, and the whole-field product / nutrient / cost figures of a rate map.
+"""Fertiliser products the prescription forms start from, each value named by its source
+(crops: ``agronomy.crops``), and the whole-field product / nutrient / cost figures of a rate map.
 
 Pure: the organisation's own products live in the database (``services.products``);
 this module holds the defaults every organisation sees and the arithmetic.
@@ -12,42 +12,9 @@ from typing import Any
 
 import numpy as np
 
-from fieldrx.agronomy.rates import DEFAULT_E_KG_PER_100KG, DEFAULT_K_UTILISATION
+from fieldrx.agronomy.crops import SEED_001
 
-SEED_001 = "seed 001 eq. 19-21 (winter rape worked example)"
-UPTAKE_TABLE = "textbook N uptake per 100 kg of yield (verify for your region)"
 ANALYSIS = "nominal analysis of the product"
-
-
-@dataclass(frozen=True)
-class Crop:
-    """A crop's nutrient-balance defaults (seed 001 eq. 19-21): e kg N per 100 kg of
-    yield, k fertiliser N utilisation, a typical target yield; ``source`` names where."""
-
-    key: str
-    name: str
-    e_kg_per_100kg: float
-    k_utilisation: float
-    target_yield_t_ha: float
-    source: str
-
-    def to_dict(self) -> dict[str, Any]:
-        return asdict(self)
-
-
-CROPS: tuple[Crop, ...] = (
-    Crop(
-        "winter_rape",
-        "Winter oilseed rape",
-        DEFAULT_E_KG_PER_100KG,
-        DEFAULT_K_UTILISATION,
-        2.5,
-        SEED_001,
-    ),
-    Crop("winter_wheat", "Winter wheat", 3.0, DEFAULT_K_UTILISATION, 7.0, UPTAKE_TABLE),
-    Crop("maize", "Maize (grain)", 2.57, DEFAULT_K_UTILISATION, 9.0, UPTAKE_TABLE),
-    Crop("rice", "Rice", 2.1, DEFAULT_K_UTILISATION, 7.5, UPTAKE_TABLE),
-)
 
 
 @dataclass(frozen=True)

@@ -23,6 +23,12 @@ from fieldrx.agronomy.cells import FLAG_BITS
 # Seed 001 eq. 19-21 parameters (winter oilseed rape).
 DEFAULT_E_KG_PER_100KG = 5.8  # kg N taken up per 100 kg of yield
 DEFAULT_K_UTILISATION = 0.342  # fertilizer N utilisation
+# Eq. 20 soil-nutrient correction d = (a + b / n) / 100, fitted in seed 001 for oilseed rape;
+# other crops' values are in agronomy.crops.
+D_INTERCEPT_PCT = 5.57
+D_SLOPE_PCT_MG_KG = 3226.05
+# mg/kg in the 0-20 cm layer -> kg/ha (2,250,000 kg of soil per ha), seed 001 eq. 19
+SOIL_KG_HA_PER_MG_KG = 2.25
 # Seed 000 NDVI -> rate end points (corn topdressing).
 NDVI_LOW, RATE_AT_NDVI_LOW = 0.24, 375.0
 NDVI_HIGH, RATE_AT_NDVI_HIGH = 0.65, 180.0
@@ -34,8 +40,15 @@ class RateModelError(ValueError):
     """Bad model name or parameter; the message names the parameter."""
 
 
-def soil_correction_coefficient(n_mg_kg: np.ndarray | float) -> np.ndarray:
+def soil_correction_coefficient(
+    n_mg_kg: np.ndarray | float,
+    intercept_pct: float = D_INTERCEPT_PCT,
+    slope_pct_mg_kg: float = D_SLOPE_PCT_MG_KG,
+) -> np.ndarray:
     """Seed 001 eq. 20: d = (5.57 + 3226.05 / n) / 100, clamped to [0, 1].
+
+    ``intercept_pct`` / ``slope_pct_mg_kg`` are a and b of d = (a + b / n) / 100 (the
+    seed's values for oilseed rape; another crop's from ``agronomy.crops``).
 
     Erratum (SCIENCE.md): d exceeds 100 % for n < 34.2 mg/kg; a soil cannot
     supply more than all of its available N, so d is clamped to 1. n <= 0 gives
@@ -43,8 +56,8 @@ def soil_correction_coefficient(n_mg_kg: np.ndarray | float) -> np.ndarray:
     """
     n = np.asarray(n_mg_kg, dtype=float)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        d = (5.57 + 3226.05 / n) / 100.0
-    return np.where(n > 0, np.minimum(1.0, d), 1.0)
+        d = (intercept_pct + slope_pct_mg_kg / n) / 100.0
+    return np.where(n > 0, np.clip(d, 0.0, 1.0), 1.0)
 
 
 def nutrient_balance_rate(
@@ -53,6 +66,7 @@ def nutrient_balance_rate(
     n_fraction: float,
     e_kg_per_100kg: float = DEFAULT_E_KG_PER_100KG,
     k_utilisation: float = DEFAULT_K_UTILISATION,
+    soil_d: tuple[float, float] = (D_INTERCEPT_PCT, D_SLOPE_PCT_MG_KG),
 ) -> np.ndarray:
     """Seed 001 eq. 19-21 (corrected in SCIENCE.md): product rate in kg/ha.
 
@@ -68,7 +82,7 @@ def nutrient_balance_rate(
     return np.maximum(
         0.0,
         nutrient_balance_raw(
-            n_mg_kg, target_yield_kg_ha, n_fraction, e_kg_per_100kg, k_utilisation
+            n_mg_kg, target_yield_kg_ha, n_fraction, e_kg_per_100kg, k_utilisation, soil_d
         ),
     )
 
@@ -79,8 +93,10 @@ def nutrient_balance_raw(
     n_fraction: float,
     e_kg_per_100kg: float = DEFAULT_E_KG_PER_100KG,
     k_utilisation: float = DEFAULT_K_UTILISATION,
+    soil_d: tuple[float, float] = (D_INTERCEPT_PCT, D_SLOPE_PCT_MG_KG),
 ) -> np.ndarray:
-    """Seed 001 eq. 19-21 before the F >= 0 clamp (negative = N surplus)."""
+    """Seed 001 eq. 19-21 before the F >= 0 clamp (negative = N surplus); ``soil_d`` is
+    eq. 20's (a, b)."""
     if not target_yield_kg_ha > 0:
         raise RateModelError(f"target_yield_kg_ha must be > 0, got {target_yield_kg_ha!r}")
     if not 0 < n_fraction <= 1:
@@ -89,9 +105,13 @@ def nutrient_balance_raw(
         raise RateModelError(f"k_utilisation must be in (0, 1], got {k_utilisation!r}")
     if not e_kg_per_100kg > 0:
         raise RateModelError(f"e_kg_per_100kg must be > 0, got {e_kg_per_100kg!r}")
+    if not (np.isfinite(soil_d[0]) and np.isfinite(soil_d[1])) or soil_d[1] < 0:
+        raise RateModelError(
+            f"d_intercept_pct / d_slope_pct_mg_kg must be finite and the slope >= 0, got {soil_d}"
+        )
     n = np.asarray(n_mg_kg, dtype=float)
-    d = soil_correction_coefficient(n)
-    soil_n = 2.25 * d * np.maximum(n, 0.0)
+    d = soil_correction_coefficient(n, *soil_d)
+    soil_n = SOIL_KG_HA_PER_MG_KG * d * np.maximum(n, 0.0)
     return (e_kg_per_100kg * target_yield_kg_ha / 100.0 - soil_n) / (k_utilisation * n_fraction)
 
 
@@ -129,7 +149,8 @@ def model_rates(
     """Dispatch by model name. ``values`` is n_mg_kg (nutrient_balance) or NDVI.
 
     NaN values propagate as NaN (no data); the caller applies its fallback.
-    nutrient_balance params: target_yield_kg_ha, n_fraction, e_kg_per_100kg, k_utilisation.
+    nutrient_balance params: target_yield_kg_ha, n_fraction, e_kg_per_100kg, k_utilisation,
+    d_intercept_pct, d_slope_pct_mg_kg (eq. 20's a and b).
     ndvi params: ndvi_low, rate_at_low_kg_ha, ndvi_high, rate_at_high_kg_ha.
     uniform params: rate_kg_ha.
     """
@@ -150,6 +171,10 @@ def model_rates(
                 float(p.pop("n_fraction")),
                 float(p.pop("e_kg_per_100kg", DEFAULT_E_KG_PER_100KG)),
                 float(p.pop("k_utilisation", DEFAULT_K_UTILISATION)),
+                (
+                    float(p.pop("d_intercept_pct", D_INTERCEPT_PCT)),
+                    float(p.pop("d_slope_pct_mg_kg", D_SLOPE_PCT_MG_KG)),
+                ),
             )
         elif model == "ndvi":
             out = ndvi_linear_rate(

@@ -46,9 +46,18 @@ COLUMN_ALIASES: dict[str, tuple[str, ...]] = {
     "x": ("x", "easting", "east"),
     "y": ("y", "northing", "north"),
     "depth_cm": ("depth_cm", "depth"),
-    "n_mg_kg": ("n_mg_kg", "n", "an_mg_kg", "alkali_n", "alkali_n_mg_kg", "avail_n"),
-    "p_mg_kg": ("p_mg_kg", "p"),
-    "k_mg_kg": ("k_mg_kg", "k"),
+    # the seeds' soil-test names: alkali-hydrolysable N, available P (Olsen) and K
+    "n_mg_kg": (
+        "n_mg_kg",
+        "n",
+        "an_mg_kg",
+        "alkali_n",
+        "alkali_n_mg_kg",
+        "alkali_hydrolysable_n",
+        "avail_n",
+    ),
+    "p_mg_kg": ("p_mg_kg", "p", "ap_mg_kg", "avail_p", "available_p_mg_kg", "olsen_p_mg_kg"),
+    "k_mg_kg": ("k_mg_kg", "k", "ak_mg_kg", "avail_k", "available_k_mg_kg"),
     "om_g_kg": ("om_g_kg", "om", "organic_matter"),
     "ph": ("ph",),
     "ndvi": ("ndvi",),
@@ -66,7 +75,10 @@ RANGES: dict[str, tuple[float, float]] = {
     "ndvi": (-1.0, 1.0),
 }
 OPTIONAL = ("p_mg_kg", "k_mg_kg", "om_g_kg", "ph", "ndvi")
-VALUE_COLUMNS = ("n_mg_kg", "ndvi")  # what a rate model can be fed with
+VALUE_COLUMNS = ("n_mg_kg", "ndvi")
+# Soil N as labs report it: alkali-hydrolysable N (seed 001 sec. 1.2, the nutrient-balance
+# model's input), mineral N (Nmin: nitrate + ammonium) or total N (Kjeldahl / combustion).
+N_FORMS = ("alkali_hydrolysable", "mineral", "total")  # what a rate model can be fed with
 DEFAULT_DEPTH_CM = 20.0  # seed 001 samples 0-20 cm
 # A sample this close outside the boundary is the field's own (handheld GNSS error and
 # a boundary drawn on an orthophoto are each a few metres); farther, it is set apart.
@@ -88,6 +100,8 @@ class SoilSample:
     om_g_kg: float | None = None
     ph: float | None = None
     ndvi: float | None = None
+    # which N the lab measured (``N_FORMS``); seed 001's model needs alkali-hydrolysable N
+    n_form: str = "alkali_hydrolysable"
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)

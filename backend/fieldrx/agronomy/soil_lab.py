@@ -41,6 +41,7 @@ import numpy as np
 import shapely
 
 from fieldrx.agronomy.soil import (
+    N_FORMS,
     RowError,
     SoilFormatError,
     SoilImport,
@@ -172,10 +173,44 @@ HEADER_WORDS: dict[str, tuple[str, ...]] = {
         "nt",
         "avail_n",
         "alkali_n",
+        "alkali_n_mg_kg",
+        "alkali-hydrolysable n",
+        "alkali_hydrolysable_n",
         "an_mg_kg",
+        "mineral_n",
+        "mineral n",
+        "total_n",
+        "total n",
+        "n_total",
     ),
-    "p": ("p", "p_mg_kg", "p2o5", "phosphor", "phosphat", "p-cal", "p cal", "p2o5-cal", "p (cal)"),
-    "k": ("k", "k_mg_kg", "k2o", "kalium", "k-cal", "k cal", "k2o-cal", "k (cal)"),
+    "p": (
+        "p",
+        "p_mg_kg",
+        "ap_mg_kg",
+        "avail_p",
+        "available_p_mg_kg",
+        "olsen_p_mg_kg",
+        "p2o5",
+        "phosphor",
+        "phosphat",
+        "p-cal",
+        "p cal",
+        "p2o5-cal",
+        "p (cal)",
+    ),
+    "k": (
+        "k",
+        "k_mg_kg",
+        "ak_mg_kg",
+        "avail_k",
+        "available_k_mg_kg",
+        "k2o",
+        "kalium",
+        "k-cal",
+        "k cal",
+        "k2o-cal",
+        "k (cal)",
+    ),
     "om": ("om", "om_g_kg", "organic_matter", "organic matter", "humus", "corg", "c-org", "toc"),
     "ph": ("ph", "ph-wert", "ph wert", "ph (cacl2)", "ph-cacl2", "bodenreaktion"),
 }
@@ -219,15 +254,29 @@ def suggest_unit(target: str, header: str) -> str:
     return DEFAULT_UNIT[target]
 
 
+def suggest_n_form(header: str) -> str:
+    """Which N a column holds, from its header: Nmin / mineral / nitrate -> mineral,
+    total / gesamt / Nt -> total, else alkali-hydrolysable (the seed's ``alkali_n_mg_kg``)."""
+    w = _header_word(header).replace("_", " ").replace("-", " ")
+    words = set(w.split())
+    if "min" in words or "nmin" in words or "mineral" in words or "no3" in w:
+        return "mineral"
+    if {"total", "gesamt", "nt"} & words:
+        return "total"
+    return "alkali_hydrolysable"
+
+
 @dataclass
 class Mapping:
     """Which column (header text) feeds which target, in which unit; the coordinate system
-    of x/y; the bulk density for Nmin kg/ha. ``columns`` holds only mapped targets."""
+    of x/y; the bulk density for Nmin kg/ha; which N form the N column holds (``N_FORMS``).
+    ``columns`` holds only mapped targets."""
 
     columns: dict[str, str]
     units: dict[str, str] = field(default_factory=dict)
     epsg: int | None = None
     bulk_density_g_cm3: float = DEFAULT_BULK_DENSITY_G_CM3
+    n_form: str = "alkali_hydrolysable"
 
     def unit(self, target: str) -> str:
         return self.units.get(target) or DEFAULT_UNIT[target]
@@ -367,7 +416,10 @@ def suggest_mapping(table: Table, near_lonlat: tuple[float, float]) -> Mapping:
         x = _floats(table.column(cols["x"]), table.decimal_comma)
         y = _floats(table.column(cols["y"]), table.decimal_comma)
         epsg = guess_epsg(x, y, *near_lonlat)
-    return Mapping(cols, units, epsg)
+    n_form = suggest_n_form(cols["n"]) if "n" in cols else "alkali_hydrolysable"
+    if units.get("n") == KG_HA:
+        n_form = "mineral"  # kg N/ha is how Nmin is reported
+    return Mapping(cols, units, epsg, n_form=n_form)
 
 
 def _floats(cells: list[str], decimal_comma: bool) -> np.ndarray:
@@ -421,6 +473,10 @@ def apply_mapping(table: Table, m: Mapping, boundary_wgs84: Any) -> SoilImport:
     the mapping itself is wrong, no samples and those errors (``rejected`` True). Errors name
     the file's column (the quantity it was mapped to in brackets)."""
     errs = check_mapping(table, m)
+    if m.n_form not in N_FORMS:
+        errs.append(
+            RowError(1, None, f"n_form must be one of {list(N_FORMS)}, got {m.n_form!r}", HEADER)
+        )
     if errs:
         return SoilImport([], errs, [], rejected=True)
     check_epsg(m.epsg)
@@ -464,6 +520,8 @@ def apply_mapping(table: Table, m: Mapping, boundary_wgs84: Any) -> SoilImport:
             rec["lon"], rec["lat"] = rec.pop("x", None), rec.pop("y", None)
         records.append((row, rec))
     samples, more = rows_to_samples(records, m.epsg, kind, value_column=None)
+    for smp in samples:
+        smp.n_form = m.n_form
     back = {TARGETS[t][0]: c for t, c in m.columns.items()} | (
         {"lon": m.columns.get("x"), "lat": m.columns.get("y")} if m.epsg == 4326 else {}
     )

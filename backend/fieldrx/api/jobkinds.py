@@ -17,8 +17,25 @@ from fieldrx_edge.jobkinds.settings import validate_settings as validate
 from fieldrx.api.common import ApiError
 from fieldrx.db.models import Field, Job, JobEvent, Machine, Plan
 from fieldrx.fleet.jobstate import notify_job
+from fieldrx.services.implements import job_refusal
 
-__all__ = ["CONTROLLERS", "DEFAULTS", "KINDS", "create_kind_job", "kind_settings"]
+__all__ = [
+    "CONTROLLERS",
+    "DEFAULTS",
+    "KINDS",
+    "check_machine_can",
+    "create_kind_job",
+    "kind_settings",
+]
+
+
+def check_machine_can(kind: str, machine: Machine) -> None:
+    """422 naming what the machine lacks for a ``kind`` job (implement type, actuator,
+    sensors); see ``services.implements``."""
+    reason = job_refusal(kind, machine.implement_type, machine.capabilities)
+    if reason is not None:
+        raise ApiError(422, f"machine '{machine.name}': {reason}", where="machine_id")
+
 
 KIND_LABELS = {
     "ndvi_topdress": "NDVI topdressing",
@@ -70,6 +87,7 @@ def create_kind_job(session: Any, principal: Any, body: Any) -> Job:
     machine = session.get(Machine, body.machine_id)
     if machine is None or machine.organisation_id != principal.organisation_id:
         raise ApiError(404, f"machine {body.machine_id} not found", where="machine_id")
+    check_machine_can(body.kind, machine)
     swath = float((plan.params or {}).get("swath_width_m") or 0.0)
     if swath > 0 and abs(machine.width_m - swath) > 0.01 * swath:
         raise ApiError(

@@ -8,7 +8,7 @@ from fastapi import APIRouter, Query
 from sqlalchemy import func, select
 
 from fieldrx.api.common import ApiError, get_scoped
-from fieldrx.api.jobkinds import CONTROLLERS, DEFAULTS, KINDS, create_kind_job
+from fieldrx.api.jobkinds import CONTROLLERS, DEFAULTS, KINDS, check_machine_can, create_kind_job
 from fieldrx.api.schemas.errors import ERRORS
 from fieldrx.api.schemas.jobs import (
     EventOut,
@@ -186,6 +186,7 @@ def create_job(body: JobIn, principal: WriterDep, session: SessionDep) -> JobOut
         raise ApiError(
             404, f"prescription {rx.id} has no version {version}", where="prescription_version"
         )
+    check_machine_can("prescription_map", machine)
     _check_width(session, rx, machine)
     attention = _attention(session, rx, v, machine)
     if attention["count"] and not body.confirm_flagged:
@@ -194,10 +195,12 @@ def create_job(body: JobIn, principal: WriterDep, session: SessionDep) -> JobOut
             409,
             f"prescription {rx.id} v{version} has {attention['count']} cell(s) "
             f"({attention['area_m2'] / 1e4:.4f} ha) that '{machine.name}' will not apply as "
-            f"prescribed: {attention['no_data']} with no soil data (fallback rate), "
-            f"{attention['out_of_meter_range']} outside the meter range "
+            f"prescribed or that need a second look: {attention['no_data']} with no soil data "
+            f"(fallback rate), {attention['out_of_meter_range']} outside the meter range "
             f"{m['rate_min_kg_ha']:.1f}..{m['rate_max_kg_ha']:.1f} kg/ha at "
-            f"{m['speed_min_kmh']:g}..{m['speed_max_kmh']:g} km/h; send again with "
+            f"{m['speed_min_kmh']:g}..{m['speed_max_kmh']:g} km/h, "
+            f"{attention['above_nutrient_ceiling']} above a nutrient ceiling, "
+            f"{attention['at_curve_limit']} at a rate curve's cap or floor; send again with "
             "confirm_flagged=true to send it anyway",
             where="confirm_flagged",
             flagged=attention,
@@ -224,7 +227,12 @@ def create_job(body: JobIn, principal: WriterDep, session: SessionDep) -> JobOut
     session.add(job)
     session.flush()
     note = (
-        f"sent with {attention['count']} flagged cell(s) confirmed" if job.flagged_confirmed else ""
+        f"sent with {attention['count']} flagged cell(s) confirmed: {attention['no_data']} no "
+        f"data, {attention['out_of_meter_range']} outside the meter range, "
+        f"{attention['above_nutrient_ceiling']} above a nutrient ceiling, "
+        f"{attention['at_curve_limit']} at a rate curve's cap or floor"
+        if job.flagged_confirmed
+        else ""
     )
     session.add(JobEvent(job_id=job.id, state="planned", by_user_id=principal.user_id, note=note))
     session.flush()
@@ -278,6 +286,11 @@ def get_job(job_id: int, principal: UserDep, session: SessionDep) -> JobOut:
 def set_state(job_id: int, body: StateIn, principal: WriterDep, session: SessionDep) -> JobOut:
     job = get_scoped(session, Job, job_id, principal)
     session.refresh(job, with_for_update=True)
+    if body.state == "sent" and job.state != "sent":
+        # the machine may have changed since the job was made (implement, sensors)
+        machine = session.get(Machine, job.machine_id)
+        if machine is not None:
+            check_machine_can(job.kind, machine)
     change_state(session, job, body.state, user_id=principal.user_id, note=body.note)
     session.commit()
     return job_out(job, _events(session, job.id))

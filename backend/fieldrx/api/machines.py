@@ -25,6 +25,7 @@ from fieldrx.auth.mqtt import revoke_device_after
 from fieldrx.auth.service import issue_device_token, token_expiry
 from fieldrx.db.models import Machine
 from fieldrx.services.evidence import refuse_if_evidence
+from fieldrx.services.implements import capabilities
 
 router = APIRouter(prefix="/machines", tags=["machines"], responses=ERRORS)
 
@@ -32,7 +33,9 @@ CONTROLLERS = ("pid", "incremental_pid", "ladrc", "fuzzy_pid")
 
 
 def _out(m: Machine) -> MachineOut:
-    return MachineOut.model_validate(m, from_attributes=True)
+    out = MachineOut.model_validate(m, from_attributes=True)
+    out.capabilities = capabilities(m.capabilities)
+    return out
 
 
 def _stored_calibration(cal: LinearCalibrationIn | TableCalibrationIn) -> dict[str, Any]:

@@ -52,6 +52,10 @@ class Organisation(Base):
     __tablename__ = "organisations"
     id: Mapped[int] = mapped_column(primary_key=True)
     name: Mapped[str] = mapped_column(String(200), unique=True)
+    # plausibility settings: {"ceilings_kg_ha": {crop key or "*": {"N": ...}}, "curve_share_max"}
+    agronomy: Mapped[dict[str, Any]] = mapped_column(
+        JSONB, default=dict, server_default=text("'{}'::jsonb")
+    )
     created_at: Mapped[dt.datetime] = _now()
 
 
@@ -155,6 +159,10 @@ class Machine(Base):
     antenna_lateral_m: Mapped[float] = mapped_column(Double, default=0.0)
     speed_min_m_s: Mapped[float] = mapped_column(Double, default=0.8)
     speed_max_m_s: Mapped[float] = mapped_column(Double, default=2.5)
+    # what the implement can do beyond metering: sections, depth actuator, sensors
+    capabilities: Mapped[dict[str, Any]] = mapped_column(
+        JSONB, default=dict, server_default=text("'{}'::jsonb")
+    )
     created_at: Mapped[dt.datetime] = _now()
 
 
@@ -227,6 +235,11 @@ class SoilSample(Base):
     om_pct: Mapped[float | None] = mapped_column(Double)
     ph: Mapped[float | None] = mapped_column(Double)
     ndvi: Mapped[float | None] = mapped_column(Double)
+    # which N n_mg_kg is (agronomy.soil.N_FORMS): the nutrient-balance model reads only
+    # alkali-hydrolysable N (seed 001 eq. 19-21)
+    n_form: Mapped[str] = mapped_column(
+        String(24), default="alkali_hydrolysable", server_default="alkali_hydrolysable"
+    )
     geom: Mapped[Any] = mapped_column(Geometry("POINT", srid=4326, spatial_index=True))
     import_batch: Mapped[str] = mapped_column(String(64), default="")
     import_id: Mapped[int | None] = mapped_column(

@@ -22,7 +22,15 @@ from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
 from fieldrx.agronomy.cells import FLAG_BITS, CellTable, flag_names
+from fieldrx.agronomy.crops import CROPS, Crop, find_crop
 from fieldrx.agronomy.interpolate import DEFAULT_METHOD, interpolate_to_cells
+from fieldrx.agronomy.plausibility import (
+    DEFAULT_CURVE_SHARE_MAX,
+    check_ceilings,
+    check_curve_limits,
+    product_fractions,
+    resolve_ceilings,
+)
 from fieldrx.agronomy.prescription import (
     ATTENTION_MASK,
     MODEL_INPUT,
@@ -36,12 +44,18 @@ from fieldrx.agronomy.prescription import (
     paint_zone,
     summarize,
 )
-from fieldrx.agronomy.products import CROPS, product_figures
-from fieldrx.agronomy.rates import MeterCheck, check_meter_range
+from fieldrx.agronomy.products import product_figures
+from fieldrx.agronomy.rates import (
+    RATE_AT_NDVI_HIGH,
+    RATE_AT_NDVI_LOW,
+    MeterCheck,
+    check_meter_range,
+)
 from fieldrx.agronomy.zones import zone_cell_values
 from fieldrx.db.models import (
     Field,
     Machine,
+    Organisation,
     Plan,
     Prescription,
     PrescriptionRate,
@@ -82,29 +96,52 @@ def canonical_model(model: str, params: dict[str, Any]) -> tuple[str, dict[str, 
     return m, out
 
 
+def _fill_from_crop(
+    model: str, out: dict[str, Any], crop: Crop, sources: dict[str, str], origin: dict[str, str]
+) -> None:
+    """The crop's defaults for every nutrient-balance parameter the request left out; a
+    given value equal to the default counts as the default, another one as an override."""
+    if model != "nutrient_balance":
+        return
+    defaults: dict[str, float] = {
+        **crop.model_defaults(),
+        "target_yield_kg_ha": crop.value("target_yield_t_ha") * 1000.0,
+    }
+    for k, v in defaults.items():
+        src_name = "target_yield_t_ha" if k == "target_yield_kg_ha" else k
+        src = f"{crop.name}: {crop.values[src_name].source}"
+        if k not in out:
+            out[k] = v
+            sources[k], origin[k] = src, "default"
+        elif abs(float(out[k]) - v) <= 1e-9 * max(1.0, abs(v)):
+            sources[k], origin[k] = src, "default"
+        else:
+            sources[k] = f"given (overrides {v:g} from {src})"
+            origin[k] = "override"
+
+
 def crop_params(
     model: str, params: dict[str, Any], crop: str | None, product: dict[str, Any] | None
-) -> tuple[dict[str, Any], dict[str, Any] | None, dict[str, str]]:
+) -> tuple[dict[str, Any], dict[str, Any] | None, dict[str, str], dict[str, str]]:
     """Fill nutrient-balance parameters the request left out from the crop and the
     product, and say where each came from (what the user gave is never replaced).
 
-    e_kg_per_100kg and k_utilisation come from the crop (``agronomy.products.CROPS``),
-    n_fraction from the product's N % / 100; a given n_fraction that disagrees with the
-    product's N % is refused rather than one of them silently winning.
+    Every crop parameter (``agronomy.crops``: target yield, e, k, eq. 20's a and b) comes
+    from the crop, n_fraction from the product's N % / 100; a given n_fraction that
+    disagrees with the product's N % is refused rather than one of them silently winning.
+    Returns (params, crop, sources, origin) where origin says "default", "override" or
+    "given" (a value without a default) per parameter.
     """
     out = dict(params)
     sources = {k: "given" for k in out}
+    origin = {k: "given" for k in out}
     crop_d = None
     if crop is not None:
-        found = next((c for c in CROPS if c.key == crop), None)
-        if found is None:
+        found = find_crop(crop)
+        if found is None or found.key != crop:
             raise RxError(f"unknown crop {crop!r} (expected one of {[c.key for c in CROPS]})")
         crop_d = found.to_dict()
-        if model == "nutrient_balance":
-            for k in ("e_kg_per_100kg", "k_utilisation"):
-                if k not in out:
-                    out[k] = crop_d[k]
-                    sources[k] = f"{found.name}: {found.source}"
+        _fill_from_crop(model, out, found, sources, origin)
     if product is not None and model == "nutrient_balance":
         x = float(product.get("n_pct") or 0.0) / 100.0
         if x <= 0:
@@ -112,12 +149,89 @@ def crop_params(
         if "n_fraction" not in out:
             out["n_fraction"] = x
             sources["n_fraction"] = f"{product['name']}: {product['source']}"
+            origin["n_fraction"] = "default"
         elif abs(float(out["n_fraction"]) - x) > 1e-9:
             raise RxError(
                 f"params.n_fraction {out['n_fraction']} disagrees with product "
                 f"{product['name']!r} ({product['n_pct']:g} % N = {x:g}): give one of them"
             )
-    return out, crop_d, sources
+    return out, crop_d, sources, origin
+
+
+def plausibility_spec(
+    session: Session,
+    organisation_id: int,
+    crop: str | None,
+    model: str,
+    params: dict[str, Any],
+    product: dict[str, Any] | None,
+) -> dict[str, Any]:
+    """What the rate map is checked against (stored with the prescription so edits are
+    checked the same way): nutrient fractions, ceilings (organisation over crop) and, for
+    a rate curve, its end points and the share of the field allowed at one of them."""
+    org = session.get(Organisation, organisation_id)
+    settings = dict((org.agronomy if org is not None else None) or {})
+    spec: dict[str, Any] = {
+        "fractions": product_fractions(product, params),
+        "ceilings": resolve_ceilings(find_crop(crop), settings.get("ceilings_kg_ha")),
+    }
+    if model == "ndvi":
+        spec["curve_kg_ha"] = [
+            float(params.get("rate_at_low_kg_ha", RATE_AT_NDVI_LOW)),
+            float(params.get("rate_at_high_kg_ha", RATE_AT_NDVI_HIGH)),
+        ]
+        spec["curve_share_max"] = float(settings.get("curve_share_max", DEFAULT_CURVE_SHARE_MAX))
+    return spec
+
+
+def apply_plausibility(
+    rates: np.ndarray,
+    flags: np.ndarray,
+    area: np.ndarray,
+    seq: np.ndarray,
+    spec: dict[str, Any] | None,
+    curve: bool,
+) -> tuple[np.ndarray, dict[str, Any]]:
+    """Ceiling flags on every cell (recomputed), curve-limit flags on model output only
+    (``curve``); returns the new flags and the summary's ``plausibility`` block."""
+    if not spec:
+        return np.asarray(flags, dtype=np.uint16), {}
+    fl, ceil = check_ceilings(rates, flags, area, seq, spec)
+    out: dict[str, Any] = {"ceilings": spec.get("ceilings"), "fractions": spec.get("fractions")}
+    out["above_ceiling"] = ceil
+    if curve and spec.get("curve_kg_ha"):
+        lo, hi = spec["curve_kg_ha"]
+        fl, out["curve_limits"] = check_curve_limits(
+            rates, fl, area, seq, (lo, hi), spec["curve_share_max"]
+        )
+    return fl, out
+
+
+def form_defaults(session: Session, field: Field) -> dict[str, Any]:
+    """What the prescription forms start from on this field: the field's crop (else the
+    last prescription's), the last prescription's product and target yield."""
+    last = session.scalar(
+        select(Prescription)
+        .join(Plan, Plan.id == Prescription.plan_id)
+        .where(Plan.field_id == field.id)
+        .order_by(Prescription.id.desc())
+        .limit(1)
+    )
+    p = (last.params or {}) if last is not None else {}
+    crop = find_crop(field.crop)
+    crop_from = "field" if crop is not None else None
+    if crop is None and p.get("crop"):
+        crop, crop_from = find_crop(p["crop"]), "last prescription"
+    yield_kg = (p.get("model_params") or {}).get("target_yield_kg_ha")
+    return {
+        "field_id": field.id,
+        "field_crop": field.crop,
+        "crop": None if crop is None else crop.key,
+        "crop_from": crop_from,
+        "product_key": (p.get("product_info") or {}).get("key"),
+        "target_yield_t_ha": None if yield_kg is None else float(yield_kg) / 1000.0,
+        "from_prescription_id": None if last is None else last.id,
+    }
 
 
 def legend_classes(
@@ -240,11 +354,12 @@ def field_samples(
 ) -> tuple[np.ndarray, np.ndarray]:
     """UTM xy and values of the field's samples that have ``column``."""
     col = getattr(SoilSample, column)
-    rows = session.execute(
-        select(func.ST_X(SoilSample.geom), func.ST_Y(SoilSample.geom), col)
-        .where(SoilSample.field_id == field_id, col.is_not(None))
-        .order_by(SoilSample.id)
-    ).all()
+    stmt = select(func.ST_X(SoilSample.geom), func.ST_Y(SoilSample.geom), col).where(
+        SoilSample.field_id == field_id, col.is_not(None)
+    )
+    if column == "n_mg_kg":  # seed 001 eq. 19-21 read alkali-hydrolysable N only
+        stmt = stmt.where(SoilSample.n_form == "alkali_hydrolysable")
+    rows = session.execute(stmt.order_by(SoilSample.id)).all()
     if not rows:
         return np.zeros((0, 2)), np.zeros(0)
     a = np.asarray(rows, dtype=float)
@@ -267,6 +382,21 @@ def interpolate_field_samples(
     xy, z = field_samples(session, field.id, column, field.utm_epsg)
     if len(z) == 0:
         what = "soil samples with n_mg_kg" if column == "n_mg_kg" else "samples with ndvi"
+        other = (
+            session.scalars(
+                select(SoilSample.n_form)
+                .where(SoilSample.field_id == field.id, SoilSample.n_mg_kg.is_not(None))
+                .distinct()
+            ).all()
+            if column == "n_mg_kg"
+            else []
+        )
+        if other:
+            raise RxError(
+                f"model {model!r} needs alkali-hydrolysable soil N (seed 001 eq. 19-21); "
+                f"field {field.id}'s samples hold {' and '.join(sorted(other))} N, which the "
+                "model cannot read as such: import alkali-hydrolysable N, or use another model"
+            )
         raise RxError(
             f"model {model!r} needs {what} on field {field.id}: import them first "
             f"(POST /api/v1/fields/{field.id}/soil-samples)"
@@ -465,7 +595,12 @@ def create_prescription(
     model, params = canonical_model(model, params)
     if model not in MODEL_INPUT:
         raise RxError(f"unknown model {model!r} (expected one of {sorted(MODEL_INPUT)})")
-    params, crop_d, param_sources = crop_params(model, params, crop, product_info)
+    crop_from = "request" if crop is not None else None
+    field_crop = find_crop(field.crop) if crop is None else None
+    if field_crop is not None:
+        crop, crop_from = field_crop.key, "field"
+    params, crop_d, param_sources, param_origin = crop_params(model, params, crop, product_info)
+    plaus = plausibility_spec(session, organisation_id, crop, model, params, product_info)
     column = MODEL_INPUT[model]
     if column is None:  # uniform: no geometry needed
         seq, area = load_seq_area(session, plan.id)
@@ -501,7 +636,10 @@ def create_prescription(
         clamp_max_kg_ha,
         seq,
     )
+    flags, plaus_report = apply_plausibility(p.rate_kg_ha, p.flags, area, seq, plaus, True)
+    p.flags = flags
     summary = p.summary(area, seq=seq)
+    summary["plausibility"] = plaus_report
     if interp_info is not None:
         summary["interpolation"] = interp_info
     if meter is not None:
@@ -509,7 +647,9 @@ def create_prescription(
     summary.update(product_figures(p.rate_kg_ha, area, product_info))
     summary["product"] = product_info
     summary["crop"] = crop_d
+    summary["crop_from"] = crop_from
     summary["param_sources"] = param_sources
+    summary["param_origin"] = param_origin
     summary["classes"] = auto_classes(p.rate_kg_ha, np.asarray(area, float), class_count)
     summary = _json_safe(summary)
     rx = Prescription(
@@ -527,6 +667,8 @@ def create_prescription(
             "meter": None if meter is None else meter.to_dict(),
             "product_info": product_info,
             "clamp": {"min_kg_ha": clamp_min_kg_ha, "max_kg_ha": clamp_max_kg_ha},
+            "plausibility": plaus,
+            "crop": crop,
             **({"source": source} if source else {}),
             **({"rate_unit": rate_unit} if rate_unit != "kg/ha" else {}),
         },
@@ -671,8 +813,13 @@ def edit_prescription(
     aseq, area = load_seq_area(session, plan.id)
     if not np.array_equal(aseq, seq):
         raise RxError("the plan's cells do not match the prescription's rates")
+    plaus = (rx.params or {}).get("plausibility")
+    new_flags, plaus_report = apply_plausibility(new_rates, new_flags, area, seq, plaus, False)
     summary = summarize(new_rates, new_flags, area, seq=seq)
     old = base.summary or {}
+    if plaus:
+        curve = (old.get("plausibility") or {}).get("curve_limits")
+        summary["plausibility"] = {**plaus_report, **({"curve_limits": curve} if curve else {})}
     for key in (
         "model",
         "params",
@@ -683,6 +830,8 @@ def edit_prescription(
         "product",
         "crop",
         "param_sources",
+        "param_origin",
+        "crop_from",
     ):
         if key in old:
             summary[key] = old[key]
@@ -834,6 +983,8 @@ def job_attention(
                 | (meter_flags != 0)
             ).sum()
         ),
+        "above_nutrient_ceiling": int(((flags & FLAG_BITS["above_nutrient_ceiling"]) != 0).sum()),
+        "at_curve_limit": int(((flags & FLAG_BITS["at_curve_limit"]) != 0).sum()),
         "seq": [int(x) for x in seq[mask][:50]],
         "meter": spec.describe(),
     }

@@ -175,6 +175,7 @@ def store_import(
             om_pct=None if s.om_g_kg is None else s.om_g_kg / 10.0,  # g/kg -> %
             ph=s.ph,
             ndvi=ndvi.get(s.row),
+            n_form=s.n_form,
             geom=from_shape(Point(s.lon, s.lat), srid=4326),
             import_batch=batch,
             import_id=imp.id,
@@ -310,6 +311,7 @@ def mapping_out(m: Mapping) -> dict[str, Any]:
         "units": {t: m.unit(t) for t in m.columns if len(UNITS.get(t, {})) > 1},
         "epsg": m.epsg,
         "bulk_density_g_cm3": m.bulk_density_g_cm3,
+        "n_form": m.n_form,
     }
 
 

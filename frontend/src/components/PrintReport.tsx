@@ -1,4 +1,5 @@
 import { useEffect, useRef, useState, type MutableRefObject } from 'react';
+import { nutrientRateText, summaryFractions } from '../lib/rxform';
 import { flushSync } from 'react-dom';
 import type * as maplibregl from 'maplibre-gl';
 import type { FieldFeature, Job, Prescription } from '../api/client';
@@ -86,6 +87,7 @@ export function PrintReport(props: {
       `${rx?.product || job?.product || '–'}${job?.prescription_id != null ? ` · prescription #${job.prescription_id} v${job.prescription_version ?? '?'}` : ''}`,
       'print-product',
     ],
+    ['Mean prescribed rate', rx ? nutrientRateText(rx.summary.rate_mean_kg_ha, summaryFractions(rx.summary)) : '–', 'print-rate-nutrients'],
     ['Job', job ? `#${job.id} ${job.name} (${job.state})` : '–', 'print-job'],
   ];
   const totals: [string, string][] = r

@@ -1,5 +1,5 @@
 import type { ReactNode } from 'react';
-import { NDVI_SOURCE, withCrop, withProduct, type Crop, type FieldErrors, type Product, type RxFields, type RxModel } from '../lib/rxform';
+import { NDVI_SOURCE, cropValue, withCrop, withProduct, type Crop, type FieldErrors, type Product, type RxFields, type RxModel } from '../lib/rxform';
 import { ProductPicker } from './ProductPicker';
 
 /** A number input with its unit and, under it, where its default comes from or what is wrong. */
@@ -40,6 +40,28 @@ function Num(props: {
   );
 }
 
+/** Every default of the crop with its unit and source (uptake of N, P2O5, K2O, ceilings, ...). */
+function CropTable({ crop, tid }: { crop: Crop; tid: string }) {
+  return (
+    <details className="small" data-testid={`${tid}-crop-values`}>
+      <summary>{crop.name}: every default and its source</summary>
+      <table>
+        <tbody>
+          {Object.entries(crop.values).map(([k, v]) => (
+            <tr key={k} data-testid={`${tid}-crop-value-${k}`}>
+              <th>{k}</th>
+              <td>
+                {v.value} {v.unit}
+              </td>
+              <td className="muted source">{v.source}</td>
+            </tr>
+          ))}
+        </tbody>
+      </table>
+    </details>
+  );
+}
+
 /**
  * The rate model's inputs as typed fields with units (crop, target yield t/ha, product,
  * N uptake, utilisation; or a uniform rate; or the NDVI curve) and the agronomist's
@@ -57,10 +79,19 @@ export function RxModelFields(props: {
 }) {
   const { model, fields: f, setFields: set, errors, crops, products, onProductAdded, tid = 'rx' } = props;
   const crop = crops.find((c) => c.key === f.crop);
-  const cropSource = (k: 'e_kg_per_100kg' | 'k_utilisation' | 'target_yield_t_ha') =>
-    crop && String(crop[k]) === f[k === 'e_kg_per_100kg' ? 'eKgPer100kg' : k === 'k_utilisation' ? 'kUtilisation' : 'targetYieldTHa']
-      ? `default: ${crop.name}, ${crop.source}`
-      : 'set by you';
+  // the form field each crop default fills; a value that differs from the default is the user's
+  const FIELD_OF: Record<string, keyof RxFields> = {
+    target_yield_t_ha: 'targetYieldTHa',
+    e_kg_per_100kg: 'eKgPer100kg',
+    k_utilisation: 'kUtilisation',
+    d_intercept_pct: 'dIntercept',
+    d_slope_pct_mg_kg: 'dSlope',
+  };
+  const cropSource = (k: string) => {
+    const v = crop?.values?.[k];
+    if (!crop || !v) return 'set by you';
+    return cropValue(crop, k) === f[FIELD_OF[k]] ? `default: ${crop.name}, ${v.source}` : `set by you (default ${v.value}: ${v.source})`;
+  };
   const common = { f, set, errors, tid };
   return (
     <fieldset className="rx-fields">
@@ -93,10 +124,13 @@ export function RxModelFields(props: {
             testid={`${tid}-product`}
           />
           <details>
-            <summary>Crop N uptake and utilisation</summary>
+            <summary>Crop N uptake, utilisation and soil correction</summary>
             <Num label="N uptake" unit="kg N / 100 kg yield" k="eKgPer100kg" source={cropSource('e_kg_per_100kg')} {...common} />
             <Num label="Fertiliser N utilisation" unit="fraction" k="kUtilisation" source={cropSource('k_utilisation')} {...common} />
+            <Num label="Soil correction a (eq. 20)" unit="%" k="dIntercept" source={cropSource('d_intercept_pct')} {...common} />
+            <Num label="Soil correction b (eq. 20)" unit="% mg/kg" k="dSlope" source={cropSource('d_slope_pct_mg_kg')} {...common} />
           </details>
+          {crop && <CropTable crop={crop} tid={tid} />}
         </>
       )}
       {model === 'uniform' && <Num label="Rate" unit="kg/ha" k="uniformRate" {...common} />}

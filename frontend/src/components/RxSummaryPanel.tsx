@@ -1,9 +1,35 @@
 import type { Schemas } from '../api/client';
-import { formatProduct, outsideMeter } from '../lib/rxform';
+import { formatProduct, nutrientRateText, outsideMeter, summaryFractions } from '../lib/rxform';
 import { formatRate } from '../lib/units';
 import { Kv } from './Status';
 
 type Summary = Schemas['RxSummary'];
+interface CurveShare {
+  count: number;
+  share: number;
+  flagged: boolean;
+}
+interface Plausibility {
+  ceilings?: Record<string, { kg_ha: number; source: string }>;
+  above_ceiling?: {
+    count: number;
+    area_m2: number;
+    seq: number[];
+    nutrients?: Record<string, { ceiling_kg_ha: number; max_kg_ha: number; count: number; source: string }>;
+  } | null;
+  curve_limits?: { cap: CurveShare; floor: CurveShare; cap_kg_ha: number; floor_kg_ha: number; share_max: number };
+}
+
+/** The ceilings the version was checked against, with their sources. */
+function CeilingLines({ plaus }: { plaus: Plausibility }) {
+  const c = Object.entries(plaus.ceilings ?? {});
+  if (!c.length) return null;
+  return (
+    <p className="small muted" data-testid="rx-ceilings">
+      Ceilings: {c.map(([n, x]) => `${x.kg_ha} kg ${n}/ha (${x.source})`).join('; ')}
+    </p>
+  );
+}
 
 /**
  * The whole-field figures of the version on screen (server summary, every cell): area,
@@ -22,6 +48,10 @@ export function RxSummaryPanel({ summary: s, version }: { summary: Summary | nul
   const lowered = fl.clamped_max ?? 0;
   const clamp = s.clamp;
   const product = s.product as { name?: string; price_per_t?: number | null } | null;
+  const fr = summaryFractions(s);
+  const plaus = (s.plausibility ?? {}) as Plausibility;
+  const above = plaus.above_ceiling;
+  const origin = (s.param_origin ?? {}) as Record<string, string>;
   return (
     <div className="rx-summary" data-testid="rx-summary" data-version={version ?? ''}>
       <Kv
@@ -29,11 +59,17 @@ export function RxSummaryPanel({ summary: s, version }: { summary: Summary | nul
           ['Area', `${(s.area_ha ?? 0).toFixed(3)} ha`, 'rx-sum-area'],
           ['Product', product?.name ?? '–', 'rx-sum-product-name'],
           ['Total product', formatProduct(s.product_kg), 'rx-sum-product'],
-          ['Mean rate', formatRate(s.rate_mean_kg_ha), 'rx-sum-mean'],
+          ['Mean rate', nutrientRateText(s.rate_mean_kg_ha, fr), 'rx-sum-mean'],
           [
             'Rate range',
             <>
               {formatRate(s.rate_min_kg_ha)} – {formatRate(s.rate_max_kg_ha)}
+              {fr.N ? (
+                <span data-testid="rx-range-n">
+                  {' '}
+                  ({((s.rate_min_kg_ha ?? 0) * fr.N).toFixed(1)} – {((s.rate_max_kg_ha ?? 0) * fr.N).toFixed(1)} kg N/ha)
+                </span>
+              ) : null}
               {meter?.rate_min_kg_ha != null && (
                 <span className="small muted" data-testid="rx-meter-range">
                   {' '}
@@ -61,6 +97,27 @@ export function RxSummaryPanel({ summary: s, version }: { summary: Summary | nul
           ],
         ]}
       />
+      <CeilingLines plaus={plaus} />
+      {above && above.count > 0 && (
+        <p className="warn small" data-testid="rx-ceiling-warn">
+          {above.count} cell{above.count === 1 ? '' : 's'} ({(above.area_m2 / 10_000).toFixed(3)} ha) above a nutrient ceiling:{' '}
+          {Object.entries(above.nutrients ?? {})
+            .filter(([, x]) => x.count > 0)
+            .map(([n, x]) => `${x.count} over ${x.ceiling_kg_ha} kg ${n}/ha (up to ${x.max_kg_ha.toFixed(1)}; ${x.source})`)
+            .join('; ')}
+          . Cells: {above.seq.slice(0, 20).join(', ')}
+          {above.seq.length > 20 ? ' …' : ''}. Sending needs your confirmation.
+        </p>
+      )}
+      {(['cap', 'floor'] as const).map((k) =>
+        plaus.curve_limits?.[k]?.flagged ? (
+          <p key={k} className="warn small" data-testid={`rx-curve-${k}-warn`}>
+            {(plaus.curve_limits[k].share * 100).toFixed(0)} % of the field ({plaus.curve_limits[k].count} cells) is at the rate curve's {k} (
+            {formatRate(k === 'cap' ? plaus.curve_limits.cap_kg_ha : plaus.curve_limits.floor_kg_ha)}), more than{' '}
+            {(plaus.curve_limits.share_max * 100).toFixed(0)} %: check the input's scale. Sending needs your confirmation.
+          </p>
+        ) : null,
+      )}
       {warn && (
         <p className="warn small" data-testid="rx-meter-warn">
           Outside what the machine meters: {warn}.
@@ -80,7 +137,8 @@ export function RxSummaryPanel({ summary: s, version }: { summary: Summary | nul
           <ul data-testid="rx-param-sources">
             {Object.entries(s.param_sources).map(([k, src]) => (
               <li key={k}>
-                {k} = {String((s.params as Record<string, unknown> | undefined)?.[k] ?? '')} — {src}
+                {k} = {String((s.params as Record<string, unknown> | undefined)?.[k] ?? '')}
+                {origin[k] ? <strong data-testid={`rx-origin-${k}`}> ({origin[k]})</strong> : null} — {src}
               </li>
             ))}
           </ul>

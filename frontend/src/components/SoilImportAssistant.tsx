@@ -216,6 +216,23 @@ export function SoilImportAssistant({ fieldId, onImported }: { fieldId: number; 
               }}
             />
           </label>
+          {mapping.columns.n && (
+            <label className="inline">
+              N form of column “{mapping.columns.n}”{' '}
+              <select
+                data-testid="soil-n-form"
+                value={mapping.n_form ?? 'alkali_hydrolysable'}
+                onChange={(e) => change({ ...mapping, n_form: e.target.value as NonNullable<MappingIn['n_form']> })}
+              >
+                <option value="alkali_hydrolysable">alkali-hydrolysable N (seed 001, nutrient balance)</option>
+                <option value="mineral">mineral N (Nmin)</option>
+                <option value="total">total N</option>
+              </select>
+              {(mapping.n_form ?? 'alkali_hydrolysable') !== 'alkali_hydrolysable' && (
+                <span className="warn small"> the nutrient-balance model reads only alkali-hydrolysable N</span>
+              )}
+            </label>
+          )}
           {mapping.units.n === 'kg/ha' && (
             <label className="inline">
               Bulk density for Nmin kg/ha → mg/kg (g/cm³){' '}

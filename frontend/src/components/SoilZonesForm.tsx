@@ -1,7 +1,7 @@
 import { useEffect, useState } from 'react';
 import { call, client, type Prescription, type Schemas } from '../api/client';
 import { defaultFields, rxBody, type FieldErrors, type RxFields } from '../lib/rxform';
-import { useCatalogue } from '../lib/useCatalogue';
+import { useCatalogue, usePlanFormDefaults } from '../lib/useCatalogue';
 import { RxModelFields } from './RxModelFields';
 import { ErrorBox } from './Status';
 import { serverDefault } from '../api/defaults';
@@ -16,6 +16,7 @@ import { serverDefault } from '../api/defaults';
 export function SoilZonesForm(props: { planId: number; onCreated: (r: Prescription) => void }) {
   const { planId, onCreated } = props;
   const cat = useCatalogue();
+  const start = usePlanFormDefaults(planId);
   const [model, setModel] = useState<'nutrient_balance' | 'ndvi'>('nutrient_balance');
   const [interp, setInterp] = useState<string>(serverDefault('SoilZonesIn', 'interpolation'));
   const [k, setK] = useState(serverDefault('SoilZonesIn', 'k'));
@@ -24,8 +25,8 @@ export function SoilZonesForm(props: { planId: number; onCreated: (r: Prescripti
   const [busy, setBusy] = useState(false);
   const [err, setErr] = useState<{ api: unknown; fields: FieldErrors }>({ api: null, fields: {} });
   useEffect(() => {
-    if (!fields && cat.crops.length) setFields(defaultFields(cat.crops, cat.products));
-  }, [cat.crops, cat.products, fields]);
+    if (!fields && cat.crops.length && start.ready) setFields(defaultFields(cat.crops, cat.products, start.data));
+  }, [cat.crops, cat.products, fields, start.ready, start.data]);
   return (
     <form
       className="form"

@@ -13,6 +13,8 @@ export interface Attention {
   outOfRange: number;
   below: number;
   above: number;
+  aboveCeiling: number;
+  atCurveLimit: number;
   fallbackRate?: number | null;
   meter?: { rate_min_kg_ha: number; rate_max_kg_ha: number; speed_min_kmh: number; speed_max_kmh: number } | null;
   searchDistanceM?: number | null;
@@ -44,6 +46,8 @@ export function attentionOf(rx: unknown): Attention {
     below: n(fl.below_meter_range),
     above: n(fl.above_meter_range),
     outOfRange: n(fl.below_meter_range) + n(fl.above_meter_range),
+    aboveCeiling: n(fl.above_nutrient_ceiling),
+    atCurveLimit: n(fl.at_curve_limit),
     fallbackRate: (r.fallback_rate_kg_ha ?? s.fallback_rate_kg_ha) as number | null | undefined,
     meter: 'rate_min_kg_ha' in meter ? (meter as unknown as Attention['meter']) : null,
     searchDistanceM: typeof interp.search_distance_m === 'number' ? interp.search_distance_m : null,
@@ -67,6 +71,8 @@ export function attentionLines(a: Attention): string[] {
     out.push(
       `${a.above} above the highest meterable rate${m ? ` ${m.rate_max_kg_ha.toFixed(1)} kg/ha at ${m.speed_max_kmh} km/h` : ''}`,
     );
+  if (a.aboveCeiling) out.push(`${a.aboveCeiling} above a nutrient ceiling (kg N, P2O5 or K2O per ha)`);
+  if (a.atCurveLimit) out.push(`${a.atCurveLimit} at the rate curve's cap or floor (more of the field than allowed)`);
   if (a.noData)
     out.push(
       `${a.noData} with no soil sample${a.searchDistanceM ? ` within ${Math.round(a.searchDistanceM)} m` : ''}: fallback rate ${

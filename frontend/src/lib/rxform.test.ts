@@ -2,7 +2,7 @@
 // (The screens' state and map-layer rules are checked for every screen and component in
 // screens.test.ts.)
 import { describe, expect, it } from 'vitest';
-import { defaultFields, outsideMeter, rateUnitText, rxBody, withProduct, type Product } from '../lib/rxform';
+import { defaultFields, nutrientRateText, outsideMeter, rateUnitText, rxBody, withProduct, type Crop, type Product } from '../lib/rxform';
 
 describe('outsideMeter', () => {
   it('names the rates a machine cannot meter; 0 (off) is fine', () => {
@@ -30,5 +30,40 @@ describe('liquid products in l/ha', () => {
     expect(rateUnitText({ rate_unit: 'l/ha', density_kg_l: 1.28 }, 192)).toBe('l/ha through 1.28 kg/l · mean 150.0 l/ha');
     expect(rateUnitText({ rate_unit: 'kg/ha', density_kg_l: 1.28 }, 192)).toBe('kg/ha');
     expect(rateUnitText(undefined, 192)).toBe('–');
+  });
+});
+
+const v = (value: number, source = 'src') => ({ value, unit: 'u', source });
+const crop = (key: string, e: number, k: number, y: number, b: number): Crop => ({
+  key,
+  name: key,
+  e_kg_per_100kg: e,
+  k_utilisation: k,
+  target_yield_t_ha: y,
+  source: 'src',
+  ceilings_kg_ha: { N: 200 },
+  n_reference: null,
+  values: { e_kg_per_100kg: v(e), k_utilisation: v(k), target_yield_t_ha: v(y), d_intercept_pct: v(5.57), d_slope_pct_mg_kg: v(b) },
+});
+const CROPS = [crop('winter_rape', 5.8, 0.342, 2.5, 3226.05), crop('winter_wheat', 3, 0.282, 8, 7728.33)];
+const product = (key: string, n: number): Product => ({ key, id: null, name: key, n_pct: n, p2o5_pct: 0, k2o_pct: 0, price_per_t: null, source: 's' });
+const PRODUCTS = [product('default:urea', 46), product('default:can', 27)];
+
+describe('defaultFields', () => {
+  it("starts from the field's crop, its last product and yield goal, not the first crop", () => {
+    const f = defaultFields(CROPS, PRODUCTS, { crop: 'winter_wheat', product_key: 'default:can', target_yield_t_ha: 7.5 });
+    expect([f.crop, f.productKey, f.targetYieldTHa, f.kUtilisation, f.dSlope]).toEqual(['winter_wheat', 'default:can', '7.5', '0.282', '7728.33']);
+    const g = defaultFields(CROPS, PRODUCTS, null);
+    expect([g.crop, g.productKey, g.targetYieldTHa]).toEqual(['winter_rape', 'default:urea', '2.5']);
+    // eq. 20's a and b are sent with the other parameters
+    expect(rxBody('nutrient_balance', f).body?.params).toMatchObject({ d_intercept_pct: 5.57, d_slope_pct_mg_kg: 7728.33, target_yield_kg_ha: 7500 });
+  });
+});
+
+describe('nutrientRateText', () => {
+  it('gives kg of each nutrient per ha beside kg of product per ha', () => {
+    expect(nutrientRateText(700, { N: 0.27, P2O5: 0, K2O: 0 })).toBe('700.0 kg/ha · 189.0 kg N/ha');
+    expect(nutrientRateText(200, { N: 0.15, P2O5: 0.15, K2O: 0.15 })).toBe('200.0 kg/ha · 30.0 kg N/ha · 30.0 kg P2O5/ha · 30.0 kg K2O/ha');
+    expect(nutrientRateText(null, { N: 0.27 })).toBe('–');
   });
 });

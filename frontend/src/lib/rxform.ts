@@ -17,6 +17,8 @@ export interface RxFields {
   productKey: string;
   eKgPer100kg: string;
   kUtilisation: string;
+  dIntercept: string;
+  dSlope: string;
   uniformRate: string;
   ndviLow: string;
   rateAtLow: string;
@@ -32,13 +34,28 @@ export interface RxFields {
 export const NDVI_DEFAULTS = { ndviLow: '0.24', rateAtLow: '375', ndviHigh: '0.65', rateAtHigh: '180' };
 export const NDVI_SOURCE = 'seed 000 NDVI curve';
 
-/** Fields filled from a crop and the first product with N (each value's source is shown beside it). */
-export function defaultFields(crops: Crop[], products: Product[], cropKey?: string): RxFields {
-  const crop = crops.find((c) => c.key === cropKey) ?? crops[0];
-  const product = products.find((p) => p.n_pct > 0);
+/** What the form starts from on a field (GET /fields/{id}/rx-defaults). */
+export type FormDefaults = Schemas['FormDefaultsOut'];
+
+/** A crop default's value as the form shows it ('' when the crop has no such value). */
+export function cropValue(crop: Crop | undefined, name: string): string {
+  const v = crop?.values?.[name];
+  return v ? String(v.value) : '';
+}
+
+/**
+ * Fields filled from the field's crop (else the first crop), the field's last product and
+ * yield goal (else the first product with N and the crop's yield); each value's source is
+ * shown beside it.
+ */
+export function defaultFields(crops: Crop[], products: Product[], from?: Partial<FormDefaults> | null): RxFields {
+  const crop = crops.find((c) => c.key === from?.crop) ?? crops[0];
+  const product = products.find((p) => p.key === from?.product_key) ?? products.find((p) => p.n_pct > 0);
+  const base = crop ? withCrop({} as RxFields, crop) : ({} as RxFields);
   return {
+    ...base,
     crop: crop?.key ?? '',
-    targetYieldTHa: crop ? String(crop.target_yield_t_ha) : '',
+    targetYieldTHa: from?.target_yield_t_ha != null ? String(from.target_yield_t_ha) : crop ? String(crop.target_yield_t_ha) : '',
     productKey: product?.key ?? '',
     eKgPer100kg: crop ? String(crop.e_kg_per_100kg) : '',
     kUtilisation: crop ? String(crop.k_utilisation) : '',
@@ -56,7 +73,7 @@ export function withProduct(f: RxFields, products: Product[], key: string): RxFi
   return { ...f, productKey: key, rateUnit: p?.density_kg_l ? f.rateUnit : 'kg/ha' };
 }
 
-/** A new crop's defaults replace the crop-dependent fields only (yield, e, k). */
+/** A new crop's defaults replace the crop-dependent fields only (yield, e, k, eq. 20's a and b). */
 export function withCrop(f: RxFields, crop: Crop): RxFields {
   return {
     ...f,
@@ -64,6 +81,8 @@ export function withCrop(f: RxFields, crop: Crop): RxFields {
     targetYieldTHa: String(crop.target_yield_t_ha),
     eKgPer100kg: String(crop.e_kg_per_100kg),
     kUtilisation: String(crop.k_utilisation),
+    dIntercept: cropValue(crop, 'd_intercept_pct'),
+    dSlope: cropValue(crop, 'd_slope_pct_mg_kg'),
   };
 }
 
@@ -98,6 +117,8 @@ export function rxBody(model: RxModel, f: RxFields): { body: RxBody | null; erro
     params.target_yield_kg_ha = need('targetYieldTHa', 'Target yield (t/ha)', (x) => x > 0) * 1000;
     params.e_kg_per_100kg = need('eKgPer100kg', 'N uptake (kg N / 100 kg)', (x) => x > 0);
     params.k_utilisation = need('kUtilisation', 'N utilisation', (x) => x > 0 && x <= 1);
+    if (f.dIntercept?.trim()) params.d_intercept_pct = need('dIntercept', 'Soil correction a (%)', (x) => Number.isFinite(x));
+    if (f.dSlope?.trim()) params.d_slope_pct_mg_kg = need('dSlope', 'Soil correction b (% mg/kg)', (x) => x >= 0);
     if (!f.productKey) errors.productKey = 'choose a product (its N % gives the rate)';
   } else if (model === 'uniform') {
     params.rate_kg_ha = need('uniformRate', 'Rate (kg/ha)', (x) => x >= 0);
@@ -153,4 +174,24 @@ export function outsideMeter(s: { rate_min_kg_ha?: number | null; rate_max_kg_ha
   if (min != null && min > 0 && min < lo) parts.push(`lowest rate ${formatRate(min)} is below ${formatRate(lo)}`);
   if (max != null && max > hi) parts.push(`highest rate ${formatRate(max)} is above ${formatRate(hi)}`);
   return parts.length ? parts.join('; ') : null;
+}
+
+/**
+ * "683.2 kg/ha · 184.5 kg N/ha": a product rate with the kg of each nutrient per ha it
+ * carries (the product's analysis; nutrient_balance without a product: its N fraction).
+ */
+export function nutrientRateText(rateKgHa: number | null | undefined, fractions: Record<string, number> | null | undefined): string {
+  if (rateKgHa == null || !Number.isFinite(rateKgHa)) return '–';
+  const parts = Object.entries(fractions ?? {})
+    .filter(([, x]) => x > 0)
+    .map(([n, x]) => `${(rateKgHa * x).toFixed(1)} kg ${n}/ha`);
+  return [`${rateKgHa.toFixed(1)} kg/ha`, ...parts].join(' · ');
+}
+
+/** The nutrient fractions a version's summary was checked with (or its product's analysis). */
+export function summaryFractions(s: unknown): Record<string, number> {
+  const o = (s ?? {}) as { plausibility?: { fractions?: Record<string, number> }; product?: { n_pct?: number; p2o5_pct?: number; k2o_pct?: number } | null };
+  if (o.plausibility?.fractions && Object.keys(o.plausibility.fractions).length) return o.plausibility.fractions;
+  const p = o.product;
+  return p ? { N: (p.n_pct ?? 0) / 100, P2O5: (p.p2o5_pct ?? 0) / 100, K2O: (p.k2o_pct ?? 0) / 100 } : {};
 }

@@ -28,6 +28,14 @@ export function MachinesScreen() {
   const [speedMin, setSpeedMin] = useState('3');
   const [speedMax, setSpeedMax] = useState('9');
   const [cal, setCal] = useState<CalibrationForm>(EMPTY_CALIBRATION);
+  // the implement and what it can do beyond metering (checked when a job is made and sent)
+  const [impl, setImpl] = useState<{ type: Schemas['MachineIn']['implement_type']; caps: Schemas['CapabilitiesIn'] }>({
+    type: 'spreader',
+    caps: { depth_actuator: false, sensors: [] },
+  });
+  const sensors = impl.caps.sensors ?? [];
+  const toggleSensor = (x: 'canopy_ndvi' | 'depth') =>
+    setImpl({ ...impl, caps: { ...impl.caps, sensors: sensors.includes(x) ? sensors.filter((y) => y !== x) : [...sensors, x] } });
   const [calErrors, setCalErrors] = useState<CalibrationErrors>({});
   const create = useApiMutation((body: Schemas['MachineIn']) => call(client.POST('/api/v1/machines', { body })), {
     invalidate: () => [qk.machines(), qk.machineStatus()],
@@ -54,7 +62,8 @@ export function MachinesScreen() {
           if (!r.value) return;
           const body = {
             name,
-            implement_type: 'spreader',
+            implement_type: impl.type,
+            capabilities: impl.caps,
             width_m: Number(width),
             lag_s: r.value.lag_s,
             calibration: r.value.calibration,
@@ -79,6 +88,38 @@ export function MachinesScreen() {
             <input data-testid="machine-speed-min" type="number" step="0.1" value={speedMin} onChange={(e) => setSpeedMin(e.target.value)} />
             –
             <input data-testid="machine-speed-max" type="number" step="0.1" value={speedMax} onChange={(e) => setSpeedMax(e.target.value)} />
+          </label>
+        </div>
+        <div className="row wrap" data-testid="machine-capabilities">
+          <label className="inline">
+            implement{' '}
+            <select
+              data-testid="machine-implement"
+              value={impl.type}
+              onChange={(e) => setImpl({ ...impl, type: e.target.value as typeof impl.type })}
+            >
+              <option value="spreader">spreader</option>
+              <option value="seeder">seeder</option>
+              <option value="seed_fertiliser_drill">seed + fertiliser drill</option>
+              <option value="sprayer">sprayer</option>
+            </select>
+          </label>
+          <label className="inline">
+            <input
+              data-testid="machine-depth-actuator"
+              type="checkbox"
+              checked={!!impl.caps.depth_actuator}
+              onChange={(e) => setImpl({ ...impl, caps: { ...impl.caps, depth_actuator: e.target.checked } })}
+            /> depth
+            actuator
+          </label>
+          <label className="inline">
+            <input data-testid="machine-sensor-ndvi" type="checkbox" checked={sensors.includes('canopy_ndvi')} onChange={() => toggleSensor('canopy_ndvi')} />{' '}
+            canopy NDVI sensors
+          </label>
+          <label className="inline">
+            <input data-testid="machine-sensor-depth" type="checkbox" checked={sensors.includes('depth')} onChange={() => toggleSensor('depth')} /> depth
+            sensor
           </label>
         </div>
         <p className="muted small">
@@ -133,7 +174,11 @@ export function MachinesScreen() {
                   {m.name}
                 </a>
               </td>
-              <td>{m.implement_type ?? '–'}</td>
+              <td data-testid={`machine-implement-${m.id}`}>
+                {m.implement_type ?? '–'}
+                {m.capabilities?.depth_actuator ? ' · depth actuator' : ''}
+                {((m.capabilities?.sensors as string[] | undefined) ?? []).map((x) => ` · ${x} sensor`).join('')}
+              </td>
               <td>{m.width_m != null ? `${m.width_m} m` : '–'}</td>
               <td>{m.lag_s != null ? `${m.lag_s} s` : '–'}</td>
               <td data-testid={`machine-cal-${m.id}`}>{calibrationText(m.calibration)}</td>

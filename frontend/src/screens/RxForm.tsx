@@ -3,12 +3,13 @@ import { call, client, type Machine, type Prescription, type Schemas, inline } f
 import { RxModelFields } from '../components/RxModelFields';
 import { ErrorBox } from '../components/Status';
 import { defaultFields, rxBody, type FieldErrors, type RxFields, type RxModel } from '../lib/rxform';
-import { useCatalogue } from '../lib/useCatalogue';
+import { useCatalogue, usePlanFormDefaults } from '../lib/useCatalogue';
 import { serverDefault } from '../api/defaults';
 
 /** New prescription: crop-aware typed fields with units (no JSON), product from the catalogue, clamp, note. */
 export function RxForm({ planId, onCreated }: { planId: number; onCreated: (r: Prescription) => void }) {
   const cat = useCatalogue();
+  const start = usePlanFormDefaults(planId);
   const [model, setModel] = useState<RxModel>('nutrient_balance');
   const [fields, setFields] = useState<RxFields | null>(null);
   const [interp, setInterp] = useState<string>(serverDefault('PrescriptionIn', 'interpolation'));
@@ -27,8 +28,8 @@ export function RxForm({ planId, onCreated }: { planId: number; onCreated: (r: P
       .catch(() => undefined);
   }, []);
   useEffect(() => {
-    if (!fields && cat.crops.length) setFields(defaultFields(cat.crops, cat.products));
-  }, [cat.crops, cat.products, fields]);
+    if (!fields && cat.crops.length && start.ready) setFields(defaultFields(cat.crops, cat.products, start.data));
+  }, [cat.crops, cat.products, fields, start.ready, start.data]);
   // An error is shown next to what caused it and scrolled into view.
   useEffect(() => {
     const el = formRef.current?.querySelector('[aria-invalid=true], [data-testid=rx-error]');

@@ -75,9 +75,28 @@ def calibration_kind(value: Any) -> Any:
     return value
 
 
+ImplementType = Literal["spreader", "seeder", "seed_fertiliser_drill", "sprayer", "imported"]
+Sensor = Literal["canopy_ndvi", "depth"]
+
+
+class CapabilitiesIn(In):
+    """What the implement can do beyond metering (checked when a job is made and sent)."""
+
+    sections: int = Field(default=1, ge=1, le=256, description="switchable sections")
+    depth_actuator: bool = Field(
+        default=False, description="sowing-depth actuator (seed 002's hydraulic cylinder)"
+    )
+    sensors: list[Sensor] = Field(
+        default_factory=list,
+        description="canopy_ndvi: crop canopy NDVI sensors (seed 000); depth: sowing-depth "
+        "sensor (seed 002)",
+    )
+
+
 class MachineIn(In):
     name: str = Field(min_length=1, max_length=200)
-    implement_type: str = Field(default="spreader", max_length=50)
+    implement_type: ImplementType = Field(default="spreader")
+    capabilities: CapabilitiesIn = Field(default_factory=CapabilitiesIn)
     # >= 5 cm: a narrower "implement" only makes rate = flow / (w v) overflow (ISSUE 20)
     width_m: float = Field(ge=0.05, le=60, description="working width, m")
     lag_s: float = Field(ge=0, le=30, description="application lag T_lag, s (seed 001: 1.52)")
@@ -98,7 +117,8 @@ class MachineIn(In):
 
 class MachinePatch(In):
     name: str | None = Field(default=None, min_length=1, max_length=200)
-    implement_type: str | None = Field(default=None, max_length=50)
+    implement_type: ImplementType | None = None
+    capabilities: CapabilitiesIn | None = None
     width_m: float | None = Field(default=None, ge=0.05, le=60)
     lag_s: float | None = Field(default=None, ge=0, le=30)
     calibration: CalibrationIn | None = None
@@ -118,6 +138,7 @@ class MachineOut(Out):
     id: int
     name: str
     implement_type: str
+    capabilities: dict[str, Any]
     width_m: float
     lag_s: float
     calibration: dict[str, Any]

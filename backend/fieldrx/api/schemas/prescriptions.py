@@ -40,8 +40,9 @@ class PrescriptionIn(In):
     calibration: dict[str, Any] | None = None
     crop: str | None = Field(
         default=None,
-        description="a crop key of GET /products: its e_kg_per_100kg and k_utilisation fill "
-        "the nutrient-balance parameters not given",
+        description="a crop key of GET /products: its defaults (target yield, e, k, eq. 20's "
+        "a and b) fill the nutrient-balance parameters not given, and its ceilings are "
+        "checked; without it the field's crop is used when it names one",
     )
     product_key: str | None = Field(
         default=None,
@@ -173,6 +174,17 @@ class RxSummary(Open):
     crop: dict[str, Any] | None = None
     param_sources: dict[str, str] | None = Field(
         default=None, description="where each model parameter came from"
+    )
+    param_origin: dict[str, str] | None = Field(
+        default=None,
+        description='per model parameter: "default" (the crop\'s / product\'s), "override" '
+        '(given, differs from the default) or "given" (no default)',
+    )
+    crop_from: str | None = Field(default=None, description='"request", "field" or null')
+    plausibility: dict[str, Any] | None = Field(
+        default=None,
+        description="ceilings (kg/ha per nutrient, with sources), the product's fractions, "
+        "above_ceiling {count, area_m2, seq, nutrients}, curve_limits {cap, floor: share}",
     )
     clamp: ClampReport | None = None
     classes: LegendClasses | None = None

@@ -87,6 +87,9 @@ class SampleCollection(Out):
 LabTarget = Literal["sample_id", "x", "y", "depth", "n", "p", "k", "om", "ph"]
 
 
+NForm = Literal["alkali_hydrolysable", "mineral", "total"]
+
+
 class SoilMappingIn(In):
     """How a lab file's columns are read (sent as the JSON text of the ``mapping`` form field).
 
@@ -103,6 +106,11 @@ class SoilMappingIn(In):
         le=2.5,
         description="soil bulk density for Nmin kg/ha -> mg/kg",
     )
+    n_form: NForm = Field(
+        default="alkali_hydrolysable",
+        description="which N the N column holds: alkali_hydrolysable (seed 001's soil N, the "
+        "nutrient-balance model's input), mineral (Nmin) or total N",
+    )
 
 
 class SoilMappingOut(Out):
@@ -110,6 +118,7 @@ class SoilMappingOut(Out):
     units: dict[str, str]
     epsg: int | None
     bulk_density_g_cm3: float
+    n_form: NForm = Field(default="alkali_hydrolysable", description="which N the N column holds")
 
 
 class LabColumn(Out):

@@ -204,6 +204,32 @@ export interface paths {
         patch?: never;
         trace?: never;
     };
+    "/api/v1/ceilings": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        /**
+         * Get Ceilings
+         * @description The organisation's plausibility settings and, per crop, the ceilings a prescription
+         *     is checked against (organisation over the crop's published default, with sources).
+         */
+        get: operations["get_ceilings_api_v1_ceilings_get"];
+        /**
+         * Put Ceilings
+         * @description Set the organisation's ceilings (e.g. a regional legal N limit) and the share of a
+         *     field allowed at a rate curve's cap or floor; checked on prescriptions made after.
+         */
+        put: operations["put_ceilings_api_v1_ceilings_put"];
+        post?: never;
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
     "/api/v1/device/jobs": {
         parameters: {
             query?: never;
@@ -454,6 +480,27 @@ export interface paths {
          *     With ``background=true`` it is queued instead: 202 with the task.
          */
         post: operations["create_api_v1_fields__field_id__plans_post"];
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/api/v1/fields/{field_id}/rx-defaults": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        /**
+         * Rx Defaults
+         * @description The prescription form's starting values on this field: its crop, and the product and
+         *     target yield of the field's last prescription.
+         */
+        get: operations["rx_defaults_api_v1_fields__field_id__rx_defaults_get"];
+        put?: never;
+        post?: never;
         delete?: never;
         options?: never;
         head?: never;
@@ -2253,12 +2300,83 @@ export interface components {
              */
             red_band?: number | null;
         };
+        /**
+         * CapabilitiesIn
+         * @description What the implement can do beyond metering (checked when a job is made and sent).
+         */
+        CapabilitiesIn: {
+            /**
+             * Depth Actuator
+             * @description sowing-depth actuator (seed 002's hydraulic cylinder)
+             * @default false
+             */
+            depth_actuator?: boolean;
+            /**
+             * Sections
+             * @description switchable sections
+             * @default 1
+             */
+            sections?: number;
+            /**
+             * Sensors
+             * @description canopy_ndvi: crop canopy NDVI sensors (seed 000); depth: sowing-depth sensor (seed 002)
+             */
+            sensors?: ("canopy_ndvi" | "depth")[];
+        };
         /** Catalogue */
         Catalogue: {
             /** Crops */
             crops: components["schemas"]["CropOut"][];
             /** Products */
             products: components["schemas"]["ProductOut"][];
+        };
+        /**
+         * CeilingsIn
+         * @description An organisation's plausibility settings; a nutrient left out keeps the crop's value.
+         */
+        CeilingsIn: {
+            /**
+             * Ceilings Kg Ha
+             * @description per crop key (or "*" for every crop): {"N": kg/ha, "P2O5": ..., "K2O": ...}
+             */
+            ceilings_kg_ha?: {
+                [key: string]: {
+                    [key: string]: number | null;
+                };
+            };
+            /**
+             * Curve Share Max
+             * @description share of a field at a rate curve's cap or floor above which its cells are flagged and sending needs confirmation
+             * @default 0.25
+             */
+            curve_share_max?: number;
+        };
+        /** CeilingsOut */
+        CeilingsOut: {
+            /**
+             * Ceilings Kg Ha
+             * @description per crop key (or "*" for every crop): {"N": kg/ha, "P2O5": ..., "K2O": ...}
+             */
+            ceilings_kg_ha?: {
+                [key: string]: {
+                    [key: string]: number | null;
+                };
+            };
+            /**
+             * Curve Share Max
+             * @description share of a field at a rate curve's cap or floor above which its cells are flagged and sending needs confirmation
+             * @default 0.25
+             */
+            curve_share_max?: number;
+            /**
+             * Effective
+             * @description per crop: each nutrient's ceiling in kg/ha and its source
+             */
+            effective: {
+                [key: string]: {
+                    [key: string]: unknown;
+                };
+            };
         };
         /**
          * CellBatchIn
@@ -2534,6 +2652,13 @@ export interface components {
         /** CropOut */
         CropOut: {
             /**
+             * Ceilings Kg Ha
+             * @description the crop's default N / P2O5 / K2O caps
+             */
+            ceilings_kg_ha: {
+                [key: string]: number;
+            };
+            /**
              * E Kg Per 100Kg
              * @description kg N taken up per 100 kg of yield
              */
@@ -2545,12 +2670,24 @@ export interface components {
             k_utilisation: number;
             /** Key */
             key: string;
+            /** @description the published N rate eq. 20's slope is calibrated to (null: the seed's own) */
+            n_reference: components["schemas"]["NReference"] | null;
             /** Name */
             name: string;
-            /** Source */
+            /**
+             * Source
+             * @description source of e_kg_per_100kg (each value's is in values)
+             */
             source: string;
             /** Target Yield T Ha */
             target_yield_t_ha: number;
+            /**
+             * Values
+             * @description every default with its unit and source: target_yield_t_ha, e_kg_per_100kg (N), uptake_p2o5_kg_per_100kg, uptake_k2o_kg_per_100kg, k_utilisation, d_intercept_pct / d_slope_pct_mg_kg (seed 001 eq. 20's a, b), ceiling_n_kg_ha, ceiling_p2o5_kg_ha, ceiling_k2o_kg_ha
+             */
+            values: {
+                [key: string]: components["schemas"]["SourcedValue"];
+            };
         };
         /** CrsOption */
         CrsOption: {
@@ -2951,6 +3088,41 @@ export interface components {
              * Format: date-time
              */
             server_time: string;
+        };
+        /**
+         * FormDefaultsOut
+         * @description What the prescription form starts from on a field (each with where it comes from).
+         */
+        FormDefaultsOut: {
+            /**
+             * Crop
+             * @description crop key matched from the field's crop, else the last prescription's
+             */
+            crop: string | null;
+            /**
+             * Crop From
+             * @description "field", "last prescription" or null
+             */
+            crop_from: string | null;
+            /**
+             * Field Crop
+             * @description the field's crop as typed
+             */
+            field_crop: string;
+            /** Field Id */
+            field_id: number;
+            /** From Prescription Id */
+            from_prescription_id: number | null;
+            /**
+             * Product Key
+             * @description the last prescription's product on this field
+             */
+            product_key: string | null;
+            /**
+             * Target Yield T Ha
+             * @description the last prescription's target yield
+             */
+            target_yield_t_ha: number | null;
         };
         /** HealthOut */
         HealthOut: {
@@ -3564,12 +3736,14 @@ export interface components {
              * @description metering calibration, measured on this machine (no default)
              */
             calibration: components["schemas"]["LinearCalibrationIn"] | components["schemas"]["TableCalibrationIn"];
+            capabilities?: components["schemas"]["CapabilitiesIn"];
             controller?: components["schemas"]["ControllerIn"];
             /**
              * Implement Type
              * @default spreader
+             * @enum {string}
              */
-            implement_type?: string;
+            implement_type?: "spreader" | "seeder" | "seed_fertiliser_drill" | "sprayer" | "imported";
             /**
              * Lag S
              * @description application lag T_lag, s (seed 001: 1.52)
@@ -3610,6 +3784,10 @@ export interface components {
             calibration: {
                 [key: string]: unknown;
             };
+            /** Capabilities */
+            capabilities: {
+                [key: string]: unknown;
+            };
             /** Controller */
             controller: {
                 [key: string]: unknown;
@@ -3642,9 +3820,10 @@ export interface components {
             antenna_lateral_m?: number | null;
             /** Calibration */
             calibration?: (components["schemas"]["LinearCalibrationIn"] | components["schemas"]["TableCalibrationIn"]) | null;
+            capabilities?: components["schemas"]["CapabilitiesIn"] | null;
             controller?: components["schemas"]["ControllerIn"] | null;
             /** Implement Type */
-            implement_type?: string | null;
+            implement_type?: ("spreader" | "seeder" | "seed_fertiliser_drill" | "sprayer" | "imported") | null;
             /** Lag S */
             lag_s?: number | null;
             /** Name */
@@ -3762,6 +3941,17 @@ export interface components {
              * @description the secret: shown only once
              */
             token: string;
+        };
+        /** NReference */
+        NReference: {
+            /** N Rate Kg Ha */
+            n_rate_kg_ha: number;
+            /** Soil N Mg Kg */
+            soil_n_mg_kg: number;
+            /** Source */
+            source: string;
+            /** Yield T Ha */
+            yield_t_ha: number;
         };
         /** OrgOut */
         OrgOut: {
@@ -4063,7 +4253,7 @@ export interface components {
             class_count?: number;
             /**
              * Crop
-             * @description a crop key of GET /products: its e_kg_per_100kg and k_utilisation fill the nutrient-balance parameters not given
+             * @description a crop key of GET /products: its defaults (target yield, e, k, eq. 20's a and b) fill the nutrient-balance parameters not given, and its ceilings are checked; without it the field's crop is used when it names one
              */
             crop?: string | null;
             /** Fallback Rate Kg Ha */
@@ -4529,6 +4719,11 @@ export interface components {
             crop?: {
                 [key: string]: unknown;
             } | null;
+            /**
+             * Crop From
+             * @description "request", "field" or null
+             */
+            crop_from?: string | null;
             /** Flagged */
             flagged?: {
                 [key: string]: number;
@@ -4567,11 +4762,25 @@ export interface components {
                 [key: string]: number;
             } | null;
             /**
+             * Param Origin
+             * @description per model parameter: "default" (the crop's / product's), "override" (given, differs from the default) or "given" (no default)
+             */
+            param_origin?: {
+                [key: string]: string;
+            } | null;
+            /**
              * Param Sources
              * @description where each model parameter came from
              */
             param_sources?: {
                 [key: string]: string;
+            } | null;
+            /**
+             * Plausibility
+             * @description ceilings (kg/ha per nutrient, with sources), the product's fractions, above_ceiling {count, area_m2, seq, nutrients}, curve_limits {cap, floor: share}
+             */
+            plausibility?: {
+                [key: string]: unknown;
             } | null;
             /**
              * Product
@@ -4809,6 +5018,13 @@ export interface components {
             };
             /** Epsg */
             epsg: number | null;
+            /**
+             * N Form
+             * @description which N the N column holds
+             * @default alkali_hydrolysable
+             * @enum {string}
+             */
+            n_form?: "alkali_hydrolysable" | "mineral" | "total";
             /** Units */
             units: {
                 [key: string]: string;
@@ -4842,7 +5058,7 @@ export interface components {
             class_count?: number;
             /**
              * Crop
-             * @description a crop key of GET /products: its e_kg_per_100kg and k_utilisation fill the nutrient-balance parameters not given
+             * @description a crop key of GET /products: its defaults (target yield, e, k, eq. 20's a and b) fill the nutrient-balance parameters not given, and its ceilings are checked; without it the field's crop is used when it names one
              */
             crop?: string | null;
             /** Fallback Rate Kg Ha */
@@ -4922,6 +5138,18 @@ export interface components {
             speed_min_kmh?: number | null;
             /** Width M */
             width_m?: number | null;
+        };
+        /** SourcedValue */
+        SourcedValue: {
+            /**
+             * Source
+             * @description where the value comes from (publication, seed, assumption)
+             */
+            source: string;
+            /** Unit */
+            unit: string;
+            /** Value */
+            value: number;
         };
         /** StateIn */
         StateIn: {
@@ -6520,6 +6748,176 @@ export interface operations {
                     [name: string]: unknown;
                 };
                 content?: never;
+            };
+            /** @description missing, invalid, expired or revoked bearer token */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description the token may not do this (a viewer writing, a device token on a user endpoint); the message names the role needed */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description no such resource in the caller's organisation */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description conflicts with stored state (a job state transition, evidence that must be kept) */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description request body or upload too large */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description invalid input: the message names the field, row or vertex */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description the database or the worker pool is busy or unreachable: retry (Retry-After) */
+            503: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+        };
+    };
+    get_ceilings_api_v1_ceilings_get: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["CeilingsOut"];
+                };
+            };
+            /** @description missing, invalid, expired or revoked bearer token */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description the token may not do this (a viewer writing, a device token on a user endpoint); the message names the role needed */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description no such resource in the caller's organisation */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description conflicts with stored state (a job state transition, evidence that must be kept) */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description request body or upload too large */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description invalid input: the message names the field, row or vertex */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description the database or the worker pool is busy or unreachable: retry (Retry-After) */
+            503: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+        };
+    };
+    put_ceilings_api_v1_ceilings_put: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        requestBody: {
+            content: {
+                "application/json": components["schemas"]["CeilingsIn"];
+            };
+        };
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["CeilingsOut"];
+                };
             };
             /** @description missing, invalid, expired or revoked bearer token */
             401: {
@@ -8282,6 +8680,91 @@ export interface operations {
                 };
                 content: {
                     "application/json": components["schemas"]["TaskOut"];
+                };
+            };
+            /** @description missing, invalid, expired or revoked bearer token */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description the token may not do this (a viewer writing, a device token on a user endpoint); the message names the role needed */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description no such resource in the caller's organisation */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description conflicts with stored state (a job state transition, evidence that must be kept) */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description request body or upload too large */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description invalid input: the message names the field, row or vertex */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description the database or the worker pool is busy or unreachable: retry (Retry-After) */
+            503: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+        };
+    };
+    rx_defaults_api_v1_fields__field_id__rx_defaults_get: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                field_id: number;
+            };
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["FormDefaultsOut"];
                 };
             };
             /** @description missing, invalid, expired or revoked bearer token */
