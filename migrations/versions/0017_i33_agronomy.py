@@ -11,7 +11,7 @@ sample's ``n_mg_kg`` is (alkali-hydrolysable, mineral, total): seed 001's model 
 the first; samples stored before are the plain import's alkali-hydrolysable N.
 
 Revision ID: 0017_i33_agronomy
-Revises: 0016_rx_products
+Revises: 0017_i30_product_density
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ from alembic import op
 from sqlalchemy.dialects.postgresql import JSONB
 
 revision: str = "0017_i33_agronomy"
-down_revision: str | Sequence[str] | None = "0016_rx_products"
+down_revision: str | Sequence[str] | None = "0017_i30_product_density"
 branch_labels: str | Sequence[str] | None = None
 depends_on: str | Sequence[str] | None = None
 
