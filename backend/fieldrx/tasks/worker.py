@@ -85,7 +85,12 @@ async def run_task_worker(
     result_retention_s: float = 24 * 3600.0,
     result_purge_s: float = 600.0,
 ) -> None:
-    """Run jobs until ``stop`` is set; then stop fetching and let running jobs finish."""
+    """Run jobs until ``stop`` is set; then stop fetching and let running jobs finish.
+    First removes what a killed worker or server left (services.cleanup)."""
+    from fieldrx.db.session import get_engine
+    from fieldrx.services.cleanup import clean_after_crash_logged
+
+    await asyncio.to_thread(clean_after_crash_logged, get_engine())
     app = get_app()
     async with app.open_async():
         worker = asyncio.create_task(
