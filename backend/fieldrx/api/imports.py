@@ -113,6 +113,11 @@ def import_isoxml(
     params = PlanParams(
         swath_width_m=swath_width_m, cell_length_m=cell_length_m, headland_passes=headland_passes
     )
+    if confirm is not None:
+        try:  # parameters no field can take are refused before the upload is read
+            check_plan_cost(0.0, params)
+        except PlanningError as exc:
+            raise ApiError(422, str(exc), where="cell_length_m") from exc
     session.rollback()  # no transaction of the server stays open while the worker runs
     with spool.spool_dir() as folder:
         spooled, sha, names = _spool_files(files, folder)
