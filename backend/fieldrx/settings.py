@@ -51,6 +51,9 @@ class Settings(BaseSettings):
     login_window_s: float = Field(default=900.0, alias="FIELDRX_LOGIN_WINDOW_S")
     live_token_check_s: float = Field(default=5.0, alias="FIELDRX_LIVE_TOKEN_CHECK_S")
     device_token_ttl_days: float = Field(default=365.0, alias="FIELDRX_DEVICE_TOKEN_TTL_DAYS")
+    # task workers remove expired devices' broker users at each expiry and at least this
+    # often (tasks.worker.expire_device_credentials)
+    device_expiry_check_s: float = Field(default=60.0, gt=0, alias="FIELDRX_DEVICE_EXPIRY_CHECK_S")
     # Imagery (issue 14): where Cloud-Optimized GeoTIFFs live ("" = ./var/imagery beside the
     # checkout), the largest upload and raster accepted, and the conversion's time limit.
     imagery_dir: str = Field(default="", alias="FIELDRX_IMAGERY_DIR")
