@@ -42,7 +42,7 @@ from fieldrx.db.models import (
     PrescriptionVersion,
     Telemetry,
 )
-from fieldrx.db.session import raw_dsn
+from fieldrx.db.session import limit_session, raw_dsn
 from fieldrx.fleet.db import raw_connection
 from fieldrx.fleet.partitions import PG_EPOCH_DT, ensure_days, record_job_spans
 from fieldrx.formats import FormatError
@@ -384,9 +384,7 @@ def isoxml_in_worker(req: IsoxmlRequest) -> dict[str, Any]:
     engine = make_engine(req.database_url)
     try:
         with Session(engine) as session:
-            limit_ms = max(1000, int(req.time_limit_s * 1000))
-            session.execute(text(f"SET statement_timeout = {limit_ms}"))
-            session.execute(text(f"SET idle_in_transaction_session_timeout = {limit_ms}"))
+            limit_session(session, req.time_limit_s)
             created = commit(
                 session, ds, req.organisation_id, req.user_id, req.params, req.source_name
             )
@@ -420,9 +418,7 @@ def store_prescription_in_worker(req: RxStoreRequest) -> tuple[int, int]:
     engine = make_engine(req.database_url)
     try:
         with Session(engine) as session:
-            limit_ms = max(1000, int(req.time_limit_s * 1000))
-            session.execute(text(f"SET statement_timeout = {limit_ms}"))
-            session.execute(text(f"SET idle_in_transaction_session_timeout = {limit_ms}"))
+            limit_session(session, req.time_limit_s)
             fld = session.get(Field, req.field_id)
             if fld is None:
                 raise PlanningError(f"field {req.field_id} was deleted while importing")

@@ -77,15 +77,13 @@ def plan_in_worker(
     in a child process); returns the new plan's id."""
     from sqlalchemy.orm import Session as OrmSession
 
-    from fieldrx.db.session import make_engine
+    from fieldrx.db.session import limit_session, make_engine
     from fieldrx.services.bounded import ensure_caller_alive
 
     engine = make_engine(database_url)
     try:
         with OrmSession(engine) as session:
-            ms = max(1000, int(time_limit_s * 1000))
-            session.execute(text(f"SET statement_timeout = {ms}"))
-            session.execute(text(f"SET idle_in_transaction_session_timeout = {ms}"))
+            limit_session(session, time_limit_s)
             field = session.get(Field, field_id)
             if field is None:
                 raise PlanningError(f"field {field_id} was deleted while planning")

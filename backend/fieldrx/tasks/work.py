@@ -33,7 +33,7 @@ from sqlalchemy import text
 from sqlalchemy.orm import Session
 
 from fieldrx.db.models import Field, Machine, Plan
-from fieldrx.db.session import get_engine, make_engine, raw_dsn
+from fieldrx.db.session import get_engine, limit_session, make_engine, raw_dsn
 from fieldrx.errors import Cancelled, DomainError
 from fieldrx.settings import get_settings
 from fieldrx.tasks import store
@@ -117,9 +117,7 @@ def _in_transaction(
     progress = Progress(raw_dsn(database_url), task_id)
     try:
         with Session(engine) as session:
-            ms = max(1000, int(time_limit_s * 1000))
-            session.execute(text(f"SET statement_timeout = {ms}"))
-            session.execute(text(f"SET idle_in_transaction_session_timeout = {ms}"))
+            limit_session(session, time_limit_s)
             done = store.guard(session, task_id)
             if done is not None:
                 return done
