@@ -345,6 +345,7 @@ def test_expired_device_token_is_refused_by_the_broker_at_expiry(db, org) -> Non
     assert not _refused(j.machine_id, j.device_token)
     loop = asyncio.new_event_loop()
     task = loop.create_task(expire_device_credentials(3600.0))  # no periodic pass: at expiry
+
     def run() -> None:
         with contextlib.suppress(asyncio.CancelledError):
             loop.run_until_complete(task)
