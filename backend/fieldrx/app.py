@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import importlib
 import re
+import threading
 from pathlib import Path
 
 import psycopg
@@ -18,7 +19,7 @@ from fieldrx import __version__
 from fieldrx.api import telemetry
 from fieldrx.apidocs import FIRST_CALL, add_components, install_docs
 from fieldrx.auth.mqtt import MqttCredentialError
-from fieldrx.errors import DomainError
+from fieldrx.errors import DomainError, TooMany
 from fieldrx.fleet.gc_policy import tune_for_ingest
 from fieldrx.middleware import LimitsAndHeaders, install_log_redaction
 from fieldrx.services import bounded
@@ -58,6 +59,16 @@ def _frontend_dist() -> Path:
     return Path(__file__).resolve().parents[2] / "frontend" / "dist"
 
 
+def _clean_after_crash() -> None:
+    """Remove in the background what a killed server or worker left (services.cleanup)."""
+    from fieldrx.db.session import get_engine
+    from fieldrx.services.cleanup import clean_after_crash_logged
+
+    threading.Thread(
+        target=clean_after_crash_logged, args=(get_engine(),), name="crash-cleanup", daemon=True
+    ).start()
+
+
 def create_app() -> FastAPI:
     app = FastAPI(
         title="FieldRx",
@@ -80,6 +91,7 @@ def create_app() -> FastAPI:
     )
     install_log_redaction()
     bounded.warm_up()
+    _clean_after_crash()
 
     @app.exception_handler(MqttCredentialError)
     async def _mqtt_error(_: Request, exc: MqttCredentialError) -> JSONResponse:
@@ -89,6 +101,8 @@ def create_app() -> FastAPI:
     @app.exception_handler(DomainError)
     async def _domain_error(_: Request, exc: DomainError) -> JSONResponse:
         headers = {"Retry-After": "5"} if exc.status == 503 else None
+        if isinstance(exc, TooMany):
+            headers = {"Retry-After": str(exc.retry_after_s)}
         return JSONResponse(status_code=exc.status, content=exc.body(), headers=headers)
 
     @app.exception_handler(sa_exc.OperationalError)

@@ -68,3 +68,14 @@ class Cancelled(DomainError):
     """The user cancelled the work (a background task); nothing of it was stored."""
 
     status = 409
+
+
+class TooMany(DomainError):
+    """A quota is used up for now (an organisation's open tasks): retry after
+    ``retry_after_s`` seconds (the ``Retry-After`` header)."""
+
+    status = 429
+
+    def __init__(self, message: str, retry_after_s: int = 30, **extra: Any) -> None:
+        super().__init__(message, **extra)
+        self.retry_after_s = retry_after_s

@@ -51,6 +51,9 @@ class Settings(BaseSettings):
     login_window_s: float = Field(default=900.0, alias="FIELDRX_LOGIN_WINDOW_S")
     live_token_check_s: float = Field(default=5.0, alias="FIELDRX_LIVE_TOKEN_CHECK_S")
     device_token_ttl_days: float = Field(default=365.0, alias="FIELDRX_DEVICE_TOKEN_TTL_DAYS")
+    # task workers remove expired devices' broker users at each expiry and at least this
+    # often (tasks.worker.expire_device_credentials)
+    device_expiry_check_s: float = Field(default=60.0, gt=0, alias="FIELDRX_DEVICE_EXPIRY_CHECK_S")
     # Imagery (issue 14): where Cloud-Optimized GeoTIFFs live ("" = ./var/imagery beside the
     # checkout), the largest upload and raster accepted, and the conversion's time limit.
     imagery_dir: str = Field(default="", alias="FIELDRX_IMAGERY_DIR")
@@ -59,6 +62,9 @@ class Settings(BaseSettings):
     )
     imagery_max_pixels: int = Field(default=2_000_000_000, alias="FIELDRX_IMAGERY_MAX_PIXELS")
     imagery_timeout_s: float = Field(default=900.0, alias="FIELDRX_IMAGERY_TIMEOUT_S")
+    # conversion budget: a raster declaring more uncompressed bytes than this many times
+    # its file size is refused before decoding (imagery.ingest._check_budget)
+    imagery_max_expansion: float = Field(default=400.0, gt=1, alias="FIELDRX_IMAGERY_MAX_EXPANSION")
     # Thin uplink (issue 18): where the 10 Hz logs tractors upload on request live
     # ("" = ./var/rawlogs beside the checkout), and the largest accepted (gzip bytes).
     raw_log_dir: str = Field(default="", alias="FIELDRX_RAW_LOG_DIR")
@@ -79,6 +85,8 @@ class Settings(BaseSettings):
     # often a worker proves it is alive, and after how long without a heartbeat its running
     # jobs are handed to another worker (stalled-job recovery).
     task_concurrency: int = Field(default=2, ge=1, alias="FIELDRX_TASK_CONCURRENCY")
+    # an organisation's open (queued + running) tasks at most: more get 429 + Retry-After
+    task_quota: int = Field(default=200, ge=1, alias="FIELDRX_TASK_QUOTA")
     task_heartbeat_s: float = Field(default=10.0, gt=0, alias="FIELDRX_TASK_HEARTBEAT_S")
     task_stalled_after_s: float = Field(default=60.0, gt=0, alias="FIELDRX_TASK_STALLED_AFTER_S")
     # Files tasks produce (exports, job-report snapshots; tasks.files) are deleted this long

@@ -462,6 +462,8 @@ _CLAMP = {
     "gain_kd": (-1.0e6, 1.0e6),
 }
 assert set(_CLAMP) | {"heading_deg"} == set(_FLOAT_FIELDS), "every float field has a range"
+# what a server accepts per float field: the agent's clamp ranges, a heading in degrees
+VALUE_RANGES: dict[str, tuple[float, float]] = {**_CLAMP, "heading_deg": (0.0, 360.0)}
 
 
 def _finite(v: Any) -> bool:

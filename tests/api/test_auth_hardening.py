@@ -120,3 +120,42 @@ def test_device_rotates_its_own_token(client, org) -> None:  # noqa: ANN001
     assert client.get("/api/v1/device/jobs", headers=old_h).status_code == 401
     # a person's token cannot rotate a device token
     assert client.post("/api/v1/device/token", headers=org.headers()).status_code == 403
+
+
+def _client_at(app, host: str):  # noqa: ANN001, ANN202
+    from fastapi.testclient import TestClient
+
+    return TestClient(app, client=(host, 50000))
+
+
+def test_attacker_cannot_lock_the_owner_out_from_another_address(app, make_org) -> None:  # noqa: ANN001
+    """Failures count per account + address: ten wrong passwords from one address used to
+    lock the real user out for 15 minutes from every address."""
+    org = make_org()
+    email = org.email("admin")
+    with _client_at(app, "198.51.100.66") as attacker, _client_at(app, "203.0.113.7") as owner:
+        codes = [
+            attacker.post(LOGIN, json={"email": email, "password": "x"}).status_code
+            for _ in range(11)
+        ]
+        assert codes == [401] * 10 + [429]
+        r = owner.post(LOGIN, json={"email": email, "password": org.password})
+        assert r.status_code == 200, r.text
+
+
+def test_parallel_guesses_never_pass_the_limit(app) -> None:  # noqa: ANN001
+    """The count is taken and the attempt recorded atomically before the password is
+    checked: 40 parallel guesses get at most the limit (10) checked (35 were, when the count
+    was read before failures were written)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    email = f"parallel-{uuid.uuid4().hex}@x.test"
+    with _client_at(app, f"192.0.2.{uuid.uuid4().int % 250 + 1}") as c:
+        with ThreadPoolExecutor(40) as ex:
+            codes = list(
+                ex.map(
+                    lambda _: c.post(LOGIN, json={"email": email, "password": "x"}).status_code,
+                    range(40),
+                )
+            )
+    assert codes.count(401) == 10 and codes.count(429) == 30, codes

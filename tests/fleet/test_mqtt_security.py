@@ -326,3 +326,37 @@ def test_revoking_with_the_broker_down_revokes_and_says_the_credential_is_left(
     assert not _refused(j.machine_id, j.device_token)
     assert j.machine_id in sync_devices(db)
     assert _refused(j.machine_id, j.device_token)
+
+
+def test_expired_device_token_is_refused_by_the_broker_at_expiry(db, org) -> None:  # noqa: ANN001
+    """An expired device token still logged in to MQTT until `fieldrx mqtt-sync` ran from
+    cron: every task worker now removes the broker user right after the token expires."""
+    import asyncio
+    import contextlib
+
+    from fieldrx.tasks.worker import expire_device_credentials
+
+    j = make_job(org.id)
+    db.execute(
+        text("UPDATE api_tokens SET expires_at = now() + interval '3 s' WHERE machine_id = :m"),
+        {"m": j.machine_id},
+    )
+    db.commit()
+    assert not _refused(j.machine_id, j.device_token)
+    loop = asyncio.new_event_loop()
+    task = loop.create_task(expire_device_credentials(3600.0))  # no periodic pass: at expiry
+
+    def run() -> None:
+        with contextlib.suppress(asyncio.CancelledError):
+            loop.run_until_complete(task)
+
+    runner = threading.Thread(target=run, daemon=True)
+    runner.start()
+    try:
+        deadline = time.monotonic() + 60
+        while not _refused(j.machine_id, j.device_token):
+            assert time.monotonic() < deadline, "the expired token still logs in"
+            time.sleep(0.5)
+    finally:
+        loop.call_soon_threadsafe(task.cancel)
+        runner.join(10)

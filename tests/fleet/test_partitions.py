@@ -187,3 +187,31 @@ def test_maintenance_command(database_url: str, capsys) -> None:  # noqa: ANN001
     assert out["retention_days"] == 0 and out["dropped"] == [] and out["partitions"] >= 5
     with pytest.raises(SystemExit):
         main(["telemetry-maintenance", "--retention-days", "-1"])
+
+
+def test_a_batch_cannot_make_a_partition_per_past_day_it_names(conn, job) -> None:  # noqa: ANN001
+    """30 records on 30 days of 2000-2003 made 30 partitions (up to ~20,000 per batch):
+    days far in the past go to the default partition, and a batch makes at most a few
+    past days; every record is stored and acknowledged all the same."""
+
+    def parts() -> set[str]:
+        with conn.transaction():
+            rows = conn.execute(
+                "SELECT c.relname FROM pg_inherits i JOIN pg_class c ON c.oid = i.inhrelid"
+                " WHERE i.inhparent = 'telemetry'::regclass"
+            ).fetchall()
+        return {r[0] for r in rows}
+
+    before = parts()
+    t2000 = 946_684_800.0 + 3600.0
+    ancient = [record(job, s, t=t2000 + s * 37 * DAY, cell=s % 8) for s in range(1, 31)]
+    r = ingest(conn, job.machine_id, ancient, "ancient", 1, True)
+    assert (r.stored, r.acked_seq, r.rejected) == (30, 30, [])
+    assert parts() == before
+    assert _where(conn, job.machine_id) == {"telemetry_default": 30}
+    recent = [record(job, s, t=_today0() - (10 + s) * DAY + 60.0, cell=s % 8) for s in range(1, 11)]
+    r = ingest(conn, job.machine_id, recent, "recent", 1, True)
+    assert (r.stored, r.acked_seq) == (10, 10)
+    from fieldrx.fleet.partitions import MAX_NEW_DAYS
+
+    assert len(parts() - before) <= MAX_NEW_DAYS

@@ -345,3 +345,42 @@ def test_ack_json_is_the_protocol_ack(streamed: bool) -> None:
     if not streamed:
         del want["stream"], want["stream_conflict"]
     assert r.to_json() == orjson.dumps(want)
+
+
+def test_deeply_nested_body_is_a_clear_422(client, job) -> None:  # noqa: ANN001
+    """A 200,000-deep array used to be a 500 (RecursionError in the fallback parser)."""
+    body = b'{"records": ' + b"[" * 200_000 + b"]" * 200_000 + b"}"
+    r = client.post("/api/v1/telemetry", content=body, headers=job.device_headers)
+    assert r.status_code == 422, r.text[:300]
+    assert "not valid JSON" in r.json()["detail"]
+
+
+def test_viewer_cannot_ask_the_tractor_for_its_raw_log(client, org, job) -> None:  # noqa: ANN001
+    """Asking a tractor to upload its log makes it work: a viewer (read only) may not."""
+    url = f"/api/v1/jobs/{job.job_id}/raw-log/request"
+    r = client.post(url, headers=org.headers("viewer"))
+    assert r.status_code == 403, r.text
+    assert client.post(url, headers=org.headers()).status_code == 202
+
+
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [
+        ("heading_deg", 1e308),
+        ("heading_deg", -5.0),
+        ("hdop", -1.0),
+        ("applied_rate_kg_ha", -500.0),
+        ("target_rate_kg_ha", 1e9),
+        ("ndvi", 3.0),
+        ("speed_raw_m_s", -2.0),
+    ],
+)
+def test_out_of_range_values_are_refused_not_stored_as_sent(client, db, job, field, value) -> None:  # noqa: ANN001
+    """Every numeric field of a record is range-checked (heading 1e308, HDOP -1 and an
+    applied rate of -500 used to be stored as sent)."""
+    now = time.time()
+    recs = [record(job, 1, t=now - 2), record(job, 2, t=now - 1, **{field: value})]
+    a = _post(client, job, recs).json()
+    assert a["stored"] == 1 and [x["seq"] for x in a["rejected"]] == [2], a
+    assert field in a["rejected"][0]["reason"] and "range" in a["rejected"][0]["reason"]
+    assert _count(db, job.machine_id) == 1

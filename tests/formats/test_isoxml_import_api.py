@@ -131,3 +131,69 @@ def test_loose_files_accepted(client, rx):
     r = client.post(f"{API}/imports/isoxml", headers=rx["h"], files=files)
     assert r.status_code == 200, r.text
     assert r.json()["preview"]["prescriptions"][0]["kind"] == "grid type 2"
+
+
+def _export_and_preview(client, rx):
+    h = rx["h"]
+    exp = client.get(f"{API}/prescriptions/{rx['id']}/export?format=isoxml", headers=h)
+    assert exp.status_code == 200
+    pre = _import(client, h, exp.content)
+    assert pre.status_code == 200, pre.text
+    return exp.content, pre.json()["sha256"]
+
+
+def test_confirm_with_tiny_cells_is_refused_before_planning(client, rx):
+    """The import confirm goes through the one cost estimate: a 2 mm swath with 1 mm cells
+    used to plan ~20,000 swaths in the request thread for minutes before anything refused."""
+    import threading
+    import time
+
+    h = rx["h"]
+    data, sha = _export_and_preview(client, rx)
+    n_fields = _count(client, h, "fields")
+    out: dict = {}
+
+    def confirm() -> None:
+        t0 = time.monotonic()
+        out["r"] = _import(client, h, data, confirm=sha, swath_width_m=0.002, cell_length_m=0.001)
+        out["took"] = time.monotonic() - t0
+
+    t = threading.Thread(target=confirm, daemon=True)
+    t.start()
+    t.join(60)
+    assert not t.is_alive(), "the confirm was not refused within 60 s"
+    r = out["r"]
+    assert r.status_code == 422, r.text
+    assert "cell_length_m must be >= 0.5" in r.json()["detail"]
+    assert _count(client, h, "fields") == n_fields  # nothing stored
+
+
+def test_confirm_plans_in_the_bounded_worker_with_the_plan_time_limit(
+    client, rx, monkeypatch, database_url
+):
+    """Planning of an import confirm runs in a worker process under FIELDRX_PLAN_TIME_LIMIT_S
+    (it ran in the request thread without any limit); past it: 422, nothing stored, and no
+    session of the request is left idle in a transaction."""
+    from fieldrx.settings import get_settings
+    from sqlalchemy import create_engine, text
+
+    h = rx["h"]
+    data, sha = _export_and_preview(client, rx)
+    n_fields = _count(client, h, "fields")
+    monkeypatch.setattr(get_settings(), "plan_time_limit_s", 0.05)
+    r = _import(client, h, data, confirm=sha, swath_width_m=1, cell_length_m=0.5)
+    assert r.status_code == 422, r.text
+    assert "longer than the 0.05 s limit" in r.json()["detail"]
+    assert _count(client, h, "fields") == n_fields
+    eng = create_engine(database_url)
+    try:
+        with eng.connect() as c:
+            idle = c.execute(
+                text(
+                    "SELECT count(*) FROM pg_stat_activity WHERE datname = current_database() "
+                    "AND state = 'idle in transaction'"
+                )
+            ).scalar()
+    finally:
+        eng.dispose()
+    assert idle == 0

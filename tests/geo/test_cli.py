@@ -1,6 +1,7 @@
 import json
 import subprocess
 import sys
+import time
 
 import pytest
 
@@ -109,12 +110,17 @@ def test_cli_bare_geometry_and_fixed_angle(tmp_path):
         (["--swath-width", 0], "swath_width_m must be > 0"),
         (["--cell-length", 0.2], "cell_length_m must be >= 0.5"),
         (["--swath-width", 500], "wider than the field in every direction"),
+        # the cost estimate runs before the coverage path: a 1 cm swath with 1 cm cells
+        # used to plan ~30,000 swaths before the grid refused the cell length
+        (["--swath-width", 0.01, "--cell-length", 0.01], "cell_length_m must be >= 0.5"),
     ],
 )
 def test_cli_bad_parameters(tmp_path, args, reason):
     src = tmp_path / "field.geojson"
     src.write_text(json.dumps(FIELD))
+    t0 = time.monotonic()
     r = _run(src, *args, "--json")
+    assert time.monotonic() - t0 < 60
     assert r.returncode == 2
     assert reason in json.loads(r.stdout)["error"]
     assert reason in r.stderr

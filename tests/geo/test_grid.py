@@ -146,3 +146,23 @@ def test_dense_noisy_boundary_is_planned_quickly_and_cells_fit_it():
     # noise does not multiply the swaths: close to the strip count of the clean shape
     assert plan.n_swaths <= 1.15 * (2 * 120 * 1.05 / 2.3)
     check_grid(grid, f, unworked_m2=plan.corner_loss_m2)
+
+
+@pytest.mark.parametrize(
+    ("swath", "cell", "match"),
+    [
+        (0.05, 0.001, "cell_length_m must be >= 0.5 m"),  # sub-minimum cells are refused first
+        (2.0, 0.3, "cell_length_m must be >= 0.5 m"),
+        (0.05, 0.5, "more than 5000000"),
+        (2.0, float("nan"), "cell_length_m must be >= 0.5 m"),
+    ],
+)
+def test_grid_cost_refuses_before_planning(swath, cell, match):
+    """The one cost estimate (API, import confirm, batch, CLI) counts every cell length: a
+    length under the minimum used to skip the estimate, so a 5 cm swath planned for minutes
+    before the grid refused it."""
+    from fieldrx.geo.grid import check_grid_cost
+
+    with pytest.raises(PlanningError, match=match):
+        check_grid_cost(5_000_000.0, swath, cell)
+    assert check_grid_cost(5_000_000.0, 2.0, 5.0) == pytest.approx(500_000.0)

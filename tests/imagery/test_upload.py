@@ -151,17 +151,87 @@ def test_band_mismatch(client, org, field_id, imagery_dir, tmp_path, db) -> None
 def test_decompression_bomb_is_stopped(
     client, org, field_id, imagery_dir, tmp_path, db, monkeypatch
 ) -> None:
-    """A tiny file that expands to 400 M pixels: the conversion is killed at the time limit."""
-    from fieldrx.settings import get_settings
+    """A tiny file that expands to 400 M pixels: refused by the conversion budget before any
+    decoding (it used to be converted until the time limit killed it)."""
+    import time
 
     src = write_tiff(
         tmp_path / "bomb.tif", bounds=(X0, Y0, X0 + 2000, Y0 + 2000), res=0.1, skip_write=True
     )
     assert src.stat().st_size < 1024 * 1024
-    monkeypatch.setenv("FIELDRX_IMAGERY_TIMEOUT_S", "2")
-    get_settings.cache_clear()
+    t0 = time.monotonic()
     r = _upload(client, org, field_id, src, "orthophoto")
-    _assert_rejected(r, "took longer than 2 s", imagery_dir, db, org)
+    _assert_rejected(r, "times its file size", imagery_dir, db, org)
+    assert time.monotonic() - t0 < 30
+
+
+def test_deflate_bomb_of_zeros_is_refused_quickly(
+    client, org, field_id, imagery_dir, tmp_path, db
+) -> None:
+    """Dense DEFLATE zeros (~1000:1, under the pixel limit) kept a converter busy for
+    minutes; the budget (declared bytes per file byte) refuses them before decoding."""
+    import time
+
+    path = tmp_path / "zeros.tif"
+    w = h = 6000
+    meta = {
+        "driver": "GTiff",
+        "width": w,
+        "height": h,
+        "count": 1,
+        "dtype": "float32",
+        "tiled": True,
+        "blockxsize": 512,
+        "blockysize": 512,
+        "compress": "deflate",
+        "crs": rasterio.crs.CRS.from_user_input(UTM),
+        "transform": rasterio.transform.from_bounds(X0, Y0, X0 + 600, Y0 + 600, w, h),
+    }
+    with rasterio.open(path, "w", **meta) as dst:
+        dst.write(np.zeros((h, w), "float32"), 1)
+    assert path.stat().st_size * 300 < w * h * 4
+    t0 = time.monotonic()
+    r = _upload(client, org, field_id, path, "ndvi")
+    _assert_rejected(r, "times its file size", imagery_dir, db, org)
+    assert time.monotonic() - t0 < 30
+
+
+def test_errors_never_name_server_files(client, org, field_id, imagery_dir, tmp_path, db) -> None:
+    """GDAL's messages name the file it read: the server's temporary upload path must not
+    reach the user."""
+    bad = tmp_path / "garbage.tif"
+    bad.write_bytes(b"II*\x00" + b"\xff" * 4000)
+    r = _upload(client, org, field_id, bad, "orthophoto")
+    assert r.status_code == 422, r.text
+    detail = r.json()["detail"]
+    assert ".upload" not in detail and str(imagery_dir) not in detail and "/tmp" not in detail
+    assert stored_files(imagery_dir) == []
+
+
+def test_conversions_take_a_heavy_work_slot(
+    client, org, field_id, imagery_dir, tmp_path, monkeypatch
+) -> None:
+    """Imagery conversions go through the same bounded slots as planning and imports (each
+    upload used to start its own converter, outside them): with every slot taken the upload
+    waits, then gets 503 + Retry-After and leaves nothing behind."""
+    from fieldrx.services import bounded
+    from fieldrx.settings import get_settings
+
+    monkeypatch.setattr(get_settings(), "import_time_limit_s", 1.0)
+    src = write_tiff(tmp_path / "ok.tif")
+    slots = bounded.get_slots()  # the test holds every slot of this process
+    held = 0
+    while slots.acquire(blocking=False):
+        held += 1
+    try:
+        r = _upload(client, org, field_id, src, "orthophoto")
+    finally:
+        for _ in range(held):
+            slots.release()
+    assert r.status_code == 503, r.text
+    assert r.headers["retry-after"]
+    assert stored_files(imagery_dir) == []
+    assert _upload(client, org, field_id, src, "orthophoto").status_code == 201
 
 
 def test_other_org_cannot_upload(client, org, make_org, field_id, imagery_dir, tmp_path) -> None:

@@ -278,3 +278,43 @@ def test_concurrent_plans_of_different_fields_do_not_deadlock(client, org, db) -
         results = list(ex.map(lambda t: plan_child(url, t, 60.0), tasks))
     assert len({r["plan_id"] for r in results}) == len(ids)
     assert _plans(db, ids) == len(ids)
+
+
+def test_organisation_task_quota_refuses_with_429_and_retry_after(
+    client, org, make_org, monkeypatch
+) -> None:
+    """Open (queued + running) tasks per organisation are bounded: a batch that alone
+    exceeds the quota is a 422, one that does not fit now a 429 with Retry-After; other
+    organisations are unaffected (one request used to queue 10,000 tasks)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from fieldrx.settings import get_settings
+
+    monkeypatch.setattr(get_settings(), "task_quota", 3)
+    ids = make_fields(client, org, 4, 100, 80)
+    h = org.headers()
+    body = {"field_ids": ids, "params": PLAN}
+    r = client.post("/api/v1/plans/batch", headers=h, json=body)
+    assert r.status_code == 422 and "quota of 3" in r.json()["detail"], r.text
+    r = client.post("/api/v1/plans/batch", headers=h, json={"field_ids": ids[:2], "params": PLAN})
+    assert r.status_code == 202, r.text
+    # two single plans race for the last open slot: the count is atomic, one gets it
+    with ThreadPoolExecutor(2) as ex:
+        codes = sorted(
+            ex.map(
+                lambda fid: client.post(
+                    f"/api/v1/fields/{fid}/plans?background=true", headers=h, json=PLAN
+                ),
+                ids[2:],
+            ),
+            key=lambda x: x.status_code,
+        )
+    assert [c.status_code for c in codes] == [202, 429], [c.text for c in codes]
+    assert int(codes[1].headers["retry-after"]) > 0
+    assert "3 tasks queued or running" in codes[1].json()["detail"]
+    other = make_org()
+    (ofid,) = make_fields(client, other, 1, 100, 80)
+    r = client.post(
+        f"/api/v1/fields/{ofid}/plans?background=true", headers=other.headers(), json=PLAN
+    )
+    assert r.status_code == 202, r.text

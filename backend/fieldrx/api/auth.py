@@ -71,23 +71,24 @@ def _login(session: SessionDep, user: User, organisation_id: int | None) -> Logi
 def login(body: LoginIn, request: Request, session: SessionDep) -> LoginOut:
     """Exchange e-mail and password for a bearer token scoped to one organisation.
 
-    Failed attempts are throttled per account and per client address (429 with
-    Retry-After, auth.throttle); an unknown e-mail costs the same password hashing
-    as a wrong password, so neither the answer nor its timing reveals accounts."""
+    Failed attempts are throttled per account + client address and per address (429
+    with Retry-After, auth.throttle: counted atomically before the password is checked);
+    an unknown e-mail costs the same password hashing as a wrong password, so neither the
+    answer nor its timing reveals accounts."""
     address = request.client.host if request.client else None
-    wait = throttle.blocked_for_s(session, body.email, address)
-    if wait > 0:
+    attempt = throttle.begin(session, body.email, address)
+    if attempt.wait_s > 0:
+        wait = int(attempt.wait_s) + 1
         raise HTTPException(
             status.HTTP_429_TOO_MANY_REQUESTS,
-            f"too many failed sign-ins; try again in {int(wait) + 1} s",
-            headers={"Retry-After": str(int(wait) + 1)},
+            f"too many failed sign-ins for this account from this address; try again in {wait} s",
+            headers={"Retry-After": str(wait)},
         )
     user = session.scalar(select(User).where(User.email == body.email.lower()))
     ok = verify_password_or_dummy(body.password, user.password_hash if user else None)
     if user is None or not user.is_active or not ok:
-        throttle.record_failure(session, body.email, address)
         raise HTTPException(status.HTTP_401_UNAUTHORIZED, "wrong e-mail or password")
-    throttle.clear_account(session, body.email)
+    throttle.succeeded(session, body.email, address, attempt)
     return _login(session, user, body.organisation_id)
 
 

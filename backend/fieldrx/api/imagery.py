@@ -162,11 +162,18 @@ def upload_imagery(
         red_band=red_band,
         nir_band=nir_band,
         max_pixels=settings.imagery_max_pixels,
+        max_expansion=settings.imagery_max_expansion,
         acquired_on=acquired_on.isoformat() if acquired_on else None,
     )
     try:
         try:
-            res = ingest(incoming, dst, spec, settings.imagery_timeout_s)
+            res = ingest(
+                incoming,
+                dst,
+                spec,
+                settings.imagery_timeout_s,
+                slot_wait_s=settings.import_time_limit_s,
+            )
         except ImageryError as exc:
             raise ApiError(422, str(exc), where="file") from exc
         row = imagery_row(

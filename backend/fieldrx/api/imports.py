@@ -12,6 +12,7 @@ event loop.
 from __future__ import annotations
 
 import hashlib
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -26,13 +27,16 @@ from fieldrx.api.schemas.imports import (
     TimelogImportOut,
 )
 from fieldrx.auth.deps import SessionDep, WriterDep
+from fieldrx.errors import TooLarge
 from fieldrx.formats import FormatError
 from fieldrx.formats.archive import read_zip
-from fieldrx.formats.isoxml_import import read_taskdata
 from fieldrx.geo import PlanningError
 from fieldrx.geo.planning.kinematics import DEFAULT_HEADLAND_PASSES
 from fieldrx.services import imports as svc
-from fieldrx.services.plans import PlanParams
+from fieldrx.services import spool
+from fieldrx.services.bounded import run_bounded
+from fieldrx.services.plans import PlanParams, check_plan_cost
+from fieldrx.settings import get_settings
 
 router = APIRouter(prefix="/imports", tags=["imports"], responses=ERRORS)
 
@@ -63,6 +67,26 @@ def _files(files: list[UploadFile]) -> tuple[dict[str, bytes], str, str]:
     return out, digest.hexdigest(), names
 
 
+def _spool_files(files: list[UploadFile], folder: Path) -> tuple[list[tuple[str, str]], str, str]:
+    """The uploads written to ``folder`` in chunks (never whole in memory), the same digest
+    as ``_files`` (the preview's sha256) and their names."""
+    spooled: list[tuple[str, str]] = []
+    digest = hashlib.sha256()
+    total = 0
+    for i, f in enumerate(sorted(files, key=lambda u: u.filename or "")):
+        name = (f.filename or "upload").replace("\\", "/").rsplit("/", 1)[-1]
+        path = folder / f"{i:04d}.upload"
+        try:
+            n, sha = spool.spool(f.file, path, MAX_UPLOAD_BYTES, total)
+        except TooLarge as exc:
+            raise ApiError(413, exc.message) from exc
+        total += n
+        digest.update(name.encode() + b"\0" + bytes.fromhex(sha))
+        spooled.append((name, str(path)))
+    names = ", ".join(sorted(f.filename or "upload" for f in files))
+    return spooled, digest.hexdigest(), names
+
+
 @router.post(
     "/isoxml",
     response_model=IsoxmlImportOut,
@@ -80,32 +104,49 @@ def import_isoxml(
     cell_length_m: float = Query(default=PlanParams.cell_length_m, gt=0, le=500),
     headland_passes: int = Query(default=DEFAULT_HEADLAND_PASSES, ge=0, le=20),
 ) -> dict[str, Any]:
-    """Preview (no ``confirm``) or store (``confirm`` = the preview's sha256) a TASKDATA set."""
-    data, sha, names = _files(files)
-    try:
-        ds = read_taskdata(data)
-        pre = svc.preview(ds)
-    except FormatError as exc:
-        raise ApiError(422, str(exc), where=names) from exc
-    body: dict[str, Any] = {"sha256": sha, "preview": pre}
-    if confirm is None:
-        body["stored"] = False
-        return body
-    if confirm != sha:
-        raise ApiError(409, "confirm does not match this upload's sha256: preview it again")
+    """Preview (no ``confirm``) or store (``confirm`` = the preview's sha256) a TASKDATA set.
+
+    The upload is spooled to disk; inflating, parsing and (on confirm) planning and storing
+    run in a worker process (FIELDRX_IMPORT_TIME_LIMIT_S for a preview,
+    FIELDRX_PLAN_TIME_LIMIT_S for a confirm; 422 past it, nothing stored)."""
+    settings = get_settings()
     params = PlanParams(
         swath_width_m=swath_width_m, cell_length_m=cell_length_m, headland_passes=headland_passes
     )
-    try:
-        created = svc.commit(
-            session, ds, principal.organisation_id, principal.user_id, params, names
+    if confirm is not None:
+        try:  # parameters no field can take are refused before the upload is read
+            check_plan_cost(0.0, params)
+        except PlanningError as exc:
+            raise ApiError(422, str(exc), where="cell_length_m") from exc
+    session.rollback()  # no transaction of the server stays open while the worker runs
+    with spool.spool_dir() as folder:
+        spooled, sha, names = _spool_files(files, folder)
+        confirmed = confirm is not None and confirm == sha
+        limit = settings.plan_time_limit_s if confirmed else settings.import_time_limit_s
+        req = svc.IsoxmlRequest(
+            database_url=session.get_bind().url.render_as_string(hide_password=False),
+            files=spooled,
+            source_name=names,
+            organisation_id=principal.organisation_id,
+            user_id=principal.user_id,
+            params=params,
+            confirm=confirmed,
+            time_limit_s=limit,
         )
-    except (FormatError, PlanningError) as exc:
-        session.rollback()
-        raise ApiError(422, str(exc), where=names) from exc
-    session.commit()
+        try:
+            out = run_bounded(
+                svc.isoxml_in_worker, req, time_limit_s=limit, what="the ISOXML import"
+            )
+        except (FormatError, PlanningError) as exc:
+            raise ApiError(422, str(exc), where=names) from exc
+    body: dict[str, Any] = {"sha256": sha, "preview": out["preview"]}
+    if confirm is None:
+        body["stored"] = False
+        return body
+    if not confirmed:  # checked after the preview: a broken upload is a 422 either way
+        raise ApiError(409, "confirm does not match this upload's sha256: preview it again")
     body["stored"] = True
-    body["created"] = created
+    body["created"] = out["created"]
     response.status_code = 201
     return body
 
@@ -199,16 +240,28 @@ def import_prescription_shapefile(
         swath_width_m=swath_width_m, cell_length_m=cell_length_m, headland_passes=headland_passes
     )
     source = {"file": fname, "kind": "shapefile", "rate_column": rate_column, "unit": unit}
+    limit = get_settings().plan_time_limit_s
+    req = svc.RxStoreRequest(
+        database_url=session.get_bind().url.render_as_string(hide_password=False),
+        rx=rx,
+        field_id=fld.id,
+        params=params,
+        organisation_id=principal.organisation_id,
+        user_id=principal.user_id,
+        source=source,
+        time_limit_s=limit,
+    )
+    field_id, area_m2 = fld.id, fld.area_m2
+    session.rollback()  # no transaction of the server stays open while the worker plans
     try:
-        row, plan = svc.store_prescription(
-            session, rx, fld, params, principal.organisation_id, principal.user_id, source
+        check_plan_cost(area_m2, params)
+        rx_id, plan_id = run_bounded(
+            svc.store_prescription_in_worker, req, time_limit_s=limit, what="the import"
         )
     except PlanningError as exc:
-        session.rollback()
         raise ApiError(422, str(exc)) from exc
-    session.commit()
     body["stored"] = True
-    body["created"] = {"prescription_id": row.id, "plan_id": plan.id, "field_id": fld.id}
+    body["created"] = {"prescription_id": rx_id, "plan_id": plan_id, "field_id": field_id}
     response.status_code = 201
     return body
 

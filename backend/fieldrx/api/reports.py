@@ -31,7 +31,7 @@ from fieldrx.api.schemas.reports import (
 )
 from fieldrx.api.schemas.tasks import QUEUED
 from fieldrx.api.tasks import accepted, queue_task
-from fieldrx.auth.deps import SessionDep, UserDep
+from fieldrx.auth.deps import SessionDep, UserDep, WriterDep
 from fieldrx.db.models import Field, Job, JobEvent, Prescription
 from fieldrx.fleet.partitions import job_window
 from fieldrx.fleet.reports import (
@@ -139,9 +139,10 @@ def job_report(
 
 
 @router.post("/jobs/{job_id:int}/raw-log/request", status_code=202, response_model=RawLogState)
-def request_raw_log(job_id: int, principal: UserDep, session: SessionDep) -> dict[str, Any]:
+def request_raw_log(job_id: int, principal: WriterDep, session: SessionDep) -> dict[str, Any]:
     """Ask the job's tractor for its full 10 Hz log (a thin-profile job keeps it on board);
-    it arrives with the agent's next ``upload-log`` and is then served by GET below."""
+    it arrives with the agent's next ``upload-log`` and is then served by GET below. It
+    makes the tractor upload, so it needs a role that may write (a viewer only reads)."""
     from fieldrx.fleet import rawlogs
 
     job = get_scoped(session, Job, job_id, principal)

@@ -396,3 +396,15 @@ def sync_devices(session: Session) -> list[int]:
     for machine_id in stale:
         revoke_device(machine_id)
     return stale
+
+
+def next_device_expiry_s(session: Session) -> float | None:
+    """Seconds until the next live device token expires (None: none will)."""
+    left = session.scalar(
+        select(func.min(func.extract("epoch", ApiToken.expires_at - func.now()))).where(
+            ApiToken.kind == "device",
+            ApiToken.revoked_at.is_(None),
+            ApiToken.expires_at > func.now(),
+        )
+    )
+    return None if left is None else float(left)

@@ -1,27 +1,38 @@
-"""Sign-in throttling per account and per address, stored in PostgreSQL (every API process
-sees the same counts).
+"""Sign-in throttling per account + address and per address, stored in PostgreSQL (every
+API process sees the same counts).
 
-A failed sign-in adds a ``login_failures`` row under ``email:<address>`` and
-``ip:<client address>``. When either key has reached its limit within the
-window, sign-in is refused with 429 before the password is checked (so a
-correct guess cannot be confirmed either). Unknown e-mails are counted like
-known ones: the answer never tells which accounts exist. A successful sign-in
-clears the account's count.
+Every sign-in attempt is counted before the password is checked: under an advisory lock
+per key (held to the end of that short transaction) the failures within the window are
+counted and, if no key has reached its limit, the attempt is recorded as a failure at
+once. A correct password then deletes that record and clears the account + address count.
+So parallel guesses cannot all pass one count (40 at once get at most the limit checked),
+and a refused attempt never reaches the password check (a correct guess cannot be
+confirmed either).
+
+Keys: ``acct:<e-mail>|<address>`` (``FIELDRX_LOGIN_MAX_FAILURES``) and ``ip:<address>``
+(``FIELDRX_LOGIN_MAX_FAILURES_IP``). The account is throttled per address, so an attacker
+who exhausts the account's attempts from one address does not lock the owner out from
+another; an attacker spreading guesses over addresses is bounded by the per-address limit
+of each. Unknown e-mails are counted like known ones: the answer never tells which
+accounts exist.
 """
 
 from __future__ import annotations
 
 import datetime as dt
+from dataclasses import dataclass, field
 
-from sqlalchemy import delete, func, select
+from sqlalchemy import delete, func, insert, select, text
 from sqlalchemy.orm import Session
 
 from fieldrx.db.models import LoginFailure
 from fieldrx.settings import get_settings
 
+LOCK_NS = 7006  # advisory lock namespace: one login key's count (see module docstring)
+
 
 def keys(email: str, address: str | None) -> list[str]:
-    out = [f"email:{email.strip().lower()[:380]}"]
+    out = [f"acct:{email.strip().lower()[:300]}|{(address or '-')[:80]}"]
     if address:
         out.append(f"ip:{address[:380]}")
     return out
@@ -29,11 +40,56 @@ def keys(email: str, address: str | None) -> list[str]:
 
 def _limit(key: str) -> int:
     s = get_settings()
-    return s.login_max_failures_account if key.startswith("email:") else s.login_max_failures_ip
+    return s.login_max_failures_account if key.startswith("acct:") else s.login_max_failures_ip
+
+
+@dataclass
+class Attempt:
+    """The outcome of ``begin``: ``wait_s`` > 0 refuses the attempt; else ``ids`` are the
+    failure rows recorded for it (removed by ``succeeded``)."""
+
+    wait_s: float = 0.0
+    ids: list[int] = field(default_factory=list)
+
+
+def begin(session: Session, email: str, address: str | None) -> Attempt:
+    """Count and record one attempt atomically (commits; see module docstring)."""
+    window = dt.timedelta(seconds=get_settings().login_window_s)
+    now = dt.datetime.now(dt.UTC)
+    ks = sorted(keys(email, address))  # one lock order: no deadlock between attempts
+    session.rollback()
+    wait = 0.0
+    for key in ks:
+        session.execute(
+            text("SELECT pg_advisory_xact_lock(:ns, hashtext(:k))"), {"ns": LOCK_NS, "k": key}
+        )
+        times = session.scalars(
+            select(LoginFailure.at)
+            .where(LoginFailure.key == key, LoginFailure.at > now - window)
+            .order_by(LoginFailure.at.desc())
+            .limit(_limit(key))
+        ).all()
+        if len(times) >= _limit(key):
+            wait = max(wait, (times[-1] + window - now).total_seconds(), 1.0)
+    if wait > 0:
+        session.commit()
+        return Attempt(wait_s=wait)
+    for key in ks:
+        session.execute(
+            delete(LoginFailure).where(
+                LoginFailure.key == key, LoginFailure.at <= func.now() - window
+            )
+        )
+    ids = session.scalars(
+        insert(LoginFailure).returning(LoginFailure.id), [{"key": k} for k in ks]
+    ).all()
+    session.commit()
+    return Attempt(ids=list(ids))
 
 
 def blocked_for_s(session: Session, email: str, address: str | None) -> float:
-    """Seconds until sign-in is allowed again for this account/address (0 when allowed)."""
+    """Seconds until sign-in is allowed again for this account/address (0 when allowed);
+    reads only (``begin`` is what a sign-in uses)."""
     window = dt.timedelta(seconds=get_settings().login_window_s)
     now = dt.datetime.now(dt.UTC)
     wait = 0.0
@@ -50,17 +106,13 @@ def blocked_for_s(session: Session, email: str, address: str | None) -> float:
 
 
 def record_failure(session: Session, email: str, address: str | None) -> None:
-    """Count a failed sign-in (and drop this key's rows older than the window); commits."""
-    window = dt.timedelta(seconds=get_settings().login_window_s)
-    for key in keys(email, address):
-        session.execute(
-            delete(LoginFailure).where(
-                LoginFailure.key == key, LoginFailure.at <= func.now() - window
-            )
-        )
-        session.add(LoginFailure(key=key))
+    """Count a failed sign-in outside ``begin`` (commits)."""
+    session.execute(insert(LoginFailure), [{"key": k} for k in keys(email, address)])
     session.commit()
 
 
-def clear_account(session: Session, email: str) -> None:
-    session.execute(delete(LoginFailure).where(LoginFailure.key == keys(email, None)[0]))
+def succeeded(session: Session, email: str, address: str | None, attempt: Attempt) -> None:
+    """The password was right: the attempt is no failure, and the account's count from
+    this address starts again (the caller commits)."""
+    session.execute(delete(LoginFailure).where(LoginFailure.id.in_(attempt.ids)))
+    session.execute(delete(LoginFailure).where(LoginFailure.key == keys(email, address)[0]))

@@ -20,7 +20,7 @@ from shapely.geometry import MultiPolygon, Polygon, shape
 from fieldrx.geo import PlanningError
 from fieldrx.geo.coverage import CORNERS, HEADINGS, plan_coverage
 from fieldrx.geo.crs import epsg_for_geometry, to_utm, to_wgs84
-from fieldrx.geo.grid import build_grid
+from fieldrx.geo.grid import build_grid, check_grid_cost
 from fieldrx.geo.planning.kinematics import DEFAULT_HEADLAND_PASSES, DEFAULT_TURN_RADIUS_M
 from fieldrx.geo.validate import BoundaryError, validate_boundary
 
@@ -109,6 +109,7 @@ def run(args: argparse.Namespace) -> int:
         field_ll = load_field(args.field)
         epsg = epsg_for_geometry(field_ll)
         field_utm = to_utm(field_ll, epsg)
+        check_grid_cost(field_utm.area, args.swath_width, args.cell_length)
         plan = plan_coverage(
             field_utm,
             swath_width_m=args.swath_width,

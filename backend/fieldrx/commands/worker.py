@@ -125,6 +125,7 @@ async def _main(args: argparse.Namespace) -> None:
                     stalled_after_s=s.task_stalled_after_s,
                     result_retention_s=s.task_result_retention_s,
                     result_purge_s=s.task_result_purge_s,
+                    device_expiry_check_s=s.device_expiry_check_s,
                 )
             )
         )

@@ -9,7 +9,7 @@ from __future__ import annotations
 from collections.abc import Iterator
 from functools import lru_cache
 
-from sqlalchemy import Engine, create_engine
+from sqlalchemy import Engine, create_engine, text
 from sqlalchemy.orm import Session, sessionmaker
 
 from fieldrx.settings import get_settings
@@ -23,6 +23,17 @@ def make_engine(url: str) -> Engine:
         max_overflow=20,
         connect_args={"options": "-c jit=off"},
     )
+
+
+def limit_session(session: Session, time_limit_s: float) -> None:
+    """Bound a heavy-work child's database session by its time limit: no statement and no
+    idle transaction outlives it, and PostgreSQL checks every second that the client is
+    still connected, so a killed child's running statement is cancelled and its locks
+    released at once instead of when the statement would have finished."""
+    ms = max(1000, int(time_limit_s * 1000))
+    session.execute(text(f"SET statement_timeout = {ms}"))
+    session.execute(text(f"SET idle_in_transaction_session_timeout = {ms}"))
+    session.execute(text("SET client_connection_check_interval = 1000"))
 
 
 @lru_cache

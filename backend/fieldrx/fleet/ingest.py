@@ -64,6 +64,7 @@ from fieldrx_edge.protocol import (
     STREAM_RE,
     TELEMETRY_FIELDS,
     TELEMETRY_FORMAT_VERSION,
+    VALUE_RANGES,
     TelemetryAck,
     TelemetryRecord,
 )
@@ -95,6 +96,19 @@ INT4_MAX = 2**31 - 1
 INT8_MAX = 2**63 - 1
 _ALARM_SET = frozenset(ALARMS)
 LOCK_NS = 7001  # advisory lock namespace for per-machine ingest
+
+
+# each float field's accepted range, in FLOAT_FIELDS order (the protocol's VALUE_RANGES:
+# what the agent clamps to), so a value outside is refused with its reason, never stored
+_RANGES = tuple((name, *VALUE_RANGES[name]) for name in FLOAT_FIELDS)
+
+
+def range_error(values: Any) -> str | None:
+    """The first float field (in FLOAT_FIELDS order) outside its range, as a reason."""
+    for (name, lo, hi), v in zip(_RANGES, values, strict=False):
+        if v is not None and not lo <= v <= hi:
+            return f"{name} {v!r} is out of range [{lo:g}, {hi:g}]"
+    return None
 
 
 class IngestError(ValueError):
@@ -158,7 +172,7 @@ def _loads(body: bytes | str) -> Any:
         # records holding them are rejected one by one, not the whole batch
         try:
             return json.loads(body)
-        except ValueError:
+        except (ValueError, RecursionError):  # nesting deeper than the interpreter's stack
             raise IngestError(f"body is not valid JSON: {exc}") from exc
 
 
@@ -284,7 +298,7 @@ def _fast_row(d: Any, machine_id: int, t_max: float, stream: str) -> TelemetryRo
     if not _FLOAT_TYPES.issuperset(map(type, floats)):
         return None
     total = sum(filter(None, floats))
-    if total - total != 0.0:
+    if total - total != 0.0 or range_error(floats) is not None:
         return None
     if lon is None:
         if lat is not None:
@@ -339,6 +353,9 @@ def _slow_row(d: Any, machine_id: int, now: float, stream: str) -> TelemetryRow 
         period = None if rec.fix_period_s is None else float(rec.fix_period_s)
     except OverflowError:
         return "a number is too large"
+    bad = range_error(f)
+    if bad is not None:
+        return bad
     geom = None
     if rec.lon is not None and rec.lat is not None:
         geom = ewkb_point(float(rec.lon), float(rec.lat))

@@ -42,6 +42,12 @@ DAY_US = 86_400_000_000
 PG_EPOCH_DT = dt.datetime(2000, 1, 1, tzinfo=dt.UTC)  # t as int8 us counts from here
 CREATE_LOCK_TIMEOUT = "1s"  # creating a day never stalls ingest for longer than this
 RETRY_AFTER_S = 60.0  # a day that could not be made now goes to the default partition
+# On-demand days are bounded: a batch makes at most MAX_NEW_DAYS past days (the newest of
+# those it needs), and never one older than ON_DEMAND_DAYS before today; the other records
+# go to the default partition (a device naming a day per record of 2000-2003 made one
+# partition per record). Agents back from weeks of offline work still get their days.
+MAX_NEW_DAYS = 4
+ON_DEMAND_DAYS = 400
 _LOCK_NS = 7002  # advisory lock namespace: partition creation (7001 is ingest's)
 
 _known: set[tuple[str, int]] = set()  # (database, UTC day number) with a partition
@@ -97,6 +103,9 @@ def ensure_days(conn: psycopg.Connection[Any], t_us: Iterable[int]) -> list[int]
     missing = [d for d in days if (key, d) not in _known]
     if not missing:
         return []
+    missing = _bounded(missing)
+    if not missing:
+        return []
     now = time.monotonic()
     with _cache_lock:
         missing = [
@@ -136,6 +145,23 @@ def ensure_days(conn: psycopg.Connection[Any], t_us: Iterable[int]) -> list[int]
         for d in missing:
             _failed.pop((key, d), None)
     return made
+
+
+def _bounded(days: list[int]) -> list[int]:
+    """The days a batch may make (see MAX_NEW_DAYS); logs the rest (default partition)."""
+    today = int((time.time() - PG_EPOCH_DT.timestamp()) // 86_400)
+    recent = sorted((d for d in days if d >= today - ON_DEMAND_DAYS), reverse=True)
+    keep = recent[:MAX_NEW_DAYS]
+    if len(keep) < len(days):
+        log.warning(
+            "telemetry of %d day(s) (from %s) goes to the default partition: a batch makes at"
+            " most %d past days, none older than %d days",
+            len(days) - len(keep),
+            day_start(min(days)).date().isoformat(),
+            MAX_NEW_DAYS,
+            ON_DEMAND_DAYS,
+        )
+    return keep
 
 
 def forget_days(conn: psycopg.Connection[Any]) -> None:

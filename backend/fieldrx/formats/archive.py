@@ -17,6 +17,7 @@ without a DTD there are no entity declarations, so neither entity expansion
 from __future__ import annotations
 
 import io
+import os
 import stat
 import xml.etree.ElementTree as ET
 import zipfile
@@ -42,15 +43,16 @@ def safe_member_name(name: str) -> str:
 
 
 def read_zip(
-    data: bytes,
+    data: bytes | str | os.PathLike[str],
     *,
     max_member_bytes: int = MAX_MEMBER_BYTES,
     max_total_bytes: int = MAX_TOTAL_BYTES,
     max_members: int = MAX_MEMBERS,
 ) -> dict[str, bytes]:
-    """Every file of a zip, inflated under the limits (see module docstring)."""
+    """Every file of a zip (its bytes, or a path: an upload spooled to disk), inflated
+    under the limits (see module docstring)."""
     try:
-        z = zipfile.ZipFile(io.BytesIO(data))
+        z = zipfile.ZipFile(io.BytesIO(data) if isinstance(data, bytes) else data)
     except zipfile.BadZipFile as exc:
         raise FormatError("not a zip file") from exc
     infos = z.infolist()

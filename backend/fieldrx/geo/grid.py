@@ -38,6 +38,31 @@ MAX_CELLS = 5_000_000
 MIN_CELL_LENGTH_M = 0.5
 
 
+def check_grid_cost(area_m2: float, swath_width_m: float, cell_length_m: float) -> float:
+    """The cost estimate every entry point (API, import confirm, batch, CLI) applies before
+    any planning: the expected number of cells, or ``PlanningError``.
+
+    Every cell is at most one swath wide and one cell long, so a field of area A needs
+    about A / (w L) cells. A cell length under ``MIN_CELL_LENGTH_M`` (or not finite) is
+    refused here, before the coverage path is planned: the grid would refuse it anyway,
+    but only after planning, which a millimetre swath makes take minutes. A non-finite or
+    non-positive swath width is left to the planner's own message.
+    """
+    w, length = float(swath_width_m), float(cell_length_m)
+    if not math.isfinite(length) or length < MIN_CELL_LENGTH_M:
+        raise PlanningError(f"cell_length_m must be >= {MIN_CELL_LENGTH_M} m, got {cell_length_m}")
+    if not (math.isfinite(w) and w > 0):
+        return 0.0
+    n_est = float(area_m2) / (w * length)
+    if n_est > MAX_CELLS:
+        raise PlanningError(
+            f"swath width {w:g} m and cell length {length:g} m give about {n_est:,.0f} cells on "
+            f"this {area_m2 / 10_000:,.1f} ha field, more than {MAX_CELLS} (the limit): "
+            "use a wider swath or longer cells"
+        )
+    return n_est
+
+
 # The grid is the one cell type (``geo.cells.Cells``) with the builder's metadata filled in
 Grid = Cells
 

@@ -28,6 +28,7 @@ from typing import Any
 
 from fieldrx.errors import Cancelled
 from fieldrx.imagery import KINDS, ImageryError
+from fieldrx.proctag import process_tag
 
 # First bytes of a classic TIFF and a BigTIFF, little and big endian (TIFF 6.0 sec. 2,
 # BigTIFF spec). Anything else is not a TIFF, whatever its name says.
@@ -70,6 +71,8 @@ class IngestSpec:
     nir_band: int | None = None
     max_pixels: int = 2_000_000_000
     acquired_on: str | None = None
+    # conversion budget: declared uncompressed bytes per byte of file (see _check_budget)
+    max_expansion: float = 400.0
 
 
 @dataclass
@@ -183,6 +186,27 @@ def _check_size(src: Any, spec: IngestSpec) -> None:
             )
 
 
+def _check_budget(src: Any, spec: IngestSpec, file_bytes: int) -> None:
+    """The conversion budget: refuse, before decoding a pixel, a raster whose declared
+    size is more than ``max_expansion`` times its file. DEFLATE's longest match is 258
+    bytes (RFC 1951 sec. 3.2.5), so it compresses at most about 1032:1, and a few MB that
+    decode to gigabytes are all-but-empty data (a decompression bomb, or missing tiles);
+    real orthophotos and index maps compress a few to about a hundred times."""
+    import numpy as np
+
+    item = max(np.dtype(d).itemsize for d in src.dtypes)
+    declared = src.width * src.height * src.count * item
+    ratio = declared / max(file_bytes, 1)
+    if ratio > spec.max_expansion:
+        raise ImageryError(
+            f"the raster declares {src.width} x {src.height} pixels x {src.count} bands "
+            f"({declared / 1024**2:,.0f} MB uncompressed) in a {file_bytes / 1024**2:,.1f} MB "
+            f"file, {ratio:,.0f} times its file size (limit {spec.max_expansion:g}, "
+            "FIELDRX_IMAGERY_MAX_EXPANSION): a decompression bomb or a mostly empty raster; "
+            "crop it to the field"
+        )
+
+
 def _footprint(src: Any) -> Any:
     """The raster's outline (its four corners, edges densified) in WGS84."""
     import shapely
@@ -268,6 +292,7 @@ def inspect_and_convert(src_path: Path, dst_path: Path, spec: IngestSpec) -> Ing
                         "geotransform); export it as a GeoTIFF from the photogrammetry software"
                     )
                 _check_size(src, spec)
+                _check_budget(src, spec, src_path.stat().st_size)
                 bands = _band_roles(src, spec)
                 foot = _footprint(src)
                 boundary = wkb.loads(spec.field_wkb)
@@ -320,14 +345,32 @@ def work_dir(dst_path: Path) -> Path:
     return dst_path.with_name(f".work-{dst_path.name}")
 
 
-def _child(conn: Any, src: str, dst: str, spec: IngestSpec) -> None:
+def without_paths(message: str, src: str, dst: str) -> str:
+    """GDAL names the files it read or wrote: the server's paths never reach the user."""
+    for path, name in (
+        (str(work_dir(Path(dst))), "the output"),
+        (dst, "the output"),
+        (src, "the upload"),
+        (str(Path(src).parent), "the upload folder"),
+        (str(Path(dst).parent), "the image folder"),
+        (Path(src).name, "the upload"),
+        (Path(dst).name, "the output"),
+    ):
+        message = message.replace(path, name)
+    return message
+
+
+def _child(conn: Any, src: str, dst: str, spec: IngestSpec, caller_tag: str) -> None:
+    from fieldrx.services.bounded import watch_caller
+
+    watch_caller(caller_tag)  # a converter never outlives the server or worker that started it
     try:
         res = inspect_and_convert(Path(src), Path(dst), spec)
         conn.send(("ok", asdict(res)))
     except ImageryError as exc:
-        conn.send(("error", str(exc)))
+        conn.send(("error", without_paths(str(exc), src, dst)))
     except Exception as exc:  # noqa: BLE001 - reported to the parent, which raises
-        conn.send(("crash", f"{type(exc).__name__}: {exc}"))
+        conn.send(("crash", without_paths(f"{type(exc).__name__}: {exc}", src, dst)))
     finally:
         conn.close()
 
@@ -338,17 +381,35 @@ def ingest(
     spec: IngestSpec,
     timeout_s: float,
     should_stop: Callable[[], bool] | None = None,
+    slot_wait_s: float | None = None,
 ) -> IngestResult:
     """``inspect_and_convert`` in a fresh process, stopped after ``timeout_s``.
 
-    On timeout the child is killed and its partial output removed (it writes to
-    a work directory and renames only on success, so ``dst`` never holds a partial COG).
-    A background task passes ``should_stop`` (polled every second): when it turns true the
-    child is killed the same way and ``Cancelled`` is raised.
+    The conversion takes one of the process's heavy-work slots (``services.bounded``, the
+    same as planning and imports), waiting up to ``slot_wait_s`` (default ``timeout_s``)
+    for one, else ``Busy`` (503). On timeout the child is killed and its partial output
+    removed (it writes to a work directory and renames only on success, so ``dst`` never
+    holds a partial COG). A background task passes ``should_stop`` (polled every second):
+    when it turns true the child is killed the same way and ``Cancelled`` is raised.
     """
+    from fieldrx.services.bounded import heavy_slot
+
+    wait = timeout_s if slot_wait_s is None else slot_wait_s
+    with heavy_slot(wait, "the imagery conversion"):
+        return _convert(src, dst, spec, timeout_s, should_stop)
+
+
+def _convert(
+    src: Path,
+    dst: Path,
+    spec: IngestSpec,
+    timeout_s: float,
+    should_stop: Callable[[], bool] | None,
+) -> IngestResult:
     ctx = mp.get_context("spawn")
     parent, child = ctx.Pipe(duplex=False)
-    proc = ctx.Process(target=_child, args=(child, str(src), str(dst), spec), daemon=True)
+    tag = process_tag()
+    proc = ctx.Process(target=_child, args=(child, str(src), str(dst), spec, tag), daemon=True)
     proc.start()
     child.close()
     deadline = time.monotonic() + timeout_s

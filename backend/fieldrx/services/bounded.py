@@ -12,6 +12,10 @@ At most ``FIELDRX_HEAVY_WORKERS`` children run at once per server process;
 further requests wait up to their own time limit for a slot, then get ``Busy``
 (503).
 
+A child dies with its caller (``watch_caller``: the kernel's parent-death signal and a
+thread watching the caller), and before committing it checks that the caller is still
+there (``ensure_caller_alive``), so nothing is committed for a client that has gone.
+
 A background task (``fieldrx.tasks``) passes ``should_stop``: polled about once a second
 while the child works, and when it says so the child is killed (its transaction rolls
 back) and ``Cancelled`` is raised, so a cancelled plan stops within a second even in a
@@ -20,15 +24,20 @@ stage that reports no progress.
 
 from __future__ import annotations
 
+import contextlib
+import ctypes
 import multiprocessing
+import os
 import pickle
+import signal
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from multiprocessing.connection import Connection
 from typing import Any, TypeVar
 
 from fieldrx.errors import Busy, Cancelled, TooExpensive
+from fieldrx.proctag import process_tag, tag_alive
 from fieldrx.settings import get_settings
 
 T = TypeVar("T")
@@ -52,7 +61,7 @@ _slots: threading.BoundedSemaphore | None = None
 _slots_lock = threading.Lock()
 
 
-def _get_slots() -> threading.BoundedSemaphore:
+def get_slots() -> threading.BoundedSemaphore:
     global _slots
     with _slots_lock:
         if _slots is None:
@@ -70,7 +79,59 @@ def warm_up() -> None:
     ).start()
 
 
-def _child(conn: Connection, fn: Callable[..., Any], args: tuple[Any, ...]) -> None:
+PR_SET_PDEATHSIG = 1  # linux/prctl.h
+WATCH_S = 0.2  # how often a child checks that its caller is still there
+_caller_tag: str | None = None  # set in a child: the process that waits for its answer
+
+
+def die_with_parent() -> None:
+    """Ask the kernel to SIGKILL this process when its parent dies (Linux; elsewhere a
+    no-op)."""
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
+    except (OSError, AttributeError):
+        return
+
+
+def watch_caller(caller_tag: str) -> None:
+    """Make this child die with the process that started it and waits for it.
+
+    Two mechanisms: the kernel's parent-death signal (immediate, but the parent of a
+    forkserver child is the forkserver, which stays alive as long as any child holds its
+    "alive" pipe, as every child does), and a thread that checks the caller's tag
+    (``fieldrx.proctag``) every ``WATCH_S`` and kills this process once it is gone. A
+    caller that died before this ran ends the child at once."""
+    global _caller_tag
+    _caller_tag = caller_tag
+    die_with_parent()
+    if not tag_alive(caller_tag):
+        os._exit(1)
+
+    def watch() -> None:
+        while tag_alive(caller_tag):
+            time.sleep(WATCH_S)
+        os.kill(os.getpid(), signal.SIGKILL)
+
+    threading.Thread(target=watch, name="caller-watch", daemon=True).start()
+
+
+def caller_alive() -> bool:
+    """False in a child whose caller (the server or worker process) has gone."""
+    return _caller_tag is None or tag_alive(_caller_tag)
+
+
+def ensure_caller_alive(what: str) -> None:
+    """Raise ``Cancelled`` (the caller rolls back) when the caller has gone: called right
+    before a child commits, so work whose client is gone is never stored."""
+    if not caller_alive():
+        raise Cancelled(f"{what}: the process that asked for it has gone; nothing was stored")
+
+
+def _child(
+    conn: Connection, fn: Callable[..., Any], args: tuple[Any, ...], caller_tag: str
+) -> None:
+    watch_caller(caller_tag)
     try:
         result: tuple[bool, Any] = (True, fn(*args))
     except BaseException as exc:  # noqa: BLE001 - every failure goes back to the parent
@@ -111,6 +172,19 @@ def _wait(
             raise Busy(f"the server is shutting down; {what} was stopped, retry it")
 
 
+@contextlib.contextmanager
+def heavy_slot(time_limit_s: float, what: str) -> Iterator[None]:
+    """One of the ``FIELDRX_HEAVY_WORKERS`` slots of this process for the block (planning,
+    imports, imagery conversions share them); ``Busy`` when none frees up in time."""
+    slots = get_slots()
+    if not slots.acquire(timeout=time_limit_s):
+        raise Busy(f"the server is busy with other heavy requests; retry {what} later")
+    try:
+        yield
+    finally:
+        slots.release()
+
+
 def run_bounded(
     fn: Callable[..., T],
     *args: Any,
@@ -126,12 +200,9 @@ def run_bounded(
     ``should_stop()`` turns true (the child is killed).
     """
     t0 = time.monotonic()
-    slots = _get_slots()
-    if not slots.acquire(timeout=time_limit_s):
-        raise Busy(f"the server is busy with other heavy requests; retry {what} later")
-    try:
+    with heavy_slot(time_limit_s, what):
         recv, send = _ctx.Pipe(duplex=False)
-        proc = _ctx.Process(target=_child, args=(send, fn, args), daemon=True)
+        proc = _ctx.Process(target=_child, args=(send, fn, args, process_tag()), daemon=True)
         proc.start()
         send.close()
         try:
@@ -149,8 +220,6 @@ def run_bounded(
                 proc.kill()
             proc.join(5)
             recv.close()
-    finally:
-        slots.release()
     if ok:
         return value  # type: ignore[no-any-return]
     raise value

@@ -21,6 +21,8 @@ The version's summary records the source (file, task, DDI, unit, kind).
 from __future__ import annotations
 
 import datetime as dt
+from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -40,14 +42,16 @@ from fieldrx.db.models import (
     PrescriptionVersion,
     Telemetry,
 )
-from fieldrx.db.session import raw_dsn
+from fieldrx.db.session import limit_session, raw_dsn
 from fieldrx.fleet.db import raw_connection
 from fieldrx.fleet.partitions import PG_EPOCH_DT, ensure_days, record_job_spans
 from fieldrx.formats import FormatError
-from fieldrx.formats.isoxml_import import RxIn, TaskDataSet
+from fieldrx.formats.archive import read_zip
+from fieldrx.formats.isoxml_import import RxIn, TaskDataSet, read_taskdata
 from fieldrx.formats.timelog import TimeLog
+from fieldrx.geo import PlanningError
 from fieldrx.geo.validate import BoundaryError, validate_boundary
-from fieldrx.services.plans import PlanParams, create_plan
+from fieldrx.services.plans import PlanParams, check_plan_cost, create_plan
 from fieldrx.store import load_cells, write_rates
 
 IMPORTED_MODEL = "imported"
@@ -324,3 +328,106 @@ def store_timelogs(
     )
     session.flush()
     return {"job_id": job.id, "machine_id": machine.id, "records": len(rows)}
+
+
+@dataclass
+class IsoxmlRequest:
+    """One ISOXML import for ``isoxml_in_worker``: the spooled files (name, path), and for
+    a confirm the plan parameters and who stores it."""
+
+    database_url: str
+    files: list[tuple[str, str]]
+    source_name: str
+    organisation_id: int
+    user_id: int | None
+    params: PlanParams
+    confirm: bool = False
+    time_limit_s: float = 120.0
+
+
+def _read_spooled(files: list[tuple[str, str]]) -> dict[str, bytes]:
+    out: dict[str, bytes] = {}
+    for name, path in files:
+        if name.lower().endswith(".zip"):
+            try:
+                out.update(read_zip(path))
+            except FormatError as exc:
+                raise FormatError(f"{name}: {exc}") from exc
+        else:
+            out[name] = Path(path).read_bytes()
+    return out
+
+
+def check_import_cost(ds: TaskDataSet, params: PlanParams) -> None:
+    """The plan cost estimate (``services.plans.check_plan_cost``) of every field a
+    confirmed import would plan, before anything is stored or planned."""
+    areas = {f.ref: v.area_m2 for f, v in zip(ds.fields, _validated(ds), strict=True)}
+    for rx in ds.prescriptions:
+        try:
+            check_plan_cost(areas[rx.field_ref], params)
+        except PlanningError as exc:
+            raise PlanningError(f"task {rx.ref} (partfield {rx.field_ref}): {exc}") from exc
+
+
+def isoxml_in_worker(req: IsoxmlRequest) -> dict[str, Any]:
+    """Inflate, parse and preview a spooled TASKDATA upload and, on confirm, store it and
+    commit, all in a ``services.bounded`` child (the archive never inflates in the server's
+    memory; planning runs under the time limit). Returns ``{"preview", "created"?}``."""
+    from fieldrx.db.session import make_engine
+    from fieldrx.services.bounded import ensure_caller_alive
+
+    ds = read_taskdata(_read_spooled(req.files))
+    pre = preview(ds)
+    if not req.confirm:
+        return {"preview": pre}
+    check_import_cost(ds, req.params)
+    engine = make_engine(req.database_url)
+    try:
+        with Session(engine) as session:
+            limit_session(session, req.time_limit_s)
+            created = commit(
+                session, ds, req.organisation_id, req.user_id, req.params, req.source_name
+            )
+            ensure_caller_alive("the ISOXML import")
+            session.commit()
+    finally:
+        engine.dispose()
+    return {"preview": pre, "created": created}
+
+
+@dataclass
+class RxStoreRequest:
+    """An imported prescription to store on a field by ``store_prescription_in_worker``."""
+
+    database_url: str
+    rx: RxIn
+    field_id: int
+    params: PlanParams
+    organisation_id: int
+    user_id: int | None
+    source: dict[str, Any]
+    time_limit_s: float = 120.0
+
+
+def store_prescription_in_worker(req: RxStoreRequest) -> tuple[int, int]:
+    """``store_prescription`` and commit in a ``services.bounded`` child (its plan is
+    planned under the time limit, never in the request thread); returns (rx id, plan id)."""
+    from fieldrx.db.session import make_engine
+    from fieldrx.services.bounded import ensure_caller_alive
+
+    engine = make_engine(req.database_url)
+    try:
+        with Session(engine) as session:
+            limit_session(session, req.time_limit_s)
+            fld = session.get(Field, req.field_id)
+            if fld is None:
+                raise PlanningError(f"field {req.field_id} was deleted while importing")
+            row, plan = store_prescription(
+                session, req.rx, fld, req.params, req.organisation_id, req.user_id, req.source
+            )
+            ids = (int(row.id), int(plan.id))
+            ensure_caller_alive("the prescription import")
+            session.commit()
+    finally:
+        engine.dispose()
+    return ids

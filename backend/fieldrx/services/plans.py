@@ -25,7 +25,7 @@ from fieldrx.db.models import Field, Plan
 from fieldrx.geo import PlanningError
 from fieldrx.geo.coverage import plan_coverage
 from fieldrx.geo.crs import to_utm, to_wgs84
-from fieldrx.geo.grid import MAX_CELLS, MIN_CELL_LENGTH_M, build_grid
+from fieldrx.geo.grid import build_grid, check_grid_cost
 from fieldrx.geo.planning.kinematics import DEFAULT_HEADLAND_PASSES
 from fieldrx.store import load_cells, write_plan_cells
 
@@ -65,23 +65,9 @@ def delete_plan(session: Session, plan: Plan) -> None:
 
 
 def check_plan_cost(area_m2: float, params: PlanParams) -> None:
-    """Refuse, before any planning, a plan whose grid would exceed ``MAX_CELLS``.
-
-    Every cell is at most one swath wide and one cell long, so a field of area A
-    needs about A / (w L) cells; a 0.05 m swath on 500 ha would be ~20 million
-    cells and minutes of CPU before ``build_grid``'s own (exact) count could refuse
-    it. Non-finite or non-positive values are left to the planner's own messages.
-    """
-    w, length = float(params.swath_width_m), float(params.cell_length_m)
-    if not (np.isfinite(w) and np.isfinite(length) and w > 0 and length >= MIN_CELL_LENGTH_M):
-        return
-    n_est = float(area_m2) / (w * length)
-    if n_est > MAX_CELLS:
-        raise PlanningError(
-            f"swath width {w:g} m and cell length {length:g} m give about {n_est:,.0f} cells on "
-            f"this {area_m2 / 10_000:,.1f} ha field, more than {MAX_CELLS} (the limit): "
-            "use a wider swath or longer cells"
-        )
+    """Refuse, before any planning, a plan whose grid would exceed ``MAX_CELLS`` or whose
+    cells are shorter than the minimum (``geo.grid.check_grid_cost``: the one estimate)."""
+    check_grid_cost(area_m2, params.swath_width_m, params.cell_length_m)
 
 
 def plan_in_worker(
@@ -91,17 +77,18 @@ def plan_in_worker(
     in a child process); returns the new plan's id."""
     from sqlalchemy.orm import Session as OrmSession
 
-    from fieldrx.db.session import make_engine
+    from fieldrx.db.session import limit_session, make_engine
+    from fieldrx.services.bounded import ensure_caller_alive
 
     engine = make_engine(database_url)
     try:
         with OrmSession(engine) as session:
-            ms = max(1000, int(time_limit_s * 1000))
-            session.execute(text(f"SET statement_timeout = {ms}"))
+            limit_session(session, time_limit_s)
             field = session.get(Field, field_id)
             if field is None:
                 raise PlanningError(f"field {field_id} was deleted while planning")
             plan = create_plan(session, field, params, organisation_id)
+            ensure_caller_alive("planning")
             session.commit()
             return int(plan.id)
     finally:

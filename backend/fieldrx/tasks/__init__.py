@@ -31,3 +31,4 @@ from __future__ import annotations
 
 QUEUES = ("plan", "prescription", "imagery", "export", "report")  # one queue per kind of work
 TASK_LOCK_NS = 7003  # advisory lock namespace (fleet.ingest 7001, fleet.alerts 7002, plans 7004)
+QUOTA_LOCK_NS = 7005  # an organisation's task quota is counted under this lock (store)

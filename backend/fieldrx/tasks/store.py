@@ -17,8 +17,10 @@ from sqlalchemy import Engine, func, select, text
 from sqlalchemy.orm import Session
 
 from fieldrx.db.models import Task
+from fieldrx.errors import Invalid, TooMany
+from fieldrx.settings import get_settings
 from fieldrx.store import driver_connection
-from fieldrx.tasks import TASK_LOCK_NS
+from fieldrx.tasks import QUOTA_LOCK_NS, TASK_LOCK_NS
 from fieldrx.tasks.queue import make_jobs
 
 FINAL = ("succeeded", "failed", "cancelled")
@@ -42,7 +44,9 @@ def create_tasks(
     message: str = "waiting for a worker",
 ) -> list[Task]:
     """Insert one task row per params and defer their jobs, in the session's transaction
-    (flush only; the caller commits, and a rollback leaves neither rows nor jobs)."""
+    (flush only; the caller commits, and a rollback leaves neither rows nor jobs).
+    The organisation's quota of open tasks is checked first (``check_quota``)."""
+    check_quota(session, organisation_id, len(params_list))
     rows = [
         Task(
             organisation_id=organisation_id,
@@ -67,6 +71,43 @@ def create_tasks(
         row.job_id = job.id
     session.flush()
     return rows
+
+
+QUOTA_RETRY_AFTER_S = 30
+
+
+def check_quota(session: Session, organisation_id: int, adding: int) -> None:
+    """Refuse work that would take the organisation past ``FIELDRX_TASK_QUOTA`` open
+    (queued or running) tasks: ``Invalid`` (422) when ``adding`` alone exceeds it, else
+    ``TooMany`` (429, retry once some have finished).
+
+    The count is taken under a per-organisation advisory lock held to the end of the
+    caller's transaction, so concurrent requests cannot all pass the same count."""
+    quota = get_settings().task_quota
+    if adding > quota:
+        raise Invalid(
+            f"{adding} tasks in one request, more than the organisation's quota of {quota} "
+            "open tasks (FIELDRX_TASK_QUOTA): split the batch",
+            where="field_ids",
+        )
+    session.execute(
+        text("SELECT pg_advisory_xact_lock(:ns, (:org % 2147483647)::int)"),
+        {"ns": QUOTA_LOCK_NS, "org": organisation_id},
+    )
+    open_ = session.scalar(
+        select(func.count()).where(
+            Task.organisation_id == organisation_id,
+            Task.status.in_(("queued", "running")),
+            Task.kind.not_like("%\\_batch"),
+        )
+    )
+    if int(open_ or 0) + adding > quota:
+        raise TooMany(
+            f"the organisation has {open_} tasks queued or running and may have at most "
+            f"{quota} (FIELDRX_TASK_QUOTA); {adding} more do not fit: retry once some have "
+            "finished, or cancel some",
+            retry_after_s=QUOTA_RETRY_AFTER_S,
+        )
 
 
 def create_batch(

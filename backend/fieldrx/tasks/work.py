@@ -33,7 +33,7 @@ from sqlalchemy import text
 from sqlalchemy.orm import Session
 
 from fieldrx.db.models import Field, Machine, Plan
-from fieldrx.db.session import get_engine, make_engine, raw_dsn
+from fieldrx.db.session import get_engine, limit_session, make_engine, raw_dsn
 from fieldrx.errors import Cancelled, DomainError
 from fieldrx.settings import get_settings
 from fieldrx.tasks import store
@@ -111,12 +111,13 @@ def _in_transaction(
 ) -> dict[str, Any]:
     """Run ``work`` in one transaction that first takes the task's guard and ends by
     completing the task; the stored result of an earlier run is returned untouched."""
+    from fieldrx.services.bounded import ensure_caller_alive
+
     engine = make_engine(database_url)
     progress = Progress(raw_dsn(database_url), task_id)
     try:
         with Session(engine) as session:
-            ms = max(1000, int(time_limit_s * 1000))
-            session.execute(text(f"SET statement_timeout = {ms}"))
+            limit_session(session, time_limit_s)
             done = store.guard(session, task_id)
             if done is not None:
                 return done
@@ -125,6 +126,7 @@ def _in_transaction(
             if not store.complete(session, task_id, result, message):
                 session.rollback()  # another run completed it: its result stands
                 return store.guard(session, task_id) or {}
+            ensure_caller_alive("the task")  # its worker died: the retry stores it
             session.commit()
             return result
     finally:
@@ -238,6 +240,7 @@ def _run_imagery(claimed: store.Claimed, should_stop: StopFn) -> dict[str, Any]:
                 red_band=p.get("red_band"),
                 nir_band=p.get("nir_band"),
                 max_pixels=settings.imagery_max_pixels,
+                max_expansion=settings.imagery_max_expansion,
                 acquired_on=p.get("acquired_on"),
             )
         if not incoming.is_file():

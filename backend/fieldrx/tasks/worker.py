@@ -74,6 +74,31 @@ async def purge_results(retention_s: float, interval_s: float) -> None:
         await asyncio.sleep(interval_s)
 
 
+async def expire_device_credentials(check_s: float) -> None:
+    """Forever: delete the broker users of machines whose device token expired or was
+    revoked behind the API's back (``auth.mqtt.sync_devices``), right after the next
+    token's expiry and at least every ``check_s`` seconds, so an expired token stops
+    logging in to MQTT at its expiry without a cron job."""
+    from fieldrx.auth.mqtt import next_device_expiry_s, sync_devices
+    from fieldrx.db.session import get_sessionmaker
+
+    def once() -> float | None:
+        with get_sessionmaker()() as session:
+            stale = sync_devices(session)
+            if stale:
+                log.info("deleted the MQTT users of machines %s (token expired or revoked)", stale)
+            return next_device_expiry_s(session)
+
+    while True:
+        try:
+            left = await asyncio.to_thread(once)
+        except Exception:  # a broker or database hiccup: try again next round
+            log.warning("expiring device MQTT credentials failed; retrying", exc_info=True)
+            left = None
+        wait = check_s if left is None else min(check_s, left + 0.05)
+        await asyncio.sleep(max(0.05, wait))
+
+
 async def run_task_worker(
     stop: asyncio.Event,
     *,
@@ -84,8 +109,14 @@ async def run_task_worker(
     name: str = "fieldrx-tasks",
     result_retention_s: float = 24 * 3600.0,
     result_purge_s: float = 600.0,
+    device_expiry_check_s: float = 60.0,
 ) -> None:
-    """Run jobs until ``stop`` is set; then stop fetching and let running jobs finish."""
+    """Run jobs until ``stop`` is set; then stop fetching and let running jobs finish.
+    First removes what a killed worker or server left (services.cleanup)."""
+    from fieldrx.db.session import get_engine
+    from fieldrx.services.cleanup import clean_after_crash_logged
+
+    await asyncio.to_thread(clean_after_crash_logged, get_engine())
     app = get_app()
     async with app.open_async():
         worker = asyncio.create_task(
@@ -106,9 +137,12 @@ async def run_task_worker(
         purge = asyncio.create_task(
             purge_results(result_retention_s, result_purge_s), name="result-purge"
         )
+        expiry = asyncio.create_task(
+            expire_device_credentials(device_expiry_check_s), name="device-expiry"
+        )
         stopping = asyncio.create_task(stop.wait())
         await asyncio.wait({worker, stopping}, return_when=asyncio.FIRST_COMPLETED)
-        for side in (recovery, purge):
+        for side in (recovery, purge, expiry):
             side.cancel()
             with contextlib.suppress(asyncio.CancelledError):
                 await side

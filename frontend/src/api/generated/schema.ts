@@ -95,9 +95,10 @@ export interface paths {
          * Login
          * @description Exchange e-mail and password for a bearer token scoped to one organisation.
          *
-         *     Failed attempts are throttled per account and per client address (429 with
-         *     Retry-After, auth.throttle); an unknown e-mail costs the same password hashing
-         *     as a wrong password, so neither the answer nor its timing reveals accounts.
+         *     Failed attempts are throttled per account + client address and per address (429
+         *     with Retry-After, auth.throttle: counted atomically before the password is checked);
+         *     an unknown e-mail costs the same password hashing as a wrong password, so neither the
+         *     answer nor its timing reveals accounts.
          */
         post: operations["login_api_v1_auth_login_post"];
         delete?: never;
@@ -810,6 +811,10 @@ export interface paths {
         /**
          * Import Isoxml
          * @description Preview (no ``confirm``) or store (``confirm`` = the preview's sha256) a TASKDATA set.
+         *
+         *     The upload is spooled to disk; inflating, parsing and (on confirm) planning and storing
+         *     run in a worker process (FIELDRX_IMPORT_TIME_LIMIT_S for a preview,
+         *     FIELDRX_PLAN_TIME_LIMIT_S for a confirm; 422 past it, nothing stored).
          */
         post: operations["import_isoxml_api_v1_imports_isoxml_post"];
         delete?: never;
@@ -1054,7 +1059,8 @@ export interface paths {
         /**
          * Request Raw Log
          * @description Ask the job's tractor for its full 10 Hz log (a thin-profile job keeps it on board);
-         *     it arrives with the agent's next ``upload-log`` and is then served by GET below.
+         *     it arrives with the agent's next ``upload-log`` and is then served by GET below. It
+         *     makes the tractor upload, so it needs a role that may write (a viewer only reads).
          */
         post: operations["request_raw_log_api_v1_jobs__job_id__raw_log_request_post"];
         delete?: never;
