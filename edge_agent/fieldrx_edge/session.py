@@ -204,6 +204,8 @@ class JobSession:
         if self.thin is not None:
             self.thin.flush()  # the cells of this run's last seconds, before the job can end
         out: dict[str, Any] = {"drained": True}
+        if self.cab is not None:
+            self.cab.uploading()  # the screen says the job is driven, telemetry still going
         if self.sender is not None:
             self._stop.set()
             if self._thread is not None:

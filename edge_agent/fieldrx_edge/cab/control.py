@@ -40,6 +40,11 @@ class Control:
         self.live.state = "ready"
         self.started.wait()
 
+    def uploading(self) -> None:
+        self.live.state = "uploading"
+        with self.live.lock:
+            self.live.changed.notify_all()
+
     def finish(self) -> None:
         """The job ended (path driven, source ended, or Finish): summary on the screen,
         served ``linger_s`` more seconds or until the screen's Close."""

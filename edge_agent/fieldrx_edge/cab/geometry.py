@@ -76,9 +76,12 @@ class JobGeometry:
     def area_of(self, seqs: set[int]) -> float:
         return sum(self.areas[self.index[s]] for s in seqs if s in self.index)
 
-    def guidance(self, rec: dict[str, Any]) -> dict[str, Any] | None:
+    def local(self, rec: dict[str, Any]) -> tuple[float, float]:
+        """The record's position in UTM (the map's local metres are these minus the origin)."""
+        return self.proj.forward(rec["lon"], rec["lat"])
+
+    def guidance(self, rec: dict[str, Any], x: float, y: float) -> dict[str, Any] | None:
         """Cross-track error to the current swath's line and distance to its end."""
-        x, y = self.proj.forward(rec["lon"], rec["lat"])
         cell = rec.get("cell_seq")
         swath = self.job.swath[self.index[cell]] if cell in self.index else None
         if swath is None:
@@ -99,8 +102,7 @@ class JobGeometry:
             "xte_m": xte,
             "steer": "left" if xte > 0.05 else "right" if xte < -0.05 else "on line",
             "to_turn_m": max(0.0, length - along),
-            "x": x - self.ox,
-            "y": y - self.oy,
+            "turn_at": [x1 - self.ox, y1 - self.oy],
         }
 
     def _nearest_swath(self, x: float, y: float) -> int | None:

@@ -255,8 +255,10 @@ class LiveState:
             left = max(0.0, self.tank_kg - applied_kg)
             per_m = applied_kg / self.progress.distance_m if self.progress.distance_m > 0 else 0
             out["product"].update(left_kg=left, lasts_m=left / per_m if per_m > 0 else None)
-        if rec.get("lon") is not None:
-            out["guidance"] = geo.guidance(rec)
+        if rec.get("lon") is not None and rec.get("lat") is not None:
+            x, y = geo.local(rec)
+            out["pos"] = [x - geo.ox, y - geo.oy]
+            out["guidance"] = geo.guidance(rec, x, y)
         if window:
             total = sum(s for s, _ in window)
             good = sum(s for s, ok in window if ok)

@@ -120,9 +120,10 @@ class CabServer:
         live = self.live
         since = 0
         last_n = -1
-        while not self.closing.is_set():
+        while True:
+            closing = self.closing.is_set()  # the last state (finished) still goes out
             with live.lock:
-                if live.n == last_n:
+                if live.n == last_n and not closing:
                     live.changed.wait(1.0 / PUSH_HZ)
             snap = live.snapshot(since)
             since += len(snap["new_cells"])
@@ -132,6 +133,8 @@ class CabServer:
                 h.wfile.flush()
             except OSError:
                 return  # the screen went away
+            if closing:
+                return
             time.sleep(MIN_GAP_S)
 
 
