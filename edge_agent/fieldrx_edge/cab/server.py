@@ -185,6 +185,8 @@ def _handler(cab: CabServer) -> type[BaseHTTPRequestHandler]:
                 self._json(200, cab.live.snapshot(int((q.get("since") or ["0"])[0])))
             elif path == "/api/jobs":
                 self._json(200, cab.control.jobs())
+            elif path == "/favicon.ico":
+                self._send(204, b"", "image/x-icon")
             else:
                 self._static(path)
 
