@@ -91,7 +91,7 @@ async function screenMatchesRecord(page) {
 }
 
 async function alarmWithinOneSecond(page, name) {
-  await page.waitForFunction((n) => window.cab.alarmShown[n], name, { timeout: 60_000 });
+  await page.waitForFunction((n) => window.cab.alarmShown[n], name, { timeout: 180_000 });
   const a = await page.evaluate((n) => window.cab.alarmShown[n], name);
   assert.ok(a.shown - a.first < 1.0, `${name} on screen ${(a.shown - a.first).toFixed(3)} s after the agent raised it`);
   assert.ok(await page.isVisible('[data-testid=cab-alarm]'));
@@ -157,7 +157,7 @@ describe('cab display', { skip: SKIP }, () => {
     await px.open();
     await px.cut();
     const agent = await startAgent([file, '--server', `http://127.0.0.1:${px.port}`, '--token', device,
-      '--realtime', '5', '--cab-backlog-alarm', '40', '--drain-timeout', '120']);
+      '--realtime', '5', '--cab-backlog-alarm', '1500', '--drain-timeout', '120']);
     await page.goto(agent.url);
     await page.evaluate(() => {
       window.cab.uplinkSeen = new Set();
@@ -232,9 +232,9 @@ describe('cab display', { skip: SKIP }, () => {
 
   it('shows an NDVI job: raw and filtered NDVI, the rate-curve point, the sensor alarm', async () => {
     const { job, file, device } = await kindJob('ndvi_topdress', 3.6, SEED000_TABLE);
-    const agent = await startAgent([file, '--server', BASE_URL, '--token', device, '--realtime', '5', '--sensor-fault', '20', '24']);
+    const agent = await startAgent([file, '--server', BASE_URL, '--token', device, '--realtime', '5', '--sensor-fault', '60', '64']);
     await page.goto(agent.url);
-    await page.waitForFunction(() => window.cab.s && window.cab.s.rec.ndvi !== undefined && window.cab.s.rec.ndvi !== null, null, { timeout: 120_000 });
+    await page.waitForFunction(() => window.cab.s && window.cab.s.rec.ndvi !== undefined && window.cab.s.rec.ndvi !== null && window.cab.s.rec.cell_seq !== null && window.cab.painted.size > 3, null, { timeout: 120_000 });
     const ok = await page.evaluate(() => {
       const r = window.cab.s.rec;
       const t = document.querySelector('[data-testid=cab-ndvi]').textContent;
@@ -256,7 +256,8 @@ describe('cab display', { skip: SKIP }, () => {
     const { file, device } = await kindJob('seeding_depth', 2.3, CAL);
     const agent = await startAgent([file, '--server', BASE_URL, '--token', device, '--realtime', '5']);
     await page.goto(agent.url);
-    await page.waitForFunction(() => window.cab.s && window.cab.s.depth && window.cab.s.rec.depth_mm !== null, null, { timeout: 120_000 });
+    await page.waitForFunction(() => window.cab.s && window.cab.s.depth && window.cab.s.rec.depth_mm !== null && window.cab.s.rec.cell_seq !== null && window.cab.painted.size > 3, null, { timeout: 120_000 });
+    assert.ok(await page.isVisible('[data-testid=cab-qualified]'), 'the depth panel in view (rate tiles hidden)');
     const t = await page.textContent('[data-testid=cab-depth]');
     assert.match(t, /^\d+\.\d \/ 30$/);
     assert.match(await page.textContent('[data-testid=cab-qualified]'), /^\d+\.\d %$/);

@@ -95,6 +95,8 @@ def test_operator_actions_reach_the_meter_and_every_record(tmp_path: Path) -> No
         assert _control(cab, {"action": "override", "steps": -8}).status_code == 200
         assert s.operator.override_pct == 10.0
         assert _control(cab, {"action": "nonsense"}).status_code == 400
+        bad = _control(cab, {"action": "pull"})  # an offline tractor has no server to ask
+        assert bad.status_code == 400 and "no server configured" in bad.json()["error"]
         recs: list[dict[str, Any]] = []
         s.observers.append(recs.append)
         job = s.job

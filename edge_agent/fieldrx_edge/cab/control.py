@@ -108,6 +108,8 @@ class Control:
             op.toggle_section(_int(body, "section", 0, 63))
         elif action == "ack":
             return {"acknowledged": self.live.acknowledge(), "operator": op.to_dict()}
+        elif action == "pull":
+            return {"pulled": self.pull()}
         elif action == "tank":
             kg = body.get("kg")
             if not isinstance(kg, int | float) or isinstance(kg, bool) or not 0 < kg <= 100_000:
@@ -116,11 +118,20 @@ class Control:
         else:
             raise ControlError(
                 f"unknown action {action!r}: start, pause, resume, finish, close, override,"
-                " section, ack, tank"
+                " section, ack, tank, pull"
             )
         with self.live.lock:
             self.live.changed.notify_all()
         return {"ok": True, "operator": op.to_dict(), "state": self.live.state, "t": time.time()}
+
+    def pull(self) -> dict[str, Any]:
+        """New jobs from the server into the state dir (``jobs.pull``), when online."""
+        from fieldrx_edge.jobs import pull
+
+        o = self.session.opts
+        if self.store is None or not (o.server and o.token) or o.offline:
+            raise ControlError("pull: no server configured for this tractor (pull --server)")
+        return dict(pull(self.store, o.server, o.token))
 
 
 def _int(body: dict[str, Any], key: str, lo: int, hi: int) -> int:

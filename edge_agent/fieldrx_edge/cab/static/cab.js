@@ -45,6 +45,8 @@ async function loadJob() {
     for (let k = 2; k < r.length; k += 2) cab.boundary.lineTo(r[k], r[k + 1]);
     cab.boundary.closePath();
   }
+  // a seeding job meters nothing: its depth figures take the rate tiles' place
+  document.body.classList.toggle('no-rate', job.kind === 'seeding_depth');
   $('job').textContent = `Job ${job.job_id} · ${job.field} · ${job.product || job.kind}`;
   $('legend').textContent = job.kind === 'prescription_map' ? `${fmt(cab.rmin, 0)}-${fmt(cab.rmax, 0)} kg/ha · blue: applied` : `${job.kind} · blue: worked`;
   const n = job.kind === 'prescription_map' ? (cab.s?.operator?.sections || 1) : 0;
@@ -219,7 +221,9 @@ function show(s) {
   alarms(s.alarms);
   kindPanel(s);
   if (s.summary && $('summary').hidden && !cab.summaryClosed) {
-    $('sumlist').innerHTML = Object.entries(s.summary).map(([k, v]) => `<dt>${k.replaceAll('_', ' ')}</dt><dd>${typeof v === 'number' ? fmt(v, 3) : JSON.stringify(v)}</dd>`).join('');
+    const show1 = (v) => (typeof v === 'number' ? (Number.isInteger(v) ? String(v) : fmt(v, 3))
+      : Array.isArray(v) ? (v.join(', ') || 'none') : v && typeof v === 'object' ? `${v.state}, ${v.backlog} queued` : String(v));
+    $('sumlist').innerHTML = Object.entries(s.summary).map(([k, v]) => `<dt>${k.replaceAll('_', ' ')}</dt><dd>${show1(v)}</dd>`).join('');
     $('summary').hidden = false;
   }
   requestAnimationFrame(draw);
@@ -241,6 +245,7 @@ function wire() {
   $('ack').onclick = () => control({ action: 'ack' });
   $('close').onclick = () => { cab.summaryClosed = true; $('summary').hidden = true; control({ action: 'close' }); };
   $('jobsbtn').onclick = showJobs;
+  $('pull').onclick = async () => { const r = await control({ action: 'pull' }); if (r.pulled) { $('msg').textContent = `pulled ${JSON.stringify(r.pulled)}`; showJobs(); } };
   $('jobsclose').onclick = () => { $('jobs').hidden = true; };
   $('orient').onclick = () => { cab.headingUp = !cab.headingUp; $('orient').textContent = cab.headingUp ? 'Heading up' : 'North up'; requestAnimationFrame(draw); };
   $('theme').onclick = () => { const n = document.body.classList.toggle('night'); document.body.classList.toggle('day', !n); $('theme').textContent = n ? 'Day' : 'Night'; requestAnimationFrame(draw); };
