@@ -174,3 +174,57 @@ def test_bad_bind_is_refused_clearly(tmp_path: Path, spec: str) -> None:
     s = JobSession(job, UplinkOptions(offline=True), tmp_path / "queue.sqlite")
     with pytest.raises(SystemExit, match="--cab"):
         attach_cab(_args(cab=spec), s, None)
+
+
+def test_run_with_the_cab_override_reaches_the_motor_and_finish_stops_the_loop(
+    tmp_path: Path,
+) -> None:
+    """``run --cab``: the same loop as without it; the operator stands between the runtime
+    and the motor (a +20 % override raises the shaft target it gets) and Finish ends it."""
+    import subprocess
+    import sys
+    import time
+
+    from fieldrx_edge.sim.drive import write_nmea_log
+
+    job = load_job("demo:35x23")
+    pkg = tmp_path / "job.json"
+    pkg.write_bytes(job.to_json())
+    log = tmp_path / "drive.nmea"
+    write_nmea_log(job, log, SimConfig(seed=5), max_s=300.0)
+    p = subprocess.Popen(
+        [sys.executable, "-m", "fieldrx_edge.cli", "run", str(pkg), "--state-dir",
+         str(tmp_path / "state"), "--source", f"file:{log}", "--replay-speed", "2",
+         "--offline", "--cab", "0"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    try:
+        assert p.stderr is not None
+        port = json.loads(p.stderr.readline())["port"]
+        base = f"http://127.0.0.1:{port}"
+        deadline = time.monotonic() + 120
+        snap: dict[str, Any] = {}
+        while time.monotonic() < deadline:  # the loop meters before the operator acts
+            snap = httpx.get(base + "/api/state", timeout=10).json()
+            if (snap["rec"].get("target_shaft_rpm") or 0) > 0:
+                break
+            time.sleep(0.2)
+        assert (snap["rec"].get("target_shaft_rpm") or 0) > 0, "never metered"
+        httpx.post(base + "/api/control", json={"action": "override", "steps": 4}, timeout=10)
+        raised = None  # the motor follows target x 1.2 (or the meter's limit, said so)
+        while time.monotonic() < deadline and raised is None:
+            st = httpx.get(base + "/api/state", timeout=10).json()
+            rec = st["rec"]
+            tr, ar = rec["target_shaft_rpm"] or 0.0, rec["actual_shaft_rpm"] or 0.0
+            if "operator_rate_override" in rec["alarms"] and tr > 0:
+                if ar > 1.12 * tr or st["operator"]["limited"]:
+                    raised = rec
+            time.sleep(0.1)
+        assert raised is not None
+        httpx.post(base + "/api/control", json={"action": "finish"}, timeout=10)
+        out, _ = p.communicate(timeout=120)
+    finally:
+        p.kill()
+    res = json.loads(out.strip().splitlines()[-1])
+    assert p.returncode == 0
+    assert 0 < res["finished_cells"] < job.n_cells  # stopped by Finish, not at the end

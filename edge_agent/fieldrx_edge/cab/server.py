@@ -138,81 +138,89 @@ class CabServer:
             time.sleep(MIN_GAP_S)
 
 
-def _handler(cab: CabServer) -> type[BaseHTTPRequestHandler]:
-    class Handler(BaseHTTPRequestHandler):
-        protocol_version = "HTTP/1.1"
+class CabHandler(BaseHTTPRequestHandler):
+    """One request of the screen; ``cab`` is set on the subclass each server makes."""
 
-        def log_message(self, format: str, *args: Any) -> None:  # noqa: A002
-            log.debug("cab: " + format, *args)
+    protocol_version = "HTTP/1.1"
+    cab: CabServer
 
-        def _send(self, code: int, body: bytes, ctype: str = "application/json") -> None:
-            self.send_response(code)
-            self.send_header("Content-Type", ctype)
+    def log_message(self, format: str, *args: Any) -> None:  # noqa: A002
+        log.debug("cab: " + format, *args)
+
+    def _send(self, code: int, body: bytes, ctype: str = "application/json") -> None:
+        self.send_response(code)
+        self.send_header("Content-Type", ctype)
+        self.send_header("Content-Length", str(len(body)))
+        self.send_header("Cache-Control", "no-store")
+        if self.cab.token:
+            self.send_header("Set-Cookie", f"cab_token={self.cab.token}; HttpOnly; SameSite=Strict")
+        self.end_headers()
+        self.wfile.write(body)
+
+    def _json(self, code: int, obj: Any) -> None:
+        self._send(code, json.dumps(obj).encode())
+
+    def _gate(self) -> tuple[str, dict[str, list[str]]] | None:
+        u = urlparse(self.path)
+        q = parse_qs(u.query)
+        if not self.cab.authorised(self, q):
+            self.send_response(401)
+            body = b"pairing token required: open the address the agent printed (.../?token=...)\n"
+            self.send_header("Content-Type", "text/plain")
             self.send_header("Content-Length", str(len(body)))
-            self.send_header("Cache-Control", "no-store")
-            if cab.token:
-                self.send_header("Set-Cookie", f"cab_token={cab.token}; HttpOnly; SameSite=Strict")
             self.end_headers()
             self.wfile.write(body)
+            return None
+        return u.path, q
 
-        def _json(self, code: int, obj: Any) -> None:
-            self._send(code, json.dumps(obj).encode())
-
-        def _gate(self) -> tuple[str, dict[str, list[str]]] | None:
-            u = urlparse(self.path)
-            q = parse_qs(u.query)
-            if not cab.authorised(self, q):
-                self.send_response(401)
-                body = b"pairing token required (scan the code on the cab PC, or ?token=...)\n"
-                self.send_header("Content-Type", "text/plain")
-                self.send_header("Content-Length", str(len(body)))
-                self.end_headers()
-                self.wfile.write(body)
-                return None
-            return u.path, q
-
-        def do_GET(self) -> None:  # noqa: N802 (the standard library's name)
-            g = self._gate()
-            if g is None:
+    def do_GET(self) -> None:  # noqa: N802 (the standard library's name)
+        g = self._gate()
+        if g is None:
+            return
+        path, q = g
+        if path == "/events":
+            self.cab.events(self)
+            return
+        if path == "/api/job":
+            self._send(200, self.cab.geometry)
+        elif path == "/api/state":
+            since = (q.get("since") or ["0"])[0]
+            if not since.isdigit():
+                self._json(400, {"error": f"since must be a cell count >= 0, got {since!r}"})
                 return
-            path, q = g
-            if path == "/events":
-                cab.events(self)
-                return
-            if path == "/api/job":
-                self._send(200, cab.geometry)
-            elif path == "/api/state":
-                self._json(200, cab.live.snapshot(int((q.get("since") or ["0"])[0])))
-            elif path == "/api/jobs":
-                self._json(200, cab.control.jobs())
-            elif path == "/favicon.ico":
-                self._send(204, b"", "image/x-icon")
-            else:
-                self._static(path)
+            self._json(200, self.cab.live.snapshot(int(since)))
+        elif path == "/api/jobs":
+            self._json(200, self.cab.control.jobs())
+        elif path == "/favicon.ico":
+            self._send(204, b"", "image/x-icon")
+        else:
+            self._static(path)
 
-        def _static(self, path: str) -> None:
-            name = "index.html" if path in ("/", "/index.html") else path.removeprefix("/static/")
-            f = (STATIC / name).resolve()
-            if f.parent != STATIC.resolve() or not f.is_file():
-                self._json(404, {"error": f"no such page {path!r}"})
-                return
-            self._send(200, f.read_bytes(), TYPES.get(f.suffix, "application/octet-stream"))
+    def _static(self, path: str) -> None:
+        name = "index.html" if path in ("/", "/index.html") else path.removeprefix("/static/")
+        f = (STATIC / name).resolve()
+        if f.parent != STATIC.resolve() or not f.is_file():
+            self._json(404, {"error": f"no such page {path!r}"})
+            return
+        self._send(200, f.read_bytes(), TYPES.get(f.suffix, "application/octet-stream"))
 
-        def do_POST(self) -> None:  # noqa: N802
-            g = self._gate()
-            if g is None:
-                return
-            path, _ = g
-            n = int(self.headers.get("Content-Length") or 0)
-            try:
-                body = json.loads(self.rfile.read(n) or b"{}") if n <= 65536 else None
-                if not isinstance(body, dict) or path != "/api/control":
-                    raise ControlError(f"POST {path}: expected /api/control with a JSON object")
-                self._json(200, cab.control.act(body))
-            except (ControlError, ValueError) as e:
-                self._json(400, {"error": str(e)})
+    def do_POST(self) -> None:  # noqa: N802
+        g = self._gate()
+        if g is None:
+            return
+        path, _ = g
+        n = int(self.headers.get("Content-Length") or 0)
+        try:
+            body = json.loads(self.rfile.read(n) or b"{}") if n <= 65536 else None
+            if not isinstance(body, dict) or path != "/api/control":
+                raise ControlError(f"POST {path}: expected /api/control with a JSON object")
+            self._json(200, self.cab.control.act(body))
+        except (ControlError, ValueError) as e:
+            self._json(400, {"error": str(e)})
 
-    return Handler
+
+def _handler(cab: CabServer) -> type[BaseHTTPRequestHandler]:
+    return type("Handler", (CabHandler,), {"cab": cab})
 
 
 def attach_cab(a: Any, session: Any, store: Any) -> CabServer | None:

@@ -86,6 +86,21 @@ def _runtime_config(a: argparse.Namespace, settings: Any, period: float) -> Any:
     )
 
 
+def _feed(agent: Any, lines: Any, session: JobSession, state: dict[str, int], save: Any) -> None:
+    """GNSS lines into the runtime until the source ends or the cab's Finish; a replayed
+    file resumes after the ``state["lines"]`` a killed run got through."""
+    done = state["lines"]
+    for i, line in enumerate(lines):
+        if i < done:
+            continue  # a replayed file resumes where the killed run stopped
+        if session.finish_requested.is_set():
+            break
+        agent.handle_line(line)
+        state["lines"] = i + 1
+        if state["lines"] % 50 == 0:
+            save()
+
+
 def cmd_run(a: argparse.Namespace) -> int:
     from fieldrx_edge.gnss.sources import open_source
     from fieldrx_edge.runtime import Agent
@@ -131,15 +146,7 @@ def cmd_run(a: argparse.Namespace) -> int:
     speed = a.replay_speed if a.replay_speed > 0 else None
     t0 = time.monotonic()
     try:
-        for i, line in enumerate(open_source(a.source, speed)):
-            if i < lines_done:
-                continue  # a replayed file resumes where the killed run stopped
-            if session.finish_requested.is_set():
-                break
-            agent.handle_line(line)
-            state["lines"] = i + 1
-            if state["lines"] % 50 == 0:
-                save_progress()
+        _feed(agent, open_source(a.source, speed), session, state, save_progress)
     except KeyboardInterrupt:
         pass
     finally:
