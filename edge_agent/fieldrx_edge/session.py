@@ -28,6 +28,11 @@ log = logging.getLogger(__name__)
 Observer = Callable[[dict[str, Any]], None]
 
 
+class JobFinished(Exception):
+    """Raised into a simulated drive's loop (through its sink) when the operator pressed
+    Finish: the drive stops where it is; what was queued is still sent."""
+
+
 @dataclass
 class UplinkOptions:
     """Where telemetry goes: HTTP (``server`` + ``token``), MQTT (``mqtt`` HOST:PORT), or
@@ -161,6 +166,8 @@ class JobSession:
         return int(self.sink.put(record) or 0)
 
     def put_many(self, records: list[dict[str, Any]]) -> Any:
+        if self.finish_requested.is_set():
+            raise JobFinished()
         for rec in records:
             for ob in self.observers:
                 ob(rec)

@@ -228,3 +228,35 @@ def test_run_with_the_cab_override_reaches_the_motor_and_finish_stops_the_loop(
     res = json.loads(out.strip().splitlines()[-1])
     assert p.returncode == 0
     assert 0 < res["finished_cells"] < job.n_cells  # stopped by Finish, not at the end
+
+
+@pytest.mark.parametrize("spec", ["demo:35x23", "seeding"])
+def test_finish_ends_a_simulated_drive_where_it_is(tmp_path: Path, spec: str) -> None:
+    import subprocess
+    import sys
+    import time
+
+    if spec == "seeding":
+        from tests.edge.test_jobkinds import kind_job
+
+        job_file = tmp_path / "job.json"
+        job_file.write_bytes(kind_job("seeding_depth").to_json())
+        spec = str(job_file)
+    p = subprocess.Popen(
+        [sys.executable, "-m", "fieldrx_edge.cli", "simulate", spec, "--realtime", "5",
+         "--cab", "0", "--json"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    try:
+        assert p.stderr is not None
+        base = f"http://127.0.0.1:{json.loads(p.stderr.readline())['port']}"
+        deadline = time.monotonic() + 120
+        while httpx.get(base + "/api/state", timeout=10).json()["n"] < 20:
+            assert time.monotonic() < deadline, "no records"
+            time.sleep(0.2)
+        httpx.post(base + "/api/control", json={"action": "finish"}, timeout=10)
+        out, _ = p.communicate(timeout=120)
+    finally:
+        p.kill()
+    res = json.loads(out.strip().splitlines()[-1])
+    assert p.returncode == 0 and res["finished_early"] is True and res["records"] >= 20

@@ -11,7 +11,7 @@ from typing import Any
 
 from fieldrx_edge.jobs import JobStore
 from fieldrx_edge.protocol import JobPackage
-from fieldrx_edge.session import JobSession, UplinkOptions, load_job
+from fieldrx_edge.session import JobFinished, JobSession, UplinkOptions, load_job
 
 
 def sim_session(a: argparse.Namespace, job: JobPackage, profile: str = "full") -> JobSession:
@@ -38,6 +38,25 @@ def session_report(session: JobSession, out: dict[str, Any]) -> None:
         out["telemetry"] = up["queue"]
         out["uplink"] = up["uplink"]
         out["job_state_reported"] = up.get("job_state_reported", False)
+
+
+def finished_early(a: argparse.Namespace, session: JobSession, pair: Any = None) -> int:
+    """The operator pressed Finish before the path's end: the job is not completed (it is
+    left running on the server); what was queued is sent, and the figures say so."""
+    if pair is not None:
+        pair.close()
+    up = session.close(completed=False)
+    out = {
+        "job_id": session.job.job_id if session.job else None,
+        "finished_early": True,
+        "records": session.records,
+        "telemetry_drained": up["drained"],
+        "telemetry": up["queue"],
+    }
+    print(json.dumps(out), flush=True)
+    if session.cab is not None:
+        session.cab.finish()
+    return 0
 
 
 def cmd_simulate(a: argparse.Namespace) -> int:
@@ -75,7 +94,10 @@ def cmd_simulate(a: argparse.Namespace) -> int:
         cfg = dataclasses.replace(cfg, implement=operator)
     session.start(report=True)
     sink = session.put_many if (a.server or operator is not None) else None
-    res = simulate(job, cfg, sink=sink)
+    try:
+        res = simulate(job, cfg, sink=sink)
+    except JobFinished:
+        return finished_early(a, session, pair)
     if session.thin is not None:
         session.thin.flush()
     res_u = None

@@ -31,9 +31,10 @@ from fieldrx_edge.protocol import JobPackage
 
 
 def simulate_kind(a: argparse.Namespace, job: JobPackage) -> int:
-    from fieldrx_edge.commands.simulate import session_report, sim_session
+    from fieldrx_edge.commands.simulate import finished_early, session_report, sim_session
     from fieldrx_edge.jobkinds.seeding import simulate_seeding
     from fieldrx_edge.jobkinds.topdress import simulate_topdress
+    from fieldrx_edge.session import JobFinished
 
     session = sim_session(a, job)
     sink = session.put_many if (a.server or session.cab is not None) else None
@@ -44,14 +45,13 @@ def simulate_kind(a: argparse.Namespace, job: JobPackage) -> int:
 
         ctl = validate_settings(job.kind, {"controller": {"name": a.controller}})["controller"]
     fault = tuple(a.sensor_fault) if getattr(a, "sensor_fault", None) else None
-    if job.kind == "ndvi_topdress":
-        out = simulate_topdress(
+    drive = simulate_topdress if job.kind == "ndvi_topdress" else simulate_seeding
+    try:
+        out = drive(
             job, seed=a.seed, sink=sink, controller=ctl, fault_at_s=fault, realtime=a.realtime
         )
-    else:
-        out = simulate_seeding(
-            job, seed=a.seed, sink=sink, controller=ctl, fault_at_s=fault, realtime=a.realtime
-        )
+    except JobFinished:
+        return finished_early(a, session)
     session_report(session, out)
     print(json.dumps(out), flush=True)
     if session.cab is not None:
