@@ -14,7 +14,12 @@ import { ARTIFACTS, BASE_URL, ROOT, api, apiLogin, launch, serverUp, sleep } fro
 const up = await serverUp();
 const EDGE = join(ROOT, '.venv', 'bin', 'fieldrx-edge');
 const SKIP = !up ? `no server at ${BASE_URL}` : !existsSync(EDGE) ? 'no fieldrx-edge' : false;
-const SCREENS = join(ROOT, 'docs', 'screens');
+// the reviewed set is committed in docs/screens (refresh: FIELDRX_SCREENS_DIR=docs/screens
+// scripts/e2e.sh tests/e2e/cab.test.mjs, look at every image, commit); a plain run leaves
+// the checkout clean, as layout.test.mjs does
+const SCREENS = process.env.FIELDRX_SCREENS_DIR
+  ? join(ROOT, process.env.FIELDRX_SCREENS_DIR)
+  : join(ARTIFACTS, 'screens');
 
 const PLOT = {
   type: 'Polygon',
