@@ -260,3 +260,22 @@ def test_finish_ends_a_simulated_drive_where_it_is(tmp_path: Path, spec: str) ->
         p.kill()
     res = json.loads(out.strip().splitlines()[-1])
     assert p.returncode == 0 and res["finished_early"] is True and res["records"] >= 20
+
+
+def test_a_sensor_job_refuses_the_hand_it_cannot_apply(tmp_path: Path) -> None:
+    """The sensor kinds' loops have no operator hook: pause or an override is refused with
+    the reason, never recorded as if the meter had followed it."""
+    from tests.edge.test_jobkinds import kind_job
+
+    job = kind_job("ndvi_topdress")
+    s = JobSession(job, UplinkOptions(offline=True), tmp_path / "queue.sqlite")
+    cab = attach_cab(_args(), s, None)
+    assert cab is not None
+    try:
+        for body in ({"action": "pause"}, {"action": "override", "steps": 1}):
+            r = _control(cab, body)
+            assert r.status_code == 400 and "not available on a ndvi_topdress job" in r.text
+        assert s.operator.to_dict()["paused"] is False and s.operator.override_pct == 0.0
+        assert _control(cab, {"action": "ack"}).status_code == 200
+    finally:
+        cab.close()

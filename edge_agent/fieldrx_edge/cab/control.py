@@ -11,6 +11,8 @@ from typing import Any
 from fieldrx_edge.cab.live import LiveState
 from fieldrx_edge.cab.operator import OperatedMotor, Operator
 
+HAND_ACTIONS = ("pause", "resume", "override", "section")
+
 
 class ControlError(ValueError):
     """A button or value the session cannot take; the screen shows the message."""
@@ -89,6 +91,11 @@ class Control:
     def act(self, body: dict[str, Any]) -> dict[str, Any]:
         action = body.get("action")
         op = self.operator
+        kind = self.session.job.kind
+        if action in HAND_ACTIONS and kind != "prescription_map":
+            # the sensor kinds' loops take no operator hand yet: a tag on their records
+            # would claim an override the meter never made
+            raise ControlError(f"{action}: not available on a {kind} job")
         if action == "start":
             self.started.set()
             self.live.state = "running"

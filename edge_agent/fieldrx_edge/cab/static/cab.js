@@ -47,6 +47,8 @@ async function loadJob() {
   }
   // a seeding job meters nothing: its depth figures take the rate tiles' place
   document.body.classList.toggle('no-rate', job.kind === 'seeding_depth');
+  // the sensor kinds' loops take no operator hand (pause, override, sections) yet
+  document.body.classList.toggle('no-hand', job.kind !== 'prescription_map');
   $('job').textContent = `Job ${job.job_id} · ${job.field} · ${job.product || job.kind}`;
   $('legend').textContent = job.kind === 'prescription_map' ? `${fmt(cab.rmin, 0)}-${fmt(cab.rmax, 0)} kg/ha · blue: applied` : `${job.kind} · blue: worked`;
   const n = job.kind === 'prescription_map' ? (cab.s?.operator?.sections || 1) : 0;
