@@ -11,6 +11,10 @@
     fieldrx-edge simulate demo:35x23 --implement isobus      (TC -> virtual CAN -> rate ECU)
     fieldrx-edge replay-nmea LOG [--json]
     fieldrx-edge ndvi file:ndvi.csv [--gnss SRC | --speed-kmh 6] [--machine-id N] [--json]
+    fieldrx-edge run JOB_ID --source ... --cab 8088      (the cab display, fieldrx_edge.cab)
+
+Argument parsing only: each command is in ``fieldrx_edge.commands``, and every command
+that works a job drives one ``fieldrx_edge.session.JobSession``.
 
 State (cached jobs, progress, telemetry queue) lives in --state-dir, default
 $FIELDRX_EDGE_HOME or ~/.fieldrx-edge. After ``pull`` the agent needs no network.
