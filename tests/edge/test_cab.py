@@ -191,7 +191,7 @@ def test_run_with_the_cab_override_reaches_the_motor_and_finish_stops_the_loop(
     pkg = tmp_path / "job.json"
     pkg.write_bytes(job.to_json())
     log = tmp_path / "drive.nmea"
-    write_nmea_log(job, log, SimConfig(seed=5), max_s=300.0)
+    n_fix = write_nmea_log(job, log, SimConfig(seed=5), max_s=300.0)
     p = subprocess.Popen(
         [sys.executable, "-m", "fieldrx_edge.cli", "run", str(pkg), "--state-dir",
          str(tmp_path / "state"), "--source", f"file:{log}", "--replay-speed", "2",
@@ -227,7 +227,8 @@ def test_run_with_the_cab_override_reaches_the_motor_and_finish_stops_the_loop(
         p.kill()
     res = json.loads(out.strip().splitlines()[-1])
     assert p.returncode == 0
-    assert 0 < res["finished_cells"] < job.n_cells  # stopped by Finish, not at the end
+    # stopped by Finish, not at the log's end
+    assert res["records"] < n_fix and res["finished_cells"] < job.n_cells
 
 
 @pytest.mark.parametrize("spec", ["demo:35x23", "seeding"])
