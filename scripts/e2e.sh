@@ -34,4 +34,5 @@ cleanup() {
 }
 trap cleanup EXIT
 for _ in $(seq 1 60); do curl -sf "$FIELDRX_URL/api/v1/health" >/dev/null && break; sleep 0.5; done
-node --test --test-concurrency=1 tests/e2e/
+# the spec files given (default: all of them)
+node --test --test-concurrency=1 "${@:-tests/e2e/}"

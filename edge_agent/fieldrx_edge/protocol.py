@@ -311,6 +311,14 @@ ALARMS = (
     "invalid_value",  # the agent nulled or clamped a field that broke the protocol (sanitize)
     "sensor_fault",  # crop / depth sensor reading rejected (format, checksum, range): holding
     "sensor_lost",  # no good sensor reading for longer than the hold time: output stopped
+    # raised by the cab display (fieldrx_edge.cab) over the records it sees
+    "gnss_degraded",  # a fix, but its HDOP beyond the cab's limit
+    "uplink_backlog_high",  # more records queued on the tractor than the cab's limit
+    # the operator's hand (fieldrx_edge.cab.operator), on every record while in force
+    "operator_pause",  # metering paused by the operator
+    "operator_rate_override",  # the shaft follows the prescription +- the operator's percent
+    "operator_section_off",  # a section switched off by hand
+    "alarm_ack",  # the operator acknowledged the alarms this record also names
 )
 
 

@@ -8,6 +8,7 @@ import threading
 
 import pytest
 from fieldrx_edge import cli
+from fieldrx_edge.commands import run as run_cmd
 from fieldrx_edge.sim.drive import write_nmea_log
 from fieldrx_edge.sim.simulator import SimConfig
 
@@ -115,13 +116,14 @@ def test_the_product_density_and_rate_unit_travel_in_the_job_package(tmp_path):
     assert b"rate_unit" not in plain  # defaults stay out: older packages keep their checksum
     uan = dataclasses.replace(job, product_density_kg_l=1.28, checksum="").seal()
     back = JobPackage.from_json(uan.to_json())
-    units = cli.job_rate_units(back)
+    units = run_cmd.job_rate_units(back)
     assert units.unit == "kg/ha" and units.density_kg_l == 1.28
     with pytest.raises(SystemExit, match="contradicts"):
-        cli.job_rate_units(back, 1.0)
+        run_cmd.job_rate_units(back, 1.0)
     lha = dataclasses.replace(job, rate_unit="l/ha", checksum="").seal()
-    assert cli.job_rate_units(JobPackage.from_json(lha.to_json())).unit == "l/ha"
-    assert cli.job_rate_units(job, 1.1).density_kg_l == 1.1  # an old package: --density fills in
+    assert run_cmd.job_rate_units(JobPackage.from_json(lha.to_json())).unit == "l/ha"
+    # an old package: --density fills in
+    assert run_cmd.job_rate_units(job, 1.1).density_kg_l == 1.1
     from fieldrx_edge.protocol import ProtocolError
 
     with pytest.raises(ProtocolError, match="rate_unit"):

@@ -11,10 +11,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 from fieldrx_edge.asapplied import records_applied
-from fieldrx_edge.cli import _load_job
 from fieldrx_edge.gnss.utm import UtmProjection
 from fieldrx_edge.metering import calibration_from_dict
 from fieldrx_edge.protocol import CellRecord, ProtocolError
+from fieldrx_edge.session import load_job
 from fieldrx_edge.sim.simulator import SimConfig, simulate
 from fieldrx_edge.uplink import TelemetryQueue
 from fieldrx_edge.uplink.thin import CellAccumulator, ThinUplink, pack_raw_log
@@ -22,7 +22,7 @@ from fieldrx_edge.uplink.thin import CellAccumulator, ThinUplink, pack_raw_log
 
 @pytest.fixture(scope="module")
 def drive() -> tuple:
-    job = _load_job("demo:35x23")
+    job = load_job("demo:35x23")
     recs: list[dict] = []
     simulate(job, SimConfig(seed=2), sink=lambda b: recs.extend(dict(r) for r in b))
     return job, recs

@@ -169,3 +169,38 @@ def test_job_tiles_show_the_reports_accuracy_for_every_cell(client, org, driven)
     r = client.get(f"/api/v1/tiles/jobs/{driven.job_id}/{z}/{x}/{y}.mvt", headers=h)
     f3 = next(f for f in decode(r.content)["cells"]["features"] if f["properties"]["seq"] == 3)
     assert f3["properties"]["accuracy"] == approx(c3["accuracy_pct"])
+
+
+def test_report_shows_where_and_how_long_the_operator_overrode(client, org) -> None:  # noqa: ANN001
+    """The cab tags each record written under an override; the report sums their fix
+    periods per action, says where the first and last were, and lists each alarm
+    acknowledgement with the alarms it acknowledged (not the operator's own tags)."""
+    fx = make_job(org.id, state="running")
+    recs = [record(fx, s, t=T0 + s * 0.1, cell=0, fix_period_s=0.1) for s in range(1, 11)]
+    recs += [
+        record(fx, s, t=T0 + s * 0.1, cell=1, fix_period_s=0.1,
+               alarms=["operator_rate_override"], applied_rate_kg_ha=300.0)
+        for s in range(11, 31)
+    ]  # fmt: skip
+    recs += [
+        record(fx, s, t=T0 + s * 0.1, cell=2, fix_period_s=0.1, alarms=["operator_pause"])
+        for s in range(31, 36)
+    ]
+    recs.append(
+        record(fx, 36, t=T0 + 3.6, cell=2, fix_period_s=0.1,
+               alarms=["alarm_ack", "operator_pause", "uplink_backlog_high"])
+    )  # fmt: skip
+    r = client.post("/api/v1/telemetry", json={"records": recs}, headers=fx.device_headers)
+    assert r.json()["acked_seq"] == 36
+    rep = client.get(f"/api/v1/jobs/{fx.job_id}/report", headers=org.headers("viewer")).json()
+    over = {o["action"]: o for o in rep["operator"]["overrides"]}
+    assert set(over) == {"operator_rate_override", "operator_pause"}
+    assert over["operator_rate_override"]["records"] == 20
+    assert over["operator_rate_override"]["seconds"] == approx(2.0)
+    assert over["operator_pause"]["seconds"] == approx(0.6)
+    c1, c2 = fx.cells[1], fx.cells[2]
+    assert over["operator_rate_override"]["from_lon_lat"] == approx([c1["lon"], c1["lat"]])
+    assert over["operator_pause"]["to_lon_lat"] == approx([c2["lon"], c2["lat"]])
+    acks = rep["operator"]["alarm_acks"]
+    assert len(acks) == 1 and acks[0]["alarms"] == ["uplink_backlog_high"]
+    assert acks[0]["at"].startswith("2026-")

@@ -49,6 +49,7 @@ from sqlalchemy.orm import Session
 
 from fieldrx.db.models import Field, Job, Machine, Plan, Prescription, PrescriptionVersion
 from fieldrx.fleet.cellrecords import job_cell_totals
+from fieldrx.fleet.operator_events import operator_events
 from fieldrx.fleet.partitions import job_window
 from fieldrx.formats.jobpackage import shaped_cells
 from fieldrx.geo.crs import to_utm
@@ -100,6 +101,8 @@ class JobReport:
     not_applied_seqs: list[int] = field(default_factory=list)
     uplink: str = "full"  # the profile the job's figures came from: full | thin (cell records)
     cells: list[CellReport] = field(default_factory=list)
+    # the operator's overrides and alarm acknowledgements (fleet.operator_events)
+    operator: dict[str, Any] = field(default_factory=dict)
 
     def summary(self) -> dict[str, Any]:
         out = {k: v for k, v in self.__dict__.items() if k != "cells"}
@@ -327,6 +330,7 @@ def build_report(
         not_applied_seqs=[int(v) for v in seqs[prescribed & ~done]],
         uplink="thin" if thin else "full",
         cells=out_cells,
+        operator=operator_events(session, job.machine_id, job.id),
     )
 
 

@@ -22,6 +22,7 @@ from sqlalchemy import text
 from sqlalchemy.orm import Session
 
 from fieldrx.db.models import Alert, Job
+from fieldrx.fleet.operator_events import operator_events
 from fieldrx.fleet.partitions import job_window
 
 _ROWS_SQL = text(
@@ -85,6 +86,7 @@ def kind_report(session: Session, job: Job, cells: bool = True) -> dict[str, Any
         "sensor_alarm_records": {
             a: sum(1 for r in rows if a in r["alarms"]) for a in ("sensor_fault", "sensor_lost")
         },
+        "operator": operator_events(session, job.machine_id, job.id),
     }
     lo, hi = (0.0, 0.0)
     if job.kind == "ndvi_topdress":

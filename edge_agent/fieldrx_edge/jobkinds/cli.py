@@ -23,65 +23,39 @@ from __future__ import annotations
 
 import argparse
 import json
-import tempfile
 import threading
 import time
-from pathlib import Path
 from typing import Any
 
 from fieldrx_edge.protocol import JobPackage
 
 
 def simulate_kind(a: argparse.Namespace, job: JobPackage) -> int:
+    from fieldrx_edge.commands.simulate import finished_early, session_report, sim_session
     from fieldrx_edge.jobkinds.seeding import simulate_seeding
     from fieldrx_edge.jobkinds.topdress import simulate_topdress
+    from fieldrx_edge.session import JobFinished
 
-    sink = sender = queue = None
-    if a.server:
-        from fieldrx_edge.jobs import post_state
-        from fieldrx_edge.uplink import HttpSender, TelemetryQueue
-        from fieldrx_edge.uplink.pacing import upload_period
-
-        if not a.token:
-            raise SystemExit("--server needs --token")
-        qdir = Path(a.state_dir) if a.state_dir else Path(tempfile.mkdtemp(prefix="fieldrx-sim-"))
-        queue = TelemetryQueue(qdir / "queue.sqlite", job.machine_id)
-        sender = HttpSender(
-            queue, a.server, a.token,
-            upload_period_s=upload_period("full", getattr(a, "upload_period", None)),
-        )  # fmt: skip
-        sink = queue.put_many
-        post_state(a.server, a.token, job.job_id, "running")
-    stop = threading.Event()
-    th = None
-    if sender is not None:
-        th = threading.Thread(target=sender.run, args=(stop,), daemon=True)
-        th.start()
+    session = sim_session(a, job)
+    sink = session.put_many if (a.server or session.cab is not None) else None
+    session.start(report=True)
     ctl = None
     if a.controller:
         from fieldrx_edge.jobkinds.settings import validate_settings
 
         ctl = validate_settings(job.kind, {"controller": {"name": a.controller}})["controller"]
     fault = tuple(a.sensor_fault) if getattr(a, "sensor_fault", None) else None
-    if job.kind == "ndvi_topdress":
-        out = simulate_topdress(
+    drive = simulate_topdress if job.kind == "ndvi_topdress" else simulate_seeding
+    try:
+        out = drive(
             job, seed=a.seed, sink=sink, controller=ctl, fault_at_s=fault, realtime=a.realtime
         )
-    else:
-        out = simulate_seeding(
-            job, seed=a.seed, sink=sink, controller=ctl, fault_at_s=fault, realtime=a.realtime
-        )
-    stop.set()
-    if th is not None:
-        th.join(timeout=15.0)
-    if sender is not None and queue is not None:
-        from fieldrx_edge.jobs import post_state
-
-        out["telemetry_drained"] = sender.drain(a.drain_timeout)
-        out["telemetry"] = queue.stats()
-        sender.close()
-        out["job_state_reported"] = post_state(a.server, a.token, job.job_id, "completed")
-    print(json.dumps(out))
+    except JobFinished:
+        return finished_early(a, session)
+    session_report(session, out)
+    print(json.dumps(out), flush=True)
+    if session.cab is not None:
+        session.cab.finish()  # the summary on the screen, after the figures are out
     return 0
 
 
@@ -116,26 +90,20 @@ def sensor_lines(source: Any, period_s: float) -> Any:
         yield item
 
 
-def run_kind(a: argparse.Namespace, job: JobPackage, store: Any, make_sender: Any) -> int:
-    """The agent's loop for a sensor kind (see the module doc); ``make_sender(a, store,
-    queue)`` is ``run``'s uplink factory (HTTP / MQTT / none)."""
+def run_kind(a: argparse.Namespace, job: JobPackage, store: Any) -> int:
+    """The agent's loop for a sensor kind (see the module doc), in the job's session."""
+    from fieldrx_edge.commands.run import open_session
     from fieldrx_edge.gnss.sources import open_source
     from fieldrx_edge.jobkinds.sensors import SensorError, parse_ndvi
     from fieldrx_edge.ndvi import GnssSpeed
     from fieldrx_edge.protocol import TelemetryRecord
-    from fieldrx_edge.uplink import TelemetryQueue
 
     if not a.sensor:
         raise SystemExit(f"a {job.kind} job needs --sensor (serial:DEV@BAUD or file:PATH)")
-    queue = TelemetryQueue(store.queue_path(), job.machine_id)
+    queue = open_session(a, job, store, "full")
+    queue.start(report=False)
     gnss = GnssSpeed(open_source(a.source, a.replay_speed or None))
     speed = a.replay_speed if a.replay_speed > 0 else None
-    sender = None
-    if not a.offline:
-        sender = make_sender(a, store, queue)
-    stop = threading.Event()
-    if sender is not None:
-        threading.Thread(target=sender.run, args=(stop,), daemon=True).start()
     n = 0
     errors: dict[str, int] = {}
     from fieldrx_edge.gnss.utm import UtmProjection
@@ -241,11 +209,9 @@ def run_kind(a: argparse.Namespace, job: JobPackage, store: Any, make_sender: An
             queue.put(rec.to_dict())
             n += 1
         errors = dict(dl.guard.errors)
-    drained = True
-    if sender is not None:
-        stop.set()
-        drained = sender.drain(a.drain_timeout)
-        sender.close()
+    drained = queue.close()["drained"]
     print(json.dumps({"job_id": job.job_id, "kind": job.kind, "records": n,
-                      "sensor_errors": errors, "drained": drained}))  # fmt: skip
+                      "sensor_errors": errors, "drained": drained}), flush=True)  # fmt: skip
+    if queue.cab is not None:
+        queue.cab.finish()
     return 0

@@ -56,6 +56,7 @@ class HttpSender:
         self.sent_batches = 0
         self.failures = 0
         self.last_error: str | None = None
+        self.online: bool | None = None  # the last upload's outcome (None: none tried yet)
 
     def close(self) -> None:
         self._client.close()
@@ -87,6 +88,7 @@ class HttpSender:
         except (httpx.HTTPError, ValueError, TypeError, AttributeError, KeyError) as exc:
             return self._failed(exc)
         self.sent_batches += 1
+        self.online = True
         return sum(self._apply(q, ack) for (q, _), ack in zip(pending, parsed, strict=True))
 
     def backlog(self) -> int:
@@ -104,7 +106,12 @@ class HttpSender:
             )
         return resp.json()
 
+    def state(self) -> str:
+        """connecting (nothing tried yet), online (the last upload was acked), unreachable."""
+        return {None: "connecting", True: "online", False: "unreachable"}[self.online]
+
     def _failed(self, exc: Exception) -> None:
+        self.online = False
         self.failures += 1
         self.last_error = str(exc)
         log.info("telemetry upload failed: %s", exc)
@@ -115,6 +122,7 @@ class HttpSender:
         except (httpx.HTTPError, ValueError, TypeError, AttributeError) as exc:
             return self._failed(exc)
         self.sent_batches += 1
+        self.online = True
         return self._apply(queue, ack)
 
     def _apply(self, queue: TelemetryQueue, ack: TelemetryAck) -> int:

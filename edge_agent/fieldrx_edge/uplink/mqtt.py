@@ -116,6 +116,10 @@ class MqttSender:
     def backlog(self) -> int:
         return sum(lane.queue.backlog() for lane in self.lanes)
 
+    def state(self) -> str:
+        """online (connected to the broker) or connecting (paho reconnects on its own)."""
+        return "online" if self._connected else "connecting"
+
     # callbacks (paho network thread)
     def _on_connect(self, client, userdata, flags, reason_code, properties) -> None:  # noqa: ANN001
         if reason_code.is_failure:

@@ -16,6 +16,20 @@ import { absoluteApiUrl } from '../map/setup';
 import { KindReport } from './KindReport';
 
 type View = 'applied' | 'accuracy';
+
+const ACTIONS: Record<string, string> = {
+  operator_rate_override: 'rate override',
+  operator_pause: 'paused',
+  operator_section_off: 'section off',
+};
+
+/** Where the operator overrode the prescription in the cab, and how long; the alarms acknowledged. */
+function operatorText(op: AsAppliedReport['operator']): string {
+  const parts = (op?.overrides ?? []).map((o) => `${ACTIONS[o.action] ?? o.action} ${formatDuration(o.seconds)}`);
+  const acks = op?.alarm_acks ?? [];
+  if (acks.length) parts.push(`${acks.length} alarm ack${acks.length > 1 ? 's' : ''} (${[...new Set(acks.flatMap((a) => a.alarms))].join(', ')})`);
+  return parts.length ? parts.join('; ') : 'none';
+}
 const REPORT_QUERY = { cells: false } as const;
 
 /** As-applied map (job vector tiles), per-cell accuracy, totals, exports, a printable report
@@ -111,6 +125,7 @@ function PrescriptionJobReport({ jobId }: { jobId: number }) {
               ['Time worked', v(formatDuration(r.time_worked_s))],
               ['Records', v(r.n_records != null ? String(r.n_records) : null), 'report-records'],
               ['Never applied', notApplied(r), 'report-not-applied'],
+              ['Operator (cab)', report ? operatorText(r.operator) : '…', 'report-operator'],
               ['Field', field ? `${field.properties.name} (${formatArea(field.properties.area_m2)})` : '–'],
             ]}
           />

@@ -28,6 +28,31 @@ class CellReportOut(Out):
     last_t: float | None
 
 
+class OperatorOverrideOut(Out):
+    """Records written while the operator overrode the prescription (one action)."""
+
+    action: Literal["operator_pause", "operator_rate_override", "operator_section_off"]
+    records: int
+    seconds: float = Field(description="sum of those records' fix periods")
+    first_at: str | None
+    last_at: str | None
+    from_lon_lat: list[float] | None = Field(description="where the first of them was")
+    to_lon_lat: list[float] | None = Field(description="where the last of them was")
+
+
+class AlarmAckOut(Out):
+    at: str | None
+    alarms: list[str] = Field(description="the cab's alarms the operator acknowledged")
+    lon_lat: list[float] | None
+
+
+class OperatorEventsOut(Out):
+    """What the operator did in the cab (``fieldrx_edge.cab``): overrides and acks."""
+
+    overrides: list[OperatorOverrideOut] = Field(default_factory=list)
+    alarm_acks: list[AlarmAckOut] = Field(default_factory=list)
+
+
 class AsAppliedSummary(Out):
     job_id: int
     name: str
@@ -56,6 +81,9 @@ class AsAppliedSummary(Out):
         default="full",
         description="where the figures came from: every 10 Hz record (full) or the thin "
         "profile's per-cell records (1 Hz track + one record per cell left)",
+    )
+    operator: OperatorEventsOut | None = Field(
+        default=None, description="the operator's overrides and alarm acknowledgements"
     )
 
 

@@ -1899,6 +1899,18 @@ export interface components {
             /** Ids */
             ids: number[];
         };
+        /** AlarmAckOut */
+        AlarmAckOut: {
+            /**
+             * Alarms
+             * @description the cab's alarms the operator acknowledged
+             */
+            alarms: string[];
+            /** At */
+            at: string | null;
+            /** Lon Lat */
+            lon_lat: number[] | null;
+        };
         /**
          * AlertGroup
          * @description Alerts of one kind on one job (machine and kind without a job).
@@ -2096,6 +2108,8 @@ export interface components {
              * @description prescribed cells where nothing landed, path order
              */
             not_applied_seqs: number[];
+            /** @description the operator's overrides and alarm acknowledgements */
+            operator?: components["schemas"]["OperatorEventsOut"] | null;
             /** Plan Id */
             plan_id: number;
             /** Planned Total Kg */
@@ -2151,6 +2165,8 @@ export interface components {
              * @description prescribed cells where nothing landed, path order
              */
             not_applied_seqs: number[];
+            /** @description the operator's overrides and alarm acknowledgements */
+            operator?: components["schemas"]["OperatorEventsOut"] | null;
             /** Plan Id */
             plan_id: number;
             /** Planned Total Kg */
@@ -3958,6 +3974,48 @@ export interface components {
             source: string;
             /** Yield T Ha */
             yield_t_ha: number;
+        };
+        /**
+         * OperatorEventsOut
+         * @description What the operator did in the cab (``fieldrx_edge.cab``): overrides and acks.
+         */
+        OperatorEventsOut: {
+            /** Alarm Acks */
+            alarm_acks?: components["schemas"]["AlarmAckOut"][];
+            /** Overrides */
+            overrides?: components["schemas"]["OperatorOverrideOut"][];
+        };
+        /**
+         * OperatorOverrideOut
+         * @description Records written while the operator overrode the prescription (one action).
+         */
+        OperatorOverrideOut: {
+            /**
+             * Action
+             * @enum {string}
+             */
+            action: "operator_pause" | "operator_rate_override" | "operator_section_off";
+            /** First At */
+            first_at: string | null;
+            /**
+             * From Lon Lat
+             * @description where the first of them was
+             */
+            from_lon_lat: number[] | null;
+            /** Last At */
+            last_at: string | null;
+            /** Records */
+            records: number;
+            /**
+             * Seconds
+             * @description sum of those records' fix periods
+             */
+            seconds: number;
+            /**
+             * To Lon Lat
+             * @description where the last of them was
+             */
+            to_lon_lat: number[] | null;
         };
         /** OrgOut */
         OrgOut: {

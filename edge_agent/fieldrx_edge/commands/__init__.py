@@ -1,0 +1,1 @@
+"""What each ``fieldrx-edge`` sub-command does (``cli`` only parses the arguments)."""
