@@ -79,12 +79,24 @@ def import_isoxml(
     swath_width_m: float = Query(default=PlanParams.swath_width_m, gt=0, le=100),
     cell_length_m: float = Query(default=PlanParams.cell_length_m, gt=0, le=500),
     headland_passes: int = Query(default=DEFAULT_HEADLAND_PASSES, ge=0, le=20),
+    density_kg_l: float | None = Query(
+        default=None,
+        gt=0,
+        le=5,
+        description="density of a volume-rate product (kg/l): imports l/ha grids as kg/ha",
+    ),
 ) -> dict[str, Any]:
-    """Preview (no ``confirm``) or store (``confirm`` = the preview's sha256) a TASKDATA set."""
+    """Preview (no ``confirm``) or store (``confirm`` = the preview's sha256) a TASKDATA set.
+
+    The preview matches farms and fields to existing ones (re-importing creates
+    nothing twice), refuses grids and zones that do not lie on their field (with
+    the distance), lists the TimeLogs inside the set and every partfield refused
+    (the confirmed import stores the others).
+    """
     data, sha, names = _files(files)
     try:
-        ds = read_taskdata(data)
-        pre = svc.preview(ds)
+        ds = read_taskdata(data, density_kg_l)
+        pre = svc.preview(session, ds, principal.organisation_id)
     except FormatError as exc:
         raise ApiError(422, str(exc), where=names) from exc
     body: dict[str, Any] = {"sha256": sha, "preview": pre}
@@ -239,7 +251,9 @@ def import_timelog(
     """
     from fieldrx.api.common import get_scoped
     from fieldrx.db.models import Prescription
-    from fieldrx.formats.timelog import read_timelog
+    from fieldrx.formats.timelog import read_timelog, timelog_summary
+    from fieldrx.services.import_checks import fmt_distance, points_placement
+    from fieldrx.services.prescriptions import field_boundary_wgs84
 
     rx = get_scoped(session, Prescription, prescription_id, principal)
     data, sha, names = _files(files)
@@ -255,37 +269,31 @@ def import_timelog(
             logs.append(read_timelog(h, by_upper[f"{h}.XML"], by_upper[f"{h}.BIN"]))
     except FormatError as exc:
         raise ApiError(422, str(exc), where=names) from exc
+    fb = field_boundary_wgs84(session, rx)
     preview = []
     for log in logs:
-        pos = np.isfinite(log.lat) & np.isfinite(log.lon)
-        widths = log.series(67, 0.001)
-        preview.append(
-            {
-                "timelog": log.name,
-                "records": len(log),
-                "with_position": int(pos.sum()),
-                "first_t": None if not len(log) else float(log.t.min()),
-                "last_t": None if not len(log) else float(log.t.max()),
-                "ddis_used": sorted(d for d in log.values if d in (6, 7, 67, 141, 397)),
-                "ddis_ignored": log.ignored_ddis,
-                "mean_applied_rate_kg_ha": None
-                if not np.isfinite(log.series(7)).any()
-                else float(np.nanmean(log.series(7, 0.01))),
-                "logged_width_m": None
-                if not np.isfinite(widths).any()
-                else float(np.nanmedian(widths)),
-            }
-        )
+        entry = timelog_summary(log)
+        if fb is not None:
+            entry["placement"] = points_placement(fb[1], log.lon, log.lat)
+        preview.append(entry)
     body: dict[str, Any] = {"sha256": sha, "timelogs": preview, "stored": False}
     width = width_m
     if width is None:
         logged = [p["logged_width_m"] for p in preview if p["logged_width_m"]]
         width = float(np.median(logged)) if logged else None
     body["width_m"] = width
+    off = [p for p in preview if p.get("placement", {}).get("on_field") == 0 and p["with_position"]]
+    body["refused"] = [
+        f"{p['timelog']}: no record lies on the prescription's field; the nearest is "
+        f"{fmt_distance(p['placement']['distance_m'])} away"
+        for p in off
+    ]
     if confirm is None:
         return body
     if confirm != sha:
         raise ApiError(409, "confirm does not match this upload's sha256: preview it again")
+    if body["refused"]:
+        raise ApiError(422, "; ".join(body["refused"]) + ": nothing stored", where=names)
     if width is None:
         raise ApiError(422, "the logs carry no working width (DDI 67): give width_m")
     try:

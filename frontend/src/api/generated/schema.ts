@@ -763,6 +763,11 @@ export interface paths {
         /**
          * Import Isoxml
          * @description Preview (no ``confirm``) or store (``confirm`` = the preview's sha256) a TASKDATA set.
+         *
+         *     The preview matches farms and fields to existing ones (re-importing creates
+         *     nothing twice), refuses grids and zones that do not lie on their field (with
+         *     the distance), lists the TimeLogs inside the set and every partfield refused
+         *     (the confirmed import stores the others).
          */
         post: operations["import_isoxml_api_v1_imports_isoxml_post"];
         delete?: never;
@@ -5307,6 +5312,11 @@ export interface components {
         TimelogImportOut: {
             created?: components["schemas"]["JobCreated"] | null;
             /**
+             * Refused
+             * @description logs that lie off the field: confirm is refused
+             */
+            refused?: string[];
+            /**
              * Sha256
              * @description digest of the upload: send it back as ``confirm`` to store
              */
@@ -5318,24 +5328,69 @@ export interface components {
             /** Width M */
             width_m: number | null;
         };
+        /** TimelogPlacement */
+        TimelogPlacement: {
+            /**
+             * Distance M
+             * @description nearest record's distance (0 when on it)
+             */
+            distance_m: number | null;
+            /**
+             * On Field
+             * @description records whose position lies on the prescription's field
+             */
+            on_field: number;
+            /** With Position */
+            with_position: number;
+        };
         /** TimelogPreview */
         TimelogPreview: {
+            /**
+             * Centre
+             * @description median lon, lat of the records
+             */
+            centre: number[] | null;
             /** Ddis Ignored */
             ddis_ignored: number[];
             /** Ddis Used */
             ddis_used: number[];
             /** First T */
             first_t: number | null;
+            /**
+             * Gives
+             * @description what FieldRx can make of the log
+             */
+            gives: string;
+            /**
+             * Has Rate
+             * @description the log carries an applied rate (DDI 7)
+             */
+            has_rate: boolean;
             /** Last T */
             last_t: number | null;
             /** Logged Width M */
             logged_width_m: number | null;
             /** Mean Applied Rate Kg Ha */
             mean_applied_rate_kg_ha: number | null;
+            placement?: components["schemas"]["TimelogPlacement"] | null;
             /** Records */
             records: number;
+            /**
+             * Reported
+             * @description DDI -> number of records reporting it
+             */
+            reported: {
+                [key: string]: number;
+            };
             /** Timelog */
             timelog: string;
+            /**
+             * Totals
+             * @description total counters (DDI -> name, unit, growth over the log)
+             */
+            totals?: {
+                [key: string]: unknown;
+            };
             /** With Position */
             with_position: number;
         };
@@ -9765,6 +9820,8 @@ export interface operations {
                 cell_length_m?: number;
                 /** @description the preview's sha256 */
                 confirm?: string | null;
+                /** @description density of a volume-rate product (kg/l): imports l/ha grids as kg/ha */
+                density_kg_l?: number | null;
                 headland_passes?: number;
                 swath_width_m?: number;
             };
@@ -11397,6 +11454,8 @@ export interface operations {
             query?: {
                 limit?: number;
                 offset?: number;
+                /** @description only machines a job can be sent to (not those an import created for logs) */
+                sendable?: boolean;
             };
             header?: never;
             path?: never;
