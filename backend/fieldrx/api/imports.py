@@ -138,6 +138,9 @@ def import_prescription_shapefile(
     rate_column: str | None = Query(default=None, description="attribute holding the rate"),
     unit: str = Query(default="kg/ha", description="unit of the rate column"),
     default_rate_kg_ha: float = Query(default=0.0, ge=0, description="rate outside polygons"),
+    density_kg_l: float | None = Query(
+        default=None, gt=0, le=5, description="product density (kg/l) for a volume-rate unit"
+    ),
     name: str = Query(default="", max_length=200),
     product: str = Query(default="fertilizer", max_length=200),
     confirm: str | None = Query(default=None, description="the preview's sha256"),
@@ -151,15 +154,19 @@ def import_prescription_shapefile(
     suggestion; with it, the rates in kg/ha. ``confirm`` (the preview's
     sha256) builds a plan on the field and stores version 1.
     """
+    from geoalchemy2.shape import to_shape
+
     from fieldrx.api.common import get_scoped
     from fieldrx.db.models import Field as FieldRow
     from fieldrx.formats.field_import import read_shapefile_zip_fields
     from fieldrx.formats.rx_shapefile import (
         UNITS,
+        VOLUME_UNITS,
         numeric_columns,
         rx_from_items,
         suggest_rate_column,
     )
+    from fieldrx.services.import_checks import placement
 
     fld = get_scoped(session, FieldRow, field_id, principal)
     data = file.file.read(MAX_UPLOAD_BYTES + 1)
@@ -177,7 +184,7 @@ def import_prescription_shapefile(
         "features": len(items),
         "numeric_columns": columns,
         "suggested_rate_column": suggest_rate_column(columns),
-        "units": sorted(UNITS),
+        "units": sorted(UNITS) + sorted(VOLUME_UNITS),
         "stored": False,
     }
     if rate_column is None:
@@ -192,6 +199,7 @@ def import_prescription_shapefile(
             default_rate_kg_ha,
             name or f"{fname} ({rate_column})",
             product,
+            density_kg_l,
         )
     except FormatError as exc:
         raise ApiError(422, f"{fname}: {exc}", where=rate_column) from exc
@@ -203,14 +211,27 @@ def import_prescription_shapefile(
         "max_rate_kg_ha": max(rates, default=0.0),
         "default_rate_kg_ha": default_rate_kg_ha,
     }
+    if rx.zones:
+        place = placement(to_shape(fld.boundary), fld.utm_epsg, rx.coverage())
+        body["mapping"]["overlap_pct"] = place.overlap_pct
+        body["mapping"]["distance_m"] = round(place.distance_m, 1)
+        body["mapping"]["warning"] = place.describe(f"the zones of {fname}", fld.name)
     if confirm is None:
         return body
+    if body["mapping"].get("distance_m"):
+        raise ApiError(422, str(body["mapping"]["warning"]), where=fname)
     if confirm != sha:
         raise ApiError(409, "confirm does not match this upload's sha256: preview it again")
     params = PlanParams(
         swath_width_m=swath_width_m, cell_length_m=cell_length_m, headland_passes=headland_passes
     )
-    source = {"file": fname, "kind": "shapefile", "rate_column": rate_column, "unit": unit}
+    source = {
+        "file": fname,
+        "kind": "shapefile",
+        "rate_column": rate_column,
+        "unit": unit,
+        "density_kg_l": density_kg_l,
+    }
     try:
         row, plan = svc.store_prescription(
             session, rx, fld, params, principal.organisation_id, principal.user_id, source

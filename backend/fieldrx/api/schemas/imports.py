@@ -30,6 +30,11 @@ class RxMapping(Out):
     min_rate_kg_ha: float
     max_rate_kg_ha: float
     default_rate_kg_ha: float
+    overlap_pct: float | None = Field(default=None, description="share of the field covered")
+    distance_m: float | None = Field(
+        default=None, description="zones' distance from the field (> 0: refused on confirm)"
+    )
+    warning: str | None = None
 
 
 class RxCreated(Out):

@@ -4403,14 +4403,26 @@ export interface components {
         RxMapping: {
             /** Default Rate Kg Ha */
             default_rate_kg_ha: number;
+            /**
+             * Distance M
+             * @description zones' distance from the field (> 0: refused on confirm)
+             */
+            distance_m?: number | null;
             /** Max Rate Kg Ha */
             max_rate_kg_ha: number;
             /** Min Rate Kg Ha */
             min_rate_kg_ha: number;
+            /**
+             * Overlap Pct
+             * @description share of the field covered
+             */
+            overlap_pct?: number | null;
             /** Rate Column */
             rate_column: string;
             /** Unit */
             unit: string;
+            /** Warning */
+            warning?: string | null;
         };
         /** RxRef */
         RxRef: {
@@ -9926,6 +9938,8 @@ export interface operations {
                 confirm?: string | null;
                 /** @description rate outside polygons */
                 default_rate_kg_ha?: number;
+                /** @description product density (kg/l) for a volume-rate unit */
+                density_kg_l?: number | null;
                 /** @description the field the prescription is for */
                 field_id: number;
                 headland_passes?: number;
