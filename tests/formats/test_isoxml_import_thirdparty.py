@@ -59,6 +59,11 @@ def test_full_task_imported_through_api(client, org):
     assert field["properties"]["area_m2"] == pytest.approx(
         body["preview"]["fields"][0]["area_m2"], rel=1e-5
     )
+    # the guidance line, sampling route and entry point are kept with the field
+    ann = client.get(f"{API}/fields/{fid}/annotations", headers=h).json()
+    assert ann["source_ref"] == "ISOXML PFD2"
+    assert [a["properties"]["kind"] for a in ann["features"]] == ["guidance", "line", "point"]
+    assert ann["features"][2]["geometry"]["type"] == "Point"
 
 
 # --- isoxml-dotnet's partfield set (GreenDB): 13 boundaries, two with holes -----------------

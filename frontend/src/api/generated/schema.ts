@@ -403,6 +403,26 @@ export interface paths {
         patch: operations["update_field_api_v1_fields__field_id__patch"];
         trace?: never;
     };
+    "/api/v1/fields/{field_id}/annotations": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        /**
+         * Get Field Annotations
+         * @description What an import kept with the field: guidance lines, obstacles, routes, points.
+         */
+        get: operations["get_field_annotations_api_v1_fields__field_id__annotations_get"];
+        put?: never;
+        post?: never;
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
     "/api/v1/fields/{field_id}/imagery": {
         parameters: {
             query?: never;
@@ -2803,6 +2823,29 @@ export interface components {
              * @constant
              */
             type?: "Feature";
+        };
+        /**
+         * FieldAnnotations
+         * @description Features an import kept with a field (ISOXML guidance patterns, obstacle and other
+         *     polygons, lines and points), GeoJSON lon/lat; ``properties`` name their kind, type,
+         *     name and where in the file they came from.
+         */
+        FieldAnnotations: {
+            /** Features */
+            features: {
+                [key: string]: unknown;
+            }[];
+            /**
+             * Source Ref
+             * @description where the field came from, e.g. 'ISOXML PFD2'
+             */
+            source_ref: string;
+            /**
+             * Type
+             * @default FeatureCollection
+             * @constant
+             */
+            type?: "FeatureCollection";
         };
         /** FieldCollection */
         FieldCollection: {
@@ -7929,6 +7972,91 @@ export interface operations {
                 };
                 content: {
                     "application/json": components["schemas"]["FieldFeature"];
+                };
+            };
+            /** @description missing, invalid, expired or revoked bearer token */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description the token may not do this (a viewer writing, a device token on a user endpoint); the message names the role needed */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description no such resource in the caller's organisation */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description conflicts with stored state (a job state transition, evidence that must be kept) */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description request body or upload too large */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description invalid input: the message names the field, row or vertex */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description the database or the worker pool is busy or unreachable: retry (Retry-After) */
+            503: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+        };
+    };
+    get_field_annotations_api_v1_fields__field_id__annotations_get: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                field_id: number;
+            };
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["FieldAnnotations"];
                 };
             };
             /** @description missing, invalid, expired or revoked bearer token */

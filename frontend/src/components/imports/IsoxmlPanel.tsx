@@ -27,6 +27,7 @@ export function IsoxmlPanel({ files, onDone }: { files: File[]; onDone: Done }) 
             ))}
           </ul>
           <h4>Fields ({p.fields.length})</h4>
+          <div style={{ overflowX: 'auto' }}>
           <table className="table" data-testid="import-fields">
             <thead>
               <tr>
@@ -51,6 +52,7 @@ export function IsoxmlPanel({ files, onDone }: { files: File[]; onDone: Done }) 
               ))}
             </tbody>
           </table>
+          </div>
           {p.prescriptions.length > 0 && (
             <>
               <h4>Prescriptions</h4>

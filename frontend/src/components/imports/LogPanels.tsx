@@ -35,6 +35,7 @@ export function TimelogPanel({ files, rxs, onDone }: { files: File[]; rxs: Rx[];
       <ErrorBox error={pre.error} testid="import-preview-error" />
       {d && (
         <>
+          <div style={{ overflowX: 'auto' }}>
           <table className="table" data-testid="import-logs">
             <thead>
               <tr>
@@ -61,6 +62,7 @@ export function TimelogPanel({ files, rxs, onDone }: { files: File[]; rxs: Rx[];
               ))}
             </tbody>
           </table>
+          </div>
           {(d.refused ?? []).map((r) => (
             <p key={r} className="error" data-testid="import-refused">
               {r}
