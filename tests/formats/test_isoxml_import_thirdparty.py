@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import pytest
@@ -31,9 +32,15 @@ def test_full_task_parsed_and_skips_explained():
     assert not ds.prescriptions
     whats = " | ".join(s["what"] + " -> " + s["why"] for s in ds.skipped)
     assert "PFD[PFD1]" in whats and "without a boundary" in whats
-    assert "GGP[0] guidance pattern GuidancePattern" in whats and "reference-line" in whats
-    assert "PFD[PFD2]/LSG[0] line type 4" in whats and "PFD[PFD2]/PNT[0] point type 3" in whats
     assert "TSK[TSK1] Task 1" in whats and "without treatment zones" in whats
+    # the guidance line, the sampling route (LSG A=4) and the entry (PNT A=3) are kept
+    kept = [(x["properties"]["kind"], x["properties"]["type"], x["properties"]["name"],
+             x["geometry"]["type"]) for x in field.features]  # fmt: skip
+    assert kept == [
+        ("guidance", "guidance pattern", "GuidancePattern", "LineString"),
+        ("line", "sampling route", "Outer line", "LineString"),
+        ("point", "field access", "Entry", "Point"),
+    ]
 
 
 def test_full_task_imported_through_api(client, org):
@@ -52,6 +59,11 @@ def test_full_task_imported_through_api(client, org):
     assert field["properties"]["area_m2"] == pytest.approx(
         body["preview"]["fields"][0]["area_m2"], rel=1e-5
     )
+    # the guidance line, sampling route and entry point are kept with the field
+    ann = client.get(f"{API}/fields/{fid}/annotations", headers=h).json()
+    assert ann["source_ref"] == "ISOXML PFD2"
+    assert [a["properties"]["kind"] for a in ann["features"]] == ["guidance", "line", "point"]
+    assert ann["features"][2]["geometry"]["type"] == "Point"
 
 
 # --- isoxml-dotnet's partfield set (GreenDB): 13 boundaries, two with holes -----------------
@@ -109,3 +121,55 @@ def test_partfields_with_holes_imported_through_api(client, org):
     geom = shapely.geometry.shape(oxted["geometry"])
     assert len(shapely.get_parts(geom)) == 1 and len(shapely.get_parts(geom)[0].interiors) == 1
     assert oxted["properties"]["area_m2"] == pytest.approx(35600, rel=0.01)
+
+
+def _holes_as_own_plns(xml: str) -> str:
+    """Each hole moved into a PLN A=1 of its own holding only the interior ring, as some
+    terminals export them."""
+    return re.sub(
+        r"(</LSG>)\s*(<LSG A=\"2\".*?</LSG>)\s*</PLN>",
+        r'\1</PLN><PLN A="1">\2</PLN>',
+        xml,
+        flags=re.S,
+    )
+
+
+def test_holes_written_as_separate_polygons_attach_to_their_partfield():
+    xml = PARTFIELDS.read_text()
+    split = _holes_as_own_plns(xml)
+    assert split.count('<PLN A="1">') == xml.count('<PLN A="1">') + 2
+    ref = {f.name: f.boundary for f in read_taskdata({"TASKDATA.XML": xml.encode()}).fields}
+    ds = read_taskdata({"TASKDATA.XML": split.encode()})
+    assert not [s for s in ds.skipped if s["bad"]]
+    got = {f.name: f.boundary for f in ds.fields}
+    for name in ("NM_Oxted_NullMeridian_Hole", "MW_LaConc_EC_Equator_Hole"):
+        g = got[name]
+        assert isinstance(g, shapely.Polygon) and len(g.interiors) == 1, name
+        outer = _geod_area(shapely.Polygon(g.exterior))
+        hole = _geod_area(shapely.Polygon(g.interiors[0]))
+        # exterior minus hole, within 0.01 %, and the same polygon as written in one PLN
+        assert _geod_area(g) == pytest.approx(outer - hole, rel=1e-4), name
+        assert shapely.equals(g, ref[name]), name
+
+
+def test_one_bad_partfield_is_named_and_the_others_import(client, org):
+    h = org.headers()
+    # PFD3's boundary crosses itself (two points swapped): a bow-tie
+    xml = PARTFIELDS.read_text()
+    m = re.search(r'<PFD A="PFD3".*?</PFD>', xml, flags=re.S)
+    assert m is not None
+    pts = re.findall(r"<PNT [^>]*/>", m.group(0))
+    bow = m.group(0).replace(pts[1], "@@").replace(pts[2], pts[1]).replace("@@", pts[2])
+    bad_xml = xml.replace(m.group(0), bow).encode()
+    files = {"files": ("TASKDATA.XML", bad_xml, "application/xml")}
+    pre = client.post(f"{API}/imports/isoxml", headers=h, files=files)
+    assert pre.status_code == 200, pre.text
+    body = pre.json()
+    (bad,) = body["preview"]["bad"]
+    assert "PFD3" in bad["what"] and "refused" in bad["why"] and "invalid boundary" in bad["why"]
+    assert len(body["preview"]["fields"]) == 12
+    ok = client.post(f"{API}/imports/isoxml?confirm={body['sha256']}", headers=h, files=files)
+    assert ok.status_code == 201, ok.text
+    created = ok.json()["created"]
+    assert len(created["fields"]) == 12
+    assert [s["what"] for s in created["skipped"]] == [bad["what"]]

@@ -100,3 +100,29 @@ def test_mapping_converts_units_and_names_bad_values(client, rx):  # noqa: F811
     cells = all_cells(client, h, ok.json()["created"]["prescription_id"])
     rates = {round(c["properties"]["rate_kg_ha"], 2) for c in cells}
     assert rates <= {112.09, 224.17, 7.0} and {112.09, 224.17} <= rates
+
+
+def test_volume_unit_takes_a_density_and_far_zones_are_refused(client, rx):  # noqa: F811
+    from tests.plans.helpers import make_field, rectangle
+
+    h, fid = rx["h"], rx["field"]["id"]
+    exp = client.get(f"{API}/prescriptions/{rx['id']}/export?format=shapefile", headers=h)
+    plain = _post(client, h, fid, exp.content, rate_column="RATE").json()["mapping"]
+    assert plain["distance_m"] == 0 and plain["overlap_pct"] > 90 and plain["warning"] is None
+    no_density = _post(client, h, fid, exp.content, rate_column="RATE", unit="l/ha")
+    assert no_density.status_code == 422 and "density" in no_density.json()["detail"]
+    vol = _post(client, h, fid, exp.content, rate_column="RATE", unit="l/ha", density_kg_l=1.25)
+    assert vol.status_code == 200, vol.text
+    assert vol.json()["mapping"]["max_rate_kg_ha"] == pytest.approx(
+        plain["max_rate_kg_ha"] * 1.25, rel=1e-3
+    )
+    # the same zones offered to a field 1 degree further north (about 111 km)
+    lon0, lat0 = rx["field"]["bbox"][0], rx["field"]["bbox"][1] + 1.0
+    far = make_field(client, h, rectangle(lon0, lat0, 200, 200), name="Far away")
+    pre = _post(client, h, far, exp.content, rate_column="RATE")
+    m = pre.json()["mapping"]
+    assert 100_000 < m["distance_m"] < 125_000 and "km from field 'Far away'" in m["warning"]
+    n_rx = len(client.get(f"{API}/prescriptions", headers=h).json()["items"])
+    ok = _post(client, h, far, exp.content, rate_column="RATE", confirm=pre.json()["sha256"])
+    assert ok.status_code == 422 and "does not overlap" in ok.json()["detail"]
+    assert len(client.get(f"{API}/prescriptions", headers=h).json()["items"]) == n_rx

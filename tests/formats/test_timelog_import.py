@@ -72,3 +72,25 @@ def test_timelog_import_becomes_a_job_with_a_report(client, org, driven):  # noq
             )
     # eq. 18 accuracy exists where the prescription asks for product and product landed
     assert rep["mean_accuracy_pct"] is not None and rep["applied_total_kg"] > 0
+
+
+def test_imported_log_machine_is_never_sendable(client, org, driven):  # noqa: F811
+    fx, _ = driven
+    h = org.headers()
+    _, data = _export(client, h, fx.job_id)
+    up = {"files": ("TASKDATA.zip", data, "application/zip")}
+    url = f"{API}/imports/timelog?prescription_id={fx.prescription_id}&width_m=3"
+    sha = client.post(url, headers=h, files=up).json()["sha256"]
+    ok = client.post(f"{url}&confirm={sha}", headers=h, files=up)
+    assert ok.status_code == 201, ok.text
+    pseudo = ok.json()["created"]["machine_id"]
+    every = [m["id"] for m in client.get(f"{API}/machines", headers=h).json()["items"]]
+    sendable = client.get(f"{API}/machines?sendable=true", headers=h).json()["items"]
+    assert pseudo in every and pseudo not in [m["id"] for m in sendable]
+    assert sendable  # the real machine of the driven job stays
+    r = client.post(
+        f"{API}/jobs",
+        headers=h,
+        json={"prescription_id": fx.prescription_id, "machine_id": pseudo},
+    )
+    assert r.status_code == 422 and "holds imported logs" in r.json()["detail"]

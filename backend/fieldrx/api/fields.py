@@ -12,6 +12,7 @@ from sqlalchemy.orm import Session
 from fieldrx.api.common import ApiError, geom_to_geojson, get_scoped
 from fieldrx.api.schemas.errors import ERRORS
 from fieldrx.api.schemas.fields import (
+    FieldAnnotations,
     FieldCollection,
     FieldFeature,
     FieldFeatureIn,
@@ -203,6 +204,17 @@ def import_fields(
 @router.get("/{field_id:int}", response_model=FieldFeature)
 def get_field(field_id: int, principal: UserDep, session: SessionDep) -> dict[str, Any]:
     return field_feature(get_scoped(session, FieldRow, field_id, principal))
+
+
+@router.get("/{field_id:int}/annotations", response_model=FieldAnnotations)
+def get_field_annotations(field_id: int, principal: UserDep, session: SessionDep) -> dict[str, Any]:
+    """What an import kept with the field: guidance lines, obstacles, routes, points."""
+    row = get_scoped(session, FieldRow, field_id, principal)
+    return {
+        "type": "FeatureCollection",
+        "features": row.features or [],
+        "source_ref": row.source_ref,
+    }
 
 
 @router.patch("/{field_id:int}", response_model=FieldFeature)

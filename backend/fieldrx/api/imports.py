@@ -103,6 +103,12 @@ def import_isoxml(
     swath_width_m: float = Query(default=PlanParams.swath_width_m, gt=0, le=100),
     cell_length_m: float = Query(default=PlanParams.cell_length_m, gt=0, le=500),
     headland_passes: int = Query(default=DEFAULT_HEADLAND_PASSES, ge=0, le=20),
+    density_kg_l: float | None = Query(
+        default=None,
+        gt=0,
+        le=5,
+        description="density of a volume-rate product (kg/l): imports l/ha grids as kg/ha",
+    ),
 ) -> dict[str, Any]:
     """Preview (no ``confirm``) or store (``confirm`` = the preview's sha256) a TASKDATA set.
 
@@ -132,6 +138,7 @@ def import_isoxml(
             params=params,
             confirm=confirmed,
             time_limit_s=limit,
+            density_kg_l=density_kg_l,
         )
         try:
             out = run_bounded(
@@ -167,6 +174,9 @@ def import_prescription_shapefile(
     rate_column: str | None = Query(default=None, description="attribute holding the rate"),
     unit: str = Query(default="kg/ha", description="unit of the rate column"),
     default_rate_kg_ha: float = Query(default=0.0, ge=0, description="rate outside polygons"),
+    density_kg_l: float | None = Query(
+        default=None, gt=0, le=5, description="product density (kg/l) for a volume-rate unit"
+    ),
     name: str = Query(default="", max_length=200),
     product: str = Query(default="fertilizer", max_length=200),
     confirm: str | None = Query(default=None, description="the preview's sha256"),
@@ -180,15 +190,19 @@ def import_prescription_shapefile(
     suggestion; with it, the rates in kg/ha. ``confirm`` (the preview's
     sha256) builds a plan on the field and stores version 1.
     """
+    from geoalchemy2.shape import to_shape
+
     from fieldrx.api.common import get_scoped
     from fieldrx.db.models import Field as FieldRow
     from fieldrx.formats.field_import import read_shapefile_zip_fields
     from fieldrx.formats.rx_shapefile import (
         UNITS,
+        VOLUME_UNITS,
         numeric_columns,
         rx_from_items,
         suggest_rate_column,
     )
+    from fieldrx.services.import_checks import placement
 
     fld = get_scoped(session, FieldRow, field_id, principal)
     data = file.file.read(MAX_UPLOAD_BYTES + 1)
@@ -206,7 +220,7 @@ def import_prescription_shapefile(
         "features": len(items),
         "numeric_columns": columns,
         "suggested_rate_column": suggest_rate_column(columns),
-        "units": sorted(UNITS),
+        "units": sorted(UNITS) + sorted(VOLUME_UNITS),
         "stored": False,
     }
     if rate_column is None:
@@ -221,6 +235,7 @@ def import_prescription_shapefile(
             default_rate_kg_ha,
             name or f"{fname} ({rate_column})",
             product,
+            density_kg_l,
         )
     except FormatError as exc:
         raise ApiError(422, f"{fname}: {exc}", where=rate_column) from exc
@@ -232,14 +247,27 @@ def import_prescription_shapefile(
         "max_rate_kg_ha": max(rates, default=0.0),
         "default_rate_kg_ha": default_rate_kg_ha,
     }
+    if rx.zones:
+        place = placement(to_shape(fld.boundary), fld.utm_epsg, rx.coverage())
+        body["mapping"]["overlap_pct"] = place.overlap_pct
+        body["mapping"]["distance_m"] = round(place.distance_m, 1)
+        body["mapping"]["warning"] = place.describe(f"the zones of {fname}", fld.name)
     if confirm is None:
         return body
+    if body["mapping"].get("distance_m"):
+        raise ApiError(422, str(body["mapping"]["warning"]), where=fname)
     if confirm != sha:
         raise ApiError(409, "confirm does not match this upload's sha256: preview it again")
     params = PlanParams(
         swath_width_m=swath_width_m, cell_length_m=cell_length_m, headland_passes=headland_passes
     )
-    source = {"file": fname, "kind": "shapefile", "rate_column": rate_column, "unit": unit}
+    source = {
+        "file": fname,
+        "kind": "shapefile",
+        "rate_column": rate_column,
+        "unit": unit,
+        "density_kg_l": density_kg_l,
+    }
     limit = get_settings().plan_time_limit_s
     req = svc.RxStoreRequest(
         database_url=session.get_bind().url.render_as_string(hide_password=False),
@@ -292,7 +320,9 @@ def import_timelog(
     """
     from fieldrx.api.common import get_scoped
     from fieldrx.db.models import Prescription
-    from fieldrx.formats.timelog import read_timelog
+    from fieldrx.formats.timelog import read_timelog, timelog_summary
+    from fieldrx.services.import_checks import fmt_distance, points_placement
+    from fieldrx.services.prescriptions import field_boundary_wgs84
 
     rx = get_scoped(session, Prescription, prescription_id, principal)
     data, sha, names = _files(files)
@@ -308,37 +338,31 @@ def import_timelog(
             logs.append(read_timelog(h, by_upper[f"{h}.XML"], by_upper[f"{h}.BIN"]))
     except FormatError as exc:
         raise ApiError(422, str(exc), where=names) from exc
+    fb = field_boundary_wgs84(session, rx)
     preview = []
     for log in logs:
-        pos = np.isfinite(log.lat) & np.isfinite(log.lon)
-        widths = log.series(67, 0.001)
-        preview.append(
-            {
-                "timelog": log.name,
-                "records": len(log),
-                "with_position": int(pos.sum()),
-                "first_t": None if not len(log) else float(log.t.min()),
-                "last_t": None if not len(log) else float(log.t.max()),
-                "ddis_used": sorted(d for d in log.values if d in (6, 7, 67, 141, 397)),
-                "ddis_ignored": log.ignored_ddis,
-                "mean_applied_rate_kg_ha": None
-                if not np.isfinite(log.series(7)).any()
-                else float(np.nanmean(log.series(7, 0.01))),
-                "logged_width_m": None
-                if not np.isfinite(widths).any()
-                else float(np.nanmedian(widths)),
-            }
-        )
+        entry = timelog_summary(log)
+        if fb is not None:
+            entry["placement"] = points_placement(fb[1], log.lon, log.lat)
+        preview.append(entry)
     body: dict[str, Any] = {"sha256": sha, "timelogs": preview, "stored": False}
     width = width_m
     if width is None:
         logged = [p["logged_width_m"] for p in preview if p["logged_width_m"]]
         width = float(np.median(logged)) if logged else None
     body["width_m"] = width
+    off = [p for p in preview if p.get("placement", {}).get("on_field") == 0 and p["with_position"]]
+    body["refused"] = [
+        f"{p['timelog']}: no record lies on the prescription's field; the nearest is "
+        f"{fmt_distance(p['placement']['distance_m'])} away"
+        for p in off
+    ]
     if confirm is None:
         return body
     if confirm != sha:
         raise ApiError(409, "confirm does not match this upload's sha256: preview it again")
+    if body["refused"]:
+        raise ApiError(422, "; ".join(body["refused"]) + ": nothing stored", where=names)
     if width is None:
         raise ApiError(422, "the logs carry no working width (DDI 67): give width_m")
     try:

@@ -35,6 +35,7 @@ from fieldrx.db.models import (
 from fieldrx.db.models import Field as FieldRow
 from fieldrx.fleet.jobstate import change_state, notify_job
 from fieldrx.services import prescriptions as rx_svc
+from fieldrx.services.imports import IMPORTED_IMPLEMENT
 
 router = APIRouter(prefix="/jobs", tags=["jobs"], responses=ERRORS)
 
@@ -174,6 +175,13 @@ def create_job(body: JobIn, principal: WriterDep, session: SessionDep) -> JobOut
     machine = session.get(Machine, body.machine_id)
     if machine is None or machine.organisation_id != principal.organisation_id:
         raise ApiError(404, f"machine {body.machine_id} not found", where="machine_id")
+    if machine.implement_type == IMPORTED_IMPLEMENT:
+        raise ApiError(
+            422,
+            f"machine {machine.id} ({machine.name}) holds imported logs, it is no real "
+            "machine: a job cannot be sent to it",
+            where="machine_id",
+        )
     version = (
         body.prescription_version if body.prescription_version is not None else rx.current_version
     )

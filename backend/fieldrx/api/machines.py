@@ -26,6 +26,7 @@ from fieldrx.auth.service import issue_device_token, token_expiry
 from fieldrx.db.models import Machine
 from fieldrx.services.evidence import refuse_if_evidence
 from fieldrx.services.implements import capabilities
+from fieldrx.services.imports import IMPORTED_IMPLEMENT
 
 router = APIRouter(prefix="/machines", tags=["machines"], responses=ERRORS)
 
@@ -54,8 +55,14 @@ def list_machines(
     session: SessionDep,
     limit: int = Query(default=100, ge=1, le=1000),
     offset: int = Query(default=0, ge=0),
+    sendable: bool = Query(
+        default=False,
+        description="only machines a job can be sent to (not those an import created for logs)",
+    ),
 ) -> MachineList:
     stmt = select(Machine).where(Machine.organisation_id == principal.organisation_id)
+    if sendable:
+        stmt = stmt.where(Machine.implement_type != IMPORTED_IMPLEMENT)
     total = session.scalar(select(func.count()).select_from(stmt.subquery())) or 0
     rows = session.scalars(stmt.order_by(Machine.id).limit(limit).offset(offset))
     return MachineList(items=[_out(r) for r in rows], total=total)

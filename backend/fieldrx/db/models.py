@@ -139,6 +139,12 @@ class Field(Base):
     boundary: Mapped[Any] = mapped_column(Geometry("MULTIPOLYGON", srid=4326, spatial_index=True))
     utm_epsg: Mapped[int] = mapped_column(Integer)
     area_m2: Mapped[float] = mapped_column(Double)
+    # where an import found it ("ISOXML PFD1"): matched again on re-import
+    source_ref: Mapped[str] = mapped_column(String(200), default="", server_default="")
+    # kept annotations of an import (guidance lines, obstacles ...: GeoJSON features)
+    features: Mapped[list[Any]] = mapped_column(
+        JSONB, default=list, server_default=text("'[]'::jsonb")
+    )
     created_at: Mapped[dt.datetime] = _now()
     updated_at: Mapped[dt.datetime] = _now()
 

@@ -25,8 +25,9 @@ Read (V3 and V4; one TASKDATA.XML or split into XFR external files):
   not know: such tasks are skipped with that reason.
 
 Every problem is a ``FormatError`` naming the file and element (for example
-``TASKDATA.XML TSK[TSK1]/GRD: binary GRD00001.BIN has 396 bytes, H says
-400``); a declared size above ``MAX_BINARY_BYTES`` is refused before reading.
+``TASKDATA.XML TSK[TSK1]/GRD: binary GRD00001.BIN has 396 bytes, ... need
+400``); a declared size above ``MAX_BINARY_BYTES`` is refused before reading, a
+declared size (H) that differs from a binary matching the grid is noted.
 """
 
 from __future__ import annotations
@@ -46,6 +47,7 @@ from fieldrx.formats.archive import parse_xml, read_zip, safe_member_name
 MAX_BINARY_BYTES = 200 * 1024 * 1024
 MAX_GRID_CELLS = 25_000_000
 MASS_RATE_DDIS = {6: 0.01}  # DDI -> factor from base unit to kg/ha (mg/m^2 -> kg/ha)
+VOLUME_RATE_DDIS = {1: 0.01}  # DDI -> factor from base unit to l/ha (mm^3/m^2 -> l/ha)
 
 
 @dataclass
@@ -61,6 +63,8 @@ class FieldIn:
     farm_ref: str | None
     boundary: Polygon | MultiPolygon
     declared_area_m2: float | None
+    # guidance lines, obstacles and other annotations (GeoJSON features, lon/lat)
+    features: list[dict[str, Any]] = field(default_factory=list)
 
 
 @dataclass
@@ -75,6 +79,7 @@ class RxIn:
     ddi: int
     unit: str
     default_rate_kg_ha: float
+    density_kg_l: float | None = None  # a volume rate's density (l/ha x kg/l -> kg/ha)
     zones: list[tuple[float, Any]] = field(default_factory=list)  # (rate, polygon) for "zones"
     grid: dict[str, Any] | None = None  # south, west, dlat, dlon, rates (rows x cols)
 
@@ -99,6 +104,16 @@ class RxIn:
                 out[pi[first]] = rates[zi[first]]
         return out
 
+    def coverage(self) -> Any:
+        """Where the prescription has data (lon/lat): the grid's rectangle or the zones."""
+        if self.grid is not None:
+            g = self.grid
+            rows, cols = g["rates"].shape
+            return shapely.box(
+                g["west"], g["south"], g["west"] + cols * g["dlon"], g["south"] + rows * g["dlat"]
+            )
+        return shapely.union_all([poly for _, poly in self.zones])
+
     def grid_centres(self) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
         """(lon, lat, rate) of every grid cell centre, or None for zone prescriptions."""
         if self.grid is None:
@@ -117,10 +132,12 @@ class TaskDataSet:
     farms: list[FarmIn] = field(default_factory=list)
     fields: list[FieldIn] = field(default_factory=list)
     prescriptions: list[RxIn] = field(default_factory=list)
-    skipped: list[dict[str, str]] = field(default_factory=list)
+    skipped: list[dict[str, Any]] = field(default_factory=list)
+    # TSK/TLG: TimeLogs inside the set (header + binary names; read by the TimeLog import)
+    timelogs: list[dict[str, Any]] = field(default_factory=list)
 
-    def skip(self, what: str, why: str) -> None:
-        self.skipped.append({"what": what, "why": why})
+    def skip(self, what: str, why: str, bad: bool = False, needs_density: bool = False) -> None:
+        self.skipped.append({"what": what, "why": why, "bad": bad, "needs_density": needs_density})
 
 
 def _num(el: ET.Element, attr: str, where: str) -> float:
@@ -141,18 +158,19 @@ def _int(el: ET.Element, attr: str, where: str) -> int:
     return int(x)
 
 
+def _point(p: ET.Element, w: str) -> tuple[float, float]:
+    lat, lon = _num(p, "C", w), _num(p, "D", w)
+    if not (-90 <= lat <= 90 and -180 <= lon <= 180):
+        raise FormatError(f"{w}: position {lat}, {lon} is not latitude/longitude")
+    return lon, lat
+
+
 def _ring(lsg: ET.Element, where: str) -> list[tuple[float, float]]:
-    pts = []
-    for k, p in enumerate(lsg.findall("PNT")):
-        w = f"{where}/PNT[{k}]"
-        lat, lon = _num(p, "C", w), _num(p, "D", w)
-        if not (-90 <= lat <= 90 and -180 <= lon <= 180):
-            raise FormatError(f"{w}: position {lat}, {lon} is not latitude/longitude")
-        pts.append((lon, lat))
-    return pts
+    return [_point(p, f"{where}/PNT[{k}]") for k, p in enumerate(lsg.findall("PNT"))]
 
 
-def _polygon(pln: ET.Element, where: str) -> Polygon | None:
+def _rings(pln: ET.Element, where: str) -> tuple[list[tuple[float, float]] | None, list[Any]]:
+    """A PLN's exterior ring (LSG A=1, or None) and its interior rings (LSG A=2)."""
     shell = None
     holes = []
     for k, lsg in enumerate(pln.findall("LSG")):
@@ -167,9 +185,39 @@ def _polygon(pln: ET.Element, where: str) -> Polygon | None:
             shell = pts
         elif kind == "2":
             holes.append(pts)
+    return shell, holes
+
+
+def _polygon(pln: ET.Element, where: str) -> Polygon:
+    shell, holes = _rings(pln, where)
     if shell is None:
         raise FormatError(f"{where}: polygon without an exterior ring (LSG A=1)")
     return Polygon(shell, holes)
+
+
+def _attach_holes(polys: list[Polygon], holes: list[tuple[Any, str]]) -> list[Polygon]:
+    """Holes written as PLN of their own (only LSG A=2, as some terminals export them)
+    join the exterior polygon that contains them: ISO 11783-10 defines a PLN's interior
+    rings as holes of its exterior, and a partfield's boundary is the union of its
+    type-1 PLNs, so the hole belongs to whichever exterior surrounds it."""
+    shells = [list(p.exterior.coords) for p in polys]
+    inner: list[list[Any]] = [[list(r.coords) for r in p.interiors] for p in polys]
+    for ring, where in holes:
+        rp = Polygon(ring)
+        owner = next(
+            (
+                i
+                for i, p in enumerate(polys)
+                if Polygon(p.exterior).contains(rp.representative_point())
+            ),
+            None,
+        )
+        if owner is None:
+            raise FormatError(
+                f"{where}: a hole (LSG A=2) outside every exterior ring of the partfield"
+            )
+        inner[owner].append(ring)
+    return [Polygon(s, h) for s, h in zip(shells, inner, strict=True)]
 
 
 class _Files:
@@ -201,7 +249,7 @@ def read_taskdata_zip(data: bytes) -> TaskDataSet:
     return read_taskdata(read_zip(data))
 
 
-def read_taskdata(files: dict[str, bytes]) -> TaskDataSet:
+def read_taskdata(files: dict[str, bytes], density_kg_l: float | None = None) -> TaskDataSet:
     """See module docstring."""
     fs = _Files(files)
     root = parse_xml(fs.get("TASKDATA.XML", "upload"), "TASKDATA.XML")
@@ -233,54 +281,113 @@ def read_taskdata(files: dict[str, bytes]) -> TaskDataSet:
         if not any(f.get("I") == ref for f in root.findall("FRM")):
             ds.skip(f"customer {name or ref}", "customer without a farm: fields keep no farm")
     products = {p.get("A"): (p.get("B") or "").strip() for p in root.findall("PDT")}
+    bad: list[str] = []
     for pfd in root.findall("PFD"):
         w = where(pfd, "PFD")
-        polys: list[Polygon] = []
-        for k, pln in enumerate(pfd.findall("PLN")):
-            pw = f"{w}/PLN[{k}]"
-            if pln.get("A") == "1":
-                p = _polygon(pln, pw)
-                if p is not None:
-                    polys.append(p)
-            else:
-                ds.skip(
-                    f"{w}/PLN[{k}] type {pln.get('A')} {pln.get('B') or ''}".strip(),
-                    "obstacle/annotation polygons have no place in FieldRx yet",
-                )
-        for k, ggp in enumerate(pfd.findall("GGP")):
-            for gpn in ggp.findall("GPN"):
-                kinds = sorted({lsg.get("A", "?") for lsg in gpn.findall("LSG")})
-                npts = sum(len(lsg.findall("PNT")) for lsg in gpn.findall("LSG"))
-                ds.skip(
-                    f"{w}/GGP[{k}] guidance pattern {gpn.get('B') or gpn.get('A')} "
-                    f"(line types {','.join(kinds) or 'none'}, {npts} points)",
-                    "FieldRx has no reference-line store",
-                )
-        for tag, label in (("LSG", "line"), ("PNT", "point")):
-            for k, el in enumerate(pfd.findall(tag)):
-                ds.skip(
-                    f"{w}/{tag}[{k}] {label} type {el.get('A')} {el.get('B') or ''}".strip(),
-                    "partfield lines and points (routes, flags, entries) have no place in "
-                    "FieldRx yet",
-                )
-        if not polys:
-            ds.skip(f"{w} {pfd.get('C') or ''}".strip(), "partfield without a boundary (PLN A=1)")
+        label = f"{w} {pfd.get('C') or ''}".strip()
+        try:
+            fin = _partfield(pfd, w)
+        except FormatError as exc:
+            # one broken partfield does not sink the others: it is named in the preview
+            # and the confirmed import stores the rest
+            ds.skip(label, f"refused: {exc}", bad=True)
+            bad.append(str(exc))
             continue
-        geom: Polygon | MultiPolygon = polys[0] if len(polys) == 1 else MultiPolygon(polys)
-        area = pfd.get("D")
-        ds.fields.append(
-            FieldIn(
-                pfd.get("A", ""),
-                (pfd.get("C") or "").strip() or f"Partfield {pfd.get('A')}",
-                pfd.get("F"),
-                geom,
-                float(area) if area and area.isdigit() else None,
-            )
-        )
-    field_refs = {f.ref for f in ds.fields}
+        if fin is None:
+            ds.skip(label, "partfield without a boundary (PLN A=1)")
+            continue
+        ds.fields.append(fin)
+    if bad and not ds.fields:
+        raise FormatError("; ".join(bad))
+    ctx = _TaskCtx(fs, products, {f.ref for f in ds.fields}, density_kg_l)
     for tsk in root.findall("TSK"):
-        _task(ds, tsk, where(tsk, "TSK"), fs, products, field_refs)
+        _task(ds, tsk, where(tsk, "TSK"), ctx)
     return ds
+
+
+# ISO 11783-10 PLN A, LSG A and PNT A type codes, for the kept features' labels
+PLN_TYPES = {2: "treatment zone", 3: "water surface", 4: "building", 5: "road", 6: "obstacle",
+             7: "flag", 8: "other", 9: "main field", 10: "headland", 11: "buffer zone",
+             12: "windbreak"}  # fmt: skip
+LSG_TYPES = {3: "tram line", 4: "sampling route", 5: "guidance pattern", 6: "drainage",
+             7: "fence", 8: "flag", 9: "obstacle"}  # fmt: skip
+PNT_TYPES = {1: "flag", 2: "other", 3: "field access", 4: "storage", 5: "obstacle",
+             6: "guidance reference A", 7: "guidance reference B", 8: "guidance reference center",
+             9: "guidance point", 10: "partfield reference point", 11: "homebase"}  # fmt: skip
+
+
+def _type_name(table: dict[int, str], code: str | None) -> str:
+    try:
+        return table.get(int(code or ""), f"type {code}")
+    except ValueError:
+        return f"type {code}"
+
+
+def _feature(geom: Any, kind: str, type_name: str, name: str, where: str) -> dict[str, Any]:
+    return {
+        "type": "Feature",
+        "geometry": shapely.geometry.mapping(geom),
+        "properties": {"kind": kind, "type": type_name, "name": name, "source": where},
+    }
+
+
+def _line(lsg: ET.Element, where: str) -> Any:
+    pts = _ring(lsg, where)
+    if len(pts) == 1:
+        return shapely.Point(pts[0])
+    if not pts:
+        raise FormatError(f"{where}: a line without points")
+    return shapely.LineString(pts)
+
+
+def _partfield(pfd: ET.Element, w: str) -> FieldIn | None:
+    """One partfield: its boundary and the features kept with it (see module docstring)."""
+    polys: list[Polygon] = []
+    holes: list[tuple[Any, str]] = []
+    features: list[dict[str, Any]] = []
+    for k, pln in enumerate(pfd.findall("PLN")):
+        pw = f"{w}/PLN[{k}]"
+        shell, inner = _rings(pln, pw)
+        if pln.get("A") == "1":
+            if shell is None:
+                holes.extend((r, pw) for r in inner)
+            else:
+                polys.append(Polygon(shell, inner))
+        elif shell is not None or inner:
+            geom = Polygon(shell, inner) if shell is not None else Polygon(inner[0])
+            kind = _type_name(PLN_TYPES, pln.get("A"))
+            features.append(_feature(geom, "polygon", kind, pln.get("B") or "", pw))
+    for k, ggp in enumerate(pfd.findall("GGP")):
+        for j, gpn in enumerate(ggp.findall("GPN")):
+            for i, lsg in enumerate(gpn.findall("LSG")):
+                gw = f"{w}/GGP[{k}]/GPN[{j}]/LSG[{i}]"
+                name = gpn.get("B") or ggp.get("B") or gpn.get("A") or ""
+                features.append(_feature(_line(lsg, gw), "guidance", "guidance pattern", name, gw))
+    for k, lsg in enumerate(pfd.findall("LSG")):
+        lw = f"{w}/LSG[{k}]"
+        kind = _type_name(LSG_TYPES, lsg.get("A"))
+        features.append(_feature(_line(lsg, lw), "line", kind, lsg.get("B") or "", lw))
+    for k, pnt in enumerate(pfd.findall("PNT")):
+        pw = f"{w}/PNT[{k}]"
+        pt = _point(pnt, pw)
+        kind = _type_name(PNT_TYPES, pnt.get("A"))
+        features.append(_feature(shapely.Point(pt), "point", kind, pnt.get("B") or "", pw))
+    if not polys:
+        if holes:
+            raise FormatError(f"{holes[0][1]}: holes (LSG A=2) without an exterior ring")
+        return None
+    if holes:
+        polys = _attach_holes(polys, holes)
+    geom: Polygon | MultiPolygon = polys[0] if len(polys) == 1 else MultiPolygon(polys)
+    area = pfd.get("D")
+    return FieldIn(
+        pfd.get("A", ""),
+        (pfd.get("C") or "").strip() or f"Partfield {pfd.get('A')}",
+        pfd.get("F"),
+        geom,
+        float(area) if area and area.isdigit() else None,
+        features,
+    )
 
 
 def _ddi_unit(ddi: int) -> tuple[str, str]:
@@ -291,48 +398,114 @@ def _ddi_unit(ddi: int) -> tuple[str, str]:
         return f"unknown DDI {ddi}", ""
 
 
-def _task(
-    ds: TaskDataSet,
-    tsk: ET.Element,
-    w: str,
-    fs: _Files,
-    products: dict[str | None, str],
-    field_refs: set[str],
-) -> None:
-    name = (tsk.get("B") or "").strip() or f"Task {tsk.get('A')}"
-    tzns: dict[int, ET.Element] = {}
-    for z in tsk.findall("TZN"):
-        tzns[_int(z, "A", f"{w}/TZN")] = z
-    if not tzns:
-        ds.skip(f"{w} {name}", "task without treatment zones (no prescription)")
-        return
-    pfd = tsk.get("E")
-    if pfd not in field_refs:
-        ds.skip(f"{w} {name}", f"task's partfield {pfd!r} has no boundary in the upload")
-        return
-    # the rate DDI: the first PDV with a supported mass rate; name the others if none
+@dataclass
+class _TaskCtx:
+    """What a task's reading needs from the set around it."""
+
+    fs: _Files
+    products: dict[str | None, str]
+    field_refs: set[str]
+    density_kg_l: float | None
+
+
+def _rate_ddi(
+    tzns: dict[int, ET.Element], w: str, products: dict[str | None, str]
+) -> tuple[int | None, str, list[str]]:
+    """The task's rate DDI (mass first, then volume), its product and every DDI seen."""
     seen: list[str] = []
-    ddi = None
-    product = ""
+    found: dict[int, str] = {}
     for z in tzns.values():
         for pdv in z.findall("PDV"):
             try:
                 d = int(pdv.get("A", ""), 16)
             except ValueError:
                 raise FormatError(f"{w}/TZN/PDV: DDI {pdv.get('A')!r} is not hex") from None
-            if d in MASS_RATE_DDIS and ddi is None:
-                ddi = d
-                product = products.get(pdv.get("C"), "")
+            if (d in MASS_RATE_DDIS or d in VOLUME_RATE_DDIS) and d not in found:
+                found[d] = products.get(pdv.get("C"), "")
             seen.append(f"{d} ({_ddi_unit(d)[0]})")
+    for d in (*MASS_RATE_DDIS, *VOLUME_RATE_DDIS):
+        if d in found:
+            return d, found[d], seen
+    return None, "", seen
+
+
+def _task_timelogs(ds: TaskDataSet, tsk: ET.Element, w: str, name: str, fs: _Files) -> None:
+    from fieldrx.formats.timelog import read_timelog, timelog_summary
+
+    for k, tlg in enumerate(tsk.findall("TLG")):
+        ref = tlg.get("A", "")
+        entry: dict[str, Any] = {"task": tsk.get("A", ""), "task_name": name, "timelog": ref}
+        try:
+            log = read_timelog(
+                ref, fs.get(f"{ref}.XML", f"{w}/TLG[{k}]"), fs.get(f"{ref}.BIN", f"{w}/TLG[{k}]")
+            )
+            entry.update(timelog_summary(log))
+        except FormatError as exc:
+            entry["error"] = str(exc)
+        ds.timelogs.append(entry)
+
+
+def _zones(rx: RxIn, tzns: dict[int, ET.Element], w: str, zone_rate: Any) -> bool:
+    """A zone prescription's polygons and rates; False when no zone has a polygon."""
+    for code, z in sorted(tzns.items()):
+        polys = [_polygon(p, f"{w}/TZN[{code}]/PLN[{k}]") for k, p in enumerate(z.findall("PLN"))]
+        if polys:
+            rx.zones.append((zone_rate(code, w), shapely.union_all(shapely.make_valid(polys))))
+    return bool(rx.zones)
+
+
+def _check_grid(grds: list[ET.Element], w: str, ctx: _TaskCtx, tzns: dict[int, ET.Element]) -> str:
+    """A skipped task's grid binary is still read (a broken one is an error); its size."""
+    if not grds:
+        return ""
+    g = _grid(grds[0], f"{w}/GRD", ctx.fs, tzns, None, 0.0, None)
+    rows, cols = g["rates"].shape
+    layers = f"{g['layers']} layer{'s' if g['layers'] != 1 else ''}"
+    kind = grds[0].get("I")
+    return f"; its grid (type {kind}, {rows} x {cols} cells, {layers}) was read and is whole"
+
+
+def _task(ds: TaskDataSet, tsk: ET.Element, w: str, ctx: _TaskCtx) -> None:
+    name = (tsk.get("B") or "").strip() or f"Task {tsk.get('A')}"
+    _task_timelogs(ds, tsk, w, name, ctx.fs)
+    tzns: dict[int, ET.Element] = {}
+    for z in tsk.findall("TZN"):
+        tzns[_int(z, "A", f"{w}/TZN")] = z
+    if not tzns:
+        ds.skip(f"{w} {name}", "task without treatment zones (no prescription)")
+        return
+    ddi, product, seen = _rate_ddi(tzns, w, ctx.products)
+    grds = tsk.findall("GRD")
+    pfd = tsk.get("E")
+    if pfd not in ctx.field_refs:
+        why = f"task's partfield {pfd!r} has no boundary in the upload"
+        ds.skip(f"{w} {name}", why + _check_grid(grds, w, ctx, tzns))
+        return
     if ddi is None:
+        _check_grid(grds, w, ctx, tzns)
         ds.skip(
             f"{w} {name}",
-            "no mass-per-area rate (DDI 6) among "
+            "no mass- or volume-per-area rate (DDI 6 or 1) among "
             + (", ".join(sorted(set(seen))) or "no process data")
-            + ": volume and count rates need a density FieldRx does not have",
+            + ": only mass rates (DDI 6) and, with a density, volume rates (DDI 1) "
+            "become kg/ha",
         )
         return
-    factor = MASS_RATE_DDIS[ddi]
+    unit = "kg/ha"
+    factor = MASS_RATE_DDIS.get(ddi, 0.0)
+    if ddi in VOLUME_RATE_DDIS:
+        unit = "l/ha"
+        if ctx.density_kg_l is None:
+            _check_grid(grds, w, ctx, tzns)
+            ds.skip(
+                f"{w} {name}",
+                f"volume rate (DDI {ddi}, l/ha): give the product's density in kg/l "
+                "(density_kg_l) to import it as kg/ha",
+                needs_density=True,
+            )
+            return
+        # mm^3/m^2 -> l/ha is x 0.01 (1e-6 l per 1e-4 ha); x density (kg/l) -> kg/ha
+        factor = VOLUME_RATE_DDIS[ddi] * ctx.density_kg_l
 
     def zone_rate(code: int, where: str) -> float:
         z = tzns.get(code)
@@ -352,24 +525,16 @@ def _task(
         product=product,
         kind="zones",
         ddi=ddi,
-        unit="kg/ha",
+        unit=unit,
         default_rate_kg_ha=default,
+        density_kg_l=ctx.density_kg_l if unit == "l/ha" else None,
     )
-    grds = tsk.findall("GRD")
     if grds:
-        rx.grid = _grid(grds[0], f"{w}/GRD", fs, tzns, ddi, factor, zone_rate)
+        rx.grid = _grid(grds[0], f"{w}/GRD", ctx.fs, tzns, ddi, factor, zone_rate)
         rx.kind = f"grid type {grds[0].get('I')}"
-    else:
-        for code, z in sorted(tzns.items()):
-            polys = [
-                _polygon(p, f"{w}/TZN[{code}]/PLN[{k}]") for k, p in enumerate(z.findall("PLN"))
-            ]
-            polys = [p for p in polys if p is not None]
-            if polys:
-                rx.zones.append((zone_rate(code, w), shapely.union_all(shapely.make_valid(polys))))
-        if not rx.zones:
-            ds.skip(f"{w} {name}", "treatment zones without polygons or grid")
-            return
+    elif not _zones(rx, tzns, w, zone_rate):
+        ds.skip(f"{w} {name}", "treatment zones without polygons or grid")
+        return
     ds.prescriptions.append(rx)
 
 
@@ -378,10 +543,11 @@ def _grid(
     w: str,
     fs: _Files,
     tzns: dict[int, ET.Element],
-    ddi: int,
+    ddi: int | None,
     factor: float,
     zone_rate: Any,
 ) -> dict[str, Any]:
+    """The grid's geometry and rates; with ``ddi`` None only its binary is checked."""
     south, west = _num(grd, "A", w), _num(grd, "B", w)
     dlat, dlon = _num(grd, "C", w), _num(grd, "D", w)
     cols, rows = _int(grd, "E", w), _int(grd, "F", w)
@@ -401,31 +567,48 @@ def _grid(
     data = fs.get(fname, w)
     if kind == "1":
         want = rows * cols
-        if len(data) != want or (declared is not None and int(declared) != len(data)):
+        if len(data) != want:
             raise FormatError(
                 f"{w}: binary {fname} has {len(data)} bytes, {rows} x {cols} type-1 cells "
                 f"need {want} (H says {declared})"
             )
         codes = np.frombuffer(data, dtype=np.uint8).reshape(rows, cols)
-        lut = np.asarray([zone_rate(c, w) for c in range(256)])
-        rates = lut[codes]
+        rates = codes.astype(float)
+        if zone_rate is not None:
+            rates = np.asarray([zone_rate(c, w) for c in range(256)])[codes]
     elif kind == "2":
         code = _int(grd, "J", w)
         z = tzns.get(code)
         if z is None:
             raise FormatError(f"{w}: grid zone J={code} is not a TZN of the task")
         pdvs = [int(p.get("A", "0"), 16) for p in z.findall("PDV")]
-        if ddi not in pdvs:
+        if ddi is not None and ddi not in pdvs:
             raise FormatError(f"{w}: TZN[{code}] has no PDV with DDI {ddi}")
         k = len(pdvs)
         want = rows * cols * 4 * k
-        if len(data) != want or (declared is not None and int(declared) != len(data)):
+        if len(data) != want:
             raise FormatError(
                 f"{w}: binary {fname} has {len(data)} bytes, {rows} x {cols} cells x {k} "
                 f"values x 4 need {want} (H says {declared})"
             )
-        vals = np.frombuffer(data, dtype="<i4").reshape(rows, cols, k)[:, :, pdvs.index(ddi)]
-        rates = vals.astype(float) * factor
+        vals = np.frombuffer(data, dtype="<i4").reshape(rows, cols, k)
+        rates_layers = k
+        rates = vals[:, :, 0 if ddi is None else pdvs.index(ddi)].astype(float) * factor
     else:
         raise FormatError(f"{w}: grid type I={kind!r} (1 and 2 are defined)")
-    return {"south": south, "west": west, "dlat": dlat, "dlon": dlon, "rates": rates}
+    note = None
+    if declared is not None and int(declared) != len(data):
+        # some writers put a wrong file length in H; the grid's own size decides
+        note = (
+            f"{w}: H declares {declared} bytes, binary {fname} has {len(data)}, which is "
+            f"what the {rows} x {cols} grid needs: read as the grid says"
+        )
+    return {
+        "south": south,
+        "west": west,
+        "dlat": dlat,
+        "dlon": dlon,
+        "rates": rates,
+        "note": note,
+        "layers": 1 if kind == "1" else rates_layers,
+    }

@@ -24,6 +24,8 @@ from fieldrx.formats.isoxml_import import RxIn
 
 # unit -> factor to kg/ha (1 lb/ac = 0.45359237 kg / 0.40468564 ha)
 UNITS = {"kg/ha": 1.0, "lb/ac": 0.45359237 / 0.40468564224, "g/m2": 10.0, "t/ha": 1000.0}
+# volume rates -> l/ha; times the product's density (kg/l) -> kg/ha
+VOLUME_UNITS = {"l/ha": 1.0, "gal/ac": 3.785411784 / 0.40468564224}
 SUGGESTED = ("RATE", "RATE_KG_HA", "TGTRATE", "TARGET", "TGT_RATE", "RX_RATE", "PRODUCT", "N")
 
 
@@ -66,17 +68,23 @@ def rx_from_items(
     default_rate_kg_ha: float,
     name: str,
     product: str,
+    density_kg_l: float | None = None,
 ) -> RxIn:
     """A zone prescription from the mapped features (first feature wins where they overlap)."""
-    if unit not in UNITS:
-        raise FormatError(f"unit {unit!r} is not one of {sorted(UNITS)}")
+    if unit in VOLUME_UNITS:
+        if density_kg_l is None:
+            raise FormatError(f"{unit} is a volume rate: give the product's density (kg/l)")
+        factor = VOLUME_UNITS[unit] * density_kg_l
+    elif unit in UNITS:
+        factor = UNITS[unit]
+    else:
+        raise FormatError(f"unit {unit!r} is not one of {sorted(UNITS) + sorted(VOLUME_UNITS)}")
     if not (math.isfinite(default_rate_kg_ha) and default_rate_kg_ha >= 0):
         raise FormatError(f"default rate {default_rate_kg_ha} must be a number >= 0")
     if items and rate_column not in items[0][0]:
         raise FormatError(
             f"column {rate_column!r} is not in the file (columns: {sorted(items[0][0])})"
         )
-    factor = UNITS[unit]
     zones = []
     for i, (props, geom) in enumerate(items):
         v = _number(props.get(rate_column))

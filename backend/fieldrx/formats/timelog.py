@@ -48,9 +48,19 @@ class TimeLog:
     status: np.ndarray
     values: dict[int, np.ndarray]  # DDI -> raw values (last reported, NaN before the first)
     ignored_ddis: list[int] = field(default_factory=list)
+    reported: dict[int, int] = field(default_factory=dict)  # DDI -> records reporting it
 
     def __len__(self) -> int:
         return len(self.t)
+
+    def total(self, ddi: int) -> float | None:
+        """What a total counter (yield, fuel ...) grew by over the log: the sum of its
+        increases between records, so a counter reset (a drop) is not subtracted."""
+        v = self.values.get(ddi)
+        if v is None:
+            return None
+        f = v[np.isfinite(v)]
+        return float(np.clip(np.diff(f), 0, None).sum()) if len(f) else None
 
     def series(self, ddi: int, scale: float = 1.0) -> np.ndarray:
         v = self.values.get(ddi)
@@ -76,6 +86,7 @@ def read_timelog(name: str, header: bytes, data: bytes) -> TimeLog:
     rows_t: list[float] = []
     rows_pos: list[dict[str, Any]] = []
     last = np.full(len(dlvs), np.nan)
+    counts = np.zeros(len(dlvs), dtype=np.int64)
     vals: list[np.ndarray] = []
     i, n = 0, len(data)
     while i < n:
@@ -99,6 +110,7 @@ def read_timelog(name: str, header: bytes, data: bytes) -> TimeLog:
                         f"declares {len(dlvs)}"
                     )
                 last[idx] = v
+                counts[idx] += 1
         except struct.error:
             raise FormatError(
                 f"{bin_name}: record {len(rows_t)} is cut short at byte {i} of {n} "
@@ -125,4 +137,55 @@ def read_timelog(name: str, header: bytes, data: bytes) -> TimeLog:
         status=pos_col("D", 1.0),
         values=values,
         ignored_ddis=sorted({d for d in dlvs if d not in USED}),
+        reported={d: int(counts[k]) for k, d in enumerate(dlvs)},
     )
+
+
+def _totals(log: TimeLog) -> dict[str, Any]:
+    """Growth of each total counter the log carries (ISO 11783-11 "Total ..." DDIs)."""
+    from isoxml.models.ddi_entities import DDEntity
+
+    out: dict[str, Any] = {}
+    for ddi in sorted(log.values):
+        try:
+            d = DDEntity.from_id(ddi)
+        except KeyError:
+            continue
+        if "Total" in d.name:
+            out[str(ddi)] = {"name": d.name, "unit": d.unit, "total": log.total(ddi)}
+    return out
+
+
+def timelog_summary(log: TimeLog) -> dict[str, Any]:
+    """What a log holds and what FieldRx can make of it (the imports' previews)."""
+    pos = np.isfinite(log.lat) & np.isfinite(log.lon)
+    widths = log.series(67, 0.001)
+    applied = log.series(7, 0.01)
+    has_rate = bool(np.isfinite(applied).any())
+    centre = None
+    if pos.any():
+        centre = [float(np.median(log.lon[pos])), float(np.median(log.lat[pos]))]
+    if has_rate:
+        gives = "an as-applied map and application accuracy against a prescription (DDI 7)"
+    else:
+        gives = (
+            "a coverage map (positions"
+            + (", work state DDI 141" if 141 in log.values else "")
+            + ") only: no applied rate (DDI 7), so no application accuracy"
+        )
+    return {
+        "timelog": log.name,
+        "records": len(log),
+        "with_position": int(pos.sum()),
+        "first_t": None if not len(log) else float(log.t.min()),
+        "last_t": None if not len(log) else float(log.t.max()),
+        "centre": centre,
+        "ddis_used": sorted(d for d in log.values if d in USED),
+        "ddis_ignored": log.ignored_ddis,
+        "reported": {str(d): n for d, n in sorted(log.reported.items())},
+        "totals": _totals(log),
+        "has_rate": has_rate,
+        "gives": gives,
+        "mean_applied_rate_kg_ha": float(np.nanmean(applied)) if has_rate else None,
+        "logged_width_m": None if not np.isfinite(widths).any() else float(np.nanmedian(widths)),
+    }

@@ -31,6 +31,8 @@ from sqlalchemy import insert, text
 from sqlalchemy.orm import Session
 
 from fieldrx.agronomy.cells import CellTable
+from fieldrx.agronomy.prescription import summarize
+from fieldrx.agronomy.products import product_figures
 from fieldrx.db.geometry import shape_to_db
 from fieldrx.db.models import (
     Farm,
@@ -50,29 +52,119 @@ from fieldrx.formats.archive import read_zip
 from fieldrx.formats.isoxml_import import RxIn, TaskDataSet, read_taskdata
 from fieldrx.formats.timelog import TimeLog
 from fieldrx.geo import PlanningError
+from fieldrx.geo.crs import to_utm
 from fieldrx.geo.validate import BoundaryError, validate_boundary
+from fieldrx.services.import_checks import match_farm, match_field, placement
 from fieldrx.services.plans import PlanParams, check_plan_cost, create_plan
+from fieldrx.services.prescriptions import auto_classes
 from fieldrx.store import load_cells, write_rates
 
 IMPORTED_MODEL = "imported"
+# the implement type of the machines an import creates to hold other terminals' logs:
+# they never receive a job (not listed as sendable, refused by POST /jobs)
+IMPORTED_IMPLEMENT = "imported"
 
 
 def _validated(ds: TaskDataSet) -> list[Any]:
+    """Each partfield's validated boundary; one that fails validation is dropped from
+    the set and named in its skipped list (the others still import), unless none is left."""
     out = []
+    keep = []
+    reasons = []
     for f in ds.fields:
         try:
             out.append(validate_boundary(shapely.geometry.mapping(f.boundary)))
+            keep.append(f)
         except BoundaryError as exc:
-            raise FormatError(f"partfield {f.ref} ({f.name}): {exc}") from exc
+            msg = f"partfield {f.ref} ({f.name}): {exc}"
+            ds.skip(f"PFD[{f.ref}] {f.name}", f"refused: {msg}", bad=True)
+            reasons.append(msg)
+    if reasons and not keep:
+        raise FormatError("; ".join(reasons))
+    refs = {f.ref for f in keep}
+    for rx in [r for r in ds.prescriptions if r.field_ref not in refs]:
+        ds.prescriptions.remove(rx)
+        ds.skip(f"TSK[{rx.ref}] {rx.name}", f"its partfield {rx.field_ref} was refused")
+    ds.fields[:] = keep
     return out
 
 
-def preview(ds: TaskDataSet) -> dict[str, Any]:
-    """What a confirmed import creates and what it skips (nothing is stored)."""
+def _placed(ds: TaskDataSet, valid: list[Any]) -> dict[str, dict[str, Any]]:
+    """Where each prescription's data lies on its field; data off the field is dropped
+    from the set and named (with its distance) in the skipped list."""
+    by_ref = {f.ref: (f, v) for f, v in zip(ds.fields, valid, strict=True)}
+    out: dict[str, dict[str, Any]] = {}
+    for rx in list(ds.prescriptions):
+        f, v = by_ref[rx.field_ref]
+        pl = placement(v.geometry, v.utm_epsg, rx.coverage())
+        what = f"{rx.kind} of task {rx.ref} ({rx.name})"
+        note = pl.describe(what, f.name)
+        out[rx.ref] = {"overlap_pct": pl.overlap_pct, "distance_m": round(pl.distance_m, 1)}
+        if note:
+            out[rx.ref]["warning"] = note
+        if pl.refused:
+            ds.prescriptions.remove(rx)
+            ds.skip(f"TSK[{rx.ref}] {rx.name}", note or "", bad=True)
+    return out
+
+
+def _rx_preview(r: RxIn, place: dict[str, Any]) -> dict[str, Any]:
+    rates = r.grid["rates"] if r.grid is not None else np.asarray([z for z, _ in r.zones])
+    return {
+        "ref": r.ref,
+        "name": r.name,
+        "field_ref": r.field_ref,
+        "kind": r.kind,
+        "ddi": r.ddi,
+        "unit": r.unit,
+        "density_kg_l": r.density_kg_l,
+        "product": r.product,
+        "default_rate_kg_ha": r.default_rate_kg_ha,
+        "min_rate_kg_ha": round(float(np.min(rates)), 2) if rates.size else None,
+        "max_rate_kg_ha": round(float(np.max(rates)), 2) if rates.size else None,
+        "zones": len(r.zones) if r.grid is None else None,
+        "grid": None
+        if r.grid is None
+        else {"rows": int(r.grid["rates"].shape[0]), "cols": int(r.grid["rates"].shape[1])},
+        "extent": [round(x, 7) for x in r.coverage().bounds],
+        "note": None if r.grid is None else r.grid.get("note"),
+        **place,
+    }
+
+
+def _matches(
+    session: Session, ds: TaskDataSet, valid: list[Any], organisation_id: int
+) -> tuple[dict[str, Farm], dict[str, tuple[Field, str]]]:
+    farms = {}
+    for fa in ds.farms:
+        row = match_farm(session, organisation_id, fa.name)
+        if row is not None:
+            farms[fa.ref] = row
+    fields = {}
+    for f, v in zip(ds.fields, valid, strict=True):
+        row, by = match_field(session, organisation_id, f.ref, f.name, v.geometry, v.utm_epsg)
+        if row is not None:
+            fields[f.ref] = (row, by)
+    return farms, fields
+
+
+def preview(session: Session, ds: TaskDataSet, organisation_id: int) -> dict[str, Any]:
+    """What a confirmed import creates, matches and skips (nothing is stored)."""
     valid = _validated(ds)
+    place = _placed(ds, valid)
+    farms, fields = _matches(session, ds, valid, organisation_id)
     return {
         "version": ds.version,
-        "farms": [{"ref": f.ref, "name": f.name} for f in ds.farms],
+        "farms": [
+            {
+                "ref": f.ref,
+                "name": f.name,
+                "match": None
+                if f.ref not in farms
+                else {"id": farms[f.ref].id, "name": farms[f.ref].name, "by": "name"},
+            }
+            for f in ds.farms
+        ],
         "fields": [
             {
                 "ref": f.ref,
@@ -82,28 +174,31 @@ def preview(ds: TaskDataSet) -> dict[str, Any]:
                 "declared_area_m2": f.declared_area_m2,
                 "holes": sum(len(p.interiors) for p in getattr(f.boundary, "geoms", [f.boundary])),
                 "parts": len(getattr(f.boundary, "geoms", [f.boundary])),
+                "features": _feature_counts(f.features),
+                "centre": [round(c, 7) for c in v.geometry.representative_point().coords[0]],
+                "match": None
+                if f.ref not in fields
+                else {
+                    "id": fields[f.ref][0].id,
+                    "name": fields[f.ref][0].name,
+                    "by": fields[f.ref][1],
+                },
             }
             for f, v in zip(ds.fields, valid, strict=True)
         ],
-        "prescriptions": [
-            {
-                "ref": r.ref,
-                "name": r.name,
-                "field_ref": r.field_ref,
-                "kind": r.kind,
-                "ddi": r.ddi,
-                "unit": r.unit,
-                "product": r.product,
-                "default_rate_kg_ha": r.default_rate_kg_ha,
-                "zones": len(r.zones) if r.grid is None else None,
-                "grid": None
-                if r.grid is None
-                else {"rows": int(r.grid["rates"].shape[0]), "cols": int(r.grid["rates"].shape[1])},
-            }
-            for r in ds.prescriptions
-        ],
+        "prescriptions": [_rx_preview(r, place[r.ref]) for r in ds.prescriptions],
+        "timelogs": ds.timelogs,
         "skipped": ds.skipped,
+        "bad": [s for s in ds.skipped if s.get("bad")],
     }
+
+
+def _feature_counts(features: list[dict[str, Any]]) -> dict[str, int]:
+    out: dict[str, int] = {}
+    for f in features:
+        key = f"{f['properties']['kind']}: {f['properties']['type']}"
+        out[key] = out.get(key, 0) + 1
+    return out
 
 
 def cell_rates(rx: RxIn, cells: CellTable) -> np.ndarray:
@@ -134,6 +229,25 @@ def cell_rates(rx: RxIn, cells: CellTable) -> np.ndarray:
     return np.round(rates, 2)
 
 
+def outside_share(rx: RxIn, cells: CellTable) -> dict[str, Any]:
+    """How much of the imported data falls outside the plan's cells: for zones the
+    share of their area, for grids the share of grid cells with a rate above 0 whose
+    centre lies in no plan cell (product the plan cannot place)."""
+    cover = shapely.union_all(cells.polygons_wgs84())
+    centres = rx.grid_centres()
+    if centres is not None:
+        lon, lat, val = centres
+        live = val > 0
+        if not live.any():
+            return {"share_pct": 0.0, "of": "grid cells with a rate"}
+        inside = shapely.intersects(cover, shapely.points(lon[live], lat[live]))
+        share = 100.0 * float((~inside).sum()) / float(live.sum())
+        return {"share_pct": round(share, 2), "of": "grid cells with a rate"}
+    z = to_utm(shapely.union_all([p for _, p in rx.zones]), cells.epsg)
+    out = z.difference(shapely.union_all(cells.polygons_utm)).area
+    return {"share_pct": round(100.0 * out / max(z.area, 1e-9), 2), "of": "zone area"}
+
+
 def store_prescription(
     session: Session,
     rx: RxIn,
@@ -158,21 +272,29 @@ def store_prescription(
     )
     session.add(row)
     session.flush()
-    area = cells.area_m2
-    summary = {
-        "source": source,
-        "n_cells": len(cells),
-        "min_rate_kg_ha": float(rates.min(initial=0.0)),
-        "max_rate_kg_ha": float(rates.max(initial=0.0)),
-        "mean_rate_kg_ha": float(np.sum(rates * area) / max(area.sum(), 1e-12)),
-        "total_kg": float(np.sum(rates * area) / 10_000.0),
-    }
+    area = np.asarray(cells.area_m2, dtype=float)
+    flags = np.zeros(len(cells), np.uint16)
+    # the same figures, legend classes and zones table as a computed prescription's
+    summary = summarize(rates, flags, area, seq=cells.seq)
+    summary.update(product_figures(rates, area, None))
+    summary["classes"] = auto_classes(rates, area, 6)
+    summary.update(
+        {
+            "source": source,
+            "min_rate_kg_ha": float(rates.min(initial=0.0)),
+            "max_rate_kg_ha": float(rates.max(initial=0.0)),
+            "mean_rate_kg_ha": float(np.sum(rates * area) / max(area.sum(), 1e-12)),
+            "total_kg": float(np.sum(rates * area) / 10_000.0),
+            "extent": list(shapely.union_all(cells.polygons_wgs84()).bounds),
+            "imported_outside": outside_share(rx, cells),
+        }
+    )
     ver = PrescriptionVersion(
         prescription_id=row.id, version=1, note="imported", summary=summary, created_by=user_id
     )
     session.add(ver)
     session.flush()
-    write_rates(session, ver.id, cells.seq, rates, np.zeros(len(cells), np.uint16), None)
+    write_rates(session, ver.id, cells.seq, rates, flags, None)
     return row, plan
 
 
@@ -184,18 +306,30 @@ def commit(
     params: PlanParams,
     source_name: str,
 ) -> dict[str, Any]:
-    """Create everything (flush only; the caller commits once). Returns the new ids."""
+    """Create everything (flush only; the caller commits once). Returns the new ids.
+
+    Farms and fields that already exist (``import_checks``) are used, not created again."""
     valid = _validated(ds)
-    farm_ids: dict[str, int] = {}
+    _placed(ds, valid)
+    old_farms, old_fields = _matches(session, ds, valid, organisation_id)
+    farm_ids: dict[str, int] = {ref: row.id for ref, row in old_farms.items()}
+    new_farms = []
     for f in ds.farms:
+        if f.ref in farm_ids:
+            continue
         farm = Farm(
             organisation_id=organisation_id, name=f.name[:200], notes="imported from ISOXML"
         )
         session.add(farm)
         session.flush()
         farm_ids[f.ref] = farm.id
+        new_farms.append(farm.id)
     fields: dict[str, Field] = {}
+    created = []
     for f, v in zip(ds.fields, valid, strict=True):
+        if f.ref in old_fields:
+            fields[f.ref] = old_fields[f.ref][0]
+            continue
         row = Field(
             organisation_id=organisation_id,
             farm_id=farm_ids.get(f.farm_ref or ""),
@@ -205,10 +339,13 @@ def commit(
             boundary=shape_to_db(v.geometry),
             utm_epsg=v.utm_epsg,
             area_m2=v.area_m2,
+            source_ref=f"ISOXML {f.ref}"[:200],
+            features=f.features,
         )
         session.add(row)
         session.flush()
         fields[f.ref] = row
+        created.append(f.ref)
     created_rx = []
     for rx in ds.prescriptions:
         fld = fields[rx.field_ref]
@@ -218,14 +355,21 @@ def commit(
             "kind": rx.kind,
             "ddi": rx.ddi,
             "unit": rx.unit,
+            "density_kg_l": rx.density_kg_l,
             "isoxml_version": ds.version,
         }
         row, plan = store_prescription(session, rx, fld, params, organisation_id, user_id, source)
         created_rx.append({"id": row.id, "plan_id": plan.id, "field_id": fld.id, "ref": rx.ref})
     return {
-        "farms": sorted(farm_ids.values()),
-        "fields": [{"id": r.id, "ref": ref, "name": r.name} for ref, r in fields.items()],
+        "farms": sorted(new_farms),
+        "fields": [{"id": fields[r].id, "ref": r, "name": fields[r].name} for r in created],
+        "matched_farms": sorted({row.id for row in old_farms.values()}),
+        "matched_fields": [
+            {"id": row.id, "ref": ref, "name": row.name, "by": by}
+            for ref, (row, by) in old_fields.items()
+        ],
         "prescriptions": created_rx,
+        "skipped": [s for s in ds.skipped if s.get("bad")],
     }
 
 
@@ -250,7 +394,7 @@ def store_timelogs(
     machine = Machine(
         organisation_id=organisation_id,
         name=f"Imported: {source_name}"[:200],
-        implement_type="imported",
+        implement_type=IMPORTED_IMPLEMENT,
         width_m=width_m,
         lag_s=0.0,
         calibration={},
@@ -343,6 +487,7 @@ class IsoxmlRequest:
     params: PlanParams
     confirm: bool = False
     time_limit_s: float = 120.0
+    density_kg_l: float | None = None
 
 
 def _read_spooled(files: list[tuple[str, str]]) -> dict[str, bytes]:
@@ -376,15 +521,15 @@ def isoxml_in_worker(req: IsoxmlRequest) -> dict[str, Any]:
     from fieldrx.db.session import make_engine
     from fieldrx.services.bounded import ensure_caller_alive
 
-    ds = read_taskdata(_read_spooled(req.files))
-    pre = preview(ds)
-    if not req.confirm:
-        return {"preview": pre}
-    check_import_cost(ds, req.params)
+    ds = read_taskdata(_read_spooled(req.files), req.density_kg_l)
     engine = make_engine(req.database_url)
     try:
         with Session(engine) as session:
             limit_session(session, req.time_limit_s)
+            pre = preview(session, ds, req.organisation_id)
+            if not req.confirm:
+                return {"preview": pre}
+            check_import_cost(ds, req.params)
             created = commit(
                 session, ds, req.organisation_id, req.user_id, req.params, req.source_name
             )

@@ -195,6 +195,12 @@ export const queries = {
       staleTime: Infinity, // a stored version never changes
     }),
   machines: () => queryOptions({ queryKey: qk.machines(), queryFn: () => call(client.GET('/api/v1/machines')) }),
+  /** Machines a job can be sent to: not those an import created to hold other terminals' logs. */
+  sendableMachines: () =>
+    queryOptions({
+      queryKey: [...qk.machines(), 'sendable'] as const,
+      queryFn: () => call(client.GET('/api/v1/machines', { params: { query: { sendable: true } } })),
+    }),
   machineStatus: () => queryOptions({ queryKey: qk.machineStatus(), queryFn: () => call(client.GET('/api/v1/machines/status')) }),
   machine: (id: number) =>
     queryOptions({
@@ -295,6 +301,8 @@ export const usePrescriptionVersion = (
   });
 
 export const useMachines = (o?: HookOptions<Data<typeof queries.machines>>) => useQuery({ ...queries.machines(), ...poll(o) });
+export const useSendableMachines = (o?: HookOptions<Data<typeof queries.sendableMachines>>) =>
+  useQuery({ ...queries.sendableMachines(), ...poll(o) });
 
 export const useMachineStatus = (o?: HookOptions<Data<typeof queries.machineStatus>>) =>
   useQuery({ ...queries.machineStatus(), ...poll(o) });

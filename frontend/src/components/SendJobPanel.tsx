@@ -1,6 +1,6 @@
 import { useEffect, useState } from 'react';
 import { ApiError, call, client, type Schemas } from '../api/client';
-import { useMachines } from '../api/hooks';
+import { useSendableMachines } from '../api/hooks';
 import { meterableRange, type LinearCalibration } from '../lib/calibration';
 import { flaggedConfirmation } from '../lib/flags';
 import { outsideMeter } from '../lib/rxform';
@@ -15,7 +15,7 @@ import { ErrorBox } from './Status';
  */
 export function SendJobPanel(props: { rxId: number; version: number | null; summary: Schemas['RxSummary'] | null | undefined }) {
   const { rxId, version, summary } = props;
-  const machines = useMachines();
+  const machines = useSendableMachines();
   const items = machines.data?.items ?? [];
   const [machineId, setMachineId] = useState('');
   const [confirm, setConfirm] = useState<{ message: string; count: number; areaM2: number; seq: number[] } | null>(null);

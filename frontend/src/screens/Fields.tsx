@@ -1,11 +1,13 @@
 import { useRef, useState } from 'react';
 import { ApiError, call, client, formBody, type Schemas } from '../api/client';
-import { qk, useApiMutation, useFarms, useFields } from '../api/hooks';
+import { qk, useApiMutation, useFarms, useFields, useInvalidate } from '../api/hooks';
+import { ImportAssistant } from '../components/ImportAssistant';
 import { ErrorBox } from '../components/Status';
 import { TaskProgress } from '../components/TaskProgress';
 import type { TaskView } from '../lib/tasks';
 import { bboxOf } from '../lib/geo';
 import { useDebounced } from '../lib/useDebounced';
+import { recognise, zipNames } from '../lib/importKind';
 import { formatArea } from '../lib/units';
 import { MapView } from '../map/MapView';
 import { FieldBoundary, FitBounds, Problems } from '../map/overlays';
@@ -20,7 +22,10 @@ export function FieldsScreen() {
   const [batch, setBatch] = useState<TaskView | null>(null);
   const [newFarm, setNewFarm] = useState('');
   const importRef = useRef<HTMLInputElement>(null);
+  const [assistant, setAssistant] = useState<File[] | null>(null);
+  const [assisted, setAssisted] = useState<{ msg: string; link?: string } | null>(null);
   const farmsQ = useFarms();
+  const refresh = useInvalidate();
   const farms = farmsQ.data?.items ?? [];
   const query = { limit: 500, q: useDebounced(q, 200) || undefined, farm_id: farmId ? Number(farmId) : undefined };
   const fieldsQ = useFields(query);
@@ -86,15 +91,58 @@ export function FieldsScreen() {
             data-testid="import-file"
             data-write=""
             type="file"
-            accept=".geojson,.json,.kml,.zip"
+            multiple
             hidden
-            onChange={(e) => {
-              const f = e.target.files?.[0];
-              if (f) importFile.mutate(f);
+            onChange={async (e) => {
+              const list = [...(e.target.files ?? [])];
               e.target.value = '';
+              if (!list.length) return;
+              // field boundaries import at once (as before); every other format goes
+              // through the import assistant's preview
+              const described = await Promise.all(
+                list.map(async (f) => ({
+                  name: f.name,
+                  members: f.name.toLowerCase().endsWith('.zip') ? zipNames(await f.arrayBuffer()) : undefined,
+                })),
+              );
+              const kind = recognise(described).kind;
+              if (kind === 'fields' && list.length === 1) importFile.mutate(list[0]);
+              else {
+                setAssisted(null);
+                setAssistant(list);
+              }
             }}
           />
+          <button type="button" data-testid="import-assistant-open" data-write="" onClick={() => setAssistant(assistant ? null : [])}>
+            {assistant ? 'Close import' : 'Import farm data…'}
+          </button>
         </div>
+        {assistant && (
+          <ImportAssistant
+            key={assistant.map((f) => f.name).join() || 'empty'}
+            initialFiles={assistant}
+            fields={fields.features}
+            farms={farms}
+            onDone={(msg, link) => {
+              setAssisted({ msg, link });
+              setAssistant(null);
+              void refresh(qk.fields(), qk.farms());
+            }}
+          />
+        )}
+        {assisted && (
+          <p className="ok" data-testid="import-assistant-result">
+            {assisted.msg}
+            {assisted.link && (
+              <>
+                {' '}
+                <a href={assisted.link} data-testid="import-assistant-link">
+                  Open
+                </a>
+              </>
+            )}
+          </p>
+        )}
         {farmId && (
           <div className="row">
             <button

@@ -1,6 +1,6 @@
 import { useState } from 'react';
 import { call, client, type Job, type Machine, type Schemas } from '../api/client';
-import { qk, useInvalidate, useJobs, useMachines } from '../api/hooks';
+import { qk, useInvalidate, useJobs, useSendableMachines } from '../api/hooks';
 import { ErrorBox } from '../components/Status';
 import { jobBody, KIND_LABELS, type JobKind } from '../lib/jobkinds';
 import { formatPercent } from '../lib/units';
@@ -36,7 +36,8 @@ function when(iso: string | null | undefined): string {
 export function JobsScreen() {
   const jobsQ = useJobs({}, { refetchInterval: 5000 });
   // a machine added a moment ago (here, in another tab or over the API) is offered at once
-  const machinesQ = useMachines({ staleTime: 0 });
+  // (only those a job can be sent to: not the ones imports made to hold logs)
+  const machinesQ = useSendableMachines({ staleTime: 0 });
   const refresh = useInvalidate();
   const jobs: Job[] = jobsQ.data?.items ?? [];
   const machines: Machine[] = machinesQ.data?.items ?? [];

@@ -20,7 +20,7 @@ export function RxForm({ planId, onCreated }: { planId: number; onCreated: (r: P
   const [busy, setBusy] = useState(false);
   const formRef = useRef<HTMLFormElement>(null);
   useEffect(() => {
-    call(client.GET('/api/v1/machines'))
+    call(client.GET('/api/v1/machines', { params: { query: { sendable: true } } }))
       .then((r) => {
         setMachines(r.items);
         if (r.items[0]) setMachineId(String(r.items[0].id));

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import datetime as dt
-from typing import Literal
+from typing import Any, Literal
 
 from pydantic import Field
 
@@ -64,3 +64,13 @@ class FieldImportOut(Out):
     type: Literal["FeatureCollection"] = "FeatureCollection"
     features: list[FieldFeature]
     imported: int
+
+
+class FieldAnnotations(Out):
+    """Features an import kept with a field (ISOXML guidance patterns, obstacle and other
+    polygons, lines and points), GeoJSON lon/lat; ``properties`` name their kind, type,
+    name and where in the file they came from."""
+
+    type: Literal["FeatureCollection"] = "FeatureCollection"
+    features: list[dict[str, Any]]
+    source_ref: str = Field(description="where the field came from, e.g. 'ISOXML PFD2'")

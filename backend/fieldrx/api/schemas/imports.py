@@ -30,6 +30,11 @@ class RxMapping(Out):
     min_rate_kg_ha: float
     max_rate_kg_ha: float
     default_rate_kg_ha: float
+    overlap_pct: float | None = Field(default=None, description="share of the field covered")
+    distance_m: float | None = Field(
+        default=None, description="zones' distance from the field (> 0: refused on confirm)"
+    )
+    warning: str | None = None
 
 
 class RxCreated(Out):
@@ -51,16 +56,30 @@ class RxShapefileImportOut(Out):
     created: RxCreated | None = None
 
 
+class TimelogPlacement(Out):
+    on_field: int = Field(description="records whose position lies on the prescription's field")
+    with_position: int
+    distance_m: float | None = Field(description="nearest record's distance (0 when on it)")
+
+
 class TimelogPreview(Out):
     timelog: str
     records: int
     with_position: int
     first_t: float | None
     last_t: float | None
+    centre: list[float] | None = Field(description="median lon, lat of the records")
     ddis_used: list[int]
     ddis_ignored: list[int]
+    reported: dict[str, int] = Field(description="DDI -> number of records reporting it")
+    totals: dict[str, Any] = Field(
+        default_factory=dict, description="total counters (DDI -> name, unit, growth over the log)"
+    )
+    has_rate: bool = Field(description="the log carries an applied rate (DDI 7)")
+    gives: str = Field(description="what FieldRx can make of the log")
     mean_applied_rate_kg_ha: float | None
     logged_width_m: float | None
+    placement: TimelogPlacement | None = None
 
 
 class JobCreated(Out):
@@ -74,6 +93,9 @@ class TimelogImportOut(Out):
     timelogs: list[TimelogPreview]
     stored: bool
     width_m: float | None
+    refused: list[str] = Field(
+        default_factory=list, description="logs that lie off the field: confirm is refused"
+    )
     created: JobCreated | None = None
 
 

@@ -430,6 +430,26 @@ export interface paths {
         patch: operations["update_field_api_v1_fields__field_id__patch"];
         trace?: never;
     };
+    "/api/v1/fields/{field_id}/annotations": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        /**
+         * Get Field Annotations
+         * @description What an import kept with the field: guidance lines, obstacles, routes, points.
+         */
+        get: operations["get_field_annotations_api_v1_fields__field_id__annotations_get"];
+        put?: never;
+        post?: never;
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
     "/api/v1/fields/{field_id}/imagery": {
         parameters: {
             query?: never;
@@ -2969,6 +2989,29 @@ export interface components {
              */
             type?: "Feature";
         };
+        /**
+         * FieldAnnotations
+         * @description Features an import kept with a field (ISOXML guidance patterns, obstacle and other
+         *     polygons, lines and points), GeoJSON lon/lat; ``properties`` name their kind, type,
+         *     name and where in the file they came from.
+         */
+        FieldAnnotations: {
+            /** Features */
+            features: {
+                [key: string]: unknown;
+            }[];
+            /**
+             * Source Ref
+             * @description where the field came from, e.g. 'ISOXML PFD2'
+             */
+            source_ref: string;
+            /**
+             * Type
+             * @default FeatureCollection
+             * @constant
+             */
+            type?: "FeatureCollection";
+        };
         /** FieldCollection */
         FieldCollection: {
             /** Features */
@@ -4691,14 +4734,26 @@ export interface components {
         RxMapping: {
             /** Default Rate Kg Ha */
             default_rate_kg_ha: number;
+            /**
+             * Distance M
+             * @description zones' distance from the field (> 0: refused on confirm)
+             */
+            distance_m?: number | null;
             /** Max Rate Kg Ha */
             max_rate_kg_ha: number;
             /** Min Rate Kg Ha */
             min_rate_kg_ha: number;
+            /**
+             * Overlap Pct
+             * @description share of the field covered
+             */
+            overlap_pct?: number | null;
             /** Rate Column */
             rate_column: string;
             /** Unit */
             unit: string;
+            /** Warning */
+            warning?: string | null;
         };
         /** RxRef */
         RxRef: {
@@ -5645,6 +5700,11 @@ export interface components {
         TimelogImportOut: {
             created?: components["schemas"]["JobCreated"] | null;
             /**
+             * Refused
+             * @description logs that lie off the field: confirm is refused
+             */
+            refused?: string[];
+            /**
              * Sha256
              * @description digest of the upload: send it back as ``confirm`` to store
              */
@@ -5656,24 +5716,69 @@ export interface components {
             /** Width M */
             width_m: number | null;
         };
+        /** TimelogPlacement */
+        TimelogPlacement: {
+            /**
+             * Distance M
+             * @description nearest record's distance (0 when on it)
+             */
+            distance_m: number | null;
+            /**
+             * On Field
+             * @description records whose position lies on the prescription's field
+             */
+            on_field: number;
+            /** With Position */
+            with_position: number;
+        };
         /** TimelogPreview */
         TimelogPreview: {
+            /**
+             * Centre
+             * @description median lon, lat of the records
+             */
+            centre: number[] | null;
             /** Ddis Ignored */
             ddis_ignored: number[];
             /** Ddis Used */
             ddis_used: number[];
             /** First T */
             first_t: number | null;
+            /**
+             * Gives
+             * @description what FieldRx can make of the log
+             */
+            gives: string;
+            /**
+             * Has Rate
+             * @description the log carries an applied rate (DDI 7)
+             */
+            has_rate: boolean;
             /** Last T */
             last_t: number | null;
             /** Logged Width M */
             logged_width_m: number | null;
             /** Mean Applied Rate Kg Ha */
             mean_applied_rate_kg_ha: number | null;
+            placement?: components["schemas"]["TimelogPlacement"] | null;
             /** Records */
             records: number;
+            /**
+             * Reported
+             * @description DDI -> number of records reporting it
+             */
+            reported: {
+                [key: string]: number;
+            };
             /** Timelog */
             timelog: string;
+            /**
+             * Totals
+             * @description total counters (DDI -> name, unit, growth over the log)
+             */
+            totals?: {
+                [key: string]: unknown;
+            };
             /** With Position */
             with_position: number;
         };
@@ -8437,6 +8542,91 @@ export interface operations {
             };
         };
     };
+    get_field_annotations_api_v1_fields__field_id__annotations_get: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                field_id: number;
+            };
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["FieldAnnotations"];
+                };
+            };
+            /** @description missing, invalid, expired or revoked bearer token */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description the token may not do this (a viewer writing, a device token on a user endpoint); the message names the role needed */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description no such resource in the caller's organisation */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description conflicts with stored state (a job state transition, evidence that must be kept) */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description request body or upload too large */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description invalid input: the message names the field, row or vertex */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description the database or the worker pool is busy or unreachable: retry (Retry-After) */
+            503: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+        };
+    };
     list_field_imagery_api_v1_fields__field_id__imagery_get: {
         parameters: {
             query?: {
@@ -10358,6 +10548,8 @@ export interface operations {
                 cell_length_m?: number;
                 /** @description the preview's sha256 */
                 confirm?: string | null;
+                /** @description density of a volume-rate product (kg/l): imports l/ha grids as kg/ha */
+                density_kg_l?: number | null;
                 headland_passes?: number;
                 swath_width_m?: number;
             };
@@ -10462,6 +10654,8 @@ export interface operations {
                 confirm?: string | null;
                 /** @description rate outside polygons */
                 default_rate_kg_ha?: number;
+                /** @description product density (kg/l) for a volume-rate unit */
+                density_kg_l?: number | null;
                 /** @description the field the prescription is for */
                 field_id: number;
                 headland_passes?: number;
@@ -11990,6 +12184,8 @@ export interface operations {
             query?: {
                 limit?: number;
                 offset?: number;
+                /** @description only machines a job can be sent to (not those an import created for logs) */
+                sendable?: boolean;
             };
             header?: never;
             path?: never;
