@@ -359,7 +359,7 @@ FINISH_SQL = (
     "WITH st AS (INSERT INTO cell_record_streams AS s (machine_id, stream, first_seq,"
     " acked_seq, n_records) VALUES (%(m)s, %(s)s::text, %(start)s, " + ACK_WALK_SQL + ","
     " %(nrec)s) ON CONFLICT (machine_id, stream) DO UPDATE"
-    " SET acked_seq = excluded.acked_seq, last_seen_at = now(),"
+    " SET acked_seq = excluded.acked_seq, last_seen_at = excluded.last_seen_at,"
     " n_records = s.n_records + excluded.n_records RETURNING acked_seq), "
     + CELL_PROGRESS_CTE
     + " SELECT (SELECT acked_seq FROM st),"

@@ -754,7 +754,7 @@ def _stream_row(
         "INSERT INTO telemetry_streams AS ts (machine_id, stream, first_seq, acked_seq,"
         " n_records, first_t, last_t, max_seq) VALUES (%s, %s, %s, %s, %s, %s, %s, %s)"
         " ON CONFLICT (machine_id, stream) DO UPDATE SET acked_seq = excluded.acked_seq,"
-        " last_seen_at = now(), n_records = ts.n_records + excluded.n_records,"
+        " last_seen_at = excluded.last_seen_at, n_records = ts.n_records + excluded.n_records,"
         " first_t = least(ts.first_t, excluded.first_t),"
         " last_t = greatest(ts.last_t, excluded.last_t),"
         " max_seq = greatest(ts.max_seq, excluded.max_seq)",
@@ -907,7 +907,7 @@ def _status(
         return (
             "INSERT INTO machine_status (machine_id, last_seen_at, acked_seq, queue_backlog,"
             " alarms) VALUES (%s, now(), %s, 0, '{}') ON CONFLICT (machine_id) DO UPDATE"
-            " SET last_seen_at = now(), acked_seq = excluded.acked_seq",
+            " SET last_seen_at = excluded.last_seen_at, acked_seq = excluded.acked_seq",
             (machine_id, acked),
         )
     r = max(new, key=lambda r: r.t)
@@ -924,7 +924,8 @@ def _status(
             speed_m_s, heading_deg, job_id, cell_seq, target_rate_kg_ha, applied_rate_kg_ha,
             queue_backlog, alarms)
         VALUES (%s, now(), %s, %s, %s, %s, %s, %s, %s, %s, %s, %s, %s, %s)
-        ON CONFLICT (machine_id) DO UPDATE SET last_seen_at = now(), last_t = excluded.last_t,
+        ON CONFLICT (machine_id) DO UPDATE SET last_seen_at = excluded.last_seen_at,
+            last_t = excluded.last_t,
             acked_seq = excluded.acked_seq,
             lon = coalesce(excluded.lon, machine_status.lon),
             lat = coalesce(excluded.lat, machine_status.lat),

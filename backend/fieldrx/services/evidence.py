@@ -1,8 +1,9 @@
 """Evidence is never erased silently: deletions that would cascade to as-applied records.
 
-A machine, field, plan or prescription cascades (foreign keys) to its jobs,
-and a job to its as-applied records (``job_cells_applied``, telemetry). Before
-such a delete the API asks ``unarchived_jobs_with_data``; when any job would
+A machine cascades (foreign keys) to its jobs, a field, plan or prescription too
+(``delete_jobs``: no foreign key, see there), and a job to its as-applied records
+(``job_cells_applied``, telemetry). Before such a delete the API asks
+``unarchived_jobs_with_data``; when any job would
 lose as-applied data that was not archived (``job_archives``, see
 api/archive.py) the delete is refused with ``Conflict`` naming the jobs.
 """
@@ -38,6 +39,40 @@ def unarchived_jobs_with_data(session: Session, kind: str, obj_id: int) -> list[
         " ORDER BY j.id"
     )
     return [int(r[0]) for r in session.execute(text(sql), {"id": obj_id})]
+
+
+# the plans and prescriptions a delete takes with it, read on the coordinator
+_SOURCES = {
+    "plan": ("SELECT :id", "SELECT id FROM prescriptions WHERE plan_id = :id"),
+    "field": (
+        "SELECT id FROM plans WHERE field_id = :id",
+        "SELECT r.id FROM prescriptions r JOIN plans p ON p.id = r.plan_id WHERE p.field_id = :id",
+    ),
+}
+
+
+def delete_jobs(session: Session, kind: str, obj_id: int) -> int:
+    """Delete the jobs made from this field / plan / prescription (and with them, by their
+    ``(machine_id, job_id)`` foreign keys, their events and per-cell results), inside the
+    caller's transaction, before the object itself. Returns how many.
+
+    ``jobs`` has no foreign key to plans or prescriptions (migration 0017): past one node the
+    jobs are distributed by machine and Citus refuses a distributed table's foreign key to a
+    coordinator table, so the cascade is done here. The ids are read first and the jobs then
+    deleted by id: one statement never mixes a coordinator table and a distributed one."""
+    plans_sql, rx_sql = _SOURCES[kind]
+    if kind == "prescription":
+        plans, rxs = [], [obj_id]
+    else:
+        plans = [int(r[0]) for r in session.execute(text(plans_sql), {"id": obj_id})]
+        rxs = [int(r[0]) for r in session.execute(text(rx_sql), {"id": obj_id})]
+    if not plans and not rxs:
+        return 0
+    res = session.execute(
+        text("DELETE FROM jobs WHERE plan_id = ANY(:p) OR prescription_id = ANY(:r)"),
+        {"p": plans, "r": rxs},
+    )
+    return int(res.rowcount or 0)  # type: ignore[attr-defined]
 
 
 def refuse_if_evidence(session: Session, kind: str, obj_id: int) -> None:
