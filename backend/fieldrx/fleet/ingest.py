@@ -416,19 +416,21 @@ class MachineInfo:
 
 
 LOCK_SQL = "SELECT pg_advisory_xact_lock(%s, %s)"
+# every table's machine named as the parameter itself, not only through ``m.id``: past one
+# node (Citus) the correlated subqueries otherwise plan as a multi-shard query
 _MACHINE_SQL = (
     "SELECT m.organisation_id, m.speed_min_m_s, m.speed_max_m_s, ts.acked_seq,"
     " extract(epoch FROM s.last_t)::float8,"
     " (SELECT coalesce(json_object_agg(a.kind, a.id), '{}') FROM alerts a"
-    "   WHERE a.machine_id = m.id AND a.ended_at IS NULL),"
+    "   WHERE a.machine_id = %(m)s AND a.ended_at IS NULL),"
     " extract(epoch FROM ts.last_seen_at)::float8,"
     " (SELECT extract(epoch FROM max(o.last_seen_at))::float8 FROM telemetry_streams o"
-    "   WHERE o.machine_id = m.id AND o.stream <> %s),"
+    "   WHERE o.machine_id = %(m)s AND o.stream <> %(s)s),"
     " ts.max_seq, ts.first_t, ts.last_t"
     " FROM machines m"
     " LEFT JOIN machine_status s ON s.machine_id = m.id"
-    " LEFT JOIN telemetry_streams ts ON ts.machine_id = m.id AND ts.stream = %s"
-    " WHERE m.id = %s"
+    " LEFT JOIN telemetry_streams ts ON ts.machine_id = m.id AND ts.stream = %(s)s"
+    " WHERE m.id = %(m)s"
 )
 
 
@@ -548,7 +550,7 @@ class TrackWork:
 
     def read(self, cur: psycopg.Cursor[Any]) -> None:
         """Queue the read of what the batch needs (after the caller's lock statement)."""
-        cur.execute(_MACHINE_SQL, (self.stream, self.stream, self.machine_id))
+        cur.execute(_MACHINE_SQL, {"s": self.stream, "m": self.machine_id})
 
     def opened(self, row: Any) -> None:
         """The read's row (``read``'s cursor's ``fetchone()``)."""
