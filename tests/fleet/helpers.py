@@ -26,6 +26,21 @@ RATES = [300.0, 250.0, 200.0, 150.0, 310.0, 260.0, 210.0, 160.0]
 _SHARD = re.compile(r"\b(\w+?)_\d{6,}\b")
 
 
+def unshard(name: str) -> str:
+    """A table name as the schema names it, also when Citus answered with its shard's."""
+    return _SHARD.sub(r"\1", name)
+
+
+def on_citus(conn: Any) -> bool:
+    """Whether ``conn`` (psycopg or SQLAlchemy) is to a Citus coordinator's database."""
+    sql = "SELECT EXISTS (SELECT 1 FROM pg_extension WHERE extname = 'citus')"
+    if hasattr(conn, "scalar"):
+        from sqlalchemy import text
+
+        return bool(conn.scalar(text(sql)))
+    return bool(conn.execute(sql).fetchone()[0])
+
+
 def shard_free_plan(plan: str) -> str:
     """EXPLAIN text with Citus's shard suffixes removed, so tests read table and partition
     names the same on one node and on a Citus coordinator; there the plan must be a
