@@ -10,6 +10,8 @@ deployment does it (docs/scale.md section 2). Unset: plain PostgreSQL, nothing c
 from __future__ import annotations
 
 import os
+import time
+import warnings
 
 import psycopg
 from sqlalchemy.engine import make_url
@@ -53,8 +55,20 @@ def distribute_db(url: str) -> None:
         distribute(conn)
 
 
-def drop(url: str) -> None:
+def drop(url: str, timeout_s: float = 60.0) -> None:
+    """Drop the database's copies on the workers. Citus's maintenance daemon (a background
+    worker that ``WITH (FORCE)`` does not end) may hold a copy a little longer after the
+    coordinator's is gone: retried until it lets go, then left with a warning."""
     from fieldrx.db.bootstrap import drop_database
 
     for w in WORKERS:
-        drop_database(_worker_url(url, w))
+        deadline = time.monotonic() + timeout_s
+        while True:
+            try:
+                drop_database(_worker_url(url, w))
+                break
+            except psycopg.errors.ObjectInUse:
+                if time.monotonic() > deadline:
+                    warnings.warn(f"{w}: {make_url(url).database} left behind", stacklevel=2)
+                    break
+                time.sleep(1.0)
