@@ -20,7 +20,10 @@ in it, ``thin_realtime_bodies``; both default to the agents' upload periods).
 
 Baseline, same run: a raw COPY BINARY of the same rows (prepared tuples,
 10,000 rows per COPY) into a copy of the telemetry table with the same
-indexes. Ratio = our records/s / raw COPY records/s.
+indexes. Ratio = our records/s / raw COPY records/s. Against a Citus coordinator
+(``--database-url``) the copy is distributed by machine and co-located with telemetry, so
+the baseline pays the same routing to the workers; the CPU per record then counts every
+node's backends of the bench database (a one-host cluster here).
 
 Then the same machine-hours with uplink profile ``thin`` (issue 18: a 1 Hz track plus
 one cell record per cell left, on two streams; over HTTP both in one request while both
@@ -63,6 +66,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 from fieldrx_edge.protocol import UPLOAD_PERIOD_S  # noqa: E402
 
+from tests import citus_cluster  # noqa: E402
 from tests.mqtt_broker import ProjectBroker  # noqa: E402
 
 BIN = Path(sys.executable).parent
@@ -85,7 +89,11 @@ def make_db() -> str:
         + f"/fieldrx_bench_{uuid.uuid4().hex[:8]}"
     )
     ensure_database(url)
+    if citus_cluster.WORKERS:  # FIELDRX_TEST_PG is a Citus coordinator
+        citus_cluster.prepare(url)
     command.upgrade(alembic_config(url), "head")
+    if citus_cluster.WORKERS:
+        citus_cluster.distribute_db(url)
     return url
 
 
@@ -224,6 +232,15 @@ class Fleet:
         return out
 
 
+def citus(conn: Any) -> bool:
+    """Whether the bench database is a Citus coordinator's (``fieldrx distribute`` done)."""
+    return bool(
+        conn.execute(
+            "SELECT EXISTS (SELECT 1 FROM pg_extension WHERE extname = 'citus')"
+        ).fetchone()[0]
+    )
+
+
 def raw_copy_baseline(url: str, fleet: Fleet) -> float:
     """records/s of a plain COPY BINARY of the same rows into a table like telemetry
     (same columns and indexes; 10,000 rows per COPY, one connection): median of thirds."""
@@ -239,6 +256,11 @@ def raw_copy_baseline(url: str, fleet: Fleet) -> float:
     cols = ", ".join(COLUMNS)
     with psycopg.connect(raw_dsn(url), options="-c jit=off", autocommit=True) as conn:
         conn.execute("CREATE TABLE telemetry_baseline (LIKE telemetry INCLUDING ALL)")
+        if citus(conn):  # on a cluster: sharded like telemetry, so both pay the routing
+            conn.execute(
+                "SELECT create_distributed_table('telemetry_baseline', 'machine_id',"
+                " colocate_with => 'telemetry')"
+            )
         # same indexes (INCLUDING ALL: primary key, btrees, GiST) and the same foreign key
         conn.execute(
             "ALTER TABLE telemetry_baseline ADD FOREIGN KEY (machine_id) REFERENCES machines (id)"
@@ -907,6 +929,13 @@ def main() -> int:
     )
     ap.add_argument("--keep-db", action="store_true")
     ap.add_argument(
+        "--database-url",
+        default=None,
+        help="use this empty, migrated database instead of a throw-away one (a Citus"
+        " coordinator's after `fieldrx migrate` and `fieldrx distribute`: a new database"
+        " there needs the extensions and the worker nodes first); it is kept",
+    )
+    ap.add_argument(
         "--thin",
         action=argparse.BooleanOptionalAction,
         default=True,
@@ -918,7 +947,7 @@ def main() -> int:
 
     from fieldrx.db.bootstrap import drop_database
 
-    url = make_db()
+    url = args.database_url or make_db()
     tmp = Path(tempfile.mkdtemp(prefix="fieldrx-bench-"))
     procs: list[subprocess.Popen[bytes]] = []
     worker_records: list[int] = []
@@ -1108,8 +1137,9 @@ def main() -> int:
         shutil.rmtree(tmp, ignore_errors=True)
         if broker is not None:
             broker.close()
-        if not args.keep_db:
+        if not (args.keep_db or args.database_url):
             drop_database(url)
+            citus_cluster.drop(url)
 
 
 if __name__ == "__main__":

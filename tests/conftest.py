@@ -1,7 +1,8 @@
 """Shared fixtures: a throw-away PostGIS database per test session, migrated with Alembic.
 
 Tests talk to the real PostgreSQL/PostGIS on 127.0.0.1:5432 (override with
-FIELDRX_TEST_PG, a libpq URL of a superuser). Each test creates its own
+FIELDRX_TEST_PG, a libpq URL of a superuser; a Citus coordinator with
+FIELDRX_TEST_CITUS_WORKERS, tests/citus_cluster.py). Each test creates its own
 organisation(s), so tests never see each other's rows.
 """
 
@@ -39,14 +40,21 @@ def database_url() -> Iterator[str]:
 
     name = f"fieldrx_test_{uuid.uuid4().hex[:10]}"
     url = PG.replace("postgresql://", "postgresql+psycopg://", 1) + f"/{name}"
+    from tests import citus_cluster
+
     ensure_database(url)
+    if citus_cluster.WORKERS:  # a Citus coordinator: the nodes first, distributed after
+        citus_cluster.prepare(url)
     os.environ["DATABASE_URL"] = url
     _clear_caches()
     command.upgrade(alembic_config(url), "head")
+    if citus_cluster.WORKERS:
+        citus_cluster.distribute_db(url)
     assert get_settings().database_url == url
     yield url
     _clear_caches()
     drop_database(url)
+    citus_cluster.drop(url)
 
 
 def _clear_caches() -> None:

@@ -10,7 +10,7 @@ import argparse
 import importlib
 import sys
 
-COMMAND_MODULES = ("plan", "rx", "worker", "mqtt", "telemetry")
+COMMAND_MODULES = ("plan", "rx", "worker", "mqtt", "telemetry", "distribute")
 
 
 def _serve(args: argparse.Namespace) -> int:

@@ -6,6 +6,7 @@ planning and prescription endpoints.
 
 from __future__ import annotations
 
+import re
 import time
 from dataclasses import dataclass, field
 from typing import Any
@@ -20,6 +21,33 @@ CELL_W = 3.0
 N_SWATH = 2
 N_PER_SWATH = 4
 RATES = [300.0, 250.0, 200.0, 150.0, 310.0, 260.0, 210.0, 160.0]
+
+# Citus names a shard after its table and shard id: telemetry_p2026_11_28_102345
+_SHARD = re.compile(r"\b(\w+?)_\d{6,}\b")
+
+
+def unshard(name: str) -> str:
+    """A table name as the schema names it, also when Citus answered with its shard's."""
+    return _SHARD.sub(r"\1", name)
+
+
+def on_citus(conn: Any) -> bool:
+    """Whether ``conn`` (psycopg or SQLAlchemy) is to a Citus coordinator's database."""
+    sql = "SELECT EXISTS (SELECT 1 FROM pg_extension WHERE extname = 'citus')"
+    if hasattr(conn, "scalar"):
+        from sqlalchemy import text
+
+        return bool(conn.scalar(text(sql)))
+    return bool(conn.execute(sql).fetchone()[0])
+
+
+def shard_free_plan(plan: str) -> str:
+    """EXPLAIN text with Citus's shard suffixes removed, so tests read table and partition
+    names the same on one node and on a Citus coordinator; there the plan must be a
+    single-shard (router) one: the query names its machine."""
+    if "Custom Scan (Citus" in plan:
+        assert "Task Count: 1\n" in plan + "\n", f"not a single-shard plan:\n{plan}"
+    return _SHARD.sub(r"\1", plan)
 
 
 @dataclass

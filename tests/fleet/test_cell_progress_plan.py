@@ -19,7 +19,7 @@ import psycopg
 from fieldrx.db.session import raw_dsn
 from fieldrx.fleet.ingest import CELL_PROGRESS_CTE, cell_progress_params
 
-from tests.fleet.helpers import JobFixture
+from tests.fleet.helpers import JobFixture, on_citus
 
 N_CELLS = 300
 
@@ -58,14 +58,18 @@ def test_cell_progress_looks_each_cell_up_once(database_url: str, job: JobFixtur
         # guesses larger tables and hashes: the n^2 plan needs the real, small estimates)
         conn.execute("ANALYZE jobs, job_cells_applied")
         batch = _agg(job.job_id, 250.0, range(N_CELLS))
-        plan = _run(conn, job.machine_id, batch, True)[0][0]
-        root = (plan if isinstance(plan, list) else json.loads(plan))[0]["Plan"]
-        conn.rollback()
-        read = _rows_read(root, "job_cells_applied")
-        # one lookup per cell (the upsert's own arbiter checks are not plan nodes); the
-        # inlined join read the table once per upserted cell: ~N_CELLS^2 rows (90,300 by
-        # index scans with the bench's statistics, 45,000-90,000 by sequential scans here)
-        assert read <= 2 * N_CELLS, f"{read} rows of job_cells_applied read for {N_CELLS} cells"
+        # Citus runs the statement as single-shard subplans through the coordinator and
+        # has no EXPLAIN ANALYZE for that: there only the counts below are checked
+        if not on_citus(conn):
+            plan = _run(conn, job.machine_id, batch, True)[0][0]
+            root = (plan if isinstance(plan, list) else json.loads(plan))[0]["Plan"]
+            conn.rollback()
+            read = _rows_read(root, "job_cells_applied")
+            # one lookup per cell (the upsert's own arbiter checks are not plan nodes); the
+            # inlined join read the table once per upserted cell: ~N_CELLS^2 rows (90,300
+            # by index scans with the bench's statistics, 45,000-90,000 by sequential scans
+            # here)
+            assert read <= 2 * N_CELLS, f"{read} rows of job_cells_applied read, {N_CELLS} cells"
         # the counts: every cell gains fertilizer now (the first half had none)
         moved = _run(conn, job.machine_id, batch, False)
         conn.commit()

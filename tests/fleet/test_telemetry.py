@@ -154,13 +154,20 @@ def test_progress_counts_cells_by_kind(client, db, org) -> None:  # noqa: ANN001
     assert _cells_applied(db, rx.job_id) == 1
 
     sd = make_job(org.id, state="running")
+    # the plan read first: one statement mixing the coordinator's prescriptions and the
+    # distributed jobs is refused past one node (Citus)
+    plan_id = db.execute(
+        text("SELECT plan_id FROM prescriptions WHERE id = (SELECT prescription_id FROM jobs"
+             " WHERE machine_id = :m AND id = :j)"),
+        {"m": sd.machine_id, "j": sd.job_id},
+    ).scalar_one()
     db.execute(
         text(
-            "UPDATE jobs SET kind = 'seeding_depth', settings = CAST(:s AS jsonb), plan_id ="
-            " (SELECT plan_id FROM prescriptions p WHERE p.id = jobs.prescription_id)"
-            " WHERE id = :j"
+            "UPDATE jobs SET kind = 'seeding_depth', settings = CAST(:s AS jsonb), plan_id = :p"
+            " WHERE machine_id = :m AND id = :j"
         ),
-        {"j": sd.job_id, "s": json.dumps(validate_settings("seeding_depth", {}))},
+        {"m": sd.machine_id, "j": sd.job_id, "p": plan_id,
+         "s": json.dumps(validate_settings("seeding_depth", {}))},
     )
     db.commit()
     seeding = {"target_rate_kg_ha": None, "applied_rate_kg_ha": None, "depth_mm": 30.0}

@@ -22,7 +22,7 @@ from fieldrx.fleet.multibatch import store_together, work_of
 from fieldrx.fleet.worker import IngestWorker, WorkerStats, _rounds
 from fieldrx_edge.protocol import ack_topic, telemetry_topic
 
-from tests.fleet.helpers import JobFixture, make_job, record
+from tests.fleet.helpers import JobFixture, make_job, on_citus, record
 
 
 class Recorder:
@@ -99,7 +99,12 @@ def test_several_machines_batches_share_one_transaction(worker, conn, org, datab
     # every ack and PUBACK went after the one commit that made all 15 rows visible
     assert rec.seen == [15] * 6
     xmins = set().union(*(_xmins(conn, j.machine_id, "s") for j in jobs))
-    assert len(xmins) == 1, xmins  # one transaction stored the three machines' batches
+    # one transaction stored the three machines' batches (on Citus each shard's part has
+    # its node's own transaction id: each machine's rows one, the commit visible at once)
+    if on_citus(conn):
+        assert all(len(_xmins(conn, j.machine_id, "s")) == 1 for j in jobs)
+    else:
+        assert len(xmins) == 1, xmins
     for j in jobs:
         (a,) = rec.acks(j.machine_id)
         assert (a["stream"], a["acked_seq"], a["stored"], "error" in a) == ("s", 5, 5, False)
@@ -133,7 +138,9 @@ def test_a_refused_batch_takes_no_other_machine_down(worker, conn, org, db) -> N
     assert (aa["acked_seq"], aa["stored"], cc["acked_seq"], cc["stored"]) == (5, 5, 3, 3)
     (bb,) = rec.acks(b.machine_id)
     assert (bb["stream"], bb["acked_seq"], bb["stored"]) == ("s", 0, 0)
-    assert "test_duty" in bb["error"] and "line 2" in bb["error"], bb["error"]
+    assert "test_duty" in bb["error"], bb["error"]
+    # the COPY line of the refused record (Citus relays the worker's message without it)
+    assert "line 2" in bb["error"] or on_citus(conn), bb["error"]
     assert _pubacks(worker) == [1, 2, 3]  # each message once: none left to redeliver
     assert _xmins(conn, b.machine_id, "s") == set()  # the batch is all or nothing
     n = conn.execute(
@@ -161,7 +168,8 @@ def test_same_machine_twice_in_a_round(worker, conn, org) -> None:  # noqa: ANN0
         ("s2", 2, 2),
     ]
     first, second = _xmins(conn, a.machine_id, "s1"), _xmins(conn, a.machine_id, "s2")
-    assert len(first) == 1 and first == _xmins(conn, b.machine_id, "s1")
+    assert len(first) == 1
+    assert on_citus(conn) or first == _xmins(conn, b.machine_id, "s1")  # Citus: per node
     assert len(second) == 1 and second != first
     assert _pubacks(worker) == [1, 2, 3, 4]
 

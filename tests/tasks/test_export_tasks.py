@@ -157,8 +157,11 @@ def test_jobs_list_names_machine_field_product_and_dates(client, org, driven, db
         {"id": driven.prescription_id},
     )
     db.execute(
-        text("INSERT INTO job_events (job_id, state, note) VALUES (:j, 'running', '')"),
-        {"j": driven.job_id},
+        text(
+            "INSERT INTO job_events (machine_id, job_id, state, note)"
+            " VALUES (:m, :j, 'running', '')"
+        ),
+        {"m": driven.machine_id, "j": driven.job_id},
     )
     db.commit()
     items = client.get("/api/v1/jobs", headers=org.headers("viewer")).json()["items"]

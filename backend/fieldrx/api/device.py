@@ -28,7 +28,7 @@ from fieldrx.api.schemas.jobs import (
 )
 from fieldrx.auth.deps import DeviceDep, Principal, SessionDep
 from fieldrx.db.models import Job
-from fieldrx.fleet.jobstate import change_state
+from fieldrx.fleet.jobstate import change_state, lock_job
 from fieldrx.services.jobpackage import build_job_package
 
 router = APIRouter(prefix="/device", tags=["device"], responses=ERRORS)
@@ -109,7 +109,7 @@ def device_state(
     job_id: int, body: DeviceStateIn, principal: DeviceDep, session: SessionDep
 ) -> JobOut:
     job = _my_job(session, job_id, principal)
-    session.refresh(job, with_for_update=True)
+    lock_job(session, job)
     change_state(session, job, body.state, machine_id=principal.machine_id, note=body.note)
     session.commit()
     return job_out(job)

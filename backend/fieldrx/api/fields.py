@@ -26,7 +26,7 @@ from fieldrx.db.models import Farm, Imagery
 from fieldrx.db.models import Field as FieldRow
 from fieldrx.geo.validate import BoundaryError, ValidBoundary, validate_boundary
 from fieldrx.imagery import storage as imagery_storage
-from fieldrx.services.evidence import refuse_if_evidence
+from fieldrx.services.evidence import delete_jobs, refuse_if_evidence
 
 router = APIRouter(prefix="/fields", tags=["fields"], responses=ERRORS)
 
@@ -249,6 +249,7 @@ def delete_field(field_id: int, principal: WriterDep, session: SessionDep) -> No
     """Delete the field, its plans and jobs; 409 while a job holds unarchived as-applied data."""
     field = get_scoped(session, FieldRow, field_id, principal)
     refuse_if_evidence(session, "field", field.id)
+    delete_jobs(session, "field", field.id)
     cogs = session.scalars(select(Imagery.storage_key).where(Imagery.field_id == field.id)).all()
     session.delete(field)
     session.commit()

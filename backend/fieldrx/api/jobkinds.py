@@ -112,7 +112,15 @@ def create_kind_job(session: Any, principal: Any, body: Any) -> Job:
     )
     session.add(job)
     session.flush()
-    session.add(JobEvent(job_id=job.id, state="planned", by_user_id=principal.user_id, note=note))
+    session.add(
+        JobEvent(
+            job_id=job.id,
+            machine_id=job.machine_id,
+            state="planned",
+            by_user_id=principal.user_id,
+            note=note,
+        )
+    )
     session.flush()
     session.refresh(job)
     notify_job(session, job)

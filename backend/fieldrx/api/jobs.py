@@ -33,7 +33,7 @@ from fieldrx.db.models import (
     PrescriptionVersion,
 )
 from fieldrx.db.models import Field as FieldRow
-from fieldrx.fleet.jobstate import change_state, notify_job
+from fieldrx.fleet.jobstate import change_state, lock_job, notify_job
 from fieldrx.services import prescriptions as rx_svc
 from fieldrx.services.imports import IMPORTED_IMPLEMENT
 
@@ -125,10 +125,9 @@ def job_out(
     )
 
 
-def _events(session: SessionDep, job_id: int) -> list[JobEvent]:
-    return list(
-        session.scalars(select(JobEvent).where(JobEvent.job_id == job_id).order_by(JobEvent.id))
-    )
+def _events(session: SessionDep, job: Job) -> list[JobEvent]:
+    where = (JobEvent.machine_id == job.machine_id, JobEvent.job_id == job.id)
+    return list(session.scalars(select(JobEvent).where(*where).order_by(JobEvent.id)))
 
 
 def _check_width(session: SessionDep, rx: Prescription, machine: Machine) -> None:
@@ -157,7 +156,7 @@ def _attention(
 def create_job(body: JobIn, principal: WriterDep, session: SessionDep) -> JobOut:
     if body.kind != "prescription_map":
         job = create_kind_job(session, principal, body)
-        return job_out(job, _events(session, job.id))
+        return job_out(job, _events(session, job))
     if body.prescription_id is None:
         raise ApiError(422, "a prescription_map job needs prescription_id", where="prescription_id")
     if body.plan_id is not None or body.settings:
@@ -242,12 +241,20 @@ def create_job(body: JobIn, principal: WriterDep, session: SessionDep) -> JobOut
         if job.flagged_confirmed
         else ""
     )
-    session.add(JobEvent(job_id=job.id, state="planned", by_user_id=principal.user_id, note=note))
+    session.add(
+        JobEvent(
+            job_id=job.id,
+            machine_id=job.machine_id,
+            state="planned",
+            by_user_id=principal.user_id,
+            note=note,
+        )
+    )
     session.flush()
     session.refresh(job)
     notify_job(session, job)
     session.commit()
-    return job_out(job, _events(session, job.id))
+    return job_out(job, _events(session, job))
 
 
 @router.get("/kinds", response_model=KindsOut)
@@ -287,13 +294,13 @@ def list_jobs(
 def get_job(job_id: int, principal: UserDep, session: SessionDep) -> JobOut:
     """The job with its events, machine and field names, product, start and end."""
     job = get_scoped(session, Job, job_id, principal)
-    return job_out(job, _events(session, job.id), job_context(session, [job])[job.id])
+    return job_out(job, _events(session, job), job_context(session, [job])[job.id])
 
 
 @router.post("/{job_id:int}/state", response_model=JobOut)
 def set_state(job_id: int, body: StateIn, principal: WriterDep, session: SessionDep) -> JobOut:
     job = get_scoped(session, Job, job_id, principal)
-    session.refresh(job, with_for_update=True)
+    lock_job(session, job)
     if body.state == "sent" and job.state != "sent":
         # the machine may have changed since the job was made (implement, sensors)
         machine = session.get(Machine, job.machine_id)
@@ -301,7 +308,7 @@ def set_state(job_id: int, body: StateIn, principal: WriterDep, session: Session
             check_machine_can(job.kind, machine)
     change_state(session, job, body.state, user_id=principal.user_id, note=body.note)
     session.commit()
-    return job_out(job, _events(session, job.id))
+    return job_out(job, _events(session, job))
 
 
 assert set(JOB_STATES) == set(State.__args__)  # type: ignore[attr-defined]

@@ -7,7 +7,7 @@ from typing import Any
 from fastapi import APIRouter, Query
 from fieldrx_edge.metering import calibration_from_dict
 from fieldrx_edge.protocol import mqtt_username
-from sqlalchemy import func, select
+from sqlalchemy import delete, func, select, update
 
 from fieldrx.api.common import ApiError, get_scoped
 from fieldrx.api.schemas.errors import ERRORS
@@ -23,7 +23,7 @@ from fieldrx.api.schemas.machines import (
 from fieldrx.auth.deps import AnyPrincipal, SessionDep, UserDep, WriterDep
 from fieldrx.auth.mqtt import revoke_device_after
 from fieldrx.auth.service import issue_device_token, token_expiry
-from fieldrx.db.models import Machine
+from fieldrx.db.models import ApiToken, Machine, Prescription
 from fieldrx.services.evidence import refuse_if_evidence
 from fieldrx.services.implements import capabilities
 from fieldrx.services.imports import IMPORTED_IMPLEMENT
@@ -106,6 +106,12 @@ def delete_machine(machine_id: int, principal: WriterDep, session: SessionDep) -
     """Delete the machine and its jobs; 409 while a job holds unarchived as-applied data."""
     machine = get_scoped(session, Machine, machine_id, principal)
     refuse_if_evidence(session, "machine", machine.id)
+    # no foreign keys from these coordinator tables into the distributed machines
+    # (migration 0017): the cascade and the SET NULL they had, done here
+    session.execute(delete(ApiToken).where(ApiToken.machine_id == machine.id))
+    session.execute(
+        update(Prescription).where(Prescription.machine_id == machine.id).values(machine_id=None)
+    )
     session.delete(machine)
     session.commit()
     revoke_device_after(machine_id, f"machine {machine_id} is deleted")  # and its MQTT user

@@ -37,7 +37,7 @@ from fieldrx.db.models import Machine, Plan, Prescription, PrescriptionVersion
 from fieldrx.formats import FormatError
 from fieldrx.services import exports
 from fieldrx.services import prescriptions as svc
-from fieldrx.services.evidence import refuse_if_evidence
+from fieldrx.services.evidence import delete_jobs, refuse_if_evidence
 
 router = APIRouter(tags=["prescriptions"], responses=ERRORS)
 
@@ -427,5 +427,6 @@ def delete(rx_id: int, principal: WriterDep, session: SessionDep) -> None:
     """Delete the prescription and its jobs; 409 while a job holds unarchived as-applied data."""
     rx = get_scoped(session, Prescription, rx_id, principal)
     refuse_if_evidence(session, "prescription", rx.id)
+    delete_jobs(session, "prescription", rx.id)
     session.delete(rx)
     session.commit()

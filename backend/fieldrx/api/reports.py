@@ -183,7 +183,9 @@ def job_summary(job_id: int, principal: UserDep, session: SessionDep) -> dict[st
     plan = job_plan(session, job)
     fld = session.get(Field, plan.field_id)
     events = session.execute(
-        select(JobEvent.state, JobEvent.at).where(JobEvent.job_id == job.id).order_by(JobEvent.id)
+        select(JobEvent.state, JobEvent.at)
+        .where(JobEvent.machine_id == job.machine_id, JobEvent.job_id == job.id)
+        .order_by(JobEvent.id)
     ).all()
     started = next((e.at for e in events if e.state == "running"), None)
     ended = next((e.at for e in reversed(events) if e.state in ("completed", "aborted")), None)

@@ -104,7 +104,9 @@ class ApiToken(Base):
     )
     kind: Mapped[str] = mapped_column(String(10))
     user_id: Mapped[int | None] = mapped_column(ForeignKey("users.id", ondelete="CASCADE"))
-    machine_id: Mapped[int | None] = mapped_column(ForeignKey("machines.id", ondelete="CASCADE"))
+    # no foreign key: machines are distributed past one node, api_tokens is a reference
+    # table (migration 0017); a machine's delete removes its tokens (api/machines.py)
+    machine_id: Mapped[int | None] = mapped_column(Integer)
     role: Mapped[str | None] = mapped_column(String(20))
     name: Mapped[str] = mapped_column(String(200), default="")
     token_hash: Mapped[str] = mapped_column(String(64), unique=True)
@@ -261,7 +263,8 @@ class Prescription(Base):
         ForeignKey("organisations.id", ondelete="CASCADE"), index=True
     )
     plan_id: Mapped[int] = mapped_column(ForeignKey("plans.id", ondelete="CASCADE"), index=True)
-    machine_id: Mapped[int | None] = mapped_column(ForeignKey("machines.id", ondelete="SET NULL"))
+    # no foreign key into the distributed machines (migration 0017); unset on its delete
+    machine_id: Mapped[int | None] = mapped_column(Integer)
     name: Mapped[str] = mapped_column(String(200), default="")
     product: Mapped[str] = mapped_column(String(200), default="")
     model: Mapped[str] = mapped_column(String(50))
@@ -339,17 +342,18 @@ class Job(Base):
             " OR (kind <> 'prescription_map' AND plan_id IS NOT NULL)",
             name="ck_job_source",
         ),
-        # job_cells_applied's (machine_id, job_id) foreign key (migration 0014_machine_keys)
-        UniqueConstraint("machine_id", "id", name="uq_jobs_machine_id_id"),
+        # the key is (machine_id, id) (migration 0017: Citus's keys hold the distribution
+        # column); the mapper keeps ``id`` (globally unique from its sequence) for lookups
+        Index("ix_jobs_id", "id"),
     )
     id: Mapped[int] = mapped_column(primary_key=True)
     organisation_id: Mapped[int] = mapped_column(
         ForeignKey("organisations.id", ondelete="CASCADE"), index=True
     )
     # null for the sensor kinds, which drive a plan's path with sensor-decided rates
-    prescription_id: Mapped[int | None] = mapped_column(
-        ForeignKey("prescriptions.id", ondelete="CASCADE")
-    )
+    # no foreign keys to the coordinator's prescriptions / plans (migration 0017): their
+    # deletes delete the jobs (fieldrx.services.evidence.delete_jobs)
+    prescription_id: Mapped[int | None] = mapped_column(Integer)
     prescription_version: Mapped[int | None] = mapped_column(Integer)
     kind: Mapped[str] = mapped_column(
         String(32), default="prescription_map", server_default="prescription_map"
@@ -357,7 +361,7 @@ class Job(Base):
     settings: Mapped[dict[str, Any]] = mapped_column(
         JSONB, default=dict, server_default=text("'{}'")
     )
-    plan_id: Mapped[int | None] = mapped_column(ForeignKey("plans.id", ondelete="CASCADE"))
+    plan_id: Mapped[int | None] = mapped_column(Integer)
     machine_id: Mapped[int] = mapped_column(
         ForeignKey("machines.id", ondelete="CASCADE"), index=True
     )
@@ -379,13 +383,22 @@ class JobEvent(Base):
     """Who moved a job to which state, and when."""
 
     __tablename__ = "job_events"
+    # co-located with its job: keyed (machine_id, id) in the database, the job referenced by
+    # (machine_id, job_id) (migration 0017)
+    __table_args__ = (
+        ForeignKeyConstraint(
+            ["machine_id", "job_id"],
+            ["jobs.machine_id", "jobs.id"],
+            name="job_events_machine_job_fkey",
+            ondelete="CASCADE",
+        ),
+    )
     id: Mapped[int] = mapped_column(primary_key=True)
-    job_id: Mapped[int] = mapped_column(ForeignKey("jobs.id", ondelete="CASCADE"), index=True)
+    machine_id: Mapped[int] = mapped_column(Integer)
+    job_id: Mapped[int] = mapped_column(Integer, index=True)
     state: Mapped[str] = mapped_column(String(20))
     by_user_id: Mapped[int | None] = mapped_column(ForeignKey("users.id", ondelete="SET NULL"))
-    by_machine_id: Mapped[int | None] = mapped_column(
-        ForeignKey("machines.id", ondelete="SET NULL")
-    )
+    by_machine_id: Mapped[int | None] = mapped_column(Integer)  # the job's machine
     note: Mapped[str] = mapped_column(Text, default="")
     at: Mapped[dt.datetime] = _now()
 
@@ -401,7 +414,6 @@ class JobCellApplied(Base):
             ["jobs.machine_id", "jobs.id"],
             name="job_cells_applied_machine_job_fkey",
             ondelete="CASCADE",
-            onupdate="CASCADE",
         ),
     )
     machine_id: Mapped[int] = mapped_column(Integer, primary_key=True)
@@ -420,13 +432,21 @@ class JobCellRecord(Base):
     (machine, stream, seq) like telemetry; a thin job's report sums them per cell."""
 
     __tablename__ = "job_cell_records"
-    __table_args__ = (Index("ix_job_cell_records_job_cell", "job_id", "cell_seq"),)
+    __table_args__ = (
+        Index("ix_job_cell_records_job_cell", "job_id", "cell_seq"),
+        ForeignKeyConstraint(
+            ["machine_id", "job_id"],
+            ["jobs.machine_id", "jobs.id"],
+            name="job_cell_records_machine_job_fkey",
+            ondelete="CASCADE",
+        ),
+    )
     machine_id: Mapped[int] = mapped_column(
         ForeignKey("machines.id", ondelete="CASCADE"), primary_key=True
     )
     stream: Mapped[str] = mapped_column(String(32), primary_key=True)
     seq: Mapped[int] = mapped_column(BigInteger, primary_key=True)
-    job_id: Mapped[int] = mapped_column(ForeignKey("jobs.id", ondelete="CASCADE"))
+    job_id: Mapped[int] = mapped_column(Integer)
     cell_seq: Mapped[int | None] = mapped_column(Integer)
     t_entry: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True))
     t_exit: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True))
@@ -585,7 +605,8 @@ class MachineStatus(Base):
 
 class Alert(Base):
     __tablename__ = "alerts"
-    __table_args__ = (Index("ix_alerts_job_kind", "job_id", "kind"),)
+    # keyed (machine_id, id) in the database (migration 0017); ``id`` stays the mapper's key
+    __table_args__ = (Index("ix_alerts_job_kind", "job_id", "kind"), Index("ix_alerts_id", "id"))
     id: Mapped[int] = mapped_column(primary_key=True)
     organisation_id: Mapped[int] = mapped_column(
         ForeignKey("organisations.id", ondelete="CASCADE"), index=True

@@ -140,8 +140,8 @@ def evaluate(
     # data arrived: a no_data alert is over
     if "no_data" in open_ids:
         cur.execute(
-            "UPDATE alerts SET ended_at = %s WHERE id = %s",
-            (_ts(samples[0].t), open_ids["no_data"]),
+            "UPDATE alerts SET ended_at = %s WHERE machine_id = %s AND id = %s",
+            (_ts(samples[0].t), machine_id, open_ids["no_data"]),
         )
         messages.append(
             alert_message(organisation_id, open_ids["no_data"], machine_id, "no_data", "ended")
@@ -164,7 +164,8 @@ def evaluate(
                 run_start = None
                 if is_open:
                     cur.execute(
-                        "UPDATE alerts SET ended_at = %s WHERE id = %s", (_ts(s.t), open_ids[kind])
+                        "UPDATE alerts SET ended_at = %s WHERE machine_id = %s AND id = %s",
+                        (_ts(s.t), machine_id, open_ids[kind]),
                     )
                     messages.append(
                         alert_message(organisation_id, open_ids[kind], machine_id, kind, "ended")
@@ -343,5 +344,8 @@ def end_event(
     cur: psycopg.Cursor[Any], organisation_id: int, machine_id: int, alert_id: int, kind: str
 ) -> list[dict[str, Any]]:
     """End an ``EVENT_KINDS`` alert now; returns the live message."""
-    cur.execute("UPDATE alerts SET ended_at = now() WHERE id = %s", (alert_id,))
+    cur.execute(
+        "UPDATE alerts SET ended_at = now() WHERE machine_id = %s AND id = %s",
+        (machine_id, alert_id),
+    )
     return [alert_message(organisation_id, alert_id, machine_id, kind, "ended")]

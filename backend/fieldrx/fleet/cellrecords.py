@@ -223,15 +223,18 @@ class CellWork:
 
     def read(self, cur: psycopg.Cursor[Any]) -> None:
         """Queue the read of the machine, the stream's ack and which jobs are the machine's."""
+        # the subquery names the machine itself (not through m.id): past one node (Citus)
+        # that keeps the statement on the machine's shard
         cur.execute(
             "SELECT m.organisation_id, s.acked_seq,"
-            " (SELECT coalesce(array_agg(j.id), '{}') FROM jobs j WHERE j.machine_id = m.id"
-            "  AND j.id = ANY(%s))"
+            " (SELECT coalesce(array_agg(j.id), '{}') FROM jobs j WHERE j.machine_id = %(m)s"
+            "  AND j.id = ANY(%(jobs)s))"
             " FROM machines m"
-            " LEFT JOIN cell_record_streams s ON s.machine_id = m.id AND s.stream = %s"
-            " WHERE m.id = %s",
-            (list({r[3] for r in self.rows.values()}), self.stream, self.machine_id),
-        )
+            " LEFT JOIN cell_record_streams s ON s.machine_id = m.id AND s.stream = %(s)s"
+            " WHERE m.id = %(m)s",
+            {"jobs": list({r[3] for r in self.rows.values()}), "s": self.stream,
+             "m": self.machine_id},
+        )  # fmt: skip
 
     def opened(self, info: Any) -> None:
         """The read's row; records of another machine's job are rejected for good."""
@@ -354,12 +357,14 @@ ACK_WALK_SQL = (
 
 # ``CellWork.finish``: the stream's row (its ack walked by ``ACK_WALK_SQL``) and the per-cell
 # sums with job progress (``ingest.CELL_PROGRESS_CTE``) in one statement: the acked seq and
-# the moved jobs as rows of (id, state, cells_applied, n_cells)
+# the moved jobs as rows of (id, state, cells_applied, n_cells). The walk is its own CTE and
+# the row an INSERT ... SELECT: Citus refuses a subquery inside INSERT ... VALUES
 FINISH_SQL = (
-    "WITH st AS (INSERT INTO cell_record_streams AS s (machine_id, stream, first_seq,"
-    " acked_seq, n_records) VALUES (%(m)s, %(s)s::text, %(start)s, " + ACK_WALK_SQL + ","
-    " %(nrec)s) ON CONFLICT (machine_id, stream) DO UPDATE"
-    " SET acked_seq = excluded.acked_seq, last_seen_at = now(),"
+    "WITH ack AS (SELECT " + ACK_WALK_SQL + " AS a),"
+    " st AS (INSERT INTO cell_record_streams AS s (machine_id, stream, first_seq,"
+    " acked_seq, n_records) SELECT %(m)s, %(s)s::text, %(start)s, ack.a, %(nrec)s FROM ack"
+    " ON CONFLICT (machine_id, stream) DO UPDATE"
+    " SET acked_seq = excluded.acked_seq, last_seen_at = excluded.last_seen_at,"
     " n_records = s.n_records + excluded.n_records RETURNING acked_seq), "
     + CELL_PROGRESS_CTE
     + " SELECT (SELECT acked_seq FROM st),"

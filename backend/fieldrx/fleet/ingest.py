@@ -433,19 +433,21 @@ class MachineInfo:
 
 
 LOCK_SQL = "SELECT pg_advisory_xact_lock(%s, %s)"
+# every table's machine named as the parameter itself, not only through ``m.id``: past one
+# node (Citus) the correlated subqueries otherwise plan as a multi-shard query
 _MACHINE_SQL = (
     "SELECT m.organisation_id, m.speed_min_m_s, m.speed_max_m_s, ts.acked_seq,"
     " extract(epoch FROM s.last_t)::float8,"
     " (SELECT coalesce(json_object_agg(a.kind, a.id), '{}') FROM alerts a"
-    "   WHERE a.machine_id = m.id AND a.ended_at IS NULL),"
+    "   WHERE a.machine_id = %(m)s AND a.ended_at IS NULL),"
     " extract(epoch FROM ts.last_seen_at)::float8,"
     " (SELECT extract(epoch FROM max(o.last_seen_at))::float8 FROM telemetry_streams o"
-    "   WHERE o.machine_id = m.id AND o.stream <> %s),"
+    "   WHERE o.machine_id = %(m)s AND o.stream <> %(s)s),"
     " ts.max_seq, ts.first_t, ts.last_t"
     " FROM machines m"
     " LEFT JOIN machine_status s ON s.machine_id = m.id"
-    " LEFT JOIN telemetry_streams ts ON ts.machine_id = m.id AND ts.stream = %s"
-    " WHERE m.id = %s"
+    " LEFT JOIN telemetry_streams ts ON ts.machine_id = m.id AND ts.stream = %(s)s"
+    " WHERE m.id = %(m)s"
 )
 
 
@@ -565,7 +567,7 @@ class TrackWork:
 
     def read(self, cur: psycopg.Cursor[Any]) -> None:
         """Queue the read of what the batch needs (after the caller's lock statement)."""
-        cur.execute(_MACHINE_SQL, (self.stream, self.stream, self.machine_id))
+        cur.execute(_MACHINE_SQL, {"s": self.stream, "m": self.machine_id})
 
     def opened(self, row: Any) -> None:
         """The read's row (``read``'s cursor's ``fetchone()``)."""
@@ -771,7 +773,7 @@ def _stream_row(
         "INSERT INTO telemetry_streams AS ts (machine_id, stream, first_seq, acked_seq,"
         " n_records, first_t, last_t, max_seq) VALUES (%s, %s, %s, %s, %s, %s, %s, %s)"
         " ON CONFLICT (machine_id, stream) DO UPDATE SET acked_seq = excluded.acked_seq,"
-        " last_seen_at = now(), n_records = ts.n_records + excluded.n_records,"
+        " last_seen_at = excluded.last_seen_at, n_records = ts.n_records + excluded.n_records,"
         " first_t = least(ts.first_t, excluded.first_t),"
         " last_t = greatest(ts.last_t, excluded.last_t),"
         " max_seq = greatest(ts.max_seq, excluded.max_seq)",
@@ -924,7 +926,7 @@ def _status(
         return (
             "INSERT INTO machine_status (machine_id, last_seen_at, acked_seq, queue_backlog,"
             " alarms) VALUES (%s, now(), %s, 0, '{}') ON CONFLICT (machine_id) DO UPDATE"
-            " SET last_seen_at = now(), acked_seq = excluded.acked_seq",
+            " SET last_seen_at = excluded.last_seen_at, acked_seq = excluded.acked_seq",
             (machine_id, acked),
         )
     r = max(new, key=lambda r: r.t)
@@ -941,7 +943,8 @@ def _status(
             speed_m_s, heading_deg, job_id, cell_seq, target_rate_kg_ha, applied_rate_kg_ha,
             queue_backlog, alarms)
         VALUES (%s, now(), %s, %s, %s, %s, %s, %s, %s, %s, %s, %s, %s, %s)
-        ON CONFLICT (machine_id) DO UPDATE SET last_seen_at = now(), last_t = excluded.last_t,
+        ON CONFLICT (machine_id) DO UPDATE SET last_seen_at = excluded.last_seen_at,
+            last_t = excluded.last_t,
             acked_seq = excluded.acked_seq,
             lon = coalesce(excluded.lon, machine_status.lon),
             lat = coalesce(excluded.lat, machine_status.lat),

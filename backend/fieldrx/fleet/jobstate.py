@@ -15,7 +15,7 @@ import datetime as dt
 import json
 from typing import Any
 
-from sqlalchemy import text
+from sqlalchemy import select, text
 from sqlalchemy.orm import Session
 
 from fieldrx.db.models import Alert, Job, JobEvent
@@ -34,6 +34,20 @@ TRANSITIONS: dict[str, tuple[str, ...]] = {
     "aborted": (),
 }
 DEVICE_STATES = ("downloaded", "running", "paused", "completed")
+
+
+def lock_job(session: Session, job: Job) -> None:
+    """Re-read ``job`` under a row lock (its state changes one at a time).
+
+    The lock names the job's machine as well as its id: past one node (Citus) a row lock
+    on a distributed table must name the distribution column to reach one shard
+    (``SELECT ... FOR UPDATE`` by id alone is refused there)."""
+    session.execute(
+        select(Job)
+        .where(Job.machine_id == job.machine_id, Job.id == job.id)
+        .with_for_update()
+        .execution_options(populate_existing=True)
+    ).scalar_one()
 
 
 def change_state(
@@ -62,7 +76,12 @@ def change_state(
     job.updated_at = dt.datetime.now(dt.UTC)
     session.add(
         JobEvent(
-            job_id=job.id, state=state, by_user_id=user_id, by_machine_id=machine_id, note=note
+            job_id=job.id,
+            machine_id=job.machine_id,
+            state=state,
+            by_user_id=user_id,
+            by_machine_id=machine_id,
+            note=note,
         )
     )
     notify_job(session, job)

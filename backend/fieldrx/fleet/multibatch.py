@@ -21,6 +21,7 @@ batch.
 from __future__ import annotations
 
 import logging
+import re
 from typing import Any
 
 import orjson
@@ -171,6 +172,24 @@ def error_ack(machine_id: int, batch: Batch, what: str, exc: Exception) -> bytes
     reason = f"{what} not stored: {reason_of(exc)}"
     ack = IngestResult(machine_id, 0, stream=batch.stream, streamed=True).to_json()
     return ack[:-1] + b',"error":' + orjson.dumps(reason) + b"}"
+
+
+# Past one node Citus relays a worker's refusal inside a COPY as an internal error (SQLSTATE
+# XX000) that keeps only the worker's message, so the class alone does not say "refused"
+_REFUSED_TEXT = re.compile(
+    r"violates (check|not-null|foreign key|unique|exclusion) constraint"
+    r"|invalid input|out of range|value too long"
+)
+
+
+def refused(exc: psycopg.Error) -> bool:
+    """Whether the database refused the data (a constraint, a value it cannot take), as
+    opposed to failing: a refused batch gets an error ack, a failure is retried."""
+    if isinstance(exc, psycopg.errors.DataError | psycopg.errors.IntegrityError):
+        return True
+    return isinstance(exc, psycopg.errors.InternalError_) and bool(
+        _REFUSED_TEXT.search(exc.diag.message_primary or str(exc))
+    )
 
 
 def reason_of(exc: Exception) -> str:

@@ -33,7 +33,9 @@ def check_depth_window(
     """Open / close the job's ``depth_qualified_low`` alert; returns live messages."""
     if job_id is None:
         return []
-    cur.execute("SELECT kind, settings FROM jobs WHERE id = %s", (job_id,))
+    cur.execute(
+        "SELECT kind, settings FROM jobs WHERE machine_id = %s AND id = %s", (machine_id, job_id)
+    )
     row = cur.fetchone()
     if row is None or row[0] != "seeding_depth":
         return []
@@ -93,7 +95,10 @@ def check_depth_window(
             alert_message(organisation_id, aid, machine_id, KIND, "started", text, share, job_id)
         ]
     if share >= min_pct and is_open:
-        cur.execute("UPDATE alerts SET ended_at = now() WHERE id = %s", (open_ids[KIND],))
+        cur.execute(
+            "UPDATE alerts SET ended_at = now() WHERE machine_id = %s AND id = %s",
+            (machine_id, open_ids[KIND]),
+        )
         aid = open_ids.pop(KIND)
         return [alert_message(organisation_id, aid, machine_id, KIND, "ended")]
     return []

@@ -119,14 +119,16 @@ def present_state(
     return "moving" if moving else "idle"
 
 
+# the database's time is read first and bound: past one node (Citus) ``now()`` is refused
+# in the RETURNING list of a distributed table's UPDATE
 SWEEP_SQL = """
-UPDATE machine_status s SET offline_at = now()
+UPDATE machine_status s SET offline_at = %(now)s
 FROM machines m
 WHERE m.id = s.machine_id
-  AND s.last_seen_at < now() - make_interval(secs => %s)
+  AND s.last_seen_at < %(now)s - make_interval(secs => %(timeout)s)
   AND (s.offline_at IS NULL OR s.offline_at < s.last_seen_at)
 RETURNING s.machine_id, m.organisation_id, s.last_seen_at,
-          extract(epoch FROM now() - s.last_seen_at)::float8
+          extract(epoch FROM %(now)s - s.last_seen_at)::float8
 """
 
 END_STALE_SQL = """
@@ -145,7 +147,9 @@ def sweep_offline(conn: psycopg.Connection[Any], timeout_s: float) -> list[int]:
     machine and the others' re-checked WHERE skip it. Returns the machine ids announced.
     """
     with conn.transaction(), conn.cursor() as cur:
-        cur.execute(SWEEP_SQL, (timeout_s,))
+        cur.execute("SELECT now()")
+        now = cur.fetchone()[0]  # type: ignore[index]
+        cur.execute(SWEEP_SQL, {"now": now, "timeout": timeout_s})
         gone = cur.fetchall()
         if not gone:
             return []

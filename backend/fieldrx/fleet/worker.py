@@ -72,6 +72,7 @@ from fieldrx.fleet.ingest import Batch, IngestError, IngestResult, parse_batch
 from fieldrx.fleet.multibatch import (
     error_ack,
     reason_of,
+    refused,
     store,
     store_free,
     store_together,
@@ -458,7 +459,12 @@ class IngestWorker:
                 log.warning("machine %s: %s not stored: %s", machine_id, what, exc)
                 self._acked(stats, machine_id, batch, ms, error_ack(machine_id, batch, what, exc))
                 return conn
-            except (psycopg.errors.DataError, psycopg.errors.IntegrityError) as exc:
+            except psycopg.Error as exc:
+                if not refused(exc):
+                    stats.errors += 1
+                    log.warning("ingest failed (%s); retrying", exc)
+                    conn = self._reconnect(conn)
+                    continue
                 if conn.closed or conn.broken:
                     stats.errors += 1
                     conn = self._reconnect(conn)
@@ -466,10 +472,6 @@ class IngestWorker:
                 log.warning("machine %s: %s not stored: %s", machine_id, what, reason_of(exc))
                 self._acked(stats, machine_id, batch, ms, error_ack(machine_id, batch, what, exc))
                 return conn
-            except psycopg.Error as exc:
-                stats.errors += 1
-                log.warning("ingest failed (%s); retrying", exc)
-                conn = self._reconnect(conn)
             else:
                 self._acked(stats, machine_id, batch, ms, result.to_json(), result)
                 return conn

@@ -1,43 +1,82 @@
 """Evidence is never erased silently: deletions that would cascade to as-applied records.
 
-A machine, field, plan or prescription cascades (foreign keys) to its jobs,
-and a job to its as-applied records (``job_cells_applied``, telemetry). Before
-such a delete the API asks ``unarchived_jobs_with_data``; when any job would
+A machine cascades (foreign keys) to its jobs, a field, plan or prescription too
+(``delete_jobs``: no foreign key, see there), and a job to its as-applied records
+(``job_cells_applied``, telemetry). Before such a delete the API asks
+``unarchived_jobs_with_data``; when any job would
 lose as-applied data that was not archived (``job_archives``, see
 api/archive.py) the delete is refused with ``Conflict`` naming the jobs.
 """
 
 from __future__ import annotations
 
+from typing import Any
+
 from sqlalchemy import text
 from sqlalchemy.orm import Session
 
 from fieldrx.errors import Conflict
 
-_SCOPES = {
-    "machine": "j.machine_id = :id",
-    "prescription": "j.prescription_id = :id",
-    "plan": "j.prescription_id IN (SELECT id FROM prescriptions WHERE plan_id = :id)",
+# the plans and prescriptions whose jobs go with a field / plan, read on the coordinator
+_SOURCES = {
+    "plan": ("SELECT :id", "SELECT id FROM prescriptions WHERE plan_id = :id"),
     "field": (
-        "j.prescription_id IN (SELECT r.id FROM prescriptions r JOIN plans p ON p.id = r.plan_id"
-        " WHERE p.field_id = :id)"
+        "SELECT id FROM plans WHERE field_id = :id",
+        "SELECT r.id FROM prescriptions r JOIN plans p ON p.id = r.plan_id WHERE p.field_id = :id",
     ),
 }
+
+
+def _scope(session: Session, kind: str, obj_id: int) -> tuple[str, dict[str, Any]]:
+    """The jobs made from this machine / field / plan / prescription, as a condition on
+    ``jobs j`` alone. The plans and prescriptions are read first: past one node ``jobs`` is
+    distributed and the coordinator's tables cannot be joined to it in one statement."""
+    if kind == "machine":
+        return "j.machine_id = :id", {"id": obj_id}
+    if kind == "prescription":
+        plans, rxs = [], [obj_id]
+    else:
+        plans_sql, rx_sql = _SOURCES[kind]
+        plans = [int(r[0]) for r in session.execute(text(plans_sql), {"id": obj_id})]
+        rxs = [int(r[0]) for r in session.execute(text(rx_sql), {"id": obj_id})]
+    return "(j.plan_id = ANY(:p) OR j.prescription_id = ANY(:r))", {"p": plans, "r": rxs}
 
 
 def unarchived_jobs_with_data(session: Session, kind: str, obj_id: int) -> list[int]:
     """Ids of the jobs made from this machine/field/plan/prescription that hold as-applied
     data and have no archive."""
+    where, params = _scope(session, kind, obj_id)
     sql = (
-        f"SELECT j.id FROM jobs j WHERE {_SCOPES[kind]}"
+        f"SELECT j.id FROM jobs j WHERE {where}"
         " AND (EXISTS (SELECT 1 FROM job_cells_applied a"
         "              WHERE a.machine_id = j.machine_id AND a.job_id = j.id)"
         "      OR EXISTS (SELECT 1 FROM telemetry_job_spans t"
         "                 WHERE t.machine_id = j.machine_id AND t.job_id = j.id))"
-        " AND NOT EXISTS (SELECT 1 FROM job_archives x WHERE x.job_id = j.id)"
         " ORDER BY j.id"
     )
-    return [int(r[0]) for r in session.execute(text(sql), {"id": obj_id})]
+    ids = [int(r[0]) for r in session.execute(text(sql), params)]
+    if not ids:
+        return []
+    archived = {
+        int(r[0])
+        for r in session.execute(
+            text("SELECT job_id FROM job_archives WHERE job_id = ANY(:ids)"), {"ids": ids}
+        )
+    }
+    return [i for i in ids if i not in archived]
+
+
+def delete_jobs(session: Session, kind: str, obj_id: int) -> int:
+    """Delete the jobs made from this field / plan / prescription (and with them, by their
+    ``(machine_id, job_id)`` foreign keys, their events and per-cell results), inside the
+    caller's transaction, before the object itself. Returns how many.
+
+    ``jobs`` has no foreign key to plans or prescriptions (migration 0017): past one node the
+    jobs are distributed by machine and Citus refuses a distributed table's foreign key to a
+    coordinator table, so the cascade is done here, by the ids read first (``_scope``)."""
+    where, params = _scope(session, kind, obj_id)
+    res = session.execute(text(f"DELETE FROM jobs j WHERE {where}"), params)
+    return int(res.rowcount or 0)  # type: ignore[attr-defined]
 
 
 def refuse_if_evidence(session: Session, kind: str, obj_id: int) -> None:

@@ -27,6 +27,7 @@ from fieldrx.geo.coverage import plan_coverage
 from fieldrx.geo.crs import to_utm, to_wgs84
 from fieldrx.geo.grid import build_grid, check_grid_cost
 from fieldrx.geo.planning.kinematics import DEFAULT_HEADLAND_PASSES
+from fieldrx.services.evidence import delete_jobs
 from fieldrx.store import load_cells, write_plan_cells
 
 
@@ -60,6 +61,7 @@ def delete_plan(session: Session, plan: Plan) -> None:
     queueing every tile request behind it.
     """
     session.execute(text("SET LOCAL lock_timeout = '5s'"))
+    delete_jobs(session, "plan", plan.id)
     session.delete(plan)
     session.flush()
 

@@ -164,6 +164,12 @@ def write_plan_cells(session: Session, plan_id: int, cells: Cells) -> dict[str, 
         cur.execute(
             f"ALTER TABLE {part} ADD CONSTRAINT {part}_one_plan CHECK (plan_id = {int(plan_id)})"
         )
+        # the shape check is each partition's own, not the parent's (migration 0017: under
+        # Citus a partition lacking the parent shard's suffixed CHECK is refused)
+        cur.execute(
+            f"ALTER TABLE {part} ADD CONSTRAINT {part}_geom_polygonal"
+            " CHECK (GeometryType(geom) IN ('POLYGON', 'MULTIPOLYGON'))"
+        )
         cur.execute(
             f"ALTER TABLE plan_cells ATTACH PARTITION {part} FOR VALUES IN ({int(plan_id)})"
         )
