@@ -43,7 +43,6 @@ from typing import Any
 import numpy as np
 import shapefile as pyshp
 import shapely
-from pyproj import Geod
 
 from fieldrx.formats import FormatError
 from fieldrx.formats.isoxml import (
@@ -65,7 +64,6 @@ DDI_TOTAL_AREA = 0x0074  # 116, m^2
 DDI_EFFECTIVE_TIME = 0x0077  # 119, s
 LOGGED = (DDI_SETPOINT_MASS_RATE, DDI_ACTUAL_MASS_RATE, DDI_ACTUAL_SPEED, DDI_WORK_STATE)
 EPOCH_1980 = dt.date(1980, 1, 1)
-_GEOD = Geod(ellps="WGS84")
 
 
 @dataclass
@@ -91,6 +89,9 @@ class AsAppliedTotals:
     time_worked_s: float
     first_t: float | None
     last_t: float | None
+    # the partfield's area (PFD D): the field's stored area, in its UTM plane like the
+    # cells' (``geo.crs.AREA_BASIS``), so D and TIM's DDI 116 share one basis
+    field_area_m2: float = 0.0
 
 
 def _when(t: float) -> str:
@@ -180,8 +181,7 @@ def write_asapplied_isoxml(
     pfd = ET.SubElement(root, "PFD", {"A": "PFD1", "C": (field_name or "field")[:32], "D": "0"})
     if boundary_wgs84 is not None:
         parts = polygon_parts(snap_valid(boundary_wgs84))
-        area = abs(_GEOD.geometry_area_perimeter(shapely.MultiPolygon(parts))[0])
-        pfd.set("D", str(int(round(area))))
+        pfd.set("D", str(int(round(totals.field_area_m2))))
         for part in parts:
             polygon_element(pfd, part, "1", field_name)
     ET.SubElement(root, "PDT", {"A": "PDT1", "B": (product_name or "fertilizer")[:32]})

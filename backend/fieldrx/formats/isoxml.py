@@ -45,7 +45,7 @@ from fieldrx.formats.zones import (
     polygon_parts,
     snap_valid,
 )
-from fieldrx.geo.crs import lonlat_to_utm_xy
+from fieldrx.geo.crs import lonlat_to_utm_xy, plane_area_m2
 
 DDI_SETPOINT_MASS_PER_AREA = 0x0006  # mg/m^2
 MG_M2_PER_KG_HA = 100.0
@@ -96,6 +96,14 @@ def polygon_element(
     line_string_element(pln, p.exterior, "1")
     for h in p.interiors:
         line_string_element(pln, h, "2")
+
+
+def partfield_area_m2(cells: CellTable, boundary_wgs84: Any) -> float:
+    """The partfield's area (PFD D, m^2): the field's, in its UTM plane like every FieldRx
+    area (``geo.crs.AREA_BASIS``); the cells' total only when no boundary is known."""
+    if boundary_wgs84 is None or cells.epsg <= 0:
+        return cells.total_area_m2
+    return plane_area_m2(boundary_wgs84, cells.epsg)
 
 
 def _common(
@@ -244,7 +252,9 @@ def write_isoxml_grid(
     if values.max(initial=0) > np.iinfo(np.int32).max:
         raise FormatError("a rate is too large for an ISO 11783 setpoint")
     binary = values.astype("<i4").tobytes(order="C")
-    root, tsk = _common(field_name, cells.total_area_m2, boundary_wgs84, product_name)
+    root, tsk = _common(
+        field_name, partfield_area_m2(cells, boundary_wgs84), boundary_wgs84, product_name
+    )
     _pdv(_tzn(tsk, 0, "no rate"), 0)
     _pdv(_tzn(tsk, 1, "prescription grid"), 0)
     ET.SubElement(
@@ -282,7 +292,9 @@ def write_isoxml_zones(
     summary says how the cells were simplified (the API shows it).
     """
     zones, summary = dissolve_zones(cells, n_classes, max_polygons, min_patch_m2)
-    root, tsk = _common(field_name, cells.total_area_m2, boundary_wgs84, product_name)
+    root, tsk = _common(
+        field_name, partfield_area_m2(cells, boundary_wgs84), boundary_wgs84, product_name
+    )
     _pdv(_tzn(tsk, 0, "no rate"), 0)
     for code, zone in enumerate(zones, start=1):
         value = int(rate_to_mg_m2(np.asarray([zone.rate_kg_ha]))[0])

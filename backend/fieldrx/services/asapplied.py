@@ -126,10 +126,11 @@ def export_job(session: Session, job: Job, rep: JobReport, fmt: str) -> tuple[by
     rx = session.get(Prescription, job.prescription_id)
     totals = AsAppliedTotals(
         applied_total_kg=rep.applied_total_kg,
-        area_applied_m2=float(sum(c.area_m2 for c in rep.cells if c.m2_g > 0)),
+        area_applied_m2=rep.applied_area_m2,
         time_worked_s=rep.time_worked_s,
         first_t=rep.first_t,
         last_t=rep.last_t,
+        field_area_m2=rep.field_area_m2,
     )
     data = write_asapplied_isoxml(
         points,

@@ -29,6 +29,7 @@ from sqlalchemy import insert, text
 from sqlalchemy.orm import Session
 
 from fieldrx.agronomy.cells import CellTable
+from fieldrx.agronomy.prescription import planned_kg
 from fieldrx.db.geometry import shape_to_db
 from fieldrx.db.models import (
     Farm,
@@ -161,7 +162,7 @@ def store_prescription(
         "min_rate_kg_ha": float(rates.min(initial=0.0)),
         "max_rate_kg_ha": float(rates.max(initial=0.0)),
         "mean_rate_kg_ha": float(np.sum(rates * area) / max(area.sum(), 1e-12)),
-        "total_kg": float(np.sum(rates * area) / 10_000.0),
+        "total_kg": planned_kg(rates, area),
     }
     ver = PrescriptionVersion(
         prescription_id=row.id, version=1, note="imported", summary=summary, created_by=user_id

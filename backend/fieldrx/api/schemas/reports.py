@@ -57,6 +57,15 @@ class AsAppliedSummary(Out):
         description="where the figures came from: every 10 Hz record (full) or the thin "
         "profile's per-cell records (1 Hz track + one record per cell left)",
     )
+    field_area_m2: float = Field(default=0.0, description="the field's area")
+    planned_area_m2: float = Field(default=0.0, description="area of the prescribed cells")
+    applied_area_m2: float = Field(default=0.0, description="area of the cells product reached")
+    never_applied_kg: float = Field(
+        default=0.0, description="planned amount of the prescribed cells nothing reached"
+    )
+    area_basis: Literal["utm"] = Field(
+        default="utm", description="every area is measured flat in the field's UTM zone"
+    )
 
 
 class AsAppliedReport(AsAppliedSummary):
@@ -102,8 +111,12 @@ class JobSummaryOut(Out):
     last_record_at: dt.datetime | None
     time_worked_s: float
     area_applied_ha: float
+    field_area_ha: float
+    planned_area_ha: float
+    area_basis: Literal["utm"] = "utm"
     coverage_pct: float
     planned_total_kg: float
+    never_applied_kg: float
     applied_total_kg: float
     applied_outside_cells_kg: float
     mean_accuracy_pct: float | None
