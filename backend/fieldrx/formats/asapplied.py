@@ -47,6 +47,7 @@ from fieldrx.formats import FormatError
 from fieldrx.formats.isoxml import (
     polygon_element,
     rate_to_mg_m2,
+    task_name,
     taskdata_root,
     taskdata_zip,
     xml_bytes,
@@ -192,7 +193,7 @@ def write_asapplied_isoxml(
             polygon_element(pfd, part, "1", field_name)
     ET.SubElement(root, "PDT", {"A": "PDT1", "B": (product_name or "fertilizer")[:32]})
     tsk = ET.SubElement(
-        root, "TSK", {"A": "TSK1", "B": (job_name or "as-applied")[:32], "E": "PFD1", "G": "4"}
+        root, "TSK", {"A": "TSK1", "B": task_name(job_name or "as-applied"), "E": "PFD1", "G": "4"}
     )
     tim = ET.SubElement(
         tsk, "TIM", {"A": _when(totals.first_t), "B": _when(totals.last_t), "D": "4"}

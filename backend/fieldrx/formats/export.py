@@ -23,6 +23,7 @@ def export_prescription(
     zone_classes: int | None = None,
     max_polygons: int | None = None,
     info: dict[str, Any] | None = None,
+    layer_name: str = "prescription",
 ) -> tuple[bytes, str, str]:
     """Return (file bytes, media type, suggested file name) for one export format.
 
@@ -31,7 +32,8 @@ def export_prescription(
     ``profile`` picks the Shapefile layout (``formats.shapefile.PROFILES``);
     zone exports (``isoxml-zones`` and the terminal profiles) take the rate
     class count and polygon limit, and put how they dissolved the cells into
-    ``info["zones"]`` (``ZoneSummary.to_dict``) when ``info`` is given.
+    ``info["zones"]`` (``ZoneSummary.to_dict``) when ``info`` is given. ``layer_name`` names
+    the Shapefile's files inside the zip.
     """
     from fieldrx.formats.zones import DEFAULT_MAX_POLYGONS, DEFAULT_ZONE_CLASSES
 
@@ -49,10 +51,10 @@ def export_prescription(
         from fieldrx.formats.shapefile import write_shapefile_zip, write_shapefile_zones_zip
 
         if profile == "cells":
-            data = write_shapefile_zip(cells, "prescription")
+            data = write_shapefile_zip(cells, layer_name)
         else:
             data, summary = write_shapefile_zones_zip(
-                cells, "prescription", profile, n_classes, max_polygons
+                cells, layer_name, profile, n_classes, max_polygons
             )
     elif fmt == "isoxml":
         from fieldrx.formats.isoxml import write_isoxml_grid

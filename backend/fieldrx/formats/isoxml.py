@@ -106,6 +106,18 @@ def partfield_area_m2(cells: CellTable, boundary_wgs84: Any) -> float:
     return plane_area_m2(boundary_wgs84, cells.epsg)
 
 
+def task_name(text: str, limit: int = 32) -> str:
+    """A designator cut to ISO 11783-10's 32 characters at a word boundary (a terminal
+    showed "Rx Home field north of the ba")."""
+    text = " ".join(text.split())
+    if len(text) <= limit:
+        return text
+    cut = text[:limit]
+    if text[limit] != " " and " " in cut[limit // 2 :]:
+        cut = cut.rsplit(" ", 1)[0]
+    return cut.rstrip()
+
+
 def _common(
     field_name: str, field_area_m2: float, boundary_wgs84: Any, product_name: str
 ) -> tuple[ET.Element, ET.Element]:
@@ -124,7 +136,7 @@ def _common(
         "TSK",
         {
             "A": "TSK1",
-            "B": (f"Rx {field_name}" if field_name else "FieldRx prescription")[:32],
+            "B": task_name(f"Rx {field_name}" if field_name else "FieldRx prescription"),
             "E": "PFD1",
             "G": "1",  # planned
             "H": "0",  # default zone: no rate
