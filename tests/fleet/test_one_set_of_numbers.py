@@ -233,5 +233,8 @@ def test_one_set_of_numbers_on_every_screen_and_file(
     assert rep["never_applied_kg"] == pytest.approx(never_kg, rel=REL, abs=1e-6)
     assert summ["never_applied_kg"] == pytest.approx(rep["never_applied_kg"], rel=REL, abs=1e-6)
     assert rep["applied_area_m2"] <= field_area
+    # the report's headline (target vs applied) is the same two amounts
+    assert rep["outcome"]["target_kg"] == pytest.approx(rep["planned_total_kg"], rel=REL)
+    assert rep["outcome"]["applied_kg"] == pytest.approx(rep["applied_in_cells_kg"], rel=REL)
     # the job applied what was planned: the figures above compare like with like
     assert rep["applied_total_kg"] == pytest.approx(rep["planned_total_kg"], rel=0.05)

@@ -197,8 +197,8 @@ def create_job(body: JobIn, principal: WriterDep, session: SessionDep) -> JobOut
             f"prescribed: {attention['no_data']} with no soil data (fallback rate), "
             f"{attention['out_of_meter_range']} outside the meter range "
             f"{m['rate_min_kg_ha']:.1f}..{m['rate_max_kg_ha']:.1f} kg/ha at "
-            f"{m['speed_min_kmh']:g}..{m['speed_max_kmh']:g} km/h; send again with "
-            "confirm_flagged=true to send it anyway",
+            f"{m['speed_min_kmh']:g}..{m['speed_max_kmh']:g} km/h; confirm these cells "
+            "to send it anyway",
             where="confirm_flagged",
             flagged=attention,
         )

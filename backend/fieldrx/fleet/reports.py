@@ -55,7 +55,7 @@ from geoalchemy2.shape import to_shape
 from sqlalchemy import select, text
 from sqlalchemy.orm import Session
 
-from fieldrx.agronomy.prescription import planned_kg
+from fieldrx.agronomy.prescription import application_outcome, planned_kg
 from fieldrx.db.models import Field, Job, Machine, Plan, Prescription, PrescriptionVersion
 from fieldrx.fleet.cellrecords import job_cell_totals
 from fieldrx.fleet.partitions import job_window
@@ -113,6 +113,8 @@ class JobReport:
     applied_area_m2: float = 0.0  # area of the cells where product landed
     never_applied_kg: float = 0.0  # planned amount of the prescribed cells nothing reached
     area_basis: str = AREA_BASIS
+    # target vs applied over the prescribed cells (agronomy.prescription.application_outcome)
+    outcome: dict[str, float | None] = field(default_factory=dict)
     cells: list[CellReport] = field(default_factory=list)
 
     def summary(self) -> dict[str, Any]:
@@ -344,6 +346,7 @@ def build_report(
         planned_area_m2=float(area[prescribed].sum()),
         applied_area_m2=float(area[done].sum()),
         never_applied_kg=planned_kg(rate[prescribed & ~done], area[prescribed & ~done]),
+        outcome=application_outcome(rate[prescribed], applied_rate[prescribed], area[prescribed]),
         cells=out_cells,
     )
 

@@ -66,6 +66,12 @@ class AsAppliedSummary(Out):
     area_basis: Literal["utm"] = Field(
         default="utm", description="every area is measured flat in the field's UTM zone"
     )
+    outcome: dict[str, float | None] = Field(
+        default_factory=dict,
+        description="target vs applied over the prescribed cells: target_kg, applied_kg, "
+        "target_kg_ha, applied_kg_ha, difference_pct, under_area_pct / over_area_pct (share "
+        "of the area more than tolerance_pct below / above its target)",
+    )
 
 
 class AsAppliedReport(AsAppliedSummary):

@@ -2068,6 +2068,13 @@ export interface components {
              * @description prescribed cells where nothing landed, path order
              */
             not_applied_seqs: number[];
+            /**
+             * Outcome
+             * @description target vs applied over the prescribed cells: target_kg, applied_kg, target_kg_ha, applied_kg_ha, difference_pct, under_area_pct / over_area_pct (share of the area more than tolerance_pct below / above its target)
+             */
+            outcome?: {
+                [key: string]: number | null;
+            };
             /** Plan Id */
             plan_id: number;
             /**
@@ -2154,6 +2161,13 @@ export interface components {
              * @description prescribed cells where nothing landed, path order
              */
             not_applied_seqs: number[];
+            /**
+             * Outcome
+             * @description target vs applied over the prescribed cells: target_kg, applied_kg, target_kg_ha, applied_kg_ha, difference_pct, under_area_pct / over_area_pct (share of the area more than tolerance_pct below / above its target)
+             */
+            outcome?: {
+                [key: string]: number | null;
+            };
             /** Plan Id */
             plan_id: number;
             /**
