@@ -85,7 +85,9 @@ def start_api(
     ]
     proc = Proc(args, {"DATABASE_URL": database_url, **(env or {})})
     url = f"http://127.0.0.1:{port}"
-    deadline = time.monotonic() + 30
+    # generous: importing the app alone takes ~30 s on a loaded 2-core machine; readiness
+    # is the health answer, and a crashed server ends the wait at once (poll below)
+    deadline = time.monotonic() + 180
     while time.monotonic() < deadline:
         try:
             if httpx.get(url + "/api/v1/health", timeout=1).status_code < 500:

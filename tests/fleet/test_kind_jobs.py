@@ -70,12 +70,17 @@ def test_ndvi_topdress_job_end_to_end(database_url, org, tmp_path: Path) -> None
                   "settings": {"rate_curve": {"ndvi_hi": 0.1}}},
         )  # fmt: skip
         assert bad.status_code == 422 and bad.json()["where"] == "settings.rate_curve.ndvi_hi"
-        r = c.post(
-            "/api/v1/jobs",
-            json={"kind": "ndvi_topdress", "plan_id": plan["id"], "machine_id": m["id"]},
-        )
+        body = {"kind": "ndvi_topdress", "plan_id": plan["id"], "machine_id": m["id"]}
+        # the curve (180..375 kg/ha) leaves the machine's meter range at 2.9..9 km/h
+        # (182.3..361.5 kg/ha): refused like flagged prescription cells until confirmed
+        r = c.post("/api/v1/jobs", json=body)
+        assert r.status_code == 409 and r.json()["where"] == "confirm_flagged", r.text
+        assert "182.3..361.5 kg/ha" in r.json()["detail"]
+        assert "confirm_flagged" not in r.json()["detail"]  # no API words for the user
+        r = c.post("/api/v1/jobs", json={**body, "confirm_flagged": True})
         assert r.status_code == 201, r.text
         job = r.json()
+        assert "meter conflict" in job["events"][0]["note"]
         assert job["prescription_id"] is None and job["plan_id"] == plan["id"]
         s = job["settings"]
         assert s["window"] == 15 and s["controller"]["name"] == "isp"
@@ -102,6 +107,43 @@ def test_ndvi_topdress_job_end_to_end(database_url, org, tmp_path: Path) -> None
     cells = rep["cells"]
     assert len(cells) >= 0.8 * plan["n_cells"]
     assert all(0.0 < x["ndvi"] < 1.0 and 150.0 < x["applied_rate_kg_ha"] < 400.0 for x in cells)
+    # the headline: target vs applied over the same cells, by the one planned-amount rule
+    out = rep["outcome"]
+    area = sum(x["area_m2"] for x in cells)
+    target = sum(x["target_rate_kg_ha"] * x["area_m2"] for x in cells) / 1e4
+    applied = sum(x["applied_rate_kg_ha"] * x["area_m2"] for x in cells) / 1e4
+    assert out["target_kg"] == pytest.approx(target) and out["applied_kg"] == pytest.approx(applied)
+    assert out["applied_kg_ha"] == pytest.approx(applied * 1e4 / area)
+    assert out["difference_pct"] == pytest.approx(100 * (applied - target) / target)
+
+
+def test_ndvi_report_headline_shows_over_application(database_url, org, tmp_path: Path) -> None:  # noqa: ANN001
+    """A meter whose floor lies above the NDVI curve (seed 000's table with its shaft floor
+    at 25 r/min: no less than ~260-580 kg/ha at 8-3.6 km/h on 3.6 m) applies more than the
+    curve asks. The shaft-speed table still looks fine (the theoretical speed is clamped at
+    the floor); the report's outcome says how much more, in kg and per hectare."""
+    api, url = start_api(database_url)
+    try:
+        c = httpx.Client(base_url=url, headers=org.headers(), timeout=60)
+        plan, m, token = _setup(c, 3.6, {**SEED000_CAL, "min_rpm": 25.0})
+        # a topdressing curve of 250 kg/ha at NDVI 0.24 down to 180 at 0.65 (the issue's
+        # 250 kg/ha target on a thin crop)
+        body = {"kind": "ndvi_topdress", "plan_id": plan["id"], "machine_id": m["id"],
+                "settings": {"rate_curve": {"rate_at_lo_kg_ha": 250.0}}}  # fmt: skip
+        refused = c.post("/api/v1/jobs", json=body)
+        assert refused.status_code == 409, refused.text
+        assert "over-application" in refused.json()["detail"]
+        assert c.get("/api/v1/jobs").json()["total"] == 0  # nothing left behind
+        job = c.post("/api/v1/jobs", json={**body, "confirm_flagged": True}).json()
+        _drive(c, url, job, token, tmp_path)
+        rep = c.get(f"/api/v1/jobs/{job['id']}/report").json()
+    finally:
+        api.stop()
+    out = rep["outcome"]
+    print({k: out[k] for k in ("target_kg_ha", "applied_kg_ha", "difference_pct", "over_area_pct")})
+    assert out["difference_pct"] > 20.0
+    assert out["applied_kg_ha"] > out["target_kg_ha"] * 1.2
+    assert out["over_area_pct"] > 50.0
 
 
 @pytest.mark.parametrize("fault", [False, True])

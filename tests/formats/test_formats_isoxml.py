@@ -138,3 +138,17 @@ def test_grid_spec_limits():
     s = grid_spec((112.0, 32.0, 112.001, 32.001), 1.0)
     assert s.rows > 100 and s.cols > 90
     assert f"{s.south:.9f}" == "32.000000000"
+
+
+def test_task_name_cut_at_a_word_boundary():
+    """ISO 11783-10 designators hold 32 characters: a long field name is cut between words
+    (a terminal showed "Rx Home field north of the ba")."""
+    from fieldrx.formats.isoxml import task_name
+
+    assert (
+        task_name("Rx Home field north of the barn by the river")
+        == "Rx Home field north of the barn"
+    )
+    assert task_name("Rx short") == "Rx short"
+    assert task_name("x" * 40) == "x" * 32  # one long word: cut where it must be
+    assert all(len(task_name("a b " * k)) <= 32 for k in range(30))

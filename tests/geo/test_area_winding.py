@@ -8,6 +8,7 @@ from __future__ import annotations
 import math
 
 import pytest
+from fieldrx.geo.crs import epsg_for_geometry, plane_area_m2
 from fieldrx.geo.validate import geodesic_area_m2, validate_boundary
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -53,8 +54,13 @@ def test_issue_field_area_same_for_every_winding(client, org) -> None:
         shape({"type": "Polygon", "coordinates": [_field(True, True)["coordinates"][1]]})
     )
     assert outer - hole == pytest.approx(37_500, rel=0.01)
+    # the stored area is the one basis, the field's UTM plane: within the scale factor
+    # of the geodesic area, and exactly the plane area of exterior minus hole
+    geom = shape(_field(True, True))
+    plane = plane_area_m2(geom, epsg_for_geometry(geom))
+    assert plane == pytest.approx(outer - hole, rel=2e-3)
     for a in areas:
-        assert a == pytest.approx(outer - hole, rel=1e-9)
+        assert a == pytest.approx(plane, rel=1e-9)
 
 
 @st.composite
@@ -91,6 +97,9 @@ def test_area_independent_of_winding(geom: dict) -> None:
         "coordinates": [[r[::-1] for r in part] for part in geom["coordinates"]],
     }
     v1, v2 = validate_boundary(geom), validate_boundary(flipped)
-    assert v1.area_m2 == pytest.approx(expect, rel=1e-9)
-    assert v2.area_m2 == pytest.approx(expect, rel=1e-9)
+    g = shape(geom)
+    plane = plane_area_m2(g, epsg_for_geometry(g))
+    assert plane == pytest.approx(expect, rel=2e-3)  # the UTM scale factor, squared
+    assert v1.area_m2 == pytest.approx(plane, rel=1e-9)
+    assert v2.area_m2 == pytest.approx(plane, rel=1e-9)
     assert v1.geometry.area == pytest.approx(v2.geometry.area, rel=1e-12)

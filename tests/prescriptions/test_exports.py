@@ -71,7 +71,9 @@ def _get(client, rx, fmt, version=None):
 def test_geojson_export(client, rx) -> None:
     r = _get(client, rx, "geojson")
     assert r.headers["content-type"].startswith("application/geo+json")
-    assert 'filename="Rape_N_spring_rx' in r.headers["content-disposition"]
+    # named by field, product and date, then prescription and version (not the model)
+    stem = _stem(client, rx)
+    assert f'filename="{stem}.geojson"' in r.headers["content-disposition"]
     fc = json.loads(r.content)
     got = {f["properties"]["seq"]: f["properties"]["rate_kg_ha"] for f in fc["features"]}
     assert got == pytest.approx(rx["rates"], abs=1e-3)
@@ -96,12 +98,45 @@ def test_csv_export_table1(client, rx) -> None:
         assert shape(c["geometry"]).difference(quad.buffer(1e-7)).area < 1e-12
 
 
+def _stem(client, rx) -> str:  # noqa: ANN001
+    """What a version's files are called: field_product_YYYYMMDD_rx<id>v<version>."""
+    import re
+
+    got = client.get(f"{API}/prescriptions/{rx['id']}", headers=rx["h"]).json()
+    fld = client.get(f"{API}/fields/{rx['plan']['field_id']}", headers=rx["h"]).json()
+    ver = client.get(f"{API}/prescriptions/{rx['id']}/versions/2", headers=rx["h"]).json()
+
+    def slug(x: str) -> str:
+        return re.sub(r"[^A-Za-z0-9-]+", "_", x).strip("_")
+
+    day = ver["created_at"][:10].replace("-", "")
+    product = slug(got["product"] or "fertilizer")
+    return f"{slug(fld['properties']['name'])}_{product}_{day}_rx{rx['id']}v2"
+
+
+def test_terminal_profiles_name_files_per_version(client, rx) -> None:
+    """Every terminal profile names its files after the version (a Deere Rx/ folder holding
+    two prescriptions kept only the last: both were Rx/prescription.shp)."""
+    stem = _stem(client, rx)
+    for profile in ("cells", "deere", "fieldview", "raven", "agleader", "trimble"):
+        r = client.get(
+            f"{API}/prescriptions/{rx['id']}/export?format=shapefile&profile={profile}",
+            headers=rx["h"],
+        )
+        assert r.status_code == 200, r.text
+        names = zipfile.ZipFile(io.BytesIO(r.content)).namelist()
+        folder = "Rx/" if profile == "deere" else ""
+        assert f"{folder}{stem}.shp" in names, (profile, names)
+        assert stem in r.headers["content-disposition"]
+
+
 def test_shapefile_export(client, rx) -> None:
     r = _get(client, rx, "shapefile")
     z = zipfile.ZipFile(io.BytesIO(r.content))
     names = z.namelist()
     assert all("/" not in n for n in names)  # flat zip
     stem = next(n for n in names if n.endswith(".shp"))[:-4]
+    assert stem == _stem(client, rx)
     assert {f"{stem}.{e}" for e in ("shp", "shx", "dbf", "prj")} <= set(names)
     rd = pyshp.Reader(
         shp=io.BytesIO(z.read(f"{stem}.shp")),

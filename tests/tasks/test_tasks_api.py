@@ -58,6 +58,25 @@ def test_background_plan_runs_and_links_its_result(client, org, db) -> None:
     assert _plans(db, [fid]) == 1
 
 
+def test_task_times_are_when_it_ran(client, org, db) -> None:
+    """started_at / finished_at bracket the work: finished_at used to be the work
+    transaction's start (``now()``), a few ms after started_at however long the work ran."""
+    from fieldrx.tasks.work import execute
+
+    (fid,) = make_fields(client, org, 1, 600, 400)
+    r = client.post(f"/api/v1/fields/{fid}/plans?background=true", headers=org.headers(), json=PLAN)
+    assert r.status_code == 202, r.text
+    t0 = time.monotonic()
+    assert execute(r.json()["id"]) is not None
+    wall = time.monotonic() - t0
+    db.rollback()
+    started, finished = db.execute(
+        text("SELECT started_at, finished_at FROM tasks WHERE id = :id"), {"id": r.json()["id"]}
+    ).one()
+    ran = (finished - started).total_seconds()
+    assert 0.5 * wall <= ran <= wall + 0.05, (ran, wall)
+
+
 def test_inline_plan_unchanged(client, org) -> None:
     (fid,) = make_fields(client, org, 1, 100, 80)
     r = client.post(f"/api/v1/fields/{fid}/plans", headers=org.headers(), json=PLAN)

@@ -299,6 +299,48 @@ def paint_zone(
     return rates, fl, int(mask.sum())
 
 
+def planned_kg(rate_kg_ha: np.ndarray, area_m2: np.ndarray) -> float:
+    """Planned product mass (kg) of cells: sum(rate_kg_ha * area_m2) / 10 000 (1 ha =
+    10 000 m^2), each cell's area being what it covers inside the field (``Cells.area_m2``,
+    the field's UTM plane). The one definition of a planned amount: a prescription
+    version's, a job's (its report, print view and exports), an imported version's."""
+    r = np.asarray(rate_kg_ha, dtype=float)
+    return float((r * np.asarray(area_m2, dtype=float)).sum() / 1e4)
+
+
+OUTCOME_TOLERANCE_PCT = 10.0  # a cell is under / over-applied beyond +-10 % of its target
+
+
+def application_outcome(
+    target_kg_ha: np.ndarray, applied_kg_ha: np.ndarray, area_m2: np.ndarray
+) -> dict[str, float | None]:
+    """The agronomic outcome of a job over its cells: target and applied mass (kg, by
+    ``planned_kg``) and mean rate (kg/ha over the cells' area), the relative difference,
+    and the share of the area (%) applied more than ``OUTCOME_TOLERANCE_PCT`` below or
+    above its target. Cells with a target of 0 count in neither share."""
+    t = np.nan_to_num(np.asarray(target_kg_ha, dtype=float))
+    a = np.nan_to_num(np.asarray(applied_kg_ha, dtype=float))
+    w = np.asarray(area_m2, dtype=float)
+    area = float(w.sum())
+    target_kg, applied_kg = planned_kg(t, w), planned_kg(a, w)
+    k = OUTCOME_TOLERANCE_PCT / 100.0
+    aimed = t > 0
+    under = float(w[aimed & (a < (1 - k) * t)].sum())
+    over = float(w[aimed & (a > (1 + k) * t)].sum())
+    aimed_area = float(w[aimed].sum())
+    return {
+        "area_m2": area,
+        "target_kg": target_kg,
+        "applied_kg": applied_kg,
+        "target_kg_ha": target_kg * 1e4 / area if area > 0 else None,
+        "applied_kg_ha": applied_kg * 1e4 / area if area > 0 else None,
+        "difference_pct": 100.0 * (applied_kg - target_kg) / target_kg if target_kg > 0 else None,
+        "under_area_pct": 100.0 * under / aimed_area if aimed_area > 0 else None,
+        "over_area_pct": 100.0 * over / aimed_area if aimed_area > 0 else None,
+        "tolerance_pct": OUTCOME_TOLERANCE_PCT,
+    }
+
+
 def summarize(
     rate_kg_ha: np.ndarray,
     flags: np.ndarray,
@@ -335,7 +377,7 @@ def summarize(
         "n_cells": int(len(r)),
         "area_m2": round(total_area, 3),
         "area_ha": round(total_area / 1e4, 7),
-        "product_kg": round(float((r * a).sum() / 1e4), 3),
+        "product_kg": round(planned_kg(r, a), 3),
         "rate_mean_kg_ha": round(
             float(np.average(r, weights=a)) if total_area > 0 else float(r.mean()), 3
         ),

@@ -18,6 +18,7 @@ from fieldrx.api.common import ApiError
 from fieldrx.db.models import Field, Job, JobEvent, Machine, Plan
 from fieldrx.fleet.jobstate import notify_job
 from fieldrx.services.implements import job_refusal
+from fieldrx.services.prescriptions import MeterSpec
 
 __all__ = [
     "CONTROLLERS",
@@ -69,6 +70,41 @@ def kind_settings(kind: str, given: dict[str, Any] | None, machine: Machine) -> 
         raise ApiError(422, str(exc), where=exc.where) from exc
 
 
+def curve_meter_conflict(settings: dict[str, Any], machine: Machine) -> dict[str, Any] | None:
+    """Where an NDVI job's rate curve (seed 000: 375 kg/ha at NDVI 0.24 down to 180 at
+    0.65) leaves what the machine can meter over its speed range (seed 001 eq. 1-3, the
+    check a prescription job's cells get): the curve's range, the meter's and a sentence;
+    None when the whole curve is meterable or the machine has no calibration to check."""
+    if not machine.calibration:
+        return None
+    curve = settings["rate_curve"]
+    lo = min(curve["rate_at_lo_kg_ha"], curve["rate_at_hi_kg_ha"])
+    hi = max(curve["rate_at_lo_kg_ha"], curve["rate_at_hi_kg_ha"])
+    spec = MeterSpec(
+        dict(machine.calibration), machine.width_m, machine.speed_min_m_s, machine.speed_max_m_s
+    )
+    try:
+        meter = spec.describe()
+    except ValueError as exc:
+        return {"curve_kg_ha": [lo, hi], "meter": None, "message": str(exc)}
+    m_lo, m_hi = meter["rate_min_kg_ha"], meter["rate_max_kg_ha"]
+    if m_lo <= lo and hi <= m_hi:
+        return None
+    parts = []
+    if lo < m_lo:
+        parts.append(
+            f"below {m_lo:.1f} kg/ha it applies {m_lo:.1f} kg/ha or more (over-application)"
+        )
+    if hi > m_hi:
+        parts.append(f"above {m_hi:.1f} kg/ha it applies at most {m_hi:.1f} kg/ha")
+    message = (
+        f"the NDVI rate curve asks for {lo:.1f}..{hi:.1f} kg/ha but '{machine.name}' can meter "
+        f"only {m_lo:.1f}..{m_hi:.1f} kg/ha at {meter['speed_min_kmh']:g}.."
+        f"{meter['speed_max_kmh']:g} km/h: " + "; ".join(parts)
+    )
+    return {"curve_kg_ha": [lo, hi], "meter": meter, "message": message}
+
+
 def create_kind_job(session: Any, principal: Any, body: Any) -> Job:
     """Validate and store a sensor-kind job (state planned) and its first event."""
     if body.prescription_id is not None or body.prescription_version is not None:
@@ -97,6 +133,18 @@ def create_kind_job(session: Any, principal: Any, body: Any) -> Job:
             where="machine_id",
         )
     settings, note = kind_settings(body.kind, body.settings, machine)
+    conflict = curve_meter_conflict(settings, machine) if body.kind == "ndvi_topdress" else None
+    if conflict is not None and not body.confirm_flagged:
+        raise ApiError(
+            409,
+            f"{conflict['message']}; confirm to send it anyway",
+            where="confirm_flagged",
+            meter_conflict=conflict,
+        )
+    if conflict is not None:
+        note = "; ".join(
+            x for x in (note, f"sent with a confirmed meter conflict: {conflict['message']}") if x
+        )
     job = Job(
         organisation_id=principal.organisation_id,
         kind=body.kind,
@@ -108,6 +156,7 @@ def create_kind_job(session: Any, principal: Any, body: Any) -> Job:
         n_cells=int(plan.n_cells or 0),
         cells_applied=0,
         package_checksum="",
+        flagged_confirmed=conflict is not None,
         created_by=principal.user_id,
     )
     session.add(job)

@@ -207,8 +207,8 @@ def create_job(body: JobIn, principal: WriterDep, session: SessionDep) -> JobOut
             f"{m['rate_min_kg_ha']:.1f}..{m['rate_max_kg_ha']:.1f} kg/ha at "
             f"{m['speed_min_kmh']:g}..{m['speed_max_kmh']:g} km/h, "
             f"{attention['above_nutrient_ceiling']} above a nutrient ceiling, "
-            f"{attention['at_curve_limit']} at a rate curve's cap or floor; send again with "
-            "confirm_flagged=true to send it anyway",
+            f"{attention['at_curve_limit']} at a rate curve's cap or floor; confirm these cells to "
+            "send it anyway",
             where="confirm_flagged",
             flagged=attention,
         )

@@ -189,7 +189,6 @@ def job_summary(job_id: int, principal: UserDep, session: SessionDep) -> dict[st
     ).all()
     started = next((e.at for e in events if e.state == "running"), None)
     ended = next((e.at for e in reversed(events) if e.state in ("completed", "aborted")), None)
-    applied_area = sum(c.area_m2 for c in rep.cells if c.m2_g > 0)
     return {
         "job_id": job.id,
         "name": job.name,
@@ -206,9 +205,13 @@ def job_summary(job_id: int, principal: UserDep, session: SessionDep) -> dict[st
         "first_record_at": rep.summary()["first_t"],
         "last_record_at": rep.summary()["last_t"],
         "time_worked_s": rep.time_worked_s,
-        "area_applied_ha": applied_area / 1e4,
+        "area_applied_ha": rep.applied_area_m2 / 1e4,
+        "field_area_ha": rep.field_area_m2 / 1e4,
+        "planned_area_ha": rep.planned_area_m2 / 1e4,
+        "area_basis": rep.area_basis,
         "coverage_pct": rep.coverage_pct,
         "planned_total_kg": rep.planned_total_kg,
+        "never_applied_kg": rep.never_applied_kg,
         "applied_total_kg": rep.applied_total_kg,
         "applied_outside_cells_kg": rep.applied_outside_cells_kg,
         "mean_accuracy_pct": rep.mean_accuracy_pct,

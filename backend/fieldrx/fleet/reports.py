@@ -19,6 +19,14 @@ simulator uses the same functions, so the two agree to rounding):
 
 Coverage = cells that received fertilizer / cells with a planned rate > 0.
 
+Amounts and areas have one definition each, shared with the prescription screen and
+every export (``agronomy.prescription.planned_kg``; areas in the field's UTM plane,
+``geo.crs.AREA_BASIS``): a cell's area is its real polygon inside the field (the cell
+store's ``area_m2``, never the nominal rectangle, so the cells never add up to more than
+the field); planned = sum(rate * area) over the version's cells; never applied = the
+planned amount of prescribed cells where nothing landed. M1 (eq. 17) stays the accuracy
+reference of each cell: the mass the driven line asked for, not the version's plan.
+
 A job run with uplink profile ``thin`` (issue 18) has no 10 Hz records here:
 its tractor ran the same kernel over its own log and sent one record per cell
 (``fleet.cellrecords``, ``fieldrx_edge.uplink.thin``). Its report sums those
@@ -47,12 +55,13 @@ from geoalchemy2.shape import to_shape
 from sqlalchemy import select, text
 from sqlalchemy.orm import Session
 
+from fieldrx.agronomy.prescription import application_outcome, planned_kg
 from fieldrx.db.models import Field, Job, Machine, Plan, Prescription, PrescriptionVersion
 from fieldrx.fleet.cellrecords import job_cell_totals
 from fieldrx.fleet.operator_events import operator_events
 from fieldrx.fleet.partitions import job_window
 from fieldrx.formats.jobpackage import shaped_cells
-from fieldrx.geo.crs import to_utm
+from fieldrx.geo.crs import AREA_BASIS, to_utm
 from fieldrx.store import load_cells, load_rates
 
 MAX_GAP_S = 2.0
@@ -100,6 +109,13 @@ class JobReport:
     # prescribed cells (rate > 0) where nothing landed, path order (the job-end alert's list)
     not_applied_seqs: list[int] = field(default_factory=list)
     uplink: str = "full"  # the profile the job's figures came from: full | thin (cell records)
+    field_area_m2: float = 0.0  # the field's stored area (same basis as the cells')
+    planned_area_m2: float = 0.0  # area of the prescribed cells (rate > 0)
+    applied_area_m2: float = 0.0  # area of the cells where product landed
+    never_applied_kg: float = 0.0  # planned amount of the prescribed cells nothing reached
+    area_basis: str = AREA_BASIS
+    # target vs applied over the prescribed cells (agronomy.prescription.application_outcome)
+    outcome: dict[str, float | None] = field(default_factory=dict)
     cells: list[CellReport] = field(default_factory=list)
     # the operator's overrides and alarm acknowledgements (fleet.operator_events)
     operator: dict[str, Any] = field(default_factory=dict)
@@ -219,7 +235,7 @@ def build_report(
         {int(i): _rings(polys[i]) for i in np.flatnonzero(shaped)},
         _rings(boundary) if boundary is not None else None,
     )
-    area = geo.area_m2
+    area = cells.area_m2  # the real cell inside the field (one definition, see module doc)
     m1 = m1_g(rate, width, driven_length(geo))
 
     step(0.2, "reading the job's records")
@@ -317,7 +333,7 @@ def build_report(
         coverage_pct=float(100.0 * (prescribed & done).sum() / prescribed.sum())
         if prescribed.any()
         else 0.0,
-        planned_total_kg=float(m1.sum() / 1000.0),
+        planned_total_kg=planned_kg(rate[prescribed], area[prescribed]),
         applied_total_kg=float((m2.sum() + outside_g) / 1000.0),
         applied_in_cells_kg=float(m2.sum() / 1000.0),
         applied_outside_cells_kg=outside_g / 1000.0,
@@ -329,6 +345,11 @@ def build_report(
         last_t=last_t,
         not_applied_seqs=[int(v) for v in seqs[prescribed & ~done]],
         uplink="thin" if thin else "full",
+        field_area_m2=float(fld.area_m2) if fld is not None else 0.0,
+        planned_area_m2=float(area[prescribed].sum()),
+        applied_area_m2=float(area[done].sum()),
+        never_applied_kg=planned_kg(rate[prescribed & ~done], area[prescribed & ~done]),
+        outcome=application_outcome(rate[prescribed], applied_rate[prescribed], area[prescribed]),
         cells=out_cells,
         operator=operator_events(session, job.machine_id, job.id),
     )

@@ -17,10 +17,12 @@ from __future__ import annotations
 import datetime as dt
 from typing import Any
 
+import numpy as np
 from fieldrx_edge.jobkinds.figures import depth_table, qualified_alert, shaft_table
 from sqlalchemy import text
 from sqlalchemy.orm import Session
 
+from fieldrx.agronomy.prescription import application_outcome
 from fieldrx.db.models import Alert, Job
 from fieldrx.fleet.operator_events import operator_events
 from fieldrx.fleet.partitions import job_window
@@ -36,7 +38,7 @@ _ROWS_SQL = text(
 
 _CELLS_SQL = text(
     """
-    SELECT pc.seq, count(*) AS n,
+    SELECT pc.seq, pc.area_m2, count(*) AS n,
            avg(t.ndvi) AS ndvi, avg(t.ndvi_raw) AS ndvi_raw,
            avg(t.target_rate_kg_ha) AS target_rate_kg_ha,
            avg(t.applied_rate_kg_ha) AS applied_rate_kg_ha,
@@ -47,7 +49,7 @@ _CELLS_SQL = text(
     JOIN plan_cells pc ON pc.plan_id = :plan AND ST_Intersects(pc.geom, t.geom)
     WHERE t.machine_id = :m AND t.job_id = :j AND t.t BETWEEN :t0 AND :t1
       AND t.implement_down AND t.geom IS NOT NULL
-    GROUP BY pc.seq ORDER BY pc.seq
+    GROUP BY pc.seq, pc.area_m2 ORDER BY pc.seq
     """
 )
 
@@ -128,8 +130,26 @@ def kind_report(session: Session, job: Job, cells: bool = True) -> dict[str, Any
             if job.kind == "ndvi_topdress"
             else ("depth_mm", "qualified_pct")
         )
-        out["cells"] = [{"seq": r.seq, "n": r.n, **{k: getattr(r, k) for k in keep}} for r in res]
+        rows_c = res.all()
+        out["cells"] = [
+            {"seq": r.seq, "n": r.n, "area_m2": r.area_m2, **{k: getattr(r, k) for k in keep}}
+            for r in rows_c
+        ]
+        if job.kind == "ndvi_topdress":
+            out["outcome"] = ndvi_outcome(rows_c)
     return out
+
+
+def ndvi_outcome(cells: list[Any]) -> dict[str, Any]:
+    """What the NDVI job delivered against what its curve asked for, over the cells it
+    worked (``agronomy.prescription.application_outcome``): the report's headline. The
+    shaft-speed table (seed 000 Table 3) can look perfect while the meter sits at its floor
+    above the curve; this says so in kg and kg/ha."""
+    return application_outcome(
+        np.array([r.target_rate_kg_ha or 0.0 for r in cells], dtype=float),
+        np.array([r.applied_rate_kg_ha or 0.0 for r in cells], dtype=float),
+        np.array([r.area_m2 for r in cells], dtype=float),
+    )
 
 
 def alert_kind_job_end(session: Session, job: Job) -> Alert | None:

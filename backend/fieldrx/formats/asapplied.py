@@ -34,7 +34,6 @@ from __future__ import annotations
 
 import datetime as dt
 import io
-import struct
 import xml.etree.ElementTree as ET
 import zipfile
 from dataclasses import dataclass
@@ -43,17 +42,18 @@ from typing import Any
 import numpy as np
 import shapefile as pyshp
 import shapely
-from pyproj import Geod
 
 from fieldrx.formats import FormatError
 from fieldrx.formats.isoxml import (
     polygon_element,
     rate_to_mg_m2,
+    task_name,
     taskdata_root,
     taskdata_zip,
     xml_bytes,
 )
 from fieldrx.formats.shapefile import WGS84_PRJ
+from fieldrx.formats.shp_points import DbfColumn, point_shapefile
 from fieldrx.formats.zones import polygon_parts, snap_valid
 
 DDI_SETPOINT_MASS_RATE = 0x0006  # mg/m^2
@@ -65,7 +65,6 @@ DDI_TOTAL_AREA = 0x0074  # 116, m^2
 DDI_EFFECTIVE_TIME = 0x0077  # 119, s
 LOGGED = (DDI_SETPOINT_MASS_RATE, DDI_ACTUAL_MASS_RATE, DDI_ACTUAL_SPEED, DDI_WORK_STATE)
 EPOCH_1980 = dt.date(1980, 1, 1)
-_GEOD = Geod(ellps="WGS84")
 
 
 @dataclass
@@ -91,6 +90,9 @@ class AsAppliedTotals:
     time_worked_s: float
     first_t: float | None
     last_t: float | None
+    # the partfield's area (PFD D): the field's stored area, in its UTM plane like the
+    # cells' (``geo.crs.AREA_BASIS``), so D and TIM's DDI 116 share one basis
+    field_area_m2: float = 0.0
 
 
 def _when(t: float) -> str:
@@ -141,18 +143,24 @@ def timelog_records(points: AsAppliedPoints) -> bytes:
     lon = np.rint(np.asarray(points.lon) * 1e7).astype(np.int64)
     if np.abs(values).max() > 2**31 - 1:
         raise FormatError("an as-applied value does not fit a 32-bit ISO 11783 process value")
-    rec = struct.Struct("<IHiiBB" + "Bi" * len(LOGGED))
-    out = bytearray()
-    for i in range(n):
-        when = dt.datetime.fromtimestamp(float(points.t[i]), dt.UTC)
-        midnight = when.replace(hour=0, minute=0, second=0, microsecond=0)
-        ms = int(round((when - midnight).total_seconds() * 1000.0))
-        days = (when.date() - EPOCH_1980).days
-        vals: list[int] = []
-        for k in range(len(LOGGED)):
-            vals += [k, int(values[i, k])]
-        out += rec.pack(ms, days, int(lat[i]), int(lon[i]), 1, len(LOGGED), *vals)
-    return bytes(out)
+    # one packed record per point, built column-wise (a struct.pack and two datetimes per
+    # point cost ~0.1 ms each): ms since midnight UTC, days since 1980-01-01, lat, lon
+    # (1e-7 deg), then the DLV count and (DLV index, value) pairs
+    names = ["ms", "days", "lat", "lon", "pos", "n"]
+    formats = ["<u4", "<u2", "<i4", "<i4", "u1", "u1"]
+    for k in range(len(LOGGED)):
+        names += [f"k{k}", f"v{k}"]
+        formats += ["u1", "<i4"]
+    rec = np.zeros(n, dtype=np.dtype({"names": names, "formats": formats}, align=False))
+    t_ms = np.rint(np.asarray(points.t, dtype=float) * 1000.0).astype(np.int64)
+    day = t_ms // 86_400_000
+    rec["ms"] = t_ms - day * 86_400_000
+    rec["days"] = day - (EPOCH_1980 - dt.date(1970, 1, 1)).days
+    rec["lat"], rec["lon"], rec["pos"], rec["n"] = lat, lon, 1, len(LOGGED)
+    for k in range(len(LOGGED)):
+        rec[f"k{k}"] = k
+        rec[f"v{k}"] = values[:, k]
+    return rec.tobytes()
 
 
 def timelog_header() -> bytes:
@@ -180,13 +188,12 @@ def write_asapplied_isoxml(
     pfd = ET.SubElement(root, "PFD", {"A": "PFD1", "C": (field_name or "field")[:32], "D": "0"})
     if boundary_wgs84 is not None:
         parts = polygon_parts(snap_valid(boundary_wgs84))
-        area = abs(_GEOD.geometry_area_perimeter(shapely.MultiPolygon(parts))[0])
-        pfd.set("D", str(int(round(area))))
+        pfd.set("D", str(int(round(totals.field_area_m2))))
         for part in parts:
             polygon_element(pfd, part, "1", field_name)
     ET.SubElement(root, "PDT", {"A": "PDT1", "B": (product_name or "fertilizer")[:32]})
     tsk = ET.SubElement(
-        root, "TSK", {"A": "TSK1", "B": (job_name or "as-applied")[:32], "E": "PFD1", "G": "4"}
+        root, "TSK", {"A": "TSK1", "B": task_name(job_name or "as-applied"), "E": "PFD1", "G": "4"}
     )
     tim = ET.SubElement(
         tsk, "TIM", {"A": _when(totals.first_t), "B": _when(totals.last_t), "D": "4"}
@@ -230,6 +237,24 @@ def _shp_zip(files: dict[str, bytes]) -> bytes:
     return out.getvalue()
 
 
+def _iso_times(t: np.ndarray) -> np.ndarray:
+    """ISO 8601 UTC with milliseconds (``2026-11-28T07:02:00.100Z``) of epoch seconds."""
+    ms = np.rint(np.asarray(t, dtype=float) * 1000.0).astype("datetime64[ms]")
+    return np.char.add(np.datetime_as_string(ms, unit="ms"), "Z")
+
+
+def _point_columns(points: AsAppliedPoints) -> list[DbfColumn]:
+    """The points' attribute table: time, target / applied rate, speed, implement down."""
+    return [
+        DbfColumn("TIME", "C", 24, 0, _iso_times(points.t)),
+        DbfColumn("TARGET", "N", 12, 2, np.asarray(points.target_kg_ha, dtype=float)),
+        DbfColumn("APPLIED", "N", 12, 2, np.nan_to_num(points.applied_kg_ha)),
+        DbfColumn("SPEED_MS", "N", 10, 3, np.nan_to_num(points.speed_m_s)),
+        DbfColumn("DOWN", "N", 1, 0, np.asarray(points.down, dtype=bool).astype(float)),
+        DbfColumn("UNIT", "C", 8, 0, np.full(len(points), "kg/ha")),
+    ]
+
+
 def write_asapplied_shapefile_zip(
     stem: str, cells: list[CellRow], points: AsAppliedPoints
 ) -> bytes:
@@ -241,8 +266,9 @@ def write_asapplied_shapefile_zip(
         for name in ("AREA_M2", "TARGET", "APPLIED", "M1_G", "M2_G", "ACCURACY"):
             w.field(name, "N", 16, 4)
         w.field("UNIT", "C", 8)
-        for c in cells:
-            g = None if c.geom_wgs84 is None else snap_valid(c.geom_wgs84)
+        # one GEOS call for every cell (a call per cell was ~0.3 ms each)
+        snapped = snap_valid(np.array([c.geom_wgs84 for c in cells], dtype=object))
+        for c, g in zip(cells, snapped, strict=True):
             parts = polygon_parts(g)
             if not parts:
                 continue
@@ -264,32 +290,11 @@ def write_asapplied_shapefile_zip(
                 c.accuracy_pct if c.accuracy_pct is not None else 0.0,
                 "kg/ha",
             )
-    pshp, pshx, pdbf = io.BytesIO(), io.BytesIO(), io.BytesIO()
-    with pyshp.Writer(shp=pshp, shx=pshx, dbf=pdbf, shapeType=pyshp.POINT) as w:
-        w.field("TIME", "C", 24)
-        w.field("TARGET", "N", 12, 2)
-        w.field("APPLIED", "N", 12, 2)
-        w.field("SPEED_MS", "N", 10, 3)
-        w.field("DOWN", "N", 1, 0)
-        w.field("UNIT", "C", 8)
-        for i in range(len(points)):
-            w.point(float(points.lon[i]), float(points.lat[i]))
-            tgt = points.target_kg_ha[i]
-            w.record(
-                dt.datetime.fromtimestamp(float(points.t[i]), dt.UTC).isoformat(
-                    timespec="milliseconds"
-                )[:23]
-                + "Z",
-                None if not np.isfinite(tgt) else round(float(tgt), 2),
-                round(float(np.nan_to_num(points.applied_kg_ha[i])), 2),
-                round(float(np.nan_to_num(points.speed_m_s[i])), 3),
-                int(bool(points.down[i])),
-                "kg/ha",
-            )
+    pts = point_shapefile(points.lon, points.lat, _point_columns(points))
     files = {}
     for name, (a, b, c) in (
         (stem, (shp, shx, dbf)),
-        (f"{stem}_points", (pshp, pshx, pdbf)),
+        (f"{stem}_points", tuple(io.BytesIO(b) for b in pts)),
     ):
         files[f"{name}.shp"] = a.getvalue()
         files[f"{name}.shx"] = b.getvalue()

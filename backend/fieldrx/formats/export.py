@@ -24,6 +24,7 @@ def export_prescription(
     max_polygons: int | None = None,
     info: dict[str, Any] | None = None,
     volume_density_kg_l: float | None = None,
+    layer_name: str = "prescription",
 ) -> tuple[bytes, str, str]:
     """Return (file bytes, media type, suggested file name) for one export format.
 
@@ -35,6 +36,7 @@ def export_prescription(
     ``info["zones"]`` (``ZoneSummary.to_dict``) when ``info`` is given.
     ``volume_density_kg_l`` (an l/ha prescription's product density): the ISOXML task
     carries volume setpoints (DDI 0001) instead of mass ones; the other formats stay kg/ha.
+    ``layer_name`` names the Shapefile's files inside the zip.
     """
     from fieldrx.formats.zones import DEFAULT_MAX_POLYGONS, DEFAULT_ZONE_CLASSES
 
@@ -52,10 +54,10 @@ def export_prescription(
         from fieldrx.formats.shapefile import write_shapefile_zip, write_shapefile_zones_zip
 
         if profile == "cells":
-            data = write_shapefile_zip(cells, "prescription")
+            data = write_shapefile_zip(cells, layer_name)
         else:
             data, summary = write_shapefile_zones_zip(
-                cells, "prescription", profile, n_classes, max_polygons
+                cells, layer_name, profile, n_classes, max_polygons
             )
     elif fmt == "isoxml":
         from fieldrx.formats.isoxml import write_isoxml_grid

@@ -47,7 +47,7 @@ from fieldrx.formats.zones import (
     polygon_parts,
     snap_valid,
 )
-from fieldrx.geo.crs import lonlat_to_utm_xy
+from fieldrx.geo.crs import lonlat_to_utm_xy, plane_area_m2
 
 DDI_SETPOINT_MASS_PER_AREA = 0x0006  # mg/m^2
 DDI_SETPOINT_VOLUME_PER_AREA = 0x0001  # 0.01 mm^3/m^2
@@ -140,6 +140,26 @@ def polygon_element(
         line_string_element(pln, h, "2")
 
 
+def partfield_area_m2(cells: CellTable, boundary_wgs84: Any) -> float:
+    """The partfield's area (PFD D, m^2): the field's, in its UTM plane like every FieldRx
+    area (``geo.crs.AREA_BASIS``); the cells' total only when no boundary is known."""
+    if boundary_wgs84 is None or cells.epsg <= 0:
+        return cells.total_area_m2
+    return plane_area_m2(boundary_wgs84, cells.epsg)
+
+
+def task_name(text: str, limit: int = 32) -> str:
+    """A designator cut to ISO 11783-10's 32 characters at a word boundary (a terminal
+    showed "Rx Home field north of the ba")."""
+    text = " ".join(text.split())
+    if len(text) <= limit:
+        return text
+    cut = text[:limit]
+    if text[limit] != " " and " " in cut[limit // 2 :]:
+        cut = cut.rsplit(" ", 1)[0]
+    return cut.rstrip()
+
+
 def _common(
     field_name: str, field_area_m2: float, boundary_wgs84: Any, product_name: str
 ) -> tuple[ET.Element, ET.Element]:
@@ -158,7 +178,7 @@ def _common(
         "TSK",
         {
             "A": "TSK1",
-            "B": (f"Rx {field_name}" if field_name else "FieldRx prescription")[:32],
+            "B": task_name(f"Rx {field_name}" if field_name else "FieldRx prescription"),
             "E": "PFD1",
             "G": "1",  # planned
             "H": "0",  # default zone: no rate
@@ -284,7 +304,9 @@ def write_isoxml_grid(
     if values.max(initial=0) > np.iinfo(np.int32).max:
         raise FormatError("a rate is too large for an ISO 11783 setpoint")
     binary = values.astype("<i4").tobytes(order="C")
-    root, tsk = _common(field_name, cells.total_area_m2, boundary_wgs84, product_name)
+    root, tsk = _common(
+        field_name, partfield_area_m2(cells, boundary_wgs84), boundary_wgs84, product_name
+    )
     _pdv(_tzn(tsk, 0, "no rate"), 0, setpoint.ddi)
     _pdv(_tzn(tsk, 1, "prescription grid"), 0, setpoint.ddi)
     ET.SubElement(
@@ -323,7 +345,9 @@ def write_isoxml_zones(
     summary says how the cells were simplified (the API shows it).
     """
     zones, summary = dissolve_zones(cells, n_classes, max_polygons, min_patch_m2)
-    root, tsk = _common(field_name, cells.total_area_m2, boundary_wgs84, product_name)
+    root, tsk = _common(
+        field_name, partfield_area_m2(cells, boundary_wgs84), boundary_wgs84, product_name
+    )
     _pdv(_tzn(tsk, 0, "no rate"), 0, setpoint.ddi)
     for code, zone in enumerate(zones, start=1):
         value = int(setpoint.values(np.asarray([zone.rate_kg_ha]))[0])

@@ -110,6 +110,22 @@ def to_wgs84(geom_utm: G, epsg: int) -> G:
     return shapely.transform(geom_utm, lambda c: utm_coords_to_lonlat(c, epsg))
 
 
+# The one area basis of FieldRx: every area (a field's, a cell's, a prescription's, a job's
+# applied area, the ISO 11783 partfield and TimeLog totals) is measured flat in the field's
+# UTM plane, where its plan, cells and route are computed. A field's area then equals what
+# its cells can cover (clipped cells never sum to more), which a geodesic field area (up to
+# 0.2 % larger or smaller than the plane's at a zone edge: the UTM scale factor squared)
+# would not. Said once to the user as ``AREA_BASIS_NOTE``.
+AREA_BASIS = "utm"
+AREA_BASIS_NOTE = "Areas are measured flat in the field's UTM zone (where its plan is built)."
+
+
+def plane_area_m2(geom_wgs84: BaseGeometry, epsg: int) -> float:
+    """Area (m^2, holes subtracted, any ring winding) of a lon/lat geometry in UTM zone
+    ``epsg``: the one area basis (``AREA_BASIS``)."""
+    return float(shapely.area(to_utm(geom_wgs84, epsg)))
+
+
 def epsg_for_geometry(geom_wgs84: BaseGeometry) -> int:
     """UTM zone of a lon/lat geometry, chosen from its centroid."""
     c = geom_wgs84.centroid

@@ -2,9 +2,9 @@
 
 Checks (issue 2): type, distinct vertices per ring, coordinate range and
 swapped lat/lon order, vertex count, self-intersection with its location,
-area between 100 m^2 and 10,000 ha. Area is geodesic (pyproj ``Geod`` on
-WGS84), never in degrees. Orientation is normalised to RFC 7946 (exterior
-counter-clockwise, holes clockwise).
+area between 100 m^2 and 10,000 ha. Area is measured in the field's UTM plane
+(``crs.plane_area_m2``, the one area basis), never in degrees. Orientation is
+normalised to RFC 7946 (exterior counter-clockwise, holes clockwise).
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from pyproj import Geod
 from shapely.geometry import MultiPolygon, Polygon, shape
 from shapely.validation import explain_validity
 
-from fieldrx.geo.crs import epsg_for_geometry
+from fieldrx.geo.crs import epsg_for_geometry, plane_area_m2
 
 MIN_AREA_M2 = 100.0
 MAX_AREA_M2 = 10_000.0 * 10_000.0  # 10,000 ha
@@ -48,7 +48,7 @@ class BoundaryError(ValueError):
 @dataclass(frozen=True)
 class ValidBoundary:
     geometry: MultiPolygon  # WGS84, oriented
-    area_m2: float  # geodesic
+    area_m2: float  # in the field's UTM plane (crs.AREA_BASIS)
     utm_epsg: int
     n_vertices: int
 
@@ -156,7 +156,8 @@ def validate_boundary(geometry: Any) -> ValidBoundary:
         what = reason.split("[")[0].strip()
         at = f" at ({loc[0]:.7f}, {loc[1]:.7f})" if loc else ""
         raise BoundaryError(f"invalid boundary: {what}{at}", "geometry.coordinates", loc)
-    area = geodesic_area_m2(geom)
+    epsg = epsg_for_geometry(geom)
+    area = plane_area_m2(geom, epsg)
     if area < MIN_AREA_M2:
         raise BoundaryError(f"area {area:.1f} m² is below the minimum of {MIN_AREA_M2:.0f} m²")
     if area > MAX_AREA_M2:
@@ -167,6 +168,6 @@ def validate_boundary(geometry: Any) -> ValidBoundary:
     return ValidBoundary(
         geometry=oriented,
         area_m2=area,
-        utm_epsg=epsg_for_geometry(oriented),
+        utm_epsg=epsg,
         n_vertices=n_vertices,
     )

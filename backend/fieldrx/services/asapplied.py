@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import csv
 import io
-from dataclasses import asdict
 
 import numpy as np
 from geoalchemy2.shape import to_shape
@@ -97,14 +96,9 @@ def cells_csv(rep: JobReport) -> bytes:
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(CSV_COLUMNS)
-    for c in rep.cells:
-        d = asdict(c)
-        w.writerow(
-            [
-                "" if d[k] is None else (round(d[k], 6) if isinstance(d[k], float) else d[k])
-                for k in CSV_COLUMNS
-            ]
-        )
+    for c in rep.cells:  # getattr, not asdict: asdict deep-copies every field (~0.5 ms a row)
+        row = [getattr(c, k) for k in CSV_COLUMNS]
+        w.writerow(["" if v is None else (round(v, 6) if isinstance(v, float) else v) for v in row])
     return buf.getvalue().encode()
 
 
@@ -126,10 +120,11 @@ def export_job(session: Session, job: Job, rep: JobReport, fmt: str) -> tuple[by
     rx = session.get(Prescription, job.prescription_id)
     totals = AsAppliedTotals(
         applied_total_kg=rep.applied_total_kg,
-        area_applied_m2=float(sum(c.area_m2 for c in rep.cells if c.m2_g > 0)),
+        area_applied_m2=rep.applied_area_m2,
         time_worked_s=rep.time_worked_s,
         first_t=rep.first_t,
         last_t=rep.last_t,
+        field_area_m2=rep.field_area_m2,
     )
     data = write_asapplied_isoxml(
         points,

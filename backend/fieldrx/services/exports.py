@@ -14,9 +14,29 @@ from fieldrx.services.prescriptions import RxError, rx_rate_unit, version_cells
 FORMATS = ("geojson", "csv", "shapefile", "isoxml", "isoxml-zones")
 
 
-def _stem(rx: Prescription, ver: PrescriptionVersion) -> str:
-    name = re.sub(r"[^A-Za-z0-9_-]+", "_", rx.name or "prescription").strip("_")[:40]
-    return f"{name or 'prescription'}_rx{rx.id}_v{ver.version}"
+def _slug(text: str, limit: int) -> str:
+    """ASCII letters, digits, ``-`` and ``_`` only (what every terminal's file system takes),
+    cut at ``limit`` characters on a word boundary where there is one."""
+    s = re.sub(r"[^A-Za-z0-9-]+", "_", text).strip("_")
+    if len(s) > limit:
+        cut = s[:limit]
+        s = cut.rsplit("_", 1)[0] if "_" in cut[limit // 2 :] else cut
+    return s.strip("_")
+
+
+def file_stem(field_name: str, rx: Prescription, ver: PrescriptionVersion) -> str:
+    """The name of a version's files: field, product, the version's date, then the
+    prescription and version (``Home_field_Urea_46N_20261128_rx2v3``). Readable on a
+    terminal's file list and unique per version, so two prescriptions in one ``Rx/`` folder
+    of a display card never overwrite each other."""
+    date = ver.created_at.strftime("%Y%m%d") if ver.created_at is not None else ""
+    parts = (
+        _slug(field_name, 24) or "field",
+        _slug(rx.product or "fertilizer", 20),
+        date,
+        f"rx{rx.id}v{ver.version}",
+    )
+    return "_".join(p for p in parts if p)
 
 
 def export_version(
@@ -46,6 +66,7 @@ def export_version(
     boundary = None if field is None else to_shape(field.boundary)
     props = {"prescription_id": rx.id, "version": ver.version, "model": rx.model}
     unit, density = rx_rate_unit(rx)
+    stem = file_stem("" if field is None else field.name, rx, ver)
     data, media, _ = export_prescription(
         cells,
         fmt,
@@ -58,8 +79,8 @@ def export_version(
         max_polygons=max_polygons,
         info=info,
         volume_density_kg_l=density if unit == "l/ha" else None,
+        layer_name=stem,
     )
-    stem = _stem(rx, ver)
     if fmt == "isoxml" or fmt == "isoxml-zones":
         suffix = "grid" if fmt == "isoxml" else "zones"
         return data, media, f"{stem}_TASKDATA_{suffix}.zip"

@@ -31,7 +31,7 @@ from sqlalchemy import insert, text
 from sqlalchemy.orm import Session
 
 from fieldrx.agronomy.cells import CellTable
-from fieldrx.agronomy.prescription import summarize
+from fieldrx.agronomy.prescription import planned_kg, summarize
 from fieldrx.agronomy.products import product_figures
 from fieldrx.db.geometry import shape_to_db
 from fieldrx.db.models import (
@@ -289,6 +289,15 @@ def store_prescription(
             "imported_outside": outside_share(rx, cells),
         }
     )
+    area = cells.area_m2
+    summary = {
+        "source": source,
+        "n_cells": len(cells),
+        "min_rate_kg_ha": float(rates.min(initial=0.0)),
+        "max_rate_kg_ha": float(rates.max(initial=0.0)),
+        "mean_rate_kg_ha": float(np.sum(rates * area) / max(area.sum(), 1e-12)),
+        "total_kg": planned_kg(rates, area),
+    }
     ver = PrescriptionVersion(
         prescription_id=row.id, version=1, note="imported", summary=summary, created_by=user_id
     )

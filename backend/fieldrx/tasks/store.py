@@ -274,7 +274,8 @@ def claim(engine: Engine, task_id: int, worker: str) -> Claimed | None:
         row = conn.execute(
             text(
                 "UPDATE tasks SET status = 'running', attempts = attempts + 1, worker = :w, "
-                "started_at = coalesce(started_at, now()), updated_at = now(), "
+                "started_at = coalesce(started_at, clock_timestamp()), "
+                "updated_at = clock_timestamp(), "
                 "message = CASE WHEN attempts > 0 THEN 'restarted after a worker stopped' "
                 "ELSE 'started' END "
                 "WHERE id = :id AND status IN ('queued', 'running') AND NOT cancel_requested "
@@ -285,8 +286,8 @@ def claim(engine: Engine, task_id: int, worker: str) -> Claimed | None:
         if row is None:
             conn.execute(
                 text(
-                    "UPDATE tasks SET status = 'cancelled', finished_at = now(), "
-                    "updated_at = now(), message = 'cancelled' "
+                    "UPDATE tasks SET status = 'cancelled', finished_at = clock_timestamp(), "
+                    "updated_at = clock_timestamp(), message = 'cancelled' "
                     "WHERE id = :id AND cancel_requested AND status IN ('queued', 'running')"
                 ),
                 {"id": task_id},
@@ -308,8 +309,9 @@ def _finish(engine: Engine, task_id: int, status: str, message: str, error: str 
     with engine.begin() as conn:
         conn.execute(
             text(
-                "UPDATE tasks SET status = :s, message = :m, error = :e, finished_at = now(), "
-                "updated_at = now() WHERE id = :id AND status NOT IN "
+                "UPDATE tasks SET status = :s, message = :m, error = :e, "
+                "finished_at = clock_timestamp(), "
+                "updated_at = clock_timestamp() WHERE id = :id AND status NOT IN "
                 "('succeeded', 'failed', 'cancelled')"
             ),
             {"id": task_id, "s": status, "m": message, "e": error},
@@ -343,13 +345,18 @@ def guard(session: Session, task_id: int) -> dict[str, Any] | None:
 def complete(session: Session, task_id: int, result: dict[str, Any], message: str) -> bool:
     """Last statement of a work transaction: the task succeeded with ``result``. False when
     it is no longer running (another run got there first, or it failed): then the caller
-    must roll back."""
+    must roll back.
+
+    Times are ``clock_timestamp()``, the moment of the statement: PostgreSQL's ``now()`` is
+    the transaction's start, which for this statement is when the work began, so a task
+    that ran for minutes showed started and finished milliseconds apart."""
     import json
 
     done = session.execute(
         text(
             "UPDATE tasks SET status = 'succeeded', progress = 1, message = :m, "
-            "result = CAST(:r AS jsonb), error = NULL, finished_at = now(), updated_at = now() "
+            "result = CAST(:r AS jsonb), error = NULL, finished_at = clock_timestamp(), "
+            "updated_at = clock_timestamp() "
             "WHERE id = :id AND status = 'running'"
         ),
         {"id": task_id, "r": json.dumps(result), "m": message},

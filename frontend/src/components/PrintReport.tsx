@@ -5,6 +5,7 @@ import type * as maplibregl from 'maplibre-gl';
 import type { FieldFeature, Job, Prescription } from '../api/client';
 import type { LegendEntry } from '../lib/colors';
 import { useMap } from '../map/context';
+import { AREA_BASIS_NOTE, outcomeRows, utcMinute } from '../lib/outcome';
 import { formatArea, formatDuration, formatMass, formatPercent } from '../lib/units';
 import { Legend } from './Legend';
 import type { AsAppliedReport } from './ReportLoader';
@@ -79,8 +80,10 @@ export function PrintReport(props: {
 }) {
   const { job, field, rx, report: r, mapImage, legend, legendTitle } = props;
   const rows: [string, string, string][] = [
-    ['Field', field ? `${field.properties.name} (${formatArea(field.properties.area_m2)})` : job?.field_name ?? '–', 'print-field'],
-    ['Date', `${day(job?.started_at ?? r?.first_t)} – ${day(job?.ended_at ?? r?.last_t)}`, 'print-date'],
+    ...outcomeRows(r?.outcome).map(([k, v, tid]): [string, string, string] => [k, v, tid.replace('report-', 'print-')]),
+    ['Field', field ? `${field.properties.name} (${formatArea(r?.field_area_m2 || field.properties.area_m2)})` : job?.field_name ?? '–', 'print-field'],
+    // the work itself (its first and last record), not when the job was sent or closed
+    ['Date', r ? `${utcMinute(r.first_t)} – ${utcMinute(r.last_t)}` : `${day(job?.started_at)} – ${day(job?.ended_at)}`, 'print-date'],
     ['Machine', job ? `${job.machine_name ?? `#${job.machine_id}`} (${r?.implement_width_m ?? '–'} m)` : '–', 'print-machine'],
     [
       'Product',
@@ -92,8 +95,9 @@ export function PrintReport(props: {
   ];
   const totals: [string, string][] = r
     ? [
-        ['Planned', formatMass(r.planned_total_kg)],
-        ['Applied', formatMass(r.applied_total_kg)],
+        ['Planned', `${formatMass(r.planned_total_kg)} over ${formatArea(r.planned_area_m2)}`],
+        ['Applied', `${formatMass(r.applied_total_kg)} over ${formatArea(r.applied_area_m2)}`],
+        ['Never applied', formatMass(r.never_applied_kg)],
         ['Outside cells', formatMass(r.applied_outside_cells_kg)],
         ['Cells applied', `${r.cells_applied} / ${r.cells_planned}`],
         ['Coverage', formatPercent(r.coverage_pct / 100)],
@@ -132,7 +136,7 @@ export function PrintReport(props: {
         <Legend entries={legend} title={legendTitle} testid="print-legend" />
       </div>
       <p className="small muted">
-        Accuracy per cell θ = (1 − |M1 − M2| / M1) × 100 % (seed 001 eq. 18); printed {new Date().toISOString().slice(0, 10)}.
+        Accuracy per cell θ = (1 − |M1 − M2| / M1) × 100 % (seed 001 eq. 18). {AREA_BASIS_NOTE} Printed {new Date().toISOString().slice(0, 10)}.
       </p>
     </section>
   );

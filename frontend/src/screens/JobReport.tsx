@@ -9,6 +9,7 @@ import { ErrorBox, Kv } from '../components/Status';
 import { ReplayTrail, TrackReplay, useTrackReplay } from '../components/TrackReplay';
 import { ACCURACY_BREAKS, RED_GREEN, classColors, legendEntries, niceBreaks, stepExpression } from '../lib/colors';
 import { bboxOf } from '../lib/geo';
+import { AREA_BASIS_NOTE, outcomeRows, utcMinute } from '../lib/outcome';
 import { formatArea, formatDuration, formatMass, formatPercent } from '../lib/units';
 import { MapView } from '../map/MapView';
 import { CellGrid, FieldBoundary, FitBounds } from '../map/overlays';
@@ -102,6 +103,8 @@ function PrescriptionJobReport({ jobId }: { jobId: number }) {
         <div aria-busy={!report}>
           <Kv
             items={[
+              ...outcomeRows(r.outcome),
+              ['Worked', report ? `${utcMinute(r.first_t)} – ${utcMinute(r.last_t)}` : '…', 'report-worked'],
               ['State', job?.state ?? '–', 'report-state'],
               ['Machine', job ? <a href={`#/machines/${job.machine_id}`}>{job.machine_name ?? `#${job.machine_id}`}</a> : '–', 'report-machine'],
               [
@@ -117,19 +120,23 @@ function PrescriptionJobReport({ jobId }: { jobId: number }) {
               ],
               ['Cells applied', report ? `${r.cells_applied ?? '–'} / ${r.cells_planned ?? '–'}` : '…', 'report-cells'],
               ['Coverage', v(cov != null ? formatPercent(cov / 100) : null), 'report-coverage'],
-              ['Planned', v(formatMass(r.planned_total_kg))],
+              ['Planned', v(report ? `${formatMass(r.planned_total_kg)} over ${formatArea(r.planned_area_m2)}` : null), 'report-planned'],
               ['Applied', v(formatMass(r.applied_total_kg)), 'report-applied-kg'],
+              ['Applied area', v(formatArea(r.applied_area_m2)), 'report-applied-area'],
               ['Outside cells', v(formatMass(r.applied_outside_cells_kg))],
               ['Mean accuracy', v(acc != null ? `${acc.toFixed(1)} %` : null), 'report-accuracy'],
               ['Worst cell', v(r.min_accuracy_pct != null ? `${r.min_accuracy_pct.toFixed(1)} %` : null)],
               ['Time worked', v(formatDuration(r.time_worked_s))],
               ['Records', v(r.n_records != null ? String(r.n_records) : null), 'report-records'],
-              ['Never applied', notApplied(r), 'report-not-applied'],
+              ['Never applied', report && r.never_applied_kg ? `${formatMass(r.never_applied_kg)} in ${notApplied(r)}` : notApplied(r), 'report-not-applied'],
               ['Operator (cab)', report ? operatorText(r.operator) : '…', 'report-operator'],
-              ['Field', field ? `${field.properties.name} (${formatArea(field.properties.area_m2)})` : '–'],
+              ['Field', field ? `${field.properties.name} (${formatArea(r.field_area_m2 || field.properties.area_m2)})` : '–'],
             ]}
           />
         </div>
+        <p className="small muted" data-testid="area-basis">
+          {AREA_BASIS_NOTE}
+        </p>
         <div className="row screen-only" role="group">
           <button data-testid="view-applied" className={view === 'applied' ? 'on' : ''} onClick={() => setView('applied')}>
             As applied

@@ -7,6 +7,7 @@ import { ErrorBox, Kv } from '../components/Status';
 import { classColors, legendEntries, niceBreaks, stepExpression } from '../lib/colors';
 import { bboxOf } from '../lib/geo';
 import { cellValue, KIND_LABELS, type DepthBand, type JobKind, type ShaftBand } from '../lib/jobkinds';
+import { outcomeRows, type Outcome } from '../lib/outcome';
 import { MapView } from '../map/MapView';
 import { CellGrid, FieldBoundary, FitBounds } from '../map/overlays';
 
@@ -81,6 +82,7 @@ export function KindReport({ job: initial }: { job: Job }) {
         {!report && !error && <ReportLoading task={task} onDone={live.refresh} />}
         <Kv
           items={[
+            ...outcomeRows(r.outcome as Outcome | undefined),
             ['Kind', KIND_LABELS[kind] ?? kind, 'report-kind'],
             ['State', job.state, 'report-state'],
             ['Machine', <a href={`#/machines/${job.machine_id}`}>{job.machine_name ?? `#${job.machine_id}`}</a>],

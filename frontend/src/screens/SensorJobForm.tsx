@@ -1,5 +1,6 @@
 import { useState } from 'react';
-import { call, client, type Machine } from '../api/client';
+import { ApiError, call, client, type Machine } from '../api/client';
+import { flaggedConfirmation } from '../lib/flags';
 import { fieldsOf, jobBody, KIND_LABELS, ndviPreview, qualifiedBand, type JobKind } from '../lib/jobkinds';
 import { formatRate } from '../lib/units';
 
@@ -26,24 +27,31 @@ export function SensorJobForm({
   const val = (p: string, paper: unknown) => values[p] ?? String(paper);
   const target = Number(val('target_depth_mm', 30));
   const band = qualifiedBand(Number.isFinite(target) ? target : 30);
+  // a rate curve the machine cannot meter: the server's sentence, until the user confirms
+  const [conflict, setConflict] = useState<string | null>(null);
+  const send = async (confirmed: boolean) => {
+    onError(null);
+    try {
+      const mid = machineId || (machines[0] ? String(machines[0].id) : '');
+      const body = { ...jobBody(kind, { planId, machineId: mid }, values), confirm_flagged: confirmed };
+      const j = await call(client.POST('/api/v1/jobs', { body }));
+      setConflict(null);
+      await call(client.POST('/api/v1/jobs/{job_id}/state', { params: { path: { job_id: j.id } }, body: { state: 'sent' } }));
+      onCreated(j.id);
+    } catch (err) {
+      const c = err instanceof ApiError ? flaggedConfirmation(err.status, err.body) : null;
+      if (c) setConflict(c.message);
+      else onError(err);
+    }
+  };
   return (
     <form
       className="stack"
       data-testid={`job-form-${kind}`}
       data-write=""
-      onSubmit={async (e) => {
+      onSubmit={(e) => {
         e.preventDefault();
-        onError(null);
-        try {
-          const mid = machineId || (machines[0] ? String(machines[0].id) : '');
-          const j = await call(client.POST('/api/v1/jobs', { body: jobBody(kind, { planId, machineId: mid }, values) }));
-          await call(
-            client.POST('/api/v1/jobs/{job_id}/state', { params: { path: { job_id: j.id } }, body: { state: 'sent' } }),
-          );
-          onCreated(j.id);
-        } catch (err) {
-          onError(err);
-        }
+        void send(false);
       }}
     >
       <h3>{KIND_LABELS[kind]}</h3>
@@ -114,6 +122,19 @@ export function SensorJobForm({
         </p>
       )}
       <button data-testid="job-kind-submit">Send</button>
+      {conflict && (
+        <div className="card warn" data-testid="job-kind-confirm-panel" role="alertdialog">
+          <p data-testid="job-kind-confirm-text">{conflict}</p>
+          <div className="row">
+            <button type="button" data-testid="job-kind-confirm" className="danger" onClick={() => void send(true)}>
+              Send anyway
+            </button>
+            <button type="button" data-testid="job-kind-confirm-cancel" onClick={() => setConflict(null)}>
+              Cancel
+            </button>
+          </div>
+        </div>
+      )}
     </form>
   );
 }

@@ -85,6 +85,21 @@ class AsAppliedSummary(Out):
     operator: OperatorEventsOut | None = Field(
         default=None, description="the operator's overrides and alarm acknowledgements"
     )
+    field_area_m2: float = Field(default=0.0, description="the field's area")
+    planned_area_m2: float = Field(default=0.0, description="area of the prescribed cells")
+    applied_area_m2: float = Field(default=0.0, description="area of the cells product reached")
+    never_applied_kg: float = Field(
+        default=0.0, description="planned amount of the prescribed cells nothing reached"
+    )
+    area_basis: Literal["utm"] = Field(
+        default="utm", description="every area is measured flat in the field's UTM zone"
+    )
+    outcome: dict[str, float | None] = Field(
+        default_factory=dict,
+        description="target vs applied over the prescribed cells: target_kg, applied_kg, "
+        "target_kg_ha, applied_kg_ha, difference_pct, under_area_pct / over_area_pct (share "
+        "of the area more than tolerance_pct below / above its target)",
+    )
 
 
 class AsAppliedReport(AsAppliedSummary):
@@ -130,8 +145,12 @@ class JobSummaryOut(Out):
     last_record_at: dt.datetime | None
     time_worked_s: float
     area_applied_ha: float
+    field_area_ha: float
+    planned_area_ha: float
+    area_basis: Literal["utm"] = "utm"
     coverage_pct: float
     planned_total_kg: float
+    never_applied_kg: float
     applied_total_kg: float
     applied_outside_cells_kg: float
     mean_accuracy_pct: float | None

@@ -2089,12 +2089,25 @@ export interface components {
          * @description A prescription_map job's report; ``cells`` unless ``cells=false``.
          */
         AsAppliedReport: {
+            /**
+             * Applied Area M2
+             * @description area of the cells product reached
+             * @default 0
+             */
+            applied_area_m2?: number;
             /** Applied In Cells Kg */
             applied_in_cells_kg: number;
             /** Applied Outside Cells Kg */
             applied_outside_cells_kg: number;
             /** Applied Total Kg */
             applied_total_kg: number;
+            /**
+             * Area Basis
+             * @description every area is measured flat in the field's UTM zone
+             * @default utm
+             * @constant
+             */
+            area_basis?: "utm";
             /** Cells */
             cells?: components["schemas"]["CellReportOut"][] | null;
             /** Cells Applied */
@@ -2103,6 +2116,12 @@ export interface components {
             cells_planned: number;
             /** Coverage Pct */
             coverage_pct: number;
+            /**
+             * Field Area M2
+             * @description the field's area
+             * @default 0
+             */
+            field_area_m2?: number;
             /** First T */
             first_t: string | null;
             /** Implement Width M */
@@ -2124,14 +2143,33 @@ export interface components {
             /** Name */
             name: string;
             /**
+             * Never Applied Kg
+             * @description planned amount of the prescribed cells nothing reached
+             * @default 0
+             */
+            never_applied_kg?: number;
+            /**
              * Not Applied Seqs
              * @description prescribed cells where nothing landed, path order
              */
             not_applied_seqs: number[];
             /** @description the operator's overrides and alarm acknowledgements */
             operator?: components["schemas"]["OperatorEventsOut"] | null;
+            /**
+             * Outcome
+             * @description target vs applied over the prescribed cells: target_kg, applied_kg, target_kg_ha, applied_kg_ha, difference_pct, under_area_pct / over_area_pct (share of the area more than tolerance_pct below / above its target)
+             */
+            outcome?: {
+                [key: string]: number | null;
+            };
             /** Plan Id */
             plan_id: number;
+            /**
+             * Planned Area M2
+             * @description area of the prescribed cells
+             * @default 0
+             */
+            planned_area_m2?: number;
             /** Planned Total Kg */
             planned_total_kg: number;
             /** State */
@@ -2148,18 +2186,37 @@ export interface components {
         };
         /** AsAppliedSummary */
         AsAppliedSummary: {
+            /**
+             * Applied Area M2
+             * @description area of the cells product reached
+             * @default 0
+             */
+            applied_area_m2?: number;
             /** Applied In Cells Kg */
             applied_in_cells_kg: number;
             /** Applied Outside Cells Kg */
             applied_outside_cells_kg: number;
             /** Applied Total Kg */
             applied_total_kg: number;
+            /**
+             * Area Basis
+             * @description every area is measured flat in the field's UTM zone
+             * @default utm
+             * @constant
+             */
+            area_basis?: "utm";
             /** Cells Applied */
             cells_applied: number;
             /** Cells Planned */
             cells_planned: number;
             /** Coverage Pct */
             coverage_pct: number;
+            /**
+             * Field Area M2
+             * @description the field's area
+             * @default 0
+             */
+            field_area_m2?: number;
             /** First T */
             first_t: string | null;
             /** Implement Width M */
@@ -2181,14 +2238,33 @@ export interface components {
             /** Name */
             name: string;
             /**
+             * Never Applied Kg
+             * @description planned amount of the prescribed cells nothing reached
+             * @default 0
+             */
+            never_applied_kg?: number;
+            /**
              * Not Applied Seqs
              * @description prescribed cells where nothing landed, path order
              */
             not_applied_seqs: number[];
             /** @description the operator's overrides and alarm acknowledgements */
             operator?: components["schemas"]["OperatorEventsOut"] | null;
+            /**
+             * Outcome
+             * @description target vs applied over the prescribed cells: target_kg, applied_kg, target_kg_ha, applied_kg_ha, difference_pct, under_area_pct / over_area_pct (share of the area more than tolerance_pct below / above its target)
+             */
+            outcome?: {
+                [key: string]: number | null;
+            };
             /** Plan Id */
             plan_id: number;
+            /**
+             * Planned Area M2
+             * @description area of the prescribed cells
+             * @default 0
+             */
+            planned_area_m2?: number;
             /** Planned Total Kg */
             planned_total_kg: number;
             /** State */
@@ -3567,6 +3643,12 @@ export interface components {
             applied_total_kg: number;
             /** Area Applied Ha */
             area_applied_ha: number;
+            /**
+             * Area Basis
+             * @default utm
+             * @constant
+             */
+            area_basis?: "utm";
             /** Cells Applied */
             cells_applied: number;
             /** Cells Planned */
@@ -3576,6 +3658,8 @@ export interface components {
             /** Ended At */
             ended_at: string | null;
             field: components["schemas"]["NamedRef"] | null;
+            /** Field Area Ha */
+            field_area_ha: number;
             /** First Record At */
             first_record_at: string | null;
             /** Job Id */
@@ -3590,6 +3674,10 @@ export interface components {
             min_accuracy_pct: number | null;
             /** Name */
             name: string;
+            /** Never Applied Kg */
+            never_applied_kg: number;
+            /** Planned Area Ha */
+            planned_area_ha: number;
             /** Planned Total Kg */
             planned_total_kg: number;
             prescription: components["schemas"]["RxRef"];
