@@ -16,6 +16,8 @@ from pathlib import Path
 
 import pytest
 
+from tests.support import scaled
+
 ROOT = Path(__file__).resolve().parents[2]
 FRONTEND = ROOT / "frontend"
 API = "/api/v1"
@@ -54,7 +56,7 @@ def test_generated_client_is_current(tmp_path: Path) -> None:
         cwd=FRONTEND,
         check=True,
         capture_output=True,
-        timeout=120,
+        timeout=scaled(120),
     )
     committed = (FRONTEND / "src/api/generated/schema.ts").read_text()
     assert committed == out.read_text(), (
@@ -72,7 +74,7 @@ def test_openapi_document_validates(tmp_path: Path, document: dict) -> None:
         cwd=FRONTEND,
         capture_output=True,
         text=True,
-        timeout=120,
+        timeout=scaled(120),
     )
     assert r.returncode == 0, r.stdout + r.stderr
     assert "0 problem(s)" in r.stdout
@@ -93,7 +95,7 @@ def test_validator_finds_a_broken_document(tmp_path: Path, document: dict) -> No
         cwd=FRONTEND,
         capture_output=True,
         text=True,
-        timeout=120,
+        timeout=scaled(120),
     )
     assert r.returncode == 1 and "2 problem(s)" in r.stdout, r.stdout
 

@@ -6,7 +6,7 @@ import { after, before, describe, it } from 'node:test';
 import assert from 'node:assert/strict';
 import { existsSync, writeFileSync } from 'node:fs';
 import { join } from 'node:path';
-import { ARTIFACTS, BASE_URL, ROOT, api, apiLogin, launch, listOf, mapIdle, run, serverUp, shot, signIn, uiServed } from './lib.mjs';
+import { ARTIFACTS, BASE_URL, ROOT, api, apiLogin, launch, listOf, mapIdle, run, serverUp, shot, signIn, uiServed, scaled } from './lib.mjs';
 
 const up = await serverUp();
 const ui = up && (await uiServed());
@@ -97,7 +97,7 @@ describe('job kinds in the browser', { skip: SKIP }, () => {
     await page.waitForFunction(
       (want) => (document.querySelector('[data-testid=report-shaft-error]')?.textContent ?? '').startsWith(want),
       sim.mean_relative_error_pct.toFixed(2),
-      { timeout: 30_000 },
+      { timeout: scaled(30_000) },
     );
     await mapIdle(page, 'kind-report');
     const drawn = await page.evaluate(() => window.__fieldrxMaps['kind-report'].queryRenderedFeatures({ layers: ['kcells-fill'] }).length);
@@ -119,7 +119,7 @@ describe('job kinds in the browser', { skip: SKIP }, () => {
     await page.waitForSelector('[data-testid=depth-table] tbody tr');
     const q = sim.depth_table.all.qualified_pct.toFixed(1);
     await page.waitForFunction((want) => (document.querySelector('[data-testid=report-qualified]')?.textContent ?? '').startsWith(want), q, {
-      timeout: 30_000,
+      timeout: scaled(30_000),
     });
     await mapIdle(page, 'kind-report');
     await shot(page, 'kind-report-depth');

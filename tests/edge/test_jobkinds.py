@@ -27,6 +27,8 @@ from fieldrx_edge.ndvi import SEED000_TABLE
 from fieldrx_edge.protocol import JobPackage, ProtocolError, TelemetryRecord
 from fieldrx_edge.sim.fields import rect_job
 
+from tests.support import scaled
+
 BIN = Path(sys.executable).parent
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -198,7 +200,7 @@ def test_run_ndvi_job_from_files_holds_then_stops(tmp_path: Path) -> None:
         [str(BIN / "fieldrx-edge"), "run", str(pkg), "--source", f"file:{tmp_path / 'gnss.nmea'}",
          "--sensor", f"file:{tmp_path / 'ndvi.log'}", "--offline",
          "--state-dir", str(tmp_path / "state")],
-        cwd=ROOT, capture_output=True, text=True, timeout=120,
+        cwd=ROOT, capture_output=True, text=True, timeout=scaled(120),
     )  # fmt: skip
     assert out.returncode == 0, out.stderr[-2000:]
     res = json.loads(out.stdout.strip().splitlines()[-1])
@@ -237,7 +239,7 @@ def test_run_depth_job_from_files(tmp_path: Path) -> None:
         [str(BIN / "fieldrx-edge"), "run", str(pkg), "--source", f"file:{tmp_path / 'gnss.nmea'}",
          "--sensor", f"file:{tmp_path / 'depth.log'}", "--offline",
          "--state-dir", str(tmp_path / "state")],
-        cwd=ROOT, capture_output=True, text=True, timeout=120,
+        cwd=ROOT, capture_output=True, text=True, timeout=scaled(120),
     )  # fmt: skip
     assert out.returncode == 0, out.stderr[-2000:]
     res = json.loads(out.stdout.strip().splitlines()[-1])
@@ -308,7 +310,9 @@ def test_run_notices_a_silent_sensor(tmp_path: Path) -> None:
         cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
     )  # fmt: skip
     try:
-        deadline = time.monotonic() + 8  # silence noticed on the wall clock, not per read timeout
+        deadline = time.monotonic() + scaled(
+            8
+        )  # silence noticed on the wall clock, not per read timeout
         recs: list[dict] = []
         while time.monotonic() < deadline:
             time.sleep(0.5)

@@ -22,6 +22,7 @@ from fieldrx.fleet.db import connect
 from fieldrx.fleet.ingest import LOCK_NS, IngestResult, ingest
 
 from tests.fleet.helpers import JobFixture, record
+from tests.support import scaled
 
 
 def _waiters(conn: psycopg.Connection[Any], machine_id: int) -> int:
@@ -55,7 +56,7 @@ def _lined_up(
             t = threading.Thread(target=run)
             t.start()
             threads.append(t)
-            deadline = time.monotonic() + 20
+            deadline = time.monotonic() + scaled(20)
             while _waiters(probe, job.machine_id) < i + 1:
                 assert time.monotonic() < deadline, "batch did not reach the lock"
                 time.sleep(0.02)

@@ -16,6 +16,8 @@ from isoxml.converter.np_grid import to_numpy_array
 from isoxml.util.isoxml_io import isoxml_from_path
 from pyproj import Transformer
 
+from tests.support import scaled
+
 XSD = "/work/shared/isoxml-xsd/ISO11783_TaskFile_V4-3.xsd"
 X0, Y0 = 624000.0, 3556000.0  # UTM 49N, near seed 001's field
 
@@ -59,7 +61,7 @@ def _rx(*args: str, standalone: bool = False) -> tuple[int, dict]:
         [sys.executable, *cmd, *args],
         capture_output=True,
         text=True,
-        timeout=120,
+        timeout=scaled(120),
     )
     return proc.returncode, json.loads(proc.stdout.strip().splitlines()[-1])
 

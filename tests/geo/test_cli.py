@@ -4,6 +4,8 @@ import sys
 
 import pytest
 
+from tests.support import scaled
+
 FIELD = {
     "type": "FeatureCollection",
     "features": [
@@ -53,7 +55,7 @@ def _run(*args):
         [sys.executable, "-m", "fieldrx.commands.plan", *map(str, args)],
         capture_output=True,
         text=True,
-        timeout=120,
+        timeout=scaled(120),
     )
 
 
