@@ -1,0 +1,26 @@
+#!/usr/bin/env bash
+# The checks that keep the code easy to change, quick enough for the edit loop
+# (`make check`; also the first step of `make test`):
+#   ruff     lint, McCabe complexity <= 15, at most 8 arguments (ruff.toml)
+# Usage: scripts/check.sh [--static]   (--static: without the unit tests of pure modules)
+set -uo pipefail
+cd "$(dirname "$0")/.."
+ROOT=$(pwd)
+export PATH="$ROOT/.venv/bin:$PATH"
+FAILED=()
+step() { printf '\n\033[1;34m== %s ==\033[0m\n' "$1"; }
+
+step "ruff (lint, complexity, argument count)"
+ruff check backend edge_agent tests bench || FAILED+=(ruff)
+
+if [[ "${1:-}" != "--static" ]]; then
+  step "unit tests of the pure modules (pytest --pure)"
+  pytest -q -p no:cacheprovider --pure -n 0 tests/geo tests/agronomy tests/control tests/edge \
+    || FAILED+=(unit)
+fi
+
+if [[ ${#FAILED[@]} -gt 0 ]]; then
+  echo "FAILED: ${FAILED[*]}"
+  exit 1
+fi
+echo "all checks passed"
