@@ -2,6 +2,7 @@
 # The checks that keep the code easy to change, quick enough for the edit loop
 # (`make check`; also the first step of `make test`):
 #   ruff     lint, McCabe complexity <= 15, at most 8 arguments (ruff.toml)
+#   mypy     zero errors in backend/ and edge_agent/, strict on the pure packages (mypy.ini)
 # Usage: scripts/check.sh [--static]   (--static: without the unit tests of pure modules)
 set -uo pipefail
 cd "$(dirname "$0")/.."
@@ -12,6 +13,9 @@ step() { printf '\n\033[1;34m== %s ==\033[0m\n' "$1"; }
 
 step "ruff (lint, complexity, argument count)"
 ruff check backend edge_agent tests bench || FAILED+=(ruff)
+
+step "mypy (mypy.ini)"
+mypy --no-error-summary || FAILED+=(mypy)
 
 if [[ "${1:-}" != "--static" ]]; then
   step "unit tests of the pure modules (pytest --pure)"

@@ -171,7 +171,7 @@ def schema_defaults_json(document: str) -> str:
     out: dict[str, dict[str, object]] = {}
     for name in sorted(schemas):
         props = schemas[name].get("properties") or {}
-        d = {
+        d: dict[str, object] = {
             k: p["default"]
             for k, p in sorted(props.items())
             if "default" in p

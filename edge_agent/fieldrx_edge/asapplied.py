@@ -78,7 +78,7 @@ def metered_mass_g(flow_g_s: np.ndarray, dts: np.ndarray) -> np.ndarray:
     next one's (the shaft speed moves between fixes), the last record at its own flow."""
     flow = np.asarray(flow_g_s, dtype=float)
     nxt = np.append(flow[1:], flow[-1:]) if len(flow) else flow
-    return 0.5 * (flow + nxt) * np.asarray(dts, dtype=float)
+    return np.asarray(0.5 * (flow + nxt) * np.asarray(dts, dtype=float))
 
 
 EDGE_RUN_M = 5.0  # the driving line runs on this far past a swath's first and last cell
@@ -149,7 +149,8 @@ class Cells:
         """Shoelace area of the rectangles."""
         c = self.corners.reshape(-1, 4, 2)
         x, y = c[..., 0], c[..., 1]
-        return 0.5 * np.abs(np.sum(x * np.roll(y, -1, axis=1) - np.roll(x, -1, axis=1) * y, axis=1))
+        cross = x * np.roll(y, -1, axis=1) - np.roll(x, -1, axis=1) * y
+        return np.asarray(0.5 * np.abs(np.sum(cross, axis=1)))
 
 
 def driving_lines(cells: Cells) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -298,7 +299,9 @@ def landed_mass(
 
 def m1_g(rate_kg_ha: np.ndarray, width_m: float, drive_len_m: np.ndarray) -> np.ndarray:
     """Seed 001 eq. 17: M1 = M v t l / 36 g (v km/h, t s) = rate * width * length / 10."""
-    return np.asarray(rate_kg_ha, dtype=float) * width_m * np.asarray(drive_len_m) / 10.0
+    return np.asarray(
+        np.asarray(rate_kg_ha, dtype=float) * width_m * np.asarray(drive_len_m) / 10.0
+    )
 
 
 def theta_pct(m1: np.ndarray, m2: np.ndarray) -> np.ndarray:

@@ -257,7 +257,8 @@ class CellLocator:
             if not hasattr(self, "_polygons"):
                 self._shaped = np.flatnonzero(self.shaped_mask())
                 self._polygons = Polygons.from_cells(
-                    c[self._shaped], {i: self._shapes_rings[k] for i, k in enumerate(self._shaped)}
+                    c[self._shaped],
+                    {i: self._shapes_rings[int(k)] for i, k in enumerate(self._shaped)},
                 )
             m = len(self._shaped)
             inside[self._shaped] = self._polygons.contains(

@@ -50,7 +50,7 @@ def ring_edges(ring: Any) -> np.ndarray:
     p = np.asarray(ring, dtype=float).reshape(-1, 2)
     q = np.roll(p, -1, axis=0)
     e = np.column_stack([p, q])
-    return e[(e[:, 0] != e[:, 2]) | (e[:, 1] != e[:, 3])]
+    return np.asarray(e[(e[:, 0] != e[:, 2]) | (e[:, 1] != e[:, 3])])
 
 
 def points_in_edges(edges: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -74,7 +74,7 @@ def points_in_edges(edges: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarr
     pt = order[k]
     ed = edges[e]
     hit = crosses(ed[:, 0], ed[:, 1], ed[:, 2], ed[:, 3], x[pt], y[pt])
-    return np.bincount(pt[hit], minlength=len(x)) % 2 == 1
+    return np.asarray(np.bincount(pt[hit], minlength=len(x)) % 2 == 1)
 
 
 class Region:
@@ -173,7 +173,7 @@ class Polygons:
         pair, row = self._pair_edges(poly)
         e = self.edges[row]
         hit = crosses(e[:, 0], e[:, 1], e[:, 2], e[:, 3], x[pair], y[pair])
-        return np.bincount(pair[hit], minlength=len(poly)) % 2 == 1
+        return np.asarray(np.bincount(pair[hit], minlength=len(poly)) % 2 == 1)
 
     def segment_crossings(
         self, poly: np.ndarray, p0: np.ndarray, p1: np.ndarray

@@ -35,7 +35,7 @@ import math
 import re
 import uuid
 from dataclasses import asdict, dataclass, field, fields
-from typing import Any
+from typing import Any, TypeGuard
 
 FORMAT_VERSION = 1
 # Telemetry wire format. 1: batches {"records": [...]}, deduplicated by (machine, seq).
@@ -445,7 +445,8 @@ _CLAMP = {
 assert set(_CLAMP) | {"heading_deg"} == set(_FLOAT_FIELDS), "every float field has a range"
 
 
-def _finite(v: Any) -> bool:
+def _finite(v: object) -> TypeGuard[float]:
+    """A real, finite number (bool excluded); narrows ``v`` for the comparisons after it."""
     return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
 
 

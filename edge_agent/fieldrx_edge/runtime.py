@@ -152,6 +152,7 @@ class Pipeline:
         if fix.x is None:
             assert fix.lon is not None and fix.lat is not None
             fix.x, fix.y = self.proj.forward(fix.lon, fix.lat)
+        assert fix.y is not None  # set together with x
         return self.on_position(now, fix.x, fix.y, fix.speed_m_s, fix.course_deg, implement_down)
 
     def on_position(

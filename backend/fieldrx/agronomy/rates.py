@@ -65,11 +65,13 @@ def nutrient_balance_rate(
     N, so the rate is 0 (use ``nutrient_balance_raw`` to see the sign).
     Worked example: M 2500, n 100, x 0.25 -> 700.4 kg/ha.
     """
-    return np.maximum(
-        0.0,
-        nutrient_balance_raw(
-            n_mg_kg, target_yield_kg_ha, n_fraction, e_kg_per_100kg, k_utilisation
-        ),
+    return np.asarray(
+        np.maximum(
+            0.0,
+            nutrient_balance_raw(
+                n_mg_kg, target_yield_kg_ha, n_fraction, e_kg_per_100kg, k_utilisation
+            ),
+        )
     )
 
 
@@ -92,7 +94,9 @@ def nutrient_balance_raw(
     n = np.asarray(n_mg_kg, dtype=float)
     d = soil_correction_coefficient(n)
     soil_n = 2.25 * d * np.maximum(n, 0.0)
-    return (e_kg_per_100kg * target_yield_kg_ha / 100.0 - soil_n) / (k_utilisation * n_fraction)
+    return np.asarray(
+        (e_kg_per_100kg * target_yield_kg_ha / 100.0 - soil_n) / (k_utilisation * n_fraction)
+    )
 
 
 def ndvi_linear_rate(
@@ -113,7 +117,7 @@ def ndvi_linear_rate(
         raise RateModelError("NDVI end-point rates must not be negative")
     v = np.clip(np.asarray(ndvi, dtype=float), ndvi_low, ndvi_high)
     t = (v - ndvi_low) / (ndvi_high - ndvi_low)
-    return rate_at_low_kg_ha + t * (rate_at_high_kg_ha - rate_at_low_kg_ha)
+    return np.asarray(rate_at_low_kg_ha + t * (rate_at_high_kg_ha - rate_at_low_kg_ha))
 
 
 def uniform_rate(n_cells: int, rate_kg_ha: float) -> np.ndarray:

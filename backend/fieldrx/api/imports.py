@@ -255,7 +255,7 @@ def import_timelog(
             logs.append(read_timelog(h, by_upper[f"{h}.XML"], by_upper[f"{h}.BIN"]))
     except FormatError as exc:
         raise ApiError(422, str(exc), where=names) from exc
-    preview = []
+    preview: list[dict[str, Any]] = []
     for log in logs:
         pos = np.isfinite(log.lat) & np.isfinite(log.lon)
         widths = log.series(67, 0.001)
@@ -279,7 +279,7 @@ def import_timelog(
     body: dict[str, Any] = {"sha256": sha, "timelogs": preview, "stored": False}
     width = width_m
     if width is None:
-        logged = [p["logged_width_m"] for p in preview if p["logged_width_m"]]
+        logged = [float(p["logged_width_m"]) for p in preview if p["logged_width_m"]]
         width = float(np.median(logged)) if logged else None
     body["width_m"] = width
     if confirm is None:

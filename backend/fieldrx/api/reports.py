@@ -91,8 +91,9 @@ def _queue_report(session: SessionDep, principal: Any, job: Job) -> Any:
 
     digest = report_digest(report_key(session, job))
     tid = open_report_task(session, job.organisation_id, job.id, digest)
-    if tid is not None:
-        return accepted(session, session.get(Task, tid))
+    task = session.get(Task, tid) if tid is not None else None
+    if task is not None:
+        return accepted(session, task)
     return queue_task(session, principal, "report", {"job_id": job.id, "key": digest})
 
 

@@ -46,7 +46,7 @@ import datetime as dt
 import json
 import operator
 import time
-from collections.abc import Callable, Iterable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any, Protocol
@@ -150,7 +150,7 @@ class Batch:
     kind: str = "telemetry"  # "cells": uplink profile thin's cell records (fleet.cellrecords)
 
 
-def _loads(body: bytes | str) -> Any:
+def _loads(body: bytes | bytearray | str) -> Any:
     try:
         return orjson.loads(body)
     except orjson.JSONDecodeError as exc:
@@ -162,7 +162,7 @@ def _loads(body: bytes | str) -> Any:
             raise IngestError(f"body is not valid JSON: {exc}") from exc
 
 
-def parse_batch(body: bytes | str) -> Batch:
+def parse_batch(body: bytes | bytearray | str) -> Batch:
     """``{"records": [...], "stream": id, "stream_start": n}`` (stream optional) -> Batch;
     anything else is an ``IngestError``."""
     return _batch_of(_loads(body))
@@ -378,18 +378,17 @@ def validate(
     dead: set[int] = set()
     repeats = 0
     for d in raw:
-        r = _fast_row(d, machine_id, t_max, stream)
-        if r is None:
-            r = _slow_row(d, machine_id, now, stream)
-            if type(r) is str:
-                seq = d.get("seq") if isinstance(d, dict) else None
-                if type(seq) is not int or seq < 1:
-                    seq = None
-                rejected.append({"seq": seq, "reason": r})
-                mid = d.get("machine_id") if isinstance(d, dict) else None
-                if seq is not None and (mid is None or mid == machine_id):
-                    dead.add(seq)
-                continue
+        fast = _fast_row(d, machine_id, t_max, stream)
+        r = fast if fast is not None else _slow_row(d, machine_id, now, stream)
+        if isinstance(r, str):
+            seq = d.get("seq") if isinstance(d, dict) else None
+            if type(seq) is not int or seq < 1:
+                seq = None
+            rejected.append({"seq": seq, "reason": r})
+            mid = d.get("machine_id") if isinstance(d, dict) else None
+            if seq is not None and (mid is None or mid == machine_id):
+                dead.add(seq)
+            continue
         if r.seq in rows:
             repeats += 1
         else:
@@ -699,7 +698,7 @@ def _stored(
     machine_id: int,
     stream: str,
     info: MachineInfo,
-    rows: dict[int, tuple[Any, ...]],
+    rows: Mapping[int, tuple[Any, ...]],
 ) -> dict[int, int]:
     """Stored records of the stream holding a seq of this batch: seq -> t (int8 us).
 

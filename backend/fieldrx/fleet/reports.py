@@ -419,7 +419,7 @@ def key_records(key: tuple[Any, ...]) -> int:
 
 
 def cache_get(session: Session, job: Job, key: tuple[Any, ...]) -> JobReport | None:
-    ck = (str(session.get_bind().url), job.id)
+    ck = (str(session.get_bind().engine.url), job.id)
     with _cache_lock:
         hit = _cache.get(ck)
         if hit is not None and hit[0] == key:
@@ -435,7 +435,7 @@ def clear_cache() -> None:
 
 
 def cache_put(session: Session, job: Job, key: tuple[Any, ...], rep: JobReport) -> None:
-    ck = (str(session.get_bind().url), job.id)
+    ck = (str(session.get_bind().engine.url), job.id)
     with _cache_lock:
         _cache[ck] = (key, rep)
         _cache.move_to_end(ck)

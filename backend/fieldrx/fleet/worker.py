@@ -167,7 +167,7 @@ class IngestWorker:
         self.client.on_connect = self._on_connect
         self.client.on_message = self._on_message
         self.client.on_subscribe = self._on_subscribe
-        self.client.reconnect_delay_set(0.5, 10)
+        self.client.reconnect_delay_set(1, 10)  # paho takes whole seconds
         self.broker.configure(self.client)
 
     def _take_slot(self, d: Path) -> int:

@@ -9,7 +9,7 @@ import numpy as np
 
 from fieldrx.agronomy.cells import CellTable, flag_strings
 from fieldrx.formats import FormatError
-from fieldrx.geo.cells import GEOJSON_DECIMALS
+from fieldrx.geo.cells import GEOJSON_DECIMALS, Column
 
 COORD_DECIMALS = GEOJSON_DECIMALS
 
@@ -31,7 +31,7 @@ def write_geojson(cells: CellTable, properties: dict[str, Any] | None = None) ->
     if not np.isfinite(cells.rate_kg_ha).all():
         raise FormatError("GeoJSON export: a rate is not finite")
     n = len(cells)
-    columns = {
+    columns: dict[str, Column] = {
         "seq": cells.seq,
         "swath": cells.swath,
         "rate_kg_ha": np.round(cells.rate_kg_ha, 3).astype(float),

@@ -16,7 +16,7 @@ from __future__ import annotations
 import gzip
 import json
 from dataclasses import asdict
-from typing import Any
+from typing import Any, TypedDict
 
 import numpy as np
 import shapely
@@ -111,7 +111,16 @@ def beside_line_cells(polys: Any, c: np.ndarray, shaped: np.ndarray) -> np.ndarr
     return out
 
 
-def _shape_fields(cells: CellTable, decimals: int) -> dict[str, list]:
+class _ShapeFields(TypedDict, total=False):
+    """The ``JobPackage.shape_*`` arguments (none when no cell is shaped)."""
+
+    shape_seq: list[int]
+    shape_ring_offsets: list[int]
+    shape_offsets: list[int]
+    shape_xy_utm: list[float]
+
+
+def _shape_fields(cells: CellTable, decimals: int) -> _ShapeFields:
     """``JobPackage.shape_*`` for the shaped cells: rings of every polygon part, open, rounded."""
     mask = shaped_cells(cells.polygons_utm, cells.corners_utm)
     seqs: list[int] = []
@@ -136,7 +145,7 @@ def _shape_fields(cells: CellTable, decimals: int) -> dict[str, list]:
             seqs.append(int(cells.seq[i]))
             ring_off.append(ring_off[-1] + n_rings)
     if not seqs:
-        return {}
+        return _ShapeFields()
     return {
         "shape_seq": seqs,
         "shape_ring_offsets": ring_off,

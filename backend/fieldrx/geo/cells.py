@@ -92,7 +92,7 @@ def _ring_centroids(xy: np.ndarray) -> np.ndarray:
     c = c / (6.0 * safe)[:, None] + o[:, 0, :]
     if flat.any():
         c[flat] = xy[flat, :-1].mean(axis=1)
-    return c
+    return np.asarray(c)
 
 
 def cut_edge_midpoints(corners: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -110,7 +110,7 @@ def rectangles(corners: np.ndarray) -> np.ndarray:
         return np.zeros(0, dtype=object)
     closed = np.concatenate([c, c[:, :1]], axis=1).reshape(-1, 2)
     offsets = (np.arange(0, 5 * n + 1, 5), np.arange(n + 1))
-    return shapely.from_ragged_array(shapely.GeometryType.POLYGON, closed, offsets)
+    return np.asarray(shapely.from_ragged_array(shapely.GeometryType.POLYGON, closed, offsets))
 
 
 def round_coords(geoms: Any, decimals: int) -> Any:
@@ -120,10 +120,13 @@ def round_coords(geoms: Any, decimals: int) -> Any:
     return shapely.transform(geoms, lambda c: np.round(c, decimals))
 
 
+# one value per cell: a list or a numpy array
+Column = Sequence[Any] | np.ndarray
+
 GEOJSON_DECIMALS = 9  # ~0.1 mm in degrees; RFC 7946 recommends no more than needed
 
 
-def _json_texts(name: str, col: Sequence[Any]) -> list[str]:
+def _json_texts(name: str, col: Column) -> list[str]:
     """``"name":value`` JSON text for every value of one property column (non-finite
     floats become null: RFC 8259 has no NaN)."""
     key = json.dumps(name) + ":"
@@ -282,7 +285,7 @@ class Cells:
     # GeoJSON -------------------------------------------------------------------------
 
     def geojson_features(
-        self, columns: Mapping[str, Sequence[Any]], decimals: int = GEOJSON_DECIMALS
+        self, columns: Mapping[str, Column], decimals: int = GEOJSON_DECIMALS
     ) -> list[str]:
         """One RFC 7946 Feature (compact JSON text) per cell, lon/lat, path order.
 
@@ -304,7 +307,7 @@ class Cells:
 
     def geojson_bytes(
         self,
-        columns: Mapping[str, Sequence[Any]],
+        columns: Mapping[str, Column],
         properties: Mapping[str, Any] | None = None,
         decimals: int = GEOJSON_DECIMALS,
     ) -> bytes:
@@ -319,7 +322,7 @@ class Cells:
     def to_geojson(self, rates_kg_ha: np.ndarray | None = None) -> dict[str, Any]:
         """The grid as a FeatureCollection dict: seq, swath, index_in_swath, area, headland
         (and a rate per cell when given)."""
-        cols: dict[str, Sequence[Any]] = {
+        cols: dict[str, Column] = {
             "seq": self.seq,
             "swath": self.swath,
             "index_in_swath": self.index_in_swath,
@@ -328,7 +331,8 @@ class Cells:
         }
         if rates_kg_ha is not None:
             cols["rate_kg_ha"] = np.asarray(rates_kg_ha, dtype=float)
-        return json.loads(self.geojson_bytes(cols))
+        out: dict[str, Any] = json.loads(self.geojson_bytes(cols))
+        return out
 
     # constructors --------------------------------------------------------------------
 
@@ -440,7 +444,7 @@ def _oriented_corners(polys: np.ndarray) -> np.ndarray:
     rects = shapely.orient_polygons(shapely.oriented_envelope(polys), exterior_cw=False)
     rings = shapely.get_exterior_ring(rects)
     if n and (shapely.get_num_coordinates(rings) == 5).all():  # the usual case
-        return shapely.get_coordinates(rings).reshape(n, 5, 2)[:, :4]
+        return np.asarray(shapely.get_coordinates(rings).reshape(n, 5, 2)[:, :4])
     corners = np.zeros((n, 4, 2))
     for i, r in enumerate(rects):
         if r.geom_type == "Polygon":

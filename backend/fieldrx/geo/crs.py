@@ -102,12 +102,14 @@ def utm_coords_to_lonlat(coords: np.ndarray, epsg: int) -> np.ndarray:
 
 def to_utm(geom_wgs84: G, epsg: int) -> G:
     """Shapely geometry (or array of them) in lon/lat -> UTM metres."""
-    return shapely.transform(geom_wgs84, lambda c: lonlat_to_utm_coords(c, epsg))
+    out: G = shapely.transform(geom_wgs84, lambda c: lonlat_to_utm_coords(c, epsg))
+    return out
 
 
 def to_wgs84(geom_utm: G, epsg: int) -> G:
     """Shapely geometry (or array of them) in UTM metres -> lon/lat."""
-    return shapely.transform(geom_utm, lambda c: utm_coords_to_lonlat(c, epsg))
+    out: G = shapely.transform(geom_utm, lambda c: utm_coords_to_lonlat(c, epsg))
+    return out
 
 
 def epsg_for_geometry(geom_wgs84: BaseGeometry) -> int:

@@ -104,7 +104,7 @@ class FieldRouter:
         f = (np.arange(_SAMPLES) + 0.5) / _SAMPLES
         pts = c[:, :1, :] + f[None, :, None] * (c[:, 1:, :] - c[:, :1, :])
         inside = shapely.contains_xy(self.avoid, pts[..., 0], pts[..., 1]).mean(axis=1)
-        return lengths + self.extra * inside * lengths
+        return np.asarray(lengths + self.extra * inside * lengths)
 
     def _inside(self, p: np.ndarray) -> tuple[np.ndarray, list[np.ndarray]]:
         """Point p moved into the domain (nearest point) plus the stub that got it there."""

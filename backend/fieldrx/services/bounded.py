@@ -152,5 +152,5 @@ def run_bounded(
     finally:
         slots.release()
     if ok:
-        return value  # type: ignore[no-any-return]
+        return value
     raise value

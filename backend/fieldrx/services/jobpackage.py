@@ -109,6 +109,8 @@ def build_job_package(session: Session, job: Job) -> JobPackage:
         raise LookupError(f"job {job.id}: machine {job.machine_id} not found")
     if job.kind != "prescription_map":
         return build_kind_package(session, job, machine)
+    if job.prescription_id is None:
+        raise LookupError(f"job {job.id}: a prescription-map job without a prescription")
     return build_package(
         session, job.prescription_id, job.prescription_version, machine, job_id=job.id
     )

@@ -217,7 +217,7 @@ class TaskControllerServer:
         rate_raw = rate_raw if (on or c.work_state is not None) else 0
         assert c.setpoint is not None
         # switching off: sections first; switching on: rate first
-        if ws is not None and not on and (refresh or ws != c.sent_ws):
+        if ws is not None and c.work_state is not None and not on and (refresh or ws != c.sent_ws):
             self._pd(
                 c, pdm.encode(pdm.CMD_VALUE, c.work_state.element_number, c.work_state.ddi, ws), 3
             )
@@ -229,7 +229,7 @@ class TaskControllerServer:
             )
             c.sent_rate = rate_raw
             self.setpoints_sent += 1
-        if ws is not None and on and (refresh or ws != c.sent_ws):
+        if ws is not None and c.work_state is not None and on and (refresh or ws != c.sent_ws):
             self._pd(
                 c, pdm.encode(pdm.CMD_VALUE, c.work_state.element_number, c.work_state.ddi, ws), 3
             )

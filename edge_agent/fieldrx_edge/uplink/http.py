@@ -85,7 +85,8 @@ class HttpSender:
                 if a.get("error"):
                     log.warning("server did not store a batch: %s", a["error"])
         except (httpx.HTTPError, ValueError, TypeError, AttributeError, KeyError) as exc:
-            return self._failed(exc)
+            self._failed(exc)
+            return None
         self.sent_batches += 1
         return sum(self._apply(q, ack) for (q, _), ack in zip(pending, parsed, strict=True))
 
@@ -113,7 +114,8 @@ class HttpSender:
         try:
             ack = TelemetryAck.from_dict(self._post(body))
         except (httpx.HTTPError, ValueError, TypeError, AttributeError) as exc:
-            return self._failed(exc)
+            self._failed(exc)
+            return None
         self.sent_batches += 1
         return self._apply(queue, ack)
 

@@ -105,7 +105,7 @@ class MqttSender:
         self.client.on_connect = self._on_connect
         self.client.on_disconnect = self._on_disconnect
         self.client.on_message = self._on_message
-        self.client.reconnect_delay_set(0.5, 10)
+        self.client.reconnect_delay_set(1, 10)  # paho takes whole seconds
         self.client.connect_async(host, port, keepalive=30)
         self.client.loop_start()
 

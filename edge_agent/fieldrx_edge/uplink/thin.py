@@ -182,7 +182,7 @@ class CellAccumulator:
         )  # fmt: skip
         t = a["t"]
         t0, t1 = float(t[lo]), float(t[upto - 1])
-        for i in np.flatnonzero(res.m2_g):
+        for i in np.flatnonzero(res.m2_g).tolist():
             b = self._bucket(int(i))
             b.mass_g += float(res.m2_g[i])
             b.touch_t = t1

@@ -32,6 +32,7 @@ around a reflex corner dents it).
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 import shapely
@@ -115,7 +116,9 @@ def _reflex_bites(poly: Polygon, r: float) -> list[Polygon]:
     return out
 
 
-def _bites(c: np.ndarray, u1: np.ndarray, u2: np.ndarray, idx: np.ndarray, r: float) -> list:
+def _bites(
+    c: np.ndarray, u1: np.ndarray, u2: np.ndarray, idx: np.ndarray, r: float
+) -> list[Any]:
     """A disc of radius 1.02 r centred r beyond each vertex c[idx] on the outside
     bisector of its edges (unit vectors u1 in, u2 out): the sampled disc (chords sag
     0.001 r) covers the vertex, and the opening's erosion by r leaves a smooth 0.02 r
@@ -185,7 +188,7 @@ def _filled(opened: BaseGeometry, poly: Polygon, corners: list[Point], r: float)
 
 def _inside(piece: Polygon, region: BaseGeometry) -> bool:
     """Whether piece lies in region up to GEOS rounding (1e-6 of its area)."""
-    return piece.difference(region).area <= 1e-6 * piece.area + 1e-9
+    return bool(piece.difference(region).area <= 1e-6 * piece.area + 1e-9)
 
 
 def _pass_centre(field_geom: BaseGeometry, w: float, k: int) -> list[Polygon]:
