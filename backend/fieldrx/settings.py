@@ -51,7 +51,7 @@ class Settings(BaseSettings):
     login_window_s: float = Field(default=900.0, alias="FIELDRX_LOGIN_WINDOW_S")
     live_token_check_s: float = Field(default=5.0, alias="FIELDRX_LIVE_TOKEN_CHECK_S")
     device_token_ttl_days: float = Field(default=365.0, alias="FIELDRX_DEVICE_TOKEN_TTL_DAYS")
-    # Imagery (issue 14): where Cloud-Optimized GeoTIFFs live ("" = ./var/imagery beside the
+    # Imagery: where Cloud-Optimized GeoTIFFs live ("" = ./var/imagery beside the
     # checkout), the largest upload and raster accepted, and the conversion's time limit.
     imagery_dir: str = Field(default="", alias="FIELDRX_IMAGERY_DIR")
     imagery_max_upload_bytes: int = Field(
@@ -59,11 +59,11 @@ class Settings(BaseSettings):
     )
     imagery_max_pixels: int = Field(default=2_000_000_000, alias="FIELDRX_IMAGERY_MAX_PIXELS")
     imagery_timeout_s: float = Field(default=900.0, alias="FIELDRX_IMAGERY_TIMEOUT_S")
-    # Thin uplink (issue 18): where the 10 Hz logs tractors upload on request live
+    # Thin uplink: where the 10 Hz logs tractors upload on request live
     # ("" = ./var/rawlogs beside the checkout), and the largest accepted (gzip bytes).
     raw_log_dir: str = Field(default="", alias="FIELDRX_RAW_LOG_DIR")
     raw_log_max_bytes: int = Field(default=512 * 1024**2, alias="FIELDRX_RAW_LOG_MAX_BYTES")
-    # Telemetry partitions (issue 18, fleet.partitions): raw records older than this many
+    # Telemetry partitions (fleet.partitions): raw records older than this many
     # days are dropped a whole day at a time (0: kept forever); per-cell results are kept.
     telemetry_retention_days: int = Field(default=0, ge=0, alias="FIELDRX_TELEMETRY_RETENTION_DAYS")
     # how often each `fieldrx worker` runs partition maintenance (premake, retention, moving
@@ -75,7 +75,7 @@ class Settings(BaseSettings):
     imagery_background_bytes: int = Field(
         default=64 * 1024**2, ge=0, alias="FIELDRX_IMAGERY_BACKGROUND_BYTES"
     )
-    # Background tasks (issue 18, fieldrx.tasks): jobs run at once per worker process, how
+    # Background tasks (fieldrx.tasks): jobs run at once per worker process, how
     # often a worker proves it is alive, and after how long without a heartbeat its running
     # jobs are handed to another worker (stalled-job recovery).
     task_concurrency: int = Field(default=2, ge=1, alias="FIELDRX_TASK_CONCURRENCY")

@@ -1,13 +1,13 @@
 """The as-applied kernel (seed 001 eq. 16-18), pure numpy: shared by the simulator and the server.
 
 One definition of every as-applied figure, so the edge simulator, the server's
-report and the job map's tiles cannot drift apart (issue 12):
+report and the job map's tiles cannot drift apart:
 
 * time: a telemetry record describes one GNSS fix; its time ``t`` is the fix
   time and its ``fix_period_s`` the receiver's fix interval
   (``protocol.TelemetryRecord``); ``fix_periods`` is how long each record's
   metering state lasted. Integrating over the gap to the next record's time
-  instead makes the mass depend on how the records were stamped (issue 11);
+  instead makes the mass depend on how the records were stamped;
 * metered mass: flow from the shaft speed through the machine's calibration
   (``metering.flow_g_min_many``), trapezoid between a record and the next one
   (``metered_mass_g``): M = q t (seed 001 eq. 17);

@@ -177,7 +177,7 @@ def cmd_run(a: argparse.Namespace) -> int:
     job = _load_job(a.job, store)
     if not (store.root / "jobs" / f"{job.job_id}.json").exists():
         store.save_package(job.to_json())
-    if job.kind != "prescription_map":  # issue 13: seed 000 / 002 jobs
+    if job.kind != "prescription_map":  # seed 000 / 002 jobs
         from fieldrx_edge.jobkinds.cli import run_kind
 
         return run_kind(a, job, store, _make_sender)
@@ -419,7 +419,7 @@ def cmd_simulate(a: argparse.Namespace) -> int:
 
     # a cached job id works as with `run` (pulled into --state-dir or the default one)
     job = _load_job(a.job, JobStore(a.state_dir) if a.job.isdigit() else None)
-    if job.kind != "prescription_map":  # issue 13: seed 000 / 002 jobs
+    if job.kind != "prescription_map":  # seed 000 / 002 jobs
         from fieldrx_edge.jobkinds.cli import simulate_kind
 
         return simulate_kind(a, job)

@@ -197,7 +197,7 @@ class Pipeline:
         self._reach_m = v * self.look_ahead_time_s() + 0.5
         # with the implement raised (headland turns, transport) nothing is applied: the
         # speed range and the field edge do not matter, and flagging them painted the
-        # fleet marker red at every turn (issue 11 defect 7)
+        # fleet marker red at every turn
         if implement_down and not (job.speed_min_m_s <= v <= job.speed_max_m_s):
             d.alarms.append("speed_out_of_range")
         where = self.boundary.where(lx, ly)

@@ -1,4 +1,4 @@
-"""The typed API contract (issue 15): the OpenAPI document is valid and complete, the
+"""The typed API contract: the OpenAPI document is valid and complete, the
 browser's generated client is current, bodies are strict, errors have one shape, and the
 docs are served from the app itself.
 

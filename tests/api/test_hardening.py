@@ -1,5 +1,5 @@
 """Hostile input against a real API process: each abusive request is refused quickly with a
-clear message while a concurrent health check keeps answering in < 100 ms (ISSUE 20)."""
+clear message while a concurrent health check keeps answering in < 100 ms."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-// Issue 13 in the browser: create a sensor-based topdressing job (seed 000) and a seeding job
+// In the browser: create a sensor-based topdressing job (seed 000) and a seeding job
 // with depth control (seed 002) through their own forms, drive each with
 // `fieldrx-edge simulate --server`, and read the report (Table 3 layout, maps).
 // (The prescription-map kind is created through the UI in scenario.test.mjs.)

@@ -1,4 +1,4 @@
-// Issue 15 scopes 6 and 7 in the browser: the fleet's last-seen / offline state, machine
+// In the browser: the fleet's last-seen / offline state, machine
 // labels and live coverage; route history by day; the main screens at a 10-inch cab tablet's
 // 768 px and a phone's 390 px (map full width, the panel collapses, no control overflows),
 // with screenshots committed to docs/screens/; a form error scrolled into view at 900 px.

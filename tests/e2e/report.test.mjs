@@ -1,4 +1,4 @@
-// Issue 15 scope 6 / issue 18 scope 3 in the browser: the job report's loading state and the
+// In the browser: the job report's loading state and the
 // progress of its background task, the printable as-applied report (print media: field,
 // date, machine, product, totals, map, legend shown; the screen's controls hidden), and the
 // export buttons producing files (inline, and through an export task with progress).

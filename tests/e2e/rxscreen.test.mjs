@@ -1,4 +1,4 @@
-// Issue 15 scope 4 in the browser: the prescription form with typed fields (no JSON), the
+// In the browser: the prescription form with typed fields (no JSON), the
 // version switch showing that version's summary, undo / redo of a rate edit (buttons and
 // Ctrl+Z / Ctrl+Shift+Z), and the diff of two versions. Set-up (field, samples, plan)
 // through the API; everything under test through the UI, checked against the API's figures.
@@ -43,7 +43,7 @@ function samplesCsv() {
 
 const kgText = (kg) => (Math.abs(kg) >= 10_000 ? `${(kg / 1000).toFixed(3)} t` : `${kg.toFixed(1)} kg`);
 
-describe('prescription screen (issue 15 scope 4)', { skip: SKIP }, () => {
+describe('prescription screen', { skip: SKIP }, () => {
   let B;
   let page;
   let token;

@@ -156,7 +156,7 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
     await shot(page, 'import-invalid');
     assert.ok(marked > 0, 'import problem marked on the map');
     const before = Number((await page.textContent('[data-testid=field-count]')).replace(/\D/g, ''));
-    // "Import..." is reachable by keyboard (issue 15): focus it, Enter opens the file chooser.
+    // "Import..." is reachable by keyboard: focus it, Enter opens the file chooser.
     await page.focus('[data-testid=import-button]');
     assert.equal(await page.evaluate(() => document.activeElement?.getAttribute('data-testid')), 'import-button');
     const [chooser] = await Promise.all([page.waitForEvent('filechooser'), page.keyboard.press('Enter')]);
@@ -231,7 +231,7 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
     }
     const areaEdited = await page.textContent('[data-testid=draw-area]');
     assert.ok(parseFloat(areaEdited) > parseFloat(areaHoled), `dragging a vertex grows the area: ${areaHoled} -> ${areaEdited}`);
-    // Undo / redo (issue 15): the button and Ctrl+Z step back through the drag and the hole,
+    // Undo / redo: the button and Ctrl+Z step back through the drag and the hole,
     // Ctrl+Shift+Z and the button step forward again to the edited boundary.
     const areaNow = () => page.textContent('[data-testid=draw-area]');
     await page.click('[data-testid=draw-undo]');
@@ -270,7 +270,7 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
     await page.waitForURL(/#\/plans\/\d+$/, { timeout: scaled(60_000) });
     S.planId = Number(page.url().match(/#\/plans\/(\d+)/)[1]);
     await page.waitForFunction(() => /\d/.test(document.querySelector('[data-testid=plan-cells]')?.textContent ?? ''));
-    // issue 16: the radius reaches the planner; what the rounded ring cannot reach and
+    // the radius reaches the planner; what the rounded ring cannot reach and
     // the headland the turns need are said on the plan, not only in the API
     const stored = (await api(token, 'GET', `/plans/${S.planId}`)).data;
     assert.equal(stored.params.turn_radius_m, 5);
@@ -415,7 +415,7 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
     await mapIdle(page, 'rx');
     await shot(page, 'prescription-edited');
 
-    // Issue 15: the histogram is the server's whole-field, area-weighted one of the version on
+    // the histogram is the server's whole-field, area-weighted one of the version on
     // screen: the same at any zoom, and switching versions shows that version's figures.
     const histOf = () => page.locator('[data-testid=rx-histogram] title').allTextContents();
     const haOf = (titles) => titles.map((t) => Number(t.match(/: ([\d.]+) ha$/)?.[1]));

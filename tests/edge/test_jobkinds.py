@@ -1,4 +1,4 @@
-"""Issue 13 on the tractor: kind settings (papers' defaults, unit-checked), sensor line
+"""On the tractor: kind settings (papers' defaults, unit-checked), sensor line
 formats, the hold-then-stop guard on bad sensor input, the package's kind fields, the
 optional telemetry fields, and `fieldrx-edge run` of a cached sensor job from files."""
 
@@ -269,7 +269,7 @@ def test_simulation_paced_for_the_live_view() -> None:
     assert len(got) == out["records"]
     assert wall >= 0.9 * out["duration_s"] / 400.0  # paced, not as fast as possible
     ts = np.array([r["t"] for r in got])
-    # a record's time is its fix time (issue 11): fixes stay 1 / hz apart in record time,
+    # a record's time is its fix time: fixes stay 1 / hz apart in record time,
     # paced or not (wall-clock stamps were 1 / 400 of that), and none is stamped in the future
     assert np.all(np.diff(ts) > 0)
     assert np.allclose(np.diff(ts), 0.1, atol=2e-3)

@@ -296,7 +296,7 @@ def test_edge_cli_mqtt_logs_in_with_its_device_token(tmp_path):
         srv.stop()
 
 
-# issue 11 (streams) and issue 20 (nothing the protocol forbids is queued) ------------------
+# (streams) and (nothing the protocol forbids is queued) ------------------
 
 
 def test_queue_never_holds_a_record_the_protocol_forbids(tmp_path):

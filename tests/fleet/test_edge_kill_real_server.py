@@ -1,4 +1,4 @@
-"""Issue 6 acceptance against the REAL server: SIGKILL the agent mid-run while the FieldRx API
+"""The acceptance test against the REAL server: SIGKILL the agent mid-run while the FieldRx API
 is unreachable, restart it, bring the API back, and find every record stored exactly once."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The ingest processes' cyclic GC settings (fleet.gc_policy, issue 18).
+"""The ingest processes' cyclic GC settings (fleet.gc_policy).
 
 Run in a fresh interpreter: the settings are process-wide and ``gc.freeze`` is once per
 process, so the test process's own state would say nothing."""

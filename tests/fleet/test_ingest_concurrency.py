@@ -1,5 +1,5 @@
 """Two batches of one machine's stream waiting on its ingest lock at once (two MQTT
-workers, or two lanes of one: issue 18) must each see what the other committed.
+workers, or two lanes of one) must each see what the other committed.
 
 The lock was taken inside the statement that also read the stream's state; PostgreSQL
 (READ COMMITTED) takes a statement's snapshot when it starts, i.e. before the lock wait,

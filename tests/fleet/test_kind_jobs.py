@@ -1,4 +1,4 @@
-"""Issue 13: sensor-based topdressing (seed 000) and depth-controlled seeding (seed 002) as
+"""Sensor-based topdressing (seed 000) and depth-controlled seeding (seed 002) as
 jobs, end to end: created through the API with the papers' defaults, downloaded with a
 device token, driven by `fieldrx-edge simulate --server`, and the report checked against the
 simulator's own figures (within 0.5 %)."""
@@ -129,7 +129,7 @@ def test_seeding_depth_job_end_to_end(database_url, org, tmp_path: Path, fault: 
         if "Traceback" in log:
             print(log[-4000:])
     assert rep["n_records"] == sim["records"]
-    # progress counts the cells the drill worked in (it reports no fertilizer rate: issue 13,
+    # progress counts the cells the drill worked in (it reports no fertilizer rate:
     # progress stayed at 0 %), the share of the plan's cells the simulator drove
     assert done["state"] == "completed"
     assert done["cells_applied"] == sim["cells_worked"] >= 0.8 * plan["n_cells"]

@@ -90,7 +90,7 @@ def test_killed_worker_with_persistent_session_loses_nothing(
     org,
     n_workers: int,  # noqa: ANN001
 ) -> None:
-    """Issue 20 item 6: SIGKILL a worker mid-stream while a publisher that never
+    """SIGKILL a worker mid-stream while a publisher that never
     retransmits keeps going; the restarted worker takes the same slot, so the same broker
     session, and gets every unacknowledged and queued message. With two workers the dead
     member's share (the shared subscription keeps assigning it messages) arrives as soon

@@ -1,4 +1,4 @@
-"""Issue 11 defect 7: fleet status describes the present; alerts are grouped.
+"""Fleet status describes the present; alerts are grouped.
 
 * a machine that stops reporting becomes "offline" after the heartbeat timeout, pushed on
   the live socket by the API process itself (no MQTT worker, no GET), and the alerts its

@@ -1,4 +1,4 @@
-"""Issue 18 scale-out, the part that runs on one machine: two API processes and three MQTT
+""" scale-out, the part that runs on one machine: two API processes and three MQTT
 ingest workers on one database, agents over HTTP (behind a fail-over "load balancer")
 and over MQTT; one API process and one worker are SIGKILLed mid-load. Every record is
 stored exactly once: the agents resend what was not acknowledged, ingest deduplicates

@@ -1,4 +1,4 @@
-"""Issue 7 / issue 12 acceptance: a job driven by `fieldrx-edge simulate --server` is reported
+"""The acceptance test: a job driven by `fieldrx-edge simulate --server` is reported
 per cell as the simulator itself reports it (seed 001 eq. 16-18).
 
 Both sides compute with the one as-applied kernel (``fieldrx_edge.asapplied``): the

@@ -1,4 +1,4 @@
-"""Issue 11: telemetry streams and fix-time records, end to end.
+"""Telemetry streams and fix-time records, end to end.
 
 * defect 1: a machine whose agent queue starts over (no --state-dir, a wiped
   queue, a second tablet with the same device token, a restored copy) loses
@@ -101,7 +101,7 @@ def test_two_simulations_without_state_dir_store_both_jobs(
     db,
     tmp_path: Path,  # noqa: ANN001
 ) -> None:
-    """Issue 11 defect 1 (a): the second run's queue numbers from 1 again; it used to be
+    """ (a): the second run's queue numbers from 1 again; it used to be
     acknowledged, stored nothing, and its job completed with 0 records."""
     c = httpx.Client(base_url=api_url, headers=org.headers(), timeout=scaled(60))
     token, (j1, j2) = _plan_jobs(c, 2)
@@ -134,7 +134,7 @@ def test_paced_and_unpaced_simulations_report_the_same(
     org,
     tmp_path: Path,  # noqa: ANN001
 ) -> None:
-    """Issue 11 defect 2 (b): paced, the simulator stamped wall-clock times 1/realtime of the
+    """ (b): paced, the simulator stamped wall-clock times 1/realtime of the
     GNSS period apart and the report integrated 1/realtime of the mass."""
     c = httpx.Client(base_url=api_url, headers=org.headers(), timeout=scaled(60))
     token, (j1, j2) = _plan_jobs(c, 2)

@@ -1,4 +1,4 @@
-"""Issue 18 scope 2: uplink profile ``thin`` (1 Hz track + one record per cell left).
+"""Uplink profile ``thin`` (1 Hz track + one record per cell left).
 
 The same job driven twice by ``fieldrx-edge simulate --server`` (same seed, so the same
 drive, shaft speeds and log), once with every fix (full) and once thin, by two machines

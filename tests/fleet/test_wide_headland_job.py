@@ -1,4 +1,4 @@
-"""Issue 11 defect 3, end to end: a 12 m spreader on a server-planned 12 m plan with one
+"""End to end: a 12 m spreader on a server-planned 12 m plan with one
 headland pass, driven by ``fieldrx-edge simulate --server`` against a real API process.
 
 On a ~97.5 m x 192 m field the first inner swath overlaps the headland ring by more than

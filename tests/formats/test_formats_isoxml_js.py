@@ -1,4 +1,4 @@
-"""Issue 19 acceptance: exports read by isoxml-js (npm ``isoxml``, dev4Agriculture), a second
+"""The acceptance test: exports read by isoxml-js (npm ``isoxml``, dev4Agriculture), a second
 independent ISOXML reader besides isoxml-py, with the whole area and the same rates.
 
 ``js/read_taskdata.js`` parses the TASKDATA zip with isoxml-js and prints the grid cells

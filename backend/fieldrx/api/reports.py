@@ -99,7 +99,7 @@ def _queue_report(session: SessionDep, principal: Any, job: Job) -> Any:
 
 def _prescription_job(job: Job) -> None:
     """The per-cell as-applied views are seed 001's (prescribed vs applied rate); a sensor
-    job (issue 13) has its own report."""
+    job has its own report."""
     if job.kind != "prescription_map":
         raise ApiError(
             409,

@@ -85,11 +85,11 @@ COPY_SQL = TELEMETRY_COPY.sql()
 
 _PG_EPOCH_DT = dt.datetime(2000, 1, 1, tzinfo=dt.UTC)
 # a record time this far ahead of the server clock is a clock error: stored, it would
-# become the machine's latest state until real time caught up (issue 20)
+# become the machine's latest state until real time caught up
 FUTURE_TOLERANCE_S = 300.0
 CONCURRENT_WINDOW_S = 60.0  # two streams both sending within this: a duplicate_stream alert
 # job kinds whose progress counts the cells the implement worked in, not the cells that got
-# a positive applied rate (seed 000 topdressing, seed 002 seeding; issue 13): see ``_cells``
+# a positive applied rate (seed 000 topdressing, seed 002 seeding): see ``_cells``
 PROGRESS_BY_WORK = ("ndvi_topdress", "seeding_depth")
 INT4_MAX = 2**31 - 1
 INT8_MAX = 2**63 - 1
@@ -249,7 +249,7 @@ def _fast_row(d: Any, machine_id: int, t_max: float, stream: str) -> TelemetryRo
     """
     if type(d) is not dict:
         return None
-    # n keys, all n fields present: exactly the fields (no subset test: issue 18)
+    # n keys, all n fields present: exactly the fields (no subset test)
     n = len(d)
     try:
         if n == _N_FIELDS:
@@ -643,7 +643,7 @@ class TrackWork:
                     info.open_alerts,
                 )
             )
-        if any(r.depth_mm is not None for r in new):  # seeding job (issue 13)
+        if any(r.depth_mm is not None for r in new):  # seeding job
             from fieldrx.fleet.seed_alerts import check_depth_window
 
             messages.extend(
@@ -968,7 +968,7 @@ def _position(org: int, r: TelemetryRow, result: IngestResult) -> dict[str, Any]
         "cell_seq": r.cell_seq,
         "target_rate_kg_ha": r.target_rate_kg_ha,
         "applied_rate_kg_ha": r.applied_rate_kg_ha,
-        "ndvi": r.ndvi,  # sensor jobs (issue 13): the fleet view shows the kind's own figure
+        "ndvi": r.ndvi,  # sensor jobs: the fleet view shows the kind's own figure
         "depth_mm": r.depth_mm,
         "implement_down": r.implement_down,
         "alarms": r.alarms,
@@ -990,7 +990,7 @@ def _cells(
     applied rate; a sensor kind (``PROGRESS_BY_WORK``: seed 000 topdressing,
     seed 002 seeding) once the implement has worked in it, i.e. its first
     implement-down record -- a seeding job reports no fertilizer rate at all
-    and stayed at 0 % (issue 13), and a topdressing cell whose sensor said
+    and stayed at 0 %, and a topdressing cell whose sensor said
     "no fertilizer" has still been driven. One statement per batch: both counts
     are taken per job and the job's kind picks one.
     """

@@ -19,7 +19,7 @@ simulator uses the same functions, so the two agree to rounding):
 
 Coverage = cells that received fertilizer / cells with a planned rate > 0.
 
-A job run with uplink profile ``thin`` (issue 18) has no 10 Hz records here:
+A job run with uplink profile ``thin`` has no 10 Hz records here:
 its tractor ran the same kernel over its own log and sent one record per cell
 (``fleet.cellrecords``, ``fieldrx_edge.uplink.thin``). Its report sums those
 per cell (M2, fixes, worked time, mean rates, first/last fix) instead of
@@ -127,7 +127,7 @@ def _rings(poly: Any) -> list[list[float]]:
 
 
 def job_plan(session: Session, job: Job) -> Plan:
-    if job.plan_id is not None:  # sensor kinds (issue 13) drive a plan directly
+    if job.plan_id is not None:  # sensor kinds drive a plan directly
         plan = session.get(Plan, job.plan_id)
         assert plan is not None
         return plan

@@ -86,7 +86,7 @@ def beside_line_cells(polys: Any, c: np.ndarray, shaped: np.ndarray) -> np.ndarr
     Tractor, simulator and report put the metered mass at a point on the driving
     line (seed 001 sec. 2.3, eq. 16) and look that point up in the cells. A swath
     that overlaps the headland ring by more than half the implement width (the last
-    inner swath when the inner width is not a multiple of it: issue 11, 12 m on a
+    inner swath when the inner width is not a multiple of it: 12 m on a
     ~100 m field) has cells whose polygon is only the strip beside the line: the
     point is then always in the (finished) ring cell and the swath was never metered.
     Driving that line with the implement down is the only way to cover the strip,

@@ -173,7 +173,7 @@ class Cells:
     cell_length_m: float = float("nan")
     swath_width_m: float = float("nan")
     # field area no cell covers (thin peninsulas the headland offsets cannot reach,
-    # wedges where a swath stops at a hole or notch): reported, never hidden (issue 16)
+    # wedges where a swath stops at a hole or notch): reported, never hidden
     uncovered_m2: float = 0.0
     timings_s: dict[str, float] = field(default_factory=dict)
 

@@ -1,6 +1,6 @@
 """Shortest non-working paths inside the field (weighted visibility graph).
 
-Connections between swaths must stay inside the field and never cross a hole (issue 3;
+Connections between swaths must stay inside the field and never cross a hole (
 Fields2Cover's Dubins turns leave small plots and cross ponds). A shortest path inside
 a polygon with holes runs straight or bends only at boundary vertices, so a visibility
 graph over the vertices of the field (shrunk by a small clearance) gives exact shortest

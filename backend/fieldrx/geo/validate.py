@@ -1,6 +1,6 @@
 """Field boundary validation: a clean MultiPolygon from GeoJSON, or precisely why not.
 
-Checks (issue 2): type, distinct vertices per ring, coordinate range and
+Checks: type, distinct vertices per ring, coordinate range and
 swapped lat/lon order, vertex count, self-intersection with its location,
 area between 100 m^2 and 10,000 ha. Area is geodesic (pyproj ``Geod`` on
 WGS84), never in degrees. Orientation is normalised to RFC 7946 (exterior
@@ -59,7 +59,7 @@ def geodesic_area_m2(geom: Polygon | MultiPolygon) -> float:
 
     ``Geod.geometry_area_perimeter`` sums the rings' *signed* areas, assuming
     RFC 7946 winding (exterior counter-clockwise, holes clockwise): a hole wound
-    like its exterior was added instead of subtracted (issue 11, defect 5). Each
+    like its exterior was added instead of subtracted (defect 5). Each
     ring's magnitude is taken on its own instead.
     """
     polys = list(geom.geoms) if isinstance(geom, MultiPolygon) else [geom]

@@ -77,7 +77,7 @@ def build_package(
 
 
 def build_kind_package(session: Session, job: Job, machine: Machine) -> JobPackage:
-    """Sealed JobPackage of a sensor-kind job (issue 13): the plan's cells in path order
+    """Sealed JobPackage of a sensor-kind job: the plan's cells in path order
     (the path the tractor drives; rates 0, the sensors decide them), the field boundary,
     and the kind with its validated settings."""
     from fieldrx.formats.jobpackage import build_job_package as build

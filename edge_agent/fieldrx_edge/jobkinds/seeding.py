@@ -85,7 +85,7 @@ every band of every drive, drives 0-7). Why, from the paper's own numbers:
   bench/control.py finds the tuned factors ahead and Table 2's behind on overshoot.
 * The e universe in units other than mm (0.1 mm, mV) is not what the paper writes; an
   earlier grid of factors (k_e 0.03-1, k_ec 0.1-1, k_dkp 0.3-6, k_dkd 0-0.5; first pass of
-  issue 13, 5 mV noise) moved the SD by under 2 %.
+  5 mV noise) moved the SD by under 2 %.
 """
 
 from __future__ import annotations

@@ -383,7 +383,7 @@ def simulate(
     # now (as fast as possible) or when the paced run will end. Paced at `realtime` x,
     # fixes 0.1 s apart in simulated time go out 0.1 / realtime s apart in wall time, yet
     # stay 0.1 s apart in record time, and no record is stamped after the moment it is
-    # sent. (Stamping the wall clock made the report 1 / realtime too low: issue 11.)
+    # sent. (Stamping the wall clock made the report 1 / realtime too low.)
     pace = cfg.realtime
     wall_start = time.time()
     tbase = t0 if t0 is not None else wall_start + (t_end / pace if pace > 0 else 0.0) - t_end

@@ -10,7 +10,7 @@ Uplink profile ``thin`` has two queues (the 1 Hz track and the cell records,
 ``fieldrx_edge.uplink.thin``), each on its own stream: ``extra_queues`` are
 sent with the main one, each trimmed by its own acks. When more than one queue has
 records pending, their batches go in one request (``protocol.MULTI_KIND``): the
-server checks the token once and answers one ack per batch (issue 18: the thin
+server checks the token once and answers one ack per batch (the thin
 profile's server cost per machine-hour).
 """
 

@@ -2,7 +2,7 @@
 
 A machine at 10 Hz sends 36,000 records an hour; the server stores, indexes and
 reads each of them back for the report. With the thin profile the tractor sends
-what the report needs instead (issue 18):
+what the report needs instead:
 
 * the track, one telemetry record per ``track_period_s`` (1 s): position, speed,
   rates, alarms for the live view, the alerts and the job map's track. These

@@ -78,7 +78,7 @@ def calibration_kind(value: Any) -> Any:
 class MachineIn(In):
     name: str = Field(min_length=1, max_length=200)
     implement_type: str = Field(default="spreader", max_length=50)
-    # >= 5 cm: a narrower "implement" only makes rate = flow / (w v) overflow (ISSUE 20)
+    # >= 5 cm: a narrower "implement" only makes rate = flow / (w v) overflow
     width_m: float = Field(ge=0.05, le=60, description="working width, m")
     lag_s: float = Field(ge=0, le=30, description="application lag T_lag, s (seed 001: 1.52)")
     calibration: CalibrationIn = Field(

@@ -141,7 +141,7 @@ def drivable_centre(poly: Polygon, r: float, convex_r: float | None = None) -> B
     inside the polygon, and where the polygon has a neck narrower than 2 r (the ring
     between a pond and the field edge) the erosion's two tips on either side of the
     neck are less than 2 r apart, so their discs overlap and the two circles cross at a
-    sharp reflex corner (issue 16: a 142 degree kink, circumradius 0.15 m, in
+    sharp reflex corner (a 142 degree kink, circumradius 0.15 m, in
     tests/geo/ring_kink_field.wkt). The closing rolls an r-disc into that wedge and
     replaces the corner with a concave arc of radius r, tangent to both circles, and
     leaves the bites' arcs (radius 1.02 r) and every other r-smooth stretch alone. Only
@@ -437,7 +437,7 @@ def inner_region(
 ) -> tuple[BaseGeometry, int]:
     """The area left for inner swaths inside ``h`` headland passes, and the passes used.
 
-    Narrow fields get a plan instead of an error (issue 16): a field narrower than the
+    Narrow fields get a plan instead of an error: a field narrower than the
     implement is covered by one pass; passes that leave no inner area give a
     headland-only plan; a field too narrow for even one headland ring gets one pass.
     Each adjustment is a warning in the plan.

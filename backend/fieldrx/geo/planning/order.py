@@ -334,7 +334,7 @@ def block_sequences(
     pattern: str,
 ) -> list[list[int]]:
     """Each block's swath sequence: boustrophedon, skip-row, or (``auto``) the one whose
-    turns take less time with this machine (issue 16: the objective picks the pattern)."""
+    turns take less time with this machine (the objective picks the pattern)."""
     if pattern == "boustrophedon":
         return blocks
     s = max(2, math.ceil(2.0 * m.turn_radius_m / w - 1e-9))

@@ -1,4 +1,4 @@
-"""The coverage planner: a short chain of the stages in this package (issue 16).
+"""The coverage planner: a short chain of the stages in this package.
 
 boundary (clean, report changes) -> headland (rings rounded to the turning radius, the
 inner region less what they sweep) -> headings (the driving direction) -> swaths +

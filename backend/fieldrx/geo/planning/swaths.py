@@ -30,7 +30,7 @@ from .boundary import parts
 
 N_EPS = 1e-9  # tolerance on H / w when counting strips
 STRIP_TOLERANCE_FRACTION = 0.01  # uncovered strip not worth a swath: 1 % of w ...
-STRIP_TOLERANCE_MAX_M = 0.05  # ... and never more than 5 cm (issue 16)
+STRIP_TOLERANCE_MAX_M = 0.05  # ... and never more than 5 cm
 MAX_SWATHS = 200_000
 
 

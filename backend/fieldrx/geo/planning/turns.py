@@ -1,4 +1,4 @@
-"""Stage: drivable turns between swaths and drivable transfers (issue 16).
+"""Stage: drivable turns between swaths and drivable transfers.
 
 The old route joined the end of one swath to the start of the next by a straight segment
 (a 2.3 m sideways jump no tractor can drive). Here every connection is a path whose
@@ -365,7 +365,7 @@ def connect(
     # a turn's driving line never enters a hole (its implement may overhang the edge),
     # and with a headland wide enough for the turns it stays in the field: a turn
     # between staggered swath ends can cut across a notch of the boundary however
-    # close to the region it stays (issue 16), and is then driven as a transfer
+    # close to the region it stays, and is then driven as a transfer
     strict = _Env(env.holes_full, None if outside_ok else env.field_ok)
     ok = _acceptable([c.line for c in cons], strict, is_turn)
     for k in np.flatnonzero(~ok & is_turn).tolist():
