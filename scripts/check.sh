@@ -2,6 +2,7 @@
 # The checks that keep the code easy to change, quick enough for the edit loop
 # (`make check`; also the first step of `make test`):
 #   ruff     lint, McCabe complexity <= 15, at most 8 arguments (ruff.toml)
+#   ticket   comments say why, not which issue of a tracker (which is not in the repository)
 #   mypy     zero errors in backend/ and edge_agent/, strict on the pure packages (mypy.ini)
 # Usage: scripts/check.sh [--static]   (--static: without the unit tests of pure modules)
 set -uo pipefail
@@ -13,6 +14,14 @@ step() { printf '\n\033[1;34m== %s ==\033[0m\n' "$1"; }
 
 step "ruff (lint, complexity, argument count)"
 ruff check backend edge_agent tests bench || FAILED+=(ruff)
+
+step "comments say why, not which ticket"
+# "issue N", "Issue #N", "issues N and M" in any tracked source, comment or docstring
+if git grep -nIiE '\bissues? #?[0-9]+' -- backend edge_agent tests bench scripts frontend/src \
+    migrations deploy Makefile; then
+  echo 'The lines above cite a tracker issue; say why instead (the tracker is not in the repository).'
+  FAILED+=(ticket-comments)
+fi
 
 step "mypy (mypy.ini)"
 mypy --no-error-summary || FAILED+=(mypy)
