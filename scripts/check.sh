@@ -3,6 +3,7 @@
 # (`make check`; also the first step of `make test`):
 #   ruff     lint, McCabe complexity <= 15, at most 8 arguments (ruff.toml)
 #   ticket   comments say why, not which issue of a tracker (which is not in the repository)
+#   vulture  no dead code (framework entry points listed in vulture_whitelist.py)
 #   mypy     zero errors in backend/ and edge_agent/, strict on the pure packages (mypy.ini)
 # Usage: scripts/check.sh [--static]   (--static: without the unit tests of pure modules)
 set -uo pipefail
@@ -21,6 +22,18 @@ if git grep -nIiE '\bissues? #?[0-9]+' -- backend edge_agent tests bench scripts
     migrations deploy Makefile; then
   echo 'The lines above cite a tracker issue; say why instead (the tracker is not in the repository).'
   FAILED+=(ticket-comments)
+fi
+
+step "vulture (dead code)"
+# tests and benches count as users of what they call; only shipped code is reported.
+# Route handlers, validators and fixtures are called by their framework's decorator.
+DECORATORS="@router.*,@app.*,@*.validator,@field_validator,@model_validator,@field_serializer"
+DECORATORS+=",@model_serializer,@computed_field,@*.on_event,@*.exception_handler,@*.middleware"
+DECORATORS+=",@*.task,@*.periodic,@*.listens_for,@validates,@*.setter,@pytest.fixture"
+if vulture backend/fieldrx edge_agent/fieldrx_edge tests bench vulture_whitelist.py \
+    --min-confidence 60 --ignore-decorators "$DECORATORS" | grep -E '^(backend|edge_agent)/'; then
+  echo 'Dead code above: delete it (or, for a framework entry point, list it in vulture_whitelist.py).'
+  FAILED+=(vulture)
 fi
 
 step "mypy (mypy.ini)"

@@ -178,17 +178,9 @@ class CellLocator:
         """Cells whose bounding box touches the grid-hash bucket of (x, y)."""
         return self.grid.candidates(x, y)
 
-    def is_shaped(self, k: int) -> bool:
-        """Does cell k carry its real shape (else it is its rectangle)?"""
-        return self._shapes[k] is not None
-
     def shaped_mask(self) -> np.ndarray:
         """Per cell: does it carry its real shape?"""
         return np.array([sh is not None for sh in self._shapes], dtype=bool)
-
-    def near_shaped(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-        """Per point: is a shaped cell among its grid-hash candidates (needs the exact test)?"""
-        return self.grid.bucket_flags(self.shaped_mask(), x, y)
 
     def contains(self, k: int, x: float, y: float) -> bool:
         """Is (x, y) in cell k (its shape if it has one, else its rectangle)?"""

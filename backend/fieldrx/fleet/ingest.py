@@ -223,11 +223,6 @@ def _batch_of(obj: Any) -> Batch:
     return Batch(obj["records"], stream, start, True, kind)
 
 
-def parse_body(body: bytes | str) -> list[Any]:
-    """The records of a batch (``parse_batch``)."""
-    return parse_batch(body).records
-
-
 _GET_ALL = operator.itemgetter(*TELEMETRY_FIELDS)
 _GET_V1 = operator.itemgetter(*TELEMETRY_FIELDS[:-1])  # format 1: no fix_period_s
 _N_FIELDS = len(TELEMETRY_FIELDS)
@@ -1113,9 +1108,3 @@ def job_messages(machine_id: int, org: int, moved: Iterable[Any]) -> list[dict[s
         }
         for jid, state, applied, n in moved
     ]
-
-
-def raw_copy(conn: psycopg.Connection[Any], rows: list[TelemetryRow]) -> None:
-    """Plain COPY BINARY of prepared rows into ``telemetry``: the benchmark's baseline."""
-    with conn.transaction(), conn.cursor() as cur:
-        TELEMETRY_COPY.write_rows(cur, rows)

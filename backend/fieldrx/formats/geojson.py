@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 from typing import Any
 
 import numpy as np
@@ -12,17 +11,6 @@ from fieldrx.formats import FormatError
 from fieldrx.geo.cells import GEOJSON_DECIMALS, Column
 
 COORD_DECIMALS = GEOJSON_DECIMALS
-
-
-def prescription_geojson(
-    cells: CellTable, properties: dict[str, Any] | None = None
-) -> dict[str, Any]:
-    """FeatureCollection of the clipped cells with seq, swath, rate_kg_ha, unit, flag, area.
-
-    ``properties`` (e.g. prescription id, version, model) go on the collection
-    as a foreign member ``properties`` that GeoJSON readers ignore.
-    """
-    return json.loads(write_geojson(cells, properties))
 
 
 def write_geojson(cells: CellTable, properties: dict[str, Any] | None = None) -> bytes:

@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import gzip
 import json
-from dataclasses import asdict
 from typing import Any, TypedDict
 
 import numpy as np
@@ -248,7 +247,3 @@ def package_etag(pkg: JobPackage) -> str:
     if not pkg.checksum:
         pkg.seal()
     return f'"{pkg.checksum}"'
-
-
-def package_dict(pkg: JobPackage) -> dict[str, Any]:
-    return asdict(pkg)

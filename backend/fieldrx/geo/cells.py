@@ -244,10 +244,6 @@ class Cells:
                 raise ValueError(f"Cells: {len(v)} rows of {name} for {len(self)} cells")
             self._views[name] = v
 
-    def drive_lines(self) -> tuple[np.ndarray, np.ndarray]:
-        """(rear, front) ends of every cell's driving line (``cut_edge_midpoints``)."""
-        return cut_edge_midpoints(self.corners_utm)
-
     @property
     def total_area_m2(self) -> float:
         return float(self.area_m2.sum())

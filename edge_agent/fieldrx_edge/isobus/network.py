@@ -720,12 +720,6 @@ class Node:
 
     # -- helpers for tests and the bench --------------------------------------------
 
-    def address_of(self, name: Name) -> int | None:
-        for a, n in self.peers.items():
-            if n == name:
-                return a
-        return None
-
 
 def pump(nodes: list[Node], max_rounds: int = 10_000) -> int:
     """Poll nodes (non-blocking) until no frame moves: a deterministic exchange on a

@@ -37,20 +37,6 @@ _EPS = 1e-9  # metres: ties at band edges are resolved towards the smaller bound
 _CHAIN_STEPS = 12  # vertices followed from a spike tip before giving the tip up
 
 
-def extent_lower_bounds(parts: list[Polygon], w: float, phis: np.ndarray, tol: float) -> np.ndarray:
-    """Swath-count lower bound for many angles at once: every strip of a part holds at
-    least one swath, so sum over parts of ``n_strips(width across phi)`` (one matrix
-    product over the hull vertices; ~100x cheaper than one layout)."""
-    lb = np.zeros(len(phis), dtype=np.int64)
-    nrm = np.stack([-np.sin(phis), np.cos(phis)])
-    for p in parts:
-        hull = np.asarray(p.convex_hull.exterior.coords)
-        y = hull @ nrm
-        ext = y.max(axis=0) - y.min(axis=0)
-        lb += np.maximum(1, np.ceil((ext - tol) / w - N_EPS)).astype(np.int64)
-    return lb
-
-
 @dataclass(frozen=True)
 class _Vertices:
     """The vertices of one part (all rings, interior on the left), relative to its centroid."""
