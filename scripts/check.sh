@@ -30,8 +30,10 @@ step "vulture (dead code)"
 DECORATORS="@router.*,@app.*,@*.validator,@field_validator,@model_validator,@field_serializer"
 DECORATORS+=",@model_serializer,@computed_field,@*.on_event,@*.exception_handler,@*.middleware"
 DECORATORS+=",@*.task,@*.periodic,@*.listens_for,@validates,@*.setter,@pytest.fixture"
-if vulture backend/fieldrx edge_agent/fieldrx_edge tests bench vulture_whitelist.py \
-    --min-confidence 60 --ignore-decorators "$DECORATORS" | grep -E '^(backend|edge_agent)/'; then
+# (vulture's own exit status also counts findings in tests/ and bench/: the grep decides)
+if { vulture backend/fieldrx edge_agent/fieldrx_edge tests bench vulture_whitelist.py \
+    --min-confidence 60 --ignore-decorators "$DECORATORS" || true; } \
+    | grep -E '^(backend|edge_agent)/'; then
   echo 'Dead code above: delete it (or, for a framework entry point, list it in vulture_whitelist.py).'
   FAILED+=(vulture)
 fi
