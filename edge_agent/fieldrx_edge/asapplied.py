@@ -25,7 +25,7 @@ report and the job map's tiles cannot drift apart:
   straight on at a swath's ends) inside the cell's polygon; one definition for
   rectangles and real shapes (``driven_length``; a whole rectangle gives its
   length);
-* M1 = M v t l / 36 g with v t the driven length (SCIENCE.md erratum: grams),
+* M1 = M v t l / 36 g with v t the driven length (docs/science.md erratum: grams),
   i.e. rate * width * length / 10 (``m1_g``); theta = (1 - |M1 - M2| / M1) *
   100 % (eq. 18, ``theta_pct``).
 """

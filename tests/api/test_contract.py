@@ -236,7 +236,7 @@ def test_docs_are_served_from_the_app(client) -> None:  # noqa: ANN001
 
 
 def test_first_call_guide_works(client, org) -> None:  # noqa: ANN001
-    """The README's / OpenAPI description's first call, step by step, with a token made
+    """The docs' (docs/api.md) / OpenAPI description's first call, step by step, with a token made
     without a role: field, plan, prescription, ISOXML."""
     r = client.post(f"{API}/auth/tokens", headers=org.headers("agronomist"), json={"name": "s"})
     h = {"Authorization": f"Bearer {r.json()['token']}"}

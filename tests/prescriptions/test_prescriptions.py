@@ -20,7 +20,7 @@ def _machine(client, headers) -> int:
 
 
 def test_worked_example_nutrient_balance(client, org) -> None:
-    """SCIENCE.md: M 2500, n 100, x 0.25 -> about 700.4 kg/ha in every cell."""
+    """docs/science.md: M 2500, n 100, x 0.25 -> about 700.4 kg/ha in every cell."""
     h = org.headers()
     plan = setup_plan(client, h, samples_csv([100.0]))
     rx = make_rx(

@@ -37,7 +37,7 @@ class RateModelError(ValueError):
 def soil_correction_coefficient(n_mg_kg: np.ndarray | float) -> np.ndarray:
     """Seed 001 eq. 20: d = (5.57 + 3226.05 / n) / 100, clamped to [0, 1].
 
-    Erratum (SCIENCE.md): d exceeds 100 % for n < 34.2 mg/kg; a soil cannot
+    Erratum (docs/science.md): d exceeds 100 % for n < 34.2 mg/kg; a soil cannot
     supply more than all of its available N, so d is clamped to 1. n <= 0 gives
     d = 1 (the limit), never a division error.
     """
@@ -54,7 +54,7 @@ def nutrient_balance_rate(
     e_kg_per_100kg: float = DEFAULT_E_KG_PER_100KG,
     k_utilisation: float = DEFAULT_K_UTILISATION,
 ) -> np.ndarray:
-    """Seed 001 eq. 19-21 (corrected in SCIENCE.md): product rate in kg/ha.
+    """Seed 001 eq. 19-21 (corrected in docs/science.md): product rate in kg/ha.
 
         F = (e * M / 100 - 2.25 * d * n) / (k * x),  d = min(1, (5.57 + 3226.05/n)/100)
 

@@ -1,7 +1,8 @@
 """Database bootstrap: create the database, PostGIS and pg_partman if missing, then migrate.
 
 Neither PostGIS nor pg_partman is a trusted extension, so they are created by a
-superuser connection (shared/STACK.md); migrations then run as the application user.
+superuser connection (docs/architecture.md, "Stack notes"); migrations then run as the
+application user.
 """
 
 from __future__ import annotations

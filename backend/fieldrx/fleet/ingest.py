@@ -14,7 +14,7 @@ the machine's legacy stream ''. One batch is one transaction:
    batches of the same machine (two MQTT workers, a retry racing the
    original, two agents), so the stream's stored seqs can be read once and
    the new rows COPied straight into ``telemetry`` with COPY BINARY (EWKB
-   points), the fastest path measured here (shared/STACK.md). ``telemetry``
+   points), the fastest path measured here (docs/architecture.md, "Stack notes"). ``telemetry``
    is partitioned by day (``fleet.partitions``): the records' days are made
    first if missing, and the seq lookups name a time range so they read only
    the stream's days: none at all for a batch above the stream's highest

@@ -4,7 +4,7 @@ Per cell (path order, planned rate M in kg/ha) the figures come from the one
 as-applied kernel, ``fieldrx_edge.asapplied`` (seed 001 eq. 16-18; the edge
 simulator uses the same functions, so the two agree to rounding):
 
-* theoretical mass M1 = M * l * d / 10 g (eq. 17, SCIENCE.md erratum: grams),
+* theoretical mass M1 = M * l * d / 10 g (eq. 17, docs/science.md erratum: grams),
   l the implement width, d the cell's driving line inside the cell's polygon and
   the field (``asapplied.driven_length``);
 * applied mass M2: each record's fix period meters flow(actual shaft speed)

@@ -1,4 +1,4 @@
-"""WGS84 <-> UTM conversion: all FieldRx geometry work happens in metres (DESIGN.md)."""
+"""WGS84 <-> UTM conversion: all FieldRx geometry work happens in metres (docs/architecture.md)."""
 
 from __future__ import annotations
 

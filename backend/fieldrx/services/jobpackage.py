@@ -1,4 +1,5 @@
-"""Job package from the database: a prescription version bound to a machine (DESIGN.md step 5).
+"""Job package from the database: a prescription version bound to a machine
+(docs/architecture.md, data flow step 5).
 
 For the fleet helper's ``/api/v1/device/jobs/{id}/package``: call
 

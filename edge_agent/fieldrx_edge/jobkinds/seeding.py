@@ -27,7 +27,7 @@ Disturbance model (the depth the opener would give without control, along the pa
   publishes no soil profile or spectrum: these magnitudes are ours, not measured.
 * Sensor: the tilt sensor's 0.1 deg accuracy (LVT525H, Table 1: -90..90 deg as 0-5 V) is
   2.78 mV, taken as white noise of that sigma at 100 Hz: 0.18 mm through eq. 13 (it was an
-  unsourced 5 mV, 0.33 mm). Eq. 13's range maps to 99.5 .. -12.8 mm (erratum, SCIENCE.md).
+  unsourced 5 mV, 0.33 mm). Eq. 13's range maps to 99.5 .. -12.8 mm (erratum, docs/science.md).
 
 What is measured. GB/T 20865 and the paper (sec. 4.4.2) dig the seeds out after sowing and
 measure them with a ruler: true seed depth. The server's report can only use the sensor's

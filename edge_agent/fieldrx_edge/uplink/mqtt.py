@@ -3,8 +3,8 @@
 The broker's PUBACK only says the broker has the message; the queue is trimmed
 only when the FieldRx server publishes its ``TelemetryAck`` (acked_seq). The
 number of unacknowledged batches is capped well below paho's 65535 message
-ids (STACK.md: publish fails with ERR_QUEUE_SIZE otherwise). If no ack arrives
-for ``ack_timeout_s``, everything after acked_seq is sent again: the server
+ids (docs/architecture.md, "Stack notes": publish fails with ERR_QUEUE_SIZE otherwise).
+If no ack arrives for ``ack_timeout_s``, everything after acked_seq is sent again: the server
 deduplicates by (machine, stream, seq).
 
 Payloads are telemetry format 2 batches (``TelemetryQueue.pending_batch``).
