@@ -3,6 +3,7 @@
 import math
 
 import numpy as np
+import pytest
 import shapely
 import shapely.affinity
 from fieldrx.geo import PlanningError
@@ -13,6 +14,9 @@ from hypothesis import strategies as st
 from shapely.geometry import MultiPoint, Polygon
 
 from tests.geo.cases import X0, Y0, check_cells_in_own_swath, check_grid, check_plan
+
+# hypothesis searches hundreds of cases per test: minutes, not seconds (make check skips)
+pytestmark = pytest.mark.slow
 
 SETTINGS = settings(
     max_examples=18,
