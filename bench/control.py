@@ -13,7 +13,7 @@ searches behind the seed 002 tuning (about 20 s).
 Design notes (the numbers below are what this script prints):
 
 Seed 001 LADRC design. The motor G(s) is first order in effect
-(8.892 / (s + 6.694), SCIENCE.md), so FieldRx uses a *first-order* LADRC:
+(8.892 / (s + 6.694), docs/science.md), so FieldRx uses a *first-order* LADRC:
 b0 = 8.892 (the plant's high-frequency gain), controller bandwidth
 wc = 20 rad/s (ideal closed loop wc / (s + wc): 10-90 % rise 2.2 / wc =
 0.11 s, 2 % settling 3.9 / wc = 0.20 s, no overshoot), observer bandwidth

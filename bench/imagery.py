@@ -1,4 +1,4 @@
-"""Imagery figures (issue 14): tile latency, large-GeoTIFF ingest, per-cell NDVI.
+"""Imagery figures: tile latency, large-GeoTIFF ingest, per-cell NDVI.
 
 Run: .venv/bin/python bench/imagery.py [--ingest-mb 1024] [--tiles 300] [--cells 100000]
      [--only tiles|cells|ingest ...]

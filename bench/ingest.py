@@ -25,7 +25,7 @@ indexes. Ratio = our records/s / raw COPY records/s. Against a Citus coordinator
 the baseline pays the same routing to the workers; the CPU per record then counts every
 node's backends of the bench database (a one-host cluster here).
 
-Then the same machine-hours with uplink profile ``thin`` (issue 18: a 1 Hz track plus
+Then the same machine-hours with uplink profile ``thin`` (a 1 Hz track plus
 one cell record per cell left, on two streams; over HTTP both in one request while both
 have records, as the HTTP sender sends them; over MQTT one batch per message, as the MQTT
 sender does): the server's CPU (API processes or MQTT workers and broker, and the
@@ -842,7 +842,7 @@ def thin_phase(
     server: str,
     drive: Callable[[], tuple[float, int, int]],
 ) -> dict[str, Any]:
-    """The same machine-hours with the thin profile (issue 18), sent by ``drive``: the
+    """The same machine-hours with the thin profile, sent by ``drive``: the
     server's CPU (``server`` processes and PostgreSQL backends) per machine-hour, full
     (``used``, the full phase's window) against thin, and their ratios."""
     import psycopg

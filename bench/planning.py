@@ -1,4 +1,4 @@
-"""Coverage planning + grid benchmark (issue 3).
+"""Coverage planning + grid benchmark.
 
 For a rectangle, an L, a U, a field with a pond, an irregular 40-vertex field and a
 500 ha field, at w = 2.3 m and 12 m: swaths, turns, lengths, coverage, overlap and the
@@ -13,7 +13,7 @@ both headings' plans (the acceptance: never more swaths than the brute force at 
 at least min(99.9 %, the brute force's own)). The last line is one JSON object with the
 key figures.
 
-Turns are drivable (issue 16): every plan uses a machine with a 6 m turning radius
+Turns are drivable: every plan uses a machine with a 6 m turning radius
 (Dubins U / bulb turns), so ``nonwork_m`` and ``turn_s`` are real turn lengths and
 times; the heading table prints the speed-up of ``optimal`` over the 1-degree scan
 (target >= 100x; with k layouts -- the ``evals`` column, 1 on every bench field since
@@ -22,7 +22,7 @@ count ties are ranked by the centre-line estimate before any layout -- it is abo
 of a few millisecond runs finds a quiet moment more easily than the fastest of a few
 one-second scans, which flatters the ratio), and the last table compares the 10 ha
 rectangle's turn length at r = 5 m with Fields2Cover's recorded Dubins figure (3.66 km
-for 108 turns, issue 16).
+for 108 turns).
 
 ``loss_m2`` is the headland the rings, rounded to the turning radius, cannot reach (at
 the boundary's corners; reported by the plan as ``corner_loss_m2``: field area no cell
@@ -243,7 +243,7 @@ def main() -> None:
         )
 
     print("\nturn length on the 10 ha rectangle (108 turns, w = 2.3 m) vs Fields2Cover")
-    f2c = 3660.0  # Fields2Cover Dubins turns, r = 5 m (issue 16's measurement)
+    f2c = 3660.0  # Fields2Cover Dubins turns, r = 5 m ('s measurement)
     turn_cmp = {}
     for radius, reverse, pattern in (
         (5.0, False, "boustrophedon"),

@@ -16,7 +16,7 @@ distributed 0.030, over-row 0.065).
 
 Seed 002 (Table 3): mean depth, qualified share (GB/T 20865, 20-40 mm), SD and CV in the
 1-3 / 3-5 / 5-7 km/h bands; paper best 93 % and CV 2.93 % at 3-5 km/h (its SD 0.18 mm with
-CV 2.93 % at a 30 mm mean is inconsistent: 2.93 % of 30.13 mm is 0.88 mm, SCIENCE.md). Ours on
+CV 2.93 % at a 30 mm mean is inconsistent: 2.93 % of 30.13 mm is 0.88 mm, docs/science.md). Ours on
 the dug-out (true) depth, as GB/T 20865 measures, beside the telemetry (sensor) figure the
 server reports; the fuzzy PID (Table 2) and the fixed PID share K' and see the same drive.
 Then the SD split into its causes (``decompose``: 4 more runs per drive; --no-decomposition

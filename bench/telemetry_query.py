@@ -1,6 +1,6 @@
 """Telemetry at fleet scale: one job's report and track with 20 million other rows.
 
-Issue 18 acceptance: with 20 million telemetry rows of other machines in the table, the
+ The acceptance test: with 20 million telemetry rows of other machines in the table, the
 as-applied report and the track query of one job answer in p50 <= 100 ms, and the
 retention drop of one day's partition takes < 1 s.
 

@@ -1,7 +1,7 @@
 """Alembic environment: the only way the FieldRx schema changes.
 
 GeoAlchemy2's helpers keep autogenerate from dropping PostGIS's own tables
-and from creating spatial indexes twice (shared/STACK.md); ``include_object``
+and from creating spatial indexes twice (docs/architecture.md, "Stack notes"); ``include_object``
 also leaves out the partitions made at run time (plan_cells, telemetry).
 """
 

@@ -33,6 +33,7 @@ cleanup() {
   python -c "from fieldrx.db.bootstrap import drop_database; import os; drop_database(os.environ['DATABASE_URL'])"
 }
 trap cleanup EXIT
-for _ in $(seq 1 60); do curl -sf "$FIELDRX_URL/api/v1/health" >/dev/null && break; sleep 0.5; done
+# readiness, not a fixed wait: the server's start takes minutes on a loaded machine
+for _ in $(seq 1 600); do curl -sf "$FIELDRX_URL/api/v1/health" >/dev/null && break; sleep 0.5; done
 # the spec files given (default: all of them)
 node --test --test-concurrency=1 "${@:-tests/e2e/}"

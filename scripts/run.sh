@@ -3,7 +3,13 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/setup.sh
-.venv/bin/fieldrx demo >/dev/null
+# The demo data is loaded once per database (idempotent, but its Python start costs seconds).
+DB_URL=${DATABASE_URL:-postgresql+psycopg://postgres@127.0.0.1:5432/fieldrx}
+HAS_DEMO=$(psql -qtA "${DB_URL/+psycopg/}" \
+  -c "SELECT count(*) FROM organisations WHERE name = 'Demo Farms Co.'" 2>/dev/null || true)
+if [[ $HAS_DEMO != 1 ]]; then
+  .venv/bin/fieldrx demo >/dev/null
+fi
 HOST=${FIELDRX_HOST:-127.0.0.1}
 PORT=${FIELDRX_PORT:-8000}
 mkdir -p .run

@@ -11,6 +11,14 @@ WITH_TEST=0
 [[ "${1:-}" == "--test" ]] && WITH_TEST=1
 
 log() { printf '\033[1;34m[setup]\033[0m %s\n' "$*"; }
+# psql's NOTICE lines ("extension ... already exists, skipping") are noise, not news
+export PGOPTIONS="${PGOPTIONS:-} -c client_min_messages=warning"
+# sha1 of the named files' contents (directories: every file under them), in name order;
+# a stamp holding it lets a step that is already done be skipped
+tree_hash() {
+  find "$@" -type f -not -path '*/node_modules/*' -print0 2>/dev/null | sort -z \
+    | xargs -0 sha1sum | sha1sum | cut -d' ' -f1
+}
 SUDO=""
 [[ $(id -u) -ne 0 ]] && SUDO="sudo"
 
@@ -56,7 +64,10 @@ pg_isready -h $PG_HOST -p $PG_PORT >/dev/null || { echo "PostgreSQL does not ans
 # PostGIS is not a trusted extension: create it as the superuser, also in template1
 # so throw-away test databases get it. pg_partman (not trusted either) is created per
 # database by fieldrx.db.bootstrap.ensure_database, in schema partman.
-runuser -u postgres -- psql -q -d template1 -c "CREATE EXTENSION IF NOT EXISTS postgis" >/dev/null
+if [[ $(runuser -u postgres -- psql -qtA -d template1 \
+        -c "SELECT count(*) FROM pg_extension WHERE extname = 'postgis'") != 1 ]]; then
+  runuser -u postgres -- psql -q -d template1 -c "CREATE EXTENSION IF NOT EXISTS postgis" >/dev/null
+fi
 
 # --- MQTT broker (package; started below, once the virtual environment exists) ---
 if ! command -v mosquitto >/dev/null; then
@@ -91,8 +102,16 @@ if ! (exec 3<>/dev/tcp/127.0.0.1/$MQTT_PORT) 2>/dev/null; then
   setsid nohup mosquitto -c "$ROOT/deploy/mosquitto.conf" >>.run/mosquitto.log 2>&1 </dev/null &
   for _ in $(seq 1 50); do (exec 3<>/dev/tcp/127.0.0.1/$MQTT_PORT) 2>/dev/null && break; sleep 0.1; done
 fi
-MQTT_URL=${MQTT_URL:-mqtt://127.0.0.1:$MQTT_PORT} .venv/bin/fieldrx mqtt-init --check >/dev/null \
-  || { echo "MQTT broker check failed (see above; log: .run/mosquitto.log)" >&2; exit 1; }
+# The login check is repeated only when the broker, its credentials or SECRET_KEY changed.
+mkdir -p .run
+MQTT_STAMP=.run/mqtt-checked
+MQTT_HASH=$( (echo "${MQTT_URL:-} ${SECRET_KEY:-}"; ss -Hltnp "sport = :$MQTT_PORT";
+  cat .run/mosquitto/dynamic-security.json 2>/dev/null || true) | sha1sum | cut -d' ' -f1)
+if [[ ! -f $MQTT_STAMP || $(cat $MQTT_STAMP) != "$MQTT_HASH" ]]; then
+  MQTT_URL=${MQTT_URL:-mqtt://127.0.0.1:$MQTT_PORT} .venv/bin/fieldrx mqtt-init --check >/dev/null \
+    || { echo "MQTT broker check failed (see above; log: .run/mosquitto.log)" >&2; exit 1; }
+  echo "$MQTT_HASH" >$MQTT_STAMP
+fi
 
 # --- Browser for UI tests ---------------------------------------------------
 if [[ $WITH_TEST -eq 1 ]] && [[ ! -x /usr/bin/chromium ]]; then
@@ -128,20 +147,40 @@ if [[ $WITH_TEST -eq 1 ]]; then
 fi
 
 # --- Frontend ---------------------------------------------------------------
+# Built only when its sources changed since the last build (hash in frontend/dist/):
+# the build takes minutes on a busy 2-core machine and its output is the same.
 if [[ -f frontend/package.json ]]; then
   if [[ ! -d frontend/node_modules || frontend/package-lock.json -nt frontend/node_modules ]]; then
     log "npm ci (frontend)"
     (cd frontend && npm ci --no-audit --no-fund --loglevel=error)
+    touch frontend/node_modules
   fi
-  log "building the frontend"
-  (cd frontend && npm run build --silent >/dev/null)
+  FE_HASH=$(tree_hash frontend/src frontend/index.html frontend/package.json \
+    frontend/package-lock.json frontend/tsconfig.json frontend/vite.config.ts)
+  FE_STAMP=frontend/dist/.fieldrx-sources
+  if [[ ! -f $FE_STAMP || $(cat $FE_STAMP) != "$FE_HASH" ]]; then
+    log "building the frontend"
+    (cd frontend && npm run build --silent >/dev/null)
+    echo "$FE_HASH" >$FE_STAMP
+  fi
 fi
 
 # --- Database -----------------------------------------------------------------
-log "database and migrations"
-.venv/bin/python - <<'PY'
+# Skipped when this database was already migrated by these migration files (stamp under
+# .run/, checked against the database's own alembic_version, so a dropped database is
+# recreated): starting Python and Alembic costs seconds even when there is nothing to do.
+DB_URL=${DATABASE_URL:-postgresql+psycopg://postgres@127.0.0.1:5432/fieldrx}
+DB_HASH=$( (echo "$DB_URL"; tree_hash migrations backend/fieldrx/db/bootstrap.py) | sha1sum | cut -d' ' -f1)
+DB_STAMP=.run/db-$(echo "$DB_URL" | sha1sum | cut -c1-12)
+DB_VERSION=$(psql -qtA "${DB_URL/+psycopg/}" -c "SELECT version_num FROM alembic_version" 2>/dev/null || true)
+mkdir -p .run
+if [[ -z $DB_VERSION || ! -f $DB_STAMP || $(cat "$DB_STAMP") != "$DB_HASH $DB_VERSION" ]]; then
+  log "database and migrations"
+  .venv/bin/python - <<'PY'
 from fieldrx.db.bootstrap import ensure_database
 ensure_database()
 PY
-.venv/bin/fieldrx migrate >/dev/null
-log "done"
+  .venv/bin/fieldrx migrate >/dev/null
+  DB_VERSION=$(psql -qtA "${DB_URL/+psycopg/}" -c "SELECT version_num FROM alembic_version")
+  echo "$DB_HASH $DB_VERSION" >"$DB_STAMP"
+fi

@@ -18,6 +18,39 @@ import pytest
 PG = os.environ.get("FIELDRX_TEST_PG", "postgresql://postgres@127.0.0.1:5432")
 
 
+def pytest_addoption(parser: pytest.Parser) -> None:
+    parser.addoption(
+        "--pure",
+        action="store_true",
+        help="only the quick unit tests: no database, no server processes, not marked slow "
+        "(make check)",
+    )
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    if not config.getoption("pure"):
+        return
+    keep, drop = [], []
+    for item in items:
+        impure = "database_url" in getattr(item, "fixturenames", ()) or item.get_closest_marker(
+            "slow"
+        )
+        (drop if impure else keep).append(item)
+    items[:] = keep
+    config.hook.pytest_deselected(items=drop)
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_configure(config: pytest.Config) -> None:
+    """pytest-timeout's per-test limit stretched like every other wait (tests.support.scaled):
+    a test that passes on a quiet machine must not be killed because the machine is busy."""
+    from tests.support import scaled
+
+    base = config.getoption("timeout", None) or float(config.getini("timeout") or 0)
+    if base:
+        config.option.timeout = scaled(float(base))
+
+
 @pytest.fixture(scope="session", autouse=True)
 def mqtt_broker() -> Iterator[object]:
     """The session's own Mosquitto from the shipped deploy/mosquitto.conf (tests/mqtt_broker.py);

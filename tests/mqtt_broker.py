@@ -19,6 +19,8 @@ from pathlib import Path
 
 import paho.mqtt.client as mqtt
 
+from tests.support import scaled
+
 ROOT = Path(__file__).resolve().parents[1]
 SHIPPED = ROOT / "deploy" / "mosquitto.conf"
 LISTENER = re.compile(r"^listener 1884 127\.0\.0\.1$", re.M)
@@ -56,7 +58,7 @@ class ProjectBroker:
                 stdout=log,
                 stderr=subprocess.STDOUT,
             )
-        deadline = time.monotonic() + 10
+        deadline = time.monotonic() + scaled(10)
         while time.monotonic() < deadline:
             try:
                 socket.create_connection(("127.0.0.1", self.port), timeout=0.5).close()
@@ -108,7 +110,7 @@ def connect(
     host, port = mqtt_port()
     c.connect(host, port, keepalive=30)
     c.loop_start()
-    deadline = time.monotonic() + timeout_s
+    deadline = time.monotonic() + scaled(timeout_s)
     while not got and time.monotonic() < deadline:
         time.sleep(0.02)
     return c, (got[0] if got else None)

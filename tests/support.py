@@ -69,3 +69,24 @@ BOTH_KINDS = {
 def machine_body(name: str = "Spreader", width_m: float = 2.3, **extra: object) -> dict:
     """A POST /machines body with an explicit calibration and lag (seed 001: 1.52 s)."""
     return {"name": name, "width_m": width_m, "lag_s": 1.52, "calibration": SEED001_CAL, **extra}
+
+
+def time_scale() -> float:
+    """How much longer than on a quiet machine a wait on another process may take.
+
+    FIELDRX_TEST_TIME_SCALE when set; else 2 plus the run-queue length per core (the
+    1-minute load average over the core count), at most 12: with 8 busy processes on 2
+    cores a server's start takes about 5x as long as on a quiet machine. Waits end as
+    soon as their readiness signal arrives, so a generous scale only delays failures.
+    """
+    import os
+
+    env = os.environ.get("FIELDRX_TEST_TIME_SCALE")
+    if env:
+        return max(1.0, float(env))
+    return min(12.0, 2.0 + os.getloadavg()[0] / (os.cpu_count() or 1))
+
+
+def scaled(seconds: float) -> float:
+    """A deadline of `seconds` on a quiet machine, stretched by time_scale()."""
+    return seconds * time_scale()

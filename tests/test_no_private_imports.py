@@ -1,4 +1,4 @@
-"""No module imports or reaches into another module's private (_underscore) names (issue 12).
+"""No module imports or reaches into another module's private (_underscore) names.
 
 Checked with ast over backend/, edge_agent/ and bench/:
 

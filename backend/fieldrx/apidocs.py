@@ -3,7 +3,7 @@
 Both pages load their scripts and styles from the ``fastapi-offline`` package's copy
 (mounted at ``/docs-assets``), never from a CDN: a tractor-side laptop or a farm office
 without internet still gets working docs, and no request leaves the server's host.
-``FIRST_CALL`` is the short guide in the OpenAPI description (and the README).
+``FIRST_CALL`` is the short guide in the OpenAPI description (and docs/api.md).
 """
 
 from __future__ import annotations
@@ -171,7 +171,7 @@ def schema_defaults_json(document: str) -> str:
     out: dict[str, dict[str, object]] = {}
     for name in sorted(schemas):
         props = schemas[name].get("properties") or {}
-        d = {
+        d: dict[str, object] = {
             k: p["default"]
             for k, p in sorted(props.items())
             if "default" in p

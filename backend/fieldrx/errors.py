@@ -31,23 +31,11 @@ class Invalid(DomainError):
     status = 422
 
 
-class NotFound(DomainError):
-    """A resource the request names does not exist (or belongs to another organisation)."""
-
-    status = 404
-
-
 class TooExpensive(DomainError):
     """A request's cost bound (rows, cells, bytes, time) is exceeded: refused before or while
     working, nothing stored."""
 
     status = 422
-
-
-class TooLarge(DomainError):
-    """A request body or upload is larger than allowed."""
-
-    status = 413
 
 
 class Conflict(DomainError):

@@ -54,7 +54,7 @@ class Settings(BaseSettings):
     # task workers remove expired devices' broker users at each expiry and at least this
     # often (tasks.worker.expire_device_credentials)
     device_expiry_check_s: float = Field(default=60.0, gt=0, alias="FIELDRX_DEVICE_EXPIRY_CHECK_S")
-    # Imagery (issue 14): where Cloud-Optimized GeoTIFFs live ("" = ./var/imagery beside the
+    # Imagery: where Cloud-Optimized GeoTIFFs live ("" = ./var/imagery beside the
     # checkout), the largest upload and raster accepted, and the conversion's time limit.
     imagery_dir: str = Field(default="", alias="FIELDRX_IMAGERY_DIR")
     imagery_max_upload_bytes: int = Field(
@@ -65,11 +65,11 @@ class Settings(BaseSettings):
     # conversion budget: a raster declaring more uncompressed bytes than this many times
     # its file size is refused before decoding (imagery.ingest._check_budget)
     imagery_max_expansion: float = Field(default=400.0, gt=1, alias="FIELDRX_IMAGERY_MAX_EXPANSION")
-    # Thin uplink (issue 18): where the 10 Hz logs tractors upload on request live
+    # Thin uplink: where the 10 Hz logs tractors upload on request live
     # ("" = ./var/rawlogs beside the checkout), and the largest accepted (gzip bytes).
     raw_log_dir: str = Field(default="", alias="FIELDRX_RAW_LOG_DIR")
     raw_log_max_bytes: int = Field(default=512 * 1024**2, alias="FIELDRX_RAW_LOG_MAX_BYTES")
-    # Telemetry partitions (issue 18, fleet.partitions): raw records older than this many
+    # Telemetry partitions (fleet.partitions): raw records older than this many
     # days are dropped a whole day at a time (0: kept forever); per-cell results are kept.
     telemetry_retention_days: int = Field(default=0, ge=0, alias="FIELDRX_TELEMETRY_RETENTION_DAYS")
     # how often each `fieldrx worker` runs partition maintenance (premake, retention, moving
@@ -81,7 +81,7 @@ class Settings(BaseSettings):
     imagery_background_bytes: int = Field(
         default=64 * 1024**2, ge=0, alias="FIELDRX_IMAGERY_BACKGROUND_BYTES"
     )
-    # Background tasks (issue 18, fieldrx.tasks): jobs run at once per worker process, how
+    # Background tasks (fieldrx.tasks): jobs run at once per worker process, how
     # often a worker proves it is alive, and after how long without a heartbeat its running
     # jobs are handed to another worker (stalled-job recovery).
     task_concurrency: int = Field(default=2, ge=1, alias="FIELDRX_TASK_CONCURRENCY")

@@ -1,13 +1,13 @@
 """The as-applied kernel (seed 001 eq. 16-18), pure numpy: shared by the simulator and the server.
 
 One definition of every as-applied figure, so the edge simulator, the server's
-report and the job map's tiles cannot drift apart (issue 12):
+report and the job map's tiles cannot drift apart:
 
 * time: a telemetry record describes one GNSS fix; its time ``t`` is the fix
   time and its ``fix_period_s`` the receiver's fix interval
   (``protocol.TelemetryRecord``); ``fix_periods`` is how long each record's
   metering state lasted. Integrating over the gap to the next record's time
-  instead makes the mass depend on how the records were stamped (issue 11);
+  instead makes the mass depend on how the records were stamped;
 * metered mass: flow from the shaft speed through the machine's calibration
   (``metering.flow_g_min_many``), trapezoid between a record and the next one
   (``metered_mass_g``): M = q t (seed 001 eq. 17);
@@ -25,7 +25,7 @@ report and the job map's tiles cannot drift apart (issue 12):
   straight on at a swath's ends) inside the cell's polygon; one definition for
   rectangles and real shapes (``driven_length``; a whole rectangle gives its
   length);
-* M1 = M v t l / 36 g with v t the driven length (SCIENCE.md erratum: grams),
+* M1 = M v t l / 36 g with v t the driven length (docs/science.md erratum: grams),
   i.e. rate * width * length / 10 (``m1_g``); theta = (1 - |M1 - M2| / M1) *
   100 % (eq. 18, ``theta_pct``).
 """
@@ -78,7 +78,7 @@ def metered_mass_g(flow_g_s: np.ndarray, dts: np.ndarray) -> np.ndarray:
     next one's (the shaft speed moves between fixes), the last record at its own flow."""
     flow = np.asarray(flow_g_s, dtype=float)
     nxt = np.append(flow[1:], flow[-1:]) if len(flow) else flow
-    return 0.5 * (flow + nxt) * np.asarray(dts, dtype=float)
+    return np.asarray(0.5 * (flow + nxt) * np.asarray(dts, dtype=float))
 
 
 EDGE_RUN_M = 5.0  # the driving line runs on this far past a swath's first and last cell
@@ -149,7 +149,8 @@ class Cells:
         """Shoelace area of the rectangles."""
         c = self.corners.reshape(-1, 4, 2)
         x, y = c[..., 0], c[..., 1]
-        return 0.5 * np.abs(np.sum(x * np.roll(y, -1, axis=1) - np.roll(x, -1, axis=1) * y, axis=1))
+        cross = x * np.roll(y, -1, axis=1) - np.roll(x, -1, axis=1) * y
+        return np.asarray(0.5 * np.abs(np.sum(cross, axis=1)))
 
 
 def driving_lines(cells: Cells) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -298,7 +299,9 @@ def landed_mass(
 
 def m1_g(rate_kg_ha: np.ndarray, width_m: float, drive_len_m: np.ndarray) -> np.ndarray:
     """Seed 001 eq. 17: M1 = M v t l / 36 g (v km/h, t s) = rate * width * length / 10."""
-    return np.asarray(rate_kg_ha, dtype=float) * width_m * np.asarray(drive_len_m) / 10.0
+    return np.asarray(
+        np.asarray(rate_kg_ha, dtype=float) * width_m * np.asarray(drive_len_m) / 10.0
+    )
 
 
 def theta_pct(m1: np.ndarray, m2: np.ndarray) -> np.ndarray:

@@ -106,7 +106,7 @@ def depth_quality(depths_mm: Iterable[float], target_mm: float = 30.0) -> DepthQ
     """Mean, pass rate, sample standard deviation and CV of measured depths.
 
     The paper's Table 3 (std 0.18 mm with CV 2.93 % and 93 % pass) is not
-    mutually consistent (SCIENCE.md), so all four are computed here from data.
+    mutually consistent (docs/science.md), so all four are computed here from data.
     """
     d = [float(v) for v in depths_mm]
     if len(d) < 2:

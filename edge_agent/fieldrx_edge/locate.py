@@ -178,17 +178,9 @@ class CellLocator:
         """Cells whose bounding box touches the grid-hash bucket of (x, y)."""
         return self.grid.candidates(x, y)
 
-    def is_shaped(self, k: int) -> bool:
-        """Does cell k carry its real shape (else it is its rectangle)?"""
-        return self._shapes[k] is not None
-
     def shaped_mask(self) -> np.ndarray:
         """Per cell: does it carry its real shape?"""
         return np.array([sh is not None for sh in self._shapes], dtype=bool)
-
-    def near_shaped(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-        """Per point: is a shaped cell among its grid-hash candidates (needs the exact test)?"""
-        return self.grid.bucket_flags(self.shaped_mask(), x, y)
 
     def contains(self, k: int, x: float, y: float) -> bool:
         """Is (x, y) in cell k (its shape if it has one, else its rectangle)?"""
@@ -257,7 +249,8 @@ class CellLocator:
             if not hasattr(self, "_polygons"):
                 self._shaped = np.flatnonzero(self.shaped_mask())
                 self._polygons = Polygons.from_cells(
-                    c[self._shaped], {i: self._shapes_rings[k] for i, k in enumerate(self._shaped)}
+                    c[self._shaped],
+                    {i: self._shapes_rings[int(k)] for i, k in enumerate(self._shaped)},
                 )
             m = len(self._shaped)
             inside[self._shaped] = self._polygons.contains(

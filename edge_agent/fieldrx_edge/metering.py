@@ -39,10 +39,15 @@ def flow_to_rate_kg_ha(flow_g_min: float, width_m: float, speed_m_s: float) -> f
 
 
 class Calibration(Protocol):
-    """A meter's flow as a function of shaft speed, with its usable speed range."""
+    """A meter's flow as a function of shaft speed, with its usable speed range.
 
-    min_rpm: float
-    max_rpm: float
+    The range is read-only (properties), so frozen dataclasses satisfy the protocol."""
+
+    @property
+    def min_rpm(self) -> float: ...
+
+    @property
+    def max_rpm(self) -> float: ...
 
     def flow_g_min(self, shaft_rpm: float) -> float: ...
 
@@ -216,6 +221,8 @@ def flow_g_min_many(cal: Calibration, shaft_rpm: np.ndarray) -> np.ndarray:
     r = np.asarray(shaft_rpm, dtype=float)
     if isinstance(cal, TableCalibration):
         q = np.interp(r, np.asarray(cal.rpm), np.asarray(cal.g_per_rev)) * r
-    else:
+    elif isinstance(cal, LinearCalibration):
         q = cal.slope_g_min_per_rpm * r + cal.intercept_g_min
+    else:  # any other calibration: its own scalar method, element by element
+        q = np.vectorize(cal.flow_g_min, otypes=[float])(r)
     return np.where(r > 0, np.maximum(q, 0.0), 0.0)

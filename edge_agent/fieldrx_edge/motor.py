@@ -34,7 +34,7 @@ log = logging.getLogger(__name__)
 
 # Tuning for the seed 001 motor (first order, b = 8.892, a = 6.694) when the job
 # names a controller without parameters. LADRC order 1 is the principled design
-# for a first-order plant (SCIENCE.md); the values are bench/control.py's
+# for a first-order plant (docs/science.md); the values are bench/control.py's
 # LADRC_DESIGN (wc 20 rad/s: ~0.05 s closed-loop time constant, wo = 5 wc).
 DEFAULT_PARAMS: dict[str, dict[str, Any]] = {
     "ladrc": {"wc": 20.0, "wo": 100.0, "b0": 8.892, "order": 1},

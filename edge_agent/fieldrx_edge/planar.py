@@ -50,7 +50,7 @@ def ring_edges(ring: Any) -> np.ndarray:
     p = np.asarray(ring, dtype=float).reshape(-1, 2)
     q = np.roll(p, -1, axis=0)
     e = np.column_stack([p, q])
-    return e[(e[:, 0] != e[:, 2]) | (e[:, 1] != e[:, 3])]
+    return np.asarray(e[(e[:, 0] != e[:, 2]) | (e[:, 1] != e[:, 3])])
 
 
 def points_in_edges(edges: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -74,7 +74,7 @@ def points_in_edges(edges: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarr
     pt = order[k]
     ed = edges[e]
     hit = crosses(ed[:, 0], ed[:, 1], ed[:, 2], ed[:, 3], x[pt], y[pt])
-    return np.bincount(pt[hit], minlength=len(x)) % 2 == 1
+    return np.asarray(np.bincount(pt[hit], minlength=len(x)) % 2 == 1)
 
 
 class Region:
@@ -116,12 +116,6 @@ def _crossings(
         u = (w[:, 0] * d[:, 1] - w[:, 1] * d[:, 0]) / den
     ok = (np.abs(den) > 1e-12) & (t > 0) & (t < 1) & (u >= 0) & (u <= 1)
     return who[ok], t[ok]
-
-
-def points_in_rings(rings: Sequence[Any], x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Vectorised even-odd test of many points against one polygon given as rings."""
-    edges = np.vstack([ring_edges(r) for r in rings]) if len(rings) else np.zeros((0, 4))
-    return points_in_edges(edges, x, y)
 
 
 class Polygons:
@@ -173,7 +167,7 @@ class Polygons:
         pair, row = self._pair_edges(poly)
         e = self.edges[row]
         hit = crosses(e[:, 0], e[:, 1], e[:, 2], e[:, 3], x[pair], y[pair])
-        return np.bincount(pair[hit], minlength=len(poly)) % 2 == 1
+        return np.asarray(np.bincount(pair[hit], minlength=len(poly)) % 2 == 1)
 
     def segment_crossings(
         self, poly: np.ndarray, p0: np.ndarray, p1: np.ndarray
@@ -195,28 +189,6 @@ def split_segments(
     same = s[1:] == s[:-1]
     keep = same & (tt[1:] > tt[:-1])
     return s[:-1][keep], tt[:-1][keep], tt[1:][keep]
-
-
-def lengths_in_polygons(
-    polys: Polygons, poly: np.ndarray, p0: np.ndarray, p1: np.ndarray
-) -> np.ndarray:
-    """Fraction (0..1) of each segment p0[i]-p1[i] inside polygon poly[i] (even-odd).
-
-    The segment is cut at every edge crossing; a piece is inside when its
-    midpoint is. A zero-length segment counts whole when its point is inside.
-    """
-    poly = np.asarray(poly, dtype=np.int64)
-    n = len(poly)
-    if n == 0:
-        return np.zeros(0)
-    seg, t = polys.segment_crossings(poly, p0, p1)
-    ps, t0, t1 = split_segments(n, seg, t)
-    tm = 0.5 * (t0 + t1)
-    d = p1 - p0
-    mx = p0[ps, 0] + tm * d[ps, 0]
-    my = p0[ps, 1] + tm * d[ps, 1]
-    inside = polys.contains(poly[ps], mx, my)
-    return np.bincount(ps[inside], weights=(t1 - t0)[inside], minlength=n)
 
 
 class GridHash:
@@ -273,18 +245,6 @@ class GridHash:
         i, j = int(fx), int(fy)
         k = j * self.nx + i
         return self._itemlist[self._startlist[k] : self._startlist[k + 1]]
-
-    def bucket_flags(self, flag: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-        """For each point: does its bucket hold an item with ``flag`` set?"""
-        owner = np.repeat(np.arange(self.nx * self.ny), np.diff(self.start))
-        bucket = np.zeros(self.nx * self.ny, dtype=bool)
-        bucket[owner[np.asarray(flag, dtype=bool)[self.items]]] = True
-        i = np.floor((np.asarray(x) - self.x0) / self.b).astype(np.int64)
-        j = np.floor((np.asarray(y) - self.y0) / self.b).astype(np.int64)
-        ok = (i >= 0) & (i < self.nx) & (j >= 0) & (j < self.ny)
-        out = np.zeros(len(i), dtype=bool)
-        out[ok] = bucket[j[ok] * self.nx + i[ok]]
-        return out
 
     def pairs(self, boxes: np.ndarray, item_bbox: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(query, item) pairs whose boxes overlap, sorted by query then item, unique."""

@@ -35,7 +35,7 @@ import math
 import re
 import uuid
 from dataclasses import asdict, dataclass, field, fields
-from typing import Any
+from typing import Any, TypeGuard
 
 FORMAT_VERSION = 1
 # Telemetry wire format. 1: batches {"records": [...]}, deduplicated by (machine, seq).
@@ -50,7 +50,7 @@ CELL_FORMAT_VERSION = 3
 # Several batches in one HTTP request (a thin agent's track and cell batches: one request,
 # one token check, instead of two): {"format": 3, "kind": "batches", "batches": [batch, ...]}
 # with each batch as above; the answer is {"acks": [TelemetryAck, ...]}, one per batch in
-# order (issue 18). An ack with "error" is a batch the server could not store (acked_seq 0:
+# order. An ack with "error" is a batch the server could not store (acked_seq 0:
 # nothing is trimmed, the batch is resent); the others are stored and acked as usual.
 MULTI_KIND = "batches"
 MAX_BATCHES = 8
@@ -139,7 +139,7 @@ class JobPackage:
     shape_ring_offsets: list[int] = field(default_factory=list)
     shape_offsets: list[int] = field(default_factory=list)
     shape_xy_utm: list[float] = field(default_factory=list)
-    # job kind (issue 13): prescription_map (seed 001, the cells' rates), ndvi_topdress
+    # job kind: prescription_map (seed 001, the cells' rates), ndvi_topdress
     # (seed 000, rates from canopy sensors) or seeding_depth (seed 002); kind_settings are
     # the kind's validated settings (fieldrx_edge.jobkinds). Both are left out of the
     # canonical JSON when default, so prescription-map packages keep their bytes and checksum.
@@ -362,7 +362,7 @@ class TelemetryRecord:
     alarms: list[str] = field(default_factory=list)
     queue_backlog: int = 0
     fix_period_s: float | None = None  # format 2; absent in format 1 records
-    # optional fields of the sensor job kinds (issue 13); sent only when set, so records of
+    # optional fields of the sensor job kinds; sent only when set, so records of
     # prescription-map jobs keep their exact shape (see EXTRA_FIELDS)
     ndvi_raw: float | None = None  # mean of the canopy sensors before the window filter
     actuator_mm: float | None = None  # press-roller cylinder position (seed 002)
@@ -474,7 +474,8 @@ assert set(_CLAMP) | {"heading_deg"} == set(_FLOAT_FIELDS), "every float field h
 VALUE_RANGES: dict[str, tuple[float, float]] = {**_CLAMP, "heading_deg": (0.0, 360.0)}
 
 
-def _finite(v: Any) -> bool:
+def _finite(v: object) -> TypeGuard[float]:
+    """A real, finite number (bool excluded); narrows ``v`` for the comparisons after it."""
     return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
 
 
@@ -487,7 +488,7 @@ def sanitize_record(rec: dict[str, Any]) -> list[str]:
     and the record gets the ``invalid_value`` alarm so the change is visible.
     A record whose time is unusable cannot be repaired: the reason list then
     starts with ``"drop: ..."`` and the caller must not queue it. One bad value
-    must never block the records behind it (issue 20).
+    must never block the records behind it.
     """
     reasons: list[str] = []
     t = rec.get("t")

@@ -152,6 +152,7 @@ class Pipeline:
         if fix.x is None:
             assert fix.lon is not None and fix.lat is not None
             fix.x, fix.y = self.proj.forward(fix.lon, fix.lat)
+        assert fix.y is not None  # set together with x
         return self.on_position(now, fix.x, fix.y, fix.speed_m_s, fix.course_deg, implement_down)
 
     def on_position(
@@ -196,7 +197,7 @@ class Pipeline:
         self._reach_m = v * self.look_ahead_time_s() + 0.5
         # with the implement raised (headland turns, transport) nothing is applied: the
         # speed range and the field edge do not matter, and flagging them painted the
-        # fleet marker red at every turn (issue 11 defect 7)
+        # fleet marker red at every turn
         if implement_down and not (job.speed_min_m_s <= v <= job.speed_max_m_s):
             d.alarms.append("speed_out_of_range")
         where = self.boundary.where(lx, ly)

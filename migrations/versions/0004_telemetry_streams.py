@@ -1,6 +1,6 @@
 """Telemetry streams: deduplicate by (machine, stream, seq).
 
-Why (issue 11): telemetry was deduplicated by (machine_id, seq). An agent whose
+Why: telemetry was deduplicated by (machine_id, seq). An agent whose
 queue is lost (new tablet, wiped state dir, a simulation without --state-dir)
 numbers from 1 again, and the server acknowledged and dropped every record it
 already had a seq for. Each agent queue now has a random stream id sent with
@@ -10,7 +10,7 @@ every batch (fieldrx_edge.protocol, telemetry format 2):
   Records stored before streams, and batches of agents that send no stream,
   are the machine's legacy stream ''.
 * ``telemetry.fix_period_s``: the fix period a record stands for; the
-  as-applied report integrates metered mass over it (issue 11, defect 2).
+  as-applied report integrates metered mass over it (defect 2).
 * ``telemetry_streams``: one row per (machine, stream) with the stream's
   acknowledged seq (``machine_status.acked_seq`` was the only one) and what
   the fleet view shows about it (first/last seen, records, record time span).

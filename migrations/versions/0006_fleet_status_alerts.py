@@ -1,7 +1,7 @@
 """Fleet status and grouped alerts.
 
 Why: a machine that stops reporting must become "offline" on the live socket after the
-heartbeat timeout (issue 11 defect 7). ``machine_status.offline_at`` records when that was
+heartbeat timeout. ``machine_status.offline_at`` records when that was
 announced, so every API process and worker can sweep without announcing it twice (the
 UPDATE ... RETURNING of one sweep wins) and no GET has to write. Alerts are grouped per
 job and kind (list and acknowledge-all): ``ix_alerts_job_kind`` serves those queries.

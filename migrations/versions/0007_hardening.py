@@ -1,7 +1,7 @@
 """Hardening: archived job evidence that outlives its machine/field/plan, login throttling.
 
 Why: deleting a machine, field, plan or prescription cascaded to its jobs and
-silently erased their as-applied records (ISSUE 20). Deletion is now refused
+silently erased their as-applied records. Deletion is now refused
 while a job with as-applied data is not archived; archiving copies the job's
 as-applied summary and per-cell records into ``job_archives``, which hangs
 only off the organisation, so it outlives whatever the job was made from.

@@ -1,4 +1,4 @@
-"""Imagery: uploaded rasters of a field, stored as Cloud-Optimized GeoTIFFs (issue 14).
+"""Imagery: uploaded rasters of a field, stored as Cloud-Optimized GeoTIFFs.
 
 Why: drone orthophotos and satellite NDVI go under every map and feed the NDVI rate
 model. The raster itself lives in the imagery directory (``storage_key``); the row keeps

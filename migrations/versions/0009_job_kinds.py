@@ -1,6 +1,6 @@
 """Job kinds: sensor-based topdressing (seed 000) and depth-controlled seeding (seed 002).
 
-Why (issue 13): a job is no longer always a prescription version. ``jobs.kind`` says which
+Why: a job is no longer always a prescription version. ``jobs.kind`` says which
 system the tractor runs; ``jobs.settings`` holds that kind's validated settings (the NDVI ->
 rate curve, sensor layout, window, controller; or target depth, sensor calibration,
 controller); ``jobs.plan_id`` names the planned path the sensor kinds drive (their rates

@@ -1,6 +1,6 @@
 """telemetry partitioned by record time, one partition per UTC day, managed by pg_partman.
 
-Why (issue 18): telemetry was one table with no retention; 200 machines at 10 Hz for
+Why: telemetry was one table with no retention; 200 machines at 10 Hz for
 10 h/day is 72 million rows a day. Declarative RANGE partitioning on ``t`` (daily) keeps
 each day's indexes small, lets a query that names a time range touch only its days, and
 makes retention a ``DROP TABLE`` of whole days instead of a DELETE.

@@ -1,6 +1,6 @@
 """Cell records of the thin uplink profile: per-cell as-applied results, kept forever.
 
-Why (issue 18): with uplink profile ``thin`` a machine sends a 1 Hz track plus one record
+Why: with uplink profile ``thin`` a machine sends a 1 Hz track plus one record
 per cell it left (``fieldrx_edge.protocol.CellRecord``: the cell's landed mass, driven
 length, entry/exit time, worked time, mean speed and rates, alarms), computed on the
 tractor by the one as-applied kernel over its 10 Hz log. The job report of a thin job is

@@ -1,6 +1,6 @@
 """Background tasks: procrastinate's queue schema and FieldRx's ``tasks`` table.
 
-Why (issue 18): planning, prescriptions and imagery ingest move out of the HTTP request
+Why: planning, prescriptions and imagery ingest move out of the HTTP request
 onto a PostgreSQL-backed queue (procrastinate: no new service, the same database). The
 queue's own tables, types and functions are procrastinate's, applied here from the SQL
 the installed package ships (``procrastinate.schema.SchemaManager.get_schema``) so the

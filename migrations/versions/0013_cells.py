@@ -1,4 +1,4 @@
-"""plan_cells.geom holds a split cell whole: Polygon or MultiPolygon (issue 12).
+"""plan_cells.geom holds a split cell whole: Polygon or MultiPolygon.
 
 Why: a cell that a notch or hole cuts in two was stored as its largest part, so
 the map, the exports, the job package and the as-applied report all saw a

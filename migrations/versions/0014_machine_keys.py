@@ -1,4 +1,4 @@
-"""Per-cell results carry their machine: ``job_cells_applied.machine_id`` (issue 18 scope 4).
+"""Per-cell results carry their machine: ``job_cells_applied.machine_id``.
 
 Why: to distribute telemetry by machine (Citus), every table the ingest path writes must
 hold the distribution column, so a batch is one single-shard transaction co-located with

@@ -1,4 +1,4 @@
-"""Exports and job reports as background tasks, and the files they produce (issue 18, 15).
+"""Exports and job reports as background tasks, and the files they produce.
 
 Why: a large as-applied or prescription export, or the report of a long job, took
 seconds to tens of seconds inside the HTTP request with no progress. They now run as

@@ -1,4 +1,4 @@
-"""products: an organisation's own fertilisers for prescriptions (issue 15 scope 4).
+"""Products: an organisation's own fertilisers for prescriptions.
 
 Why: the prescription form picks a product (name, N / P2O5 / K2O %, price per t) to
 give the nutrient-balance model its N fraction and each version its nutrient and cost

@@ -134,7 +134,7 @@ def test_dispatch_and_large_grid_is_vectorised():
 
 
 def test_default_search_distance_leaves_far_cells_without_data():
-    """ISSUE 11 defect 6: IDW spread four samples over the whole field (no_data 0)."""
+    """IDW spread four samples over the whole field (no_data 0)."""
     from fieldrx.agronomy.interpolate import (
         MIN_SEARCH_RADIUS_M,
         default_search_radius_m,

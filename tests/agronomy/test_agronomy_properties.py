@@ -1,12 +1,16 @@
 """Properties that must hold for any input (hypothesis, modest example counts)."""
 
 import numpy as np
+import pytest
 from fieldrx.agronomy.interpolate import idw
 from fieldrx.agronomy.rates import MeterCheck, check_meter_range, nutrient_balance_rate
 from fieldrx_edge.metering import LinearCalibration
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
+
+# hypothesis searches hundreds of cases per test: minutes, not seconds (make check skips)
+pytestmark = pytest.mark.slow
 
 finite = st.floats(0.0, 1000.0, allow_nan=False)
 

@@ -43,7 +43,7 @@ def test_nutrient_balance_hand_values(n, expected):
 def test_nutrient_balance_vectorised_and_expanded_form():
     n = np.array([40.0, 80.0, 120.0, 200.0])
     f = nutrient_balance_rate(n, 3000.0, 0.46)
-    # SCIENCE.md expanded form (valid where d < 1): (e*M - 12.53 n - 7258.6) / (100 k x)
+    # docs/science.md expanded form (valid where d < 1): (e*M - 12.53 n - 7258.6) / (100 k x)
     expanded = (5.8 * 3000 - 12.5325 * n - 7258.6125) / (100 * 0.342 * 0.46)
     np.testing.assert_allclose(f, expanded, rtol=1e-9)
     assert nutrient_balance_raw(1000.0, 2500, 0.25) < 0
@@ -93,7 +93,7 @@ def test_uniform_and_dispatch():
 def test_metering_750_at_9kmh_is_110_8_rpm():
     m = MeterCheck.from_kmh(LinearCalibration(), 2.3, 3.0, 9.0)
     assert m.shaft_rpm(750.0, 9.0 / 3.6) == pytest.approx(110.8, abs=0.05)
-    # 300 kg/ha at 3 km/h -> 16.2 r/min: below the 30 r/min floor (SCIENCE.md erratum)
+    # 300 kg/ha at 3 km/h -> 16.2 r/min: below the 30 r/min floor (docs/science.md erratum)
     assert m.shaft_rpm(300.0, 3.0 / 3.6) == pytest.approx(16.2, abs=0.05)
 
 

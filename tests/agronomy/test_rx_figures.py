@@ -1,5 +1,5 @@
 """Whole-field figures of a rate map, the clamp, the zones table and the diff, on three
-cells small enough to check by hand (issue 15 scope 4)."""
+cells small enough to check by hand."""
 
 from __future__ import annotations
 

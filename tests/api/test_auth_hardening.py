@@ -1,5 +1,5 @@
 """Sign-in throttling per account and per address, constant-time answers for unknown
-e-mails, device token expiry and rotation (ISSUE 20 point 4)."""
+e-mails, device token expiry and rotation."""
 
 from __future__ import annotations
 

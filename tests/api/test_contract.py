@@ -1,4 +1,4 @@
-"""The typed API contract (issue 15): the OpenAPI document is valid and complete, the
+"""The typed API contract: the OpenAPI document is valid and complete, the
 browser's generated client is current, bodies are strict, errors have one shape, and the
 docs are served from the app itself.
 
@@ -15,6 +15,8 @@ import subprocess
 from pathlib import Path
 
 import pytest
+
+from tests.support import scaled
 
 ROOT = Path(__file__).resolve().parents[2]
 FRONTEND = ROOT / "frontend"
@@ -54,7 +56,7 @@ def test_generated_client_is_current(tmp_path: Path) -> None:
         cwd=FRONTEND,
         check=True,
         capture_output=True,
-        timeout=120,
+        timeout=scaled(120),
     )
     committed = (FRONTEND / "src/api/generated/schema.ts").read_text()
     assert committed == out.read_text(), (
@@ -72,7 +74,7 @@ def test_openapi_document_validates(tmp_path: Path, document: dict) -> None:
         cwd=FRONTEND,
         capture_output=True,
         text=True,
-        timeout=120,
+        timeout=scaled(120),
     )
     assert r.returncode == 0, r.stdout + r.stderr
     assert "0 problem(s)" in r.stdout
@@ -93,7 +95,7 @@ def test_validator_finds_a_broken_document(tmp_path: Path, document: dict) -> No
         cwd=FRONTEND,
         capture_output=True,
         text=True,
-        timeout=120,
+        timeout=scaled(120),
     )
     assert r.returncode == 1 and "2 problem(s)" in r.stdout, r.stdout
 
@@ -234,7 +236,7 @@ def test_docs_are_served_from_the_app(client) -> None:  # noqa: ANN001
 
 
 def test_first_call_guide_works(client, org) -> None:  # noqa: ANN001
-    """The README's / OpenAPI description's first call, step by step, with a token made
+    """The docs' (docs/api.md) / OpenAPI description's first call, step by step, with a token made
     without a role: field, plan, prescription, ISOXML."""
     r = client.post(f"{API}/auth/tokens", headers=org.headers("agronomist"), json={"name": "s"})
     h = {"Authorization": f"Bearer {r.json()['token']}"}

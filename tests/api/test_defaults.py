@@ -1,4 +1,4 @@
-"""One default per parameter, shared by the API, the CLI and the UI (issue 15 defect: the API
+"""One default per parameter, shared by the API, the CLI and the UI (defect: the API
 planned 0 headland passes where the UI said 1, and interpolated with ``cell_mean`` where the
 UI said ``idw``; ``cell_mean`` at ~1 sample/ha answers "no cell has data").
 

@@ -1,5 +1,5 @@
 """Evidence is never erased silently: deletes that would erase as-applied data answer 409
-naming the jobs; archiving a job keeps its as-applied records after the delete (ISSUE 20)."""
+naming the jobs; archiving a job keeps its as-applied records after the delete."""
 
 from __future__ import annotations
 

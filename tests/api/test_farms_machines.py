@@ -24,7 +24,7 @@ MACHINE = machine_body("T1")
 
 
 def test_machine_without_calibration_is_422_naming_the_missing_fields(client, org) -> None:
-    """ISSUE 11 defect 4: a machine added without calibration got seed 001's (169 kg/ha at 12 m)."""
+    """A machine added without calibration got seed 001's (169 kg/ha at 12 m)."""
     h = org.headers()
     r = client.post("/api/v1/machines", headers=h, json={"name": "T12", "width_m": 12.0})
     assert r.status_code == 422, r.text

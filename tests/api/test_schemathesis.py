@@ -29,7 +29,7 @@ from schemathesis.checks import (
 from schemathesis.core.failures import FailureGroup
 
 from tests.fleet.procs import start_api
-from tests.support import SMALL_PLOT, feature, machine_body
+from tests.support import SMALL_PLOT, feature, machine_body, scaled
 
 MAX_EXAMPLES = 8
 CHECKS = [
@@ -57,7 +57,7 @@ def _seed(url: str, headers: dict[str, str]) -> dict[str, int]:
     """One of each main resource, created through the API as a farm software would."""
 
     def post(path: str, body: dict[str, Any]) -> dict[str, Any]:
-        r = httpx.post(f"{url}/api/v1{path}", json=body, headers=headers, timeout=60)
+        r = httpx.post(f"{url}/api/v1{path}", json=body, headers=headers, timeout=scaled(60))
         assert r.status_code == 201, (path, r.text)
         return r.json()
 
@@ -134,7 +134,9 @@ def test_no_server_errors_and_answers_match_the_schema(
                 if key in ids:  # the seeded resources, so answers are real, not 404s
                     case.path_parameters[key] = ids[key]
             try:
-                response = case.call_and_validate(headers=headers, checks=CHECKS, timeout=30)
+                response = case.call_and_validate(
+                    headers=headers, checks=CHECKS, timeout=scaled(30)
+                )
             except FailureGroup as exc:  # one line per failed check
                 failures.append(f"{case.method} {case.formatted_path} {case.query or ''}: {exc}")
                 return
@@ -162,7 +164,9 @@ def test_device_ingest_fuzzed_with_a_device_token(
     url, headers, _ = fuzz_api
     ids = _seed(url, headers)  # its own: the test above deletes the module's seeded ones
     r = httpx.post(
-        f"{url}/api/v1/machines/{ids['machine_id']}/device-token", headers=headers, timeout=30
+        f"{url}/api/v1/machines/{ids['machine_id']}/device-token",
+        headers=headers,
+        timeout=scaled(30),
     )
     assert r.status_code in (200, 201), r.text
     device = {"Authorization": f"Bearer {r.json()['token']}"}
@@ -178,7 +182,7 @@ def test_device_ingest_fuzzed_with_a_device_token(
     def run(case: schemathesis.Case) -> None:
         _own_records(case.body, ids)
         try:
-            response = case.call_and_validate(headers=device, checks=CHECKS, timeout=30)
+            response = case.call_and_validate(headers=device, checks=CHECKS, timeout=scaled(30))
         except FailureGroup as exc:
             failures.append(f"{case.body!r:.600}: {exc}")
             return

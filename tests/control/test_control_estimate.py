@@ -31,7 +31,7 @@ def test_gain_converges_to_the_riccati_fixed_point() -> None:
     # P = (1 - K)(P + Q), K = (P + Q) / (P + Q + R): P^2 + Q P - Q R = 0.
     p = (-0.01 + math.sqrt(0.01**2 + 4 * 0.01 * 0.2)) / 2
     assert kf.gain == pytest.approx((p + 0.01) / (p + 0.01 + 0.2), rel=1e-9)
-    assert kf.gain == pytest.approx(0.2, abs=0.01)  # "converges to 0.2" (SCIENCE.md)
+    assert kf.gain == pytest.approx(0.2, abs=0.01)  # "converges to 0.2" (docs/science.md)
 
 
 def test_first_estimate_is_the_first_measurement() -> None:

@@ -34,7 +34,7 @@ def test_fieldrx_design_beats_the_papers_claimed_row() -> None:
 
 
 def test_papers_second_order_parameters_give_fast_overshooting_response() -> None:
-    """SCIENCE.md: as printed (wc 150, wo 400, b0 6000) ~0.04 s rise and ~18 % overshoot."""
+    """docs/science.md: as printed (wc 150, wo 400, b0 6000) ~0.04 s rise and ~18 % overshoot."""
     m = metrics_until(seed001_run(LADRC(150.0, 400.0, 6000.0, order=2), 1e-4, 1.0, None), 1.0)
     assert m.rise_0_90_s == pytest.approx(0.04, abs=0.01)
     assert m.overshoot_pct == pytest.approx(18.0, abs=2.0)

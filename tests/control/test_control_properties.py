@@ -4,9 +4,13 @@ from __future__ import annotations
 
 import math
 
+import pytest
 from fieldrx_edge.control import make_controller
 from hypothesis import given, settings
 from hypothesis import strategies as st
+
+# hypothesis searches hundreds of cases per test: minutes, not seconds (make check skips)
+pytestmark = pytest.mark.slow
 
 CONFIGS = {
     "pid": {"kp": 2.0, "ki": 20.0, "kd": 0.05},

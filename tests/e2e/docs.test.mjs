@@ -5,7 +5,7 @@
 // the only outside request the page tries must be one the browser blocked, never sent.
 import { after, before, describe, it } from 'node:test';
 import assert from 'node:assert/strict';
-import { BASE_URL, launch, serverUp, shot } from './lib.mjs';
+import { BASE_URL, launch, serverUp, shot, scaled } from './lib.mjs';
 
 const up = await serverUp();
 const LOCAL = new URL(BASE_URL).origin;
@@ -49,13 +49,13 @@ describe('offline API docs', { skip: up ? false : `no FieldRx server at ${BASE_U
   it('/docs renders Swagger UI with Authorize and the first-call guide, all from 127.0.0.1', async () => {
     const v = await visit('/docs');
     const { page } = v;
-    await page.waitForSelector('.swagger-ui .info .title', { timeout: 30_000 });
+    await page.waitForSelector('.swagger-ui .info .title', { timeout: scaled(30_000) });
     assert.match(await page.textContent('.swagger-ui .info .title'), /FieldRx/);
     assert.ok(await page.locator('.swagger-ui .info').getByText('First call').count(), 'first-call guide shown');
     assert.ok(await page.locator('button.authorize').count(), 'Authorize button (bearer security scheme)');
     assert.ok((await page.locator('.opblock').count()) > 40, 'operations listed');
     await page.click('button.authorize');
-    await page.waitForSelector('.modal-ux input', { timeout: 10_000 }); // the bearer token field
+    await page.waitForSelector('.modal-ux input', { timeout: scaled(10_000) }); // the bearer token field
     await shot(page, 'docs-swagger');
     v.stop();
     assert.ok(v.requests.some((u) => u.includes('/docs-assets/swagger-ui-bundle.js')), v.requests.join('\n'));
@@ -65,7 +65,7 @@ describe('offline API docs', { skip: up ? false : `no FieldRx server at ${BASE_U
   it('/redoc renders ReDoc, all from 127.0.0.1', async () => {
     const v = await visit('/redoc');
     const { page } = v;
-    await page.waitForSelector('h1:has-text("FieldRx")', { timeout: 60_000 });
+    await page.waitForSelector('h1:has-text("FieldRx")', { timeout: scaled(60_000) });
     assert.ok(await page.getByText('First call').count(), 'first-call guide shown');
     await shot(page, 'docs-redoc');
     v.stop();

@@ -6,7 +6,7 @@ import assert from 'node:assert/strict';
 import { execFileSync } from 'node:child_process';
 import { writeFileSync } from 'node:fs';
 import { join } from 'node:path';
-import { ARTIFACTS, BASE_URL, EMAIL, PASSWORD, ROOT, api, apiLogin, hasRoute, launch, mapIdle, serverUp, shot, uiServed } from './lib.mjs';
+import { ARTIFACTS, BASE_URL, EMAIL, PASSWORD, ROOT, api, apiLogin, hasRoute, launch, mapIdle, serverUp, shot, uiServed, scaled } from './lib.mjs';
 
 const up = (await serverUp()) && (await uiServed());
 const SKIP = !up
@@ -90,7 +90,7 @@ describe('imagery under the maps', { skip: SKIP }, () => {
     await page.setInputFiles('[data-testid=imagery-file]', file);
     await page.selectOption('[data-testid=imagery-kind]', 'orthophoto');
     await page.click('[data-testid=imagery-upload]');
-    await page.waitForSelector('[data-testid=imagery-msg]:has-text("Stored")', { timeout: 60_000 });
+    await page.waitForSelector('[data-testid=imagery-msg]:has-text("Stored")', { timeout: scaled(60_000) });
     await page.waitForFunction(() => Boolean(window.__fieldrxMaps.field.getLayer('imagery')));
     await mapIdle(page, 'field');
     const order = await page.evaluate(() => window.__fieldrxMaps.field.getStyle().layers.map((l) => l.id));
@@ -117,7 +117,7 @@ describe('imagery under the maps', { skip: SKIP }, () => {
     await page.goto(`${BASE_URL}/#/fields/${field.id}/edit`);
     await page.waitForSelector('[data-testid=map-draw]');
     await shot(page, 'editor-before-imagery');
-    await page.waitForFunction(() => Boolean(window.__fieldrxMaps?.draw?.getLayer('imagery')), null, { timeout: 20_000 });
+    await page.waitForFunction(() => Boolean(window.__fieldrxMaps?.draw?.getLayer('imagery')), null, { timeout: scaled(20_000) });
     await mapIdle(page, 'draw');
     await shot(page, 'imagery-under-editor');
   });
@@ -131,7 +131,7 @@ describe('imagery under the maps', { skip: SKIP }, () => {
     await page.setInputFiles('[data-testid=imagery-file]', file);
     await page.selectOption('[data-testid=imagery-kind]', 'ndvi');
     await page.click('[data-testid=imagery-upload]');
-    await page.waitForSelector('[data-testid=imagery-msg]:has-text("Stored ndvi")', { timeout: 60_000 });
+    await page.waitForSelector('[data-testid=imagery-msg]:has-text("Stored ndvi")', { timeout: scaled(60_000) });
     const plan = await api(token, 'POST', `/fields/${field.id}/plans`, { swath_width_m: 2.3, cell_length_m: 5 });
     assert.equal(plan.status, 201, JSON.stringify(plan.data));
 
@@ -139,7 +139,7 @@ describe('imagery under the maps', { skip: SKIP }, () => {
     await page.waitForSelector('[data-testid=imagery-rx-form]');
     await page.selectOption('[data-testid=imagery-rx-mode]', 'ndvi');
     await page.click('[data-testid=imagery-rx-submit]');
-    await page.waitForURL(/#\/prescriptions\/\d+/, { timeout: 60_000 });
+    await page.waitForURL(/#\/prescriptions\/\d+/, { timeout: scaled(60_000) });
     const ndviRx = (await api(token, 'GET', `/prescriptions/${page.url().split('/').pop()}`)).data;
     assert.equal(ndviRx.model, 'ndvi');
     assert.equal(ndviRx.interpolation, 'imagery');
@@ -152,7 +152,7 @@ describe('imagery under the maps', { skip: SKIP }, () => {
     await page.fill('[data-testid=imagery-rx-k]', '4');
     await page.click('[data-testid=imagery-rx-submit]');
     await page.waitForURL((u) => /#\/prescriptions\/\d+/.test(u.toString()) && !u.toString().endsWith(`/${ndviRx.id}`), {
-      timeout: 60_000,
+      timeout: scaled(60_000),
     });
     const zoneId = page.url().split('/').pop();
     const zoneRx = (await api(token, 'GET', `/prescriptions/${zoneId}`)).data;
@@ -196,7 +196,7 @@ describe('imagery under the maps', { skip: SKIP }, () => {
     await page.fill('[data-testid=soil-zones-k]', '3');
     await page.fill('[data-testid=soil-zones-min-area]', '100');
     await page.click('[data-testid=soil-zones-submit]');
-    await page.waitForURL(/#\/prescriptions\/\d+/, { timeout: 60_000 });
+    await page.waitForURL(/#\/prescriptions\/\d+/, { timeout: scaled(60_000) });
     const rx = (await api(token, 'GET', `/prescriptions/${page.url().split('/').pop()}`)).data;
     assert.equal(rx.model, 'nutrient_balance');
     const zones = rx.summary.interpolation.zones;

@@ -1,4 +1,4 @@
-// Issue 13 in the browser: create a sensor-based topdressing job (seed 000) and a seeding job
+// In the browser: create a sensor-based topdressing job (seed 000) and a seeding job
 // with depth control (seed 002) through their own forms, drive each with
 // `fieldrx-edge simulate --server`, and read the report (Table 3 layout, maps).
 // (The prescription-map kind is created through the UI in scenario.test.mjs.)
@@ -6,7 +6,7 @@ import { after, before, describe, it } from 'node:test';
 import assert from 'node:assert/strict';
 import { existsSync, writeFileSync } from 'node:fs';
 import { join } from 'node:path';
-import { ARTIFACTS, BASE_URL, ROOT, api, apiLogin, launch, listOf, mapIdle, run, serverUp, shot, signIn, uiServed } from './lib.mjs';
+import { ARTIFACTS, BASE_URL, ROOT, api, apiLogin, launch, listOf, mapIdle, run, serverUp, shot, signIn, uiServed, scaled } from './lib.mjs';
 
 const up = await serverUp();
 const ui = up && (await uiServed());
@@ -106,7 +106,7 @@ describe('job kinds in the browser', { skip: SKIP }, () => {
     await page.waitForFunction(
       (want) => (document.querySelector('[data-testid=report-shaft-error]')?.textContent ?? '').startsWith(want),
       sim.mean_relative_error_pct.toFixed(2),
-      { timeout: 30_000 },
+      { timeout: scaled(30_000) },
     );
     await mapIdle(page, 'kind-report');
     const drawn = await page.evaluate(() => window.__fieldrxMaps['kind-report'].queryRenderedFeatures({ layers: ['kcells-fill'] }).length);
@@ -128,7 +128,7 @@ describe('job kinds in the browser', { skip: SKIP }, () => {
     await page.waitForSelector('[data-testid=depth-table] tbody tr');
     const q = sim.depth_table.all.qualified_pct.toFixed(1);
     await page.waitForFunction((want) => (document.querySelector('[data-testid=report-qualified]')?.textContent ?? '').startsWith(want), q, {
-      timeout: 30_000,
+      timeout: scaled(30_000),
     });
     await mapIdle(page, 'kind-report');
     await shot(page, 'kind-report-depth');

@@ -1,4 +1,4 @@
-// Issue 15 scopes 6 and 7 in the browser: the fleet's last-seen / offline state, machine
+// In the browser: the fleet's last-seen / offline state, machine
 // labels and live coverage; route history by day; the main screens at a 10-inch cab tablet's
 // 768 px and a phone's 390 px (map full width, the panel collapses, no control overflows),
 // with screenshots committed to docs/screens/; a form error scrolled into view at 900 px.
@@ -6,7 +6,7 @@ import { after, before, describe, it } from 'node:test';
 import assert from 'node:assert/strict';
 import { mkdirSync, writeFileSync } from 'node:fs';
 import { join } from 'node:path';
-import { ARTIFACTS, BASE_URL, ROOT, api, apiLogin, launch, mapIdle, serverUp, shot, signIn, uiServed } from './lib.mjs';
+import { ARTIFACTS, BASE_URL, ROOT, api, apiLogin, launch, mapIdle, serverUp, shot, signIn, uiServed, scaled } from './lib.mjs';
 
 const up = await serverUp();
 const ui = up && (await uiServed());
@@ -117,7 +117,7 @@ describe('fleet, route history and layouts in the browser', { skip: SKIP }, () =
     await shot(page, 'fleet-labels-coverage');
     await page.screenshot({ path: join(SCREENS, 'fleet-1280-coverage.png') });
     // silent beyond FIELDRX_HEARTBEAT_TIMEOUT_S (10 s in scripts/e2e.sh): offline, pushed
-    await page.waitForSelector(`[data-testid=machine-status-${S.machineId}]:has-text("offline")`, { timeout: 90_000 });
+    await page.waitForSelector(`[data-testid=machine-status-${S.machineId}]:has-text("offline")`, { timeout: scaled(90_000) });
     assert.match(await seen.textContent(), /^offline · last seen (\d+ s|\d+ min) ago$/);
     assert.match(await page.getAttribute(`[data-testid=map-label-${S.machineId}]`, 'class'), /offline/);
     assert.match(await page.textContent(`[data-testid=machine-pos-${S.machineId}]`), /last known/);
@@ -133,8 +133,8 @@ describe('fleet, route history and layouts in the browser', { skip: SKIP }, () =
     };
     await page.route('**/api/v1/machines/*/track/days*', hold);
     await page.goto(`${BASE_URL}/#/machines/${S.machineId}`);
-    await page.waitForSelector('[data-testid=track-busy]', { timeout: 1400 });
-    await page.waitForSelector('[data-testid=activity][data-active=true]', { timeout: 1400 });
+    await page.waitForSelector('[data-testid=track-busy]', { timeout: scaled(1400) });
+    await page.waitForSelector('[data-testid=activity][data-active=true]', { timeout: scaled(1400) });
     await page.waitForSelector('[data-testid=track-day-2026-06-01]');
     await page.unroute('**/api/v1/machines/*/track/days*', hold);
     await page.waitForSelector('[data-testid=track-day-2026-06-02]');

@@ -3,7 +3,7 @@
 import { spawn } from 'node:child_process';
 import { createRequire } from 'node:module';
 import { mkdirSync, mkdtempSync, rmSync } from 'node:fs';
-import { tmpdir } from 'node:os';
+import { cpus, loadavg, tmpdir } from 'node:os';
 import { dirname, join } from 'node:path';
 import { fileURLToPath } from 'node:url';
 
@@ -17,6 +17,20 @@ export const BASE_URL = (process.env.FIELDRX_URL ?? 'http://127.0.0.1:8000').rep
 export const EMAIL = process.env.FIELDRX_EMAIL ?? 'agronomist@demo.fieldrx.org';
 export const PASSWORD = process.env.FIELDRX_PASSWORD ?? 'fieldrx-demo';
 export const CHROMIUM = process.env.CHROMIUM_PATH ?? '/usr/bin/chromium';
+
+/**
+ * How much longer than on a quiet machine a wait may take (tests/support.py time_scale:
+ * FIELDRX_TEST_TIME_SCALE, else 2 + the 1-minute load per core, at most 12). Waits end
+ * when their condition holds, so a generous scale only delays a failure.
+ */
+export function timeScale() {
+  const env = Number(process.env.FIELDRX_TEST_TIME_SCALE);
+  if (env) return Math.max(1, env);
+  return Math.min(12, 2 + loadavg()[0] / cpus().length);
+}
+
+/** A timeout of `ms` on a quiet machine, stretched by timeScale(). */
+export const scaled = (ms) => Math.round(ms * timeScale());
 
 export const CHROME_FLAGS = [
   '--headless',
@@ -40,6 +54,8 @@ export async function launch({ width = 1280, height = 800 } = {}) {
     viewport: { width, height },
     acceptDownloads: true,
   });
+  // Playwright's own 30 s default for waits without an explicit timeout, scaled
+  context.setDefaultTimeout(scaled(30_000));
   const page = context.pages()[0] ?? (await context.newPage());
   const logs = [];
   page.on('console', (m) => logs.push(`[${m.type()}] ${m.text()}`));
@@ -64,7 +80,7 @@ export async function shot(page, name) {
 }
 
 /** Resolves when the named map has loaded and is idle (all tiles and sources drawn). */
-export async function mapIdle(page, name, timeout = 20_000) {
+export async function mapIdle(page, name, timeout = scaled(20_000)) {
   await page.waitForFunction((n) => Boolean(window.__fieldrxMaps?.[n]), name, { timeout });
   await page.evaluate(
     (n) =>
@@ -169,7 +185,7 @@ export function run(cmd, args, timeout) {
     let err = '';
     p.stdout.on('data', (d) => (out += d));
     p.stderr.on('data', (d) => (err += d));
-    const timer = setTimeout(() => p.kill('SIGTERM'), timeout);
+    const timer = setTimeout(() => p.kill('SIGTERM'), scaled(timeout));
     p.on('close', (code) => {
       clearTimeout(timer);
       resolve({ code, out, err });

@@ -1,4 +1,4 @@
-// Issue 15 scope 6 / issue 18 scope 3 in the browser: the job report's loading state and the
+// In the browser: the job report's loading state and the
 // progress of its background task, the printable as-applied report (print media: field,
 // date, machine, product, totals, map, legend shown; the screen's controls hidden), and the
 // export buttons producing files (inline, and through an export task with progress).
@@ -7,7 +7,7 @@ import { after, before, describe, it } from 'node:test';
 import assert from 'node:assert/strict';
 import { existsSync, readFileSync, writeFileSync } from 'node:fs';
 import { join } from 'node:path';
-import { ARTIFACTS, BASE_URL, ROOT, api, apiLogin, launch, mapIdle, run, serverUp, shot, signIn, uiServed } from './lib.mjs';
+import { ARTIFACTS, BASE_URL, ROOT, api, apiLogin, launch, mapIdle, run, serverUp, shot, signIn, uiServed, scaled } from './lib.mjs';
 
 const up = await serverUp();
 const ui = up && (await uiServed());
@@ -77,11 +77,11 @@ describe('job report: loading, print, exports', { skip: SKIP }, () => {
     // the first visit of the report: nothing computed it yet
     await page.goto(`${BASE_URL}/#/jobs/${job.id}`);
     const sawTask = await page
-      .waitForSelector('[data-testid=report-loading] [data-testid=task-progress]', { timeout: 10_000 })
+      .waitForSelector('[data-testid=report-loading] [data-testid=task-progress]', { timeout: scaled(10_000) })
       .then(() => true)
       .catch(() => false);
     await page.waitForFunction(() => /^[1-9]/.test(document.querySelector('[data-testid=report-records]')?.textContent ?? ''), null, {
-      timeout: 60_000,
+      timeout: scaled(60_000),
     });
     const tasks = (await api(token, 'GET', `/tasks?kind=report&limit=5`)).data.items.filter((t) => t.id > before);
     assert.ok(sawTask, 'the task progress was shown while the report was computed');
@@ -102,12 +102,12 @@ describe('job report: loading, print, exports', { skip: SKIP }, () => {
     await page.goto(`${BASE_URL}/#/jobs`);
     await page.waitForSelector('[data-testid=job-table]');
     await page.goto(`${BASE_URL}/#/jobs/${job.id}`);
-    await page.waitForSelector('[data-testid=report-loading]', { state: 'visible', timeout: 10_000 });
+    await page.waitForSelector('[data-testid=report-loading]', { state: 'visible', timeout: scaled(10_000) });
     assert.match(await page.textContent('[data-testid=report-loading]'), /Loading the report/);
     assert.equal((await page.textContent('[data-testid=report-records]')).trim(), '…');
     assert.doesNotMatch(await page.textContent('[data-testid=report-cells]'), /\b0\b/);
     await shot(page, 'report-loading');
-    await page.waitForSelector('[data-testid=report-loading]', { state: 'detached', timeout: 30_000 });
+    await page.waitForSelector('[data-testid=report-loading]', { state: 'detached', timeout: scaled(30_000) });
     await page.waitForFunction(() => /^[1-9]/.test(document.querySelector('[data-testid=report-records]')?.textContent ?? ''));
     await page.unroute(pattern);
   });
@@ -115,7 +115,7 @@ describe('job report: loading, print, exports', { skip: SKIP }, () => {
   it('prints an as-applied report with field, date, machine, product, totals, map and legend', async () => {
     await page.goto(`${BASE_URL}/#/jobs/${job.id}`);
     await page.waitForFunction(() => /^[1-9]/.test(document.querySelector('[data-testid=report-records]')?.textContent ?? ''), null, {
-      timeout: 60_000,
+      timeout: scaled(60_000),
     });
     await mapIdle(page, 'report');
     await page.evaluate(() => {
@@ -154,7 +154,7 @@ describe('job report: loading, print, exports', { skip: SKIP }, () => {
   it('exports CSV inline and a Shapefile through an export task, both as files', async () => {
     await page.goto(`${BASE_URL}/#/jobs/${job.id}`);
     await page.waitForSelector('[data-testid=export-csv]');
-    const [csv] = await Promise.all([page.waitForEvent('download', { timeout: 30_000 }), page.click('[data-testid=export-csv]')]);
+    const [csv] = await Promise.all([page.waitForEvent('download', { timeout: scaled(30_000) }), page.click('[data-testid=export-csv]')]);
     assert.match(csv.suggestedFilename(), /^job\d+_as_applied\.csv$/);
     const text = readFileSync(await csv.path(), 'utf8');
     assert.match(text.split('\n')[0], /^seq,swath,area_m2,target_rate_kg_ha,applied_rate_kg_ha/);
@@ -164,10 +164,10 @@ describe('job report: loading, print, exports', { skip: SKIP }, () => {
     // a large job's export: the server queues it (forced here) and the button follows the task
     const pattern = `**/api/v1/jobs/${job.id}/export*`;
     await page.route(pattern, (route) => route.continue({ url: `${route.request().url()}&background=true` }));
-    const dl = page.waitForEvent('download', { timeout: 60_000 });
+    const dl = page.waitForEvent('download', { timeout: scaled(60_000) });
     await page.click('[data-testid=export-shapefile]');
     const sawTask = await page
-      .waitForSelector('[data-testid=export-buttons] [data-testid=task-progress]', { timeout: 10_000 })
+      .waitForSelector('[data-testid=export-buttons] [data-testid=task-progress]', { timeout: scaled(10_000) })
       .then(() => true)
       .catch(() => false);
     const shp = await dl;

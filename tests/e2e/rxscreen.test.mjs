@@ -1,4 +1,4 @@
-// Issue 15 scope 4 in the browser: the prescription form with typed fields (no JSON), the
+// In the browser: the prescription form with typed fields (no JSON), the
 // version switch showing that version's summary, undo / redo of a rate edit (buttons and
 // Ctrl+Z / Ctrl+Shift+Z), and the diff of two versions. Set-up (field, samples, plan)
 // through the API; everything under test through the UI, checked against the API's figures.
@@ -6,7 +6,7 @@ import { after, before, describe, it } from 'node:test';
 import assert from 'node:assert/strict';
 import { writeFileSync } from 'node:fs';
 import { join } from 'node:path';
-import { ARTIFACTS, BASE_URL, api, apiLogin, hasRoute, launch, mapIdle, serverUp, shot, signIn, uiServed } from './lib.mjs';
+import { ARTIFACTS, BASE_URL, api, apiLogin, hasRoute, launch, mapIdle, serverUp, shot, signIn, uiServed, scaled } from './lib.mjs';
 
 const up = await serverUp();
 const ui = up && (await uiServed());
@@ -43,7 +43,7 @@ function samplesCsv() {
 
 const kgText = (kg) => (Math.abs(kg) >= 10_000 ? `${(kg / 1000).toFixed(3)} t` : `${kg.toFixed(1)} kg`);
 
-describe('prescription screen (issue 15 scope 4)', { skip: SKIP }, () => {
+describe('prescription screen', { skip: SKIP }, () => {
   let B;
   let page;
   let token;
@@ -106,7 +106,7 @@ describe('prescription screen (issue 15 scope 4)', { skip: SKIP }, () => {
     await page.fill('[data-testid=rx-note]', 'e2e first pass');
     await shot(page, 'rx-form-typed');
     await page.click('[data-testid=rx-submit]');
-    await page.waitForURL(/#\/prescriptions\/\d+$/, { timeout: 60_000 });
+    await page.waitForURL(/#\/prescriptions\/\d+$/, { timeout: scaled(60_000) });
     rxId = Number(page.url().match(/#\/prescriptions\/(\d+)/)[1]);
     const rx = (await api(token, 'GET', `/prescriptions/${rxId}`)).data;
     assert.equal(rx.params.target_yield_kg_ha, 2500);
@@ -149,7 +149,7 @@ describe('prescription screen (issue 15 scope 4)', { skip: SKIP }, () => {
 
   const current = async () => (await api(token, 'GET', `/prescriptions/${rxId}`)).data.current_version;
   const waitVersion = (v) =>
-    page.waitForFunction((x) => document.querySelector('[data-testid=rx-version]')?.value === String(x), v, { timeout: 20_000 });
+    page.waitForFunction((x) => document.querySelector('[data-testid=rx-version]')?.value === String(x), v, { timeout: scaled(20_000) });
 
   it('edits a cell; switching versions shows that version\'s summary', async (t) => {
     if (!rxId) return t.skip('needs the prescription');
@@ -166,7 +166,7 @@ describe('prescription screen (issue 15 scope 4)', { skip: SKIP }, () => {
       await page.waitForFunction(
         (want) => document.querySelector('[data-testid=rx-sum-product]')?.textContent === want,
         kgText(s.product_kg),
-        { timeout: 10_000 },
+        { timeout: scaled(10_000) },
       );
       assert.match(await page.textContent('[data-testid=rx-sum-mean]'), new RegExp(s.rate_mean_kg_ha.toFixed(1).replace('.', '\\.')));
     };

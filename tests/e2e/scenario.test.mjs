@@ -23,6 +23,7 @@ import {
   shot,
   sleep,
   uiServed,
+  scaled,
 } from './lib.mjs';
 
 const up = await serverUp();
@@ -155,7 +156,7 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
     await shot(page, 'import-invalid');
     assert.ok(marked > 0, 'import problem marked on the map');
     const before = Number((await page.textContent('[data-testid=field-count]')).replace(/\D/g, ''));
-    // "Import..." is reachable by keyboard (issue 15): focus it, Enter opens the file chooser.
+    // "Import..." is reachable by keyboard: focus it, Enter opens the file chooser.
     await page.focus('[data-testid=import-button]');
     assert.equal(await page.evaluate(() => document.activeElement?.getAttribute('data-testid')), 'import-button');
     const [chooser] = await Promise.all([page.waitForEvent('filechooser'), page.keyboard.press('Enter')]);
@@ -230,7 +231,7 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
     }
     const areaEdited = await page.textContent('[data-testid=draw-area]');
     assert.ok(parseFloat(areaEdited) > parseFloat(areaHoled), `dragging a vertex grows the area: ${areaHoled} -> ${areaEdited}`);
-    // Undo / redo (issue 15): the button and Ctrl+Z step back through the drag and the hole,
+    // Undo / redo: the button and Ctrl+Z step back through the drag and the hole,
     // Ctrl+Shift+Z and the button step forward again to the edited boundary.
     const areaNow = () => page.textContent('[data-testid=draw-area]');
     await page.click('[data-testid=draw-undo]');
@@ -266,10 +267,10 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
     await page.fill('[data-testid=plan-headland]', '1');
     await page.fill('[data-testid=plan-turn-radius]', '5'); // the machine's turning radius
     await page.click('[data-testid=plan-submit]');
-    await page.waitForURL(/#\/plans\/\d+$/, { timeout: 60_000 });
+    await page.waitForURL(/#\/plans\/\d+$/, { timeout: scaled(60_000) });
     S.planId = Number(page.url().match(/#\/plans\/(\d+)/)[1]);
     await page.waitForFunction(() => /\d/.test(document.querySelector('[data-testid=plan-cells]')?.textContent ?? ''));
-    // issue 16: the radius reaches the planner; what the rounded ring cannot reach and
+    // the radius reaches the planner; what the rounded ring cannot reach and
     // the headland the turns need are said on the plan, not only in the API
     const stored = (await api(token, 'GET', `/plans/${S.planId}`)).data;
     assert.equal(stored.params.turn_radius_m, 5);
@@ -277,7 +278,7 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
     assert.match(await page.textContent('[data-testid=plan-corner-loss]'), /\d+ m²/);
     const warned = await page.textContent('[data-testid=plan-warnings]');
     assert.match(warned, /headland passes of 2\.3 m hold them/);
-    await page.waitForFunction(() => window.__fieldrxPerf?.grid?.idleMs != null, null, { timeout: 30_000 });
+    await page.waitForFunction(() => window.__fieldrxPerf?.grid?.idleMs != null, null, { timeout: scaled(30_000) });
     await mapIdle(page, 'plan');
     const cells = Number((await page.textContent('[data-testid=plan-cells]')).replace(/\D/g, ''));
     assert.ok(cells > 100, `cells ${cells}`);
@@ -364,9 +365,9 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
     await page.waitForSelector('[data-testid=rx-form]');
     await page.selectOption('[data-testid=rx-model]', 'nutrient_balance');
     await page.click('[data-testid=rx-submit]');
-    await page.waitForURL(/#\/prescriptions\/\d+$/, { timeout: 60_000 });
+    await page.waitForURL(/#\/prescriptions\/\d+$/, { timeout: scaled(60_000) });
     S.rxId = Number(page.url().match(/#\/prescriptions\/(\d+)/)[1]);
-    await page.waitForFunction(() => window.__fieldrxPerf?.rx?.idleMs != null, null, { timeout: 30_000 });
+    await page.waitForFunction(() => window.__fieldrxPerf?.rx?.idleMs != null, null, { timeout: scaled(30_000) });
     await mapIdle(page, 'rx');
     await page.waitForFunction(() => /\d/.test(document.querySelector('[data-testid=rx-cell-count]')?.textContent ?? ''));
     await shot(page, 'prescription');
@@ -414,7 +415,7 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
     await mapIdle(page, 'rx');
     await shot(page, 'prescription-edited');
 
-    // Issue 15: the histogram is the server's whole-field, area-weighted one of the version on
+    // the histogram is the server's whole-field, area-weighted one of the version on
     // screen: the same at any zoom, and switching versions shows that version's figures.
     const histOf = () => page.locator('[data-testid=rx-histogram] title').allTextContents();
     const haOf = (titles) => titles.map((t) => Number(t.match(/: ([\d.]+) ha$/)?.[1]));
@@ -467,7 +468,7 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
     await page.waitForSelector('[data-testid=zone-panel]');
     await page.fill('[data-testid=zone-rate]', '650');
     await page.click('[data-testid=zone-save]');
-    await page.waitForFunction((v) => Number(document.querySelector('[data-testid=rx-version]')?.value) > v, S.rxVersion, { timeout: 30_000 });
+    await page.waitForFunction((v) => Number(document.querySelector('[data-testid=rx-version]')?.value) > v, S.rxVersion, { timeout: scaled(30_000) });
     S.rxVersion = Number(await page.inputValue('[data-testid=rx-version]'));
     await mapIdle(page, 'rx');
     await shot(page, 'prescription-zone');
@@ -476,7 +477,7 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
   it('exports ISOXML as a download', async (t) => {
     if (!need(t, 'rxId')) return;
     if (!(await needEndpoint(t, 'GET', '/prescriptions/{}/export', 'exports'))) return;
-    const [dl] = await Promise.all([page.waitForEvent('download', { timeout: 30_000 }), page.click('[data-testid=export-isoxml]')]);
+    const [dl] = await Promise.all([page.waitForEvent('download', { timeout: scaled(30_000) }), page.click('[data-testid=export-isoxml]')]);
     const file = join(ARTIFACTS, dl.suggestedFilename() || 'taskdata.zip');
     await dl.saveAs(file);
     const head = readFileSync(file).subarray(0, 5).toString('latin1');
@@ -557,7 +558,7 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
     writeFileSync(pkgFile, Buffer.from(await pkgRes.arrayBuffer()));
     await page.goto(`${BASE_URL}/#/fleet`);
     await mapIdle(page, 'fleet');
-    await page.waitForSelector('[data-testid=live-state]:has-text("open")', { timeout: 15_000 }).catch(() => {});
+    await page.waitForSelector('[data-testid=live-state]:has-text("open")', { timeout: scaled(15_000) }).catch(() => {});
     await shot(page, 'fleet-before');
     const pos = `[data-testid=machine-pos-${S.machineId}]`;
     const before = (await page.locator(pos).textContent().catch(() => null)) ?? '';
@@ -578,13 +579,13 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
           return /\d+\.\d+, /.test(t) && t !== old;
         },
         [pos, before],
-        { timeout: 90_000 },
+        { timeout: scaled(90_000) },
       );
       const p1 = await page.textContent(pos);
       assert.ok(isPos(p1), p1);
       await shot(page, 'fleet-moving-1');
       await page.waitForFunction(([sel, old]) => (document.querySelector(sel)?.textContent ?? old) !== old, [pos, p1], {
-        timeout: 90_000,
+        timeout: scaled(90_000),
       });
       await mapIdle(page, 'fleet');
       await shot(page, 'fleet-moving-2');
@@ -601,7 +602,7 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
     // The machine stopped reporting: after the heartbeat timeout the server pushes
     // "offline" on the live socket and the marker turns grey (no reload, no polling).
     await page.waitForSelector(`[data-testid=machine-status-${S.machineId}]:has-text("offline")`, {
-      timeout: 60_000,
+      timeout: scaled(60_000),
     });
     await shot(page, 'fleet-offline');
     // Alerts raised by the run (if any) are grouped per job and kind; one click
@@ -623,7 +624,7 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
     // Machine detail: raw vs filtered speed and target vs actual shaft speed.
     await page.goto(`${BASE_URL}/#/machines/${S.machineId}`);
     await page.waitForFunction(() => Number(document.querySelector('[data-testid=machine-track-count]')?.textContent ?? 0) > 0, null, {
-      timeout: 30_000,
+      timeout: scaled(30_000),
     }).catch(() => {});
     await shot(page, 'machine-charts');
   });
@@ -633,12 +634,12 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
     if (!(await needEndpoint(t, 'GET', '/jobs/{}/report', 'job report'))) return;
     await page.goto(`${BASE_URL}/#/jobs/${S.jobId}`);
     await page.waitForFunction(() => /^[1-9]/.test(document.querySelector('[data-testid=report-points]')?.textContent ?? ''), null, {
-      timeout: 60_000,
+      timeout: scaled(60_000),
     });
     await page.waitForFunction(() => /^[1-9]/.test(document.querySelector('[data-testid=report-cells]')?.textContent ?? ''), null, {
-      timeout: 60_000,
+      timeout: scaled(60_000),
     });
-    await page.waitForFunction(() => window.__fieldrxPerf?.job?.idleMs != null, null, { timeout: 30_000 });
+    await page.waitForFunction(() => window.__fieldrxPerf?.job?.idleMs != null, null, { timeout: scaled(30_000) });
     await mapIdle(page, 'report');
     const applied = await page.evaluate(() => {
       const map = window.__fieldrxMaps.report;

@@ -1,4 +1,4 @@
-// The soil-lab import assistant in the browser (issue 15 scope 5): a German lab's file
+// The soil-lab import assistant in the browser: a German lab's file
 // (';', decimal commas, Windows-1252 umlauts, "Breite/Länge", "Nmin (kg/ha)", "P2O5 (mg/100g)",
 // "Humus (%)", "Tiefe (cm)" as "0-30") is read with the columns, units and coordinate system
 // recognised; the rejected row and the row outside the field are listed with row number and

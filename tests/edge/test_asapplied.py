@@ -1,4 +1,4 @@
-"""fieldrx_edge.asapplied: how long each record's metering lasted (issue 11 defect 2)."""
+"""fieldrx_edge.asapplied: how long each record's metering lasted."""
 
 from __future__ import annotations
 
@@ -46,7 +46,7 @@ def test_missed_fixes_extend_a_record_but_jitter_does_not() -> None:
     )
 
 
-# --- the kernel's geometry (issue 12): one driven length, one landing split, eq. 17-18 ---
+# --- the kernel's geometry: one driven length, one landing split, eq. 17-18 ---
 
 
 def _two_cells() -> tuple[Cells, np.ndarray]:

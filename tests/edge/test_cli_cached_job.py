@@ -1,4 +1,4 @@
-"""`fieldrx-edge simulate JOB_ID --state-dir D` finds a job cached by `pull` (issue 15).
+"""`fieldrx-edge simulate JOB_ID --state-dir D` finds a job cached by `pull`.
 
 Before the fix, ``simulate`` looked only for a file or a ``demo:`` spec and answered
 "no such file or cached job id" for a job that ``run`` found in the same state dir.

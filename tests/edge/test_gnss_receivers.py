@@ -1,4 +1,4 @@
-"""NMEA from real receivers (issue 20, item 8): excerpts of gpsd's test logs in tests/edge/data.
+"""NMEA from real receivers (item 8): excerpts of gpsd's test logs in tests/edge/data.
 
 Each case failed on the parser before this change: the $IN talker was dropped,
 empty-time no-fix sentences were "malformed", GNS was ignored, binary bytes in

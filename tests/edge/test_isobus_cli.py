@@ -12,6 +12,8 @@ from fieldrx_edge.commands import run as run_cmd
 from fieldrx_edge.sim.drive import write_nmea_log
 from fieldrx_edge.sim.simulator import SimConfig
 
+from tests.support import scaled
+
 from .jobfactory import trial_plot
 from .test_isobus_network import channel
 
@@ -47,7 +49,7 @@ def test_run_as_task_controller_drives_the_ecu_command(tmp_path, capsys):
             f"virtual:{ch}",
         ]
     )
-    ecu.join(timeout=30)
+    ecu.join(timeout=scaled(30))
     assert rc == 0 and ecu_rc == [0]
     outs = [json.loads(x) for x in capsys.readouterr().out.splitlines() if x.startswith("{")]
     run_out = next(o for o in outs if "records" in o)

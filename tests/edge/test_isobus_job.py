@@ -1,4 +1,4 @@
-"""A full job with the TC server driving the rate ECU over the virtual bus (issue 17)."""
+"""A full job with the TC server driving the rate ECU over the virtual bus."""
 
 from __future__ import annotations
 

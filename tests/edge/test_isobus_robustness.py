@@ -1,4 +1,4 @@
-"""Robustness on the bus during a job (issue 17 item 6): junk frames, an address
+"""Robustness on the bus during a job: junk frames, an address
 conflict, bus-off, a silent TC. Logged and alarmed, never a crash; metering stops safely."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Issue 13 on the tractor: kind settings (papers' defaults, unit-checked), sensor line
+"""On the tractor: kind settings (papers' defaults, unit-checked), sensor line
 formats, the hold-then-stop guard on bad sensor input, the package's kind fields, the
 optional telemetry fields, and `fieldrx-edge run` of a cached sensor job from files."""
 
@@ -26,6 +26,8 @@ from fieldrx_edge.jobkinds.topdress import TopdressLoop
 from fieldrx_edge.ndvi import SEED000_TABLE
 from fieldrx_edge.protocol import JobPackage, ProtocolError, TelemetryRecord
 from fieldrx_edge.sim.fields import rect_job
+
+from tests.support import scaled
 
 BIN = Path(sys.executable).parent
 ROOT = Path(__file__).resolve().parents[2]
@@ -198,7 +200,7 @@ def test_run_ndvi_job_from_files_holds_then_stops(tmp_path: Path) -> None:
         [str(BIN / "fieldrx-edge"), "run", str(pkg), "--source", f"file:{tmp_path / 'gnss.nmea'}",
          "--sensor", f"file:{tmp_path / 'ndvi.log'}", "--offline",
          "--state-dir", str(tmp_path / "state")],
-        cwd=ROOT, capture_output=True, text=True, timeout=120,
+        cwd=ROOT, capture_output=True, text=True, timeout=scaled(120),
     )  # fmt: skip
     assert out.returncode == 0, out.stderr[-2000:]
     res = json.loads(out.stdout.strip().splitlines()[-1])
@@ -237,7 +239,7 @@ def test_run_depth_job_from_files(tmp_path: Path) -> None:
         [str(BIN / "fieldrx-edge"), "run", str(pkg), "--source", f"file:{tmp_path / 'gnss.nmea'}",
          "--sensor", f"file:{tmp_path / 'depth.log'}", "--offline",
          "--state-dir", str(tmp_path / "state")],
-        cwd=ROOT, capture_output=True, text=True, timeout=120,
+        cwd=ROOT, capture_output=True, text=True, timeout=scaled(120),
     )  # fmt: skip
     assert out.returncode == 0, out.stderr[-2000:]
     res = json.loads(out.stdout.strip().splitlines()[-1])
@@ -267,7 +269,7 @@ def test_simulation_paced_for_the_live_view() -> None:
     assert len(got) == out["records"]
     assert wall >= 0.9 * out["duration_s"] / 400.0  # paced, not as fast as possible
     ts = np.array([r["t"] for r in got])
-    # a record's time is its fix time (issue 11): fixes stay 1 / hz apart in record time,
+    # a record's time is its fix time: fixes stay 1 / hz apart in record time,
     # paced or not (wall-clock stamps were 1 / 400 of that), and none is stamped in the future
     assert np.all(np.diff(ts) > 0)
     assert np.allclose(np.diff(ts), 0.1, atol=2e-3)
@@ -308,7 +310,9 @@ def test_run_notices_a_silent_sensor(tmp_path: Path) -> None:
         cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
     )  # fmt: skip
     try:
-        deadline = time.monotonic() + 8  # silence noticed on the wall clock, not per read timeout
+        deadline = time.monotonic() + scaled(
+            8
+        )  # silence noticed on the wall clock, not per read timeout
         recs: list[dict] = []
         while time.monotonic() < deadline:
             time.sleep(0.5)

@@ -13,6 +13,8 @@ from fieldrx_edge.jobs import JobStore
 from fieldrx_edge.sim.drive import write_nmea_log
 from fieldrx_edge.sim.simulator import SimConfig
 
+from tests.support import scaled
+
 from .jobfactory import trial_plot
 from .peer import Peer
 
@@ -28,7 +30,7 @@ def free_port():
 def last_seq(db):
     if not db.exists():
         return 0
-    con = sqlite3.connect(db, timeout=5)
+    con = sqlite3.connect(db, timeout=scaled(5))
     try:
         row = con.execute("SELECT value FROM meta WHERE key='last_seq'").fetchone()
         return row[0] if row else 0
@@ -67,7 +69,7 @@ def test_sigkill_offline_restart_delivers_every_record_once(tmp_path):
     ]
     db = state / "queue.sqlite"
     p1 = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
-    deadline = time.monotonic() + 30
+    deadline = time.monotonic() + scaled(30)
     while last_seq(db) < 400 and time.monotonic() < deadline:
         time.sleep(0.05)
     assert p1.poll() is None, p1.stderr.read()
@@ -82,7 +84,7 @@ def test_sigkill_offline_restart_delivers_every_record_once(tmp_path):
     time.sleep(1.5)
     peer = Peer(port=port).start()  # the server comes back
     try:
-        out, err = p2.communicate(timeout=90)
+        out, err = p2.communicate(timeout=scaled(90))
         assert p2.returncode == 0, err
         res = json.loads(out.strip().splitlines()[-1])
         assert res["drained"] is True

@@ -9,6 +9,7 @@ from fieldrx_edge.protocol import ack_topic, mqtt_username, telemetry_topic
 from fieldrx_edge.uplink import Backoff, HttpSender, MqttSender, TelemetryQueue
 
 from tests.mqtt_broker import mqtt_port, worker_client
+from tests.support import scaled
 
 from .peer import Peer
 
@@ -216,7 +217,7 @@ def test_mqtt_sender_publishes_a_partial_batch_once_per_period(tmp_path):
         for i in range(40):  # 20 Hz for 2 s
             q.put(rec(i))
             time.sleep(0.05)
-        deadline = time.monotonic() + 10
+        deadline = time.monotonic() + scaled(10)
         while q.backlog() and time.monotonic() < deadline:
             time.sleep(0.05)
         assert sorted(srv.records) == list(range(1, 41)) and q.backlog() == 0
@@ -281,7 +282,7 @@ def test_edge_cli_mqtt_logs_in_with_its_device_token(tmp_path):
             capture_output=True,
             text=True,
             check=True,
-            timeout=60,
+            timeout=scaled(60),
         )
         return json.loads(r.stdout)
 
@@ -295,7 +296,7 @@ def test_edge_cli_mqtt_logs_in_with_its_device_token(tmp_path):
         srv.stop()
 
 
-# issue 11 (streams) and issue 20 (nothing the protocol forbids is queued) ------------------
+# (streams) and (nothing the protocol forbids is queued) ------------------
 
 
 def test_queue_never_holds_a_record_the_protocol_forbids(tmp_path):

@@ -1,4 +1,4 @@
-"""Issue 11 defect 7 on the tractor: turning at the headland with the implement raised is
+"""On the tractor: turning at the headland with the implement raised is
 not an alarm. The pipeline flagged speed_out_of_range (turns are slow) and outside_field
 (the look-ahead leaves the field) on every turn, and the fleet marker turned red."""
 

@@ -170,8 +170,8 @@ def test_edge_stop_anticipates_the_coast_down():
 
 
 def test_agent_records_carry_fix_time_and_period_and_never_a_nan(tmp_path):
-    """Issue 11: a record's t is the receiver's fix time and fix_period_s the fix interval,
-    however fast the lines arrive. Issue 20: a GGA with HDOP 'nan' never puts a NaN in the
+    """A record's t is the receiver's fix time and fix_period_s the fix interval,
+    however fast the lines arrive. a GGA with HDOP 'nan' never puts a NaN in the
     queue (the batch on the wire is strict JSON)."""
     import json
 

@@ -1,4 +1,4 @@
-"""Simulator acceptance (issue 6): LADRC + lag compensation at 3-9 km/h."""
+"""Simulator acceptance: LADRC + lag compensation at 3-9 km/h."""
 
 import dataclasses
 import json
@@ -144,7 +144,7 @@ def test_simulate_sends_telemetry_like_an_agent(tmp_path):
 
 
 def test_realtime_pacing_stamps_records_with_fix_time():
-    """Issue 11: a record's time is its fix time. Paced at 250 x, fixes go out 0.4 ms apart
+    """A record's time is its fix time. Paced at 250 x, fixes go out 0.4 ms apart
     in wall time but are stamped 0.1 s apart (the GNSS period they carry), the drive ends
     when the paced run ends, and no record is stamped after it was produced."""
     import time

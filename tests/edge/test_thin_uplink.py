@@ -1,4 +1,4 @@
-"""Uplink profile thin on the tractor (issue 18): the cell records are the as-applied kernel
+"""Uplink profile thin on the tractor: the cell records are the as-applied kernel
 over the whole 10 Hz log, whatever batches the fixes came in, and a killed agent that
 restarts from its raw log neither loses nor repeats a cell record."""
 

@@ -1,4 +1,4 @@
-"""Issue 11 defect 3 on the tractor: a 12 m plan with one headland pass on a 100 m x 190 m
+"""On the tractor: a 12 m plan with one headland pass on a 100 m x 190 m
 field. The inner width (76 m) is not a multiple of 12 m, so the first inner swath overlaps
 the ring by 8 m and its cells' real polygons (the 4 m strip the ring leaves) lie beside the
 driving line. The agent looked the landing point up in those polygons, found the finished

@@ -12,6 +12,8 @@ from pathlib import Path
 
 import httpx
 
+from tests.support import scaled
+
 ROOT = Path(__file__).resolve().parents[2]
 BIN = Path(sys.executable).parent
 
@@ -44,7 +46,7 @@ class Proc:
             self.lines.append(line.rstrip())
 
     def wait_for(self, text: str, timeout: float = 20.0) -> None:
-        deadline = time.monotonic() + timeout
+        deadline = time.monotonic() + scaled(timeout)
         while time.monotonic() < deadline:
             if any(text in line for line in self.lines):
                 return
@@ -57,7 +59,7 @@ class Proc:
         if self.p.poll() is None:
             self.p.terminate()
             try:
-                self.p.wait(timeout)
+                self.p.wait(scaled(timeout))
             except subprocess.TimeoutExpired:
                 self.p.kill()
                 self.p.wait()
@@ -85,12 +87,12 @@ def start_api(
     ]
     proc = Proc(args, {"DATABASE_URL": database_url, **(env or {})})
     url = f"http://127.0.0.1:{port}"
-    # generous: importing the app alone takes ~30 s on a loaded 2-core machine; readiness
-    # is the health answer, and a crashed server ends the wait at once (poll below)
-    deadline = time.monotonic() + 180
+    # readiness is the health answer, and a crashed server ends the wait at once (poll
+    # below); importing the app alone takes ~30 s on a loaded 2-core machine
+    deadline = time.monotonic() + scaled(180)
     while time.monotonic() < deadline:
         try:
-            if httpx.get(url + "/api/v1/health", timeout=1).status_code < 500:
+            if httpx.get(url + "/api/v1/health", timeout=scaled(1)).status_code < 500:
                 return proc, url
         except httpx.HTTPError:
             pass

@@ -5,7 +5,7 @@ the upsert's result. PostgreSQL inlined ``old`` (referenced once) and, estimatin
 for both sides, ran it again for every upserted cell: n^2 index scans. A thin agent's
 cell batch of 200 cells over a job already started took 40,401 scans, 45 ms alone and
 about 170 ms under the ingest benchmark's load, more than every other statement of the
-thin request together (issue 18: the thin profile's server CPU). The plan is counted
+thin request together (the thin profile's server CPU). The plan is counted
 here (EXPLAIN ANALYZE, rolled back), not timed, so the test cannot be flaky; the counts
 the statement returns are checked against their definition as well.
 """

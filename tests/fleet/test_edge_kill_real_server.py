@@ -1,4 +1,4 @@
-"""Issue 6 acceptance against the REAL server: SIGKILL the agent mid-run while the FieldRx API
+"""The acceptance test against the REAL server: SIGKILL the agent mid-run while the FieldRx API
 is unreachable, restart it, bring the API back, and find every record stored exactly once."""
 
 from __future__ import annotations
@@ -21,12 +21,13 @@ from sqlalchemy import text
 
 from tests.fleet.helpers import make_job
 from tests.fleet.procs import free_port, start_api
+from tests.support import scaled
 
 
 def _last_seq(db: Path) -> int:
     if not db.exists():
         return 0
-    con = sqlite3.connect(db, timeout=5)
+    con = sqlite3.connect(db, timeout=scaled(5))
     try:
         row = con.execute("SELECT value FROM meta WHERE key='last_seq'").fetchone()
         return int(row[0]) if row else 0
@@ -58,7 +59,7 @@ def test_sigkill_with_server_down_then_every_record_once(database_url, org, db, 
     ]  # fmt: skip
     queue_db = state / "queue.sqlite"
     p1 = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
-    deadline = time.monotonic() + 30
+    deadline = time.monotonic() + scaled(30)
     while _last_seq(queue_db) < 300 and time.monotonic() < deadline:
         time.sleep(0.05)
     assert p1.poll() is None, p1.stderr.read() if p1.stderr else ""
@@ -70,7 +71,7 @@ def test_sigkill_with_server_down_then_every_record_once(database_url, org, db, 
     time.sleep(1.5)
     api, _ = start_api(database_url, port)  # the server comes back
     try:
-        out, err = p2.communicate(timeout=120)
+        out, err = p2.communicate(timeout=scaled(120))
         assert p2.returncode == 0, err
         res = json.loads(out.strip().splitlines()[-1])
         assert res["drained"] is True and res["queue"]["backlog"] == 0

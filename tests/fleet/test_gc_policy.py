@@ -1,4 +1,4 @@
-"""The ingest processes' cyclic GC settings (fleet.gc_policy, issue 18).
+"""The ingest processes' cyclic GC settings (fleet.gc_policy).
 
 Run in a fresh interpreter: the settings are process-wide and ``gc.freeze`` is once per
 process, so the test process's own state would say nothing."""
@@ -9,6 +9,8 @@ import os
 import subprocess
 import sys
 from pathlib import Path
+
+from tests.support import scaled
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -33,7 +35,7 @@ def _probe(setup: str) -> None:
     env = {**os.environ, "PYTHONPATH": f"{ROOT / 'backend'}{os.pathsep}{ROOT / 'edge_agent'}"}
     out = subprocess.run(
         [sys.executable, "-c", PROBE.format(setup=setup)],
-        capture_output=True, text=True, env=env, timeout=120,
+        capture_output=True, text=True, env=env, timeout=scaled(120),
     )  # fmt: skip
     assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr[-2000:]
 

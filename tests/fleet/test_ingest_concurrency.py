@@ -1,5 +1,5 @@
 """Two batches of one machine's stream waiting on its ingest lock at once (two MQTT
-workers, or two lanes of one: issue 18) must each see what the other committed.
+workers, or two lanes of one) must each see what the other committed.
 
 The lock was taken inside the statement that also read the stream's state; PostgreSQL
 (READ COMMITTED) takes a statement's snapshot when it starts, i.e. before the lock wait,
@@ -22,6 +22,7 @@ from fieldrx.fleet.db import connect
 from fieldrx.fleet.ingest import LOCK_NS, IngestResult, ingest
 
 from tests.fleet.helpers import JobFixture, record
+from tests.support import scaled
 
 
 def _waiters(conn: psycopg.Connection[Any], machine_id: int) -> int:
@@ -55,7 +56,7 @@ def _lined_up(
             t = threading.Thread(target=run)
             t.start()
             threads.append(t)
-            deadline = time.monotonic() + 20
+            deadline = time.monotonic() + scaled(20)
             while _waiters(probe, job.machine_id) < i + 1:
                 assert time.monotonic() < deadline, "batch did not reach the lock"
                 time.sleep(0.02)

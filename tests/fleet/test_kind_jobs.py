@@ -1,4 +1,4 @@
-"""Issue 13: sensor-based topdressing (seed 000) and depth-controlled seeding (seed 002) as
+"""Sensor-based topdressing (seed 000) and depth-controlled seeding (seed 002) as
 jobs, end to end: created through the API with the papers' defaults, downloaded with a
 device token, driven by `fieldrx-edge simulate --server`, and the report checked against the
 simulator's own figures (within 0.5 %)."""
@@ -15,7 +15,7 @@ from fieldrx_edge.ndvi import SEED000_TABLE
 from fieldrx_edge.protocol import JobPackage
 
 from tests.fleet.procs import BIN, ROOT, start_api
-from tests.support import DEPTH_SEEDER, NDVI_SPREADER, SMALL_PLOT, feature, machine_body
+from tests.support import DEPTH_SEEDER, NDVI_SPREADER, SMALL_PLOT, feature, machine_body, scaled
 
 SEED000_CAL = SEED000_TABLE.to_dict()
 
@@ -49,7 +49,7 @@ def _drive(c: httpx.Client, url: str, job: dict, token: str, tmp: Path, *extra: 
     out = subprocess.run(
         [str(BIN / "fieldrx-edge"), "simulate", str(tmp / "job.json"), "--server", url,
          "--token", token, "--json", "--seed", "2", "--state-dir", str(tmp / "state"), *extra],
-        cwd=ROOT, capture_output=True, text=True, timeout=600,
+        cwd=ROOT, capture_output=True, text=True, timeout=scaled(600),
     )  # fmt: skip
     assert out.returncode == 0, out.stderr[-2000:]
     sim = json.loads(out.stdout.strip().splitlines()[-1])
@@ -60,7 +60,7 @@ def _drive(c: httpx.Client, url: str, job: dict, token: str, tmp: Path, *extra: 
 def test_ndvi_topdress_job_end_to_end(database_url, org, tmp_path: Path) -> None:  # noqa: ANN001
     api, url = start_api(database_url)
     try:
-        c = httpx.Client(base_url=url, headers=org.headers(), timeout=60)
+        c = httpx.Client(base_url=url, headers=org.headers(), timeout=scaled(60))
         plan, m, token = _setup(c, 3.6, SEED000_CAL, NDVI_SPREADER)
         kinds = c.get("/api/v1/jobs/kinds").json()["kinds"]
         assert kinds["ndvi_topdress"]["defaults"]["rate_curve"]["rate_at_lo_kg_ha"] == 375.0
@@ -150,7 +150,7 @@ def test_ndvi_report_headline_shows_over_application(database_url, org, tmp_path
 def test_seeding_depth_job_end_to_end(database_url, org, tmp_path: Path, fault: bool) -> None:  # noqa: ANN001
     api, url = start_api(database_url)
     try:
-        c = httpx.Client(base_url=url, headers=org.headers(), timeout=60)
+        c = httpx.Client(base_url=url, headers=org.headers(), timeout=scaled(60))
         plan, m, token = _setup(c, 2.3, {**machine_body()["calibration"]}, DEPTH_SEEDER)
         settings = {"alert_min_qualified_pct": 99.9} if fault else {}
         r = c.post(
@@ -173,7 +173,7 @@ def test_seeding_depth_job_end_to_end(database_url, org, tmp_path: Path, fault: 
         if "Traceback" in log:
             print(log[-4000:])
     assert rep["n_records"] == sim["records"]
-    # progress counts the cells the drill worked in (it reports no fertilizer rate: issue 13,
+    # progress counts the cells the drill worked in (it reports no fertilizer rate:
     # progress stayed at 0 %), the share of the plan's cells the simulator drove
     assert done["state"] == "completed"
     assert done["cells_applied"] == sim["cells_worked"] >= 0.8 * plan["n_cells"]

@@ -1,4 +1,4 @@
-"""Issue 13: creating sensor-kind jobs through the API: defaults, what is refused (and that a
+"""Creating sensor-kind jobs through the API: defaults, what is refused (and that a
 refusal leaves no job behind), tenancy, the device listing and the package."""
 
 from __future__ import annotations

@@ -63,7 +63,7 @@ def test_live_across_two_api_processes(database_url, make_org) -> None:  # noqa:
     assert pos["machine_id"] == fx.machine_id and pos["seq"] == 2 and pos["cell_seq"] == 2
     assert abs(pos["lon"] - fx.cells[2]["lon"]) < 1e-9
     assert "org" not in pos
-    assert pos["ndvi"] == 0.42 and pos["depth_mm"] is None  # the sensor-job figures (issue 13)
+    assert pos["ndvi"] == 0.42 and pos["depth_mm"] is None  # the sensor-job figures
     assert all(m.get("machine_id") == fx.machine_id for _, m in got)
 
 

@@ -1,4 +1,4 @@
-"""Issue 18 scope 4 (the Citus path): per-cell results carry the machine, and a machine's
+""" (the Citus path): per-cell results carry the machine, and a machine's
 track and chart queries name the days they read.
 
 * Migration 0014_machine_keys: ``job_cells_applied`` rows written before it are all there

@@ -1,6 +1,6 @@
 """MQTT authentication and authorisation on the real broker with the SHIPPED configuration.
 
-Issue 20 item 1: anonymous clients stored forged records for other organisations'
+anonymous clients stored forged records for other organisations'
 machines, a ``#`` subscriber read every organisation's telemetry and acks, and a
 forged ack made an agent delete unsent records. The session broker
 (tests/conftest.py::mqtt_broker) runs deploy/mosquitto.conf unchanged but for its port.

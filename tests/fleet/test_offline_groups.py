@@ -1,4 +1,4 @@
-"""Issue 11 defect 7: fleet status describes the present; alerts are grouped.
+"""Fleet status describes the present; alerts are grouped.
 
 * a machine that stops reporting becomes "offline" after the heartbeat timeout, pushed on
   the live socket by the API process itself (no MQTT worker, no GET), and the alerts its
@@ -17,6 +17,7 @@ import websockets
 
 from tests.fleet.helpers import make_job, record
 from tests.fleet.procs import start_api
+from tests.support import scaled
 
 
 def test_silent_machine_goes_offline_on_the_live_socket(database_url, org) -> None:  # noqa: ANN001
@@ -41,7 +42,7 @@ def test_silent_machine_goes_offline_on_the_live_socket(database_url, org) -> No
                         "/api/v1/telemetry", json={"records": recs}, headers=fx.device_headers
                     )
                     assert r.status_code == 200, r.text
-                deadline = time.monotonic() + 12.0
+                deadline = time.monotonic() + scaled(12.0)
                 while time.monotonic() < deadline:
                     try:
                         msg = json.loads(await asyncio.wait_for(ws.recv(), 1.0))
@@ -54,10 +55,13 @@ def test_silent_machine_goes_offline_on_the_live_socket(database_url, org) -> No
 
         got = asyncio.run(scenario())
         status = httpx.get(
-            f"{url}/api/v1/machines/status", headers=org.headers("viewer"), timeout=10
+            f"{url}/api/v1/machines/status", headers=org.headers("viewer"), timeout=scaled(10)
         ).json()
         alerts = httpx.get(
-            f"{url}/api/v1/alerts", params={"kind": "rate_error"}, headers=org.headers(), timeout=10
+            f"{url}/api/v1/alerts",
+            params={"kind": "rate_error"},
+            headers=org.headers(),
+            timeout=scaled(10),
         ).json()["items"]
     finally:
         api.stop()

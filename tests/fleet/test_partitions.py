@@ -1,4 +1,4 @@
-"""Telemetry's daily partitions (issue 18, fleet.partitions): late uploads land in their
+"""Telemetry's daily partitions (fleet.partitions): late uploads land in their
 day, a day that cannot be made at once goes to the default partition and maintenance
 moves it, retention drops whole days and keeps per-cell results, and job queries read
 only the job's days."""

@@ -1,4 +1,4 @@
-"""Issue 20 item 2: one bad record never blocks a tractor's uplink.
+"""One bad record never blocks a tractor's uplink.
 
 The agent's queue holds, among good records: a NaN HDOP written by an older
 agent (raw JSON text with a NaN token, as Python's json.dumps wrote it), an

@@ -1,4 +1,4 @@
-"""Issue 18 scale-out, the part that runs on one machine: two API processes and three MQTT
+""" scale-out, the part that runs on one machine: two API processes and three MQTT
 ingest workers on one database, agents over HTTP (behind a fail-over "load balancer")
 and over MQTT; one API process and one worker are SIGKILLed mid-load. Every record is
 stored exactly once: the agents resend what was not acknowledged, ingest deduplicates
@@ -22,6 +22,7 @@ from sqlalchemy import text
 
 from tests.fleet.helpers import JobFixture, make_job, record
 from tests.fleet.procs import start_api, start_worker
+from tests.support import scaled
 
 N_RECORDS = 1500  # per machine
 CHUNK = 25  # records the tractor queues every PERIOD_S
@@ -41,7 +42,7 @@ def _http_agent(
 ) -> None:
     """The agent's HTTP sender behind a load balancer that routes away from a replica that
     does not answer (the production LB's health check, reduced to a fail-over)."""
-    senders = [HttpSender(q, u, token, batch_size=100, timeout_s=5.0) for u in urls]
+    senders = [HttpSender(q, u, token, batch_size=100, timeout_s=scaled(5.0)) for u in urls]
     i = first
     while not stop.is_set():
         n = senders[i].send_once()
@@ -106,7 +107,7 @@ def test_api_and_worker_killed_mid_load_lose_and_duplicate_nothing(
         for t in threads + producers:
             t.start()
         # mid-load: some records acknowledged, most not yet produced
-        deadline = time.monotonic() + 60
+        deadline = time.monotonic() + scaled(60)
         while sum(q.acked_seq for q in queues.values()) < total // 5:
             assert time.monotonic() < deadline, [q.acked_seq for q in queues.values()]
             time.sleep(0.05)
@@ -120,7 +121,7 @@ def test_api_and_worker_killed_mid_load_lose_and_duplicate_nothing(
         restarted = start_worker(database_url, group)  # the supervisor restarts the worker
         for p in producers:
             p.join(60)
-        deadline = time.monotonic() + 120
+        deadline = time.monotonic() + scaled(120)
         while any(q.backlog() or q.acked_seq < N_RECORDS for q in queues.values()):
             assert time.monotonic() < deadline, {
                 m: (q.backlog(), q.acked_seq) for m, q in queues.items()

@@ -1,4 +1,4 @@
-"""Issue 7 / issue 12 acceptance: a job driven by `fieldrx-edge simulate --server` is reported
+"""The acceptance test: a job driven by `fieldrx-edge simulate --server` is reported
 per cell as the simulator itself reports it (seed 001 eq. 16-18).
 
 Both sides compute with the one as-applied kernel (``fieldrx_edge.asapplied``): the
@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 from tests.fleet.procs import BIN, ROOT, start_api
-from tests.support import SEED001_CAL, SMALL_PLOT, feature, machine_body
+from tests.support import SEED001_CAL, SMALL_PLOT, feature, machine_body, scaled
 
 # the trial plot with a 6.6 m x 5.5 m hole (a pond) off-centre
 HOLED_PLOT = {
@@ -53,7 +53,7 @@ def test_simulated_job_report_matches_simulator(
 ) -> None:
     api, url = start_api(database_url)
     try:
-        c = httpx.Client(base_url=url, headers=org.headers(), timeout=60)
+        c = httpx.Client(base_url=url, headers=org.headers(), timeout=scaled(60))
         field = c.post("/api/v1/fields", json=feature(boundary, name="trial plot"))
         assert field.status_code == 201, field.text
         field = field.json()
@@ -95,7 +95,7 @@ def test_simulated_job_report_matches_simulator(
             [str(BIN / "fieldrx-edge"), "simulate", str(tmp_path / "job.json"), "--server", url,
              "--token", token, "--cells-out", str(cells_csv), "--json", "--seed", "3",
              "--state-dir", str(tmp_path / "state"), "--compare-runs", "1"],
-            cwd=ROOT, capture_output=True, text=True, timeout=120,
+            cwd=ROOT, capture_output=True, text=True, timeout=scaled(120),
         )  # fmt: skip
         assert out.returncode == 0, out.stderr[-2000:]
         sim = json.loads(out.stdout.strip().splitlines()[-1])

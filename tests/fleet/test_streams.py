@@ -1,4 +1,4 @@
-"""Issue 11: telemetry streams and fix-time records, end to end.
+"""Telemetry streams and fix-time records, end to end.
 
 * defect 1: a machine whose agent queue starts over (no --state-dir, a wiped
   queue, a second tablet with the same device token, a restored copy) loses
@@ -30,7 +30,7 @@ from sqlalchemy import text
 from tests.fleet.helpers import JobFixture, make_job, record
 from tests.fleet.procs import BIN, ROOT, start_api, start_worker
 from tests.mqtt_broker import mqtt_port
-from tests.support import SEED001_CAL, SMALL_PLOT, feature, machine_body
+from tests.support import SEED001_CAL, SMALL_PLOT, feature, machine_body, scaled
 
 
 @pytest.fixture(scope="module")
@@ -89,7 +89,7 @@ def _simulate(url: str, token: str, job_id: int, tmp: Path, *extra: str) -> dict
     out = subprocess.run(
         [str(BIN / "fieldrx-edge"), "simulate", str(path), "--server", url, "--token", token,
          "--json", "--seed", "3", "--compare-runs", "1", *extra],
-        cwd=ROOT, capture_output=True, text=True, timeout=300,
+        cwd=ROOT, capture_output=True, text=True, timeout=scaled(300),
     )  # fmt: skip
     assert out.returncode == 0, out.stderr[-2000:]
     return json.loads(out.stdout.strip().splitlines()[-1])
@@ -101,9 +101,9 @@ def test_two_simulations_without_state_dir_store_both_jobs(
     db,
     tmp_path: Path,  # noqa: ANN001
 ) -> None:
-    """Issue 11 defect 1 (a): the second run's queue numbers from 1 again; it used to be
+    """ (a): the second run's queue numbers from 1 again; it used to be
     acknowledged, stored nothing, and its job completed with 0 records."""
-    c = httpx.Client(base_url=api_url, headers=org.headers(), timeout=60)
+    c = httpx.Client(base_url=api_url, headers=org.headers(), timeout=scaled(60))
     token, (j1, j2) = _plan_jobs(c, 2)
     sims = [_simulate(api_url, token, j, tmp_path) for j in (j1, j2)]
     for sim in sims:
@@ -134,9 +134,9 @@ def test_paced_and_unpaced_simulations_report_the_same(
     org,
     tmp_path: Path,  # noqa: ANN001
 ) -> None:
-    """Issue 11 defect 2 (b): paced, the simulator stamped wall-clock times 1/realtime of the
+    """ (b): paced, the simulator stamped wall-clock times 1/realtime of the
     GNSS period apart and the report integrated 1/realtime of the mass."""
-    c = httpx.Client(base_url=api_url, headers=org.headers(), timeout=60)
+    c = httpx.Client(base_url=api_url, headers=org.headers(), timeout=scaled(60))
     token, (j1, j2) = _plan_jobs(c, 2)
     # one state dir for both runs: this test is about time, not about streams
     state = ("--state-dir", str(tmp_path / "state"))
@@ -225,7 +225,7 @@ def test_two_agents_with_one_token_both_kept_two_streams_and_an_alert(
     rows = _stored(db, fx.machine_id)
     by_stream = {q.stream[0]: [r[1] for r in rows if r[0] == q.stream[0]] for q in qs}
     assert all(sorted(v) == list(range(1, 81)) for v in by_stream.values())
-    c = httpx.Client(base_url=api_url, headers=org.headers(), timeout=30)
+    c = httpx.Client(base_url=api_url, headers=org.headers(), timeout=scaled(30))
     streams = c.get(f"/api/v1/machines/{fx.machine_id}/telemetry-streams").json()
     assert {s["stream"]: s["n_records"] for s in streams} == {q.stream[0]: 80 for q in qs}
     alerts = c.get(

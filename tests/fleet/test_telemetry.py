@@ -144,7 +144,7 @@ def _cells_applied(db, job_id: int) -> int:  # noqa: ANN001
 
 
 def test_progress_counts_cells_by_kind(client, db, org) -> None:  # noqa: ANN001
-    """Issue 13: a seeding job reports no fertilizer rate, so progress stayed at 0 %. A sensor
+    """A seeding job reports no fertilizer rate, so progress stayed at 0 %. A sensor
     kind counts a cell once the implement has worked in it; a prescription job still needs a
     positive applied rate."""
     rx = make_job(org.id, state="running")
@@ -179,7 +179,7 @@ def test_progress_counts_cells_by_kind(client, db, org) -> None:  # noqa: ANN001
     assert _cells_applied(db, sd.job_id) == 3  # cell 1 once, cell 2 new, cell 3 not worked
 
 
-# issue 20 item 2 / issue 11: poison records, future times, streams --------------------------
+# poison records, future times, streams --------------------------
 
 
 def _raw(client, fx, body: str):  # noqa: ANN001, ANN202
@@ -245,7 +245,7 @@ def _stream_post(client, fx, stream: str, records, start: int = 1):  # noqa: ANN
 
 
 def test_streams_deduplicate_separately(client, db, job) -> None:  # noqa: ANN001
-    """Issue 11: the same seqs on another stream are other records; on the same stream with
+    """The same seqs on another stream are other records; on the same stream with
     the same fix time they are duplicates (a resend)."""
     a = _post(client, job, [record(job, s) for s in range(1, 11)]).json()  # legacy stream
     assert a["stored"] == 10

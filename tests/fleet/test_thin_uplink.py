@@ -1,4 +1,4 @@
-"""Issue 18 scope 2: uplink profile ``thin`` (1 Hz track + one record per cell left).
+"""Uplink profile ``thin`` (1 Hz track + one record per cell left).
 
 The same job driven twice by ``fieldrx-edge simulate --server`` (same seed, so the same
 drive, shaft speeds and log), once with every fix (full) and once thin, by two machines
@@ -23,7 +23,7 @@ import pytest
 from sqlalchemy import text
 
 from tests.fleet.procs import BIN, ROOT, start_api
-from tests.support import SEED001_CAL, SMALL_PLOT, feature, machine_body
+from tests.support import SEED001_CAL, SMALL_PLOT, feature, machine_body, scaled
 
 
 def _job(c: httpx.Client, rx_id: int, name: str) -> tuple[int, str]:
@@ -43,7 +43,7 @@ def _simulate(url: str, tmp: Path, job_id: int, token: str, uplink: str) -> dict
         [str(BIN / "fieldrx-edge"), "simulate", str(path), "--server", url, "--token", token,
          "--json", "--seed", "5", "--state-dir", str(tmp / f"state-{uplink}"),
          "--compare-runs", "1", "--uplink", uplink],
-        cwd=ROOT, capture_output=True, text=True, timeout=180,
+        cwd=ROOT, capture_output=True, text=True, timeout=scaled(180),
     )  # fmt: skip
     assert out.returncode == 0, out.stderr[-3000:]
     return json.loads(out.stdout.strip().splitlines()[-1])
@@ -58,7 +58,7 @@ def test_thin_report_equals_full(
 ) -> None:
     api, url = start_api(database_url, env={"FIELDRX_RAW_LOG_DIR": str(tmp_path / "rawlogs")})
     try:
-        c = httpx.Client(base_url=url, headers=org.headers(), timeout=60)
+        c = httpx.Client(base_url=url, headers=org.headers(), timeout=scaled(60))
         field = c.post("/api/v1/fields", json=feature(SMALL_PLOT, name="trial plot")).json()
         plan = c.post(
             f"/api/v1/fields/{field['id']}/plans",
@@ -97,7 +97,7 @@ def test_thin_report_equals_full(
             up = subprocess.run(
                 [str(BIN / "fieldrx-edge"), "upload-log", "--state-dir",
                  str(tmp_path / "state-thin"), "--server", url, "--token", tokens["thin"]],
-                cwd=ROOT, capture_output=True, text=True, timeout=60,
+                cwd=ROOT, capture_output=True, text=True, timeout=scaled(60),
             )  # fmt: skip
             assert up.returncode == 0, up.stderr[-2000:]
             assert json.loads(up.stdout)["uploaded"] == {str(jt): reps["full"]["n_records"]}

@@ -1,4 +1,4 @@
-"""Issue 11 defect 3, end to end: a 12 m spreader on a server-planned 12 m plan with one
+"""End to end: a 12 m spreader on a server-planned 12 m plan with one
 headland pass, driven by ``fieldrx-edge simulate --server`` against a real API process.
 
 On a ~97.5 m x 192 m field the first inner swath overlaps the headland ring by more than
@@ -23,7 +23,7 @@ import httpx
 import pytest
 
 from tests.fleet.procs import BIN, ROOT, start_api
-from tests.support import feature, machine_body
+from tests.support import feature, machine_body, scaled
 
 LON0, LAT0 = 7.90, 51.75
 
@@ -46,7 +46,7 @@ def test_12m_one_headland_pass_every_cell_applied_or_alerted(
 ) -> None:
     api, url = start_api(database_url)
     try:
-        c = httpx.Client(base_url=url, headers=org.headers(), timeout=120)
+        c = httpx.Client(base_url=url, headers=org.headers(), timeout=scaled(120))
         geom = lonlat_rect(width_m, 192.0)
         field = c.post("/api/v1/fields", json=feature(geom, name="wide")).json()
         m = c.post("/api/v1/machines", json=machine_body("spreader", width_m=12.0)).json()
@@ -78,7 +78,7 @@ def test_12m_one_headland_pass_every_cell_applied_or_alerted(
             [str(BIN / "fieldrx-edge"), "simulate", str(tmp_path / "job.json"), "--server", url,
              "--token", token, "--json", "--seed", "3", "--state-dir", str(tmp_path / "state"),
              "--compare-runs", "1"],
-            cwd=ROOT, capture_output=True, text=True, timeout=300,
+            cwd=ROOT, capture_output=True, text=True, timeout=scaled(300),
         )  # fmt: skip
         assert out.returncode == 0, out.stderr[-2000:]
         sim = json.loads(out.stdout.strip().splitlines()[-1])

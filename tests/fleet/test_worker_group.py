@@ -1,5 +1,5 @@
 """The MQTT worker stores a round's batches of several machines in one transaction
-(``multibatch.store_together``, issue 18) and acks them only after its commit; a batch the
+(``multibatch.store_together``) and acks them only after its commit; a batch the
 database refuses takes no other machine's batch down and holds up nobody (it gets an error
 ack naming it; before, it was retried forever on the lane). Real PostgreSQL and the real
 ``IngestWorker._process``; the MQTT client is a recorder (the broker is not contacted:

@@ -6,6 +6,7 @@ import time
 import uuid
 
 from tests.fleet.procs import start_worker
+from tests.support import scaled
 
 
 def test_worker_touches_its_heartbeat_file(database_url, tmp_path) -> None:  # noqa: ANN001
@@ -14,7 +15,7 @@ def test_worker_touches_its_heartbeat_file(database_url, tmp_path) -> None:  # n
         database_url, f"hb-{uuid.uuid4().hex[:6]}", env={"FIELDRX_WORKER_HEARTBEAT": str(beat)}
     )
     try:
-        deadline = time.monotonic() + 12
+        deadline = time.monotonic() + scaled(12)
         while not beat.exists() and time.monotonic() < deadline:
             time.sleep(0.1)
         assert beat.exists(), proc.lines[-10:]

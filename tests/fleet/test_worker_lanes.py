@@ -1,4 +1,4 @@
-"""The MQTT ingest worker's lanes (issue 18): a machine's messages always go to the same
+"""The MQTT ingest worker's lanes: a machine's messages always go to the same
 lane (so its batches stay in order on one connection), and a lane count below one is a
 clear error. The broker is not contacted: ``IngestWorker`` connects only in ``run``."""
 

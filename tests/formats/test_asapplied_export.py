@@ -1,4 +1,4 @@
-"""As-applied export (issue 19 scope 4): ISOXML with a TimeLog and a points + cells Shapefile."""
+"""As-applied export: ISOXML with a TimeLog and a points + cells Shapefile."""
 
 from __future__ import annotations
 

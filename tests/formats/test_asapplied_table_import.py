@@ -1,4 +1,4 @@
-"""Other terminals' as-applied Shapefile/CSV with attribute mapping (issue 19 scope 2)."""
+"""Other terminals' as-applied Shapefile/CSV with attribute mapping."""
 
 from __future__ import annotations
 

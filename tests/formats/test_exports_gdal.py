@@ -1,4 +1,4 @@
-"""Issue 19 acceptance: every Shapefile export of the bench fields is valid in GDAL/OGR.
+"""The acceptance test: every Shapefile export of the bench fields is valid in GDAL/OGR.
 
 GDAL reads a Shapefile polygon as a list of rings and decides which ring is an
 exterior and which a hole from the ring winding (clockwise = exterior, ESRI

@@ -1,4 +1,4 @@
-"""Issue 19 acceptance: exports read by isoxml-js (npm ``isoxml``, dev4Agriculture), a second
+"""The acceptance test: exports read by isoxml-js (npm ``isoxml``, dev4Agriculture), a second
 independent ISOXML reader besides isoxml-py, with the whole area and the same rates.
 
 ``js/read_taskdata.js`` parses the TASKDATA zip with isoxml-js and prints the grid cells
@@ -17,6 +17,7 @@ import shapely
 from fieldrx.formats.isoxml import rate_to_mg_m2, write_isoxml_grid, write_isoxml_zones
 
 from tests.formats.test_formats_zones import field_cells, geod_area
+from tests.support import scaled
 
 JS = Path(__file__).parent / "js"
 
@@ -30,7 +31,7 @@ def read_with_isoxml_js(data: bytes, tmp_path: Path) -> dict:
     z = tmp_path / "TASKDATA.zip"
     z.write_bytes(data)
     out = subprocess.run(
-        [node, str(JS / "read_taskdata.js"), str(z)], capture_output=True, timeout=300
+        [node, str(JS / "read_taskdata.js"), str(z)], capture_output=True, timeout=scaled(300)
     )
     assert out.returncode == 0, out.stderr.decode()
     return json.loads(out.stdout)

@@ -1,4 +1,4 @@
-"""Issue 19 scope 0: every exported polygon valid as written, zones bounded for terminals."""
+"""Every exported polygon valid as written, zones bounded for terminals."""
 
 import io
 import zipfile
@@ -247,7 +247,7 @@ def striped_with_specks(n_swaths: int = 60, n_per_swath: int = 80, share: float 
 
 
 def test_sieve_holds_cap_keeps_classes_and_moves_only_the_specks():
-    """Issue 19: the old sieve doubled a minimum patch area until the count fit and swept
+    """The old sieve doubled a minimum patch area until the count fit and swept
     79 % of the 500 ha field into 2 zones. Now only the smallest patches move, until the
     cap holds: here only specks, and all four classes stay."""
     c, speck = striped_with_specks()

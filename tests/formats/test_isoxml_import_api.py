@@ -1,4 +1,4 @@
-"""ISOXML import (issue 19 scope 1): preview then confirm, round trip of FieldRx's own exports."""
+"""ISOXML import: preview then confirm, round trip of FieldRx's own exports."""
 
 from __future__ import annotations
 

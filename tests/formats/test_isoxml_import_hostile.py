@@ -1,4 +1,4 @@
-"""Hostile and broken TASKDATA (issue 19 scope 5): a clear error naming file and element."""
+"""Hostile and broken TASKDATA: a clear error naming file and element."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Prescription Shapefile import with attribute mapping (issue 19 scope 3), round trips."""
+"""Prescription Shapefile import with attribute mapping, round trips."""
 
 from __future__ import annotations
 

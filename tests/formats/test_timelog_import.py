@@ -1,4 +1,4 @@
-"""As-applied import of ISO 11783-10 TimeLogs (issue 19 scope 2) and its round trip."""
+"""As-applied import of ISO 11783-10 TimeLogs and its round trip."""
 
 from __future__ import annotations
 

@@ -57,7 +57,7 @@ def plot_35x23() -> Polygon:
 
 
 def plot_35x23_rounded() -> Polygon:
-    """The 35 m x 23 m plot with its lon/lat corners rounded to 1e-9 deg (issue 16).
+    """The 35 m x 23 m plot with its lon/lat corners rounded to 1e-9 deg.
 
     Rounding makes the short sides 23.00009 m and 22.99998 m, so a strict ceil(H / w)
     at w = 2.3 m gives 11 swaths for a 0.09 mm strip; the strip tolerance gives 10.
@@ -96,7 +96,7 @@ def check_plan(plan: CoveragePlan, field: Polygon) -> None:
         core = hole.buffer(-(w / 2 + 1e-6))
         for c in plan.connections:
             assert c.intersection(core).length < 1e-9, "a connection crosses a hole"
-    # with enough headland passes for the turns (issue 16), nothing leaves the field
+    # with enough headland passes for the turns, nothing leaves the field
     if plan.headland_passes >= max(1, plan.required_headland_passes):
         route = plan.route()
         assert route.difference(field.buffer(1e-6)).length < 1e-6, "route leaves the field"
@@ -107,7 +107,7 @@ def check_cells_in_own_swath(grid: Grid, plan: CoveragePlan) -> None:
     """No cell is larger than its nominal size plus the clipped remainder of its own swath:
     every inner cell lies inside the footprint its own swath sweeps, and every headland
     cell inside its own pass's band. Field area no swath covers stays out of the cells
-    and is reported as ``uncovered_m2`` (issue 16: one cell was 8.1x nominal, 1,442 m2
+    and is reported as ``uncovered_m2`` (one cell was 8.1x nominal, 1,442 m2
     of it never driven)."""
     from fieldrx.geo.coverage import swath_footprints
 
@@ -131,7 +131,7 @@ def min_turn_radius(
     min_step_m: float = 1e-3,
     sag_tol_m: float = 0.0,
 ) -> float:
-    """Smallest circumradius over consecutive vertex triples of a polyline (issue 16).
+    """Smallest circumradius over consecutive vertex triples of a polyline.
 
     A polyline sampled from a path of curvature <= 1/r (arcs in 5 degree steps) has every
     triple of consecutive vertices on or outside a circle of radius r, so the smallest

@@ -1,4 +1,4 @@
-"""Issue 11 defect 5: a field's area does not depend on which way its rings wind.
+"""A field's area does not depend on which way its rings wind.
 
 ``Geod.geometry_area_perimeter`` adds signed ring areas, so a hole wound like its
 exterior was added (42,537 m² instead of 37,533 m² for the issue's field)."""

@@ -5,6 +5,8 @@ import time
 
 import pytest
 
+from tests.support import scaled
+
 FIELD = {
     "type": "FeatureCollection",
     "features": [
@@ -54,7 +56,7 @@ def _run(*args):
         [sys.executable, "-m", "fieldrx.commands.plan", *map(str, args)],
         capture_output=True,
         text=True,
-        timeout=120,
+        timeout=scaled(120),
     )
 
 
@@ -143,7 +145,7 @@ def test_cli_rejects_projected_coordinates(tmp_path):
 
 
 def test_cli_validates_the_boundary_like_the_api(tmp_path):
-    # issue 16: the CLI never validated; a self-intersecting traced boundary ran past
+    # the CLI never validated; a self-intersecting traced boundary ran past
     # 300 s (or was planned silently at 80-99.8 % coverage) while the API answered 422
     import time
 
@@ -165,7 +167,7 @@ def test_cli_validates_the_boundary_like_the_api(tmp_path):
 
 @pytest.mark.parametrize("radius", [5.0, 8.0])
 def test_cli_route_geojson_has_no_turn_tighter_than_the_radius(tmp_path, radius):
-    # issue 16 acceptance: `fieldrx plan --turn-radius R [--reverse]`; the route GeoJSON
+    # The acceptance test: `fieldrx plan --turn-radius R [--reverse]`; the route GeoJSON
     # is measured back in UTM metres, vertex by vertex
     import numpy as np
     import shapely

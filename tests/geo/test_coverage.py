@@ -186,7 +186,7 @@ def test_degenerate_fields():
 
 @pytest.mark.parametrize("heading", ["longest_edge", "optimal"])
 def test_rounded_35x23_plot_plans_10_swaths_and_reports_the_strip(heading):
-    # issue 16: corners rounded to 1e-9 deg make the plot 23.00009 m wide; a strict
+    # corners rounded to 1e-9 deg make the plot 23.00009 m wide; a strict
     # ceil(H / w) planned 11 swaths (10 % of their area outside the field) for 0.09 mm
     f = plot_35x23_rounded()
     sides = np.hypot(*np.diff(np.asarray(f.exterior.coords), axis=0).T)
@@ -215,7 +215,7 @@ def test_strip_tolerance_is_capped_at_5_cm():
 
 
 def test_narrow_fields_get_a_one_pass_or_headland_only_plan():
-    # issue 16: small or narrow fields at 12-36 m got an error
+    # small or narrow fields at 12-36 m got an error
     from fieldrx.geo.grid import build_grid
 
     f = plot_35x23()
@@ -277,7 +277,7 @@ def test_traced_boundary_simplification_is_reported():
 @pytest.mark.parametrize("passes", [0, 1, 2])
 @pytest.mark.parametrize("field", [rect(), l_shape(), u_shape(), irregular(40)])
 def test_turns_are_drivable_curvature_never_tighter_than_r(field, radius, reverse, passes):
-    # issue 16: swath ends were joined by a 2.3 m sideways jump; every connection is now
+    # swath ends were joined by a 2.3 m sideways jump; every connection is now
     # a path of curvature <= 1/r (Dubins U / bulb, fishtail with reverse, transfers).
     # Measured along the whole route (swaths, rings, turns, transfers into and out of
     # the rings): with one headland pass on the rectangle at r = 4 m the route had
@@ -322,7 +322,7 @@ def test_required_headland_is_computed_and_enough_passes_keep_the_route_inside()
 
 
 def test_skip_row_pattern_turns_are_u_turns_and_auto_picks_the_faster():
-    # issue 16: with 2r > w a skip-row order (swaths s = ceil(2r / w) apart) replaces the
+    # with 2r > w a skip-row order (swaths s = ceil(2r / w) apart) replaces the
     # bulb turns by U-turns; "auto" keeps whichever turns take less time
     from fieldrx.geo.grid import build_grid
     from fieldrx.geo.planning.order import skip_sequence
@@ -352,7 +352,7 @@ def test_skip_row_pattern_turns_are_u_turns_and_auto_picks_the_faster():
 @pytest.mark.parametrize("field", [rect(), l_shape(), u_shape(), pond_field(), irregular(40)])
 @pytest.mark.parametrize("w", [2.3, 12.0])
 def test_optimal_heading_needs_few_layouts_on_the_bench_fields(field, w):
-    # issue 16 (100x): the analytic bound is exact at the optimum of these fields, so
+    # (100x): the analytic bound is exact at the optimum of these fields, so
     # the search pays for one swath layout instead of 180, plus one per whole-degree
     # tie in the count (broken by the non-working estimate) -- and still matches the
     # 1-degree brute force of the same objective
@@ -366,7 +366,7 @@ def test_optimal_heading_needs_few_layouts_on_the_bench_fields(field, w):
     ("field", "w", "h"), [(irregular(40), 12.0, 1), (l_shape(), 12.0, 0), (pond_field(), 12.0, 0)]
 )
 def test_heading_ties_in_the_swath_count_go_to_less_non_working_travel(field, w, h):
-    # issue 16 regression: ties kept the first heading evaluated; on the irregular field
+    # regression: ties kept the first heading evaluated; on the irregular field
     # at 12 m with one headland pass the non-working length went 2,394 -> 2,707 m. The
     # objective is lexicographic: at equal counts the non-working estimate decides, so
     # optimal is never worse than any whole degree by the full objective.
@@ -394,7 +394,7 @@ def test_heading_ties_in_the_swath_count_go_to_less_non_working_travel(field, w,
     ids=["plot", "L", "pond", "irr"],
 )
 def test_headland_rings_are_rounded_to_r_inside_the_field_and_clear_of_holes(field, radius):
-    # issue 16: the rings had the mitred offset's sharp corners; rounding them by an
+    # the rings had the mitred offset's sharp corners; rounding them by an
     # inward/outward offset put reflex corners into the pond. The rings now turn no
     # tighter than r, stay inside the mitred ring (so in the field, out of every hole),
     # and what the rounded corners leave unworked is reported as uncovered
@@ -425,7 +425,7 @@ def test_headland_rings_are_rounded_to_r_inside_the_field_and_clear_of_holes(fie
 
 
 def test_analytic_bound_survives_a_flat_edge_near_another():
-    # issue 16: a slot whose flat top lies 15 m below the field's flat top edge (closer
+    # a slot whose flat top lies 15 m below the field's flat top edge (closer
     # than w/2). At heading 0 both edges are horizontal; the narrow-gap term gave the
     # pair a NaN height, whose int cast is INT64_MIN, and INT64_MIN minus the two lines
     # below the pair wrapped round to a huge gap count: the bound fell to the strip

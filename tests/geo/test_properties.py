@@ -3,6 +3,7 @@
 import math
 
 import numpy as np
+import pytest
 import shapely
 import shapely.affinity
 from fieldrx.geo import PlanningError
@@ -13,6 +14,9 @@ from hypothesis import strategies as st
 from shapely.geometry import MultiPoint, Polygon
 
 from tests.geo.cases import X0, Y0, check_cells_in_own_swath, check_grid, check_plan
+
+# hypothesis searches hundreds of cases per test: minutes, not seconds (make check skips)
+pytestmark = pytest.mark.slow
 
 SETTINGS = settings(
     max_examples=18,
@@ -75,7 +79,7 @@ def _check_all(field, w, h, heading):
     grid = build_grid(plan, field, 5.0)
     # the working area: the part of the field the implement sweeps
     working = shapely.union_all(swath_footprints(plan)).intersection(field).area
-    # a headland-only plan (passes leave no inner area: a small field, issue 16) has
+    # a headland-only plan (passes leave no inner area: a small field) has
     # rings in places narrower than their offsets: looser ring and coverage checks
     ring_only = plan.region.is_empty
     # inner swaths stretched over their strip pieces also sweep a little of the headland
@@ -130,7 +134,7 @@ def _objective(plan):
 @SETTINGS
 @given(fields(concave=True, max_holes=2), st.sampled_from([0, 1]))
 def test_optimal_never_worse_than_longest_edge_by_its_objective(fw, h):
-    # issue 16: optimal lost to longest_edge by its own objective in 8 of 90 real pairs
+    # optimal lost to longest_edge by its own objective in 8 of 90 real pairs
     field, w = fw
     op = _plan_or_skip(field, w, heading="optimal", headland_passes=h)
     le = _plan_or_skip(field, w, heading="longest_edge", headland_passes=h)
@@ -146,7 +150,7 @@ def test_optimal_never_worse_than_longest_edge_by_its_objective(fw, h):
 )
 def test_enough_headland_keeps_drivable_turns_inside_the_field(fw, radius, reverse, pattern):
     # with the headland passes the planner says the turns need, no part of the route
-    # leaves the field or enters a hole (issue 16 acceptance, the issue 3 property
+    # leaves the field or enters a hole (acceptance, the property
     # now with turns of radius r)
     from tests.geo.cases import min_turn_radius
 
@@ -206,7 +210,7 @@ def _traced(rng: np.random.Generator, n: int, r: float, noise: float) -> Polygon
     st.sampled_from([0, 1]),
 )
 def test_traced_boundaries_plan_within_a_time_bound(seed, n, w, heading, h):
-    # issue 16: real traced boundaries (thousands of vertices, jitter, near-self-touching
+    # real traced boundaries (thousands of vertices, jitter, near-self-touching
     # rings) -- no exception, no cell over its bound, every plan finishes in time
     import time
 
@@ -224,7 +228,7 @@ def test_traced_boundaries_plan_within_a_time_bound(seed, n, w, heading, h):
 @settings(max_examples=12, deadline=None, derandomize=True)
 @given(fields(concave=True, max_holes=2), st.sampled_from([0, 1]))
 def test_analytic_heading_bound_never_exceeds_the_swath_count(fw, h):
-    # issue 16 (speed): optimal skips every angle whose analytic bound is not below the
+    # (speed): optimal skips every angle whose analytic bound is not below the
     # best count found; a bound above the true count would lose the optimum
     # (the weak bound -- no spike tips -- is what the search prunes with before it
     # tightens an angle, so it must be a lower bound too)
@@ -250,7 +254,7 @@ def test_analytic_heading_bound_never_exceeds_the_swath_count(fw, h):
 @settings(max_examples=8, deadline=None, derandomize=True)
 @given(fields(concave=True, max_holes=2), st.sampled_from([0, 1]))
 def test_optimal_heading_is_the_exact_minimum_over_whole_degrees(fw, h):
-    # issue 16 (speed): the branch and bound (lazy bound tightening, scan-line
+    # (speed): the branch and bound (lazy bound tightening, scan-line
     # refinement, ties broken by the non-working estimate) must find what the 1-degree
     # brute force of the same objective finds, or better (it also tries edge directions)
     from fieldrx.geo.coverage import heading_objective, optimal_phi

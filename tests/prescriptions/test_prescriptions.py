@@ -20,7 +20,7 @@ def _machine(client, headers) -> int:
 
 
 def test_worked_example_nutrient_balance(client, org) -> None:
-    """SCIENCE.md: M 2500, n 100, x 0.25 -> about 700.4 kg/ha in every cell."""
+    """docs/science.md: M 2500, n 100, x 0.25 -> about 700.4 kg/ha in every cell."""
     h = org.headers()
     plan = setup_plan(client, h, samples_csv([100.0]))
     rx = make_rx(
@@ -67,7 +67,7 @@ def test_worked_example_nutrient_balance(client, org) -> None:
 
 
 def test_model_rates_outside_meter_range_are_kept_and_flagged(client, org) -> None:
-    """ISSUE 11 defect 4: a 300 kg/ha model output was stored as the meter's floor (~608)."""
+    """A 300 kg/ha model output was stored as the meter's floor (~608)."""
     h = org.headers()
     plan = setup_plan(client, h)
     mid = _machine(client, h)
@@ -324,7 +324,7 @@ def test_delete_prescription(client, org, db) -> None:
 def test_unmeterable_edits_are_refused_naming_limit_and_speed(
     client, org, db, edit, needle
 ) -> None:
-    """ISSUE 11 defect 4: an edit to 150 kg/ha or a 120 kg/ha zone was stored as 583.6."""
+    """An edit to 150 kg/ha or a 120 kg/ha zone was stored as 583.6."""
     h = org.headers()
     plan = setup_plan(client, h)
     mid = _machine(client, h)
@@ -355,7 +355,7 @@ def test_unmeterable_edits_are_refused_naming_limit_and_speed(
 
 
 def test_job_with_flagged_cells_needs_explicit_confirmation(client, org, db) -> None:
-    """ISSUE 11 defect 4: a prescription the machine cannot meter was sent without a word."""
+    """A prescription the machine cannot meter was sent without a word."""
     h = org.headers()
     plan = setup_plan(client, h)
     mid = _machine(client, h)
@@ -395,7 +395,7 @@ def test_job_with_flagged_cells_needs_explicit_confirmation(client, org, db) -> 
 
 
 def test_cells_without_a_nearby_sample_are_no_data_with_the_fallback_named(client, org) -> None:
-    """ISSUE 11 defect 6: IDW spread samples over the whole field (no_data 0)."""
+    """IDW spread samples over the whole field (no_data 0)."""
     from tests.plans.helpers import make_field, make_plan, rectangle
 
     h = org.headers()

@@ -1,4 +1,4 @@
-"""The prescription screen's API (issue 15 scope 4) on PostGIS: product catalogue, crop
+"""The prescription screen's API on PostGIS: product catalogue, crop
 defaults, the agronomist's clamp (reported), whole-field figures, legend classes and the
 zones table, version notes, undo / redo (current version) and the diff of two versions.
 Every figure is checked against arithmetic written out in the test."""

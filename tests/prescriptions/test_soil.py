@@ -88,7 +88,7 @@ def _n_samples(client, h, fid) -> int:
 
 
 def test_samples_from_another_field_are_refused_and_not_stored(client, org) -> None:
-    """ISSUE 11 defect 6: a CSV from a field ~100 km away was accepted ("17 samples")."""
+    """A CSV from a field ~100 km away was accepted ("17 samples")."""
     h = org.headers()
     fid = make_field(client, h)
     r = _post(client, h, fid, "far.csv", _far_csv())

@@ -6,7 +6,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from tests.support import feature
+from tests.support import feature, scaled
 
 
 def rect(i: int, width_m: float, height_m: float) -> dict[str, Any]:
@@ -30,10 +30,11 @@ def make_fields(client: Any, org: Any, n: int, width_m: float, height_m: float) 
 
 
 def wait_until(check: Callable[[], Any], timeout_s: float, what: str, step_s: float = 0.2) -> Any:
-    t_end = time.monotonic() + timeout_s
+    limit_s = scaled(timeout_s)
+    t_end = time.monotonic() + limit_s
     while time.monotonic() < t_end:
         value = check()
         if value:
             return value
         time.sleep(step_s)
-    raise AssertionError(f"timed out after {timeout_s:g} s waiting for {what}")
+    raise AssertionError(f"timed out after {limit_s:g} s waiting for {what}")

@@ -1,4 +1,4 @@
-"""Exports and job reports as background tasks (issue 18 scope 3, issue 15 scope 6).
+"""Exports and job reports as background tasks.
 
 In-process (``tasks.work.execute``, what a worker runs per job): a report task's snapshot
 answers the report afterwards, asking again joins the open task, large jobs go to the queue

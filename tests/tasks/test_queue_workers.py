@@ -1,4 +1,4 @@
-"""Issue 18 acceptance: 20 fields planned through the queue by two ``fieldrx worker``
+"""The acceptance test: 20 fields planned through the queue by two ``fieldrx worker``
 processes, progress visible through the API while they run, one worker SIGKILLed in the
 middle of a plan: every plan is stored exactly once (none missing, none duplicated).
 

@@ -22,7 +22,7 @@ sample spacings) and cells with no sample that near are no data; an explicit
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 import shapely
@@ -32,7 +32,7 @@ METHODS = ("cell_mean", "idw", "kriging")
 # The one default method (API, CLI, UI through the OpenAPI document). Inverse distance, not
 # the cell mean: at the usual ~1 sample/ha a 5 m x 2.3 m cell almost never holds a sample,
 # so cell_mean leaves nearly every cell without data ("no cell has data").
-DEFAULT_METHOD = "idw"
+DEFAULT_METHOD: Literal["idw"] = "idw"
 # Default search distance: SPACING_FACTOR x the median nearest-neighbour spacing of
 # the samples, at least MIN_SEARCH_RADIUS_M (a single sample gets the minimum).
 SPACING_FACTOR = 3.0

@@ -269,7 +269,7 @@ def cells_in_zone(centroids_utm: np.ndarray, zone_utm: Any) -> np.ndarray:
     if not zone_utm.is_valid:
         raise PrescriptionError(f"zone polygon is invalid: {shapely.is_valid_reason(zone_utm)}")
     c = np.asarray(centroids_utm, dtype=float)
-    return shapely.intersects_xy(zone_utm, c[:, 0], c[:, 1])
+    return np.asarray(shapely.intersects_xy(zone_utm, c[:, 0], c[:, 1]))
 
 
 def paint_zone(

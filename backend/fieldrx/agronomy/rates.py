@@ -50,7 +50,7 @@ def soil_correction_coefficient(
     ``intercept_pct`` / ``slope_pct_mg_kg`` are a and b of d = (a + b / n) / 100 (the
     seed's values for oilseed rape; another crop's from ``agronomy.crops``).
 
-    Erratum (SCIENCE.md): d exceeds 100 % for n < 34.2 mg/kg; a soil cannot
+    Erratum (docs/science.md): d exceeds 100 % for n < 34.2 mg/kg; a soil cannot
     supply more than all of its available N, so d is clamped to 1. n <= 0 gives
     d = 1 (the limit), never a division error.
     """
@@ -68,7 +68,7 @@ def nutrient_balance_rate(
     k_utilisation: float = DEFAULT_K_UTILISATION,
     soil_d: tuple[float, float] = (D_INTERCEPT_PCT, D_SLOPE_PCT_MG_KG),
 ) -> np.ndarray:
-    """Seed 001 eq. 19-21 (corrected in SCIENCE.md): product rate in kg/ha.
+    """Seed 001 eq. 19-21 (corrected in docs/science.md): product rate in kg/ha.
 
         F = (e * M / 100 - 2.25 * d * n) / (k * x),  d = min(1, (5.57 + 3226.05/n)/100)
 
@@ -79,11 +79,13 @@ def nutrient_balance_rate(
     N, so the rate is 0 (use ``nutrient_balance_raw`` to see the sign).
     Worked example: M 2500, n 100, x 0.25 -> 700.4 kg/ha.
     """
-    return np.maximum(
-        0.0,
-        nutrient_balance_raw(
-            n_mg_kg, target_yield_kg_ha, n_fraction, e_kg_per_100kg, k_utilisation, soil_d
-        ),
+    return np.asarray(
+        np.maximum(
+            0.0,
+            nutrient_balance_raw(
+                n_mg_kg, target_yield_kg_ha, n_fraction, e_kg_per_100kg, k_utilisation, soil_d
+            ),
+        )
     )
 
 
@@ -112,7 +114,9 @@ def nutrient_balance_raw(
     n = np.asarray(n_mg_kg, dtype=float)
     d = soil_correction_coefficient(n, *soil_d)
     soil_n = SOIL_KG_HA_PER_MG_KG * d * np.maximum(n, 0.0)
-    return (e_kg_per_100kg * target_yield_kg_ha / 100.0 - soil_n) / (k_utilisation * n_fraction)
+    return np.asarray(
+        (e_kg_per_100kg * target_yield_kg_ha / 100.0 - soil_n) / (k_utilisation * n_fraction)
+    )
 
 
 def ndvi_linear_rate(
@@ -133,7 +137,7 @@ def ndvi_linear_rate(
         raise RateModelError("NDVI end-point rates must not be negative")
     v = np.clip(np.asarray(ndvi, dtype=float), ndvi_low, ndvi_high)
     t = (v - ndvi_low) / (ndvi_high - ndvi_low)
-    return rate_at_low_kg_ha + t * (rate_at_high_kg_ha - rate_at_low_kg_ha)
+    return np.asarray(rate_at_low_kg_ha + t * (rate_at_high_kg_ha - rate_at_low_kg_ha))
 
 
 def uniform_rate(n_cells: int, rate_kg_ha: float) -> np.ndarray:

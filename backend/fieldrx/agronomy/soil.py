@@ -155,6 +155,7 @@ class SoilImport:
         )
 
     def summary(self) -> dict[str, Any]:
+        distances: list[float | None] = [*self.outside_distance_m] or [None] * len(self.outside)
         return {
             "n_samples": len(self.samples),
             "n_errors": len(self.errors),
@@ -170,7 +171,7 @@ class SoilImport:
                 }
                 for s, d in zip(
                     self.outside,
-                    self.outside_distance_m or [None] * len(self.outside),
+                    distances,
                     strict=True,
                 )
             ],
@@ -234,6 +235,8 @@ def rows_to_samples(
                     kind,
                 )
             )
+        x: float | None
+        y: float | None
         if geometry_xy is not None and row in geometry_xy:
             x, y = geometry_xy[row]
             if not projected:
@@ -258,6 +261,7 @@ def rows_to_samples(
         if errs:
             errors.extend(errs)
             continue
+        assert x is not None and y is not None  # a missing one is a row error above
         seen[sid] = row
         samples.append(
             SoilSample(
@@ -274,7 +278,10 @@ def rows_to_samples(
     if projected and samples:
         idx = np.array([p[0] for p in pending_xy])
         lon, lat = transform_xy(
-            np.array([p[1] for p in pending_xy]), np.array([p[2] for p in pending_xy]), epsg, 4326
+            np.array([p[1] for p in pending_xy]),
+            np.array([p[2] for p in pending_xy]),
+            int(epsg or 4326),
+            4326,
         )
         for i, lo, la in zip(idx, lon, lat, strict=True):
             s = samples[i]

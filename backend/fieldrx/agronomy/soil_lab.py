@@ -366,10 +366,12 @@ def _geojson_table(filename: str, data: bytes) -> Table:
     rows = []
     for i, f in enumerate(feats):
         f = f if isinstance(f, dict) else {}
-        g = f.get("geometry") if isinstance(f.get("geometry"), dict) else {}
+        g = f.get("geometry")
+        g = g if isinstance(g, dict) else {}
         c = g.get("coordinates") if g.get("type") == "Point" else None
         xy = [str(c[0]), str(c[1])] if isinstance(c, list) and len(c) >= 2 else ["", ""]
-        props = f.get("properties") if isinstance(f.get("properties"), dict) else {}
+        props = f.get("properties")
+        props = props if isinstance(props, dict) else {}
         rows.append((i, xy + ["" if props.get(k) is None else str(props[k]) for k in header[2:]]))
     return Table(header, rows, "", "utf-8", False, kind="feature")
 

@@ -142,9 +142,9 @@ def create_token(body: TokenIn, principal: UserDep, session: SessionDep) -> NewT
     Without ``role`` the token may write (``agronomist``) when your own role allows it, so a
     developer's first POST works; a viewer's token stays a viewer's."""
     own = principal.role or "viewer"
-    role = body.role
-    if role is None:
-        role = "agronomist" if ROLES.index(own) <= ROLES.index("agronomist") else own
+    role: str = body.role or (
+        "agronomist" if ROLES.index(own) <= ROLES.index("agronomist") else own
+    )
     if ROLES.index(role) < ROLES.index(own):
         raise HTTPException(
             403,

@@ -52,7 +52,7 @@ def point_page(rows: Result[Any], total: int, limit: int, offset: int, **extra: 
 
     Rows are read as tuples and encoded with orjson (datetimes as ISO 8601, as FastAPI's
     encoder writes them): reading 5,000 rows as mappings and FastAPI's generic encoder
-    took ~250 ms, several times the query (issue 18, bench/telemetry_query.py)."""
+    took ~250 ms, several times the query (bench/telemetry_query.py)."""
     keys = list(rows.keys())
     ilon, ilat = keys.index("lon"), keys.index("lat")
     props = [i for i, k in enumerate(keys) if k not in ("lon", "lat")]

@@ -339,7 +339,7 @@ def import_timelog(
     except FormatError as exc:
         raise ApiError(422, str(exc), where=names) from exc
     fb = field_boundary_wgs84(session, rx)
-    preview = []
+    preview: list[dict[str, Any]] = []
     for log in logs:
         entry = timelog_summary(log)
         if fb is not None:
@@ -348,7 +348,7 @@ def import_timelog(
     body: dict[str, Any] = {"sha256": sha, "timelogs": preview, "stored": False}
     width = width_m
     if width is None:
-        logged = [p["logged_width_m"] for p in preview if p["logged_width_m"]]
+        logged = [float(p["logged_width_m"]) for p in preview if p["logged_width_m"]]
         width = float(np.median(logged)) if logged else None
     body["width_m"] = width
     off = [p for p in preview if p.get("placement", {}).get("on_field") == 0 and p["with_position"]]

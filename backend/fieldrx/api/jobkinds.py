@@ -1,4 +1,4 @@
-"""Creating a sensor-kind job (issue 13): seed 000 NDVI topdressing, seed 002 depth seeding.
+"""Creating a sensor-kind job: seed 000 NDVI topdressing, seed 002 depth seeding.
 
 The job names a plan (the path the tractor drives and the field boundary it keeps to) and
 the kind's settings; ``fieldrx_edge.jobkinds.settings`` fills in the papers' defaults and

@@ -108,6 +108,8 @@ def get_route(plan_id: int, principal: UserDep, session: SessionDep) -> dict[str
     """The whole route (swaths and connections in driving order) as a LineString Feature."""
     plan = get_scoped(session, Plan, plan_id, principal)
     gj = session.scalar(select(func.ST_AsGeoJSON(Plan.route, 9)).where(Plan.id == plan.id))
+    if gj is None:
+        raise ApiError(404, f"plan {plan_id} has no route")
     m = plan.metrics or {}
     keys = ("n_swaths", "n_turns", "heading_deg", "working_length_m", "nonworking_length_m")
     return {

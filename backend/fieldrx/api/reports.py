@@ -91,14 +91,15 @@ def _queue_report(session: SessionDep, principal: Any, job: Job) -> Any:
 
     digest = report_digest(report_key(session, job))
     tid = open_report_task(session, job.organisation_id, job.id, digest)
-    if tid is not None:
-        return accepted(session, session.get(Task, tid))
+    task = session.get(Task, tid) if tid is not None else None
+    if task is not None:
+        return accepted(session, task)
     return queue_task(session, principal, "report", {"job_id": job.id, "key": digest})
 
 
 def _prescription_job(job: Job) -> None:
     """The per-cell as-applied views are seed 001's (prescribed vs applied rate); a sensor
-    job (issue 13) has its own report."""
+    job has its own report."""
     if job.kind != "prescription_map":
         raise ApiError(
             409,

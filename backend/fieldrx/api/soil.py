@@ -67,7 +67,9 @@ def _mapping(text: str | None) -> Mapping | None:
         raise ApiError(
             422, f"mapping{'.' + loc if loc else ''}: {first['msg']}", where="mapping"
         ) from exc
-    return Mapping(dict(m.columns), dict(m.units), m.epsg, m.bulk_density_g_cm3, m.n_form)
+    columns = {str(k): v for k, v in m.columns.items()}
+    units = {str(k): v for k, v in m.units.items()}
+    return Mapping(columns, units, m.epsg, m.bulk_density_g_cm3, m.n_form)
 
 
 MAPPING_FORM = Form(

@@ -114,7 +114,13 @@ def login_error(broker: Broker, timeout_s: float = 5.0) -> str | None:
         protocol=mqtt.MQTTv5,
     )
     broker.configure(client)
-    client.on_connect = lambda c, u, f, rc, p: (got.append(rc), done.set())
+    def on_connect(
+        c: mqtt.Client, u: Any, f: Any, rc: mqtt.ReasonCode, p: Any
+    ) -> None:
+        got.append(rc)
+        done.set()
+
+    client.on_connect = on_connect
     try:
         client.connect(broker.host, broker.port, keepalive=10)
     except OSError as exc:

@@ -1,6 +1,6 @@
 """`fieldrx plan`: plan a field's coverage path and grid from a GeoJSON file, no database.
 
-Prints one JSON object (issue 3): n_swaths, n_turns, heading_deg, working_length_m,
+Prints one JSON object: n_swaths, n_turns, heading_deg, working_length_m,
 nonworking_length_m, coverage_pct, overlap_pct, outside_pct, route_outside_m,
 route_in_holes_m, n_cells, elapsed_s.
 """
@@ -30,7 +30,7 @@ def load_field(path: str | Path) -> Polygon | MultiPolygon:
 
     The boundary goes through the same validation as the API's fields
     (:func:`fieldrx.geo.validate.validate_boundary`): a self-intersecting traced boundary
-    is refused with where it crosses itself instead of being planned (issue 16).
+    is refused with where it crosses itself instead of being planned.
     """
     try:
         doc: Any = json.loads(Path(path).read_text())

@@ -124,7 +124,12 @@ def _interp_params(args: argparse.Namespace) -> dict[str, Any]:
 
 def build(args: argparse.Namespace) -> tuple[bytes, dict[str, Any]]:
     """Run the whole pipeline; returns (file bytes, summary)."""
-    from fieldrx_edge.metering import SEED001_CALIBRATION, calibration_from_dict
+    from fieldrx_edge.metering import (
+        SEED001_CALIBRATION,
+        LinearCalibration,
+        TableCalibration,
+        calibration_from_dict,
+    )
 
     from fieldrx.agronomy.prescription import prescribe
     from fieldrx.agronomy.rates import MeterCheck
@@ -192,7 +197,7 @@ def build(args: argparse.Namespace) -> tuple[bytes, dict[str, Any]]:
     timings["samples_s"] = time.perf_counter() - t
 
     meter = None
-    cal = SEED001_CALIBRATION
+    cal: LinearCalibration | TableCalibration = SEED001_CALIBRATION
     if args.calibration:
         try:
             cal = calibration_from_dict(json.loads(args.calibration))

@@ -1,7 +1,8 @@
 """Database bootstrap: create the database, PostGIS and pg_partman if missing, then migrate.
 
 Neither PostGIS nor pg_partman is a trusted extension, so they are created by a
-superuser connection (shared/STACK.md); migrations then run as the application user.
+superuser connection (docs/architecture.md, "Stack notes"); migrations then run as the
+application user.
 """
 
 from __future__ import annotations
@@ -66,6 +67,8 @@ def ensure_database(url: str | None = None, superuser_dsn: str | None = None) ->
     ``partman``, when the server has it; migration 0010 says how to install it) extensions
     in it when missing."""
     u = make_url(url or get_settings().database_url)
+    if not u.database:
+        raise ValueError(f"{u.render_as_string()}: the URL names no database")
     admin = superuser_dsn or (
         f"postgresql://{u.username or 'postgres'}@{u.host or '127.0.0.1'}:{u.port or 5432}/postgres"
     )
@@ -89,6 +92,8 @@ def ensure_database(url: str | None = None, superuser_dsn: str | None = None) ->
 
 def drop_database(url: str, superuser_dsn: str | None = None) -> None:
     u = make_url(url)
+    if not u.database:
+        raise ValueError(f"{u.render_as_string()}: the URL names no database")
     admin = superuser_dsn or (
         f"postgresql://{u.username or 'postgres'}@{u.host or '127.0.0.1'}:{u.port or 5432}/postgres"
     )

@@ -37,7 +37,7 @@ from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
 
 ROLES = ("admin", "agronomist", "viewer")
 JOB_STATES = ("planned", "sent", "downloaded", "running", "paused", "completed", "aborted")
-JOB_KINDS = ("prescription_map", "ndvi_topdress", "seeding_depth")  # issue 13, revision 0009
+JOB_KINDS = ("prescription_map", "ndvi_topdress", "seeding_depth")  # revision 0009
 
 
 def _now() -> Any:
@@ -532,7 +532,7 @@ class Telemetry(Base):
     implement_down: Mapped[bool] = mapped_column(Boolean, default=False)
     alarms: Mapped[list[str]] = mapped_column(ARRAY(String(32)), default=list)
     queue_backlog: Mapped[int] = mapped_column(Integer, default=0)
-    # sensor job kinds (issue 13): raw NDVI, actuator position, controller gains in force
+    # sensor job kinds: raw NDVI, actuator position, controller gains in force
     ndvi_raw: Mapped[float | None] = mapped_column(Double)
     actuator_mm: Mapped[float | None] = mapped_column(Double)
     gain_kp: Mapped[float | None] = mapped_column(Double)
@@ -654,7 +654,7 @@ IMAGERY_KINDS = ("orthophoto", "ndvi", "multispectral")
 
 
 class Imagery(Base):
-    """An uploaded raster of a field, stored as a Cloud-Optimized GeoTIFF (issue 14).
+    """An uploaded raster of a field, stored as a Cloud-Optimized GeoTIFF.
 
     ``storage_key`` is the COG's path relative to the imagery directory; ``bands`` maps
     roles to 1-based band numbers (``{"red": 3, "nir": 4}``, ``{"ndvi": 1}``,
@@ -690,12 +690,12 @@ class Imagery(Base):
     created_at: Mapped[dt.datetime] = _now()
 
 
-TASK_KINDS = ("plan", "prescription", "imagery", "plan_batch")  # issue 18, revision 0012
+TASK_KINDS = ("plan", "prescription", "imagery", "plan_batch")  # revision 0012
 TASK_STATES = ("queued", "running", "succeeded", "failed", "cancelled")
 
 
 class Task(Base):
-    """Background work of an organisation (issue 18): what the API and the UI see of a job on
+    """Background work of an organisation: what the API and the UI see of a job on
     the PostgreSQL queue (procrastinate's ``procrastinate_jobs`` row ``job_id``).
 
     procrastinate knows how to run a job once and recover it from a dead worker; this row

@@ -1,7 +1,7 @@
 """Engine and session factory.
 
 JIT is switched off on every application connection: on this class of machine
-it made spatial aggregations 4-5x slower (shared/STACK.md).
+it made spatial aggregations 4-5x slower (docs/architecture.md, "Stack notes").
 """
 
 from __future__ import annotations

@@ -376,14 +376,16 @@ def job_cell_totals(session: Session, job_id: int, machine_id: int) -> list[Any]
     """A thin job's cell records summed per cell (null: no cell):
     (cell_seq, fixes, worked s, mass g, target rate sum, applied rate sum, first t, last t),
     the rate sums over fixes and the times (unix s) over cells' own fixes."""
-    return session.execute(
-        text(
-            "SELECT cell_seq, sum(n_fixes)::int, sum(worked_s), sum(mass_g),"
-            " sum(coalesce(mean_target_rate_kg_ha, 0) * n_fixes),"
-            " sum(coalesce(mean_applied_rate_kg_ha, 0) * n_fixes),"
-            " extract(epoch FROM min(t_entry) FILTER (WHERE n_fixes > 0))::float8,"
-            " extract(epoch FROM max(t_exit) FILTER (WHERE n_fixes > 0))::float8"
-            " FROM job_cell_records WHERE job_id = :j AND machine_id = :m GROUP BY cell_seq"
-        ),
-        {"j": job_id, "m": machine_id},
-    ).all()
+    return list(
+        session.execute(
+            text(
+                "SELECT cell_seq, sum(n_fixes)::int, sum(worked_s), sum(mass_g),"
+                " sum(coalesce(mean_target_rate_kg_ha, 0) * n_fixes),"
+                " sum(coalesce(mean_applied_rate_kg_ha, 0) * n_fixes),"
+                " extract(epoch FROM min(t_entry) FILTER (WHERE n_fixes > 0))::float8,"
+                " extract(epoch FROM max(t_exit) FILTER (WHERE n_fixes > 0))::float8"
+                " FROM job_cell_records WHERE job_id = :j AND machine_id = :m GROUP BY cell_seq"
+            ),
+            {"j": job_id, "m": machine_id},
+        ).all()
+    )

@@ -1,6 +1,6 @@
 """Cyclic garbage collector settings for the processes that ingest telemetry.
 
-Why (issue 18, py-spy on an MQTT worker): a 200-record batch parses into ~400 container
+Why (py-spy on an MQTT worker): a 200-record batch parses into ~400 container
 objects (a dict and an ``alarms`` list per record) that live until the batch commits,
 and a worker holds dozens of batches at once. With CPython's default gen-0 threshold
 (700 allocations) the collector ran every couple of messages and walked every batch in

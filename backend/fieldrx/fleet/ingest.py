@@ -14,7 +14,7 @@ the machine's legacy stream ''. One batch is one transaction:
    batches of the same machine (two MQTT workers, a retry racing the
    original, two agents), so the stream's stored seqs can be read once and
    the new rows COPied straight into ``telemetry`` with COPY BINARY (EWKB
-   points), the fastest path measured here (shared/STACK.md). ``telemetry``
+   points), the fastest path measured here (docs/architecture.md, "Stack notes"). ``telemetry``
    is partitioned by day (``fleet.partitions``): the records' days are made
    first if missing, and the seq lookups name a time range so they read only
    the stream's days: none at all for a batch above the stream's highest
@@ -46,7 +46,7 @@ import datetime as dt
 import json
 import operator
 import time
-from collections.abc import Callable, Iterable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any, Protocol
@@ -86,11 +86,11 @@ COPY_SQL = TELEMETRY_COPY.sql()
 
 _PG_EPOCH_DT = dt.datetime(2000, 1, 1, tzinfo=dt.UTC)
 # a record time this far ahead of the server clock is a clock error: stored, it would
-# become the machine's latest state until real time caught up (issue 20)
+# become the machine's latest state until real time caught up
 FUTURE_TOLERANCE_S = 300.0
 CONCURRENT_WINDOW_S = 60.0  # two streams both sending within this: a duplicate_stream alert
 # job kinds whose progress counts the cells the implement worked in, not the cells that got
-# a positive applied rate (seed 000 topdressing, seed 002 seeding; issue 13): see ``_cells``
+# a positive applied rate (seed 000 topdressing, seed 002 seeding): see ``_cells``
 PROGRESS_BY_WORK = ("ndvi_topdress", "seeding_depth")
 INT4_MAX = 2**31 - 1
 INT8_MAX = 2**63 - 1
@@ -164,7 +164,7 @@ class Batch:
     kind: str = "telemetry"  # "cells": uplink profile thin's cell records (fleet.cellrecords)
 
 
-def _loads(body: bytes | str) -> Any:
+def _loads(body: bytes | bytearray | str) -> Any:
     try:
         return orjson.loads(body)
     except orjson.JSONDecodeError as exc:
@@ -176,7 +176,7 @@ def _loads(body: bytes | str) -> Any:
             raise IngestError(f"body is not valid JSON: {exc}") from exc
 
 
-def parse_batch(body: bytes | str) -> Batch:
+def parse_batch(body: bytes | bytearray | str) -> Batch:
     """``{"records": [...], "stream": id, "stream_start": n}`` (stream optional) -> Batch;
     anything else is an ``IngestError``."""
     return _batch_of(_loads(body))
@@ -237,11 +237,6 @@ def _batch_of(obj: Any) -> Batch:
     return Batch(obj["records"], stream, start, True, kind)
 
 
-def parse_body(body: bytes | str) -> list[Any]:
-    """The records of a batch (``parse_batch``)."""
-    return parse_batch(body).records
-
-
 _GET_ALL = operator.itemgetter(*TELEMETRY_FIELDS)
 _GET_V1 = operator.itemgetter(*TELEMETRY_FIELDS[:-1])  # format 1: no fix_period_s
 _N_FIELDS = len(TELEMETRY_FIELDS)
@@ -263,7 +258,7 @@ def _fast_row(d: Any, machine_id: int, t_max: float, stream: str) -> TelemetryRo
     """
     if type(d) is not dict:
         return None
-    # n keys, all n fields present: exactly the fields (no subset test: issue 18)
+    # n keys, all n fields present: exactly the fields (no subset test)
     n = len(d)
     try:
         if n == _N_FIELDS:
@@ -395,18 +390,17 @@ def validate(
     dead: set[int] = set()
     repeats = 0
     for d in raw:
-        r = _fast_row(d, machine_id, t_max, stream)
-        if r is None:
-            r = _slow_row(d, machine_id, now, stream)
-            if type(r) is str:
-                seq = d.get("seq") if isinstance(d, dict) else None
-                if type(seq) is not int or seq < 1:
-                    seq = None
-                rejected.append({"seq": seq, "reason": r})
-                mid = d.get("machine_id") if isinstance(d, dict) else None
-                if seq is not None and (mid is None or mid == machine_id):
-                    dead.add(seq)
-                continue
+        fast = _fast_row(d, machine_id, t_max, stream)
+        r = fast if fast is not None else _slow_row(d, machine_id, now, stream)
+        if isinstance(r, str):
+            seq = d.get("seq") if isinstance(d, dict) else None
+            if type(seq) is not int or seq < 1:
+                seq = None
+            rejected.append({"seq": seq, "reason": r})
+            mid = d.get("machine_id") if isinstance(d, dict) else None
+            if seq is not None and (mid is None or mid == machine_id):
+                dead.add(seq)
+            continue
         if r.seq in rows:
             repeats += 1
         else:
@@ -663,7 +657,7 @@ class TrackWork:
                     info.open_alerts,
                 )
             )
-        if any(r.depth_mm is not None for r in new):  # seeding job (issue 13)
+        if any(r.depth_mm is not None for r in new):  # seeding job
             from fieldrx.fleet.seed_alerts import check_depth_window
 
             messages.extend(
@@ -718,7 +712,7 @@ def _stored(
     machine_id: int,
     stream: str,
     info: MachineInfo,
-    rows: dict[int, tuple[Any, ...]],
+    rows: Mapping[int, tuple[Any, ...]],
 ) -> dict[int, int]:
     """Stored records of the stream holding a seq of this batch: seq -> t (int8 us).
 
@@ -989,7 +983,7 @@ def _position(org: int, r: TelemetryRow, result: IngestResult) -> dict[str, Any]
         "cell_seq": r.cell_seq,
         "target_rate_kg_ha": r.target_rate_kg_ha,
         "applied_rate_kg_ha": r.applied_rate_kg_ha,
-        "ndvi": r.ndvi,  # sensor jobs (issue 13): the fleet view shows the kind's own figure
+        "ndvi": r.ndvi,  # sensor jobs: the fleet view shows the kind's own figure
         "depth_mm": r.depth_mm,
         "implement_down": r.implement_down,
         "alarms": r.alarms,
@@ -1011,7 +1005,7 @@ def _cells(
     applied rate; a sensor kind (``PROGRESS_BY_WORK``: seed 000 topdressing,
     seed 002 seeding) once the implement has worked in it, i.e. its first
     implement-down record -- a seeding job reports no fertilizer rate at all
-    and stayed at 0 % (issue 13), and a topdressing cell whose sensor said
+    and stayed at 0 %, and a topdressing cell whose sensor said
     "no fertilizer" has still been driven. One statement per batch: both counts
     are taken per job and the job's kind picks one.
     """
@@ -1134,9 +1128,3 @@ def job_messages(machine_id: int, org: int, moved: Iterable[Any]) -> list[dict[s
         }
         for jid, state, applied, n in moved
     ]
-
-
-def raw_copy(conn: psycopg.Connection[Any], rows: list[TelemetryRow]) -> None:
-    """Plain COPY BINARY of prepared rows into ``telemetry``: the benchmark's baseline."""
-    with conn.transaction(), conn.cursor() as cur:
-        TELEMETRY_COPY.write_rows(cur, rows)

@@ -5,7 +5,7 @@ live message. Asking for the state a job is already in is a no-op (a device
 that restarts may repeat "running"); anything else not in the table is a 409.
 
 A job that ends "completed" while prescribed cells received nothing raises a
-``cells_not_applied`` alert listing them (issue 11: a job ended "completed" at
+``cells_not_applied`` alert listing them (a job ended "completed" at
 85.7 % coverage with no alert); the report lists them too (``not_applied_seqs``).
 """
 

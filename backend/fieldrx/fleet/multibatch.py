@@ -4,7 +4,7 @@ A thin agent (uplink profile ``thin``) sends its 1 Hz track batch and its cell b
 one HTTP request. Stored one transaction each (``ingest.ingest``, then
 ``cellrecords.ingest_cells``) that is two BEGIN / lock / read / NOTIFY / COMMIT rounds per
 request; here a track batch and a cell batch share one transaction: both locks in one
-statement, both reads in one round trip, one NOTIFY, one COMMIT (issue 18: the thin
+statement, both reads in one round trip, one NOTIFY, one COMMIT (the thin
 profile's server CPU per machine-hour).
 
 An ack is true only once its batch is durably stored, and one batch must not take

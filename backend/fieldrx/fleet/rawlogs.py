@@ -1,4 +1,4 @@
-"""The full 10 Hz logs of thin-profile jobs, uploaded on request (issue 18).
+"""The full 10 Hz logs of thin-profile jobs, uploaded on request.
 
 A thin tractor keeps every fix in its own log (``fieldrx_edge.uplink.thin.RawLog``)
 and sends it, one gzip file per job, when the office asks for it: the office

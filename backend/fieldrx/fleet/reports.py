@@ -4,7 +4,7 @@ Per cell (path order, planned rate M in kg/ha) the figures come from the one
 as-applied kernel, ``fieldrx_edge.asapplied`` (seed 001 eq. 16-18; the edge
 simulator uses the same functions, so the two agree to rounding):
 
-* theoretical mass M1 = M * l * d / 10 g (eq. 17, SCIENCE.md erratum: grams),
+* theoretical mass M1 = M * l * d / 10 g (eq. 17, docs/science.md erratum: grams),
   l the implement width, d the cell's driving line inside the cell's polygon and
   the field (``asapplied.driven_length``);
 * applied mass M2: each record's fix period meters flow(actual shaft speed)
@@ -27,7 +27,7 @@ the field); planned = sum(rate * area) over the version's cells; never applied =
 planned amount of prescribed cells where nothing landed. M1 (eq. 17) stays the accuracy
 reference of each cell: the mass the driven line asked for, not the version's plan.
 
-A job run with uplink profile ``thin`` (issue 18) has no 10 Hz records here:
+A job run with uplink profile ``thin`` has no 10 Hz records here:
 its tractor ran the same kernel over its own log and sent one record per cell
 (``fleet.cellrecords``, ``fieldrx_edge.uplink.thin``). Its report sums those
 per cell (M2, fixes, worked time, mean rates, first/last fix) instead of
@@ -146,7 +146,7 @@ def _rings(poly: Any) -> list[list[float]]:
 
 
 def job_plan(session: Session, job: Job) -> Plan:
-    if job.plan_id is not None:  # sensor kinds (issue 13) drive a plan directly
+    if job.plan_id is not None:  # sensor kinds drive a plan directly
         plan = session.get(Plan, job.plan_id)
         assert plan is not None
         return plan
@@ -444,7 +444,7 @@ def key_records(key: tuple[Any, ...]) -> int:
 
 
 def cache_get(session: Session, job: Job, key: tuple[Any, ...]) -> JobReport | None:
-    ck = (str(session.get_bind().url), job.id)
+    ck = (str(session.get_bind().engine.url), job.id)
     with _cache_lock:
         hit = _cache.get(ck)
         if hit is not None and hit[0] == key:
@@ -460,7 +460,7 @@ def clear_cache() -> None:
 
 
 def cache_put(session: Session, job: Job, key: tuple[Any, ...], rep: JobReport) -> None:
-    ck = (str(session.get_bind().url), job.id)
+    ck = (str(session.get_bind().engine.url), job.id)
     with _cache_lock:
         _cache[ck] = (key, rep)
         _cache.move_to_end(ck)

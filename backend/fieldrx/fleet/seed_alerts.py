@@ -1,4 +1,4 @@
-"""Live alert of seeding jobs (issue 13, seed 002): the qualified depth share over the last
+"""Live alert of seeding jobs (seed 002): the qualified depth share over the last
 ``alert_window_m`` metres worked, checked as records arrive.
 
 Called by ingest for batches that carry measured depths. The window is the job's own

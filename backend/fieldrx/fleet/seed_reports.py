@@ -1,4 +1,4 @@
-"""Reports of the sensor job kinds (issue 13), from the job's stored telemetry.
+"""Reports of the sensor job kinds, from the job's stored telemetry.
 
 * ``ndvi_topdress`` (seed 000): the NDVI map (raw and window-filtered NDVI per plan cell),
   the applied-rate map (target and applied kg/ha per cell) and the paper's Table 3:

@@ -1,6 +1,6 @@
 """Machine status for the fleet view: online from the heartbeat timeout, position, job, rates.
 
-The status describes the present (issue 11 defect 7: machines stayed "alarm" with their
+The status describes the present (machines stayed "alarm" with their
 last speed for tens of minutes after their simulations ended):
 
 * a machine silent for longer than the heartbeat timeout (``FIELDRX_HEARTBEAT_TIMEOUT_S``)

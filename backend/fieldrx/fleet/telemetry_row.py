@@ -44,7 +44,7 @@ class TelemetryRow(NamedTuple):
     queue_backlog: int
     fix_period_s: float | None
     stream: str
-    # optional sensor-job fields (issue 13, protocol.EXTRA_FIELDS), last
+    # optional sensor-job fields (protocol.EXTRA_FIELDS), last
     ndvi_raw: float | None = None
     actuator_mm: float | None = None
     gain_kp: float | None = None

@@ -15,7 +15,7 @@ is stored on its own; one the database refuses gets an ack with ``error`` (as a 
 request's batch), so it neither blocks nor takes down another machine's.
 A record the protocol forbids (NaN, a far-future time) is rejected alone in
 the ack, never a reason to drop the message unanswered: an agent that gets no
-ack resends forever (issue 20).
+ack resends forever.
 
 Security: the worker logs in as ``fieldrx-worker`` (``fieldrx.auth.mqtt``); the
 broker lets only machine N publish on machine N's telemetry topic, so the machine
@@ -39,7 +39,7 @@ Lanes: a worker holds ``db_connections`` database connections (FIELDRX_WORKER_DB
 each with its own thread and inbox; a message goes to lane ``machine_id % lanes``, so one
 machine's messages stay in order on one connection while other machines' batches commit
 at the same time. Why: a batch's thread waits on PostgreSQL (COPY, COMMIT's WAL flush)
-about two thirds of the time (py-spy, issue 18); with one connection that wait was the
+about two thirds of the time (py-spy); with one connection that wait was the
 worker's throughput. Every guarantee is per lane as before: a message is acked after the
 commit that stored it, on the connection that committed it.
 """
@@ -168,7 +168,7 @@ class IngestWorker:
         self.client.on_connect = self._on_connect
         self.client.on_message = self._on_message
         self.client.on_subscribe = self._on_subscribe
-        self.client.reconnect_delay_set(0.5, 10)
+        self.client.reconnect_delay_set(1, 10)  # paho takes whole seconds
         self.broker.configure(self.client)
 
     def _take_slot(self, d: Path) -> int:
@@ -307,7 +307,7 @@ class IngestWorker:
         The window groups a machine's messages into one transaction when traffic is light.
         Under load (a fleet replaying its backlog) the inbox already holds plenty: waiting
         out the window there only left the worker idle between rounds (a third of the time
-        with 100 ms windows at 200 machines, issue 18), so a full inbox is taken at once."""
+        with 100 ms windows at 200 machines), so a full inbox is taken at once."""
         msgs = [first]
         deadline = time.monotonic() + self.batch_s
         while True:
@@ -407,7 +407,7 @@ class IngestWorker:
     ) -> psycopg.Connection[Any]:
         """A round's batches in one transaction (``multibatch.store_together``: one lock
         statement, one read round trip, one COPY, one NOTIFY, one COMMIT instead of each
-        batch's own, issue 18); the acks only after the commit. If it fails, nothing of it
+        batch's own); the acks only after the commit. If it fails, nothing of it
         was committed or acked, and every batch is stored on its own (``_store_alone``), so
         one machine's bad batch neither loses nor blocks another machine's."""
         wait = False  # first the machines no other worker holds, then the rest (store_free)

@@ -23,7 +23,7 @@ import xml.etree.ElementTree as ET
 import zipfile
 import zlib
 from pyexpat import ExpatError, ParserCreate
-from typing import Any
+from typing import Any, NoReturn
 
 from fieldrx.formats import FormatError
 
@@ -97,7 +97,7 @@ def parse_xml(data: bytes, where: str) -> ET.Element:
     builder = ET.TreeBuilder()
     p = ParserCreate()
 
-    def no_dtd(*_: Any) -> None:
+    def no_dtd(*_: Any) -> NoReturn:
         raise FormatError(
             f"{where}: XML document type declarations (DTD/entities) are not accepted"
         )

@@ -292,13 +292,13 @@ def write_asapplied_shapefile_zip(
             )
     pts = point_shapefile(points.lon, points.lat, _point_columns(points))
     files = {}
-    for name, (a, b, c) in (
+    for name, (shp_io, shx_io, dbf_io) in (
         (stem, (shp, shx, dbf)),
         (f"{stem}_points", tuple(io.BytesIO(b) for b in pts)),
     ):
-        files[f"{name}.shp"] = a.getvalue()
-        files[f"{name}.shx"] = b.getvalue()
-        files[f"{name}.dbf"] = c.getvalue()
+        files[f"{name}.shp"] = shp_io.getvalue()
+        files[f"{name}.shx"] = shx_io.getvalue()
+        files[f"{name}.dbf"] = dbf_io.getvalue()
         files[f"{name}.prj"] = WGS84_PRJ.encode()
         files[f"{name}.cpg"] = b"UTF-8"
     return _shp_zip(files)

@@ -197,9 +197,9 @@ def to_timelog(
         "lon_column": lon_column,
         "lat_column": lat_column,
     }
-    for key, col in mapped.items():
-        if col is not None and col not in names:
-            raise FormatError(f"{key} {col!r} is not a column ({sorted(names)})")
+    for key, name in mapped.items():
+        if name is not None and name not in names:
+            raise FormatError(f"{key} {name!r} is not a column ({sorted(names)})")
     n = len(table.rows)
     if n == 0:
         raise FormatError(f"{table.name}: no rows")

@@ -2,27 +2,15 @@
 
 from __future__ import annotations
 
-import json
 from typing import Any
 
 import numpy as np
 
 from fieldrx.agronomy.cells import CellTable, flag_strings
 from fieldrx.formats import FormatError
-from fieldrx.geo.cells import GEOJSON_DECIMALS
+from fieldrx.geo.cells import GEOJSON_DECIMALS, Column
 
 COORD_DECIMALS = GEOJSON_DECIMALS
-
-
-def prescription_geojson(
-    cells: CellTable, properties: dict[str, Any] | None = None
-) -> dict[str, Any]:
-    """FeatureCollection of the clipped cells with seq, swath, rate_kg_ha, unit, flag, area.
-
-    ``properties`` (e.g. prescription id, version, model) go on the collection
-    as a foreign member ``properties`` that GeoJSON readers ignore.
-    """
-    return json.loads(write_geojson(cells, properties))
 
 
 def write_geojson(cells: CellTable, properties: dict[str, Any] | None = None) -> bytes:
@@ -31,7 +19,7 @@ def write_geojson(cells: CellTable, properties: dict[str, Any] | None = None) ->
     if not np.isfinite(cells.rate_kg_ha).all():
         raise FormatError("GeoJSON export: a rate is not finite")
     n = len(cells)
-    columns = {
+    columns: dict[str, Column] = {
         "seq": cells.seq,
         "swath": cells.swath,
         "rate_kg_ha": np.round(cells.rate_kg_ha, 3).astype(float),

@@ -299,7 +299,7 @@ def write_isoxml_grid(
         if boundary_wgs84 is None
         else tuple(boundary_wgs84.bounds)
     )
-    spec = grid_spec(bounds, cell_m)  # type: ignore[arg-type]
+    spec = grid_spec(bounds, cell_m)
     values = setpoint.values(rasterise_rates(cells, spec))
     if values.max(initial=0) > np.iinfo(np.int32).max:
         raise FormatError("a rate is too large for an ISO 11783 setpoint")

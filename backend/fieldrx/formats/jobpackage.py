@@ -15,8 +15,7 @@ from __future__ import annotations
 
 import gzip
 import json
-from dataclasses import asdict
-from typing import Any
+from typing import Any, TypedDict
 
 import numpy as np
 import shapely
@@ -86,7 +85,7 @@ def beside_line_cells(polys: Any, c: np.ndarray, shaped: np.ndarray) -> np.ndarr
     Tractor, simulator and report put the metered mass at a point on the driving
     line (seed 001 sec. 2.3, eq. 16) and look that point up in the cells. A swath
     that overlaps the headland ring by more than half the implement width (the last
-    inner swath when the inner width is not a multiple of it: issue 11, 12 m on a
+    inner swath when the inner width is not a multiple of it: 12 m on a
     ~100 m field) has cells whose polygon is only the strip beside the line: the
     point is then always in the (finished) ring cell and the swath was never metered.
     Driving that line with the implement down is the only way to cover the strip,
@@ -111,7 +110,16 @@ def beside_line_cells(polys: Any, c: np.ndarray, shaped: np.ndarray) -> np.ndarr
     return out
 
 
-def _shape_fields(cells: CellTable, decimals: int) -> dict[str, list]:
+class _ShapeFields(TypedDict, total=False):
+    """The ``JobPackage.shape_*`` arguments (none when no cell is shaped)."""
+
+    shape_seq: list[int]
+    shape_ring_offsets: list[int]
+    shape_offsets: list[int]
+    shape_xy_utm: list[float]
+
+
+def _shape_fields(cells: CellTable, decimals: int) -> _ShapeFields:
     """``JobPackage.shape_*`` for the shaped cells: rings of every polygon part, open, rounded."""
     mask = shaped_cells(cells.polygons_utm, cells.corners_utm)
     seqs: list[int] = []
@@ -136,7 +144,7 @@ def _shape_fields(cells: CellTable, decimals: int) -> dict[str, list]:
             seqs.append(int(cells.seq[i]))
             ring_off.append(ring_off[-1] + n_rings)
     if not seqs:
-        return {}
+        return _ShapeFields()
     return {
         "shape_seq": seqs,
         "shape_ring_offsets": ring_off,
@@ -243,7 +251,3 @@ def package_etag(pkg: JobPackage) -> str:
     if not pkg.checksum:
         pkg.seal()
     return f'"{pkg.checksum}"'
-
-
-def package_dict(pkg: JobPackage) -> dict[str, Any]:
-    return asdict(pkg)

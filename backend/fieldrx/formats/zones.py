@@ -4,7 +4,7 @@ Two mechanisms shared by the Shapefile and ISO 11783-10 writers:
 
 * ``snap_valid``: coordinates are written with a fixed number of decimals
   (9 for degrees, the ISO XSD's limit). Rounding each vertex on its own can
-  make a thin clipped cell self-intersect or collapse a ring (issue 19 found
+  make a thin clipped cell self-intersect or collapse a ring (found
   12..15 invalid cells per field). GEOS precision reduction
   (``shapely.set_precision``) snaps to the same grid *and* repairs the result,
   so the coordinates as written are valid; parts that collapse to nothing at

@@ -1,6 +1,6 @@
 """Pure planning geometry: CRS helpers, coverage path planning and the path-ordered grid.
 
-Nothing here touches the database or the web (DESIGN.md, "geo/").
+Nothing here touches the database or the web (docs/architecture.md, "geo/").
 """
 
 

@@ -92,7 +92,7 @@ def _ring_centroids(xy: np.ndarray) -> np.ndarray:
     c = c / (6.0 * safe)[:, None] + o[:, 0, :]
     if flat.any():
         c[flat] = xy[flat, :-1].mean(axis=1)
-    return c
+    return np.asarray(c)
 
 
 def cut_edge_midpoints(corners: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -110,7 +110,7 @@ def rectangles(corners: np.ndarray) -> np.ndarray:
         return np.zeros(0, dtype=object)
     closed = np.concatenate([c, c[:, :1]], axis=1).reshape(-1, 2)
     offsets = (np.arange(0, 5 * n + 1, 5), np.arange(n + 1))
-    return shapely.from_ragged_array(shapely.GeometryType.POLYGON, closed, offsets)
+    return np.asarray(shapely.from_ragged_array(shapely.GeometryType.POLYGON, closed, offsets))
 
 
 def round_coords(geoms: Any, decimals: int) -> Any:
@@ -142,10 +142,13 @@ def round_valid(geoms: Any, decimals: int) -> Any:
     return out[0] if scalar else out
 
 
+# one value per cell: a list or a numpy array
+Column = Sequence[Any] | np.ndarray
+
 GEOJSON_DECIMALS = 9  # ~0.1 mm in degrees; RFC 7946 recommends no more than needed
 
 
-def _json_texts(name: str, col: Sequence[Any]) -> list[str]:
+def _json_texts(name: str, col: Column) -> list[str]:
     """``"name":value`` JSON text for every value of one property column (non-finite
     floats become null: RFC 8259 has no NaN)."""
     key = json.dumps(name) + ":"
@@ -192,7 +195,7 @@ class Cells:
     cell_length_m: float = float("nan")
     swath_width_m: float = float("nan")
     # field area no cell covers (thin peninsulas the headland offsets cannot reach,
-    # wedges where a swath stops at a hole or notch): reported, never hidden (issue 16)
+    # wedges where a swath stops at a hole or notch): reported, never hidden
     uncovered_m2: float = 0.0
     timings_s: dict[str, float] = field(default_factory=dict)
 
@@ -263,10 +266,6 @@ class Cells:
                 raise ValueError(f"Cells: {len(v)} rows of {name} for {len(self)} cells")
             self._views[name] = v
 
-    def drive_lines(self) -> tuple[np.ndarray, np.ndarray]:
-        """(rear, front) ends of every cell's driving line (``cut_edge_midpoints``)."""
-        return cut_edge_midpoints(self.corners_utm)
-
     @property
     def total_area_m2(self) -> float:
         return float(self.area_m2.sum())
@@ -304,7 +303,7 @@ class Cells:
     # GeoJSON -------------------------------------------------------------------------
 
     def geojson_features(
-        self, columns: Mapping[str, Sequence[Any]], decimals: int = GEOJSON_DECIMALS
+        self, columns: Mapping[str, Column], decimals: int = GEOJSON_DECIMALS
     ) -> list[str]:
         """One RFC 7946 Feature (compact JSON text) per cell, lon/lat, path order.
 
@@ -326,7 +325,7 @@ class Cells:
 
     def geojson_bytes(
         self,
-        columns: Mapping[str, Sequence[Any]],
+        columns: Mapping[str, Column],
         properties: Mapping[str, Any] | None = None,
         decimals: int = GEOJSON_DECIMALS,
     ) -> bytes:
@@ -341,7 +340,7 @@ class Cells:
     def to_geojson(self, rates_kg_ha: np.ndarray | None = None) -> dict[str, Any]:
         """The grid as a FeatureCollection dict: seq, swath, index_in_swath, area, headland
         (and a rate per cell when given)."""
-        cols: dict[str, Sequence[Any]] = {
+        cols: dict[str, Column] = {
             "seq": self.seq,
             "swath": self.swath,
             "index_in_swath": self.index_in_swath,
@@ -350,7 +349,8 @@ class Cells:
         }
         if rates_kg_ha is not None:
             cols["rate_kg_ha"] = np.asarray(rates_kg_ha, dtype=float)
-        return json.loads(self.geojson_bytes(cols))
+        out: dict[str, Any] = json.loads(self.geojson_bytes(cols))
+        return out
 
     # constructors --------------------------------------------------------------------
 
@@ -462,7 +462,7 @@ def _oriented_corners(polys: np.ndarray) -> np.ndarray:
     rects = shapely.orient_polygons(shapely.oriented_envelope(polys), exterior_cw=False)
     rings = shapely.get_exterior_ring(rects)
     if n and (shapely.get_num_coordinates(rings) == 5).all():  # the usual case
-        return shapely.get_coordinates(rings).reshape(n, 5, 2)[:, :4]
+        return np.asarray(shapely.get_coordinates(rings).reshape(n, 5, 2)[:, :4])
     corners = np.zeros((n, 4, 2))
     for i, r in enumerate(rects):
         if r.geom_type == "Polygon":

@@ -1,7 +1,7 @@
 """Coverage path planning: the public entry points of :mod:`fieldrx.geo.planning`.
 
 Seed 001 sec. 1.2 plans parallel swaths (spacing = implement width, base line = the
-boundary's longest edge) with a scan line. FieldRx generalises that (issues 3 and 16) in
+boundary's longest edge) with a scan line. FieldRx generalises that in
 stages, one module each under :mod:`fieldrx.geo.planning`: boundary cleaning,
 headland, headings (candidates, bounds, objectives), swaths, decomposition, order,
 turns (drivable, turning radius r), metrics, and the planner that chains them. This

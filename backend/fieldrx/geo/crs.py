@@ -1,4 +1,4 @@
-"""WGS84 <-> UTM conversion: all FieldRx geometry work happens in metres (DESIGN.md)."""
+"""WGS84 <-> UTM conversion: all FieldRx geometry work happens in metres (docs/architecture.md)."""
 
 from __future__ import annotations
 
@@ -102,12 +102,14 @@ def utm_coords_to_lonlat(coords: np.ndarray, epsg: int) -> np.ndarray:
 
 def to_utm(geom_wgs84: G, epsg: int) -> G:
     """Shapely geometry (or array of them) in lon/lat -> UTM metres."""
-    return shapely.transform(geom_wgs84, lambda c: lonlat_to_utm_coords(c, epsg))
+    out: G = shapely.transform(geom_wgs84, lambda c: lonlat_to_utm_coords(c, epsg))
+    return out
 
 
 def to_wgs84(geom_utm: G, epsg: int) -> G:
     """Shapely geometry (or array of them) in UTM metres -> lon/lat."""
-    return shapely.transform(geom_utm, lambda c: utm_coords_to_lonlat(c, epsg))
+    out: G = shapely.transform(geom_utm, lambda c: utm_coords_to_lonlat(c, epsg))
+    return out
 
 
 # The one area basis of FieldRx: every area (a field's, a cell's, a prescription's, a job's

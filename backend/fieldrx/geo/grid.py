@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import shapely
@@ -384,7 +385,9 @@ class _Curve:
         return np.vstack([first, second[1:]])
 
 
-def _offset_curve_cells(ring: LineString, cut_pts: np.ndarray, w: float) -> list | None:
+def _offset_curve_cells(
+    ring: LineString, cut_pts: np.ndarray, w: float
+) -> list[Any] | None:
     """Cells bounded by the ring's offset curves on both sides (nearest-point mapping).
 
     Cut lines run from each cut point to its nearest points on the two offset curves, so
@@ -452,7 +455,7 @@ def _resolve_overlaps(rings: list[_Cells]) -> list[_Cells]:
     return out
 
 
-def _fill_bands(rings: list[_Cells], strips: list) -> None:
+def _fill_bands(rings: list[_Cells], strips: list[Any]) -> None:
     """Give each pass's band area that none of its rings' cells hold to the adjacent cell.
 
     The cut-line quads follow a ring's offset curves; where a ring is narrower than its
@@ -505,7 +508,7 @@ def _merge_slivers(cat: dict[str, np.ndarray], min_area: float) -> np.ndarray:
             while 0 <= jj < n and sw[jj] == sw[i] and not keep[jj]:
                 jj += step
             if 0 <= jj < n and sw[jj] == sw[i] and keep[jj]:
-                target = jj
+                target = int(jj)
                 break
         if target < 0:
             continue  # a swath that is one small cell: kept, its area still needs a rate

@@ -1,6 +1,6 @@
 """Shortest non-working paths inside the field (weighted visibility graph).
 
-Connections between swaths must stay inside the field and never cross a hole (issue 3;
+Connections between swaths must stay inside the field and never cross a hole (
 Fields2Cover's Dubins turns leave small plots and cross ponds). A shortest path inside
 a polygon with holes runs straight or bends only at boundary vertices, so a visibility
 graph over the vertices of the field (shrunk by a small clearance) gives exact shortest
@@ -104,7 +104,7 @@ class FieldRouter:
         f = (np.arange(_SAMPLES) + 0.5) / _SAMPLES
         pts = c[:, :1, :] + f[None, :, None] * (c[:, 1:, :] - c[:, :1, :])
         inside = shapely.contains_xy(self.avoid, pts[..., 0], pts[..., 1]).mean(axis=1)
-        return lengths + self.extra * inside * lengths
+        return np.asarray(lengths + self.extra * inside * lengths)
 
     def _inside(self, p: np.ndarray) -> tuple[np.ndarray, list[np.ndarray]]:
         """Point p moved into the domain (nearest point) plus the stub that got it there."""

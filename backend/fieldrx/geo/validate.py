@@ -1,6 +1,6 @@
 """Field boundary validation: a clean MultiPolygon from GeoJSON, or precisely why not.
 
-Checks (issue 2): type, distinct vertices per ring, coordinate range and
+Checks: type, distinct vertices per ring, coordinate range and
 swapped lat/lon order, vertex count, self-intersection with its location,
 area between 100 m^2 and 10,000 ha. Area is measured in the field's UTM plane
 (``crs.plane_area_m2``, the one area basis), never in degrees. Orientation is
@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -58,7 +59,7 @@ def geodesic_area_m2(geom: Polygon | MultiPolygon) -> float:
 
     ``Geod.geometry_area_perimeter`` sums the rings' *signed* areas, assuming
     RFC 7946 winding (exterior counter-clockwise, holes clockwise): a hole wound
-    like its exterior was added instead of subtracted (issue 11, defect 5). Each
+    like its exterior was added instead of subtracted (defect 5). Each
     ring's magnitude is taken on its own instead.
     """
     polys = list(geom.geoms) if isinstance(geom, MultiPolygon) else [geom]
@@ -70,12 +71,12 @@ def geodesic_area_m2(geom: Polygon | MultiPolygon) -> float:
     return total
 
 
-def _rings(coords: Any, gtype: str) -> list[tuple[str, list]]:
+def _rings(coords: Any, gtype: str) -> list[tuple[str, Sequence[Any]]]:
     """(json path, ring) for every ring, checking the nesting shape as we go."""
     polys = [coords] if gtype == "Polygon" else coords
     if not isinstance(polys, list | tuple) or not polys:
         raise BoundaryError(f"{gtype} has no coordinates", "geometry.coordinates")
-    out = []
+    out: list[tuple[str, Sequence[Any]]] = []
     for pi, poly in enumerate(polys):
         base = "geometry.coordinates" + ("" if gtype == "Polygon" else f"[{pi}]")
         if not isinstance(poly, list | tuple) or not poly:
@@ -87,7 +88,7 @@ def _rings(coords: Any, gtype: str) -> list[tuple[str, list]]:
     return out
 
 
-def _check_positions(rings: list[tuple[str, list]]) -> int:
+def _check_positions(rings: list[tuple[str, Sequence[Any]]]) -> int:
     n = 0
     for where, ring in rings:
         for vi, pos in enumerate(ring):
@@ -128,7 +129,7 @@ def _check_positions(rings: list[tuple[str, list]]) -> int:
 def _swapped_hint(geom: Polygon | MultiPolygon) -> bool:
     """Every vertex would also be valid swapped; used only to enrich the area message."""
     minx, miny, maxx, maxy = geom.bounds
-    return max(abs(minx), abs(maxx)) <= 90.0
+    return bool(max(abs(minx), abs(maxx)) <= 90.0)
 
 
 _LOC = re.compile(r"\[([-0-9.eE+]+) ([-0-9.eE+]+)\]")

@@ -1,4 +1,4 @@
-"""Imagery (issue 14): GeoTIFF -> Cloud-Optimized GeoTIFF ingest, web-mercator tiles and
+"""Imagery: GeoTIFF -> Cloud-Optimized GeoTIFF ingest, web-mercator tiles and
 per-cell raster statistics, on rasterio (bundled GDAL) and rio-tiler.
 
 No database access here: the API layer looks rows up and passes paths and band roles in.

@@ -1,6 +1,6 @@
 """Per-cell raster statistics: the area-weighted mean NDVI of each grid cell.
 
-Method (issue 14 scope 3). The cells' polygons are moved into the raster's CRS and burnt
+Method. The cells' polygons are moved into the raster's CRS and burnt
 into a label grid (GDAL rasterize, one label per cell, a sample belongs to the cell that
 contains its centre) laid over the cells' extent at a sampling step of a tenth of a
 typical cell's side (coarser only to stay under ``max_samples``). The raster is read onto

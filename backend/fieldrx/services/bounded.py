@@ -221,5 +221,5 @@ def run_bounded(
             proc.join(5)
             recv.close()
     if ok:
-        return value  # type: ignore[no-any-return]
+        return value
     raise value

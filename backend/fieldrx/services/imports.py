@@ -327,7 +327,7 @@ def commit(
         if f.ref in farm_ids:
             continue
         farm = Farm(
-            organisation_id=organisation_id, name=f.name[:200], notes="imported from ISOXML"
+            organisation_id=organisation_id, name=farm_in.name[:200], notes="imported from ISOXML"
         )
         session.add(farm)
         session.flush()
@@ -367,8 +367,10 @@ def commit(
             "density_kg_l": rx.density_kg_l,
             "isoxml_version": ds.version,
         }
-        row, plan = store_prescription(session, rx, fld, params, organisation_id, user_id, source)
-        created_rx.append({"id": row.id, "plan_id": plan.id, "field_id": fld.id, "ref": rx.ref})
+        rx_row, plan = store_prescription(
+            session, rx, fld, params, organisation_id, user_id, source
+        )
+        created_rx.append({"id": rx_row.id, "plan_id": plan.id, "field_id": fld.id, "ref": rx.ref})
     return {
         "farms": sorted(new_farms),
         "fields": [{"id": fields[r].id, "ref": r, "name": fields[r].name} for r in created],
@@ -422,7 +424,7 @@ def store_timelogs(
     )
     session.add(job)
     session.flush()
-    rows = []
+    rows: list[dict[str, Any]] = []
     seq = 0
     for log in logs:
         applied = log.series(7, 0.01)
@@ -453,7 +455,8 @@ def store_timelogs(
     # the records' daily partitions (a task log may be years old), made and committed on
     # a connection of their own; then the rows and the job's time span (fleet.partitions)
     t_us = [(r["t"] - PG_EPOCH_DT) // dt.timedelta(microseconds=1) for r in rows]
-    with raw_connection(raw_dsn(session.get_bind().url.render_as_string(hide_password=False))) as c:
+    bind_url = session.get_bind().engine.url.render_as_string(hide_password=False)
+    with raw_connection(raw_dsn(bind_url)) as c:
         ensure_days(c, t_us)
     session.execute(insert(Telemetry), rows)
     with session.connection().connection.dbapi_connection.cursor() as cur:  # type: ignore[union-attr]

@@ -1,4 +1,5 @@
-"""Job package from the database: a prescription version bound to a machine (DESIGN.md step 5).
+"""Job package from the database: a prescription version bound to a machine
+(docs/architecture.md, data flow step 5).
 
 For the fleet helper's ``/api/v1/device/jobs/{id}/package``: call
 
@@ -86,7 +87,7 @@ def build_package(
 
 
 def build_kind_package(session: Session, job: Job, machine: Machine) -> JobPackage:
-    """Sealed JobPackage of a sensor-kind job (issue 13): the plan's cells in path order
+    """Sealed JobPackage of a sensor-kind job: the plan's cells in path order
     (the path the tractor drives; rates 0, the sensors decide them), the field boundary,
     and the kind with its validated settings."""
     from fieldrx.formats.jobpackage import build_job_package as build
@@ -118,6 +119,8 @@ def build_job_package(session: Session, job: Job) -> JobPackage:
         raise LookupError(f"job {job.id}: machine {job.machine_id} not found")
     if job.kind != "prescription_map":
         return build_kind_package(session, job, machine)
+    if job.prescription_id is None:
+        raise LookupError(f"job {job.id}: a prescription-map job without a prescription")
     return build_package(
         session, job.prescription_id, job.prescription_version, machine, job_id=job.id
     )

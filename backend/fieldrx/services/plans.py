@@ -112,7 +112,7 @@ def create_plan_bounded(
 
     check_plan_cost(area_m2, params)
     limit = get_settings().plan_time_limit_s
-    url = session.get_bind().url.render_as_string(hide_password=False)
+    url = session.get_bind().engine.url.render_as_string(hide_password=False)
     plan_id = run_bounded(
         plan_in_worker,
         url,

@@ -17,7 +17,6 @@ from typing import Any
 
 import numpy as np
 from fieldrx_edge.metering import calibration_from_dict
-from geoalchemy2.shape import to_shape
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
@@ -1001,12 +1000,6 @@ def version_cells(session: Session, rx: Prescription, ver: PrescriptionVersion) 
     if not np.array_equal(seq, cells.seq):
         raise RxError("the plan's cells do not match the prescription's rates")
     return cells.with_rates(rates, flags)
-
-
-def field_boundary_wgs84(session: Session, rx: Prescription) -> Any:
-    plan = session.get(Plan, rx.plan_id)
-    field = session.get(Field, plan.field_id) if plan is not None else None
-    return None if field is None else (field, to_shape(field.boundary))
 
 
 __all__ = [

@@ -13,11 +13,11 @@ import hashlib
 import io
 import json
 import uuid
-from typing import Any
+from typing import Any, cast
 
 from geoalchemy2.shape import from_shape, to_shape
 from shapely.geometry import Point
-from sqlalchemy import delete, func, select
+from sqlalchemy import CursorResult, Delete, delete, func, select
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
@@ -47,6 +47,12 @@ class ImportRefused(ValueError):
         self.status = status
         self.extra = extra
 
+
+
+def _deleted(session: Session, stmt: Delete) -> int:
+    """Rows a DELETE removed (a DML statement's result is a CursorResult, with rowcount)."""
+    res = cast(CursorResult[Any], session.execute(stmt))
+    return int(res.rowcount or 0)
 
 def file_digest(data: bytes) -> str:
     return "sha256:" + hashlib.sha256(data).hexdigest()
@@ -246,7 +252,7 @@ def delete_import(session: Session, field_id: int, import_id: int) -> int | None
     imp = session.get(SoilImportRow, import_id)
     if imp is None or imp.field_id != field_id:
         return None
-    n = session.execute(delete(SoilSample).where(SoilSample.import_id == imp.id)).rowcount
+    n = _deleted(session, delete(SoilSample).where(SoilSample.import_id == imp.id))
     session.delete(imp)
     session.flush()
     return int(n or 0)
@@ -254,10 +260,12 @@ def delete_import(session: Session, field_id: int, import_id: int) -> int | None
 
 def delete_sample(session: Session, field_id: int, sample_pk: int) -> bool:
     """Delete one sample (by its row id); its import's count follows in ``list_imports``."""
-    res = session.execute(
-        delete(SoilSample).where(SoilSample.field_id == field_id, SoilSample.id == sample_pk)
+    return bool(
+        _deleted(
+            session,
+            delete(SoilSample).where(SoilSample.field_id == field_id, SoilSample.id == sample_pk),
+        )
     )
-    return bool(res.rowcount)
 
 
 def sample_rows(session: Session, field_id: int) -> list[SoilSample]:
@@ -297,9 +305,9 @@ def samples_geojson(rows: list[SoilSample]) -> dict[str, Any]:
 
 def delete_samples(session: Session, field_id: int) -> int:
     """Every sample and import of the field."""
-    res = session.execute(delete(SoilSample).where(SoilSample.field_id == field_id))
+    n = _deleted(session, delete(SoilSample).where(SoilSample.field_id == field_id))
     session.execute(delete(SoilImportRow).where(SoilImportRow.field_id == field_id))
-    return int(res.rowcount or 0)
+    return n
 
 
 PREVIEW_ROWS = 20  # converted rows shown in a preview

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import gc
 import time
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from typing import Any
 
 import numpy as np
@@ -32,6 +32,8 @@ PLAN_CELLS = codec.CopySpec(
 )
 _FIXED = list(zip(PLAN_CELLS.columns[:-1], PLAN_CELLS.types[:-1], strict=True))
 _ROW = codec.row_dtype(_FIXED, tail=True)
+# a structured dtype always has fields (in order)
+_ROW_FIELDS: Mapping[str, Any] = _ROW.fields or {}
 EWKB_POLYGON_SRID = 0x20000003  # EWKB type word: Polygon with an SRID
 LOAD_CHUNK = 400_000
 
@@ -49,7 +51,7 @@ def _one_ring_dtype(k: int) -> np.dtype:
     """A whole plan_cells row whose geometry is a one-ring polygon of k points (EWKB)."""
     return np.dtype(
         [
-            *[(name, _ROW.fields[name][0]) for name in _ROW.names],
+            *[(name, _ROW_FIELDS[name][0]) for name in _ROW_FIELDS],
             ("bo", "u1"),
             ("gtype", "<u4"),
             ("srid", "<u4"),

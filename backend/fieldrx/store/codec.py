@@ -17,7 +17,7 @@ cross the wire as a handful of values; ``unpack`` cuts them up with numpy.
 from __future__ import annotations
 
 import struct
-from collections.abc import Iterable, Iterator, Sequence
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -62,9 +62,11 @@ def new_rows(dtype: np.dtype, n: int, n_fields: int) -> np.ndarray:
     """n zeroed rows with the field count and every fixed length word set."""
     rows = np.zeros(n, dtype=dtype)
     rows["nf"] = n_fields
-    for name in dtype.names or ():
-        if name.startswith("l_") and name != "l_tail" and name[2:] in dtype.names:
-            rows[name] = dtype.fields[name[2:]][0].itemsize
+    names = dtype.names or ()
+    fields: Mapping[str, Any] = dtype.fields or {}
+    for name in names:
+        if name.startswith("l_") and name != "l_tail" and name[2:] in names:
+            rows[name] = fields[name[2:]][0].itemsize
     return rows
 
 

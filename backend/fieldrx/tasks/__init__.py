@@ -1,4 +1,4 @@
-"""Background work on a PostgreSQL-backed queue, with progress (issue 18).
+"""Background work on a PostgreSQL-backed queue, with progress.
 
 Planning, prescriptions and imagery ingest can run outside the HTTP request as *tasks*,
 executed by ``fieldrx worker`` processes (any number, on any host that reaches the

@@ -1,4 +1,4 @@
-"""Export and job-report tasks (issue 18 scope 3, issue 15 scope 6).
+"""Export and job-report tasks.
 
 - ``export``: a job's as-applied file (per-cell CSV, zipped Shapefile, TASKDATA.zip;
   ``services.asapplied.export_job``) or a prescription version's file (GeoJSON, CSV,

@@ -92,4 +92,4 @@ def purge_expired(engine: Engine, retention_s: float) -> int:
     cutoff = dt.datetime.now(dt.UTC) - dt.timedelta(seconds=retention_s)
     with engine.begin() as conn:
         res = conn.execute(delete(TaskFile).where(TaskFile.created_at < cutoff))
-    return int(res.rowcount or 0)  # type: ignore[attr-defined]
+    return int(res.rowcount or 0)

@@ -157,7 +157,7 @@ def _rx_work(
 
     b = params["body"]
     plan = _scoped(session, Plan, params.get("plan_id"), org, "plan")
-    field = session.get(Field, plan.field_id)
+    field = _scoped(session, Field, plan.field_id, org, "field")
     machine = None
     if b.get("machine_id") is not None:
         machine = _scoped(session, Machine, b["machine_id"], org, "machine")

@@ -121,7 +121,9 @@ async def run_task_worker(
     async with app.open_async():
         worker = asyncio.create_task(
             app.run_worker_async(
-                queues=list(queues) if queues else None,
+                # None: every queue (procrastinate's Worker takes None; its WorkerOptions
+                # TypedDict says Iterable[str] only)
+                queues=list(queues) if queues else None,  # type: ignore[arg-type]
                 concurrency=concurrency,
                 name=name,
                 update_heartbeat_interval=heartbeat_s,

@@ -4,7 +4,7 @@ Inputs: error e = r - y and its rate ec = de/dt, quantised by k_e, k_ec onto
 [-6, 6] (clamped) and fuzzified by seven evenly spaced triangular sets
 NB NM NS ZE PS PM PB (centres -6, -4, ..., 6). Mamdani inference with min
 implication, MAX aggregation (seed 002 eq. 11 prints min, an erratum, see
-SCIENCE.md) and centroid defuzzification (eq. 12) over seven triangular
+docs/science.md) and centroid defuzzification (eq. 12) over seven triangular
 output sets on [-3, 3] (centres -3, -2, ..., 3). The crisp outputs are scaled
 by the output factors (Table 2) and added to the base gains: K = K' + dK
 (eq. 10).

@@ -70,7 +70,7 @@ class LADRC(Controller):
     """Linear ADRC with bandwidth tuning (wc, wo, b0), order 1 or 2.
 
     Seed 001's parameters are order 2, wc 150, wo 400, b0 6000. For its motor,
-    which is first order (SCIENCE.md), order 1 is the principled design; see
+    which is first order (docs/science.md), order 1 is the principled design; see
     bench/control.py for the design used by FieldRx.
     """
 

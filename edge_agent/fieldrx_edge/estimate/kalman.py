@@ -13,7 +13,7 @@ class KalmanSpeedFilter:
     about 0.2. Differences from the paper, both on purpose:
 
     - initialised from the first measurement, not x0 = 0 (which would make the
-      first estimate -100 % wrong, SCIENCE.md);
+      first estimate -100 % wrong, docs/science.md);
     - gross outliers are gated: a measurement whose innovation exceeds
       ``gate_sigma`` * sqrt(P- + R) is rejected (prediction kept). After
       ``max_rejects`` rejections in a row the filter assumes the *estimate*

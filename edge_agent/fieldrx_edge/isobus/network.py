@@ -609,9 +609,9 @@ class Node:
                 self._abort(PGN_ETP_CM, sa, ABORT_SIZE, pgn)
                 return
             packets = math.ceil(size / 7)
-            rx = _Rx("etp", pgn, size, sa, da, bytearray(packets * 7), packets, last_t=now)
-            self._rx[(sa, 0)] = rx
-            self._send_cts(rx, 255)
+            new = _Rx("etp", pgn, size, sa, da, bytearray(packets * 7), packets, last_t=now)
+            self._rx[(sa, 0)] = new
+            self._send_cts(new, 255)
         elif mux == 0x16:  # DPO
             rx = self._rx.get((sa, 0))
             if rx is None or rx.kind != "etp":
@@ -748,12 +748,6 @@ class Node:
                     self._warn("rtout", "transfer from 0x%02X timed out", rx.sa)
 
     # -- helpers for tests and the bench --------------------------------------------
-
-    def address_of(self, name: Name) -> int | None:
-        for a, n in self.peers.items():
-            if n == name:
-                return a
-        return None
 
 
 def pump(nodes: list[Node], max_rounds: int = 10_000) -> int:

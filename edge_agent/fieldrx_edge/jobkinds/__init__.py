@@ -1,4 +1,4 @@
-"""Sensor job kinds (issue 13): seed 000 NDVI topdressing and seed 002 depth-controlled seeding.
+"""Sensor job kinds: seed 000 NDVI topdressing and seed 002 depth-controlled seeding.
 
 ``settings``: each kind's settings with units and the paper's defaults, validated (shared by
 the server's API and the agent). ``sensors``: sensor line formats and the hold-then-stop

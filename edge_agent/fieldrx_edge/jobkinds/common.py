@@ -117,7 +117,7 @@ def record(job: JobPackage, d: Drive, i: int, **fields: Any) -> dict[str, Any]:
 
 def cells_worked(recs: list[dict[str, Any]]) -> int:
     """Plan cells the implement worked in (a record with the implement down names the cell):
-    what the server's job progress counts for a sensor kind (``fleet.ingest``, issue 13)."""
+    what the server's job progress counts for a sensor kind (``fleet.ingest``)."""
     worked = {r.get("cell_seq") for r in recs if r.get("implement_down")}
     return len(worked - {None})
 
@@ -131,7 +131,7 @@ class Feed:
     0.1 s apart in simulated time stay 0.1 s apart in record time. A paced run moves the
     drive's time base so that the drive ends when the paced run will end, so no record is
     stamped after the moment it is sent (the rule of ``sim.simulator``; stamping the wall
-    clock made every time-integrated figure 1 / realtime too small: issue 11)."""
+    clock made every time-integrated figure 1 / realtime too small)."""
 
     def __init__(self, sink: Any | None, realtime: float = 0.0, drive: Drive | None = None) -> None:
         self.sink = sink

@@ -27,7 +27,7 @@ Disturbance model (the depth the opener would give without control, along the pa
   publishes no soil profile or spectrum: these magnitudes are ours, not measured.
 * Sensor: the tilt sensor's 0.1 deg accuracy (LVT525H, Table 1: -90..90 deg as 0-5 V) is
   2.78 mV, taken as white noise of that sigma at 100 Hz: 0.18 mm through eq. 13 (it was an
-  unsourced 5 mV, 0.33 mm). Eq. 13's range maps to 99.5 .. -12.8 mm (erratum, SCIENCE.md).
+  unsourced 5 mV, 0.33 mm). Eq. 13's range maps to 99.5 .. -12.8 mm (erratum, docs/science.md).
 
 What is measured. GB/T 20865 and the paper (sec. 4.4.2) dig the seeds out after sowing and
 measure them with a ruler: true seed depth. The server's report can only use the sensor's
@@ -85,7 +85,7 @@ every band of every drive, drives 0-7). Why, from the paper's own numbers:
   bench/control.py finds the tuned factors ahead and Table 2's behind on overshoot.
 * The e universe in units other than mm (0.1 mm, mV) is not what the paper writes; an
   earlier grid of factors (k_e 0.03-1, k_ec 0.1-1, k_dkp 0.3-6, k_dkd 0-0.5; first pass of
-  issue 13, 5 mV noise) moved the SD by under 2 %.
+  5 mV noise) moved the SD by under 2 %.
 """
 
 from __future__ import annotations

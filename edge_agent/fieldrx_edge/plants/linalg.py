@@ -49,7 +49,7 @@ def expm(a: ArrayLike) -> NDArray[np.float64]:
     r = np.linalg.solve(den, num)
     for _ in range(s):
         r = r @ r
-    return r
+    return np.asarray(r, dtype=np.float64)
 
 
 def zoh(a: ArrayLike, b: ArrayLike, dt: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:

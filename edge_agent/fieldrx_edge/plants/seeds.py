@@ -2,7 +2,7 @@
 
 Every factory returns a ``DiscretePlant`` with actuator limits and an input
 disturbance slot (``plant.disturbance``). Modelling choices that the papers
-leave open are stated here and in SCIENCE.md.
+leave open are stated here and in docs/science.md.
 """
 
 from __future__ import annotations
@@ -56,7 +56,7 @@ def seed000_motor_den(time_constant: str = "printed") -> tuple[float, float, flo
     ``derived``: from the printed motor data, T_d = L_a / R_m = 1.24 ms and
     T_m = (J_m + J_L) R_m / (C_e K_m) = 0.270 s (eq. 5-6), i.e.
     (T_d s + 1)(T_m s + 1) = 0.000335 s^2 + 0.2717 s + 1. The paper's 0.16 s
-    does not follow from its own data (SCIENCE.md).
+    does not follow from its own data (docs/science.md).
     """
     if time_constant == "printed":
         return (0.00032, 0.16, 1.0)

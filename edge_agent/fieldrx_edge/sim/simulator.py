@@ -124,7 +124,7 @@ def _run_waypoints(
     run direction through its centroid.
     """
     k = len(c)
-    mids: list[tuple | None] = []
+    mids: list[tuple[np.ndarray, np.ndarray] | None] = []
     for j in range(k - 1):
         e = _shared_edge(c[j], c[j + 1])
         if e is None:
@@ -135,10 +135,12 @@ def _run_waypoints(
     entry: list[np.ndarray | None] = [None] * k
     exit_: list[np.ndarray | None] = [None] * k
     for j in range(k):
-        if j > 0 and mids[j - 1] is not None:
-            entry[j] = mids[j - 1][0]
-        if j < k - 1 and mids[j] is not None:
-            exit_[j] = mids[j][0]
+        before = mids[j - 1] if j > 0 else None
+        after = mids[j] if j < k - 1 else None
+        if before is not None:
+            entry[j] = before[0]
+        if after is not None:
+            exit_[j] = after[0]
     if k >= 2:
         run_u = _unit(cent[-1] - cent[0])
     else:
@@ -147,14 +149,19 @@ def _run_waypoints(
         if prev_u is not None and float(np.dot(run_u, prev_u)) > 0:
             run_u = -run_u  # boustrophedon: the next swath goes back
     for j in range(k):
-        if entry[j] is not None and exit_[j] is None:
-            u = mids[j - 1][1]
-            ext = float(((c[j] - entry[j]) @ u).max())
-            exit_[j] = entry[j] + ext * u
-        elif exit_[j] is not None and entry[j] is None:
-            u = mids[j][1]
-            ext = float(((exit_[j] - c[j]) @ u).max())
-            entry[j] = exit_[j] - ext * u
+        before = mids[j - 1] if j > 0 else None
+        after = mids[j] if j < k - 1 else None
+        ent, ex = entry[j], exit_[j]
+        if ent is not None and ex is None:
+            assert before is not None  # entry[j] came from it
+            u = before[1]
+            ext = float(((c[j] - ent) @ u).max())
+            exit_[j] = ent + ext * u
+        elif ex is not None and ent is None:
+            assert after is not None  # exit_[j] came from it
+            u = after[1]
+            ext = float(((ex - c[j]) @ u).max())
+            entry[j] = ex - ext * u
         elif entry[j] is None:
             u = run_u
             if k >= 2:
@@ -376,7 +383,7 @@ def simulate(
     # now (as fast as possible) or when the paced run will end. Paced at `realtime` x,
     # fixes 0.1 s apart in simulated time go out 0.1 / realtime s apart in wall time, yet
     # stay 0.1 s apart in record time, and no record is stamped after the moment it is
-    # sent. (Stamping the wall clock made the report 1 / realtime too low: issue 11.)
+    # sent. (Stamping the wall clock made the report 1 / realtime too low.)
     pace = cfg.realtime
     wall_start = time.time()
     tbase = t0 if t0 is not None else wall_start + (t_end / pace if pace > 0 else 0.0) - t_end

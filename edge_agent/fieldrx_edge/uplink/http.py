@@ -10,7 +10,7 @@ Uplink profile ``thin`` has two queues (the 1 Hz track and the cell records,
 ``fieldrx_edge.uplink.thin``), each on its own stream: ``extra_queues`` are
 sent with the main one, each trimmed by its own acks. When more than one queue has
 records pending, their batches go in one request (``protocol.MULTI_KIND``): the
-server checks the token once and answers one ack per batch (issue 18: the thin
+server checks the token once and answers one ack per batch (the thin
 profile's server cost per machine-hour).
 """
 
@@ -86,7 +86,8 @@ class HttpSender:
                 if a.get("error"):
                     log.warning("server did not store a batch: %s", a["error"])
         except (httpx.HTTPError, ValueError, TypeError, AttributeError, KeyError) as exc:
-            return self._failed(exc)
+            self._failed(exc)
+            return None
         self.sent_batches += 1
         self.online = True
         return sum(self._apply(q, ack) for (q, _), ack in zip(pending, parsed, strict=True))
@@ -120,7 +121,8 @@ class HttpSender:
         try:
             ack = TelemetryAck.from_dict(self._post(body))
         except (httpx.HTTPError, ValueError, TypeError, AttributeError) as exc:
-            return self._failed(exc)
+            self._failed(exc)
+            return None
         self.sent_batches += 1
         self.online = True
         return self._apply(queue, ack)

@@ -3,8 +3,8 @@
 The broker's PUBACK only says the broker has the message; the queue is trimmed
 only when the FieldRx server publishes its ``TelemetryAck`` (acked_seq). The
 number of unacknowledged batches is capped well below paho's 65535 message
-ids (STACK.md: publish fails with ERR_QUEUE_SIZE otherwise). If no ack arrives
-for ``ack_timeout_s``, everything after acked_seq is sent again: the server
+ids (docs/architecture.md, "Stack notes": publish fails with ERR_QUEUE_SIZE otherwise).
+If no ack arrives for ``ack_timeout_s``, everything after acked_seq is sent again: the server
 deduplicates by (machine, stream, seq).
 
 Payloads are telemetry format 2 batches (``TelemetryQueue.pending_batch``).
@@ -105,7 +105,7 @@ class MqttSender:
         self.client.on_connect = self._on_connect
         self.client.on_disconnect = self._on_disconnect
         self.client.on_message = self._on_message
-        self.client.reconnect_delay_set(0.5, 10)
+        self.client.reconnect_delay_set(1, 10)  # paho takes whole seconds
         self.client.connect_async(host, port, keepalive=30)
         self.client.loop_start()
 

@@ -201,7 +201,7 @@ class TelemetryQueue:
 
         The stored JSON texts go out as they are: a record queued by an older agent
         with a NaN in it reaches the server, which rejects it alone and acknowledges
-        past it, instead of blocking this queue (issue 20)."""
+        past it, instead of blocking this queue."""
         rows = self._pending_rows(limit, after)
         if not rows:
             return b"", 0, after if after is not None else self.acked_seq

@@ -2,7 +2,7 @@
 
 A machine at 10 Hz sends 36,000 records an hour; the server stores, indexes and
 reads each of them back for the report. With the thin profile the tractor sends
-what the report needs instead (issue 18):
+what the report needs instead:
 
 * the track, one telemetry record per ``track_period_s`` (1 s): position, speed,
   rates, alarms for the live view, the alerts and the job map's track. These
@@ -182,7 +182,7 @@ class CellAccumulator:
         )  # fmt: skip
         t = a["t"]
         t0, t1 = float(t[lo]), float(t[upto - 1])
-        for i in np.flatnonzero(res.m2_g):
+        for i in np.flatnonzero(res.m2_g).tolist():
             b = self._bucket(int(i))
             b.mass_g += float(res.m2_g[i])
             b.touch_t = t1

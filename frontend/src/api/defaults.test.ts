@@ -16,7 +16,7 @@ function sources(dir: string): string[] {
   });
 }
 
-describe('form defaults are the API\'s (issue 15: headland 1 vs 0, idw vs cell_mean)', () => {
+describe('form defaults are the API\'s (headland 1 vs 0, idw vs cell_mean)', () => {
   it.each([
     ['PlanIn', 'headland_passes'],
     ['PlanIn', 'turn_radius_m'],

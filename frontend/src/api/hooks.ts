@@ -1,5 +1,5 @@
 /**
- * One data hook per resource (issue 15 scope 3), on TanStack Query: every screen that shows a
+ * One data hook per resource, on TanStack Query: every screen that shows a
  * resource reads it through the same cache key, so a field loaded on Fields is not fetched
  * again on the plan screen, polling is a hook option instead of a setInterval per screen, and
  * an edit refetches exactly what it changed (`useApiMutation(..., { invalidate })`).

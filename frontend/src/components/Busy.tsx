@@ -1,5 +1,5 @@
 /**
- * Progress indication for every operation over a second (issue 15 scope 7).
+ * Progress indication for every operation over a second.
  *
  * Two pieces, one rule ("say it is working before the user wonders"):
  * - `ActivityBar` (mounted once in the top bar) shows while any API call made through

@@ -1,5 +1,5 @@
 /**
- * Route history by day (issue 15 scope 6): pick a day, see that day's track on a map.
+ * Route history by day: pick a day, see that day's track on a map.
  *
  * The server counts the days in this browser's time zone (`/track/days?tz=`) and gives each
  * day's bounds, which go unchanged into `/track?from&to`: a farm's day is local, and the

@@ -3,7 +3,7 @@ import { useEffect, useId, useRef } from 'react';
 import { ApiError, errorText } from '../api/client';
 
 /**
- * The one error component of every form and screen (issue 15 scope 7): placed next to the
+ * The one error component of every form and screen: placed next to the
  * control whose action failed, it scrolls itself into view when an error appears (a form's
  * error below the fold of a 900 px screen looked like "clicking does nothing"), and marks
  * the controls of its form that the server named (`loc`, e.g. `body.headland_passes` ->

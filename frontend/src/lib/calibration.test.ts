@@ -24,7 +24,7 @@ describe('calibration form', () => {
     expect(validateCalibration({ ...SEED001, minRpm: '1' }).errors.minRpm).toMatch(/raise the minimum/);
     expect(validateCalibration({ ...SEED001, lag: 'x' }).errors.lag).toMatch(/number/);
   });
-  it('keeps the seed 001 numbers (SCIENCE.md)', () => {
+  it('keeps the seed 001 numbers (docs/science.md)', () => {
     const cal = validateCalibration(SEED001).value!.calibration;
     expect(shaftRpmFor(cal, 750, 2.3, 9 / 3.6)).toBeCloseTo(110.8, 1);
     // the old hidden default on a 12 m machine: at most 169.1 kg/ha at 9 km/h

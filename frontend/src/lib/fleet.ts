@@ -21,7 +21,7 @@ export interface FleetMachine {
   t?: number | string | null;
   /** when the server last heard from the machine, in this browser's clock (ms since epoch) */
   last_seen_ms?: number | null;
-  /** sensor jobs (issue 13): latest filtered NDVI and applied rate (seed 000), depth (seed 002) */
+  /** sensor jobs: latest filtered NDVI and applied rate (seed 000), depth (seed 002) */
   ndvi?: number | null;
   applied_rate_kg_ha?: number | null;
   depth_mm?: number | null;

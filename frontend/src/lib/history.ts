@@ -1,5 +1,5 @@
 /**
- * Undo/redo over committed states (boundary drawing, issue 15 scope 4 "undo/redo for edits
+ * Undo/redo over committed states (boundary drawing "undo/redo for edits
  * and boundary drawing"). Live changes while a polygon is being drawn or a corner dragged
  * `replace` what is shown without touching the history; `commit` records the step (the
  * state before it becomes undoable). Pure reducer, unit-tested; `useUndoable` wraps it.

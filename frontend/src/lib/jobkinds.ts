@@ -1,5 +1,5 @@
 /**
- * Job kinds (issue 13): prescription map (seed 001), sensor-based topdressing (seed 000),
+ * Job kinds: prescription map (seed 001), sensor-based topdressing (seed 000),
  * seeding with depth control (seed 002). The server owns the defaults and the validation
  * (GET /jobs/kinds, fieldrx_edge.jobkinds.settings); this module shapes the forms: every
  * input with its unit and the paper's value named as such, and the body sent.

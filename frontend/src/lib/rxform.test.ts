@@ -1,4 +1,4 @@
-// The machine's meterable range beside the prescription's rates (issue 15 scope 4).
+// The machine's meterable range beside the prescription's rates.
 // (The screens' state and map-layer rules are checked for every screen and component in
 // screens.test.ts.)
 import { describe, expect, it } from 'vitest';

@@ -30,7 +30,7 @@ export interface RxFields {
   rateUnit: string;
 }
 
-/** Seed 000 NDVI curve (0.24 -> 375 kg/ha, 0.65 -> 180 kg/ha, SCIENCE.md). */
+/** Seed 000 NDVI curve (0.24 -> 375 kg/ha, 0.65 -> 180 kg/ha, docs/science.md). */
 export const NDVI_DEFAULTS = { ndviLow: '0.24', rateAtLow: '375', ndviHigh: '0.65', rateAtHigh: '180' };
 export const NDVI_SOURCE = 'seed 000 NDVI curve';
 

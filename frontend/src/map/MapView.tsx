@@ -11,7 +11,7 @@ import { createMap, fitTo } from './setup';
 export { useMap };
 
 /**
- * The one map component (issue 15 scope 3). Owns the maplibre map for as long as it is
+ * The one map component. Owns the maplibre map for as long as it is
  * mounted, registers it as `window.__fieldrxMaps[name]` (the browser tests read it), and
  * hands it to its children through context once loaded. Screens compose overlays:
  *

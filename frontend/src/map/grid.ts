@@ -1,7 +1,7 @@
 /**
  * Plan and prescription grids from the server's vector tiles (source-layer
  * "cells"). One GeoJSON source with 50k polygons took ~8 s to render in
- * software WebGL (STACK.md); tiles only carry what is on screen.
+ * software WebGL (docs/architecture.md, "Stack notes"); tiles only carry what is on screen.
  */
 import { absoluteApiUrl } from './setup';
 

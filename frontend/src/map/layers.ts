@@ -1,6 +1,6 @@
 /**
  * Layer declarations of the overlay components, one home per look: the field boundary has
- * one style everywhere (issue 15: "declared once with one style"), the cell grid one set of
+ * one style everywhere ("declared once with one style"), the cell grid one set of
  * layers for plans, prescriptions, as-applied and sensor maps. Pure (no map), unit-tested.
  */
 import type { FleetMachine } from '../lib/fleet';

@@ -1,5 +1,5 @@
 /**
- * The one place that adds, updates and removes map sources and layers (issue 15 scope 3, the
+ * The one place that adds, updates and removes map sources and layers (the
  * traccar-web pattern): an overlay component describes its source and layers as an
  * `OverlaySpec`, and `syncOverlay` turns the difference between the previous and the next
  * spec into the fewest map calls (setData for new GeoJSON, setPaintProperty for a new colour

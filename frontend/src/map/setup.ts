@@ -4,7 +4,7 @@ import workerUrl from 'maplibre-gl/dist/maplibre-gl-worker.mjs?url';
 import 'maplibre-gl/dist/maplibre-gl.css';
 import { getToken } from '../api/client';
 
-// Without this the worker never loads under Vite and the map never goes idle (STACK.md).
+// Without this the worker never loads under Vite and the map never goes idle (docs/architecture.md, "Stack notes").
 maplibregl.setWorkerUrl(workerUrl);
 
 const BASEMAP_KEY = 'fieldrx.basemap';

@@ -1,5 +1,5 @@
 /**
- * Issue 15 acceptance: "No screen keeps more than ~8 pieces of local state; no screen adds map
+ * The acceptance test: "No screen keeps more than ~8 pieces of local state; no screen adds map
  * layers directly." Screens compose overlay components (src/map/overlays) and read data
  * through the hooks of src/api/hooks.ts; these checks keep it that way.
  */

@@ -39,15 +39,5 @@ class Feature(Out):
     properties: dict[str, Any]
 
 
-class FeatureCollection(Out):
-    """A page of GeoJSON Features with the paging figures."""
-
-    type: Literal["FeatureCollection"] = "FeatureCollection"
-    features: list[Feature]
-    total: int = Field(description="features in all pages")
-    limit: int
-    offset: int
-
-
 class Deleted(Out):
     deleted: int = Field(description="rows deleted")

@@ -14,7 +14,9 @@ _TEXT: dict[str, Any] = {"type": "string"}
 _JSON: dict[str, Any] = {"type": "object"}
 
 
-def file_response(description: str, *media_types: str, status: int = 200) -> dict[int, Any]:
+def file_response(
+    description: str, *media_types: str, status: int = 200
+) -> dict[int | str, dict[str, Any]]:
     """``{status: {description, content: {media type: schema}}}``: JSON types (GeoJSON) are
     objects, text types strings, the others binary."""
     content = {
@@ -26,7 +28,7 @@ def file_response(description: str, *media_types: str, status: int = 200) -> dic
 
 MVT = "application/vnd.mapbox-vector-tile"
 
-TILE_RESPONSES: dict[int, Any] = {
+TILE_RESPONSES: dict[int | str, dict[str, Any]] = {
     **file_response("a Mapbox vector tile, layer 'cells'", MVT),
     304: {"description": "not modified (the ETag of If-None-Match)"},
 }

@@ -97,7 +97,7 @@ class MachineIn(In):
     name: str = Field(min_length=1, max_length=200)
     implement_type: ImplementType = Field(default="spreader")
     capabilities: CapabilitiesIn = Field(default_factory=CapabilitiesIn)
-    # >= 5 cm: a narrower "implement" only makes rate = flow / (w v) overflow (ISSUE 20)
+    # >= 5 cm: a narrower "implement" only makes rate = flow / (w v) overflow
     width_m: float = Field(ge=0.05, le=60, description="working width, m")
     lag_s: float = Field(ge=0, le=30, description="application lag T_lag, s (seed 001: 1.52)")
     calibration: CalibrationIn = Field(

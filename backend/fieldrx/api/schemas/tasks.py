@@ -62,5 +62,7 @@ class PlanBatchIn(In):
         return self
 
 
-QUEUED = {202: {"model": TaskOut, "description": "queued: poll the task's url"}}
+QUEUED: dict[int | str, dict[str, Any]] = {
+    202: {"model": TaskOut, "description": "queued: poll the task's url"}
+}
 """``responses=`` entry of a route that may answer 202 with a task (``?background=true``)."""

@@ -1,4 +1,4 @@
-"""Coverage planning in stages (issue 16, DESIGN.md "geo/planning/").
+"""Coverage planning in stages (docs/architecture.md "geo/planning/").
 
 One module per stage, each usable on its own; :mod:`.planner` chains them:
 

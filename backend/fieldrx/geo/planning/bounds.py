@@ -37,20 +37,6 @@ _EPS = 1e-9  # metres: ties at band edges are resolved towards the smaller bound
 _CHAIN_STEPS = 12  # vertices followed from a spike tip before giving the tip up
 
 
-def extent_lower_bounds(parts: list[Polygon], w: float, phis: np.ndarray, tol: float) -> np.ndarray:
-    """Swath-count lower bound for many angles at once: every strip of a part holds at
-    least one swath, so sum over parts of ``n_strips(width across phi)`` (one matrix
-    product over the hull vertices; ~100x cheaper than one layout)."""
-    lb = np.zeros(len(phis), dtype=np.int64)
-    nrm = np.stack([-np.sin(phis), np.cos(phis)])
-    for p in parts:
-        hull = np.asarray(p.convex_hull.exterior.coords)
-        y = hull @ nrm
-        ext = y.max(axis=0) - y.min(axis=0)
-        lb += np.maximum(1, np.ceil((ext - tol) / w - N_EPS)).astype(np.int64)
-    return lb
-
-
 @dataclass(frozen=True)
 class _Vertices:
     """The vertices of one part (all rings, interior on the left), relative to its centroid."""
@@ -93,11 +79,11 @@ class _Lines:
     def below(self, y: np.ndarray) -> np.ndarray:
         """Number of centre lines strictly below y (per angle column)."""
         k = np.ceil((y - self.y0) / self.w - 0.5)
-        return np.minimum(np.maximum(k, 0), self.n).astype(np.int64)
+        return np.asarray(np.minimum(np.maximum(k, 0), self.n).astype(np.int64))
 
     def between(self, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
         """Number of centre lines with lo <= y < hi (0 where hi <= lo)."""
-        return np.maximum(self.below(hi) - self.below(lo), 0)
+        return np.asarray(np.maximum(self.below(hi) - self.below(lo), 0))
 
 
 def _narrow_notch_lines(
@@ -249,7 +235,7 @@ def _segments_hit_boxes(
     s00, s01, s10, s11 = u0 - v0, u0 - v1, u1 - v0, u1 - v1
     lo = np.minimum(np.minimum(s00, s01), np.minimum(s10, s11))
     hi = np.maximum(np.maximum(s00, s01), np.maximum(s10, s11))
-    return hit & (lo <= 0) & (hi >= 0)
+    return np.asarray(hit & (lo <= 0) & (hi >= 0))
 
 
 @dataclass(frozen=True)
@@ -499,7 +485,7 @@ class AnalyticBounds:
             tips = np.bincount(part.tips.ai[sel[keep]], minlength=len(self.phis))[idx]
             n, iv = part.n[idx], part.intervals[idx]
             lb += np.maximum(n, iv + tips) - np.maximum(n, iv)
-        return lb
+        return np.asarray(lb)
 
 
 def analytic_lower_bounds(

@@ -11,7 +11,7 @@ the planner bridges such notches (:func:`.swaths._group`). Two uses:
 * the heading objective's second criterion (:func:`nonworking_estimate`): the turn and
   transfer distance of the intervals driven as swaths. It needs no swath layout, so the
   heading search can rank angles with equal swath-count bounds by it and lay out only
-  the best (issue 16: ties in the count cost one layout each before).
+  the best (ties in the count cost one layout each before).
 """
 
 from __future__ import annotations

@@ -40,9 +40,6 @@ class Frame:
     def fwd_geom(self, g: BaseGeometry) -> BaseGeometry:
         return shapely.transform(g, self.fwd)
 
-    def inv_geom(self, g: BaseGeometry) -> BaseGeometry:
-        return shapely.transform(g, self.inv)
-
 
 def azimuth_to_phi(azimuth_deg: float) -> float:
     """Azimuth (deg clockwise from north) -> math angle of the line (rad from +x)."""

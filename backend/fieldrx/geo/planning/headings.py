@@ -186,7 +186,7 @@ def optimal_phi(
     which guarantees never needing more swaths than a 1-degree brute-force scan
     (Fields2Cover's BruteForce with the swath-count objective).
 
-    Branch and bound (issue 16) on the lexicographic key (swath-count lower bound,
+    Branch and bound on the lexicographic key (swath-count lower bound,
     second criterion), which is a lower bound on the objective at every candidate: every
     candidate gets the analytic swath-count lower bound (:class:`.bounds.AnalyticBounds`,
     all angles in one vectorised pass over the vertices, no swath generation), first

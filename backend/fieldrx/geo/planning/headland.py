@@ -32,6 +32,7 @@ around a reflex corner dents it).
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 import shapely
@@ -115,7 +116,9 @@ def _reflex_bites(poly: Polygon, r: float) -> list[Polygon]:
     return out
 
 
-def _bites(c: np.ndarray, u1: np.ndarray, u2: np.ndarray, idx: np.ndarray, r: float) -> list:
+def _bites(
+    c: np.ndarray, u1: np.ndarray, u2: np.ndarray, idx: np.ndarray, r: float
+) -> list[Any]:
     """A disc of radius 1.02 r centred r beyond each vertex c[idx] on the outside
     bisector of its edges (unit vectors u1 in, u2 out): the sampled disc (chords sag
     0.001 r) covers the vertex, and the opening's erosion by r leaves a smooth 0.02 r
@@ -138,7 +141,7 @@ def drivable_centre(poly: Polygon, r: float, convex_r: float | None = None) -> B
     inside the polygon, and where the polygon has a neck narrower than 2 r (the ring
     between a pond and the field edge) the erosion's two tips on either side of the
     neck are less than 2 r apart, so their discs overlap and the two circles cross at a
-    sharp reflex corner (issue 16: a 142 degree kink, circumradius 0.15 m, in
+    sharp reflex corner (a 142 degree kink, circumradius 0.15 m, in
     tests/geo/ring_kink_field.wkt). The closing rolls an r-disc into that wedge and
     replaces the corner with a concave arc of radius r, tangent to both circles, and
     leaves the bites' arcs (radius 1.02 r) and every other r-smooth stretch alone. Only
@@ -185,7 +188,7 @@ def _filled(opened: BaseGeometry, poly: Polygon, corners: list[Point], r: float)
 
 def _inside(piece: Polygon, region: BaseGeometry) -> bool:
     """Whether piece lies in region up to GEOS rounding (1e-6 of its area)."""
-    return piece.difference(region).area <= 1e-6 * piece.area + 1e-9
+    return bool(piece.difference(region).area <= 1e-6 * piece.area + 1e-9)
 
 
 def _pass_centre(field_geom: BaseGeometry, w: float, k: int) -> list[Polygon]:
@@ -434,7 +437,7 @@ def inner_region(
 ) -> tuple[BaseGeometry, int]:
     """The area left for inner swaths inside ``h`` headland passes, and the passes used.
 
-    Narrow fields get a plan instead of an error (issue 16): a field narrower than the
+    Narrow fields get a plan instead of an error: a field narrower than the
     implement is covered by one pass; passes that leave no inner area give a
     headland-only plan; a field too narrow for even one headland ring gets one pass.
     Each adjustment is a warning in the plan.

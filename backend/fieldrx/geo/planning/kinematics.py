@@ -1,4 +1,4 @@
-"""Stage: the machine that drives the plan (issue 16).
+"""Stage: the machine that drives the plan.
 
 A tractor with a mounted spreader or seeder turns on a circle of 4-8 m radius; it cannot
 jump sideways by one working width at the end of a swath. ``Machine`` carries what the

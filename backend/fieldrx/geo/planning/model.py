@@ -89,7 +89,7 @@ class CoveragePlan:
     undrivable_connections: int = 0
     uncovered_m2: float = 0.0
     # field area the rounded rings leave to no cell (headland corners cut to the turning
-    # radius; in the grid's uncovered area), said apart so the user sees why (issue 16)
+    # radius; in the grid's uncovered area), said apart so the user sees why
     corner_loss_m2: float = 0.0
     strip_tolerance_m: float = 0.0
     timings_s: dict[str, float] = field(default_factory=dict)

@@ -38,7 +38,9 @@ def block_configs(subs: list[StripPiece], block: list[int]) -> list[tuple[list[i
     return [(order, d) for order in (block, block[::-1]) for d in (1, -1)]
 
 
-def endpoints(subs: list[StripPiece], order: list[int], first_dir: int) -> tuple[tuple, tuple]:
+def endpoints(
+    subs: list[StripPiece], order: list[int], first_dir: int
+) -> tuple[tuple[float, float], tuple[float, float]]:
     s0, s1 = subs[order[0]], subs[order[-1]]
     last_dir = first_dir if len(order) % 2 == 1 else -first_dir
     start = (s0.x0 if first_dir > 0 else s0.x1, s0.y)
@@ -332,7 +334,7 @@ def block_sequences(
     pattern: str,
 ) -> list[list[int]]:
     """Each block's swath sequence: boustrophedon, skip-row, or (``auto``) the one whose
-    turns take less time with this machine (issue 16: the objective picks the pattern)."""
+    turns take less time with this machine (the objective picks the pattern)."""
     if pattern == "boustrophedon":
         return blocks
     s = max(2, math.ceil(2.0 * m.turn_radius_m / w - 1e-9))

@@ -1,4 +1,4 @@
-"""The coverage planner: a short chain of the stages in this package (issue 16).
+"""The coverage planner: a short chain of the stages in this package.
 
 boundary (clean, report changes) -> headland (rings rounded to the turning radius, the
 inner region less what they sweep) -> headings (the driving direction) -> swaths +
@@ -194,7 +194,8 @@ def _corner_warning(fld: BaseGeometry, lost: float, m: Machine, warnings: list[s
 
 def _plan_field(fld_in: Polygon | MultiPolygon, st: _Settings, warnings: list[str]) -> CoveragePlan:
     """Plan one (clean) field; GEOS errors propagate to :func:`plan_coverage`."""
-    w, timings = st.w, {}
+    w = st.w
+    timings: dict[str, float] = {}
     with _timed(timings, "validate"):
         fld = simplified(fld_in, st.simplify_tol, warnings)
         region, h = inner_region(fld, w, st.h, warnings)

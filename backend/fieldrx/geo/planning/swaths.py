@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import shapely
@@ -29,7 +30,7 @@ from .boundary import parts
 
 N_EPS = 1e-9  # tolerance on H / w when counting strips
 STRIP_TOLERANCE_FRACTION = 0.01  # uncovered strip not worth a swath: 1 % of w ...
-STRIP_TOLERANCE_MAX_M = 0.05  # ... and never more than 5 cm (issue 16)
+STRIP_TOLERANCE_MAX_M = 0.05  # ... and never more than 5 cm
 MAX_SWATHS = 200_000
 
 
@@ -199,7 +200,7 @@ def _full_intervals(st: _Strips) -> dict[int, np.ndarray]:
     return out
 
 
-def _ranges(lo: float, hi: float, ivs: list[tuple[float, float]]) -> list[tuple]:
+def _ranges(lo: float, hi: float, ivs: list[tuple[float, float]]) -> list[tuple[Any, ...]]:
     """Swath ranges of one piece from its centre-line intervals (touching ones merged)."""
     merged: list[list[float]] = []
     for a, b in sorted(ivs):
@@ -215,7 +216,7 @@ def _ranges(lo: float, hi: float, ivs: list[tuple[float, float]]) -> list[tuple]
     ]
 
 
-def _candidates(st: _Strips, i: int, sb: np.ndarray) -> list[tuple]:
+def _candidates(st: _Strips, i: int, sb: np.ndarray) -> list[tuple[Any, ...]]:
     """(x0, x1, piece, centre-line core) of every swath candidate in strip i."""
     ci = range(st.c_start[i], st.c_end[i])
     per_comp: dict[int, list[tuple[float, float]]] = {c: [] for c in ci}
@@ -232,7 +233,7 @@ def _candidates(st: _Strips, i: int, sb: np.ndarray) -> list[tuple]:
     return cand
 
 
-def _group(st: _Strips, y: float, cand: list[tuple]) -> list[list]:
+def _group(st: _Strips, y: float, cand: list[tuple[Any, ...]]) -> list[list[Any]]:
     """Candidates joined across narrow notches: [x0, x1, pieces, core end] per swath.
 
     A notch narrower than half the working width does not split a swath: the implement
@@ -241,7 +242,7 @@ def _group(st: _Strips, y: float, cand: list[tuple]) -> list[list]:
     rule the centre-line count of :mod:`.centrelines` uses); a piece the centre line misses joins a
     neighbour closer than w/2.
     """
-    groups: list[list] = []
+    groups: list[list[Any]] = []
     for a, b, c, core in sorted(cand, key=lambda t: (t[0], t[1])):
         if groups and a >= groups[-1][1] - 1e-9:
             g = groups[-1]

@@ -1,4 +1,4 @@
-"""Stage: drivable turns between swaths and drivable transfers (issue 16).
+"""Stage: drivable turns between swaths and drivable transfers.
 
 The old route joined the end of one swath to the start of the next by a straight segment
 (a 2.3 m sideways jump no tractor can drive). Here every connection is a path whose
@@ -28,6 +28,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import shapely
@@ -279,7 +280,7 @@ def _transfer(waypoints: np.ndarray, th0: float, th1: float, r: float) -> LineSt
         bis = ua + ub
         heads.append(math.atan2(bis[1], bis[0]) if np.hypot(*bis) > 1e-9 else math.atan2(*ub[::-1]))
     heads.append(th1)
-    parts = []
+    parts: list[np.ndarray] = []
     for i in range(n - 1):
         res = dubins(waypoints[i], heads[i], waypoints[i + 1], heads[i + 1], r)
         if res is None:
@@ -311,7 +312,7 @@ def _acceptable(lines: list[LineString], env: _Env, in_field: np.ndarray | bool)
 
 
 def connect(
-    swaths: list,
+    swaths: list[Any],
     route: Callable[[np.ndarray, np.ndarray], LineString],
     machine: Machine,
     fld: BaseGeometry,
@@ -356,7 +357,7 @@ def connect(
     )
     # a headland too narrow for the turns lets transfers reach outside like the turns
     outside_ok = headland_m + 1e-6 < rep.required_headland_m
-    for k in np.flatnonzero(~is_turn):
+    for k in np.flatnonzero(~is_turn).tolist():
         a, b = swaths[k], swaths[k + 1]
         p0, p1 = np.asarray(a.line.coords[-1]), np.asarray(b.line.coords[0])
         th0, th1 = _end_heading(a.line, True), _end_heading(b.line, False)
@@ -364,10 +365,10 @@ def connect(
     # a turn's driving line never enters a hole (its implement may overhang the edge),
     # and with a headland wide enough for the turns it stays in the field: a turn
     # between staggered swath ends can cut across a notch of the boundary however
-    # close to the region it stays (issue 16), and is then driven as a transfer
+    # close to the region it stays, and is then driven as a transfer
     strict = _Env(env.holes_full, None if outside_ok else env.field_ok)
     ok = _acceptable([c.line for c in cons], strict, is_turn)
-    for k in np.flatnonzero(~ok & is_turn):
+    for k in np.flatnonzero(~ok & is_turn).tolist():
         a, b = swaths[k], swaths[k + 1]
         p0, p1 = np.asarray(a.line.coords[-1]), np.asarray(b.line.coords[0])
         th0, th1 = _end_heading(a.line, True), _end_heading(b.line, False)
