@@ -38,6 +38,12 @@ class TooExpensive(DomainError):
     status = 422
 
 
+class TooLarge(DomainError):
+    """A request body or upload is larger than allowed."""
+
+    status = 413
+
+
 class Conflict(DomainError):
     """The request conflicts with stored state (evidence that must not be erased, a concurrent
     change)."""

@@ -23,7 +23,9 @@ DEFAULT_CURVE_SHARE_MAX = 0.25
 MAX_LISTED = 1000
 
 
-def product_fractions(product: Mapping[str, Any] | None, params: Mapping[str, Any]) -> dict:
+def product_fractions(
+    product: Mapping[str, Any] | None, params: Mapping[str, Any]
+) -> dict[str, float]:
     """Nutrient mass fractions of what is spread: the catalogue product's analysis, else
     the nutrient-balance model's N fraction x (seed 001 eq. 19); empty when unknown."""
     if product is not None:
@@ -33,12 +35,12 @@ def product_fractions(product: Mapping[str, Any] | None, params: Mapping[str, An
     return {"N": float(x)} if x is not None else {}
 
 
-def resolve_ceilings(crop: Crop | None, org: Mapping[str, Any] | None) -> dict[str, dict]:
+def resolve_ceilings(crop: Crop | None, org: Mapping[str, Any] | None) -> dict[str, dict[str, Any]]:
     """Each nutrient's ceiling in kg/ha and its source: the organisation's value for this
     crop (or for every crop, key "*") over the crop's published default."""
     org = org or {}
     mine = {**(org.get("*") or {}), **((org.get(crop.key) or {}) if crop else {})}
-    out: dict[str, dict] = {}
+    out: dict[str, dict[str, Any]] = {}
     for n in NUTRIENTS:
         if n in mine and mine[n] is not None:
             out[n] = {"kg_ha": float(mine[n]), "source": "organisation setting"}

@@ -250,7 +250,7 @@ def rows_to_samples(
                     errs.append(RowError(row, c, "missing value", kind))
         n = _number(rec.get("n_mg_kg"), "n_mg_kg", row, errs, kind)
         depth = _number(rec.get("depth_cm"), "depth_cm", row, errs, kind)
-        opt = {c: _number(rec.get(c), c, row, errs, kind) for c in OPTIONAL}
+        opt: dict[str, Any] = {c: _number(rec.get(c), c, row, errs, kind) for c in OPTIONAL}
         required = n if value_column == "n_mg_kg" else opt.get(value_column or "")
         if (
             value_column is not None

@@ -470,6 +470,36 @@ def check_mapping(table: Table, m: Mapping) -> list[RowError]:
     return errs
 
 
+def _mapped_row(
+    table: Table,
+    m: Mapping,
+    idx: dict[str, int],
+    row: int,
+    cells: list[str],
+    errors: list[RowError],
+) -> dict[str, Any] | None:
+    """One row's values under the mapping, in the canonical units; None (its errors added
+    to ``errors``) when a cell is not a number."""
+    rec: dict[str, Any] = {}
+    bad = False
+    for t, j in idx.items():
+        raw = cells[j] if j < len(cells) else ""
+        canon = TARGETS[t][0]
+        if t == "sample_id" or not raw:
+            rec[canon] = raw or None
+            continue
+        try:
+            v = (parse_depth if t == "depth" else parse_number)(raw, table.decimal_comma)
+        except ValueError as exc:
+            msg = str(exc) if "limit" in str(exc) else f"expected a number, got {raw!r}"
+            errors.append(RowError(row, m.columns[t], msg, table.kind))
+            bad = True
+            continue
+        f = UNITS[t][m.unit(t)]
+        rec[canon] = v if math.isnan(f) else v * f
+    return None if bad else rec
+
+
 def apply_mapping(table: Table, m: Mapping, boundary_wgs84: Any) -> SoilImport:
     """Samples of every good row (``rejected`` False) plus the errors of the bad ones, or, when
     the mapping itself is wrong, no samples and those errors (``rejected`` True). Errors name
@@ -495,24 +525,8 @@ def apply_mapping(table: Table, m: Mapping, boundary_wgs84: Any) -> SoilImport:
                 )
             )
             continue
-        rec: dict[str, Any] = {}
-        bad = False
-        for t, j in idx.items():
-            raw = cells[j] if j < len(cells) else ""
-            canon = TARGETS[t][0]
-            if t == "sample_id" or not raw:
-                rec[canon] = raw or None
-                continue
-            try:
-                v = (parse_depth if t == "depth" else parse_number)(raw, table.decimal_comma)
-            except ValueError as exc:
-                msg = str(exc) if "limit" in str(exc) else f"expected a number, got {raw!r}"
-                errors.append(RowError(row, m.columns[t], msg, kind))
-                bad = True
-                continue
-            f = UNITS[t][m.unit(t)]
-            rec[canon] = v if math.isnan(f) else v * f
-        if bad:
+        rec = _mapped_row(table, m, idx, row, cells, errors)
+        if rec is None:
             continue
         if nmin and rec.get("n_mg_kg") is not None:
             depth = rec.get("depth_cm") or DEFAULT_NMIN_DEPTH_CM

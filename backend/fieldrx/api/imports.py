@@ -130,7 +130,7 @@ def import_isoxml(
         confirmed = confirm is not None and confirm == sha
         limit = settings.plan_time_limit_s if confirmed else settings.import_time_limit_s
         req = svc.IsoxmlRequest(
-            database_url=session.get_bind().url.render_as_string(hide_password=False),
+            database_url=session.get_bind().engine.url.render_as_string(hide_password=False),
             files=spooled,
             source_name=names,
             organisation_id=principal.organisation_id,
@@ -270,7 +270,7 @@ def import_prescription_shapefile(
     }
     limit = get_settings().plan_time_limit_s
     req = svc.RxStoreRequest(
-        database_url=session.get_bind().url.render_as_string(hide_password=False),
+        database_url=session.get_bind().engine.url.render_as_string(hide_password=False),
         rx=rx,
         field_id=fld.id,
         params=params,

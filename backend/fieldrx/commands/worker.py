@@ -94,7 +94,7 @@ def _run_ingest(args: argparse.Namespace, stop: threading.Event) -> None:
 
 async def _main(args: argparse.Namespace) -> None:
     from fieldrx.settings import get_settings
-    from fieldrx.tasks.worker import run_task_worker
+    from fieldrx.tasks.worker import TaskWorkerOptions, run_task_worker
 
     s = get_settings()
     stop = asyncio.Event()
@@ -119,13 +119,15 @@ async def _main(args: argparse.Namespace) -> None:
             asyncio.create_task(
                 run_task_worker(
                     stop,
-                    queues=queues or None,
-                    concurrency=args.concurrency or s.task_concurrency,
-                    heartbeat_s=s.task_heartbeat_s,
-                    stalled_after_s=s.task_stalled_after_s,
-                    result_retention_s=s.task_result_retention_s,
-                    result_purge_s=s.task_result_purge_s,
-                    device_expiry_check_s=s.device_expiry_check_s,
+                    TaskWorkerOptions(
+                        queues=queues or None,
+                        concurrency=args.concurrency or s.task_concurrency,
+                        heartbeat_s=s.task_heartbeat_s,
+                        stalled_after_s=s.task_stalled_after_s,
+                        result_retention_s=s.task_result_retention_s,
+                        result_purge_s=s.task_result_purge_s,
+                        device_expiry_check_s=s.device_expiry_check_s,
+                    ),
                 )
             )
         )

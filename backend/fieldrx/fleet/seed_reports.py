@@ -15,6 +15,7 @@ placed in plan cells by position (PostGIS), so the maps need no cell id from the
 from __future__ import annotations
 
 import datetime as dt
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -140,7 +141,7 @@ def kind_report(session: Session, job: Job, cells: bool = True) -> dict[str, Any
     return out
 
 
-def ndvi_outcome(cells: list[Any]) -> dict[str, Any]:
+def ndvi_outcome(cells: Sequence[Any]) -> dict[str, Any]:
     """What the NDVI job delivered against what its curve asked for, over the cells it
     worked (``agronomy.prescription.application_outcome``): the report's headline. The
     shaft-speed table (seed 000 Table 3) can look perfect while the meter sits at its floor

@@ -354,9 +354,9 @@ def _partfield(pfd: ET.Element, w: str) -> FieldIn | None:
             else:
                 polys.append(Polygon(shell, inner))
         elif shell is not None or inner:
-            geom = Polygon(shell, inner) if shell is not None else Polygon(inner[0])
+            poly = Polygon(shell, inner) if shell is not None else Polygon(inner[0])
             kind = _type_name(PLN_TYPES, pln.get("A"))
-            features.append(_feature(geom, "polygon", kind, pln.get("B") or "", pw))
+            features.append(_feature(poly, "polygon", kind, pln.get("B") or "", pw))
     for k, ggp in enumerate(pfd.findall("GGP")):
         for j, gpn in enumerate(ggp.findall("GPN")):
             for i, lsg in enumerate(gpn.findall("LSG")):

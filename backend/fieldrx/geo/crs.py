@@ -117,9 +117,8 @@ def to_wgs84(geom_utm: G, epsg: int) -> G:
 # UTM plane, where its plan, cells and route are computed. A field's area then equals what
 # its cells can cover (clipped cells never sum to more), which a geodesic field area (up to
 # 0.2 % larger or smaller than the plane's at a zone edge: the UTM scale factor squared)
-# would not. Said once to the user as ``AREA_BASIS_NOTE``.
+# would not.
 AREA_BASIS = "utm"
-AREA_BASIS_NOTE = "Areas are measured flat in the field's UTM zone (where its plan is built)."
 
 
 def plane_area_m2(geom_wgs84: BaseGeometry, epsg: int) -> float:

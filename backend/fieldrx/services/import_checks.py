@@ -29,7 +29,6 @@ from fieldrx.geo.crs import to_utm
 
 GEOD = Geod(ellps="WGS84")
 LOW_OVERLAP_PCT = 50.0  # a prescription covering less of its field than this is flagged
-NEAR_M = 100.0  # a TimeLog with no record on the field but within this is flagged, not refused
 SAME_IOU = 0.98  # boundaries this alike are the same field (GNSS re-surveys differ by cm)
 
 

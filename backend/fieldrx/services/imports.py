@@ -135,12 +135,12 @@ def _rx_preview(r: RxIn, place: dict[str, Any]) -> dict[str, Any]:
 def _matches(
     session: Session, ds: TaskDataSet, valid: list[Any], organisation_id: int
 ) -> tuple[dict[str, Farm], dict[str, tuple[Field, str]]]:
-    farms = {}
+    farms: dict[str, Farm] = {}
     for fa in ds.farms:
-        row = match_farm(session, organisation_id, fa.name)
-        if row is not None:
-            farms[fa.ref] = row
-    fields = {}
+        farm_row = match_farm(session, organisation_id, fa.name)
+        if farm_row is not None:
+            farms[fa.ref] = farm_row
+    fields: dict[str, tuple[Field, str]] = {}
     for f, v in zip(ds.fields, valid, strict=True):
         row, by = match_field(session, organisation_id, f.ref, f.name, v.geometry, v.utm_epsg)
         if row is not None:
@@ -323,15 +323,15 @@ def commit(
     old_farms, old_fields = _matches(session, ds, valid, organisation_id)
     farm_ids: dict[str, int] = {ref: row.id for ref, row in old_farms.items()}
     new_farms = []
-    for f in ds.farms:
-        if f.ref in farm_ids:
+    for farm_in in ds.farms:
+        if farm_in.ref in farm_ids:
             continue
         farm = Farm(
             organisation_id=organisation_id, name=farm_in.name[:200], notes="imported from ISOXML"
         )
         session.add(farm)
         session.flush()
-        farm_ids[f.ref] = farm.id
+        farm_ids[farm_in.ref] = farm.id
         new_farms.append(farm.id)
     fields: dict[str, Field] = {}
     created = []

@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 from fieldrx_edge.metering import calibration_from_dict
+from geoalchemy2.shape import to_shape
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
@@ -1000,6 +1001,13 @@ def version_cells(session: Session, rx: Prescription, ver: PrescriptionVersion) 
     if not np.array_equal(seq, cells.seq):
         raise RxError("the plan's cells do not match the prescription's rates")
     return cells.with_rates(rates, flags)
+
+
+def field_boundary_wgs84(session: Session, rx: Prescription) -> Any:
+    """(field row, its boundary as a shapely geometry in WGS84) of ``rx``'s plan, or None."""
+    plan = session.get(Plan, rx.plan_id)
+    field = session.get(Field, plan.field_id) if plan is not None else None
+    return None if field is None else (field, to_shape(field.boundary))
 
 
 __all__ = [

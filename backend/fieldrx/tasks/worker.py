@@ -24,6 +24,7 @@ import asyncio
 import contextlib
 import logging
 from collections.abc import Iterable
+from dataclasses import dataclass
 
 from procrastinate import App
 
@@ -99,20 +100,26 @@ async def expire_device_credentials(check_s: float) -> None:
         await asyncio.sleep(max(0.05, wait))
 
 
-async def run_task_worker(
-    stop: asyncio.Event,
-    *,
-    queues: Iterable[str] | None = None,
-    concurrency: int = 2,
-    heartbeat_s: float = 10.0,
-    stalled_after_s: float = 60.0,
-    name: str = "fieldrx-tasks",
-    result_retention_s: float = 24 * 3600.0,
-    result_purge_s: float = 600.0,
-    device_expiry_check_s: float = 60.0,
-) -> None:
+@dataclass(frozen=True)
+class TaskWorkerOptions:
+    """How a task worker runs (the FIELDRX_TASK_* settings; seconds)."""
+
+    queues: Iterable[str] | None = None
+    concurrency: int = 2
+    heartbeat_s: float = 10.0
+    stalled_after_s: float = 60.0
+    name: str = "fieldrx-tasks"
+    result_retention_s: float = 24 * 3600.0
+    result_purge_s: float = 600.0
+    device_expiry_check_s: float = 60.0
+
+
+async def run_task_worker(stop: asyncio.Event, opts: TaskWorkerOptions | None = None) -> None:
     """Run jobs until ``stop`` is set; then stop fetching and let running jobs finish.
     First removes what a killed worker or server left (services.cleanup)."""
+    o = opts or TaskWorkerOptions()
+    queues, concurrency, name = o.queues, o.concurrency, o.name
+    heartbeat_s, stalled_after_s = o.heartbeat_s, o.stalled_after_s
     from fieldrx.db.session import get_engine
     from fieldrx.services.cleanup import clean_after_crash_logged
 
@@ -137,10 +144,10 @@ async def run_task_worker(
             recover_stalled(app, stalled_after_s, heartbeat_s), name="stalled-recovery"
         )
         purge = asyncio.create_task(
-            purge_results(result_retention_s, result_purge_s), name="result-purge"
+            purge_results(o.result_retention_s, o.result_purge_s), name="result-purge"
         )
         expiry = asyncio.create_task(
-            expire_device_credentials(device_expiry_check_s), name="device-expiry"
+            expire_device_credentials(o.device_expiry_check_s), name="device-expiry"
         )
         stopping = asyncio.create_task(stop.wait())
         await asyncio.wait({worker, stopping}, return_when=asyncio.FIRST_COMPLETED)

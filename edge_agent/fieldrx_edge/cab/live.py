@@ -153,11 +153,11 @@ class LiveState:
         for name, la in self.latched.items():
             la.active = name in seen
         for a in seen:
-            la = self.latched.get(a)
-            if la is None or la.acked and not la.active:
+            held = self.latched.get(a)
+            if held is None or held.acked and not held.active:
                 self.latched[a] = Latched(a, now)
             else:
-                la.active = True
+                held.active = True
                 la.count += 1
 
     def _advance(self, rec: dict[str, Any]) -> None:

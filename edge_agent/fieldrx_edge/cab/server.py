@@ -102,7 +102,7 @@ class CabServer:
     def authorised(self, h: BaseHTTPRequestHandler, query: dict[str, list[str]]) -> bool:
         if not self.token:
             return True
-        given = (query.get("token") or [None])[0] or h.headers.get("X-Cab-Token")
+        given = (query.get("token") or [""])[0] or h.headers.get("X-Cab-Token")
         if not given:
             for part in (h.headers.get("Cookie") or "").split(";"):
                 k, _, v = part.strip().partition("=")
