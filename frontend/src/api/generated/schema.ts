@@ -5072,6 +5072,12 @@ export interface components {
              * @description only in a multi-batch answer: the batch could not be stored (acked_seq 0, nothing rejected: the agent resends it); which batch and why
              */
             error?: string;
+            /**
+             * Flagged
+             * @description records stored with a warning, and why (e.g. dated more than 400 days ago: kept in the default partition; the machine gets a far_past_records alert)
+             * @default []
+             */
+            flagged?: components["schemas"]["RejectedOut"][];
             /** Machine Id */
             machine_id: number;
             /** Rejected */
@@ -5597,7 +5603,7 @@ export interface operations {
                 /** @description true: not ended; false: ended */
                 active?: boolean | null;
                 job_id?: number | null;
-                /** @description rate_error | speed_out_of_range | shaft_saturation | fix_lost | no_data | cells_not_applied | depth_qualified_low | duplicate_stream */
+                /** @description rate_error | speed_out_of_range | shaft_saturation | fix_lost | no_data | cells_not_applied | depth_qualified_low | duplicate_stream | far_past_records */
                 kind?: string | null;
                 limit?: number;
                 machine_id?: number | null;
