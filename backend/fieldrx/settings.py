@@ -103,6 +103,8 @@ class Settings(BaseSettings):
     export_background_cells: int = Field(
         default=100_000, ge=0, alias="FIELDRX_EXPORT_BACKGROUND_CELLS"
     )
+    # an export or job-report task runs in a heavy-work child at most this long
+    export_time_limit_s: float = Field(default=900.0, gt=0, alias="FIELDRX_EXPORT_TIME_LIMIT_S")
 
 
 @lru_cache
