@@ -289,68 +289,49 @@ def import_timelog(
     The preview lists each log's records, time span, positions and the DDIs
     used and ignored; ``confirm`` (the preview's sha256) stores the records as
     a job on the prescription, so the report (target vs applied, eq. 18) works.
+    The upload is spooled to disk; inflating, decoding and storing run in a worker
+    process (FIELDRX_IMPORT_TIME_LIMIT_S; 422 past it, nothing stored).
     """
     from fieldrx.api.common import get_scoped
     from fieldrx.db.models import Prescription
-    from fieldrx.formats.timelog import read_timelog
 
-    rx = get_scoped(session, Prescription, prescription_id, principal)
-    data, sha, names = _files(files)
-    by_upper = {k.rsplit("/", 1)[-1].upper(): v for k, v in data.items()}
-    heads = sorted(k[:-4] for k in by_upper if k.startswith("TLG") and k.endswith(".XML"))
-    if not heads:
-        raise ApiError(422, f"no TLGxxxxx.XML time log header in the upload ({names})")
-    logs = []
-    try:
-        for h in heads:
-            if f"{h}.BIN" not in by_upper:
-                raise FormatError(f"{h}.XML: its binary {h}.BIN is missing from the upload")
-            logs.append(read_timelog(h, by_upper[f"{h}.XML"], by_upper[f"{h}.BIN"]))
-    except FormatError as exc:
-        raise ApiError(422, str(exc), where=names) from exc
-    preview = []
-    for log in logs:
-        pos = np.isfinite(log.lat) & np.isfinite(log.lon)
-        widths = log.series(67, 0.001)
-        preview.append(
-            {
-                "timelog": log.name,
-                "records": len(log),
-                "with_position": int(pos.sum()),
-                "first_t": None if not len(log) else float(log.t.min()),
-                "last_t": None if not len(log) else float(log.t.max()),
-                "ddis_used": sorted(d for d in log.values if d in (6, 7, 67, 141, 397)),
-                "ddis_ignored": log.ignored_ddis,
-                "mean_applied_rate_kg_ha": None
-                if not np.isfinite(log.series(7)).any()
-                else float(np.nanmean(log.series(7, 0.01))),
-                "logged_width_m": None
-                if not np.isfinite(widths).any()
-                else float(np.nanmedian(widths)),
-            }
+    settings = get_settings()
+    rx_id = int(get_scoped(session, Prescription, prescription_id, principal).id)
+    session.rollback()  # no transaction of the server stays open while the worker runs
+    with spool.spool_dir() as folder:
+        spooled, sha, names = _spool_files(files, folder)
+        req = svc.TimelogRequest(
+            database_url=session.get_bind().url.render_as_string(hide_password=False),
+            files=spooled,
+            source_name=names,
+            prescription_id=rx_id,
+            organisation_id=principal.organisation_id,
+            user_id=principal.user_id,
+            width_m=width_m,
+            confirm=confirm is not None and confirm == sha,
+            time_limit_s=settings.import_time_limit_s,
         )
-    body: dict[str, Any] = {"sha256": sha, "timelogs": preview, "stored": False}
-    width = width_m
-    if width is None:
-        logged = [p["logged_width_m"] for p in preview if p["logged_width_m"]]
-        width = float(np.median(logged)) if logged else None
-    body["width_m"] = width
+        try:
+            out = run_bounded(
+                svc.timelog_in_worker,
+                req,
+                time_limit_s=settings.import_time_limit_s,
+                what="the TimeLog import",
+            )
+        except FormatError as exc:
+            raise ApiError(422, str(exc), where=names) from exc
+    body: dict[str, Any] = {
+        "sha256": sha,
+        "timelogs": out["timelogs"],
+        "stored": False,
+        "width_m": out["width_m"],
+    }
     if confirm is None:
         return body
-    if confirm != sha:
+    if not req.confirm:  # checked after the preview: a broken upload is a 422 either way
         raise ApiError(409, "confirm does not match this upload's sha256: preview it again")
-    if width is None:
-        raise ApiError(422, "the logs carry no working width (DDI 67): give width_m")
-    try:
-        created = svc.store_timelogs(
-            session, logs, rx, principal.organisation_id, principal.user_id, width, names
-        )
-    except FormatError as exc:
-        session.rollback()
-        raise ApiError(422, str(exc), where=names) from exc
-    session.commit()
     body["stored"] = True
-    body["created"] = created
+    body["created"] = out["created"]
     response.status_code = 201
     return body
 

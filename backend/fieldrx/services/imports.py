@@ -431,3 +431,88 @@ def store_prescription_in_worker(req: RxStoreRequest) -> tuple[int, int]:
     finally:
         engine.dispose()
     return ids
+
+
+@dataclass
+class TimelogRequest:
+    """One TimeLog import for ``timelog_in_worker``: the spooled files (name, path), the
+    prescription (already scoped to the caller) and, for a confirm, who stores it."""
+
+    database_url: str
+    files: list[tuple[str, str]]
+    source_name: str
+    prescription_id: int
+    organisation_id: int
+    user_id: int | None
+    width_m: float | None = None
+    confirm: bool = False
+    time_limit_s: float = 120.0
+
+
+def _timelog_preview(log: TimeLog) -> dict[str, Any]:
+    pos = np.isfinite(log.lat) & np.isfinite(log.lon)
+    widths = log.series(67, 0.001)
+    rates = log.series(7, 0.01)
+    return {
+        "timelog": log.name,
+        "records": len(log),
+        "with_position": int(pos.sum()),
+        "first_t": None if not len(log) else float(log.t.min()),
+        "last_t": None if not len(log) else float(log.t.max()),
+        "ddis_used": sorted(d for d in log.values if d in (6, 7, 67, 141, 397)),
+        "ddis_ignored": log.ignored_ddis,
+        "mean_applied_rate_kg_ha": float(np.nanmean(rates)) if np.isfinite(rates).any() else None,
+        "logged_width_m": float(np.nanmedian(widths)) if np.isfinite(widths).any() else None,
+    }
+
+
+def _read_timelogs(files: list[tuple[str, str]], names: str) -> list[TimeLog]:
+    from fieldrx.formats.timelog import read_timelog
+
+    data = _read_spooled(files)
+    by_upper = {k.rsplit("/", 1)[-1].upper(): v for k, v in data.items()}
+    heads = sorted(k[:-4] for k in by_upper if k.startswith("TLG") and k.endswith(".XML"))
+    if not heads:
+        raise FormatError(f"no TLGxxxxx.XML time log header in the upload ({names})")
+    logs = []
+    for h in heads:
+        if f"{h}.BIN" not in by_upper:
+            raise FormatError(f"{h}.XML: its binary {h}.BIN is missing from the upload")
+        logs.append(read_timelog(h, by_upper[f"{h}.XML"], by_upper[f"{h}.BIN"]))
+    return logs
+
+
+def timelog_in_worker(req: TimelogRequest) -> dict[str, Any]:
+    """Inflate, decode and preview spooled TimeLogs and, on confirm, store them as a job
+    and commit, in a ``services.bounded`` child (an archive never inflates in the server's
+    memory). Returns ``{"timelogs", "width_m", "created"?}``; a confirm without a width
+    (none given, none logged) is a ``FormatError``."""
+    from fieldrx.db.session import make_engine
+    from fieldrx.services.bounded import ensure_caller_alive
+
+    logs = _read_timelogs(req.files, req.source_name)
+    pre = [_timelog_preview(log) for log in logs]
+    width = req.width_m
+    if width is None:
+        logged = [p["logged_width_m"] for p in pre if p["logged_width_m"]]
+        width = float(np.median(logged)) if logged else None
+    out: dict[str, Any] = {"timelogs": pre, "width_m": width}
+    if not req.confirm:
+        return out
+    if width is None:
+        raise FormatError("the logs carry no working width (DDI 67): give width_m")
+    engine = make_engine(req.database_url)
+    try:
+        with Session(engine) as session:
+            limit_session(session, req.time_limit_s)
+            rx = session.get(Prescription, req.prescription_id)
+            if rx is None:
+                raise FormatError(f"prescription {req.prescription_id} was deleted meanwhile")
+            out["created"] = store_timelogs(
+                session, logs, rx, req.organisation_id, req.user_id, width, req.source_name
+            )
+            ensure_caller_alive("the TimeLog import")
+            session.commit()
+    finally:
+        engine.dispose()
+    return out

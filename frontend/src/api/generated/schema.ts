@@ -816,6 +816,8 @@ export interface paths {
          *     The preview lists each log's records, time span, positions and the DDIs
          *     used and ignored; ``confirm`` (the preview's sha256) stores the records as
          *     a job on the prescription, so the report (target vs applied, eq. 18) works.
+         *     The upload is spooled to disk; inflating, decoding and storing run in a worker
+         *     process (FIELDRX_IMPORT_TIME_LIMIT_S; 422 past it, nothing stored).
          */
         post: operations["import_timelog_api_v1_imports_timelog_post"];
         delete?: never;
