@@ -49,6 +49,10 @@ class Settings(BaseSettings):
     login_max_failures_account: int = Field(default=10, alias="FIELDRX_LOGIN_MAX_FAILURES")
     login_max_failures_ip: int = Field(default=100, alias="FIELDRX_LOGIN_MAX_FAILURES_IP")
     login_window_s: float = Field(default=900.0, alias="FIELDRX_LOGIN_WINDOW_S")
+    # progressive delay per account + address: after this many failures in the window the
+    # next attempt waits base, then 2 x base, 4 x base ... (at most 60 s) after the last one
+    login_delay_after: int = Field(default=3, ge=0, alias="FIELDRX_LOGIN_DELAY_AFTER")
+    login_delay_base_s: float = Field(default=1.0, ge=0, alias="FIELDRX_LOGIN_DELAY_BASE_S")
     live_token_check_s: float = Field(default=5.0, alias="FIELDRX_LIVE_TOKEN_CHECK_S")
     device_token_ttl_days: float = Field(default=365.0, alias="FIELDRX_DEVICE_TOKEN_TTL_DAYS")
     # task workers remove expired devices' broker users at each expiry and at least this
@@ -103,6 +107,8 @@ class Settings(BaseSettings):
     export_background_cells: int = Field(
         default=100_000, ge=0, alias="FIELDRX_EXPORT_BACKGROUND_CELLS"
     )
+    # an export or job-report task runs in a heavy-work child at most this long
+    export_time_limit_s: float = Field(default=900.0, gt=0, alias="FIELDRX_EXPORT_TIME_LIMIT_S")
 
 
 @lru_cache

@@ -691,6 +691,8 @@ class TelemetryAck:
     rejected: list[dict[str, Any]] = field(default_factory=list)  # {"seq": n, "reason": "..."}
     stream: str = ""
     stream_conflict: bool = False
+    # stored, but with a warning ({"seq": n, "reason": "..."}): e.g. dated too far back
+    flagged: list[dict[str, Any]] = field(default_factory=list)
 
     @classmethod
     def from_dict(cls, obj: dict[str, Any]) -> TelemetryAck:

@@ -215,3 +215,58 @@ def test_a_batch_cannot_make_a_partition_per_past_day_it_names(conn, job) -> Non
     from fieldrx.fleet.partitions import MAX_NEW_DAYS
 
     assert len(parts() - before) <= MAX_NEW_DAYS
+
+
+def test_far_past_records_are_flagged_and_maintenance_keeps_them_in_default(
+    conn, job, client, org
+) -> None:  # noqa: ANN001
+    """Records dated more than ON_DEMAND_DAYS ago are stored in the default partition and
+    flagged in the ack and by a far_past_records alert; maintenance moves the default
+    partition's recent rows into their days but never makes the old days."""
+    from fieldrx.fleet.partitions import ON_DEMAND_DAYS
+
+    def parts() -> set[str]:
+        with conn.transaction():
+            rows = conn.execute(
+                "SELECT c.relname FROM pg_inherits i JOIN pg_class c ON c.oid = i.inhrelid"
+                " WHERE i.inhparent = 'telemetry'::regclass"
+            ).fetchall()
+        return {r[0] for r in rows}
+
+    t2001 = 978_307_200.0 + 3600.0
+    ancient = [record(job, s, t=t2001 + s * 11 * DAY, cell=s % 8) for s in range(1, 8)]
+    # inside the bound, not flagged; the oldest of five past days goes to the default
+    # partition (a batch makes MAX_NEW_DAYS), for maintenance to move
+    edge = _today0() - (ON_DEMAND_DAYS - 2) * DAY + 60.0
+    ancient.append(record(job, 8, t=edge, cell=0))
+    ancient += [record(job, 9 + i, t=_today0() - (100 + i) * DAY, cell=0) for i in range(4)]
+    r = ingest(conn, job.machine_id, ancient, "far", 1, True)
+    assert (r.stored, r.acked_seq, r.rejected) == (12, 12, [])
+    assert _where(conn, job.machine_id)["telemetry_default"] == 8
+    assert [f["seq"] for f in r.flagged] == list(range(1, 8))
+    assert "400 days" in r.flagged[0]["reason"]
+    assert b'"flagged"' in r.to_json()
+
+    def far_alerts() -> list[dict[str, Any]]:
+        got = client.get(
+            "/api/v1/alerts",
+            params={"machine_id": job.machine_id, "kind": "far_past_records"},
+            headers=org.headers(),
+        )
+        assert got.status_code == 200, got.text
+        return list(got.json()["items"])
+
+    far = far_alerts()
+    assert len(far) == 1 and "7 record(s) dated from 2001-01-12" in far[0]["message"], far
+    # a later batch of old records does not open a second alert
+    again = [record(job, 13, t=t2001 + 99 * DAY, cell=0)]
+    assert ingest(conn, job.machine_id, again, "far", 1, True).flagged[0]["seq"] == 13
+    assert len(far_alerts()) == 1
+    before = parts()
+    res = maintain(conn, 0)
+    assert res is not None and res.far_past_rows >= 8 and res.moved_rows >= 1
+    made = parts() - before
+    assert _day_name(edge) in made, made
+    assert min(made) >= _day_name(edge - 2 * DAY), made  # no day beyond the bound
+    where = _where(conn, job.machine_id)
+    assert where["telemetry_default"] == 8 and where[_day_name(edge)] == 1, where

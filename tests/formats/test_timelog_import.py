@@ -94,3 +94,52 @@ def test_imported_log_machine_is_never_sendable(client, org, driven):  # noqa: F
         json={"prescription_id": fx.prescription_id, "machine_id": pseudo},
     )
     assert r.status_code == 422 and "holds imported logs" in r.json()["detail"]
+
+
+def test_timelog_archive_is_inflated_outside_the_api_process(client, org, driven):  # noqa: F811
+    """A TimeLog zip that inflates to 200 MiB (a filler member of zeros beside the log) was
+    inflated in the API process's memory; it is spooled to disk and inflated in the bounded
+    worker, so the API's resident memory does not grow by the inflated size."""
+    import os
+    import threading
+
+    fx, _ = driven
+    h = org.headers()
+    files, _ = _export(client, h, fx.job_id)
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as z:
+        z.writestr("TLG00001.XML", files["TLG00001.XML"])
+        z.writestr("TLG00001.BIN", files["TLG00001.BIN"])
+        z.writestr("FILLER.BIN", bytes(200 * 1024 * 1024))
+    data = buf.getvalue()
+    del buf
+    page = os.sysconf("SC_PAGE_SIZE")
+
+    def rss() -> int:
+        with open("/proc/self/statm") as f:
+            return int(f.read().split()[1]) * page
+
+    base = rss()
+    peak = [base]
+    done = threading.Event()
+
+    def sample() -> None:
+        while not done.is_set():
+            peak[0] = max(peak[0], rss())
+            done.wait(0.005)
+
+    th = threading.Thread(target=sample)
+    th.start()
+    try:
+        r = client.post(
+            f"{API}/imports/timelog?prescription_id={fx.prescription_id}",
+            headers=h,
+            files={"files": ("TASKDATA.zip", data, "application/zip")},
+        )
+    finally:
+        done.set()
+        th.join()
+    assert r.status_code == 200, r.text
+    assert r.json()["timelogs"][0]["records"] > 0
+    grew = (peak[0] - base) / 1024**2
+    assert grew < 100, f"the API process grew by {grew:.0f} MiB"

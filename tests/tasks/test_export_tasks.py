@@ -227,3 +227,62 @@ def test_exports_through_a_real_worker_download_and_retention(
     finally:
         rc = w.stop()
     assert rc == 0, w.log.read_text()[-3000:]
+
+
+@pytest.mark.timeout(600)
+def test_cancel_of_a_running_report_stops_it_within_seconds(
+    client, org, driven, db, database_url, tmp_path
+) -> None:  # noqa: ANN001
+    """A job report over a million records runs in a real ``fieldrx worker``; its long
+    stages report no progress, and the cancel used to wait for the next stage (19 s): the
+    task now stops within a couple of seconds and stores nothing."""
+    import time
+
+    n = 1_000_000
+    db.execute(
+        text(
+            "INSERT INTO telemetry (machine_id, seq, t, job_id, geom, fix_quality, cell_seq,"
+            " target_rate_kg_ha, applied_rate_kg_ha, implement_down, alarms, queue_backlog,"
+            " speed_raw_m_s, speed_filtered_m_s)"
+            " SELECT :m, 100 + g, to_timestamp(:t0 + 20 + g * 0.01), :j,"
+            " ST_SetSRID(ST_MakePoint(8.5 + (g % 1000) * 1e-6, 47.3 + (g / 1000) * 1e-7), 4326),"
+            " 4, g % 2, 120, 118, true, '{}', 0, 2.0, 2.0 FROM generate_series(1, :n) g"
+        ),
+        {"m": driven.machine_id, "j": driven.job_id, "t0": T0, "n": n},
+    )
+    db.execute(
+        text(
+            "UPDATE telemetry_job_spans SET last_t = to_timestamp(:t1), n_records = n_records + :n"
+            " WHERE machine_id = :m AND job_id = :j"
+        ),
+        {"m": driven.machine_id, "j": driven.job_id, "t1": T0 + 20 + n * 0.01, "n": n},
+    )
+    db.commit()
+    url = f"/api/v1/jobs/{driven.job_id}/report"
+    task = client.get(url, headers=org.headers(), params={"background": "true"}).json()
+    assert task["kind"] == "report", task
+    w = Worker(database_url, tmp_path / "worker.log")
+    try:
+        wait_until(
+            lambda: client.get(task["url"], headers=org.headers()).json()["progress"] > 0,
+            300,
+            "the report to report progress in the worker",
+            step_s=0.05,
+        )
+        t0 = time.monotonic()
+        r = client.post(f"{task['url']}/cancel", headers=org.headers())
+        assert r.status_code == 202 and r.json()["stopping"] == 1, r.text
+        got = wait_until(
+            lambda: (v := client.get(task["url"], headers=org.headers()).json())["status"]
+            != "running"
+            and v,
+            120,
+            "the task to stop",
+            step_s=0.05,
+        )
+        stopped_s = time.monotonic() - t0
+    finally:
+        w.stop()
+    print(f"report cancelled after {stopped_s:.2f} s")
+    assert got["status"] == "cancelled", (got, w.log.read_text()[-3000:])
+    assert stopped_s < 3.0, (stopped_s, w.log.read_text()[-3000:])

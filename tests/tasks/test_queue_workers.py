@@ -212,3 +212,48 @@ def test_twenty_plans_two_workers_one_killed(
         f"(pid {a.p.pid}, kill={kill}) was killed in task {killed_task} ({how}); "
         f"plans per worker {dict(workers)}"
     )
+
+
+@pytest.mark.timeout(600)
+def test_cancel_of_a_running_plan_stops_it_within_seconds(
+    client, org, db, database_url, tmp_path
+) -> None:
+    """A plan of ~1 million cells runs in a real ``fieldrx worker``; the API's cancel
+    route is called once it reports progress: the task is cancelled (its status says so)
+    and no database session of its work is left running, within a couple of seconds."""
+    import time
+
+    (fid,) = make_fields(client, org, 1, 1500, 1000)
+    task = client.post(
+        f"/api/v1/fields/{fid}/plans?background=true",
+        headers=org.headers(),
+        json={"swath_width_m": 1.5, "cell_length_m": 1.0},
+    ).json()
+    w = Worker(database_url, tmp_path / "worker.log")
+    try:
+        wait_until(
+            lambda: client.get(task["url"], headers=org.headers()).json()["progress"] > 0,
+            300,
+            "the plan to report progress in the worker",
+            step_s=0.05,
+        )
+        t0 = time.monotonic()
+        r = client.post(f"{task['url']}/cancel", headers=org.headers())
+        assert r.status_code == 202 and r.json()["stopping"] == 1, r.text
+        asked_s = time.monotonic() - t0
+        got = wait_until(
+            lambda: (v := client.get(task["url"], headers=org.headers()).json())["status"]
+            != "running"
+            and v,
+            120,
+            "the task to stop",
+            step_s=0.05,
+        )
+        stopped_s = time.monotonic() - t0
+    finally:
+        w.stop()
+    print(f"cancel route {asked_s:.2f} s, stopped after {stopped_s:.2f} s")
+    assert got["status"] == "cancelled", got
+    assert stopped_s < 3.0, (asked_s, stopped_s, w.log.read_text()[-3000:])
+    db.rollback()
+    assert db.scalar(text("SELECT count(*) FROM plans WHERE field_id = :f"), {"f": fid}) == 0

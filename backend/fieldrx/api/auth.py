@@ -81,7 +81,8 @@ def login(body: LoginIn, request: Request, session: SessionDep) -> LoginOut:
         wait = int(attempt.wait_s) + 1
         raise HTTPException(
             status.HTTP_429_TOO_MANY_REQUESTS,
-            f"too many failed sign-ins for this account from this address; try again in {wait} s",
+            f"too many failed sign-ins for this account from this address; try again in {wait} s"
+            " (each further failure doubles the wait)",
             headers={"Retry-After": str(wait)},
         )
     user = session.scalar(select(User).where(User.email == body.email.lower()))

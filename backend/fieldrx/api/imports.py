@@ -29,7 +29,6 @@ from fieldrx.api.schemas.imports import (
 from fieldrx.auth.deps import SessionDep, WriterDep
 from fieldrx.errors import TooLarge
 from fieldrx.formats import FormatError
-from fieldrx.formats.archive import read_zip
 from fieldrx.geo import PlanningError
 from fieldrx.geo.planning.kinematics import DEFAULT_HEADLAND_PASSES
 from fieldrx.services import imports as svc
@@ -42,29 +41,6 @@ router = APIRouter(prefix="/imports", tags=["imports"], responses=ERRORS)
 
 MAX_UPLOAD_BYTES = 100 * 1024 * 1024
 STORED = "stored (confirm matched the preview); 200 is the preview"
-
-
-def _files(files: list[UploadFile]) -> tuple[dict[str, bytes], str, str]:
-    out: dict[str, bytes] = {}
-    digest = hashlib.sha256()
-    total = 0
-    for f in sorted(files, key=lambda u: u.filename or ""):
-        data = f.file.read(MAX_UPLOAD_BYTES + 1 - total)
-        total += len(data)
-        if total > MAX_UPLOAD_BYTES:
-            raise ApiError(413, f"upload larger than {MAX_UPLOAD_BYTES // 1024 // 1024} MB")
-        name = (f.filename or "upload").replace("\\", "/").rsplit("/", 1)[-1]
-        digest.update(name.encode() + b"\0" + hashlib.sha256(data).digest())
-        if name.lower().endswith(".zip"):
-            try:
-                members = read_zip(data)
-            except FormatError as exc:
-                raise ApiError(422, f"{name}: {exc}", where=name) from exc
-            out.update(members)
-        else:
-            out[name] = data
-    names = ", ".join(sorted(f.filename or "upload" for f in files))
-    return out, digest.hexdigest(), names
 
 
 def _spool_files(files: list[UploadFile], folder: Path) -> tuple[list[tuple[str, str]], str, str]:
@@ -317,64 +293,50 @@ def import_timelog(
     The preview lists each log's records, time span, positions and the DDIs
     used and ignored; ``confirm`` (the preview's sha256) stores the records as
     a job on the prescription, so the report (target vs applied, eq. 18) works.
+    The upload is spooled to disk; inflating, decoding and storing run in a worker
+    process (FIELDRX_IMPORT_TIME_LIMIT_S; 422 past it, nothing stored).
     """
     from fieldrx.api.common import get_scoped
     from fieldrx.db.models import Prescription
-    from fieldrx.formats.timelog import read_timelog, timelog_summary
-    from fieldrx.services.import_checks import fmt_distance, points_placement
-    from fieldrx.services.prescriptions import field_boundary_wgs84
 
-    rx = get_scoped(session, Prescription, prescription_id, principal)
-    data, sha, names = _files(files)
-    by_upper = {k.rsplit("/", 1)[-1].upper(): v for k, v in data.items()}
-    heads = sorted(k[:-4] for k in by_upper if k.startswith("TLG") and k.endswith(".XML"))
-    if not heads:
-        raise ApiError(422, f"no TLGxxxxx.XML time log header in the upload ({names})")
-    logs = []
-    try:
-        for h in heads:
-            if f"{h}.BIN" not in by_upper:
-                raise FormatError(f"{h}.XML: its binary {h}.BIN is missing from the upload")
-            logs.append(read_timelog(h, by_upper[f"{h}.XML"], by_upper[f"{h}.BIN"]))
-    except FormatError as exc:
-        raise ApiError(422, str(exc), where=names) from exc
-    fb = field_boundary_wgs84(session, rx)
-    preview: list[dict[str, Any]] = []
-    for log in logs:
-        entry = timelog_summary(log)
-        if fb is not None:
-            entry["placement"] = points_placement(fb[1], log.lon, log.lat)
-        preview.append(entry)
-    body: dict[str, Any] = {"sha256": sha, "timelogs": preview, "stored": False}
-    width = width_m
-    if width is None:
-        logged = [float(p["logged_width_m"]) for p in preview if p["logged_width_m"]]
-        width = float(np.median(logged)) if logged else None
-    body["width_m"] = width
-    off = [p for p in preview if p.get("placement", {}).get("on_field") == 0 and p["with_position"]]
-    body["refused"] = [
-        f"{p['timelog']}: no record lies on the prescription's field; the nearest is "
-        f"{fmt_distance(p['placement']['distance_m'])} away"
-        for p in off
-    ]
+    settings = get_settings()
+    rx_id = int(get_scoped(session, Prescription, prescription_id, principal).id)
+    session.rollback()  # no transaction of the server stays open while the worker runs
+    with spool.spool_dir() as folder:
+        spooled, sha, names = _spool_files(files, folder)
+        req = svc.TimelogRequest(
+            database_url=session.get_bind().engine.url.render_as_string(hide_password=False),
+            files=spooled,
+            source_name=names,
+            prescription_id=rx_id,
+            organisation_id=principal.organisation_id,
+            user_id=principal.user_id,
+            width_m=width_m,
+            confirm=confirm is not None and confirm == sha,
+            time_limit_s=settings.import_time_limit_s,
+        )
+        try:
+            out = run_bounded(
+                svc.timelog_in_worker,
+                req,
+                time_limit_s=settings.import_time_limit_s,
+                what="the TimeLog import",
+            )
+        except FormatError as exc:
+            raise ApiError(422, str(exc), where=names) from exc
+    body: dict[str, Any] = {
+        "sha256": sha,
+        "timelogs": out["timelogs"],
+        "stored": False,
+        "width_m": out["width_m"],
+        "refused": out["refused"],
+    }
     if confirm is None:
         return body
-    if confirm != sha:
+    if not req.confirm:  # checked after the preview: a broken upload is a 422 either way
         raise ApiError(409, "confirm does not match this upload's sha256: preview it again")
-    if body["refused"]:
-        raise ApiError(422, "; ".join(body["refused"]) + ": nothing stored", where=names)
-    if width is None:
-        raise ApiError(422, "the logs carry no working width (DDI 67): give width_m")
-    try:
-        created = svc.store_timelogs(
-            session, logs, rx, principal.organisation_id, principal.user_id, width, names
-        )
-    except FormatError as exc:
-        session.rollback()
-        raise ApiError(422, str(exc), where=names) from exc
-    session.commit()
     body["stored"] = True
-    body["created"] = created
+    body["created"] = out["created"]
     response.status_code = 201
     return body
 

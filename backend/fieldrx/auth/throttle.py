@@ -9,6 +9,12 @@ So parallel guesses cannot all pass one count (40 at once get at most the limit 
 and a refused attempt never reaches the password check (a correct guess cannot be
 confirmed either).
 
+On top of the limits, the account + address key has a progressive delay: after
+``FIELDRX_LOGIN_DELAY_AFTER`` failures in the window, the next attempt is refused (429 with
+Retry-After) until ``FIELDRX_LOGIN_DELAY_BASE_S`` x 2^(failures - that) seconds (at most
+``MAX_DELAY_S``) have passed since the last failure. The attempt is refused, not held: a
+sleeping request would tie up a server thread for the attacker.
+
 Keys: ``acct:<e-mail>|<address>`` (``FIELDRX_LOGIN_MAX_FAILURES``) and ``ip:<address>``
 (``FIELDRX_LOGIN_MAX_FAILURES_IP``). The account is throttled per address, so an attacker
 who exhausts the account's attempts from one address does not lock the owner out from
@@ -29,6 +35,7 @@ from fieldrx.db.models import LoginFailure
 from fieldrx.settings import get_settings
 
 LOCK_NS = 7006  # advisory lock namespace: one login key's count (see module docstring)
+MAX_DELAY_S = 60.0  # the progressive delay never grows past this (the limit takes over)
 
 
 def keys(email: str, address: str | None) -> list[str]:
@@ -36,6 +43,27 @@ def keys(email: str, address: str | None) -> list[str]:
     if address:
         out.append(f"ip:{address[:380]}")
     return out
+
+
+def delay_s(failures: int) -> float:
+    """The progressive delay after ``failures`` failures of one account + address."""
+    s = get_settings()
+    over = failures - s.login_delay_after
+    if over < 0 or s.login_delay_base_s <= 0:
+        return 0.0
+    return float(min(MAX_DELAY_S, s.login_delay_base_s * 2.0 ** min(over, 30)))
+
+
+def _wait_s(key: str, times: list[dt.datetime], now: dt.datetime, window: dt.timedelta) -> float:
+    """Seconds this key refuses the next attempt (0: allowed); ``times`` newest first, at
+    most the key's limit of them."""
+    if len(times) >= _limit(key):
+        return max((times[-1] + window - now).total_seconds(), 1.0)
+    delay = delay_s(len(times)) if key.startswith("acct:") and times else 0.0
+    if delay <= 0:
+        return 0.0
+    # a parallel attempt may have recorded its failure after ``now`` was read
+    return max(0.0, delay - max(0.0, (now - times[0]).total_seconds()))
 
 
 def _limit(key: str) -> int:
@@ -69,8 +97,7 @@ def begin(session: Session, email: str, address: str | None) -> Attempt:
             .order_by(LoginFailure.at.desc())
             .limit(_limit(key))
         ).all()
-        if len(times) >= _limit(key):
-            wait = max(wait, (times[-1] + window - now).total_seconds(), 1.0)
+        wait = max(wait, _wait_s(key, list(times), now, window))
     if wait > 0:
         session.commit()
         return Attempt(wait_s=wait)
@@ -100,8 +127,7 @@ def blocked_for_s(session: Session, email: str, address: str | None) -> float:
             .order_by(LoginFailure.at.desc())
             .limit(_limit(key))
         ).all()
-        if len(times) >= _limit(key):
-            wait = max(wait, (times[-1] + window - now).total_seconds())
+        wait = max(wait, _wait_s(key, list(times), now, window))
     return wait
 
 

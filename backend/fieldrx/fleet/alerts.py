@@ -18,7 +18,9 @@ from typing import Any
 import psycopg
 
 # events ingest opens and ends itself (not conditions on records, see fleet.ingest)
-EVENT_KINDS = ("duplicate_stream",)  # two agent queues sending for one machine at once
+# duplicate_stream: two agent queues sending for one machine at once; far_past_records:
+# records dated more than the partitions' on-demand bound ago, kept in the default partition
+EVENT_KINDS = ("duplicate_stream", "far_past_records")
 ALERT_KINDS = (
     "rate_error",
     "speed_out_of_range",

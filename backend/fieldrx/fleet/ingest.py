@@ -70,7 +70,13 @@ from fieldrx_edge.protocol import (
 )
 
 from fieldrx.fleet import alerts as alert_rules
-from fieldrx.fleet.partitions import ensure_days, job_spans_sql
+from fieldrx.fleet.partitions import (
+    FAR_PAST_REASON,
+    ON_DEMAND_DAYS,
+    ensure_days,
+    is_far_past,
+    job_spans_sql,
+)
 from fieldrx.fleet.telemetry_row import (
     PG_EPOCH,
     TELEMETRY_COPY,
@@ -125,6 +131,7 @@ class IngestResult:
     stream: str = ""
     stream_conflict: bool = False
     streamed: bool = False  # the batch was format 2: the ack names its stream
+    flagged: list[dict[str, Any]] = field(default_factory=list)  # stored, but see reason
 
     def ack(self) -> TelemetryAck:
         return TelemetryAck(
@@ -135,6 +142,7 @@ class IngestResult:
             rejected=self.rejected,
             stream=self.stream,
             stream_conflict=self.stream_conflict,
+            flagged=self.flagged,
         )
 
     def to_json(self) -> bytes:
@@ -553,6 +561,9 @@ class TrackWork:
             machine_id, stream_start - 1, rejected=rejected, duplicates=repeats, stream=stream,
             streamed=bool(stream) if streamed is None else streamed,
         )  # fmt: skip
+        result.flagged = [
+            {"seq": q, "reason": FAR_PAST_REASON} for q in sorted(rows) if is_far_past(rows[q].t)
+        ]
         return cls(machine_id, stream, stream_start, now, rows, dead, result)
 
     def prepare(self, conn: psycopg.Connection[Any]) -> None:
@@ -625,6 +636,7 @@ class TrackWork:
                 [spans, stream_row, _status(machine_id, info, new, result.acked_seq, now)]
             )
         )
+        messages.extend(_far_past_alert(cur, machine_id, info, new))
         if not new:
             messages.extend(_streams_alert(cur, machine_id, stream, info, new, now))
             return messages
@@ -791,6 +803,28 @@ def _one_statement(
         return sql, params
     head = "WITH " + ", ".join(f"w{i} AS ({q})" for i, (q, _) in enumerate(ctes)) + " "
     return head + sql, tuple(x for _, p in ctes for x in p) + tuple(params)
+
+
+def _far_past_alert(
+    cur: psycopg.Cursor[Any], machine_id: int, info: MachineInfo, new: list[TelemetryRow]
+) -> list[dict[str, Any]]:
+    """``far_past_records``: the machine stored records dated more than ``ON_DEMAND_DAYS``
+    ago (a device clock reset to 2000, say). They are kept in the default partition, not
+    in a day of their own; the fleet manager sees why their track is not where expected."""
+    far = [r for r in new if is_far_past(r.t)]
+    if not far or "far_past_records" in info.event_alerts:
+        return []
+    first = min(far, key=lambda r: r.t)
+    return alert_rules.open_event(
+        cur, info.organisation_id, machine_id, first.job_id, "far_past_records",
+        f"{len(far)} record(s) dated from {_iso(first.t_s)} are more than"
+        f" {ON_DEMAND_DAYS} days old (device clock?): stored in the default partition",
+        None,
+    )  # fmt: skip
+
+
+def _iso(t_s: float) -> str:
+    return dt.datetime.fromtimestamp(t_s, dt.UTC).strftime("%Y-%m-%d %H:%M:%SZ")
 
 
 def _streams_alert(

@@ -10,7 +10,8 @@ kept by pg_partman, and each job's time span so a job's queries touch only its d
   timeout, a race with maintenance), the records go to the default partition: nothing is
   lost, and ``maintain`` moves them into their day later.
 * ``maintain`` (``fieldrx telemetry-maintenance``, and every ``maintenance_s`` in
-  ``fieldrx worker``): moves rows out of the default partition, then pg_partman's
+  ``fieldrx worker``): moves rows out of the default partition (never those older than
+  ``ON_DEMAND_DAYS``: they stay there, as ingest flags them), then pg_partman's
   ``run_maintenance`` premakes days ahead and drops days older than the retention
   (``FIELDRX_TELEMETRY_RETENTION_DAYS``; 0 keeps everything). Only raw records expire:
   per-cell results (``job_cells_applied``) live in their own tables and are kept.
@@ -48,6 +49,10 @@ RETRY_AFTER_S = 60.0  # a day that could not be made now goes to the default par
 # partition per record). Agents back from weeks of offline work still get their days.
 MAX_NEW_DAYS = 4
 ON_DEMAND_DAYS = 400
+FAR_PAST_REASON = (
+    f"record time is more than {ON_DEMAND_DAYS} days in the past: stored in the default"
+    " partition (no day partition is made for it), check the device clock"
+)
 _LOCK_NS = 7002  # advisory lock namespace: partition creation (7001 is ingest's)
 
 _known: set[tuple[str, int]] = set()  # (database, UTC day number) with a partition
@@ -147,10 +152,21 @@ def ensure_days(conn: psycopg.Connection[Any], t_us: Iterable[int]) -> list[int]
     return made
 
 
+def oldest_day() -> int:
+    """The oldest UTC day number that gets its own partition (ingest or maintenance):
+    records before it stay in the default partition and are flagged."""
+    return int((time.time() - PG_EPOCH_DT.timestamp()) // 86_400) - ON_DEMAND_DAYS
+
+
+def is_far_past(t_us: int) -> bool:
+    """A record time (int8 us since 2000-01-01) before ``oldest_day``."""
+    return t_us // DAY_US < oldest_day()
+
+
 def _bounded(days: list[int]) -> list[int]:
     """The days a batch may make (see MAX_NEW_DAYS); logs the rest (default partition)."""
-    today = int((time.time() - PG_EPOCH_DT.timestamp()) // 86_400)
-    recent = sorted((d for d in days if d >= today - ON_DEMAND_DAYS), reverse=True)
+    oldest = oldest_day()
+    recent = sorted((d for d in days if d >= oldest), reverse=True)
     keep = recent[:MAX_NEW_DAYS]
     if len(keep) < len(days):
         log.warning(
@@ -277,6 +293,7 @@ def machine_window(
 @dataclass
 class MaintenanceResult:
     moved_rows: int  # rows moved out of the default partition into their day
+    far_past_rows: int  # rows left in the default partition: older than ON_DEMAND_DAYS
     created: list[str]  # partitions made (premake, or days of moved rows)
     dropped: list[str]  # partitions dropped by the retention
     partitions: int  # day partitions after the run
@@ -294,14 +311,41 @@ def _children(conn: psycopg.Connection[Any]) -> set[str]:
     return {r[0] for r in rows}
 
 
+def _move_default_rows(conn: psycopg.Connection[Any], pm: str, lock_wait_s: int) -> int:
+    """Move the default partition's rows into their days, newest day first, down to
+    ``oldest_day`` (pg_partman's ``p_order`` DESC takes the newest day left each call)."""
+    moved = 0
+    while True:
+        with conn.transaction(), conn.cursor() as cur:
+            cur.execute("SET LOCAL timezone = 'UTC'")
+            cur.execute(f"SET LOCAL lock_timeout = '{lock_wait_s}s'")
+            cur.execute(
+                "SELECT EXISTS (SELECT 1 FROM telemetry_default WHERE t >= %s)",
+                (day_start(oldest_day()),),
+            )
+            if not cur.fetchone()[0]:  # type: ignore[index]
+                break
+            cur.execute(
+                f"SELECT {pm}.partition_data_time(%s, p_order := 'DESC', p_analyze := false)",
+                (PARENT,),
+            )
+            n = int(cur.fetchone()[0] or 0)  # type: ignore[index]
+        moved += n
+        if n == 0:
+            break
+    return moved
+
+
 def maintain(
     conn: psycopg.Connection[Any], retention_days: int = 0, wait: bool = True, lock_wait_s: int = 5
 ) -> MaintenanceResult | None:
     """One maintenance run; None when another run holds the lock and ``wait`` is false.
 
     1. rows in the default partition move into their day (``partition_data_time``
-       makes the day; one day per transaction): a batch whose day could not be made
-       at once is now in place;
+       makes the day; one day per transaction, newest first): a batch whose day could
+       not be made at once is now in place. Rows older than ``ON_DEMAND_DAYS`` stay:
+       moving them would make the old days ingest refused to make (a day per record a
+       device names), so maintenance keeps the same bound;
     2. the retention is written into pg_partman's config (``retention_days`` days; 0:
        none) and ``run_maintenance`` premakes days ahead and drops whole days older than
        the retention.
@@ -319,19 +363,7 @@ def maintain(
     conn.commit()
     try:
         before = _children(conn)
-        moved = 0
-        while True:
-            with conn.transaction(), conn.cursor() as cur:
-                cur.execute("SET LOCAL timezone = 'UTC'")
-                cur.execute(f"SET LOCAL lock_timeout = '{lock_wait_s}s'")
-                cur.execute("SELECT EXISTS (SELECT 1 FROM telemetry_default)")
-                if not cur.fetchone()[0]:  # type: ignore[index]
-                    break
-                cur.execute(f"SELECT {pm}.partition_data_time(%s, p_analyze := false)", (PARENT,))
-                n = int(cur.fetchone()[0] or 0)  # type: ignore[index]
-            moved += n
-            if n == 0:
-                break
+        moved = _move_default_rows(conn, pm, lock_wait_s)
         with conn.transaction(), conn.cursor() as cur:
             cur.execute("SET LOCAL timezone = 'UTC'")
             cur.execute(f"SET LOCAL lock_timeout = '{lock_wait_s}s'")
@@ -350,8 +382,13 @@ def maintain(
         conn.commit()
     if before - after:
         forget_days(conn)
+    with conn.transaction():
+        far = conn.execute(
+            "SELECT count(*) FROM telemetry_default WHERE t < %s", (day_start(oldest_day()),)
+        ).fetchone()
     return MaintenanceResult(
         moved_rows=moved,
+        far_past_rows=int(far[0]) if far is not None else 0,
         created=sorted(after - before),
         dropped=sorted(before - after),
         partitions=len(after),

@@ -157,7 +157,7 @@ def _wait(
     """Wait for the child's answer in short steps: past the time limit, once the server's
     main thread has ended (SIGTERM after the graceful-shutdown timeout), or when
     ``should_stop()`` says so (checked every ``STOP_POLL_S``), give up."""
-    next_check = time.monotonic() + STOP_POLL_S
+    next_check = time.monotonic()  # at once: a cancel may have come while the child started
     while not recv.poll(0.25):
         if should_stop is not None and time.monotonic() >= next_check:
             next_check = time.monotonic() + STOP_POLL_S

@@ -588,3 +588,94 @@ def store_prescription_in_worker(req: RxStoreRequest) -> tuple[int, int]:
     finally:
         engine.dispose()
     return ids
+
+
+@dataclass
+class TimelogRequest:
+    """One TimeLog import for ``timelog_in_worker``: the spooled files (name, path), the
+    prescription (already scoped to the caller) and, for a confirm, who stores it."""
+
+    database_url: str
+    files: list[tuple[str, str]]
+    source_name: str
+    prescription_id: int
+    organisation_id: int
+    user_id: int | None
+    width_m: float | None = None
+    confirm: bool = False
+    time_limit_s: float = 120.0
+
+
+def _read_timelogs(files: list[tuple[str, str]], names: str) -> list[TimeLog]:
+    from fieldrx.formats.timelog import read_timelog
+
+    data = _read_spooled(files)
+    by_upper = {k.rsplit("/", 1)[-1].upper(): v for k, v in data.items()}
+    heads = sorted(k[:-4] for k in by_upper if k.startswith("TLG") and k.endswith(".XML"))
+    if not heads:
+        raise FormatError(f"no TLGxxxxx.XML time log header in the upload ({names})")
+    logs = []
+    for h in heads:
+        if f"{h}.BIN" not in by_upper:
+            raise FormatError(f"{h}.XML: its binary {h}.BIN is missing from the upload")
+        logs.append(read_timelog(h, by_upper[f"{h}.XML"], by_upper[f"{h}.BIN"]))
+    return logs
+
+
+def timelog_in_worker(req: TimelogRequest) -> dict[str, Any]:
+    """Inflate, decode and preview spooled TimeLogs and, on confirm, store them as a job
+    and commit, in a ``services.bounded`` child (an archive never inflates in the server's
+    memory). Returns ``{"timelogs", "width_m", "refused", "created"?}``: each log's summary
+    with where its records lie against the prescription's field; logs with no record on
+    the field are refused. A confirm with refused logs, or without a width (none given,
+    none logged), is a ``FormatError`` and stores nothing."""
+    from fieldrx.db.session import make_engine
+    from fieldrx.formats.timelog import timelog_summary
+    from fieldrx.services.bounded import ensure_caller_alive
+    from fieldrx.services.import_checks import fmt_distance, points_placement
+    from fieldrx.services.prescriptions import field_boundary_wgs84
+
+    logs = _read_timelogs(req.files, req.source_name)
+    engine = make_engine(req.database_url)
+    try:
+        with Session(engine) as session:
+            limit_session(session, req.time_limit_s)
+            rx = session.get(Prescription, req.prescription_id)
+            if rx is None:
+                raise FormatError(f"prescription {req.prescription_id} was deleted meanwhile")
+            fb = field_boundary_wgs84(session, rx)
+            pre: list[dict[str, Any]] = []
+            for log in logs:
+                entry = timelog_summary(log)
+                if fb is not None:
+                    entry["placement"] = points_placement(fb[1], log.lon, log.lat)
+                pre.append(entry)
+            width = req.width_m
+            if width is None:
+                logged = [float(p["logged_width_m"]) for p in pre if p["logged_width_m"]]
+                width = float(np.median(logged)) if logged else None
+            off = [
+                p
+                for p in pre
+                if p.get("placement", {}).get("on_field") == 0 and p["with_position"]
+            ]
+            refused = [
+                f"{p['timelog']}: no record lies on the prescription's field; the nearest is "
+                f"{fmt_distance(p['placement']['distance_m'])} away"
+                for p in off
+            ]
+            out: dict[str, Any] = {"timelogs": pre, "width_m": width, "refused": refused}
+            if not req.confirm:
+                return out
+            if refused:
+                raise FormatError("; ".join(refused) + ": nothing stored")
+            if width is None:
+                raise FormatError("the logs carry no working width (DDI 67): give width_m")
+            out["created"] = store_timelogs(
+                session, logs, rx, req.organisation_id, req.user_id, width, req.source_name
+            )
+            ensure_caller_alive("the TimeLog import")
+            session.commit()
+    finally:
+        engine.dispose()
+    return out

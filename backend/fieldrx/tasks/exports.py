@@ -10,10 +10,11 @@
   (``fleet.reports.report_digest``), and ``stored_report`` lets any API process answer
   the report (and the job's map tiles) from it instead of recomputing it.
 
-Both run in the worker thread (no child process: they are bounded by the data, not by
-user parameters) and follow the exactly-once pattern of ``fieldrx.tasks``: the file is
-written and the task completed in one transaction under the task's guard. Progress is
-reported by stage; a cancellation stops the work at the next stage and stores nothing.
+Both run in a heavy-work child of the worker (``tasks.work``: killed on cancel within
+about a second, ``FIELDRX_EXPORT_TIME_LIMIT_S`` at most) and follow the exactly-once
+pattern of ``fieldrx.tasks``: the file is written and the task completed in one
+transaction under the task's guard. Progress is reported by stage; a cancellation kills
+the child and stores nothing.
 """
 
 from __future__ import annotations
@@ -149,6 +150,7 @@ def _stored(
 ) -> dict[str, Any]:
     """Run ``work`` (-> bytes, media, name, result, message) in one transaction under the
     task's guard, store its file and complete the task."""
+    from fieldrx.services.bounded import ensure_caller_alive
     from fieldrx.tasks.work import Progress
 
     progress = Progress(raw_dsn(get_settings().database_url), claimed.id)
@@ -170,6 +172,7 @@ def _stored(
             if not store.complete(session, claimed.id, result, message):
                 session.rollback()
                 return store.guard(session, claimed.id) or {}
+            ensure_caller_alive("the task")  # its worker died: the retry stores it
             session.commit()
             return result
     finally:

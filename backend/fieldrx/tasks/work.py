@@ -285,16 +285,47 @@ def _run_imagery(claimed: store.Claimed, should_stop: StopFn) -> dict[str, Any]:
         incoming.unlink(missing_ok=True)
 
 
-def _run_export(claimed: store.Claimed, should_stop: StopFn) -> dict[str, Any]:
+def export_child(claimed: store.Claimed) -> dict[str, Any]:
+    """An export task in a ``services.bounded`` child (file + completion, one transaction)."""
     from fieldrx.tasks.exports import run_export
 
-    return run_export(claimed, should_stop)
+    return run_export(claimed, lambda: False)
+
+
+def report_child(claimed: store.Claimed) -> dict[str, Any]:
+    """A job-report task in a ``services.bounded`` child."""
+    from fieldrx.tasks.exports import run_report
+
+    return run_report(claimed, lambda: False)
+
+
+def _run_in_child(
+    child: Callable[[store.Claimed], dict[str, Any]],
+    what: str,
+    claimed: store.Claimed,
+    should_stop: StopFn,
+) -> dict[str, Any]:
+    """Exports and reports run in a child too: their stages (one report query, writing a
+    large file) report no progress for many seconds, and in the worker thread a
+    cancellation waited for the next stage (19 s); the child is killed within about a
+    second of the cancel, like a plan's."""
+    from fieldrx.services.bounded import run_bounded
+
+    return run_bounded(
+        child,
+        claimed,
+        time_limit_s=get_settings().export_time_limit_s,
+        what=what,
+        should_stop=should_stop,
+    )
+
+
+def _run_export(claimed: store.Claimed, should_stop: StopFn) -> dict[str, Any]:
+    return _run_in_child(export_child, "the export", claimed, should_stop)
 
 
 def _run_report(claimed: store.Claimed, should_stop: StopFn) -> dict[str, Any]:
-    from fieldrx.tasks.exports import run_report
-
-    return run_report(claimed, should_stop)
+    return _run_in_child(report_child, "the job report", claimed, should_stop)
 
 
 RUNNERS: dict[str, Callable[[store.Claimed, StopFn], dict[str, Any]]] = {

@@ -124,6 +124,11 @@ async def run_task_worker(stop: asyncio.Event, opts: TaskWorkerOptions | None = 
     from fieldrx.services.cleanup import clean_after_crash_logged
 
     await asyncio.to_thread(clean_after_crash_logged, get_engine())
+    # start the heavy-work forkserver now: its first start imports numpy, shapely, ... for
+    # seconds inside the first task's run, where a cancel is not yet watched
+    from fieldrx.services.bounded import warm_up
+
+    warm_up()
     app = get_app()
     async with app.open_async():
         worker = asyncio.create_task(

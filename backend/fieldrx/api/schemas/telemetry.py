@@ -135,6 +135,11 @@ class TelemetryAckOut(Out):
         "0, nothing rejected: the agent resends it); which batch and why",
         json_schema_extra=_no_default,
     )
+    flagged: list[RejectedOut] = Field(
+        [],
+        description="records stored with a warning, and why (e.g. dated more than 400 days "
+        "ago: kept in the default partition; the machine gets a far_past_records alert)",
+    )
 
 
 class TelemetryAcksOut(Out):

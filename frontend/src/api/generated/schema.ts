@@ -883,6 +883,8 @@ export interface paths {
          *     The preview lists each log's records, time span, positions and the DDIs
          *     used and ignored; ``confirm`` (the preview's sha256) stores the records as
          *     a job on the prescription, so the report (target vs applied, eq. 18) works.
+         *     The upload is spooled to disk; inflating, decoding and storing run in a worker
+         *     process (FIELDRX_IMPORT_TIME_LIMIT_S; 422 past it, nothing stored).
          */
         post: operations["import_timelog_api_v1_imports_timelog_post"];
         delete?: never;
@@ -5547,6 +5549,12 @@ export interface components {
              * @description only in a multi-batch answer: the batch could not be stored (acked_seq 0, nothing rejected: the agent resends it); which batch and why
              */
             error?: string;
+            /**
+             * Flagged
+             * @description records stored with a warning, and why (e.g. dated more than 400 days ago: kept in the default partition; the machine gets a far_past_records alert)
+             * @default []
+             */
+            flagged?: components["schemas"]["RejectedOut"][];
             /** Machine Id */
             machine_id: number;
             /** Rejected */
@@ -6122,7 +6130,7 @@ export interface operations {
                 /** @description true: not ended; false: ended */
                 active?: boolean | null;
                 job_id?: number | null;
-                /** @description rate_error | speed_out_of_range | shaft_saturation | fix_lost | no_data | cells_not_applied | depth_qualified_low | duplicate_stream */
+                /** @description rate_error | speed_out_of_range | shaft_saturation | fix_lost | no_data | cells_not_applied | depth_qualified_low | duplicate_stream | far_past_records */
                 kind?: string | null;
                 limit?: number;
                 machine_id?: number | null;
