@@ -148,6 +148,41 @@ describe('cab display', { skip: SKIP }, () => {
     return JSON.parse(agent.out.trim().split('\n').pop());
   }
 
+  /** At the end the painted coverage equals the cells the agent applied in, by its
+   * records as the server has them: a prescription-map job by its report's cells (a mean
+   * applied rate above 0); a sensor job (its report joins cells by position) by the records
+   * themselves: implement down in a cell, at a rate above 0 (a seeding job meters nothing,
+   * its rate is null). */
+  async function paintedEqualsApplied(jobId, byReport = true) {
+    const painted = await page.evaluate(() => [...window.cab.painted].sort((a, b) => a - b));
+    let applied;
+    if (byReport) {
+      const rep = await api(token, 'GET', `/jobs/${jobId}/report?cells=true`);
+      assert.ok(rep.ok, `report ${rep.status}`);
+      applied = rep.data.cells.filter((c) => c.mean_applied_rate_kg_ha > 0).map((c) => c.seq);
+    } else {
+      const pts = await api(token, 'GET', `/jobs/${jobId}/as-applied?limit=50000`);
+      assert.ok(pts.ok, `as-applied ${pts.status}`);
+      assert.equal(pts.data.next_offset, null, 'all the records in one page');
+      const p = pts.data.features.map((f) => f.properties);
+      const on = (r) => r.implement_down && r.cell_seq !== null && (r.applied_rate_kg_ha === null || r.applied_rate_kg_ha > 0);
+      applied = [...new Set(p.filter(on).map((r) => r.cell_seq))];
+    }
+    applied.sort((a, b) => a - b);
+    assert.ok(applied.length > 0);
+    assert.deepEqual(painted, applied);
+  }
+
+  /** Five looks, 300 ms apart: the highlighted cell (and, where shown, the rates) are the
+   * record the agent wrote last. */
+  async function followsRecords(rates) {
+    for (let i = 0; i < 5; i++) {
+      const m = await screenMatchesRecord(page);
+      assert.ok(m.cell && (!rates || (m.target && m.actual)), JSON.stringify(m));
+      await sleep(300);
+    }
+  }
+
   it('works a prescription-map job with the network cut: screen, alarm, ack, override, drain', async () => {
     const s = await setup('cab rx plot', 3.6, CAL);
     const rx = await api(token, 'POST', `/plans/${s.planId}/prescriptions`, { model: 'uniform', params: { rate_kg_ha: 150 }, product: 'Urea 46 % N', name: 'cab rx' });
@@ -211,13 +246,9 @@ describe('cab display', { skip: SKIP }, () => {
     const out = await finishAndClose(agent, 'rx');
     await px.cut();
     assert.equal(out.telemetry_drained, true);
-    // painted coverage = the cells the agent metered in (its records, as the server has them)
-    const painted = await page.evaluate(() => [...window.cab.painted].sort((a, b) => a - b));
+    await paintedEqualsApplied(job.id);
     const rep = await api(token, 'GET', `/jobs/${job.id}/report?cells=true`);
     assert.ok(rep.ok, `report ${rep.status}`);
-    const applied = rep.data.cells.filter((c) => c.mean_applied_rate_kg_ha > 0).map((c) => c.seq).sort((a, b) => a - b);
-    assert.ok(applied.length > 0);
-    assert.deepEqual(painted, applied);
     // the acknowledgement and the overrides are in the server's report
     const op = rep.data.operator;
     assert.ok(op.alarm_acks.some((a) => a.alarms.includes('uplink_backlog_high')), JSON.stringify(op));
@@ -246,19 +277,21 @@ describe('cab display', { skip: SKIP }, () => {
       return t === `${Number(r.ndvi_raw).toFixed(3)} / ${Number(r.ndvi).toFixed(3)}`;
     });
     assert.ok(ok, 'NDVI tile shows the record');
+    await followsRecords(true);
     assert.match(await page.textContent('[data-testid=cab-curve]'), /→ \d+ kg\/ha/);
     await screens(page, 'ndvi');
     await alarmWithinOneSecond(page, 'sensor_lost');
     await page.click('[data-testid=cab-ack]');
     const out = await finishAndClose(agent, 'ndvi');
     assert.equal(out.telemetry_drained, true);
+    await paintedEqualsApplied(job.id, false);
     const rep = await api(token, 'GET', `/jobs/${job.id}/report`);
     assert.ok(rep.ok);
     assert.ok(rep.data.operator.alarm_acks.some((a) => a.alarms.includes('sensor_lost')), JSON.stringify(rep.data.operator));
   });
 
   it('shows a seeding job: depth against target, qualified share, actuator, speed band', async () => {
-    const { file, device } = await kindJob('seeding_depth', 2.3, CAL);
+    const { job, file, device } = await kindJob('seeding_depth', 2.3, CAL);
     const agent = await startAgent([file, '--server', BASE_URL, '--token', device, '--realtime', '5']);
     await page.goto(agent.url);
     await page.waitForFunction(() => window.cab.s && window.cab.s.depth && window.cab.s.rec.depth_mm !== null && window.cab.s.rec.cell_seq !== null && window.cab.painted.size > 3, null, { timeout: 120_000 });
@@ -268,8 +301,10 @@ describe('cab display', { skip: SKIP }, () => {
     assert.match(await page.textContent('[data-testid=cab-qualified]'), /^\d+\.\d %$/);
     assert.match(await page.textContent('[data-testid=cab-actuator]'), /^-?\d+\.\d$/);
     assert.match(await page.textContent('[data-testid=cab-band]'), /(\d-\d|outside) @ \d+\.\d/);
+    await followsRecords(false);
     await screens(page, 'seeding');
     const out = await finishAndClose(agent, 'seeding');
     assert.equal(out.telemetry_drained, true);
+    await paintedEqualsApplied(job.id, false);
   });
 });

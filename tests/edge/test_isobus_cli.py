@@ -60,6 +60,9 @@ def test_run_as_task_controller_drives_the_ecu_command(tmp_path, capsys):
     assert iso["setpoints_sent"] > 10 and iso["values_rx"] > 10
     assert ecu_out["state"] == "connected" and ecu_out["setpoints_rx"] > 10
     assert ecu_out["tc_address"] == iso["address"]
+    # the ECU worked the job through a JobSession: no uplink configured, nothing sent
+    assert ecu_out["job_id"] == job.job_id and ecu_out["uplink_state"] == "offline"
+    assert ecu_out["drained"] is True
     assert run_out["finished_cells"] >= 3
     # the implement's actual shaft speed and the applied rate reach the telemetry records
     from fieldrx_edge.protocol import TelemetryRecord

@@ -255,17 +255,25 @@ def isobus_stats(tc: Any) -> dict[str, Any]:
     }
 
 
-def cmd_ecu(a: argparse.Namespace) -> int:
-    """The rate ECU: the motor loop as an ISOBUS TC client, until Ctrl-C or --duration."""
-    from fieldrx_edge.isobus.network import Node
-    from fieldrx_edge.isobus.pair import ecu_name
-    from fieldrx_edge.isobus.rate_ecu import RateEcu, run_ecu
+def ecu_session(a: argparse.Namespace, job: JobPackage) -> JobSession:
+    """The ECU's session for ``--job``: the same ``JobSession`` as ``run``'s, its queue in
+    --state-dir (else a temporary dir), sending only when an uplink is configured. The ECU
+    puts no records (the task controller's side logs the drive) and reports no job state:
+    the TC side owns the job's state; the session gives the ECU the job and its stop."""
+    store = JobStore(a.state_dir) if a.state_dir else None
+    opts = UplinkOptions.from_args(a, store)
+    return JobSession(job, opts, store.queue_path() if store is not None else None)
+
+
+def _ecu_config(a: argparse.Namespace) -> tuple[Any, float, Any, JobSession | None]:
+    """Calibration, width, controller settings and session: the job's with ``--job``."""
     from fieldrx_edge.metering import LinearCalibration, calibration_from_dict
-    from fieldrx_edge.motor import MotorLoop, SerialMotorDriver, build_controller, simulated_motor
     from fieldrx_edge.protocol import ControllerSettings
 
+    session = None
     if a.job:
         job = load_job(a.job, JobStore(a.state_dir))
+        session = ecu_session(a, job)
         cal: Any = calibration_from_dict(job.calibration)
         width = a.width or job.implement_width_m
         settings = job.controller
@@ -274,6 +282,17 @@ def cmd_ecu(a: argparse.Namespace) -> int:
         settings = ControllerSettings(name="ladrc")
     if a.controller:
         settings = dataclasses.replace(settings, name=a.controller, params={})
+    return cal, width, settings, session
+
+
+def cmd_ecu(a: argparse.Namespace) -> int:
+    """The rate ECU: the motor loop as an ISOBUS TC client, until Ctrl-C or --duration."""
+    from fieldrx_edge.isobus.network import Node
+    from fieldrx_edge.isobus.pair import ecu_name
+    from fieldrx_edge.isobus.rate_ecu import RateEcu, run_ecu
+    from fieldrx_edge.motor import MotorLoop, SerialMotorDriver, build_controller, simulated_motor
+
+    cal, width, settings, session = _ecu_config(a)
     period = settings.period_s or 0.01
     driver: Any = (
         simulated_motor(period)
@@ -283,12 +302,15 @@ def cmd_ecu(a: argparse.Namespace) -> int:
     motor = MotorLoop(build_controller(settings), driver, period)
     node = Node(open_can(a), ecu_name(a.identity), a.address, label="ecu")
     ecu = RateEcu(node, cal, width, a.sections)
-    stop = threading.Event()
+    # with a job, the session's Finish is the ECU's stop, as it is the drive's in `run`
+    stop = session.finish_requested if session is not None else threading.Event()
     mstop = threading.Event()
     mth = threading.Thread(target=motor.run, args=(mstop,), daemon=True)
     mth.start()
     if a.duration > 0:
         threading.Timer(a.duration, stop.set).start()
+    if session is not None:
+        session.start(report=False)
     node.start()
     try:
         run_ecu(ecu, motor, stop, period)
@@ -298,7 +320,7 @@ def cmd_ecu(a: argparse.Namespace) -> int:
         mstop.set()
         mth.join(timeout=2.0)
         node.close()
-    out = {
+    out: dict[str, Any] = {
         "address": node.address,
         "state": ecu.state,
         "tc_address": ecu.tc_addr,
@@ -309,5 +331,9 @@ def cmd_ecu(a: argparse.Namespace) -> int:
         "alarms": sorted(ecu.alarms | node.alarms),
         "bus": node.stats.to_dict(),
     }
+    if session is not None and session.job is not None:
+        out["job_id"] = session.job.job_id
+        out["uplink_state"] = session.uplink_state()
+        out["drained"] = session.close(report=False)["drained"]
     print(json.dumps(out))
     return 0
