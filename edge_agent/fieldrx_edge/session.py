@@ -3,10 +3,11 @@ uplink sender thread and its drain, the job state reported to the server, and th
 state the cab display reads.
 
 Every command that works a job (``run``, ``simulate``, ``ecu``, the sensor kinds, ``ndvi``)
-builds one ``JobSession`` and passes ``session.put`` / ``session.put_many`` to its loop where
-it used to pass the queue (``ecu`` puts none: the TC side logs the drive): records go through the session's observers (the cab's live view,
-the operator's tags) and then into the queue, before anything is sent. The session owns
-the sender thread, so stopping, draining and closing it is written once.
+builds one ``JobSession`` and passes ``session.put`` / ``session.put_many`` to its loop
+(``ecu`` puts none: the TC side logs the drive). Records go through the session's
+observers (the cab's live view, the operator's tags) and then into the queue, before
+anything is sent. The session owns the sender thread, so stopping, draining and closing
+it is written once.
 """
 
 from __future__ import annotations
