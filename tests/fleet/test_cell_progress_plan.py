@@ -17,7 +17,7 @@ from typing import Any
 
 import psycopg
 from fieldrx.db.session import raw_dsn
-from fieldrx.fleet.ingest import CELL_PROGRESS_CTE, cell_progress_params
+from fieldrx.fleet.ingest import CELL_PROGRESS_CTE, CELL_UPSERT_SQL, cell_progress_params
 
 from tests.fleet.helpers import JobFixture, on_citus
 
@@ -46,7 +46,11 @@ def _run(conn: psycopg.Connection[Any], machine_id: int, agg: dict, explain: boo
     sql = "WITH " + CELL_PROGRESS_CTE + " SELECT id, state, cells_applied, n_cells FROM moved"
     if explain:
         sql = "EXPLAIN (ANALYZE, FORMAT JSON) " + sql
-    return conn.execute(sql, cell_progress_params(machine_id, agg)).fetchall()
+    params = cell_progress_params(machine_id, agg)
+    out = conn.execute(sql, params).fetchall()
+    if not explain:  # then the sums, as ``ingest.cell_progress`` does
+        conn.execute(CELL_UPSERT_SQL, params)
+    return out
 
 
 def test_cell_progress_looks_each_cell_up_once(database_url: str, job: JobFixture) -> None:

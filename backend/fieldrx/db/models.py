@@ -331,6 +331,16 @@ class PrescriptionRate(Base):
     flags: Mapped[list[str]] = mapped_column(ARRAY(String(32)), default=list)
 
 
+# Mapper arguments of the machine-keyed tables whose mapper key is ``id`` alone (the
+# database's is (machine_id, id), migration 0017): the ORM's UPDATE and DELETE then say
+# ``WHERE id = ? AND machine_id = ?``. Past one node (Citus) a statement naming the
+# distribution column is a router plan on one shard; by ``id`` alone it runs on every shard.
+# SQLAlchemy adds a "version" column to those WHERE clauses; with no generator the
+# application sets the value (a row's machine never changes), so nothing else is written.
+def machine_routed(machine_id: Any) -> dict[str, Any]:
+    return {"version_id_col": machine_id, "version_id_generator": False}
+
+
 class Job(Base):
     __tablename__ = "jobs"
     __table_args__ = (
@@ -377,6 +387,8 @@ class Job(Base):
     created_by: Mapped[int | None] = mapped_column(ForeignKey("users.id", ondelete="SET NULL"))
     created_at: Mapped[dt.datetime] = _now()
     updated_at: Mapped[dt.datetime] = _now()
+
+    __mapper_args__ = machine_routed(machine_id)
 
 
 class JobEvent(Base):
@@ -622,6 +634,8 @@ class Alert(Base):
     ended_at: Mapped[dt.datetime | None] = mapped_column(DateTime(timezone=True))
     acknowledged_at: Mapped[dt.datetime | None] = mapped_column(DateTime(timezone=True))
     acknowledged_by: Mapped[int | None] = mapped_column(ForeignKey("users.id", ondelete="SET NULL"))
+
+    __mapper_args__ = machine_routed(machine_id)
 
 
 class JobArchive(Base):

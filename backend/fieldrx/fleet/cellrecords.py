@@ -19,10 +19,9 @@ twice:
    on is stored and the ack says ``stream_conflict``;
 4. ``acked_seq`` (``cell_record_streams``) advances over the contiguous stored
    or rejected-for-good seqs and stops at the first gap (``ACK_WALK_SQL``: one
-   statement, part of the stream row's upsert);
+   statement, before the stream row's upsert ``STREAM_ROW_SQL``);
 5. per-cell aggregates and job progress move as for telemetry records
-   (``ingest.CELL_PROGRESS_CTE``), in the same statement as the stream's row
-   (``FINISH_SQL``). A thin request's track batch and cell batch share one
+   (``ingest.cell_progress``). A thin request's track batch and cell batch share one
    transaction (``fleet.multibatch``).
 """
 
@@ -42,14 +41,12 @@ from sqlalchemy import text
 from sqlalchemy.orm import Session
 
 from fieldrx.fleet.ingest import (
-    CELL_PROGRESS_CTE,
     FUTURE_TOLERANCE_S,
     INT8_MAX,
     PG_EPOCH,
     IngestError,
     IngestResult,
-    cell_progress_params,
-    job_messages,
+    cell_progress,
     store_alone,
 )
 
@@ -299,19 +296,20 @@ class CellWork:
         result.stored = len(self.new)
 
     def finish(self, cur: psycopg.Cursor[Any]) -> list[dict[str, Any]]:
-        """The stream's row with its ack walk (``ACK_WALK_SQL``) and the per-cell sums and
-        job progress (``ingest.CELL_PROGRESS_CTE``), in one statement; the live messages."""
-        cur.execute(FINISH_SQL, {
-            **cell_progress_params(self.machine_id, _per_cell(self.new)),
-            "s": self.stream, "start": self.stream_start, "acked": self.result.acked_seq,
-            "done": _int_array(set(self.rows) | self.dead), "nrec": len(self.new),
-        })  # fmt: skip
-        row = cur.fetchone()
+        """The stream's row with its ack walk (``ACK_WALK_SQL``), then the per-cell sums and
+        job progress (``ingest.cell_progress``); the live messages. Each statement is a
+        single-shard router plan on Citus, which refuses a subquery inside INSERT ...
+        VALUES and router-plans no INSERT inside a common table expression."""
+        done = _int_array(set(self.rows) | self.dead)
+        p = {"m": self.machine_id, "s": self.stream, "acked": self.result.acked_seq}
+        row = cur.execute("SELECT " + ACK_WALK_SQL, {**p, "done": done}).fetchone()
         assert row is not None
+        stream = {"a": row[0], "start": self.stream_start, "nrec": len(self.new)}
+        cur.execute(STREAM_ROW_SQL, {**p, **stream})
         self.result.acked_seq = int(row[0])
         if self.conflict is not None:
             self.result.acked_seq = min(self.result.acked_seq, self.conflict - 1)
-        return job_messages(self.machine_id, self.org, row[1] or [])
+        return cell_progress(cur, self.machine_id, self.org, _per_cell(self.new))
 
 
 def _int_array(values: set[int]) -> str:
@@ -355,20 +353,13 @@ ACK_WALK_SQL = (
     " WHERE q = %(acked)s::int8 + k)"
 )
 
-# ``CellWork.finish``: the stream's row (its ack walked by ``ACK_WALK_SQL``) and the per-cell
-# sums with job progress (``ingest.CELL_PROGRESS_CTE``) in one statement: the acked seq and
-# the moved jobs as rows of (id, state, cells_applied, n_cells). The walk is its own CTE and
-# the row an INSERT ... SELECT: Citus refuses a subquery inside INSERT ... VALUES
-FINISH_SQL = (
-    "WITH ack AS (SELECT " + ACK_WALK_SQL + " AS a),"
-    " st AS (INSERT INTO cell_record_streams AS s (machine_id, stream, first_seq,"
-    " acked_seq, n_records) SELECT %(m)s, %(s)s::text, %(start)s, ack.a, %(nrec)s FROM ack"
+# ``CellWork.finish``: the stream's row, its ack walked by ``ACK_WALK_SQL``
+STREAM_ROW_SQL = (
+    "INSERT INTO cell_record_streams AS s (machine_id, stream, first_seq, acked_seq, n_records)"
+    " VALUES (%(m)s, %(s)s::text, %(start)s, %(a)s, %(nrec)s)"
     " ON CONFLICT (machine_id, stream) DO UPDATE"
     " SET acked_seq = excluded.acked_seq, last_seen_at = excluded.last_seen_at,"
-    " n_records = s.n_records + excluded.n_records RETURNING acked_seq), "
-    + CELL_PROGRESS_CTE
-    + " SELECT (SELECT acked_seq FROM st),"
-    " (SELECT json_agg(json_build_array(id, state, cells_applied, n_cells)) FROM moved)"
+    " n_records = s.n_records + excluded.n_records"
 )
 
 

@@ -629,13 +629,13 @@ class TrackWork:
         if self.conflict is not None:
             # the agent may trim only below the conflict; it resends the rest on a new stream
             result.acked_seq = min(result.acked_seq, self.conflict - 1)
-        # the job spans, the stream's row and the machine's status: one statement
+        # the job spans, the stream's row and the machine's status: one upsert each (as
+        # common table expressions of one statement they were not one router plan on Citus,
+        # which router-plans no INSERT inside WITH: three subplans through the coordinator)
         spans = job_spans_sql(machine_id, [r.t for r in new], [r.job_id for r in new])
-        cur.execute(
-            *_one_statement(
-                [spans, stream_row, _status(machine_id, info, new, result.acked_seq, now)]
-            )
-        )
+        for part in (spans, stream_row, _status(machine_id, info, new, result.acked_seq, now)):
+            if part is not None:
+                cur.execute(*part)
         messages.extend(_far_past_alert(cur, machine_id, info, new))
         if not new:
             messages.extend(_streams_alert(cur, machine_id, stream, info, new, now))
@@ -788,21 +788,6 @@ def _stream_row(
             max(r.seq for r in new) if new else None,
         ),
     )  # fmt: skip
-
-
-def _one_statement(
-    parts: list[tuple[str, tuple[Any, ...]] | None],
-) -> tuple[str, tuple[Any, ...]]:
-    """Data-modifying statements (positional parameters) as one: the first ones as common
-    table expressions of the last (each runs once, all in one snapshot: they must not
-    touch the same rows). One statement instead of several: each costs its own parse,
-    plan, executor start and result, on both sides."""
-    todo = [p for p in parts if p is not None]
-    *ctes, (sql, params) = todo
-    if not ctes:
-        return sql, params
-    head = "WITH " + ", ".join(f"w{i} AS ({q})" for i, (q, _) in enumerate(ctes)) + " "
-    return head + sql, tuple(x for _, p in ctes for x in p) + tuple(params)
 
 
 def _far_past_alert(
@@ -1070,15 +1055,21 @@ def cell_progress(
     """Add per-cell sums ((job, cell) -> [records, target rate sum, applied rate sum,
     first t, last t], times as COPY microseconds) of this machine's jobs to
     ``job_cells_applied`` and move job progress (``_cells`` for the rules); the job
-    messages for the live view. The thin profile's cell records (``fleet.cellrecords``)
-    run ``CELL_PROGRESS_CTE`` inside their stream row's statement instead."""
+    messages for the live view. Two statements, each a single-shard router plan on Citus
+    (docs/scale.md section 2): Citus router-plans common table expressions that read or
+    UPDATE, never one that INSERTs, so the upsert of the sums is its own statement."""
     if not agg:
         return []
+    params = cell_progress_params(machine_id, agg)
+    # progress first: it reads the cells' rows before this batch's sums are added (the
+    # batch's machine is locked, so nothing else writes them in between)
     cur.execute(
         "WITH " + CELL_PROGRESS_CTE + " SELECT id, state, cells_applied, n_cells FROM moved",
-        cell_progress_params(machine_id, agg),
+        params,
     )
-    return job_messages(machine_id, org, cur.fetchall())
+    moved = cur.fetchall()
+    cur.execute(CELL_UPSERT_SQL, params)
+    return job_messages(machine_id, org, moved)
 
 
 # ``cell_progress`` as common table expressions (parameters: ``cell_progress_params``); the
@@ -1095,28 +1086,19 @@ CELL_PROGRESS_CTE = """
         -- this machine's jobs
         WHERE n.job_id IN (SELECT id FROM jobs WHERE machine_id = %(m)s)
     ), old AS MATERIALIZED (
-        -- each new cell's row before this statement (the snapshot: ``up`` is not seen
-        -- here), looked up once per new cell; materialised, with ``gained`` reading only
-        -- this: inlined into a join with ``up`` (the planner estimates one row for
-        -- both) it was re-run per upserted cell, n^2 index scans (a 200-cell batch of
-        -- the thin profile: 40,401, 45-170 ms; tests/fleet/test_cell_progress_plan.py)
+        -- each new cell's row before this batch's sums (``CELL_UPSERT_SQL`` runs next),
+        -- looked up once per new cell; materialised, with ``gained`` reading only this:
+        -- inlined into a join with the upsert (the planner estimates one row for both)
+        -- it was re-run per upserted cell, n^2 index scans (a 200-cell batch of the thin
+        -- profile: 40,401, 45-170 ms; tests/fleet/test_cell_progress_plan.py)
         SELECT n.job_id, n.aps, c.seq IS NOT NULL AS existed,
             coalesce(c.applied_rate_sum, 0) AS before_aps
         FROM new n LEFT JOIN job_cells_applied c
             ON c.machine_id = %(m)s AND c.job_id = n.job_id AND c.seq = n.seq
-    ), up AS (
-        INSERT INTO job_cells_applied AS c (machine_id, job_id, seq, n_records,
-            target_rate_sum, applied_rate_sum, first_t, last_t)
-        SELECT %(m)s, job_id, seq, n, ts, aps, ft, lt FROM new
-        ON CONFLICT (machine_id, job_id, seq) DO UPDATE SET
-            n_records = c.n_records + excluded.n_records,
-            target_rate_sum = c.target_rate_sum + excluded.target_rate_sum,
-            applied_rate_sum = c.applied_rate_sum + excluded.applied_rate_sum,
-            first_t = least(c.first_t, excluded.first_t),
-            last_t = greatest(c.last_t, excluded.last_t)
     ), gained AS (
-        -- every new cell is upserted (inserted, or updated: its sum becomes
-        -- before + aps, the same float8 sum as ``up``'s), so the counts follow from ``old``
+        -- every new cell is then upserted (inserted, or updated: its sum becomes
+        -- before + aps, the same float8 sum as ``CELL_UPSERT_SQL``'s), so the counts
+        -- follow from ``old``
         SELECT job_id,
             count(*) FILTER (WHERE NOT existed) AS worked,  -- first record in the cell
             count(*) FILTER (WHERE before_aps + aps > 0 AND before_aps <= 0) AS applied
@@ -1130,6 +1112,28 @@ CELL_PROGRESS_CTE = """
         WHERE j.machine_id = %(m)s AND j.id = g.job_id AND g.k > 0
         RETURNING j.id, j.state, j.cells_applied, j.n_cells
     )
+"""
+
+
+# ``cell_progress``'s sums added to ``job_cells_applied``, after ``CELL_PROGRESS_CTE`` read
+# the rows before them. The batch's cells join their jobs on this machine: on Citus an
+# INSERT ... SELECT that reads a co-located table by its distribution column is pushed down
+# to the machine's shard (from the JSON alone it is pulled through the coordinator)
+CELL_UPSERT_SQL = """
+    INSERT INTO job_cells_applied AS c (machine_id, job_id, seq, n_records,
+        target_rate_sum, applied_rate_sum, first_t, last_t)
+    SELECT j.machine_id, n.job_id, n.seq, n.n, n.ts, n.aps,
+        timestamptz '2000-01-01 00:00:00+00' + n.ft * interval '1 microsecond',
+        timestamptz '2000-01-01 00:00:00+00' + n.lt * interval '1 microsecond'
+    FROM json_to_recordset(%(cells)s::json)
+        AS n(job_id int, seq int, n int, ts float8, aps float8, ft int8, lt int8)
+    JOIN jobs j ON j.machine_id = %(m)s AND j.id = n.job_id
+    ON CONFLICT (machine_id, job_id, seq) DO UPDATE SET
+        n_records = c.n_records + excluded.n_records,
+        target_rate_sum = c.target_rate_sum + excluded.target_rate_sum,
+        applied_rate_sum = c.applied_rate_sum + excluded.applied_rate_sum,
+        first_t = least(c.first_t, excluded.first_t),
+        last_t = greatest(c.last_t, excluded.last_t)
 """
 
 

@@ -221,19 +221,23 @@ def job_spans_sql(
         return None
     ids = sorted(spans)
     return (
+        # the spans join their jobs on the machine: on Citus an INSERT ... SELECT reading a
+        # co-located table by its distribution column is one router plan on the machine's
+        # shard (from the arrays alone it is pulled through the coordinator)
         "INSERT INTO telemetry_job_spans AS s (machine_id, job_id, first_t, last_t, n_records)"
-        " SELECT %s, j, t0, t1, n FROM unnest(%s::int[], %s::timestamptz[], %s::timestamptz[],"
-        " %s::int8[]) AS u(j, t0, t1, n)"
+        " SELECT jb.machine_id, j, t0, t1, n FROM unnest(%s::int[], %s::timestamptz[],"
+        " %s::timestamptz[], %s::int8[]) AS u(j, t0, t1, n)"
+        " JOIN jobs jb ON jb.machine_id = %s AND jb.id = u.j"
         " ON CONFLICT (machine_id, job_id) DO UPDATE SET"
         " first_t = least(s.first_t, excluded.first_t),"
         " last_t = greatest(s.last_t, excluded.last_t),"
         " n_records = s.n_records + excluded.n_records",
         (
-            machine_id,
             ids,
             [PG_EPOCH_DT + dt.timedelta(microseconds=spans[j][0]) for j in ids],
             [PG_EPOCH_DT + dt.timedelta(microseconds=spans[j][1]) for j in ids],
             [spans[j][2] for j in ids],
+            machine_id,
         ),
     )
 
