@@ -124,8 +124,8 @@ def test_ndvi_report_headline_shows_over_application(database_url, org, tmp_path
     the floor); the report's outcome says how much more, in kg and per hectare."""
     api, url = start_api(database_url)
     try:
-        c = httpx.Client(base_url=url, headers=org.headers(), timeout=60)
-        plan, m, token = _setup(c, 3.6, {**SEED000_CAL, "min_rpm": 25.0})
+        c = httpx.Client(base_url=url, headers=org.headers(), timeout=scaled(60))
+        plan, m, token = _setup(c, 3.6, {**SEED000_CAL, "min_rpm": 25.0}, NDVI_SPREADER)
         # a topdressing curve of 250 kg/ha at NDVI 0.24 down to 180 at 0.65 (the issue's
         # 250 kg/ha target on a thin crop)
         body = {"kind": "ndvi_topdress", "plan_id": plan["id"], "machine_id": m["id"],
