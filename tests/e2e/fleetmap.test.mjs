@@ -22,24 +22,19 @@ const PLOT = {
 
 /**
  * One reading of the screen: the list's state and dot, the marker as drawn (colour, where),
- * the label's distance from it. Taken once the map has drawn what the list shows (its idle
- * frame after two animation frames: the map's source follows the list's render in an
- * effect); `settled` is false when the list changed meanwhile (the reading is then retaken).
+ * the label's distance from it. Taken three animation frames after reading the list (the
+ * map's source follows the list's render in an effect, its worker a frame later); `settled`
+ * is false when the list changed meanwhile (that reading is dropped).
  */
 function sample(id) {
   const stateNow = () => document.querySelector(`[data-testid=machine-status-${id}]`)?.textContent?.trim() ?? null;
   const before = stateNow();
   const map = window.__fieldrxMaps.fleet;
   const frame = () => new Promise((r) => requestAnimationFrame(() => r()));
-  const idle = () =>
-    new Promise((r) => {
-      if (map.loaded() && !map.isMoving()) return r();
-      map.once('idle', () => r());
-      map.triggerRepaint();
-    });
+  // not the map's idle event: under a busy live feed it may not come for the whole drive
   return frame()
     .then(frame)
-    .then(idle)
+    .then(frame)
     .then(() => {
       const state = stateNow();
       const dot = document.querySelector(`[data-testid=fleet-machine-${id}] .dot`);
