@@ -3,9 +3,10 @@
  * coverage, machines (status colour, heading) and their names as labels.
  *
  * Labels are DOM markers, not a symbol layer: the offline base style has no glyph server.
- * Coverage is the job's own as-applied cell tiles (the report's figures: a cell is painted
- * once something landed in it), re-requested at most every `COVERAGE_REFRESH_MS` while the
- * job's progress moves (a busy job sends several messages a second, and a tile request after
+ * Coverage is the job's own as-applied cell tiles, painted by the report's own rule for an
+ * applied cell (`COVERED`), re-requested at most every `COVERAGE_REFRESH_MS` while the
+ * job's progress moves and once more when its state changes (the end of a job shows exactly
+ * the report's applied cells, and stays on the map) (a busy job sends several messages a second, and a tile request after
  * new records rebuilds the job's report: at 2 s the fleet page slowed the ingest of a
  * simulated job on the shared 2-core test machine).
  */
@@ -13,6 +14,7 @@ import { useEffect, useMemo, useRef, useState } from 'react';
 import * as maplibregl from 'maplibre-gl';
 import { useFields } from '../api/hooks';
 import type { Fleet } from '../lib/fleet';
+import { trailSegments, type TrailPoint } from '../lib/trail';
 import { bboxOf } from '../lib/geo';
 import { useMap } from '../map/context';
 import { MapView } from '../map/MapView';
@@ -20,8 +22,19 @@ import { CellGrid, FieldBoundary, FitBounds, Machines, Track } from '../map/over
 import { absoluteApiUrl } from '../map/setup';
 
 export const COVERAGE_REFRESH_MS = 5000;
-/** Covered cells (something landed) in amber; the rest of the job's grid stays clear. */
-const COVERED = ['case', ['>', ['to-number', ['get', 'n_records'], 0], 0], '#f0b400', 'rgba(0,0,0,0)'];
+/**
+ * Applied cells in amber, the rest of the job's grid clear. An applied cell is the report's
+ * (`JobReport.cells_applied`): one the prescription asks fertilizer for (planned rate > 0)
+ * that received some (applied mass M2 > 0, seed 001 eq. 17; the tile's applied rate is M2
+ * over the cell's area). Records alone do not make a cell applied: a pass with the meter at
+ * 0 or over an unprescribed cell is driven, not applied.
+ */
+export const COVERED_FILTER = [
+  'all',
+  ['>', ['to-number', ['get', 'target_rate'], 0], 0],
+  ['>', ['to-number', ['get', 'applied_rate'], 0], 0],
+];
+const COVERED = ['case', COVERED_FILTER, '#f0b400', 'rgba(0,0,0,0)'];
 
 /** One DOM label per machine with a position, kept in step with the fleet. */
 function MachineLabels({ fleet }: { fleet: Fleet }) {
@@ -64,14 +77,17 @@ function MachineLabels({ fleet }: { fleet: Fleet }) {
 }
 
 /** A running job's covered cells; its tiles are re-requested when progress has moved. */
-function LiveCoverage({ jobId, progress }: { jobId: number; progress: number }) {
-  const latest = useRef(progress);
-  latest.current = progress;
-  const [shown, setShown] = useState(progress);
+function LiveCoverage({ jobId, progress, state }: { jobId: number; progress: number; state: string }) {
+  const key = `${state}:${progress}`;
+  const latest = useRef(key);
+  latest.current = key;
+  const [shown, setShown] = useState(key);
   useEffect(() => {
     const t = setInterval(() => setShown(latest.current), COVERAGE_REFRESH_MS);
     return () => clearInterval(t);
   }, []);
+  // a change of state (the job ended) shows at once: its cells are final
+  useEffect(() => setShown(latest.current), [state]);
   return (
     <CellGrid
       id={`coverage-${jobId}`}
@@ -84,12 +100,13 @@ function LiveCoverage({ jobId, progress }: { jobId: number; progress: number }) 
 }
 
 /** The fleet's map: fitted once to the machines, then left where the user puts it. */
-export function FleetMap(props: { fleet: Fleet; trails: Map<number, [number, number][]> }) {
+export function FleetMap(props: { fleet: Fleet; trails: Map<number, TrailPoint[]> }) {
   const { fleet, trails } = props;
   const fields = useFields({ limit: 500 });
   const machines = useMemo(() => [...fleet.values()], [fleet]);
-  const paths = useMemo(() => [...trails.values()].map((c) => [...c]), [fleet, trails]); // eslint-disable-line react-hooks/exhaustive-deps
-  const running = machines.filter((m) => m.job_id != null && m.job_state === 'running');
+  const paths = useMemo(() => [...trails.values()].flatMap(trailSegments), [fleet, trails]); // eslint-disable-line react-hooks/exhaustive-deps
+  // a job's coverage stays after it ended (job_id is the machine's last job)
+  const covering = machines.filter((m) => m.job_id != null && m.job_state != null && m.job_state !== 'cancelled');
   const bbox = useMemo(
     () =>
       bboxOf({
@@ -101,13 +118,13 @@ export function FleetMap(props: { fleet: Fleet; trails: Map<number, [number, num
   return (
     <MapView name="fleet">
       <FieldBoundary id="fields" data={fields.data} />
-      {running.map((m) => (
-        <LiveCoverage key={m.job_id} jobId={m.job_id as number} progress={m.progress ?? 0} />
+      {covering.map((m) => (
+        <LiveCoverage key={m.job_id} jobId={m.job_id as number} progress={m.progress ?? 0} state={m.job_state as string} />
       ))}
       <Track id="trails" paths={paths} width={2} opacity={0.6} />
       <Machines machines={machines} onClick={(id) => (location.hash = `/machines/${id}`)} />
       <MachineLabels fleet={fleet} />
-      <FitBounds bbox={bbox} once padding={60} maxZoom={16} />
+      <FitBounds bbox={bbox} once padding={60} maxZoom={16} avoid='.split > .panel[aria-label="Fleet"]' />
     </MapView>
   );
 }

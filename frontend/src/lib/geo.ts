@@ -118,3 +118,12 @@ export function bearingDeg(a: Position, b: Position): number {
 export function asGeoJSON<T extends GeoJSON.GeoJSON = GeoJSON.FeatureCollection>(obj: object): T {
   return obj as T;
 }
+
+/** Ground distance in m between two lon/lat points (equirectangular: exact enough within a field). */
+export function distanceM(a: Position, b: Position): number {
+  const R = 6371008.8; // mean Earth radius (IUGG), as turf uses
+  const rad = Math.PI / 180;
+  const x = (b[0] - a[0]) * rad * Math.cos(((a[1] + b[1]) / 2) * rad);
+  const y = (b[1] - a[1]) * rad;
+  return R * Math.hypot(x, y);
+}

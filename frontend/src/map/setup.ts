@@ -97,10 +97,14 @@ export function absoluteApiUrl(path: string): string {
   return `${location.origin}${path}`;
 }
 
-export function fitTo(map: maplibregl.Map, bbox: [number, number, number, number] | null, padding = 40): void {
+export function fitTo(
+  map: maplibregl.Map,
+  bbox: [number, number, number, number] | null,
+  padding: number | maplibregl.PaddingOptions = 40,
+): void {
   if (!bbox) return;
   if (bbox[0] === bbox[2] && bbox[1] === bbox[3]) {
-    map.jumpTo({ center: [bbox[0], bbox[1]], zoom: 16 });
+    map.jumpTo({ center: [bbox[0], bbox[1]], zoom: 16, padding: typeof padding === 'number' ? undefined : padding });
     return;
   }
   map.fitBounds(

@@ -6,6 +6,7 @@ import { LastSeen } from '../components/LastSeen';
 import { ErrorBox } from '../components/Status';
 import { statusColor } from '../lib/colors';
 import { applyLive, fromStatusItem, type Fleet, type FleetMachine } from '../lib/fleet';
+import { addTrailPoint, type TrailPoint } from '../lib/trail';
 import { compass, formatPercent, formatRate, formatSpeed } from '../lib/units';
 import { useLive } from '../live';
 import { ackBody, groupKey, groupLabel, markAcknowledged, openGroupCount, type AlertGroup } from '../lib/alerts';
@@ -20,7 +21,7 @@ export function FleetScreen() {
   const refresh = useInvalidate();
   const [fleet, setFleet] = useState<Fleet>(new Map());
   const [acked, setAcked] = useState<AlertGroup[] | null>(null);
-  const trails = useRef(new Map<number, [number, number][]>());
+  const trails = useRef(new Map<number, TrailPoint[]>());
 
   useEffect(() => {
     if (status.data) setFleet(new Map(status.data.items.map((o) => [o.machine_id, fromStatusItem(o)])));
@@ -34,8 +35,8 @@ export function FleetScreen() {
     if (msg.type === 'position' && typeof msg.lon === 'number' && typeof msg.lat === 'number') {
       const id = Number(msg.machine_id);
       const tr = trails.current.get(id) ?? [];
-      tr.push([msg.lon, msg.lat]);
-      if (tr.length > TRAIL) tr.splice(0, tr.length - TRAIL);
+      const t = typeof msg.t === 'number' ? msg.t : Date.now() / 1000;
+      addTrailPoint(tr, { lon: msg.lon, lat: msg.lat, t }, TRAIL);
       trails.current.set(id, tr);
     }
     setFleet((cur) => applyLive(cur, msg));

@@ -3,6 +3,8 @@ import { call, client, type Job, type Machine, type Schemas } from '../api/clien
 import { qk, useInvalidate, useJobs, useSendableMachines } from '../api/hooks';
 import { ErrorBox } from '../components/Status';
 import { jobBody, KIND_LABELS, type JobKind } from '../lib/jobkinds';
+import { jobLive, withLive, type JobLive } from '../lib/livejobs';
+import { useLive } from '../live';
 import { formatPercent } from '../lib/units';
 import { hashQuery } from '../router';
 import { SensorJobForm } from './SensorJobForm';
@@ -39,7 +41,17 @@ export function JobsScreen() {
   // (only those a job can be sent to: not the ones imports made to hold logs)
   const machinesQ = useSendableMachines({ staleTime: 0 });
   const refresh = useInvalidate();
-  const jobs: Job[] = jobsQ.data?.items ?? [];
+  // between polls the live feed's job messages keep states and progress current
+  const [live, setLive] = useState<ReadonlyMap<number, JobLive>>(new Map());
+  useLive((msg) => {
+    const got = jobLive(msg);
+    if (!got) return;
+    setLive((cur) => new Map(cur).set(got[0], got[1]));
+    // a new state changes more than the row shows (started / ended): ask for the list at once
+    const known = jobsQ.data?.items.find((j) => j.id === got[0]);
+    if (!known || (got[1].state != null && got[1].state !== known.state)) void refresh(qk.jobs());
+  });
+  const jobs: Job[] = withLive(jobsQ.data?.items ?? [], live, jobsQ.dataUpdatedAt);
   const machines: Machine[] = machinesQ.data?.items ?? [];
   const [rxId, setRxId] = useState('');
   const [version, setVersion] = useState('');
@@ -156,7 +168,7 @@ export function JobsScreen() {
                   {j.state}
                 </span>
               </td>
-              <td>{j.progress != null ? formatPercent(j.progress > 1 ? j.progress / 100 : j.progress) : '–'}</td>
+              <td data-testid={`job-progress-${j.id}`}>{j.progress != null ? formatPercent(j.progress > 1 ? j.progress / 100 : j.progress) : '–'}</td>
               <td data-testid={`job-flagged-${j.id}`} className={j.flagged_cells ? 'warn' : undefined}>
                 {j.flagged_cells ? `${String(j.flagged_cells)}${j.flagged_confirmed ? ' (sent on confirmation)' : ''}` : '–'}
               </td>

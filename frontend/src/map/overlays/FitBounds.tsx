@@ -1,6 +1,7 @@
 import { useEffect, useRef } from 'react';
 import type { BBox } from '../../lib/geo';
 import { useMap } from '../context';
+import { visiblePadding } from '../padding';
 import { fitTo } from '../setup';
 
 /**
@@ -14,16 +15,23 @@ export function FitBounds(props: {
   /** Never zoom in further than this (default 18). */
   maxZoom?: number;
   once?: boolean;
+  /**
+   * CSS selector of an element that may lie over the map (the side panel on a tablet, a
+   * sheet on a phone): the box is fitted into the part of the map it leaves visible.
+   */
+  avoid?: string;
 }) {
   const map = useMap();
   const done = useRef(false);
   const key = props.bbox ? props.bbox.join(',') : '';
-  const { padding, maxZoom, once } = props;
+  const { padding, maxZoom, once, avoid } = props;
   useEffect(() => {
     if (!map || !key || (once && done.current)) return;
-    fitTo(map, key.split(',').map(Number) as BBox, padding ?? 40);
+    const el = avoid ? document.querySelector(avoid) : null;
+    const pad = visiblePadding(map.getContainer().getBoundingClientRect(), el?.getBoundingClientRect() ?? null, padding ?? 40);
+    fitTo(map, key.split(',').map(Number) as BBox, pad);
     if (maxZoom != null && map.getZoom() > maxZoom) map.setZoom(maxZoom);
     done.current = true;
-  }, [map, key, padding, maxZoom, once]);
+  }, [map, key, padding, maxZoom, once, avoid]);
   return null;
 }
