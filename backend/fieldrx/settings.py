@@ -85,6 +85,11 @@ class Settings(BaseSettings):
     imagery_background_bytes: int = Field(
         default=64 * 1024**2, ge=0, alias="FIELDRX_IMAGERY_BACKGROUND_BYTES"
     )
+    # A confirmed ISOXML import whose upload is larger than this runs as a background
+    # task (202 + task) instead of inside the request: planning its grids takes seconds.
+    import_background_bytes: int = Field(
+        default=4 * 1024**2, ge=0, alias="FIELDRX_IMPORT_BACKGROUND_BYTES"
+    )
     # Background tasks (fieldrx.tasks): jobs run at once per worker process, how
     # often a worker proves it is alive, and after how long without a heartbeat its running
     # jobs are handed to another worker (stalled-job recovery).

@@ -168,8 +168,20 @@ describe('import assistant', { skip: SKIP }, () => {
     const rx = await page.textContent('[data-testid=import-prescriptions]');
     assert.match(rx, /grid type 2/);
     assert.match(rx, /–150\.0 kg\/ha/); // grid cells outside the field hold 0
-    const { link } = await confirmAndOpen();
+    // the confirm runs as a background import task: its progress shows until it is done
+    await page.click('[data-testid=import-confirm]');
+    await page.waitForSelector('[data-testid=import-isoxml] [data-testid=task-progress]', { timeout: T });
+    const stage = await page.textContent('[data-testid=import-isoxml] [data-testid=task-progress]');
+    assert.match(stage, /Importing\s+(Waiting for a worker…|\d+ % · .+|Done)/);
+    await page.waitForSelector('[data-testid=import-assistant-result]', { timeout: T });
+    const link = await page.getAttribute('[data-testid=import-assistant-link]', 'href');
     assert.match(link, /#\/prescriptions\/\d+/);
+    // the task holds what was created: the prescription the result links to
+    const tasks = await api(token, 'GET', '/tasks?kind=import');
+    assert.equal(tasks.status, 200, JSON.stringify(tasks.data));
+    const task = tasks.data.items[0];
+    assert.equal(task.status, 'succeeded', JSON.stringify(task));
+    assert.equal(`#/prescriptions/${task.result.created.prescriptions[0].id}`, link);
     await page.click('[data-testid=import-assistant-link]');
     await page.waitForSelector('[data-testid=rx-sum-area]', { timeout: T });
     const field = await api(token, 'GET', `/fields/${fieldId}`);

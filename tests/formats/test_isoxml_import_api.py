@@ -195,3 +195,85 @@ def test_confirm_plans_in_the_bounded_worker_with_the_plan_time_limit(
     finally:
         eng.dispose()
     assert idle == 0
+
+
+def _incoming(name: str):
+    from fieldrx.tasks.work import incoming_upload
+
+    return incoming_upload(name)
+
+
+def test_confirm_runs_as_task_in_a_worker(client, rx, database_url, tmp_path, monkeypatch):
+    """A confirm over FIELDRX_IMPORT_BACKGROUND_BYTES answers 202 with an ``import`` task;
+    a real ``fieldrx worker`` stores the set, the task's result names what was created,
+    and the spooled upload is kept until the task ran and removed after."""
+    from fieldrx.settings import get_settings
+
+    from tests.tasks.helpers import wait_until
+    from tests.tasks.test_queue_workers import Worker
+
+    h = rx["h"]
+    data, sha = _export_and_preview(client, rx)
+    n_rx = _count(client, h, "prescriptions")
+    monkeypatch.setenv("FIELDRX_IMPORT_BACKGROUND_BYTES", str(len(data) - 1))
+    get_settings.cache_clear()
+    try:
+        r = _import(client, h, data, confirm=sha, swath_width_m=4, cell_length_m=5)
+    finally:
+        monkeypatch.delenv("FIELDRX_IMPORT_BACKGROUND_BYTES")
+        get_settings.cache_clear()
+    assert r.status_code == 202, r.text
+    task = r.json()
+    assert task["kind"] == "import" and task["status"] == "queued"
+    folder = _incoming(task["params"]["incoming"])
+    assert sorted(p.name for p in folder.iterdir()) == ["0000.upload"]  # kept for the task
+    assert _count(client, h, "prescriptions") == n_rx  # nothing stored before it ran
+
+    w = Worker(database_url, tmp_path / "worker.log")
+    try:
+
+        def finished():
+            v = client.get(task["url"], headers=h).json()
+            return v if v["status"] in ("succeeded", "failed", "cancelled") else None
+
+        view = wait_until(finished, 180, "the import task to finish", 0.2)
+    finally:
+        rc = w.stop()
+    assert rc == 0, w.log.read_text()[-3000:]
+    assert view["status"] == "succeeded", view
+    assert view["progress"] == 1 and "1 prescription" in view["message"]
+    created = view["result"]["created"]
+    assert view["result"]["sha256"] == sha and view["result"]["skipped"] == []
+    assert [m["id"] for m in created["matched_fields"]] == [rx["field"]["id"]]
+    (new,) = created["prescriptions"]
+    assert client.get(f"{API}/prescriptions/{new['id']}", headers=h).json()["model"] == "imported"
+    assert _count(client, h, "prescriptions") == n_rx + 1
+    assert not folder.exists()  # removed once the task ran
+
+
+def test_failed_import_task_stores_nothing(client, rx, monkeypatch):
+    """A task that runs out of its time limit while planning fails with the reason, stores
+    no farm, field or prescription, and its spooled upload is removed."""
+    from fieldrx.settings import get_settings
+    from fieldrx.tasks.work import execute
+
+    h = rx["h"]
+    data, sha = _export_and_preview(client, rx)
+    counts = {w: _count(client, h, w) for w in ("farms", "fields", "prescriptions")}
+    r = _import(client, h, data, confirm=sha, background="true", swath_width_m=4, cell_length_m=5)
+    assert r.status_code == 202, r.text
+    task = r.json()
+    folder = _incoming(task["params"]["incoming"])
+    assert folder.is_dir()
+    monkeypatch.setenv("FIELDRX_PLAN_TIME_LIMIT_S", "0.05")
+    get_settings.cache_clear()
+    try:
+        out = execute(task["id"])
+    finally:
+        monkeypatch.delenv("FIELDRX_PLAN_TIME_LIMIT_S")
+        get_settings.cache_clear()
+    view = client.get(task["url"], headers=h).json()
+    assert view["status"] == "failed" and out == {"error": view["error"]}, view
+    assert "limit" in view["error"] and "nothing was stored" in view["error"]
+    assert {w: _count(client, h, w) for w in counts} == counts
+    assert not folder.exists()

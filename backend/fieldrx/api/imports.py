@@ -4,7 +4,8 @@
 TASKDATA.XML with its .BIN/.XML files): without ``confirm`` it answers with
 a preview (what would be created, what is skipped and why) and the upload's
 SHA-256; nothing is stored. Sending the same files again with
-``confirm=<sha256>`` stores everything in one transaction, or nothing. The
+``confirm=<sha256>`` stores everything in one transaction, or nothing (a large
+upload, or any with ``background=true``: as an ``import`` task, 202). The
 handler is a plain ``def`` so parsing runs in the threadpool, not on the
 event loop.
 """
@@ -12,11 +13,15 @@ event loop.
 from __future__ import annotations
 
 import hashlib
+import shutil
+from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from fastapi import APIRouter, Query, Response, UploadFile
+from fastapi.responses import JSONResponse
+from sqlalchemy.orm import Session
 
 from fieldrx.api.common import ApiError
 from fieldrx.api.schemas.errors import ERRORS
@@ -26,7 +31,8 @@ from fieldrx.api.schemas.imports import (
     RxShapefileImportOut,
     TimelogImportOut,
 )
-from fieldrx.auth.deps import SessionDep, WriterDep
+from fieldrx.api.schemas.tasks import TaskOut
+from fieldrx.auth.deps import Principal, SessionDep, WriterDep
 from fieldrx.errors import TooLarge
 from fieldrx.formats import FormatError
 from fieldrx.geo import PlanningError
@@ -67,7 +73,8 @@ def _spool_files(files: list[UploadFile], folder: Path) -> tuple[list[tuple[str,
     "/isoxml",
     response_model=IsoxmlImportOut,
     responses={
-        201: {"model": IsoxmlImportOut, "description": "stored (confirm matched the preview)"}
+        201: {"model": IsoxmlImportOut, "description": "stored (confirm matched the preview)"},
+        202: {"model": TaskOut, "description": "confirm queued as an import task"},
     },
 )
 def import_isoxml(
@@ -85,12 +92,20 @@ def import_isoxml(
         le=5,
         description="density of a volume-rate product (kg/l): imports l/ha grids as kg/ha",
     ),
-) -> dict[str, Any]:
+    background: bool | None = Query(
+        default=None,
+        description="confirm as a background task (202 + task); default: when the upload "
+        "is larger than FIELDRX_IMPORT_BACKGROUND_BYTES",
+    ),
+) -> Any:
     """Preview (no ``confirm``) or store (``confirm`` = the preview's sha256) a TASKDATA set.
 
     The upload is spooled to disk; inflating, parsing and (on confirm) planning and storing
     run in a worker process (FIELDRX_IMPORT_TIME_LIMIT_S for a preview,
-    FIELDRX_PLAN_TIME_LIMIT_S for a confirm; 422 past it, nothing stored)."""
+    FIELDRX_PLAN_TIME_LIMIT_S for a confirm; 422 past it, nothing stored). A large confirm
+    (or any, with ``background=true``) runs as a task of kind ``import`` instead: 202 with
+    the task, whose progress names the stage and whose result holds ``created`` and
+    ``skipped`` once it succeeded (a failure stores nothing and fails the task)."""
     settings = get_settings()
     params = PlanParams(
         swath_width_m=swath_width_m, cell_length_m=cell_length_m, headland_passes=headland_passes
@@ -104,6 +119,11 @@ def import_isoxml(
     with spool.spool_dir() as folder:
         spooled, sha, names = _spool_files(files, folder)
         confirmed = confirm is not None and confirm == sha
+        size = sum(Path(path).stat().st_size for _, path in spooled)
+        if confirmed and (
+            background or (background is None and size > settings.import_background_bytes)
+        ):
+            return _queue_import(session, principal, spooled, names, sha, params, density_kg_l)
         limit = settings.plan_time_limit_s if confirmed else settings.import_time_limit_s
         req = svc.IsoxmlRequest(
             database_url=session.get_bind().engine.url.render_as_string(hide_password=False),
@@ -132,6 +152,42 @@ def import_isoxml(
     body["created"] = out["created"]
     response.status_code = 201
     return body
+
+
+def _queue_import(
+    session: Session,
+    principal: Principal,
+    spooled: list[tuple[str, str]],
+    names: str,
+    sha: str,
+    params: PlanParams,
+    density_kg_l: float | None,
+) -> JSONResponse:
+    """Move the spooled upload to a shared incoming folder and queue an ``import`` task on
+    it (``tasks.imports``: the task removes the folder when it ends)."""
+    from fieldrx.api.tasks import queue_task
+    from fieldrx.imagery import storage
+
+    incoming = storage.incoming_path()
+    incoming.mkdir()
+    try:
+        stored = []
+        for i, (name, path) in enumerate(spooled):
+            shutil.move(path, incoming / f"{i:04d}.upload")
+            stored.append([name, f"{i:04d}.upload"])
+        task_params = {
+            "incoming": incoming.name,
+            "files": stored,
+            "source_name": names,
+            "sha256": sha,
+            "plan": asdict(params),
+            "density_kg_l": density_kg_l,
+        }
+        return queue_task(session, principal, "import", task_params)
+    except BaseException:
+        session.rollback()
+        shutil.rmtree(incoming, ignore_errors=True)
+        raise
 
 
 @router.post(

@@ -26,7 +26,7 @@ def clean_after_crash(engine: Engine) -> int:
         uploads = set(
             conn.execute(
                 text(
-                    "SELECT params->>'incoming' FROM tasks WHERE kind = 'imagery' "
+                    "SELECT params->>'incoming' FROM tasks WHERE kind IN ('imagery', 'import') "
                     "AND status IN ('queued', 'running')"
                 )
             ).scalars()

@@ -21,6 +21,7 @@ The version's summary records the source (file, task, DDI, unit, kind).
 from __future__ import annotations
 
 import datetime as dt
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -63,6 +64,9 @@ IMPORTED_MODEL = "imported"
 # the implement type of the machines an import creates to hold other terminals' logs:
 # they never receive a job (not listed as sendable, refused by POST /jobs)
 IMPORTED_IMPLEMENT = "imported"
+
+
+Stage = Callable[[float, str], None]
 
 
 def _validated(ds: TaskDataSet) -> list[Any]:
@@ -314,8 +318,10 @@ def commit(
     user_id: int | None,
     params: PlanParams,
     source_name: str,
+    progress: Stage | None = None,
 ) -> dict[str, Any]:
     """Create everything (flush only; the caller commits once). Returns the new ids.
+    ``progress(share, message)`` hears of each prescription planned (the long part).
 
     Farms and fields that already exist (``import_checks``) are used, not created again."""
     valid = _validated(ds)
@@ -356,7 +362,12 @@ def commit(
         fields[f.ref] = row
         created.append(f.ref)
     created_rx = []
-    for rx in ds.prescriptions:
+    for i, rx in enumerate(ds.prescriptions):
+        if progress is not None:
+            progress(
+                i / len(ds.prescriptions),
+                f"planning and storing prescription {i + 1} of {len(ds.prescriptions)} ({rx.name})",
+            )
         fld = fields[rx.field_ref]
         source = {
             "file": source_name,
@@ -526,6 +537,33 @@ def check_import_cost(ds: TaskDataSet, params: PlanParams) -> None:
             raise PlanningError(f"task {rx.ref} (partfield {rx.field_ref}): {exc}") from exc
 
 
+def _scaled(progress: Stage, lo: float, hi: float) -> Stage:
+    return lambda share, message: progress(lo + (hi - lo) * share, message)
+
+
+def confirm_isoxml(session: Session, req: IsoxmlRequest, progress: Stage) -> dict[str, Any]:
+    """Read, preview, check and store a spooled TASKDATA upload in the session's
+    transaction (flush only: the caller commits once, so a failure stores nothing).
+    Returns ``{"preview", "created"}``; ``progress`` hears the stages."""
+    mb = sum(Path(path).stat().st_size for _, path in req.files) / 1024**2
+    progress(0.02, f"inflating and reading {mb:,.1f} MB of TASKDATA")
+    ds = read_taskdata(_read_spooled(req.files), req.density_kg_l)
+    progress(0.15, f"checking {len(ds.fields)} field(s) against the farm's data")
+    pre = preview(session, ds, req.organisation_id)
+    check_import_cost(ds, req.params)
+    progress(0.25, f"storing {len(ds.fields)} field(s)")
+    created = commit(
+        session,
+        ds,
+        req.organisation_id,
+        req.user_id,
+        req.params,
+        req.source_name,
+        progress=_scaled(progress, 0.3, 0.95),
+    )
+    return {"preview": pre, "created": created}
+
+
 def isoxml_in_worker(req: IsoxmlRequest) -> dict[str, Any]:
     """Inflate, parse and preview a spooled TASKDATA upload and, on confirm, store it and
     commit, all in a ``services.bounded`` child (the archive never inflates in the server's
@@ -533,23 +571,19 @@ def isoxml_in_worker(req: IsoxmlRequest) -> dict[str, Any]:
     from fieldrx.db.session import make_engine
     from fieldrx.services.bounded import ensure_caller_alive
 
-    ds = read_taskdata(_read_spooled(req.files), req.density_kg_l)
     engine = make_engine(req.database_url)
     try:
         with Session(engine) as session:
             limit_session(session, req.time_limit_s)
-            pre = preview(session, ds, req.organisation_id)
             if not req.confirm:
-                return {"preview": pre}
-            check_import_cost(ds, req.params)
-            created = commit(
-                session, ds, req.organisation_id, req.user_id, req.params, req.source_name
-            )
+                ds = read_taskdata(_read_spooled(req.files), req.density_kg_l)
+                return {"preview": preview(session, ds, req.organisation_id)}
+            out = confirm_isoxml(session, req, lambda share, message: None)
             ensure_caller_alive("the ISOXML import")
             session.commit()
+            return out
     finally:
         engine.dispose()
-    return {"preview": pre, "created": created}
 
 
 @dataclass

@@ -18,6 +18,7 @@ Modules:
   (``services.bounded``) and finished under the task's guard (below);
 - ``exports``: the export and job-report kinds; ``files``: the files they produce
   (stored with the task's success, downloaded in slices, purged after a retention);
+- ``imports``: the confirmed ISOXML import kind;
 - ``worker``: the worker loop, stalled-job recovery and the purge of old files.
 
 Exactly once: a killed worker's job runs again on another worker, and the killed
@@ -29,6 +30,7 @@ nothing. So a plan is stored once however often its job runs.
 
 from __future__ import annotations
 
-QUEUES = ("plan", "prescription", "imagery", "export", "report")  # one queue per kind of work
+# one queue per kind of work
+QUEUES = ("plan", "prescription", "imagery", "export", "report", "import")
 TASK_LOCK_NS = 7003  # advisory lock namespace (fleet.ingest 7001, fleet.alerts 7002, plans 7004)
 QUOTA_LOCK_NS = 7005  # an organisation's task quota is counted under this lock (store)

@@ -103,7 +103,7 @@ def _scoped(session: Session, model: type[Any], obj_id: Any, org: int, what: str
     return obj
 
 
-def _in_transaction(
+def in_transaction(
     database_url: str,
     task_id: int,
     time_limit_s: float,
@@ -147,7 +147,7 @@ def _plan_work(
 
 def plan_child(database_url: str, task_id: int, time_limit_s: float) -> dict[str, Any]:
     """A plan task in a ``services.bounded`` child: plan, store, complete (one transaction)."""
-    return _in_transaction(database_url, task_id, time_limit_s, _plan_work)
+    return in_transaction(database_url, task_id, time_limit_s, _plan_work)
 
 
 def _rx_work(
@@ -171,7 +171,7 @@ def _rx_work(
 
 def prescription_child(database_url: str, task_id: int, time_limit_s: float) -> dict[str, Any]:
     """A prescription task in a ``services.bounded`` child (one transaction)."""
-    return _in_transaction(database_url, task_id, time_limit_s, _rx_work)
+    return in_transaction(database_url, task_id, time_limit_s, _rx_work)
 
 
 def _run_bounded_kind(
@@ -328,12 +328,19 @@ def _run_report(claimed: store.Claimed, should_stop: StopFn) -> dict[str, Any]:
     return _run_in_child(report_child, "the job report", claimed, should_stop)
 
 
+def _run_import(claimed: store.Claimed, should_stop: StopFn) -> dict[str, Any]:
+    from fieldrx.tasks.imports import run_import
+
+    return run_import(claimed, should_stop)
+
+
 RUNNERS: dict[str, Callable[[store.Claimed, StopFn], dict[str, Any]]] = {
     "plan": _run_plan,
     "prescription": _run_prescription,
     "imagery": _run_imagery,
     "export": _run_export,
     "report": _run_report,
+    "import": _run_import,
 }
 
 

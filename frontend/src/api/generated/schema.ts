@@ -834,7 +834,10 @@ export interface paths {
          *
          *     The upload is spooled to disk; inflating, parsing and (on confirm) planning and storing
          *     run in a worker process (FIELDRX_IMPORT_TIME_LIMIT_S for a preview,
-         *     FIELDRX_PLAN_TIME_LIMIT_S for a confirm; 422 past it, nothing stored).
+         *     FIELDRX_PLAN_TIME_LIMIT_S for a confirm; 422 past it, nothing stored). A large confirm
+         *     (or any, with ``background=true``) runs as a task of kind ``import`` instead: 202 with
+         *     the task, whose progress names the stage and whose result holds ``created`` and
+         *     ``skipped`` once it succeeded (a failure stores nothing and fails the task).
          */
         post: operations["import_isoxml_api_v1_imports_isoxml_post"];
         delete?: never;
@@ -10641,6 +10644,8 @@ export interface operations {
     import_isoxml_api_v1_imports_isoxml_post: {
         parameters: {
             query?: {
+                /** @description confirm as a background task (202 + task); default: when the upload is larger than FIELDRX_IMPORT_BACKGROUND_BYTES */
+                background?: boolean | null;
                 cell_length_m?: number;
                 /** @description the preview's sha256 */
                 confirm?: string | null;
@@ -10675,6 +10680,15 @@ export interface operations {
                 };
                 content: {
                     "application/json": components["schemas"]["IsoxmlImportOut"];
+                };
+            };
+            /** @description confirm queued as an import task */
+            202: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["TaskOut"];
                 };
             };
             /** @description missing, invalid, expired or revoked bearer token */

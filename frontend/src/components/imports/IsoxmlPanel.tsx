@@ -1,5 +1,7 @@
 import { useState } from 'react';
-import { call, client } from '../../api/client';
+import { call, client, inline } from '../../api/client';
+import { isTask, type TaskView } from '../../lib/tasks';
+import { TaskProgress } from '../TaskProgress';
 import { formatArea } from '../../lib/units';
 import { ErrorBox } from '../Status';
 import { Confirm, Skipped, filesBody, fmtDate, num, usePreview, type Done, type Row } from './parts';
@@ -7,8 +9,13 @@ import { Confirm, Skipped, filesBody, fmtDate, num, usePreview, type Done, type 
 /** A TASKDATA set: farms and fields (matched to existing ones), prescriptions, TimeLogs, skips. */
 export function IsoxmlPanel({ files, onDone }: { files: File[]; onDone: Done }) {
   const [density, setDensity] = useState('');
+  // a confirm runs as a background task: its progress, and how the confirm hears its end
+  const [task, setTask] = useState<{ view: TaskView; done: (t: TaskView) => void } | null>(null);
   const query = density ? { density_kg_l: Number(density) } : {};
-  const pre = usePreview(() => call(client.POST('/api/v1/imports/isoxml', { params: { query }, ...filesBody(files) })), [files, density]);
+  const pre = usePreview(
+    async () => inline(await call(client.POST('/api/v1/imports/isoxml', { params: { query }, ...filesBody(files) }))),
+    [files, density],
+  );
   const p = (pre.data?.preview ?? null) as Row | null;
   const needsDensity = !!p?.skipped?.some((s: Row) => s.needs_density) || !!density;
   return (
@@ -92,10 +99,22 @@ export function IsoxmlPanel({ files, onDone }: { files: File[]; onDone: Done }) 
           <Confirm
             label={`Import ${p.fields.filter((f: Row) => !f.match).length} new field(s) and ${p.prescriptions.length} prescription(s)`}
             onConfirm={async () => {
+              // always in the background: planning a set's grids can take a minute, and the
+              // task shows which stage it is at (all or nothing either way)
               const r = await call(
-                client.POST('/api/v1/imports/isoxml', { params: { query: { ...query, confirm: pre.data!.sha256 } }, ...filesBody(files) }),
+                client.POST('/api/v1/imports/isoxml', {
+                  params: { query: { ...query, confirm: pre.data!.sha256, background: true } },
+                  ...filesBody(files),
+                }),
               );
-              const c = (r.created ?? {}) as Row;
+              let c: Row;
+              if (isTask(r)) {
+                const t = await new Promise<TaskView>((done) => setTask({ view: r, done }));
+                if (t.status !== 'succeeded') throw new Error(t.error ?? `the import was ${t.status}; nothing was stored`);
+                c = ((t.result ?? {}) as Row).created ?? {};
+              } else {
+                c = ((r as Row).created ?? {}) as Row;
+              }
               const rx = c.prescriptions?.[0];
               onDone(
                 `Imported ${c.fields.length} field(s) (${c.matched_fields.length} matched existing), ${c.prescriptions.length} prescription(s)` +
@@ -104,6 +123,7 @@ export function IsoxmlPanel({ files, onDone }: { files: File[]; onDone: Done }) 
               );
             }}
           />
+          {task && <TaskProgress task={task.view} onDone={task.done} label="Importing" />}
         </>
       )}
     </div>
