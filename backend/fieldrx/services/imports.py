@@ -288,20 +288,11 @@ def store_prescription(
             "min_rate_kg_ha": float(rates.min(initial=0.0)),
             "max_rate_kg_ha": float(rates.max(initial=0.0)),
             "mean_rate_kg_ha": float(np.sum(rates * area) / max(area.sum(), 1e-12)),
-            "total_kg": float(np.sum(rates * area) / 10_000.0),
+            "total_kg": planned_kg(rates, area),
             "extent": list(shapely.union_all(cells.polygons_wgs84()).bounds),
             "imported_outside": outside_share(rx, cells),
         }
     )
-    area = cells.area_m2
-    summary = {
-        "source": source,
-        "n_cells": len(cells),
-        "min_rate_kg_ha": float(rates.min(initial=0.0)),
-        "max_rate_kg_ha": float(rates.max(initial=0.0)),
-        "mean_rate_kg_ha": float(np.sum(rates * area) / max(area.sum(), 1e-12)),
-        "total_kg": planned_kg(rates, area),
-    }
     ver = PrescriptionVersion(
         prescription_id=row.id, version=1, note="imported", summary=summary, created_by=user_id
     )
