@@ -146,7 +146,7 @@ describe('agronomic sense: the wheat case', { skip: SKIP }, () => {
     await page.click('[data-testid=send-job]');
     await page.waitForSelector('[data-testid=job-confirm-panel]');
     const text = await page.textContent('[data-testid=job-confirm-text]');
-    assert.match(text, /3 cell\(s\).*3 above a nutrient ceiling.*confirm_flagged/);
+    assert.match(text, /3 cell\(s\).*3 above a nutrient ceiling.*confirm these cells/);
     assert.equal((await api(token, 'GET', `/jobs?prescription_id=${rxId}`)).data.total, 0, 'nothing sent before the confirmation');
     await shot(page, 'agronomy-confirm');
     await page.click('[data-testid=job-confirm]');

@@ -521,7 +521,7 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
       await page.selectOption('[data-testid=job-machine]', String(S.smallMachineId));
       await page.click('[data-testid=send-job]');
       await page.waitForSelector('[data-testid=job-confirm-panel]');
-      assert.match(await page.textContent('[data-testid=job-confirm-text]'), /cell\(s\).*outside the meter range.*confirm_flagged/);
+      assert.match(await page.textContent('[data-testid=job-confirm-text]'), /cell\(s\).*outside the meter range.*confirm these cells/);
       await shot(page, 'job-confirm');
       await page.click('[data-testid=job-confirm]');
       await page.waitForURL(/#\/jobs\?created=\d+/);

@@ -370,7 +370,7 @@ def test_job_with_flagged_cells_needs_explicit_confirmation(client, org, db) -> 
     assert err["where"] == "confirm_flagged" and err["flagged"]["count"] == n
     assert err["flagged"]["area_m2"] == pytest.approx(low["summary"]["area_m2"], rel=1e-6)
     assert err["flagged"]["seq"][:2] == [0, 1]
-    assert f"{n} cell(s)" in err["detail"] and "confirm_flagged" in err["detail"]
+    assert f"{n} cell(s)" in err["detail"] and "confirm these cells" in err["detail"]
     assert (
         db.scalar(text("SELECT count(*) FROM jobs WHERE prescription_id = :x"), {"x": low["id"]})
         == 0
