@@ -106,6 +106,19 @@ describe('fleet map: marker, label and coverage agree with the list and the repo
     assert.ok(j.ok, `job ${j.status} ${JSON.stringify(j.data)}`);
     job = j.data;
     assert.ok((await api(token, 'POST', `/jobs/${job.id}/state`, { state: 'sent' })).ok);
+    // Another machine parked 30 km away, seen before the screen opens: the map is fitted to
+    // it, so the driven machine is found only by following it from the list.
+    const far = await api(token, 'POST', '/machines', { name: `fleet map parked ${Date.now()}`, width_m: 3.6, lag_s: 1.52, calibration });
+    assert.ok(far.ok, `machine ${far.status}`);
+    const farToken = await api(token, 'POST', `/machines/${far.data.id}/device-token`);
+    const parked = {
+      machine_id: far.data.id, seq: 1, t: Date.now() / 1000, lon: 112.32, lat: 32.13, fix_quality: 4, hdop: 0.8,
+      speed_raw_m_s: 0, speed_filtered_m_s: 0, heading_deg: 0, job_id: null, cell_seq: null,
+      target_rate_kg_ha: 0, applied_rate_kg_ha: 0, target_shaft_rpm: 0, actual_shaft_rpm: 0, duty: 0,
+      implement_down: false, alarms: [], queue_backlog: 0,
+    };
+    const r = await api(farToken.data.token, 'POST', '/telemetry', { records: [parked] });
+    assert.ok(r.ok, `telemetry ${r.status} ${JSON.stringify(r.data)}`);
     B = await launch();
     page = B.page;
     await signIn(page);
@@ -147,7 +160,17 @@ describe('fleet map: marker, label and coverage agree with the list and the repo
       let done = false;
       void exited.then(() => (done = true));
       const deadline = Date.now() + scaled(300_000);
+      let following = false;
       while (!done && Date.now() < deadline) {
+        // The map was fitted to the machines already on it (earlier tests' may be far away):
+        // follow this one from the list as soon as it has a position, as a user would.
+        if (!following) {
+          const follow = page.locator(`[data-testid=fleet-follow-${machine.id}]`);
+          if ((await follow.count()) > 0) {
+            await follow.click();
+            following = (await follow.getAttribute('aria-pressed')) === 'true';
+          }
+        }
         const s = await page.evaluate(sample, machine.id);
         if (s.marker != null && s.settled) samples.push(s);
         await sleep(300);
@@ -161,6 +184,7 @@ describe('fleet map: marker, label and coverage agree with the list and the repo
     }
     await shot(page, 'fleetmap-end');
     assert.ok(samples.length >= 3, `the machine was on the map while driving (${samples.length} samples)`);
+    assert.equal(await page.getAttribute(`[data-testid=fleet-follow-${machine.id}]`, 'aria-pressed'), 'true', 'the list shows the machine followed');
     assert.ok(samples.some((s) => s.state === 'working'), `seen working: ${[...new Set(samples.map((s) => s.state))]}`);
     for (const [i, s] of samples.entries()) {
       assert.equal(s.marker, s.list, `sample ${i}: marker colour ${s.marker} vs list dot ${s.list} (${s.state})`);

@@ -18,10 +18,12 @@ import { trailSegments, type TrailPoint } from '../lib/trail';
 import { bboxOf } from '../lib/geo';
 import { useMap } from '../map/context';
 import { MapView } from '../map/MapView';
-import { CellGrid, FieldBoundary, FitBounds, Machines, Track } from '../map/overlays';
+import { CellGrid, FieldBoundary, FitBounds, Follow, Machines, Track } from '../map/overlays';
 import { absoluteApiUrl } from '../map/setup';
 
 export const COVERAGE_REFRESH_MS = 5000;
+/** The fleet screen's side panel, which may lie over the map on a tablet. */
+const PANEL = '.split > .panel[aria-label="Fleet"]';
 /**
  * Applied cells in amber, the rest of the job's grid clear. An applied cell is the report's
  * (`JobReport.cells_applied`): one the prescription asks fertilizer for (planned rate > 0)
@@ -99,9 +101,13 @@ function LiveCoverage({ jobId, progress, state }: { jobId: number; progress: num
   );
 }
 
-/** The fleet's map: fitted once to the machines, then left where the user puts it. */
-export function FleetMap(props: { fleet: Fleet; trails: Map<number, TrailPoint[]> }) {
-  const { fleet, trails } = props;
+/**
+ * The fleet's map: fitted once to the machines, then left where the user puts it, except
+ * that a followed machine (`follow`, picked in the list) is kept in view.
+ */
+export function FleetMap(props: { fleet: Fleet; trails: Map<number, TrailPoint[]>; follow?: number | null }) {
+  const { fleet, trails, follow } = props;
+  const followed = follow != null ? fleet.get(follow) : undefined;
   const fields = useFields({ limit: 500 });
   const machines = useMemo(() => [...fleet.values()], [fleet]);
   const paths = useMemo(() => [...trails.values()].flatMap(trailSegments), [fleet, trails]); // eslint-disable-line react-hooks/exhaustive-deps
@@ -124,7 +130,12 @@ export function FleetMap(props: { fleet: Fleet; trails: Map<number, TrailPoint[]
       <Track id="trails" paths={paths} width={2} opacity={0.6} />
       <Machines machines={machines} onClick={(id) => (location.hash = `/machines/${id}`)} />
       <MachineLabels fleet={fleet} />
-      <FitBounds bbox={bbox} once padding={60} maxZoom={16} avoid='.split > .panel[aria-label="Fleet"]' />
+      <FitBounds bbox={bbox} once padding={60} maxZoom={16} avoid={PANEL} />
+      <Follow
+        followKey={follow ?? null}
+        point={followed?.lon != null && followed.lat != null ? [followed.lon, followed.lat] : null}
+        avoid={PANEL}
+      />
     </MapView>
   );
 }

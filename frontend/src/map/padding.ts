@@ -21,3 +21,23 @@ export function visiblePadding(map: Box, cover: Box | null, base: number) {
   else pad.top += h;
   return pad;
 }
+
+/**
+ * Whether a point at screen position (`x`, `y`) lies outside the part of the map left
+ * visible by `pad` (e.g. `visiblePadding`), shrunk by `margin` pixels on every side: a
+ * followed machine is brought back into view before it reaches the edge.
+ */
+export function outsideVisible(
+  size: { width: number; height: number },
+  pad: { top: number; bottom: number; left: number; right: number },
+  x: number,
+  y: number,
+  margin = 0,
+): boolean {
+  return (
+    x < pad.left + margin ||
+    x > size.width - pad.right - margin ||
+    y < pad.top + margin ||
+    y > size.height - pad.bottom - margin
+  );
+}

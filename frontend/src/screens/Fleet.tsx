@@ -21,6 +21,8 @@ export function FleetScreen() {
   const refresh = useInvalidate();
   const [fleet, setFleet] = useState<Fleet>(new Map());
   const [acked, setAcked] = useState<AlertGroup[] | null>(null);
+  // the machine the map follows (picked in the list); null: the map stays where it is put
+  const [followed, setFollowed] = useState<number | null>(null);
   const trails = useRef(new Map<number, TrailPoint[]>());
 
   useEffect(() => {
@@ -70,19 +72,25 @@ export function FleetScreen() {
           {[...fleet.values()]
             .sort((a, b) => a.machine_id - b.machine_id)
             .map((m) => (
-              <MachineItem key={m.machine_id} m={m} />
+              <MachineItem
+                key={m.machine_id}
+                m={m}
+                followed={followed === m.machine_id}
+                onFollow={() => setFollowed((f) => (f === m.machine_id ? null : m.machine_id))}
+              />
             ))}
         </ul>
         <Alerts groups={groups} fleet={fleet} onAck={(g) => void ackAll(g)} />
       </aside>
-      <FleetMap fleet={fleet} trails={trails.current} />
+      <FleetMap fleet={fleet} trails={trails.current} follow={followed} />
     </div>
   );
 }
 
-function MachineItem({ m }: { m: FleetMachine }) {
+function MachineItem({ m, followed, onFollow }: { m: FleetMachine; followed: boolean; onFollow: () => void }) {
+  const cls = [m.status === 'offline' ? 'machine-offline' : '', followed ? 'followed' : ''].filter(Boolean).join(' ');
   return (
-    <li data-testid={`fleet-machine-${m.machine_id}`} className={m.status === 'offline' ? 'machine-offline' : undefined}>
+    <li data-testid={`fleet-machine-${m.machine_id}`} className={cls || undefined}>
       <span className="dot" style={{ background: statusColor(m.status) }} />
       <a href={`#/machines/${m.machine_id}`}>{m.name ?? `Machine #${m.machine_id}`}</a>{' '}
       <span className="muted" data-testid={`machine-status-${m.machine_id}`}>
@@ -119,6 +127,18 @@ function MachineItem({ m }: { m: FleetMachine }) {
       <div className="muted small" data-testid={`machine-pos-${m.machine_id}`}>
         {m.lon != null && m.lat != null ? `${Number(m.lon).toFixed(6)}, ${Number(m.lat).toFixed(6)}` : 'no position'}
         {m.status === 'offline' && m.lon != null ? ' (last known)' : ''}
+        {m.lon != null && m.lat != null && (
+          <button
+            type="button"
+            className="link"
+            aria-pressed={followed}
+            data-testid={`fleet-follow-${m.machine_id}`}
+            title="Keep this machine in view on the map"
+            onClick={onFollow}
+          >
+            {followed ? 'following' : 'follow on map'}
+          </button>
+        )}
       </div>
     </li>
   );

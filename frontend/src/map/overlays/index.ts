@@ -6,6 +6,7 @@
 export { CellGrid } from './CellGrid';
 export { FieldBoundary } from './FieldBoundary';
 export { FitBounds } from './FitBounds';
+export { Follow } from './Follow';
 export { Holes } from './Holes';
 export { Imagery, IMAGERY_ID } from './Imagery';
 export { Machines } from './Machines';
