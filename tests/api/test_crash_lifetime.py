@@ -110,7 +110,7 @@ def test_kill_9_leaves_no_child_no_commit_no_file(database_url, org, db, tmp_pat
             pre = c.post(
                 f"{API}/imports/isoxml", files={"files": ("TASKDATA.zip", zip_bytes)}, timeout=120
             )
-            assert pre.status_code == 200, pre.text
+            assert pre.status_code == 200, (pre.text, proc.lines[-40:])
         sha = pre.json()["sha256"]
         raster = write_tiff(
             tmp_path / "sparse.tif",

@@ -203,13 +203,15 @@ def test_plan_over_the_time_limit_is_stopped_and_leaves_nothing(
     print(f"refused in {took * 1e3:.0f} ms")
     assert r.status_code == 422, r.text
     assert f"longer than the {PLAN_TIME_LIMIT_S:g} s limit" in r.json()["detail"]
-    assert took < PLAN_TIME_LIMIT_S + 3, took
+    assert took < PLAN_TIME_LIMIT_S + scaled(1.5), took  # the limit, then the stop
     assert worst < HEALTH_BUDGET_S, worst
     n = db.scalar(text("SELECT count(*) FROM plans WHERE field_id = :f"), {"f": fid})
     assert n == 0
-    # the server still plans a normal request afterwards
+    # the server still plans a normal request afterwards (a small field: well inside the
+    # 1.5 s limit even on a busy machine)
+    small = _field(api, h, rectangle(112.30, 32.10, 200, 200))
     ok = httpx.post(
-        f"{api}{API}/fields/{fid}/plans",
+        f"{api}{API}/fields/{small}/plans",
         headers=h,
         json={"swath_width_m": 24.0, "cell_length_m": 30.0},
         timeout=scaled(60),
@@ -517,3 +519,24 @@ def test_sigterm_stops_the_server_during_a_long_plan(database_url: str, org, db)
     assert result.get("status") != 201, result
     n = db.scalar(text("SELECT count(*) FROM plans WHERE field_id = :f"), {"f": fid})
     assert n == 0
+
+
+def test_heavy_work_runs_under_a_long_tmpdir(database_url: str, org, tmp_path) -> None:  # noqa: ANN001
+    """A server whose TMPDIR is too long for a Unix socket path (a CI job's own directory)
+    still plans: the heavy-work forkserver keeps its socket in a short directory, while
+    uploads are still spooled under TMPDIR."""
+    tmp = tmp_path / ("t" * 80)
+    tmp.mkdir()
+    proc, url = start_api(database_url, env={"TMPDIR": str(tmp)})
+    try:
+        h = org.headers()
+        fid = _field(url, h, rectangle(112.30, 32.10, 200, 200))
+        r = httpx.post(
+            f"{url}{API}/fields/{fid}/plans",
+            headers=h,
+            json={"swath_width_m": 24.0, "cell_length_m": 30.0},
+            timeout=scaled(60),
+        )
+        assert r.status_code == 201, (r.text, proc.lines[-20:])
+    finally:
+        proc.stop()

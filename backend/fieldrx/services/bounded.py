@@ -27,9 +27,11 @@ from __future__ import annotations
 import contextlib
 import ctypes
 import multiprocessing
+import multiprocessing.util
 import os
 import pickle
 import signal
+import tempfile
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -69,11 +71,52 @@ def get_slots() -> threading.BoundedSemaphore:
         return _slots
 
 
+# The forkserver listens on a Unix socket in multiprocessing's temporary directory,
+# ``$TMPDIR/pymp-XXXXXXXX/listener-XXXXXXXX``, and a socket path holds at most 107 bytes
+# (``sun_path``). Under a long TMPDIR (a CI job's or a container's own directory) every
+# heavy request would fail on "AF_UNIX path too long". Python 3.13 falls back to /tmp for
+# that reason, 3.11 does not, so the same choice is made here before the forkserver starts.
+_SOCKET_SUFFIX = len("/pymp-XXXXXXXX/listener-XXXXXXXX")
+_SUN_PATH_MAX = 107
+_SHORT_TMP = ("/tmp", "/var/tmp", "/dev/shm")
+_socket_dir_lock = threading.Lock()
+_socket_dir_done = False
+
+
+def _fits(directory: str) -> bool:
+    return len(os.fsencode(directory)) + _SOCKET_SUFFIX <= _SUN_PATH_MAX
+
+
+def socket_dir_fits() -> None:
+    """Make multiprocessing keep its sockets in a directory short enough for a socket
+    path (the first writable of /tmp, /var/tmp, /dev/shm when TMPDIR is too long); other
+    temporary files (spooled uploads) stay under TMPDIR. Idempotent."""
+    global _socket_dir_done
+    with _socket_dir_lock:
+        if _socket_dir_done:
+            return
+        _socket_dir_done = True
+        base = tempfile.gettempdir()  # also fixes tempfile.tempdir for the restore below
+        if _fits(base):
+            return
+        short = next(
+            (d for d in _SHORT_TMP if _fits(d) and os.access(d, os.W_OK | os.X_OK)), None
+        )
+        if short is None:
+            return  # nothing shorter to use: the forkserver's own error will say why
+        tempfile.tempdir = short
+        try:
+            multiprocessing.util.get_temp_dir()  # created now, kept for the process
+        finally:
+            tempfile.tempdir = base
+
+
 def warm_up() -> None:
     """Start the forkserver (importing the heavy modules) in the background, so the first
     heavy request does not pay for it while other requests are waiting."""
     from multiprocessing import forkserver
 
+    socket_dir_fits()
     threading.Thread(
         target=forkserver.ensure_running, name="forkserver-warm-up", daemon=True
     ).start()
@@ -200,6 +243,7 @@ def run_bounded(
     ``should_stop()`` turns true (the child is killed).
     """
     t0 = time.monotonic()
+    socket_dir_fits()
     with heavy_slot(time_limit_s, what):
         recv, send = _ctx.Pipe(duplex=False)
         proc = _ctx.Process(target=_child, args=(send, fn, args, process_tag()), daemon=True)
