@@ -73,6 +73,10 @@ fi
 if ! command -v mosquitto >/dev/null; then
   apt_install mosquitto
 fi
+# curl: scripts/run.sh and scripts/e2e.sh wait for the server's health answer with it
+if ! command -v curl >/dev/null; then
+  apt_install curl
+fi
 
 # --- Python -----------------------------------------------------------------
 PY=${PYTHON:-python3}
