@@ -238,3 +238,5 @@ SERVER_OPTION_PEER_CONTROL  # unused variable (edge_agent/fieldrx_edge/isobus/pr
 ACTIVATION_OK  # unused variable (edge_agent/fieldrx_edge/isobus/process_data.py)
 ACTIVATION_OTHER_ERROR  # unused variable (edge_agent/fieldrx_edge/isobus/process_data.py)
 CONTROL_STATE_AUTO  # unused variable (edge_agent/fieldrx_edge/isobus/tc_server.py)
+# a standard-library setting read by tempfile.gettempdir() (services/bounded.py sets it)
+tempdir  # unused attribute (backend/fieldrx/services/bounded.py)
