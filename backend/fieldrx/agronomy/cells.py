@@ -17,8 +17,8 @@ CellTable = Cells  # the rate models' name for the one cell type
 # what the API, tiles and exports show.
 FLAG_BITS: dict[str, int] = {
     "no_data": 1,  # interpolation had no sample for the cell: fallback rate used
-    "below_meter_range": 2,  # rate raised to the lowest meterable rate
-    "above_meter_range": 4,  # rate lowered to the highest meterable rate
+    "below_meter_range": 2,  # rate below what the implement can meter (kept as asked)
+    "above_meter_range": 4,  # rate above what the implement can meter (kept as asked)
     "manual": 8,  # rate set by a per-cell edit
     "zone": 16,  # rate set by zone painting
     "clamped_min": 32,  # model rate raised to the agronomist's minimum (reported)
