@@ -5,6 +5,7 @@
 #   ticket   comments say why, not which issue of a tracker (which is not in the repository)
 #   vulture  no dead code (framework entry points listed in vulture_whitelist.py)
 #   mypy     zero errors in backend/ and edge_agent/, strict on the pure packages (mypy.ini)
+#   pytest   the quick unit tests of the pure modules (make test runs every test)
 # Usage: scripts/check.sh [--static]   (--static: without the unit tests of pure modules)
 set -uo pipefail
 cd "$(dirname "$0")/.."
@@ -42,10 +43,11 @@ step "mypy (mypy.ini)"
 mypy --no-error-summary || FAILED+=(mypy)
 
 if [[ "${1:-}" != "--static" ]]; then
-  step "unit tests of the pure modules (pytest --pure)"
-  # the pure packages' tests (geometry, agronomy, control); the rest is make test's
-  pytest -q -p no:cacheprovider --pure -n 0 tests/geo tests/agronomy tests/control \
-    || FAILED+=(unit)
+  step "unit tests of the pure modules (pytest --pure, not slow)"
+  # the pure packages' quick tests (geometry, agronomy, control, docs); the slow ones
+  # (property sweeps over many fields, CLI subprocesses) and the rest are make test's
+  pytest -q -p no:cacheprovider --pure -n 0 -m "not slow" \
+    tests/geo tests/agronomy tests/control tests/test_docs.py || FAILED+=(unit)
 fi
 
 if [[ ${#FAILED[@]} -gt 0 ]]; then

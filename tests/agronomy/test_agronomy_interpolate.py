@@ -112,6 +112,7 @@ def test_kriging_errors():
         kriging(xy[:2], xy[:2], z[:2])
 
 
+@pytest.mark.slow
 def test_dispatch_and_large_grid_is_vectorised():
     # 100k cells: every method must finish quickly (no per-cell Python loops)
     cells = CellTable.rectangle(EPSG, 500000.0, 3550000.0, 200, 500, 2.3, 5.0)

@@ -40,6 +40,7 @@ def test_quality_metrics_computed_from_data() -> None:
         depth_quality([30.0])
 
 
+@pytest.mark.slow
 def test_depth_loop_reaches_target_and_holds_on_sensor_fault() -> None:
     plant = seed002_depth(1e-3)
     plant.reset(25.0)

@@ -31,6 +31,7 @@ def continuous_reference() -> tuple[np.ndarray, np.ndarray]:
     return t, y
 
 
+@pytest.mark.slow
 def test_paper_gains_reproduce_the_continuous_reference() -> None:
     """Science digest: 0-90 % rise 0.140 s, 2 % settling 0.463 s, overshoot 7.35 % (not 10.33 %)."""
     m = metrics_until(seed001_run(PID(**PAPER), 1e-4, 1.5, None), 1.5)

@@ -7,6 +7,8 @@ import pytest
 
 from tests.support import scaled
 
+pytestmark = pytest.mark.slow  # each test starts the CLI in a new Python process
+
 FIELD = {
     "type": "FeatureCollection",
     "features": [

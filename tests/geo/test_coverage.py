@@ -68,6 +68,7 @@ def test_u_shape_decomposes_into_blocks_and_routes_inside():
     assert p.n_swaths - 1 > math.ceil((300 - 2 * 2.3) / 2.3)
 
 
+@pytest.mark.slow
 def test_pond_route_never_crosses_the_pond():
     f = pond_field()
     for h in (0, 1, 2):
@@ -95,6 +96,7 @@ def test_small_plot_route_stays_inside_with_headland():
     check_plan(p, f)
 
 
+@pytest.mark.slow
 def test_headland_first_and_last():
     f = l_shape()
     first = plan_coverage(f, 2.3, "optimal", headland_passes=2, headland_order="first")
@@ -114,6 +116,7 @@ def test_headland_first_and_last():
         assert p.coverage_pct + 100 * p.corner_loss_m2 / f.area > 99.9
 
 
+@pytest.mark.slow
 def test_headland_around_holes():
     f = pond_field()
     p = plan_coverage(f, 2.3, "optimal", headland_passes=1)
@@ -123,6 +126,7 @@ def test_headland_around_holes():
     assert min(r.line.distance(hole) for r in rings) == pytest.approx(1.15, abs=1e-6)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "field", [rect(), l_shape(), u_shape(), pond_field(), irregular(40), plot_35x23()]
 )
@@ -134,6 +138,7 @@ def test_optimal_not_worse_than_longest_edge(field):
         assert op.n_turns <= le.n_turns
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("field", [irregular(40, seed=3), l_shape(), pond_field()])
 def test_optimal_not_worse_than_brute_force_one_degree(field):
     w = 6.0
@@ -235,6 +240,7 @@ def test_narrow_fields_get_a_one_pass_or_headland_only_plan():
         assert len(grid) > 0 and grid.uncovered_m2 - p.corner_loss_m2 < 0.01 * f.area
 
 
+@pytest.mark.slow
 def test_geos_failure_is_retried_on_a_snapped_boundary(monkeypatch):
     # no GEOS exception reaches the user: the first failure snaps the boundary to 1 mm
     import shapely
@@ -272,6 +278,7 @@ def test_traced_boundary_simplification_is_reported():
     assert not any("simplified" in m for m in plan_coverage(rect(), 2.3).warnings)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("radius", [4.0, 6.0, 8.0])
 @pytest.mark.parametrize("reverse", [False, True])
 @pytest.mark.parametrize("passes", [0, 1, 2])
@@ -309,6 +316,7 @@ def test_u_turn_when_the_gap_allows_it():
     assert p.required_headland_m == pytest.approx(6.0, abs=1e-3)
 
 
+@pytest.mark.slow
 def test_required_headland_is_computed_and_enough_passes_keep_the_route_inside():
     f = pond_field()
     few = plan_coverage(f, 2.3, "optimal", headland_passes=1, turn_radius_m=6.0)
@@ -349,6 +357,7 @@ def test_skip_row_pattern_turns_are_u_turns_and_auto_picks_the_faster():
         plan_coverage(f, 2.3, pattern="spiral")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("field", [rect(), l_shape(), u_shape(), pond_field(), irregular(40)])
 @pytest.mark.parametrize("w", [2.3, 12.0])
 def test_optimal_heading_needs_few_layouts_on_the_bench_fields(field, w):
@@ -362,6 +371,7 @@ def test_optimal_heading_needs_few_layouts_on_the_bench_fields(field, w):
     assert swath_count(field, w, phi, field) <= brute
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("field", "w", "h"), [(irregular(40), 12.0, 1), (l_shape(), 12.0, 0), (pond_field(), 12.0, 0)]
 )
@@ -387,6 +397,7 @@ def test_heading_ties_in_the_swath_count_go_to_less_non_working_travel(field, w,
         assert p.nonworking_length_m < 3000.0
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("radius", [4.0, 6.0])
 @pytest.mark.parametrize(
     "field",

@@ -34,6 +34,7 @@ FIELDS = {
 }
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", FIELDS)
 @pytest.mark.parametrize("h", [0, 1, 2])
 def test_fixed_fields_grid_invariants(name, h):
@@ -117,6 +118,7 @@ def test_bad_grid_parameters():
         build_grid(plan, rect(), 5.0)
 
 
+@pytest.mark.slow
 def test_too_many_cells_refused_before_allocating():
     side = math.sqrt(2_000 * 10_000)  # 2,000 ha at 0.5 m x 2.3 m: ~17 million cells
     f = box(X0, Y0, X0 + side, Y0 + side)
@@ -129,6 +131,7 @@ def test_too_many_cells_refused_before_allocating():
     assert time.perf_counter() - t < 1.0
 
 
+@pytest.mark.slow
 def test_dense_noisy_boundary_is_planned_quickly_and_cells_fit_it():
     # a GNSS-traced boundary: 600 vertices ~1 m apart with 0.3 m noise
     import time
