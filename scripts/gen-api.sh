@@ -9,7 +9,7 @@ ROOT=$(pwd)
 PY=${PYTHON:-$ROOT/.venv/bin/python}
 mkdir -p frontend/src/api/generated
 PYTHONPATH="$ROOT/backend:$ROOT/edge_agent${PYTHONPATH:+:$PYTHONPATH}" "$PY" -c \
-  "from fieldrx.apidocs import openapi_json; print(openapi_json(), end='')" \
+  "from fieldrx.app import create_app; from fieldrx.apidocs import openapi_json; print(openapi_json(create_app()), end='')" \
   >frontend/src/api/openapi.json
 PYTHONPATH="$ROOT/backend${PYTHONPATH:+:$PYTHONPATH}" "$PY" -c \
   "from fieldrx.apidocs import schema_defaults_json; print(schema_defaults_json(open('frontend/src/api/openapi.json').read()), end='')" \

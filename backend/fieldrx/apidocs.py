@@ -143,15 +143,12 @@ def add_components(app: FastAPI, schemas: Mapping[str, dict[str, Any]]) -> None:
     app.openapi = openapi  # type: ignore[method-assign]
 
 
-def openapi_json(app: FastAPI | None = None) -> str:
-    """The OpenAPI document as committed in ``frontend/src/api/openapi.json`` (the generated
-    TypeScript client's source; ``tests/api/test_contract.py`` fails when it is stale)."""
+def openapi_json(app: FastAPI) -> str:
+    """``app``'s OpenAPI document as committed in ``frontend/src/api/openapi.json`` (the
+    generated TypeScript client's source; ``tests/api/test_contract.py`` fails when it is
+    stale)."""
     import json
 
-    if app is None:
-        from fieldrx.app import create_app
-
-        app = create_app()
     return json.dumps(app.openapi(), indent=2, ensure_ascii=False) + "\n"
 
 

@@ -198,7 +198,7 @@ def test_confirm_plans_in_the_bounded_worker_with_the_plan_time_limit(
 
 
 def _incoming(name: str):
-    from fieldrx.tasks.work import incoming_upload
+    from fieldrx.tasks.context import incoming_upload
 
     return incoming_upload(name)
 

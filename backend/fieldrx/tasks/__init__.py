@@ -12,14 +12,18 @@ Modules:
 
 - ``store``: task rows (create with the queue job in one transaction, read, cancel, the
   state changes a worker makes) and their API view;
-- ``queue``: the procrastinate app and the one queue task, ``fieldrx.run_task``, which
-  dispatches by kind;
+- ``queue``: the procrastinate app and how jobs of the one queue task,
+  ``fieldrx.run_task``, are made (deferred by name from the API);
 - ``work``: what each kind does, run in a child process with a time limit
-  (``services.bounded``) and finished under the task's guard (below);
+  (``services.bounded``) and finished under the task's guard (below), and the dispatch
+  by kind (``RUNNERS``);
+- ``context``: what the kinds' work runs with (progress, input errors, the one
+  transaction that stores a result and completes its task);
 - ``exports``: the export and job-report kinds; ``files``: the files they produce
   (stored with the task's success, downloaded in slices, purged after a retention);
 - ``imports``: the confirmed ISOXML import kind;
-- ``worker``: the worker loop, stalled-job recovery and the purge of old files.
+- ``worker``: the queue task's code, the worker loop, stalled-job recovery and the purge
+  of old files.
 
 Exactly once: a killed worker's job runs again on another worker, and the killed
 worker's child may even still be finishing. Every kind therefore writes its result and

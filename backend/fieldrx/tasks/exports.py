@@ -37,6 +37,7 @@ from fieldrx.fleet.reports import (
 )
 from fieldrx.settings import get_settings
 from fieldrx.tasks import files, store
+from fieldrx.tasks.context import Progress, TaskInputError
 
 Stage = Callable[[float, str], None]
 
@@ -81,8 +82,6 @@ def open_report_task(
 
 
 def _job(session: Session, job_id: Any, org: int) -> Job:
-    from fieldrx.tasks.work import TaskInputError
-
     job = session.get(Job, int(job_id)) if job_id is not None else None
     if job is None or job.organisation_id != org:
         raise TaskInputError(f"job {job_id} not found (deleted after the task was queued?)")
@@ -106,8 +105,6 @@ def _export_file(
     session: Session, p: dict[str, Any], org: int, progress: Stage
 ) -> tuple[bytes, str, str, dict[str, Any]]:
     """(bytes, media type, file name, extra result) of the export ``p`` describes."""
-    from fieldrx.tasks.work import TaskInputError
-
     if p.get("source") == "job":
         from fieldrx.services.asapplied import export_job
 
@@ -151,8 +148,6 @@ def _stored(
     """Run ``work`` (-> bytes, media, name, result, message) in one transaction under the
     task's guard, store its file and complete the task."""
     from fieldrx.services.bounded import ensure_caller_alive
-    from fieldrx.tasks.work import Progress
-
     progress = Progress(raw_dsn(get_settings().database_url), claimed.id)
     try:
         with Session(get_engine()) as session:

@@ -5,7 +5,7 @@ imagery storage's ``.incoming/`` (a place every API process and worker of a depl
 shares, as for imagery uploads) and queues this task with the folder's name. The worker
 reads, previews, checks and stores the set in a ``services.bounded`` child (the same
 time limit as an inline confirm, ``FIELDRX_PLAN_TIME_LIMIT_S``), in ONE transaction that
-also completes the task (``tasks.work.in_transaction``: exactly once), so a failure or a
+also completes the task (``tasks.context.in_transaction``: exactly once), so a failure or a
 cancellation stores nothing. The folder is removed once the task has ended either way; a
 worker killed mid-way leaves it for the retry (``services.cleanup`` keeps the folders of
 open tasks).
@@ -21,7 +21,7 @@ from sqlalchemy.orm import Session
 from fieldrx.services.plans import PlanParams
 from fieldrx.settings import get_settings
 from fieldrx.tasks import store
-from fieldrx.tasks.work import Progress, StopFn, TaskInputError, in_transaction, incoming_upload
+from fieldrx.tasks.context import Progress, StopFn, TaskInputError, in_transaction, incoming_upload
 
 
 def _import_work(

@@ -23,115 +23,34 @@ from __future__ import annotations
 import logging
 import os
 import socket
-import time
 from collections.abc import Callable
-from pathlib import Path
 from typing import Any
 
-import psycopg
-from sqlalchemy import text
 from sqlalchemy.orm import Session
 
 from fieldrx.db.models import Field, Machine, Plan
-from fieldrx.db.session import get_engine, limit_session, make_engine, raw_dsn
-from fieldrx.errors import Cancelled, DomainError
+from fieldrx.db.session import get_engine, raw_dsn
+from fieldrx.errors import Cancelled
 from fieldrx.settings import get_settings
 from fieldrx.tasks import store
+from fieldrx.tasks.context import (
+    Progress,
+    StopFn,
+    TaskInputError,
+    in_transaction,
+    incoming_upload,
+    is_user_error,
+)
+from fieldrx.tasks.exports import run_export, run_report
+from fieldrx.tasks.imports import run_import
 
 log = logging.getLogger(__name__)
-
-StopFn = Callable[[], bool]
-
-
-class TaskInputError(ValueError):
-    """What a queued task needs is gone (its field, plan or upload was deleted meanwhile)."""
-
-
-class Progress:
-    """``progress(share, message)`` for the task: written at most every ``min_interval_s``
-    (and always at the end) on its own autocommit connection; raises ``Cancelled`` when the
-    user asked to cancel."""
-
-    def __init__(self, dsn: str, task_id: int, min_interval_s: float = 0.3) -> None:
-        self.dsn = dsn
-        self.task_id = task_id
-        self.min_interval_s = min_interval_s
-        self._conn: psycopg.Connection[Any] | None = None
-        self._last = 0.0
-
-    def __call__(self, share: float, message: str) -> None:
-        now = time.monotonic()
-        if share < 1.0 and now - self._last < self.min_interval_s:
-            return
-        self._last = now
-        if self._conn is None:
-            self._conn = psycopg.connect(self.dsn, autocommit=True)
-        row = self._conn.execute(
-            "UPDATE tasks SET progress = %s, message = %s, updated_at = now() "
-            "WHERE id = %s AND status = 'running' RETURNING cancel_requested",
-            (min(max(float(share), 0.0), 1.0), message[:500], self.task_id),
-        ).fetchone()
-        if row is not None and row[0]:
-            raise Cancelled("the task was cancelled; nothing was stored")
-
-    def close(self) -> None:
-        if self._conn is not None:
-            self._conn.close()
-            self._conn = None
-
-
-def is_user_error(exc: BaseException) -> bool:
-    """Errors whose message tells the user what to change (FieldRx's domain errors, all
-    ValueError subclasses defined in fieldrx, or DomainError), not internal failures."""
-    if isinstance(exc, DomainError):
-        return True
-    return isinstance(exc, ValueError) and type(exc).__module__.startswith("fieldrx")
-
-
-def _task_params(session: Session, task_id: int) -> tuple[dict[str, Any], int, int | None]:
-    row = session.execute(
-        text("SELECT params, organisation_id, created_by FROM tasks WHERE id = :id"),
-        {"id": task_id},
-    ).one()
-    return dict(row[0]), int(row[1]), row[2]
-
 
 def _scoped(session: Session, model: type[Any], obj_id: Any, org: int, what: str) -> Any:
     obj = session.get(model, int(obj_id)) if obj_id is not None else None
     if obj is None or obj.organisation_id != org:
         raise TaskInputError(f"{what} {obj_id} not found (deleted after the task was queued?)")
     return obj
-
-
-def in_transaction(
-    database_url: str,
-    task_id: int,
-    time_limit_s: float,
-    work: Callable[[Session, dict[str, Any], int, int | None, Progress], tuple[dict, str]],
-) -> dict[str, Any]:
-    """Run ``work`` in one transaction that first takes the task's guard and ends by
-    completing the task; the stored result of an earlier run is returned untouched."""
-    from fieldrx.services.bounded import ensure_caller_alive
-
-    engine = make_engine(database_url)
-    progress = Progress(raw_dsn(database_url), task_id)
-    try:
-        with Session(engine) as session:
-            limit_session(session, time_limit_s)
-            done = store.guard(session, task_id)
-            if done is not None:
-                return done
-            params, org, user = _task_params(session, task_id)
-            result, message = work(session, params, org, user, progress)
-            if not store.complete(session, task_id, result, message):
-                session.rollback()  # another run completed it: its result stands
-                return store.guard(session, task_id) or {}
-            ensure_caller_alive("the task")  # its worker died: the retry stores it
-            session.commit()
-            return result
-    finally:
-        progress.close()
-        engine.dispose()
 
 
 def _plan_work(
@@ -198,17 +117,6 @@ def _run_plan(claimed: store.Claimed, should_stop: StopFn) -> dict[str, Any]:
 
 def _run_prescription(claimed: store.Claimed, should_stop: StopFn) -> dict[str, Any]:
     return _run_bounded_kind(prescription_child, "the prescription", claimed.id, should_stop)
-
-
-def incoming_upload(name: str) -> Path:
-    """The received upload a queued imagery task converts (``storage`` keeps it)."""
-    from fieldrx.imagery import storage
-
-    base = (storage.root() / ".incoming").resolve()
-    path = (base / name).resolve()
-    if path.parent != base:
-        raise ValueError(f"incoming upload {name!r} leaves the upload folder")
-    return path
 
 
 def _run_imagery(claimed: store.Claimed, should_stop: StopFn) -> dict[str, Any]:
@@ -287,15 +195,11 @@ def _run_imagery(claimed: store.Claimed, should_stop: StopFn) -> dict[str, Any]:
 
 def export_child(claimed: store.Claimed) -> dict[str, Any]:
     """An export task in a ``services.bounded`` child (file + completion, one transaction)."""
-    from fieldrx.tasks.exports import run_export
-
     return run_export(claimed, lambda: False)
 
 
 def report_child(claimed: store.Claimed) -> dict[str, Any]:
     """A job-report task in a ``services.bounded`` child."""
-    from fieldrx.tasks.exports import run_report
-
     return run_report(claimed, lambda: False)
 
 
@@ -329,8 +233,6 @@ def _run_report(claimed: store.Claimed, should_stop: StopFn) -> dict[str, Any]:
 
 
 def _run_import(claimed: store.Claimed, should_stop: StopFn) -> dict[str, Any]:
-    from fieldrx.tasks.imports import run_import
-
     return run_import(claimed, should_stop)
 
 

@@ -25,12 +25,41 @@ import contextlib
 import logging
 from collections.abc import Iterable
 from dataclasses import dataclass
+from typing import Any
 
-from procrastinate import App
+from procrastinate import App, JobContext
+from procrastinate.exceptions import JobAborted
+from procrastinate.job_context import AbortReason
 
-from fieldrx.tasks.queue import get_app
+from fieldrx.errors import Cancelled
+from fieldrx.tasks.queue import TASK_NAME, get_app
+from fieldrx.tasks.work import execute
 
 log = logging.getLogger(__name__)
+
+
+def run_task(context: JobContext, task_id: int) -> dict[str, Any] | None:
+    """The queue task's code (runs in a worker thread): see ``work.execute``.
+
+    Only a user's abort stops the work; on a worker's shutdown (SIGTERM) running tasks
+    finish (they are bounded by their time limit), and a worker killed outright has its
+    jobs handed on by stalled-job recovery (below)."""
+
+    def user_abort() -> bool:
+        return context.abort_reason() == AbortReason.USER_REQUEST
+
+    try:
+        return execute(int(task_id), should_abort=user_abort)
+    except Cancelled as exc:
+        raise JobAborted(str(exc)) from exc
+
+
+def worker_app() -> App:
+    """The queue's app with the task's code registered (once per process)."""
+    app = get_app()
+    if TASK_NAME not in app.tasks:
+        app.task(name=TASK_NAME, pass_context=True)(run_task)
+    return app
 
 
 async def recover_stalled(app: App, stalled_after_s: float, interval_s: float) -> None:
@@ -129,7 +158,7 @@ async def run_task_worker(stop: asyncio.Event, opts: TaskWorkerOptions | None = 
     from fieldrx.services.bounded import warm_up
 
     warm_up()
-    app = get_app()
+    app = worker_app()
     async with app.open_async():
         worker = asyncio.create_task(
             app.run_worker_async(
