@@ -54,8 +54,9 @@ export function PlanScreen({ planId }: { planId: number }) {
               ['Turns / transit', formatDistance(m?.nonworking_length_m ?? undefined)],
               ['Overlap', m?.overlap_pct != null ? formatPercent(m.overlap_pct / 100) : '–'],
               ['Turning radius', plan.params.turn_radius_m != null ? `${plan.params.turn_radius_m} m` : '–'],
-              ['Unworked corners', formatArea(m?.corner_loss_m2 ?? undefined), 'plan-corner-loss'],
               ['Uncovered', formatArea(m?.uncovered_m2 ?? undefined), 'plan-uncovered'],
+              // a part of the uncovered area (the plan's warning says so), not beside it
+              ['… of which unworked corners', formatArea(m?.corner_loss_m2 ?? undefined), 'plan-corner-loss'],
             ]}
           />
         )}
