@@ -78,6 +78,14 @@ describe('job kinds in the browser', { skip: SKIP }, () => {
     return job;
   }
 
+  /** Every legend row reads differently, and none as "30 – 30" (a narrow range is one class "30"). */
+  async function legendReadsApart() {
+    const rows = (await page.locator('[data-testid=report-legend] .legend-row').allTextContents()).map((r) => r.trim());
+    assert.ok(rows.length >= 1, 'legend drawn');
+    assert.equal(new Set(rows).size, rows.length, `legend rows repeat: ${rows.join(' | ')}`);
+    for (const r of rows) assert.doesNotMatch(r, /^(\S+) – \1$/, `a class reads as one value twice: ${r}`);
+  }
+
   async function simulate(job, machineId) {
     const dt = await api(token, 'POST', `/machines/${machineId}/device-token`);
     const res = await fetch(`${BASE_URL}/api/v1/device/jobs/${job.id}/package`, { headers: { Authorization: `Bearer ${dt.data.token}` } });
@@ -132,8 +140,10 @@ describe('job kinds in the browser', { skip: SKIP }, () => {
     });
     await mapIdle(page, 'kind-report');
     await shot(page, 'kind-report-depth');
+    await legendReadsApart();
     await page.click('[data-testid=view-qualified]');
     await mapIdle(page, 'kind-report');
     await shot(page, 'kind-report-qualified');
+    await legendReadsApart();
   });
 });
