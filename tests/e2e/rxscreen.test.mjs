@@ -117,6 +117,8 @@ describe('prescription screen', { skip: SKIP }, () => {
     assert.ok(s.clamp.raised > 0 && s.clamp.lowered > 0, JSON.stringify(s.clamp));
     assert.ok(s.clamp.count > 0, 'the clamp changed cells (reported)');
     await page.waitForSelector('[data-testid=rx-summary][data-version="1"]');
+    // the model in words, not the API's identifier
+    assert.equal(await page.textContent('[data-testid=rx-model-name]'), 'Nutrient balance (soil N)');
     await page.waitForFunction(() => /kg N\/ha/.test(document.querySelector('[data-testid=rx-sum-n]')?.textContent ?? ''));
     assert.equal(await page.textContent('[data-testid=rx-sum-product]'), kgText(s.product_kg));
     assert.match(await page.textContent('[data-testid=rx-sum-n]'), new RegExp(`${s.nutrients_kg_ha.N.toFixed(1)} kg N/ha`));

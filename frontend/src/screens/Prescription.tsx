@@ -17,6 +17,7 @@ import { attentionLines, attentionOf, attentionSummary } from '../lib/flags';
 import { bboxOf, type PolygonGeom } from '../lib/geo';
 import { rateUnitText } from '../lib/rxform';
 import { formatRate } from '../lib/units';
+import { modelName } from '../lib/words';
 import { MapView } from '../map/MapView';
 import { rxTilesUrl } from '../map/grid';
 import { EDITED_COLOR } from '../map/layers';
@@ -167,7 +168,7 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
         <VersionNote rxId={rxId} version={version} note={note} onSaved={() => refresh(qk.prescription(rxId))} />
         <Kv
           items={[
-            ['Model', String(rx?.model ?? '–'), 'rx-model-name'],
+            ['Model', modelName(rx?.model), 'rx-model-name'],
             ['Cells', String(shown?.n_cells ?? '–'), 'rx-cell-count'],
             ['Flagged cells', rx ? attentionSummary(attention) : '–', 'rx-flagged'],
             ['Sent to machines in', rateUnitText(rx, shown?.rate_mean_kg_ha), 'rx-rate-unit'],
