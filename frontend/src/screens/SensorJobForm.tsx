@@ -140,9 +140,10 @@ export function SensorJobForm({
 
 /** The plan to drive, picked by field then by one of its plans (newest first), not typed as a number. */
 function PlanPicker({ planId, onPick }: { planId: string; onPick: (planId: string) => void }) {
-  const fieldsQ = useFields({ limit: 500 });
+  // read afresh whenever the form opens: a field or plan made a moment ago is offered
+  const fieldsQ = useFields({ limit: 500 }, { staleTime: 0 });
   const [fieldId, setFieldId] = useState('');
-  const plansQ = useFieldPlans(fieldId ? Number(fieldId) : null);
+  const plansQ = useFieldPlans(fieldId ? Number(fieldId) : null, { staleTime: 0 });
   const fields = fieldsQ.data?.features ?? [];
   const plans = [...(plansQ.data?.items ?? [])].sort((a, b) => b.id - a.id);
   return (
