@@ -88,6 +88,7 @@ describe('job kinds in the browser', { skip: SKIP }, () => {
   async function legendReadsApart() {
     const rows = (await page.locator('[data-testid=report-legend] .legend-row').allTextContents()).map((r) => r.trim());
     assert.ok(rows.length >= 1, 'legend drawn');
+    assert.doesNotMatch(rows.join(' | '), /no values/, 'the cells have values');
     assert.equal(new Set(rows).size, rows.length, `legend rows repeat: ${rows.join(' | ')}`);
     for (const r of rows) assert.doesNotMatch(r, /^(\S+) – \1$/, `a class reads as one value twice: ${r}`);
   }

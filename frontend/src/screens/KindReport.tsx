@@ -11,6 +11,9 @@ import { outcomeRows, type Outcome } from '../lib/outcome';
 import { MapView } from '../map/MapView';
 import { CellGrid, FieldBoundary, FitBounds } from '../map/overlays';
 
+/** The legend while no cell has a value (not a made-up 0 – 1 class). */
+const NO_VALUES = [{ color: '#dddddd', from: 0, to: 0, label: 'no values yet' }];
+
 const f1 = (v: unknown, d = 1) => (typeof v === 'number' && Number.isFinite(v) ? v.toFixed(d) : '–');
 
 /**
@@ -113,7 +116,7 @@ export function KindReport({ job: initial }: { job: Job }) {
             </button>
           ))}
         </div>
-        <Legend entries={legendEntries(breaks, colors, (v) => v.toFixed(decimals))} title={views.find((v) => v[0] === view)?.[1] ?? ''} testid="report-legend" />
+        <Legend entries={values.length ? legendEntries(breaks, colors, (v) => v.toFixed(decimals)) : NO_VALUES} title={views.find((v) => v[0] === view)?.[1] ?? ''} testid="report-legend" />
       </aside>
       <MapView name="kind-report" fieldId={field?.id}>
         <FitBounds bbox={field ? bboxOf(field) : null} />
