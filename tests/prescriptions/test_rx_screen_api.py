@@ -292,6 +292,8 @@ def test_legend_classes_editable_per_version(client, org) -> None:
         f"{API}/prescriptions/{rid}/versions/1", headers=h, json={"breaks_kg_ha": [700, 690]}
     )
     assert bad.status_code == 422 and "must increase" in bad.text
+    # what the zones table shows: words, not the request's key
+    assert bad.json()["detail"].startswith("class breaks (kg/ha) must increase")
     again = client.get(f"{API}/prescriptions/{rid}/versions/1", headers=h).json()
     assert again["summary"]["classes"]["breaks_kg_ha"] == [700, 720, 740]  # unchanged by the 422
     r = client.patch(f"{API}/prescriptions/{rid}/versions/1", headers=h, json={"class_count": 3})
