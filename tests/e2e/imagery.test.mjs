@@ -99,6 +99,7 @@ describe('imagery under the maps', { skip: SKIP }, () => {
     assert.ok(order.length > at + 1, `data layers drawn above the imagery: ${order.join(', ')}`);
     assert.ok(tileStatus.includes(200), `imagery tiles served (statuses ${tileStatus.join(',')})`);
     assert.ok(!tileStatus.some((s) => s >= 400), `no failed imagery tile (statuses ${tileStatus.join(',')})`);
+    assert.equal(await page.locator('[data-testid=imagery-legend]').count(), 0, 'a photo has no NDVI legend');
     await shot(page, 'imagery-under-field');
   });
 
@@ -132,6 +133,13 @@ describe('imagery under the maps', { skip: SKIP }, () => {
     await page.selectOption('[data-testid=imagery-kind]', 'ndvi');
     await page.click('[data-testid=imagery-upload]');
     await page.waitForSelector('[data-testid=imagery-msg]:has-text("Stored ndvi")', { timeout: scaled(60_000) });
+    // the NDVI raster shown has its value legend: the ramp the tiles are drawn with, 0 to 1
+    await page.waitForSelector('[data-testid=imagery-legend]');
+    const ticks = await page.locator('[data-testid=imagery-legend] .ndvi-ticks span').allTextContents();
+    assert.deepEqual(ticks, ['0.00', '0.25', '0.50', '0.75', '1.00']);
+    const ramp = await page.$eval('[data-testid=imagery-legend] .ndvi-ramp', (e) => getComputedStyle(e).backgroundImage);
+    assert.match(ramp, /linear-gradient\(to right, rgb\(165, 0, 38\)/, ramp);
+    await shot(page, 'imagery-ndvi-legend');
     const plan = await api(token, 'POST', `/fields/${field.id}/plans`, { swath_width_m: 2.3, cell_length_m: 5 });
     assert.equal(plan.status, 201, JSON.stringify(plan.data));
 

@@ -46,14 +46,20 @@ describe('job kinds in the browser', { skip: SKIP }, () => {
     assert.ok(m.ok, `machine ${m.status} ${JSON.stringify(m.data)}`);
     const p = await api(token, 'POST', `/fields/${f.data.id}/plans`, { swath_width_m: width, cell_length_m: 5, headland_passes: 0 });
     assert.ok(p.ok, `plan ${p.status}`);
-    return { machineId: m.data.id, planId: p.data.id };
+    return { fieldId: f.data.id, machineId: m.data.id, planId: p.data.id };
   }
 
   async function createThroughUi(kind, s, edit) {
     await page.goto(`${BASE_URL}/#/jobs`);
     await page.selectOption('[data-testid=job-kind]', kind);
     await page.waitForSelector(`[data-testid=job-form-${kind}]`);
-    await page.fill('[data-testid=job-plan]', String(s.planId));
+    // the plan is picked by field, then one of its plans (no number typed)
+    assert.equal(await page.$eval('[data-testid=job-plan]', (e) => e.tagName), 'SELECT', 'no plan number box');
+    await page.waitForSelector(`[data-testid=job-field] option[value="${s.fieldId}"]`, { state: 'attached' });
+    await page.selectOption('[data-testid=job-field]', String(s.fieldId));
+    await page.waitForSelector(`[data-testid=job-plan] option[value="${s.planId}"]`, { state: 'attached' });
+    assert.match(await page.textContent(`[data-testid=job-plan] option[value="${s.planId}"]`), new RegExp(`^Plan ${s.planId} · [\\d.]+ m swath, 5 m cells`));
+    await page.selectOption('[data-testid=job-plan]', String(s.planId));
     await page.waitForSelector(`[data-testid=job-kind-machine] option[value="${s.machineId}"]`, { state: 'attached' });
     await page.selectOption('[data-testid=job-kind-machine]', String(s.machineId));
     if (edit) await edit();
@@ -76,6 +82,15 @@ describe('job kinds in the browser', { skip: SKIP }, () => {
     assert.ok(job, 'job created from the form');
     await page.waitForSelector(`[data-testid=job-source-${job.id}]`);
     return job;
+  }
+
+  /** Every legend row reads differently, and none as "30 – 30" (a narrow range is one class "30"). */
+  async function legendReadsApart() {
+    const rows = (await page.locator('[data-testid=report-legend] .legend-row').allTextContents()).map((r) => r.trim());
+    assert.ok(rows.length >= 1, 'legend drawn');
+    assert.doesNotMatch(rows.join(' | '), /no values/, 'the cells have values');
+    assert.equal(new Set(rows).size, rows.length, `legend rows repeat: ${rows.join(' | ')}`);
+    for (const r of rows) assert.doesNotMatch(r, /^(\S+) – \1$/, `a class reads as one value twice: ${r}`);
   }
 
   async function simulate(job, machineId) {
@@ -132,8 +147,10 @@ describe('job kinds in the browser', { skip: SKIP }, () => {
     });
     await mapIdle(page, 'kind-report');
     await shot(page, 'kind-report-depth');
+    await legendReadsApart();
     await page.click('[data-testid=view-qualified]');
     await mapIdle(page, 'kind-report');
     await shot(page, 'kind-report-qualified');
+    await legendReadsApart();
   });
 });

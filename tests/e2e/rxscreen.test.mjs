@@ -117,6 +117,8 @@ describe('prescription screen', { skip: SKIP }, () => {
     assert.ok(s.clamp.raised > 0 && s.clamp.lowered > 0, JSON.stringify(s.clamp));
     assert.ok(s.clamp.count > 0, 'the clamp changed cells (reported)');
     await page.waitForSelector('[data-testid=rx-summary][data-version="1"]');
+    // the model in words, not the API's identifier
+    assert.equal(await page.textContent('[data-testid=rx-model-name]'), 'Nutrient balance (soil N)');
     await page.waitForFunction(() => /kg N\/ha/.test(document.querySelector('[data-testid=rx-sum-n]')?.textContent ?? ''));
     assert.equal(await page.textContent('[data-testid=rx-sum-product]'), kgText(s.product_kg));
     assert.match(await page.textContent('[data-testid=rx-sum-n]'), new RegExp(`${s.nutrients_kg_ha.N.toFixed(1)} kg N/ha`));
@@ -174,9 +176,23 @@ describe('prescription screen', { skip: SKIP }, () => {
     await page.selectOption('[data-testid=rx-version]', '1');
     await showing(1, v1);
     assert.equal(await page.textContent('[data-testid=rx-note-text]'), 'e2e first pass');
+    assert.equal(await page.locator('[data-testid=rx-legend] .legend-row[data-outline]').count(), 0, 'v1 has no edits');
     await page.selectOption('[data-testid=rx-version]', '2');
     await showing(2, v2);
     assert.match(await page.textContent('[data-testid=rx-note-text]'), /cell \d+ → 1,200\.0 kg\/ha/);
+    // the edited cell is told apart: a class of its own beyond v1's breaks, and a dashed
+    // outline with its own legend row (not only the colour of the unedited cells' class)
+    await page.waitForSelector('[data-testid=rx-legend] .legend-row[data-outline]');
+    assert.match(await page.textContent('[data-testid=rx-legend] .legend-row[data-outline]'), /Edited by hand: 1 cell\b/);
+    const rows = await page.locator('[data-testid=rx-legend] .legend-row:not([data-outline])').allTextContents();
+    assert.equal(rows.length, v2.classes.breaks_kg_ha.length - 1, 'one row per class');
+    assert.match(rows[rows.length - 1], /1200$/, `the edited rate's own class: ${rows}`);
+    assert.equal(v2.classes.table[v2.classes.table.length - 1].n_cells, 1, 'only the edited cell in it');
+    assert.equal(new Set(rows).size, rows.length, `legend rows repeat: ${rows}`);
+    assert.equal((v2.classes.source.match(/edited rates/g) ?? []).length, 1, v2.classes.source);
+    await mapIdle(page, 'rx');
+    const outlined = await page.evaluate(() => window.__fieldrxMaps.rx.queryRenderedFeatures({ layers: ['rx-edited'] }).length);
+    assert.ok(outlined >= 1, 'the edited cell is outlined on the map');
     await shot(page, 'rx-screen-v2');
   });
 

@@ -188,6 +188,9 @@ def test_seeding_depth_job_end_to_end(database_url, org, tmp_path: Path, fault: 
             assert _rel(a[k], b[k]) < 0.005, (k, a, b)
     assert rep["qualified_alert"]["triggered"] == sim["qualified_alert"]["triggered"]
     assert all(15.0 < x["depth_mm"] < 45.0 for x in rep["cells"])
+    # a number, not a decimal string: the report's qualified-share map was all "no data"
+    assert all(isinstance(x["qualified_pct"], float) for x in rep["cells"])
+    assert all(0.0 <= x["qualified_pct"] <= 100.0 for x in rep["cells"])
     low = [a for a in alerts.get("items", alerts) if a["kind"] == "depth_qualified_low"]
     if not fault:  # the default 90 % over 50 m holds on this field
         assert not low and not rep["qualified_alert"]["triggered"]

@@ -458,3 +458,22 @@ def test_analytic_bound_survives_a_flat_edge_near_another():
     n = swath_count(f, w, 0.0, f, tol)
     assert n == 5  # three strips, the lower two split by the 20 m slot
     assert bounds.weak[0] == full[0] == 5
+
+
+@pytest.mark.parametrize("shape", ["rect", "l_shape", "pond_field"])
+def test_unworked_corners_are_a_part_of_the_uncovered_area(shape):
+    # the plan screen showed "Unworked corners 183 m2" beside "Uncovered 177 m2" while the
+    # warning said the corners were counted as uncovered: an inner swath sweeping across
+    # a corner gap left it out of the uncovered area though no cell holds it
+    from fieldrx.geo.grid import build_grid
+
+    f = {"rect": lambda: rect(200, 100), "l_shape": l_shape, "pond_field": pond_field}[shape]()
+    p = plan_coverage(f, 2.3, "optimal", headland_passes=2)
+    assert p.corner_loss_m2 > 0  # the rounded rings leave corners unworked
+    assert p.corner_loss_m2 <= p.uncovered_m2
+    m = p.metrics()
+    assert m["corner_loss_m2"] <= m["uncovered_m2"]
+    assert any("counted as uncovered" in w for w in p.warnings)
+    # on the same basis as the cells: what no cell holds (the grid also drops slivers)
+    grid = build_grid(p, f, 5.0)
+    assert p.uncovered_m2 == pytest.approx(grid.uncovered_m2, rel=0.05, abs=1.0)

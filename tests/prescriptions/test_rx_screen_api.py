@@ -198,9 +198,13 @@ def test_summary_figures_classes_notes_diff_and_undo(client, org) -> None:
     # +100 kg/ha on cells 0 and 1: + 100 * a01 / 1e4 kg, + that / 1000 * 400 cost
     assert s2["product_kg"] == pytest.approx(300 * area_ha + 100 * a01 / 1e4, abs=1e-3)
     assert s2["cost"] == pytest.approx((300 * area_ha + 100 * a01 / 1e4) / 1000 * 400, abs=0.01)
-    # the edit keeps v1's breaks, outer edge widened to 400
-    assert s2["classes"]["breaks_kg_ha"] == [300, 400]
-    assert "widened" in s2["classes"]["source"]
+    # the edit keeps v1's breaks and the edited rate gets a class of its own (widening
+    # v1's one class to 400 coloured the edited cells like the unedited ones)
+    assert s2["classes"]["breaks_kg_ha"] == [300, 301, 400]
+    assert [row["n_cells"] for row in s2["classes"]["table"]] == [plan["n_cells"] - 2, 2]
+    note = "; edited rates beyond them have a class of their own"
+    assert s["classes"]["source"] == "uniform rate: one class"
+    assert s2["classes"]["source"] == "uniform rate: one class" + note
 
     d = client.get(f"{API}/prescriptions/{rid}/diff?from=1&to=2", headers=h)
     assert d.status_code == 200, d.text
@@ -288,6 +292,8 @@ def test_legend_classes_editable_per_version(client, org) -> None:
         f"{API}/prescriptions/{rid}/versions/1", headers=h, json={"breaks_kg_ha": [700, 690]}
     )
     assert bad.status_code == 422 and "must increase" in bad.text
+    # what the zones table shows: words, not the request's key
+    assert bad.json()["detail"].startswith("class breaks (kg/ha) must increase")
     again = client.get(f"{API}/prescriptions/{rid}/versions/1", headers=h).json()
     assert again["summary"]["classes"]["breaks_kg_ha"] == [700, 720, 740]  # unchanged by the 422
     r = client.patch(f"{API}/prescriptions/{rid}/versions/1", headers=h, json={"class_count": 3})
@@ -315,3 +321,20 @@ def test_edit_is_based_on_the_version_on_screen(client, org) -> None:
         url, headers=h, json={"cells": [{"seq": 1, "rate_kg_ha": 400}], "based_on_version": 8}
     )
     assert r.status_code == 404 and "no version 8" in r.json()["detail"]
+
+
+def test_edits_beyond_the_breaks_each_get_a_class_the_note_said_once() -> None:
+    import numpy as np
+    from fieldrx.services.prescriptions import auto_classes, inherited_classes
+
+    area = np.full(6, 10.0)
+    v1 = auto_classes(np.full(6, 300.0), area, 6)
+    v2 = inherited_classes(np.array([400.0, 400, 300, 300, 300, 300]), area, v1)
+    v3 = inherited_classes(np.array([400.0, 400, 450, 300, 300, 300]), area, v2)
+    assert v3["breaks_kg_ha"] == [300, 301, 400.001, 450]  # the 400s stay in their class
+    assert [r["n_cells"] for r in v3["table"]] == [3, 2, 1]
+    note = "; edited rates beyond them have a class of their own"
+    assert v3["source"] == "uniform rate: one class" + note
+    low = inherited_classes(np.array([250.0, 300, 300, 300, 300, 300]), area, v1)
+    assert low["breaks_kg_ha"] == [250, 300, 301]
+    assert [r["n_cells"] for r in low["table"]] == [1, 5]

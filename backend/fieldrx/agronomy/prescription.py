@@ -421,11 +421,11 @@ def check_breaks(breaks: list[float]) -> list[float]:
     """Breaks typed by a person: at least two, finite, strictly increasing (422 otherwise)."""
     b = [float(x) for x in breaks]
     if len(b) < 2:
-        raise PrescriptionError("breaks_kg_ha: give at least two edges (one class)")
+        raise PrescriptionError("class breaks (kg/ha): give at least two edges (one class)")
     for i, (x, y) in enumerate(zip(b, b[1:], strict=False)):
         if not (np.isfinite(x) and np.isfinite(y)) or y <= x:
             raise PrescriptionError(
-                f"breaks_kg_ha must increase: edge {i + 1} ({y:g}) <= edge {i} ({x:g})"
+                f"class breaks (kg/ha) must increase: edge {i + 1} ({y:g}) <= edge {i} ({x:g})"
             )
     return b
 

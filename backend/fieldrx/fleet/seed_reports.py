@@ -44,8 +44,9 @@ _CELLS_SQL = text(
            avg(t.target_rate_kg_ha) AS target_rate_kg_ha,
            avg(t.applied_rate_kg_ha) AS applied_rate_kg_ha,
            avg(t.depth_mm) AS depth_mm,
-           100.0 * avg(CASE WHEN t.depth_mm BETWEEN :lo AND :hi THEN 1.0 ELSE 0.0 END)
-               FILTER (WHERE t.depth_mm IS NOT NULL) AS qualified_pct
+           -- float8: a numeric average reaches the JSON as a decimal string
+           (100.0 * avg(CASE WHEN t.depth_mm BETWEEN :lo AND :hi THEN 1.0 ELSE 0.0 END)
+               FILTER (WHERE t.depth_mm IS NOT NULL))::float8 AS qualified_pct
     FROM telemetry t
     JOIN plan_cells pc ON pc.plan_id = :plan AND ST_Intersects(pc.geom, t.geom)
     WHERE t.machine_id = :m AND t.job_id = :j AND t.t BETWEEN :t0 AND :t1

@@ -243,23 +243,38 @@ def legend_classes(
 
 def auto_classes(rates: np.ndarray, area: np.ndarray, n: int) -> dict[str, Any]:
     lo, hi = (float(rates.min()), float(rates.max())) if len(rates) else (0.0, 1.0)
-    return legend_classes(rates, area, class_breaks(lo, hi, n), f"{n} equal classes")
+    # a uniform rate has one class, whatever count was asked
+    src = f"{n} equal classes" if hi > lo else "uniform rate: one class"
+    return legend_classes(rates, area, class_breaks(lo, hi, n), src)
+
+
+# said once in a class source, however many edits reach beyond the breaks
+_EDITED_CLASS_NOTE = "; edited rates beyond them have a class of their own"
 
 
 def inherited_classes(
     rates: np.ndarray, area: np.ndarray, base: dict[str, Any] | None
 ) -> dict[str, Any]:
     """An edit keeps its base version's breaks (the legend does not jump between
-    versions), its outer edges widened to the new rates when they leave them."""
+    versions). Rates beyond them get a class of their own at that end: widening the
+    outer class instead put an edited zone in the colour of the unedited cells (a
+    uniform 300 kg/ha map painted at 650 had one class, 300-650, for both)."""
     if not base or not base.get("breaks_kg_ha"):
         return auto_classes(rates, area, 6)
     b = [float(x) for x in base["breaks_kg_ha"]]
-    src = str(base.get("source", ""))
+    src = str(base.get("source", "")).replace(_EDITED_CLASS_NOTE, "")
     if len(rates):
         lo, hi = float(rates.min()), float(rates.max())
-        if lo < b[0] or hi > b[-1]:
-            b[0], b[-1] = min(b[0], round(lo, 3)), max(b[-1], round(hi, 3))
-            src += " (outer edges widened to the edited rates)"
+        if lo < b[0]:
+            b.insert(0, min(round(lo, 3), b[0] - 1e-3))
+        if hi > b[-1]:
+            top = b[-1]
+            # the last class holds its upper edge: rates on it stay in their class
+            if bool((rates == top).any()):
+                b[-1] = round(top + 1e-3, 3)
+            b.append(max(round(hi, 3), b[-1] + 1e-3))
+    if len(b) > len(base["breaks_kg_ha"]) or _EDITED_CLASS_NOTE in str(base.get("source", "")):
+        src += _EDITED_CLASS_NOTE
     return legend_classes(rates, area, b, src)
 
 

@@ -1,7 +1,7 @@
 import { useMemo, useState } from 'react';
 import { call, client, errorText, formBody } from '../api/client';
 import { qk, useImagery, useInvalidate } from '../api/hooks';
-import { defaultImagery, imageryLabel, opacityFromPercent, sortNewest, type ImageryItem } from '../lib/imagery';
+import { defaultImagery, imageryLabel, ndviLegend, opacityFromPercent, sortNewest, type ImageryItem } from '../lib/imagery';
 import { isTask, progressLabel, type TaskView } from '../lib/tasks';
 import { Imagery } from '../map/overlays/Imagery';
 import { TaskProgress } from './TaskProgress';
@@ -84,6 +84,7 @@ export function ImageryControl(props: { fieldId?: number }) {
           </button>
         )}
       </div>
+      {item && <NdviLegendBar kind={item.kind} />}
       {selected !== null && (
         <label className="row small">
           Opacity
@@ -139,6 +140,25 @@ export function ImageryControl(props: { fieldId?: number }) {
       )}
       {msg && <p className="ok small" data-testid="imagery-msg">{msg}</p>}
       {err && <p className="error small" data-testid="imagery-error">{err}</p>}
+    </div>
+  );
+}
+
+/** The colour ramp of an image shown as NDVI, with its values (nothing for a photo). */
+function NdviLegendBar({ kind }: { kind: ImageryItem['kind'] }) {
+  const l = ndviLegend(kind);
+  if (!l) return null;
+  return (
+    <div className="ndvi-legend small" data-testid="imagery-legend" role="img" aria-label="NDVI colour scale from 0 to 1">
+      <div className="legend-title">NDVI</div>
+      <div className="ndvi-ramp" style={{ background: l.gradient }} />
+      <div className="ndvi-ticks">
+        {l.ticks.map((t) => (
+          <span key={t.value} style={{ left: `${t.pct}%` }}>
+            {t.value}
+          </span>
+        ))}
+      </div>
     </div>
   );
 }

@@ -5,8 +5,11 @@ export function Legend({ entries, title, testid = 'legend' }: { entries: LegendE
     <div className="legend" data-testid={testid}>
       <div className="legend-title">{title}</div>
       {entries.map((e, i) => (
-        <div key={i} className="legend-row">
-          <span className="swatch" style={{ background: e.color }} />
+        <div key={i} className="legend-row" data-outline={e.outline ? '' : undefined}>
+          <span
+            className="swatch"
+            style={e.outline ? { background: 'transparent', border: `2px dashed ${e.color}`, boxSizing: 'border-box' } : { background: e.color }}
+          />
           {e.label}
         </div>
       ))}

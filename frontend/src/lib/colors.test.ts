@@ -6,6 +6,7 @@ import {
   classify,
   equalIntervalBreaks,
   histogram,
+  legendBreaks,
   legendEntries,
   niceBreaks,
   niceStep,
@@ -137,5 +138,31 @@ describe('statusColor', () => {
     const set = new Set(['working', 'idle', 'alarm', 'offline'].map(statusColor));
     expect(set.size).toBe(4);
     expect(statusColor(undefined)).toBe(statusColor('offline'));
+  });
+});
+
+describe('legend of a narrow or constant range', () => {
+  const fmt0 = (v: number) => v.toFixed(0);
+  const labels = (b: number[], fmt: (v: number) => string) => legendEntries(b, classColors(b.length - 1), fmt).map((e) => e.label);
+  it('a constant range is one class labelled with its value', () => {
+    // a seeding report at a constant 30 mm read "30 – 30" three times
+    const b = legendBreaks(30, 30, 6, 0);
+    expect(labels(b, fmt0)).toEqual(['30']);
+    expect(stepExpression('v', b, classColors(1))).toBe(classColors(1)[0]);
+  });
+  it('a range that reads as one value at the precision shown is one class', () => {
+    expect(labels(legendBreaks(29.8, 30.2, 6, 0), fmt0)).toEqual(['30']);
+    expect(labels(legendBreaks(0.412, 0.414, 6, 2), (v) => v.toFixed(2))).toEqual(['0.41']);
+  });
+  it('a narrow range gets classes no finer than its labels tell apart', () => {
+    const l = labels(legendBreaks(29.6, 31.2, 6, 0), fmt0);
+    expect(new Set(l).size).toBe(l.length);
+    expect(l).toEqual(['29 – 30', '30 – 31', '31 – 32']);
+  });
+  it('a wide range keeps nice equal classes', () => {
+    expect(legendBreaks(93.2, 187.9, 5, 0)).toEqual(niceBreaks(93.2, 187.9, 5));
+  });
+  it('a class whose ends read the same is labelled once', () => {
+    expect(labels([30, 30.2, 31], fmt0)).toEqual(['30', '30 – 31']);
   });
 });

@@ -104,6 +104,23 @@ export function niceBreaks(min: number, max: number, n: number): number[] {
   return Array.from({ length: k + 1 }, (_, i) => round12(lo + step * i));
 }
 
+/**
+ * Breaks for a legend read at `decimals` places: nice equal classes, never finer than the
+ * labels can tell apart. A range that reads as one value (a constant 30 mm, or 29.8-30.2 at
+ * 0 places) is one class from min to max: not several classes all labelled "30 – 30".
+ */
+export function legendBreaks(min: number, max: number, n: number, decimals: number): number[] {
+  if (!Number.isFinite(min) || !Number.isFinite(max)) throw new RangeError('min/max must be finite');
+  if (max < min) [min, max] = [max, min];
+  const unit = 10 ** -Math.max(0, Math.floor(decimals));
+  if (min.toFixed(decimals) === max.toFixed(decimals)) return [min, max];
+  const step = Math.max(niceStep((max - min) / n), unit);
+  const lo = Math.floor(min / step) * step;
+  const hi = Math.ceil(max / step) * step;
+  const k = Math.max(1, Math.round((hi - lo) / step));
+  return Array.from({ length: k + 1 }, (_, i) => round12(lo + step * i));
+}
+
 /** Quantile breaks: each class holds about the same number of cells; duplicates removed. */
 export function quantileBreaks(values: number[], n: number): number[] {
   if (n < 1) throw new RangeError('n must be >= 1');
@@ -134,6 +151,8 @@ export interface LegendEntry {
   from: number;
   to: number;
   label: string;
+  /** Drawn as an outline of this colour (a marking over the classes, e.g. edited cells), not a fill. */
+  outline?: boolean;
 }
 
 export function legendEntries(
@@ -143,12 +162,11 @@ export function legendEntries(
 ): LegendEntry[] {
   const n = breaks.length - 1;
   if (colors.length !== n) throw new RangeError(`need ${n} colours, got ${colors.length}`);
-  return Array.from({ length: n }, (_, i) => ({
-    color: colors[i],
-    from: breaks[i],
-    to: breaks[i + 1],
-    label: `${fmt(breaks[i])} – ${fmt(breaks[i + 1])}`,
-  }));
+  return Array.from({ length: n }, (_, i) => {
+    const [a, b] = [fmt(breaks[i]), fmt(breaks[i + 1])];
+    // a class that reads as one value is labelled once ("30", not "30 – 30")
+    return { color: colors[i], from: breaks[i], to: breaks[i + 1], label: a === b ? a : `${a} – ${b}` };
+  });
 }
 
 /**

@@ -18,7 +18,8 @@ describe('parseApiError', () => {
       422,
     );
     expect(e.message).toBe('2 problems');
-    expect(e.items.map((i) => i.message)).toEqual(['swath_width_m: must be > 0', 'row 4: not a number']);
+    // the field in words, not the request's key
+    expect(e.items.map((i) => i.message)).toEqual(['swath width (m): must be > 0', 'row 4: not a number']);
     expect(e.items[1].row).toBe(4);
   });
   it('object detail with row errors', () => {

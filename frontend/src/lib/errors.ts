@@ -1,4 +1,8 @@
 /** Turning API error bodies into something a screen can show (and place on the map). */
+import { plainName } from './words';
+
+/** Where in the request FastAPI says a field is: not part of the field's name. */
+const LOC_ROOTS = new Set(['body', 'query', 'path']);
 
 export interface ErrorItem {
   message: string;
@@ -78,6 +82,7 @@ function toItem(x: unknown): ErrorItem {
     if (i >= 0 && typeof loc[i + 1] === 'number') row = loc[i + 1] as number;
   }
   const msg = String(o.msg ?? o.message ?? o.reason ?? JSON.stringify(o));
-  const where = loc ? loc.filter((p) => p !== 'body').join('.') : '';
+  // the field in words ("swath width (m)"), not the request's key ("swath_width_m")
+  const where = loc ? plainName(loc.filter((p) => !LOC_ROOTS.has(String(p))).join('.')) : '';
   return { message: row != null ? `row ${row}: ${msg}` : where ? `${where}: ${msg}` : msg, loc, row };
 }

@@ -2,6 +2,7 @@ import { describe, expect, it } from 'vitest';
 import {
   defaultImagery,
   imageryLabel,
+  ndviLegend,
   opacityFromPercent,
   sortNewest,
   startBounds,
@@ -60,5 +61,21 @@ describe('imagery', () => {
     expect(startBounds(null)).toBeNull();
     expect(startBounds([3, 2, 1, 4])).toBeNull();
     expect(startBounds([Number.NaN, 2, 3, 4])).toBeNull();
+  });
+});
+
+describe('NDVI legend', () => {
+  it('an NDVI or multispectral image has a ramp from red (0) to green (1) with values', () => {
+    for (const kind of ['ndvi', 'multispectral'] as const) {
+      const l = ndviLegend(kind);
+      expect(l).not.toBeNull();
+      expect(l!.gradient).toMatch(/^linear-gradient\(to right, #a50026 0%, .* #006837 100%\)$/);
+      expect(l!.ticks.map((t) => t.value)).toEqual(['0.00', '0.25', '0.50', '0.75', '1.00']);
+      expect(l!.ticks.map((t) => t.pct)).toEqual([0, 25, 50, 75, 100]);
+    }
+  });
+  it('a photo has no NDVI legend', () => {
+    expect(ndviLegend('orthophoto')).toBeNull();
+    expect(ndviLegend(null)).toBeNull();
   });
 });

@@ -51,3 +51,30 @@ export function startBounds(fieldsBbox: BBox | null): BBox | null {
   const ok = fieldsBbox.every((v) => Number.isFinite(v)) && fieldsBbox[0] <= fieldsBbox[2] && fieldsBbox[1] <= fieldsBbox[3];
   return ok ? fieldsBbox : null;
 }
+
+/**
+ * The server's NDVI colouring (backend imagery/tiles.py: rio-tiler's "rdylgn" colormap
+ * over NDVI 0..1, clamped), sampled at 11 even steps from that colormap: what the
+ * legend shows is what the tiles draw.
+ */
+export const NDVI_RANGE: readonly [number, number] = [0, 1];
+export const NDVI_RAMP = [
+  '#a50026', '#d62f26', '#f46d43', '#fcac60', '#fee08b', '#fefebd',
+  '#d9ef8b', '#a7d96a', '#66bd63', '#1b9850', '#006837',
+] as const;
+
+export interface NdviLegend {
+  /** CSS linear-gradient of the ramp, low NDVI on the left. */
+  gradient: string;
+  /** Value labels under the bar, at their position in percent. */
+  ticks: { value: string; pct: number }[];
+}
+
+/** Legend of an image drawn as NDVI (an NDVI raster, or NDVI from a multispectral one); null for a photo. */
+export function ndviLegend(kind: ImageryKind | undefined | null): NdviLegend | null {
+  if (kind !== 'ndvi' && kind !== 'multispectral') return null;
+  const [lo, hi] = NDVI_RANGE;
+  const stops = NDVI_RAMP.map((c, i) => `${c} ${((100 * i) / (NDVI_RAMP.length - 1)).toFixed(0)}%`);
+  const ticks = [0, 0.25, 0.5, 0.75, 1].map((t) => ({ value: (lo + t * (hi - lo)).toFixed(2), pct: 100 * t }));
+  return { gradient: `linear-gradient(to right, ${stops.join(', ')})`, ticks };
+}

@@ -1,5 +1,5 @@
 import { describe, expect, it } from 'vitest';
-import { cellValue, jobBody, ndviPreview, ndviRate, qualifiedBand, settingsBody } from './jobkinds';
+import { cellValue, jobBody, ndviPreview, ndviRate, planLabel, qualifiedBand, settingsBody } from './jobkinds';
 
 describe('job kinds', () => {
   it('sends only what differs from the paper', () => {
@@ -51,5 +51,10 @@ describe('job kinds', () => {
     expect(cellValue('seeding_depth', 'depth', c)).toBe(31);
     expect(cellValue('seeding_depth', 'qualified', c)).toBe(99);
     expect(cellValue('seeding_depth', 'depth', {})).toBeNull();
+  });
+  it('names a plan in the picker by its swath, cells and day, not only its number', () => {
+    const p = { id: 12, params: { swath_width_m: 3.6, cell_length_m: 5 }, n_cells: 84, created_at: '2026-11-28T10:11:12Z' };
+    expect(planLabel(p)).toBe('Plan 12 · 3.6 m swath, 5 m cells · 84 cells · 2026-11-28');
+    expect(planLabel({ ...p, created_at: null })).toBe('Plan 12 · 3.6 m swath, 5 m cells · 84 cells');
   });
 });

@@ -90,6 +90,20 @@ export function jobBody(
   return { kind, plan_id: Number(ids.planId), machine_id: Number(ids.machineId), settings: settingsBody(kind, values) };
 }
 
+/** The keys of a plan the job forms' plan picker shows. */
+export interface PlanChoice {
+  id: number;
+  params: { swath_width_m: number; cell_length_m: number };
+  n_cells: number;
+  created_at?: string | null;
+}
+
+/** A plan in words for a picker: "Plan 12 · 3.6 m swath, 5 m cells · 84 cells · 2026-11-28". */
+export function planLabel(p: PlanChoice): string {
+  const day = p.created_at ? ` · ${p.created_at.slice(0, 10)}` : '';
+  return `Plan ${p.id} · ${p.params.swath_width_m} m swath, ${p.params.cell_length_m} m cells · ${p.n_cells} cells${day}`;
+}
+
 /** Seed 000's NDVI -> rate line through two points, clamped between them (the preview). */
 export function ndviRate(ndvi: number, lo: number, rateLo: number, hi: number, rateHi: number): number {
   if (!(hi > lo)) return NaN;

@@ -1,5 +1,5 @@
 import { describe, expect, it } from 'vitest';
-import { cellGridLayers, FIELD_STYLE, fieldBoundaryLayers, machinesGeoJSON, pointsFC, trackLayers } from './layers';
+import { cellGridLayers, EDITED_COLOR, FIELD_STYLE, fieldBoundaryLayers, machinesGeoJSON, pointsFC, trackLayers } from './layers';
 
 describe('layer declarations', () => {
   it('the field boundary has one style, with or without the fill', () => {
@@ -17,6 +17,14 @@ describe('layer declarations', () => {
     expect(rx[2]).toMatchObject({ filter: ['==', ['get', 'seq'], 7] });
     // GeoJSON cells: no source-layer
     expect('source-layer' in cellGridLayers('k', { color: '#fff' })[0]).toBe(false);
+  });
+
+  it('cell grid: cells edited by hand get their own dashed outline', () => {
+    const rx = cellGridLayers('rx', { color: '#123456', clamped: true, edited: true, selectedSeq: 7, sourceLayer: 'cells' });
+    expect(rx.map((l) => l.id)).toEqual(['rx-fill', 'rx-clamped', 'rx-edited', 'rx-selected']);
+    expect(rx[2]).toMatchObject({ 'source-layer': 'cells', paint: { 'line-color': EDITED_COLOR } });
+    expect(JSON.stringify(rx[2].filter)).toContain('"manual"');
+    expect(JSON.stringify(rx[2].filter)).toContain('"zone"');
   });
 
   it('track arrows only when asked', () => {

@@ -3,6 +3,7 @@
  * one style everywhere ("declared once with one style"), the cell grid one set of
  * layers for plans, prescriptions, as-applied and sensor maps. Pure (no map), unit-tested.
  */
+import type * as maplibregl from 'maplibre-gl';
 import type { FleetMachine } from '../lib/fleet';
 import { statusColor } from '../lib/colors';
 import type { OverlayLayer } from './overlay';
@@ -27,6 +28,16 @@ export function fieldBoundaryLayers(id: string, fill: boolean): OverlayLayer[] {
 /** Plan shading: swath parity, so the back-and-forth order is visible. */
 export const PLAN_CELL_COLOR = ['case', ['==', ['%', ['to-number', ['get', 'swath'], 0], 2], 0], '#9ccc65', '#c5e1a5'];
 
+/** Outline of cells edited by hand: apart from every rate colour, so an edit never reads as a class. */
+export const EDITED_COLOR = '#e6007e';
+
+/** Cells whose `flags` (comma-joined names) say a cell or zone edit set their rate. */
+const EDITED_FILTER: maplibregl.FilterSpecification = [
+  'any',
+  ['in', 'manual', ['to-string', ['get', 'flags']]],
+  ['in', 'zone', ['to-string', ['get', 'flags']]],
+];
+
 export interface CellGridStyle {
   /** Fill colour: a MapLibre expression (e.g. `stepExpression(...)`) or a colour; default the plan shading. */
   color?: unknown;
@@ -36,13 +47,15 @@ export interface CellGridStyle {
   outline?: boolean;
   /** Red outline on cells the implement cannot meter (property `clamped`). */
   clamped?: boolean;
+  /** Dashed outline on cells edited by hand (property `flags` holds `manual` or `zone`). */
+  edited?: boolean;
   /** Black outline on this cell (`seq`); -1 / null = none. The layer exists whenever this key is given. */
   selectedSeq?: number | null;
   /** The vector-tile source layer ('cells'); undefined for GeoJSON cells. */
   sourceLayer?: string;
 }
 
-/** `${id}-fill`, then as asked `${id}-line`, `${id}-clamped`, `${id}-selected`. */
+/** `${id}-fill`, then as asked `${id}-line`, `${id}-clamped`, `${id}-edited`, `${id}-selected`. */
 export function cellGridLayers(id: string, s: CellGridStyle): OverlayLayer[] {
   const sl = s.sourceLayer ? { 'source-layer': s.sourceLayer } : {};
   const plan = s.color === undefined;
@@ -63,6 +76,14 @@ export function cellGridLayers(id: string, s: CellGridStyle): OverlayLayer[] {
       ...sl,
       filter: ['==', ['get', 'clamped'], true],
       paint: { 'line-color': '#d7263d', 'line-width': 2 },
+    });
+  if (s.edited)
+    out.push({
+      id: `${id}-edited`,
+      type: 'line',
+      ...sl,
+      filter: EDITED_FILTER,
+      paint: { 'line-color': EDITED_COLOR, 'line-width': 2, 'line-dasharray': [2, 1] },
     });
   if ('selectedSeq' in s)
     out.push({

@@ -4,12 +4,15 @@ import { useAllPlanCells, useField, usePlan } from '../api/hooks';
 import { Legend } from '../components/Legend';
 import { ReportLoading, useLiveReport } from '../components/ReportLoader';
 import { ErrorBox, Kv } from '../components/Status';
-import { classColors, legendEntries, niceBreaks, stepExpression } from '../lib/colors';
+import { classColors, legendBreaks, legendEntries, stepExpression } from '../lib/colors';
 import { bboxOf } from '../lib/geo';
 import { cellValue, KIND_LABELS, type DepthBand, type JobKind, type ShaftBand } from '../lib/jobkinds';
 import { outcomeRows, type Outcome } from '../lib/outcome';
 import { MapView } from '../map/MapView';
 import { CellGrid, FieldBoundary, FitBounds } from '../map/overlays';
+
+/** The legend while no cell has a value (not a made-up 0 – 1 class). */
+const NO_VALUES = [{ color: '#dddddd', from: 0, to: 0, label: 'no values yet' }];
 
 const f1 = (v: unknown, d = 1) => (typeof v === 'number' && Number.isFinite(v) ? v.toFixed(d) : '–');
 
@@ -38,7 +41,9 @@ export function KindReport({ job: initial }: { job: Job }) {
   const values = [...byseq.values()].map((c) => cellValue(kind, view, c)).filter((v): v is number => v != null);
   const lo = values.length ? Math.min(...values) : 0;
   const hi = values.length ? Math.max(...values) : 1;
-  const breaks = useMemo(() => niceBreaks(lo, hi > lo ? hi : lo + 1, 6), [lo, hi]);
+  // never finer than the legend's labels (a constant 30 mm depth is one class "30")
+  const decimals = view === 'ndvi' ? 2 : 0;
+  const breaks = useMemo(() => legendBreaks(lo, hi, 6, decimals), [lo, hi, decimals]);
   const colors = useMemo(() => classColors(breaks.length - 1), [breaks]);
   const fill = useMemo(() => ['case', ['==', ['get', 'v'], null], '#dddddd', stepExpression('v', breaks, colors)], [breaks, colors]);
   const cells = cellsQ.data;
@@ -111,7 +116,7 @@ export function KindReport({ job: initial }: { job: Job }) {
             </button>
           ))}
         </div>
-        <Legend entries={legendEntries(breaks, colors, (v) => (view === 'ndvi' ? v.toFixed(2) : v.toFixed(0)))} title={views.find((v) => v[0] === view)?.[1] ?? ''} testid="report-legend" />
+        <Legend entries={values.length ? legendEntries(breaks, colors, (v) => v.toFixed(decimals)) : NO_VALUES} title={views.find((v) => v[0] === view)?.[1] ?? ''} testid="report-legend" />
       </aside>
       <MapView name="kind-report" fieldId={field?.id}>
         <FitBounds bbox={field ? bboxOf(field) : null} />

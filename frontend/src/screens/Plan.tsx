@@ -3,6 +3,7 @@ import { qk, useApiMutation, useField, useInvalidate, usePlan, usePlanPrescripti
 import { ErrorBox, Kv } from '../components/Status';
 import { bboxOf } from '../lib/geo';
 import { formatArea, formatDistance, formatPercent } from '../lib/units';
+import { headingRuleName, modelName } from '../lib/words';
 import { ImageryRxForm } from '../components/ImageryRxForm';
 import { SoilZonesForm } from '../components/SoilZonesForm';
 import { MapView } from '../map/MapView';
@@ -44,7 +45,7 @@ export function PlanScreen({ planId }: { planId: number }) {
             items={[
               ['Swath width', `${plan.params.swath_width_m} m`],
               ['Cell length', `${plan.params.cell_length_m} m`],
-              ['Heading rule', `${plan.params.heading}${plan.heading_deg != null ? ` (${plan.heading_deg.toFixed(1)}°)` : ''}`],
+              ['Heading rule', `${headingRuleName(plan.params.heading)}${plan.heading_deg != null ? ` (${plan.heading_deg.toFixed(1)}°)` : ''}`],
               ['Headland passes', String(plan.params.headland_passes ?? '–')],
               ['Swaths', String(m?.n_swaths ?? '–'), 'plan-swaths'],
               ['Turns', String(m?.n_turns ?? '–'), 'plan-turns'],
@@ -54,8 +55,9 @@ export function PlanScreen({ planId }: { planId: number }) {
               ['Turns / transit', formatDistance(m?.nonworking_length_m ?? undefined)],
               ['Overlap', m?.overlap_pct != null ? formatPercent(m.overlap_pct / 100) : '–'],
               ['Turning radius', plan.params.turn_radius_m != null ? `${plan.params.turn_radius_m} m` : '–'],
-              ['Unworked corners', formatArea(m?.corner_loss_m2 ?? undefined), 'plan-corner-loss'],
               ['Uncovered', formatArea(m?.uncovered_m2 ?? undefined), 'plan-uncovered'],
+              // a part of the uncovered area (the plan's warning says so), not beside it
+              ['… of which unworked corners', formatArea(m?.corner_loss_m2 ?? undefined), 'plan-corner-loss'],
             ]}
           />
         )}
@@ -80,7 +82,7 @@ export function PlanScreen({ planId }: { planId: number }) {
           {rxs.map((r) => (
             <li key={r.id}>
               <a href={`#/prescriptions/${r.id}`}>
-                #{r.id} {r.model}
+                #{r.id} {modelName(r.model)}
               </a>
               {attentionOf(r).count > 0 && (
                 <span className="warn small" data-testid={`rx-list-flagged-${r.id}`}>

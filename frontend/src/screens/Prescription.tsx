@@ -12,13 +12,15 @@ import { VersionDiff } from '../components/VersionDiff';
 import { VersionNote } from '../components/VersionNote';
 import { ZonePaintPanel } from '../components/ZonePaintPanel';
 import { ZonesTable } from '../components/ZonesTable';
-import { classColors, classify, legendEntries, niceBreaks, stepExpression } from '../lib/colors';
+import { classColors, classify, legendEntries, niceBreaks, stepExpression, type LegendEntry } from '../lib/colors';
 import { attentionLines, attentionOf, attentionSummary } from '../lib/flags';
 import { bboxOf, type PolygonGeom } from '../lib/geo';
 import { rateUnitText } from '../lib/rxform';
 import { formatRate } from '../lib/units';
+import { modelName } from '../lib/words';
 import { MapView } from '../map/MapView';
 import { rxTilesUrl } from '../map/grid';
+import { EDITED_COLOR } from '../map/layers';
 import { CellGrid, FieldBoundary, FitBounds, ZoneDraw } from '../map/overlays';
 
 const EXPORTS: [string, string, string][] = [
@@ -82,10 +84,16 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
   const stored = shown?.classes?.breaks_kg_ha;
   const breaks = useMemo(() => (stored?.length ? stored : niceBreaks(lo ?? 0, hi ?? 1000, 6)), [stored, lo, hi]);
   const colors = useMemo(() => classColors(breaks.length - 1), [breaks]);
-  const legend =
+  // cells edited by hand are outlined apart from the rate classes: an edit that lands in an
+  // unedited cells' class must still read as an edit on the map and in the legend
+  const editedCells = (shown?.flagged?.manual ?? 0) + (shown?.flagged?.zone ?? 0);
+  const classRows =
     lo != null && lo === hi
       ? [{ color: colors[0], from: lo, to: lo, label: `${lo.toFixed(1)} (uniform)` }]
       : legendEntries(breaks, colors, (v) => v.toFixed(0));
+  const legend: LegendEntry[] = editedCells
+    ? [...classRows, { color: EDITED_COLOR, from: 0, to: 0, label: `Edited by hand: ${editedCells} cell${editedCells === 1 ? "" : "s"} (dashed outline)`, outline: true }]
+    : classRows;
   const colorExpr = useMemo(() => stepExpression('rate_kg_ha', breaks, colors), [breaks, colors]);
   // Whole-field, area-weighted histogram from the server (never from the tiles on screen).
   const hist = useMemo(() => {
@@ -160,7 +168,7 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
         <VersionNote rxId={rxId} version={version} note={note} onSaved={() => refresh(qk.prescription(rxId))} />
         <Kv
           items={[
-            ['Model', String(rx?.model ?? '–'), 'rx-model-name'],
+            ['Model', modelName(rx?.model), 'rx-model-name'],
             ['Cells', String(shown?.n_cells ?? '–'), 'rx-cell-count'],
             ['Flagged cells', rx ? attentionSummary(attention) : '–', 'rx-flagged'],
             ['Sent to machines in', rateUnitText(rx, shown?.rate_mean_kg_ha), 'rx-rate-unit'],
@@ -247,6 +255,7 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
             tiles={rxTilesUrl(rxId, version)}
             color={colorExpr}
             clamped
+            edited
             selectedSeq={cell?.seq ?? null}
             onClick={(p) => {
               if (painting) return;

@@ -1,11 +1,13 @@
 import { useState } from 'react';
 import { ApiError, call, client, type Machine } from '../api/client';
+import { useFieldPlans, useFields } from '../api/hooks';
 import { flaggedConfirmation } from '../lib/flags';
-import { fieldsOf, jobBody, KIND_LABELS, ndviPreview, qualifiedBand, type JobKind } from '../lib/jobkinds';
+import { fieldsOf, jobBody, KIND_LABELS, ndviPreview, planLabel, qualifiedBand, type JobKind } from '../lib/jobkinds';
 import { formatRate } from '../lib/units';
 
 /**
- * The form of a sensor job kind (seed 000 / 002): the plan to drive, the machine, and the
+ * The form of a sensor job kind (seed 000 / 002): the plan to drive (a field, then one of
+ * its plans), the machine, and the
  * kind's settings, each with its unit and the paper's value named as such. Only changed
  * values are sent; the server fills in the rest and names any bad input.
  */
@@ -56,10 +58,7 @@ export function SensorJobForm({
     >
       <h3>{KIND_LABELS[kind]}</h3>
       <div className="row">
-        <label>
-          Plan #{' '}
-          <input data-testid="job-plan" value={planId} onChange={(e) => setPlanId(e.target.value)} required placeholder="plan id" />
-        </label>
+        <PlanPicker planId={planId} onPick={setPlanId} />
         <label>
           Machine{' '}
           <select data-testid="job-kind-machine" value={machineId} onChange={(e) => setMachineId(e.target.value)}>
@@ -136,5 +135,49 @@ export function SensorJobForm({
         </div>
       )}
     </form>
+  );
+}
+
+/** The plan to drive, picked by field then by one of its plans (newest first), not typed as a number. */
+function PlanPicker({ planId, onPick }: { planId: string; onPick: (planId: string) => void }) {
+  // read afresh whenever the form opens: a field or plan made a moment ago is offered
+  const fieldsQ = useFields({ limit: 500 }, { staleTime: 0 });
+  const [fieldId, setFieldId] = useState('');
+  const plansQ = useFieldPlans(fieldId ? Number(fieldId) : null, { staleTime: 0 });
+  const fields = fieldsQ.data?.features ?? [];
+  const plans = [...(plansQ.data?.items ?? [])].sort((a, b) => b.id - a.id);
+  return (
+    <>
+      <label>
+        Field{' '}
+        <select
+          data-testid="job-field"
+          value={fieldId}
+          required
+          onChange={(e) => {
+            setFieldId(e.target.value);
+            onPick('');
+          }}
+        >
+          <option value="">{fieldsQ.isLoading ? 'loading…' : 'choose a field'}</option>
+          {fields.map((f) => (
+            <option key={f.properties.id} value={f.properties.id}>
+              {f.properties.name}
+            </option>
+          ))}
+        </select>
+      </label>
+      <label>
+        Plan{' '}
+        <select data-testid="job-plan" value={planId} required disabled={!fieldId} onChange={(e) => onPick(e.target.value)}>
+          <option value="">{!fieldId ? 'choose a field first' : plansQ.isLoading ? 'loading…' : plans.length ? 'choose a plan' : 'no plan on this field'}</option>
+          {plans.map((p) => (
+            <option key={p.id} value={p.id}>
+              {planLabel(p)}
+            </option>
+          ))}
+        </select>
+      </label>
+    </>
   );
 }

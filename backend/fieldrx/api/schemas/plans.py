@@ -72,12 +72,14 @@ class PlanMetrics(Open):
     overlap_pct: float | None = None
     outside_pct: float | None = None
     uncovered_m2: float | None = Field(
-        default=None, description="field area no swath or ring sweeps, m²"
+        default=None,
+        description="field area no cell will hold, m²: what no swath or ring sweeps, and "
+        "the headland corners the rounded rings leave out (corner_loss_m2 is a part of it)",
     )
     corner_loss_m2: float | None = Field(
         default=None,
         description="headland corners the rings, rounded to the turning radius, cannot "
-        "reach: field area no cell holds (in the grid's uncovered area), m²",
+        "reach: field area no cell holds, m² (a part of uncovered_m2)",
     )
     turn_time_s: float | None = None
     required_headland_passes: int | None = Field(

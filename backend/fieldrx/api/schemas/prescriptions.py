@@ -310,7 +310,7 @@ class VersionPatch(In):
     @model_validator(mode="after")
     def _one_classes(self) -> VersionPatch:
         if self.class_count is not None and self.breaks_kg_ha is not None:
-            raise ValueError("give class_count or breaks_kg_ha, not both")
+            raise ValueError("give a class count or class breaks, not both")
         return self
 
 

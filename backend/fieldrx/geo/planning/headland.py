@@ -343,9 +343,8 @@ def _own_centres(
 
 def carve(
     region: BaseGeometry, rings: list[tuple[int, LineString, BaseGeometry]], w: float
-) -> tuple[BaseGeometry, float]:
-    """The inner region without what the (rounded) rings sweep, and the area (m²) of the
-    pieces it drops.
+) -> tuple[BaseGeometry, BaseGeometry]:
+    """The inner region without what the (rounded) rings sweep, and the pieces it drops.
 
     A ring rounded to the turning radius cuts its convex corners inwards, so its
     implement sweeps a little of the mitred inner region there (and, swinging around a
@@ -357,11 +356,11 @@ def carve(
     rings leave unworked.
     """
     if region.is_empty or not rings:
-        return region, 0.0
+        return region, Polygon()
     swept = shapely.union_all([band for _, _, band in rings])
     rest = parts(region.difference(swept))
     keep = [p for p in rest if p.area >= w * w]
-    dropped = float(sum(p.area for p in rest if p.area < w * w))
+    dropped = shapely.union_all([p for p in rest if p.area < w * w])
     return (shapely.union_all(keep) if keep else Polygon()), dropped
 
 
@@ -388,19 +387,29 @@ def _footprint(ring: LineString, w: float) -> BaseGeometry:
     return LinearRing(ring.coords).buffer(0.5 * w, join_style="mitre", mitre_limit=5.0)
 
 
+def corner_gaps(
+    field_geom: Polygon | MultiPolygon,
+    w: float,
+    h: int,
+    rings: list[tuple[int, LineString, BaseGeometry]],
+) -> BaseGeometry:
+    """The parts of the mitred headland bands that the (rounded) rings' bands -- what
+    their cells hold -- leave out."""
+    if not h:
+        return Polygon()
+    bands = shapely.union_all([_pass_bands(field_geom, w, k)[1] for k in range(h)])
+    swept = shapely.union_all([band for _, _, band in rings]) if rings else Polygon()
+    return bands.difference(swept)
+
+
 def corner_loss(
     field_geom: Polygon | MultiPolygon,
     w: float,
     h: int,
     rings: list[tuple[int, LineString, BaseGeometry]],
 ) -> float:
-    """Area (m²) of the mitred headland bands that the (rounded) rings' bands -- what
-    their cells hold -- leave out."""
-    if not h:
-        return 0.0
-    bands = shapely.union_all([_pass_bands(field_geom, w, k)[1] for k in range(h)])
-    swept = shapely.union_all([band for _, _, band in rings]) if rings else Polygon()
-    return float(bands.difference(swept).area)
+    """Area (m²) of :func:`corner_gaps`."""
+    return float(corner_gaps(field_geom, w, h, rings).area)
 
 
 def rotate_ring(ring: LineString, pt: np.ndarray, lead: float = 0.0) -> LineString:

@@ -67,7 +67,11 @@ def fill_metrics(plan: CoveragePlan) -> None:
     plan.working_length_m = float(sum(s.line.length for s in plan.swaths))
     plan.nonworking_length_m = float(sum(c.length for c in plan.connections))
     plan.coverage_pct = 100.0 * inside / area
-    plan.uncovered_m2 = float(max(0.0, area - inside))
+    # the corner gaps hold no cell even where an inner swath sweeps across them: counted
+    # as uncovered (the unswept part already is), so the corners are a part of it
+    gaps = plan.corner_gaps
+    swept_gaps = 0.0 if gaps is None or gaps.is_empty else shapely.intersection(gaps, union).area
+    plan.uncovered_m2 = float(max(0.0, area - inside) + swept_gaps)
     clipped = shapely.area(shapely.intersection(fp, fld)).sum()
     plan.overlap_pct = float(100.0 * max(0.0, clipped - inside) / area)
     plan.outside_pct = 100.0 * max(0.0, union.area - inside) / area

@@ -87,10 +87,13 @@ class CoveragePlan:
     reverse_m: float = 0.0
     required_headland_m: float = 0.0
     undrivable_connections: int = 0
+    # field area no cell will hold: what no swath or ring sweeps, and the corner gaps
     uncovered_m2: float = 0.0
     # field area the rounded rings leave to no cell (headland corners cut to the turning
-    # radius; in the grid's uncovered area), said apart so the user sees why
+    # radius): a part of uncovered_m2, said apart so the user sees why
     corner_loss_m2: float = 0.0
+    # where those corners are (an inner swath may sweep across one, but no cell holds it)
+    corner_gaps: BaseGeometry | None = None
     strip_tolerance_m: float = 0.0
     timings_s: dict[str, float] = field(default_factory=dict)
 

@@ -26,7 +26,7 @@ from .boundary import parts, polygonal, simplified, snapped
 from .decomposition import layout
 from .frame import azimuth_to_phi, frame_for, phi_to_azimuth
 from .headings import longest_edge_phi, optimal_phi
-from .headland import carve, corner_loss, headland_rings, inner_region
+from .headland import carve, corner_gaps, headland_rings, inner_region
 from .kinematics import DEFAULT_HEADLAND_PASSES, DEFAULT_TURN_RADIUS_M, Machine
 from .metrics import fill_metrics, turn_warnings
 from .model import CORNERS, HEADINGS, Corner, CoveragePlan, Heading
@@ -203,10 +203,10 @@ def _plan_field(fld_in: Polygon | MultiPolygon, st: _Settings, warnings: list[st
         if ROUND_HEADLAND_RINGS:
             rings = headland_rings(fld, w, h, st.machine.turn_radius_m, warnings)
             region, dropped = carve(region, rings, w)
-            lost = corner_loss(fld, w, h, rings) + dropped
-            _corner_warning(fld, lost, st.machine, warnings)
+            gaps = shapely.union_all([corner_gaps(fld, w, h, rings), dropped])
+            _corner_warning(fld, gaps.area, st.machine, warnings)
         else:
-            rings, lost = headland_rings(fld, w, h), 0.0
+            rings, gaps = headland_rings(fld, w, h), Polygon()
     with _timed(timings, "heading"):
         phi = _heading_phi(fld, region, st)
     with _timed(timings, "swaths"):
@@ -247,7 +247,8 @@ def _plan_field(fld_in: Polygon | MultiPolygon, st: _Settings, warnings: list[st
         reverse_m=sum(c.reverse_m for c in turns.connections),
         required_headland_m=turns.required_headland_m,
         undrivable_connections=turns.undrivable,
-        corner_loss_m2=lost,
+        corner_loss_m2=float(gaps.area),
+        corner_gaps=gaps,
     )
     with _timed(timings, "metrics"):
         fill_metrics(plan)

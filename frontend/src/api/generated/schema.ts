@@ -4319,7 +4319,7 @@ export interface components {
         PlanMetrics: {
             /**
              * Corner Loss M2
-             * @description headland corners the rings, rounded to the turning radius, cannot reach: field area no cell holds (in the grid's uncovered area), m²
+             * @description headland corners the rings, rounded to the turning radius, cannot reach: field area no cell holds, m² (a part of uncovered_m2)
              */
             corner_loss_m2?: number | null;
             /** Coverage Pct */
@@ -4347,7 +4347,7 @@ export interface components {
             turn_time_s?: number | null;
             /**
              * Uncovered M2
-             * @description field area no swath or ring sweeps, m²
+             * @description field area no cell will hold, m²: what no swath or ring sweeps, and the headland corners the rounded rings leave out (corner_loss_m2 is a part of it)
              */
             uncovered_m2?: number | null;
             /** Warnings */

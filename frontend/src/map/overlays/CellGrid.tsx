@@ -16,7 +16,7 @@ declare global {
  * A cell grid: a plan, a prescription (coloured by rate), an as-applied or sensor map.
  * From the server's vector tiles (`tiles`, source-layer "cells", features promoted by `seq`)
  * or from GeoJSON cells (`data`). Layers `${id}-fill` and, as asked, `${id}-line`,
- * `${id}-clamped`, `${id}-selected`. A new `tiles` URL re-creates the source (and re-times
+ * `${id}-clamped`, `${id}-edited`, `${id}-selected`. A new `tiles` URL re-creates the source (and re-times
  * the first frame in `window.__fieldrxPerf[id]`); a new `refreshKey` re-requests the same
  * tiles in place (live as-applied data) without removing the layers (not the key the source
  * was created with: those tiles are being loaded already).
@@ -36,6 +36,8 @@ export function CellGrid(props: {
   outline?: boolean;
   /** Red outline on clamped cells. */
   clamped?: boolean;
+  /** Dashed outline on cells edited by hand (`${id}-edited`). */
+  edited?: boolean;
   /** Outline this cell (`seq`); pass null for none. Omit the prop to have no selection layer. */
   selectedSeq?: number | null;
   /** Changing it re-requests the tiles (appends `v=<key>`) without re-creating the layers. */
@@ -43,7 +45,7 @@ export function CellGrid(props: {
   /** Click on a cell: its properties (`seq`, `rate_kg_ha`, `n_cells`, ...). */
   onClick?: (properties: Record<string, unknown>, e: maplibregl.MapLayerMouseEvent) => void;
 }) {
-  const { id, tiles, data, color, opacity, outline, clamped } = props;
+  const { id, tiles, data, color, opacity, outline, clamped, edited } = props;
   const hasSel = 'selectedSeq' in props;
   const sel = props.selectedSeq ?? null;
   const spec = useMemo(() => {
@@ -51,14 +53,14 @@ export function CellGrid(props: {
     const source: maplibregl.SourceSpecification = tiles
       ? { type: 'vector', tiles: [tiles], minzoom: GRID_MINZOOM, maxzoom: GRID_MAXZOOM, promoteId: { cells: 'seq' } }
       : { type: 'geojson', data: data ?? EMPTY_FC };
-    const style = { color, opacity, outline, clamped, sourceLayer: tiles ? 'cells' : undefined };
+    const style = { color, opacity, outline, clamped, edited, sourceLayer: tiles ? 'cells' : undefined };
     return {
       id,
       slot: 'grid' as const,
       source,
       layers: cellGridLayers(id, hasSel ? { ...style, selectedSeq: sel } : style),
     };
-  }, [id, tiles, data, color, opacity, outline, clamped, hasSel, sel]);
+  }, [id, tiles, data, color, opacity, outline, clamped, edited, hasSel, sel]);
   const { refreshKey } = props;
   // The key the source was (re)created with: its tiles are fresh, no need to ask again.
   const keyAtAdd = useRef(refreshKey);
