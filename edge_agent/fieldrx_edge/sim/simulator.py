@@ -34,7 +34,7 @@ from fieldrx_edge.locate import boundary_rings
 from fieldrx_edge.metering import calibration_from_dict, flow_g_min_many
 from fieldrx_edge.motor import build_controller, closed_loop_t50_s
 from fieldrx_edge.protocol import ControllerSettings, JobPackage
-from fieldrx_edge.runtime import Pipeline, RuntimeConfig, make_record
+from fieldrx_edge.runtime import Measured, Pipeline, RuntimeConfig, make_record
 from fieldrx_edge.sim.fastplant import FastPlant2
 
 
@@ -418,7 +418,10 @@ def simulate(
                     time.sleep(ahead)
             batch.append(
                 make_record(
-                    pipe, d, None, y, ctrl.output, down, tbase + k0 * dt, fix_period_s=period
+                    pipe,
+                    d,
+                    None,
+                    Measured(y, ctrl.output, down, tbase + k0 * dt, fix_period_s=period),
                 )
             )
             if len(batch) >= batch_n:
