@@ -95,13 +95,13 @@ def make_sender(opts: UplinkOptions, queue: Any, extra: tuple[Any, ...] = ()) ->
 def load_job(spec: str, store: JobStore | None = None) -> JobPackage:
     """A job from a file path, ``demo:35x23`` / ``demo:20ha``, or a cached job id."""
     if spec.startswith("demo:"):
-        from fieldrx_edge.sim.fields import field_20ha, rect_job
+        from fieldrx_edge.sim.fields import RectField, field_20ha, rect_job
 
         what = spec[5:]
         if what == "20ha":
             return field_20ha()
         length, _, width = what.partition("x")
-        return rect_job(length_m=float(length), width_m=float(width))
+        return rect_job(RectField(length_m=float(length), width_m=float(width)))
     p = Path(spec)
     if p.exists():
         return JobPackage.from_json(p.read_bytes(), verify=True)
