@@ -227,17 +227,16 @@ def build(args: argparse.Namespace) -> tuple[bytes, dict[str, Any]]:
     t = time.perf_counter()
     fmt = args.format
     if fmt != "job":
-        from fieldrx.formats.export import export_prescription
+        from fieldrx.formats.export import ExportOptions, export_prescription
 
-        out, _media, _name = export_prescription(
-            cells,
-            fmt,
+        opts = ExportOptions(
             field_name=field_name,
             boundary_wgs84=field_ll,
             product_name=args.product,
             grid_cell_m=args.grid_cell_m,
             properties={"field": field_name, "model": args.model},
         )
+        out, _media, _name = export_prescription(cells, fmt, opts)
     else:
         from fieldrx.formats.jobpackage import build_job_package, package_size
 
