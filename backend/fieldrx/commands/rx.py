@@ -238,23 +238,25 @@ def build(args: argparse.Namespace) -> tuple[bytes, dict[str, Any]]:
         )
         out, _media, _name = export_prescription(cells, fmt, opts)
     else:
-        from fieldrx.formats.jobpackage import build_job_package, package_size
+        from fieldrx.formats.jobpackage import JobPackageSpec, build_job_package, package_size
 
         pkg = build_job_package(
             cells,
             field_utm,
-            job_id=0,
-            machine_id=0,
-            prescription_id=0,
-            prescription_version=1,
-            field_name=field_name,
-            implement_width_m=args.swath_width,
-            lag_s=args.lag_s,
-            calibration=cal,
-            controller={"name": args.controller},
-            speed_min_m_s=args.speed_min_kmh / 3.6,
-            speed_max_m_s=args.speed_max_kmh / 3.6,
-            product=args.product,
+            JobPackageSpec(
+                job_id=0,
+                machine_id=0,
+                prescription_id=0,
+                prescription_version=1,
+                field_name=field_name,
+                implement_width_m=args.swath_width,
+                lag_s=args.lag_s,
+                calibration=cal,
+                controller={"name": args.controller},
+                speed_min_m_s=args.speed_min_kmh / 3.6,
+                speed_max_m_s=args.speed_max_kmh / 3.6,
+                product=args.product,
+            ),
         )
         out = pkg.to_json()
         summary["job_package"] = {**package_size(pkg), "checksum": pkg.checksum}
