@@ -131,7 +131,7 @@ def build(args: argparse.Namespace) -> tuple[bytes, dict[str, Any]]:
         calibration_from_dict,
     )
 
-    from fieldrx.agronomy.prescription import prescribe
+    from fieldrx.agronomy.prescription import RateRules, prescribe
     from fieldrx.agronomy.rates import MeterCheck
     from fieldrx.agronomy.soil import read_soil_samples
     from fieldrx.formats.field_import import read_fields
@@ -215,8 +215,7 @@ def build(args: argparse.Namespace) -> tuple[bytes, dict[str, Any]]:
         vals,
         interpolation=args.interpolation,
         interpolation_params=_interp_params(args),
-        meter=meter,
-        fallback_rate_kg_ha=args.fallback_rate,
+        rules=RateRules(meter=meter, fallback_rate_kg_ha=args.fallback_rate),
     )
     cells = cells.with_rates(rx.rate_kg_ha, rx.flags)
     timings["prescription_s"] = time.perf_counter() - t

@@ -35,6 +35,7 @@ from fieldrx.agronomy.prescription import (
     ATTENTION_MASK,
     MODEL_INPUT,
     PrescriptionError,
+    RateRules,
     apply_cell_edits,
     build_prescription,
     check_breaks,
@@ -623,19 +624,8 @@ def create_prescription(
         values, no_data, interp_info = interpolate_field_samples(
             session, field, cells, model, interpolation, interpolation_params
         )
-    p = build_prescription(
-        model,
-        params,
-        len(seq),
-        values,
-        no_data,
-        check,
-        fallback_rate_kg_ha,
-        area,
-        clamp_min_kg_ha,
-        clamp_max_kg_ha,
-        seq,
-    )
+    rules = RateRules(check, fallback_rate_kg_ha, clamp_min_kg_ha, clamp_max_kg_ha)
+    p = build_prescription(model, params, len(seq), values, no_data, rules, area, seq)
     flags, plaus_report = apply_plausibility(p.rate_kg_ha, p.flags, area, seq, plaus, True)
     p.flags = flags
     summary = p.summary(area, seq=seq)
