@@ -387,10 +387,7 @@ def _create_rx(
         meter = rx_svc.meter_spec(
             machine, plan, body.speed_min_kmh, body.speed_max_kmh, body.width_m, body.calibration
         )
-        rx = rx_svc.create_prescription(
-            session,
-            plan,
-            field,
+        spec = rx_svc.NewPrescription(
             name=name,
             product=body.product,
             model="ndvi",
@@ -400,8 +397,6 @@ def _create_rx(
             fallback_rate_kg_ha=body.fallback_rate_kg_ha,
             meter=meter,
             machine_id=body.machine_id,
-            user_id=principal.user_id,
-            organisation_id=principal.organisation_id,
             cell_source=cell_source,
             source={
                 "imagery_id": img.id,
@@ -409,6 +404,14 @@ def _create_rx(
                 "acquired_on": img.acquired_on.isoformat() if img.acquired_on else None,
                 **extra_source,
             },
+        )
+        rx = rx_svc.create_prescription(
+            session,
+            plan,
+            field,
+            spec,
+            user_id=principal.user_id,
+            organisation_id=principal.organisation_id,
         )
     except (ImageryError, ZoneError, *BAD_INPUT) as exc:
         session.rollback()
