@@ -22,7 +22,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from fieldrx_edge.gnss import NmeaParser  # noqa: E402
 from fieldrx_edge.locate import CellLocator  # noqa: E402
-from fieldrx_edge.runtime import Pipeline, RuntimeConfig, make_record  # noqa: E402
+from fieldrx_edge.runtime import Measured, Pipeline, RuntimeConfig, make_record  # noqa: E402
 from fieldrx_edge.sim.drive import drive_fixes, write_nmea_log  # noqa: E402
 from fieldrx_edge.sim.simulator import SimConfig  # noqa: E402
 from fieldrx_edge.uplink import TelemetryQueue  # noqa: E402
@@ -50,7 +50,7 @@ def main() -> None:
         for ln in lines:
             for fx in parser.feed(ln):
                 d = pipe.on_fix(fx, fx.t or 0.0)
-                make_record(pipe, d, fx, 100.0, 80.0, True, fx.t or 1.0)
+                make_record(pipe, d, fx, Measured(100.0, 80.0, True, fx.t or 1.0))
                 n += 1
         best = max(best, n / (time.perf_counter() - t))
     print(f"pipeline (parse..record): {best:,.0f} fixes/s ({n} fixes)")
@@ -65,7 +65,7 @@ def main() -> None:
     for ln in lines:
         for fx in parser.feed(ln):
             d = pipe.on_fix(fx, fx.t or 0.0)
-            buf.append(make_record(pipe, d, fx, 100.0, 80.0, True, fx.t or 1.0))
+            buf.append(make_record(pipe, d, fx, Measured(100.0, 80.0, True, fx.t or 1.0)))
             if len(buf) == 100:
                 q.put_many(buf)
                 buf = []

@@ -882,6 +882,19 @@ def thin_phase(
     return thin
 
 
+def _worker_totals(logs: list[Path]) -> list[int]:
+    """Records each stopped worker says it stored (-1: no totals line); a log with a
+    traceback (or every log with BENCH_LOGS set) is printed."""
+    out = []
+    for log in logs:
+        text = log.read_text(errors="replace")
+        m = re.search(r"records=(\d+), stored=(\d+), duplicates=(\d+)", text)
+        out.append(int(m.group(2)) if m else -1)
+        if "Traceback" in text or os.environ.get("BENCH_LOGS"):
+            print(text[-3000:], file=sys.stderr)
+    return out
+
+
 # main --------------------------------------------------------------------------------
 def main() -> int:
     ap = argparse.ArgumentParser(
@@ -1005,25 +1018,21 @@ def main() -> int:
             group = "bench"
             logs = [tmp / f"worker{i}.log" for i in range(workers)]
             lanes = ["--db-connections", str(args.db_connections)] if args.db_connections else []
+            cmd = [
+                str(BIN / "fieldrx"),
+                "worker",
+                "--role",
+                "ingest",
+                "--group",
+                group,
+                "--batch-ms",
+                str(args.batch_ms),
+                "--mqtt-url",
+                f"mqtt://127.0.0.1:{port}",
+                *lanes,
+            ]
             for log in logs:
-                w = start(
-                    [
-                        str(BIN / "fieldrx"),
-                        "worker",
-                        "--role",
-                        "ingest",
-                        "--group",
-                        group,
-                        "--batch-ms",
-                        str(args.batch_ms),
-                        "--mqtt-url",
-                        f"mqtt://127.0.0.1:{port}",
-                        *lanes,
-                    ],
-                    env,
-                    log,
-                )
-                procs.append(w)
+                procs.append(start(cmd, env, log))  # each at once: the finally stops it
             wait_log(logs, "subscribed to")
             cpu0 = cpu_seconds(db_name)
             elapsed, lat, stored = drive_mqtt(
@@ -1038,12 +1047,7 @@ def main() -> int:
                 )  # fmt: skip
             for w in procs:
                 stop(w)  # the workers log their totals when they stop
-            for log in logs:
-                text = log.read_text(errors="replace")
-                m = re.search(r"records=(\d+), stored=(\d+), duplicates=(\d+)", text)
-                worker_records.append(int(m.group(2)) if m else -1)
-                if "Traceback" in text or os.environ.get("BENCH_LOGS"):
-                    print(text[-3000:], file=sys.stderr)
+            worker_records += _worker_totals(logs)
             print(f"records stored per worker: {worker_records}")
         if args.transport == "http":
             cpu1 = cpu_seconds(db_name)

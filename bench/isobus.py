@@ -29,6 +29,7 @@ import sys
 import threading
 import time
 from pathlib import Path
+from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "edge_agent"))
@@ -81,6 +82,46 @@ def throughput(n_frames: int = 20_000) -> dict[str, float]:
     }
 
 
+def _sniff_values(
+    sniff: Any, tc_node: Node, stop: threading.Event, seen: list[tuple[float, int, int]]
+) -> None:
+    """Record (time, DDI, value) of every process-data value the TC sends, until ``stop``
+    (the TC's address is read per frame: it is claimed while the sniffer runs)."""
+    while not stop.is_set():
+        m = sniff.recv(0.05)
+        if m is None:
+            continue
+        t = time.perf_counter()
+        pgn, sa, _da, _p = decode_id(m.arbitration_id)
+        if pgn == PGN_PROCESS_DATA and sa == tc_node.address and len(m.data) == 8:
+            pd = pdm.decode(bytes(m.data))
+            if pd.command == pdm.CMD_VALUE:
+                seen.append((t, pd.ddi, pd.value & 0xFFFFFFFF))
+
+
+def _latencies(
+    events: list[tuple[float, int, int]], seen: list[tuple[float, int, int]]
+) -> tuple[dict[int, list[float]], int]:
+    """ms from each expected set-point to the first matching value on the bus, per DDI
+    (6 rate, 290 work state), and how many never showed."""
+    lat: dict[int, list[float]] = {6: [], 290: []}
+    missing = 0
+    for te, ddi, val in events:
+        hit = next((ts for ts, dd, vv in seen if dd == ddi and vv == val and ts >= te), None)
+        if hit is None:
+            missing += 1
+        else:
+            lat[ddi].append((hit - te) * 1000.0)
+    return lat, missing
+
+
+def _quantile(v: list[float], p: float) -> float | None:
+    if not v:
+        return None
+    s = sorted(v)
+    return round(s[min(len(s) - 1, int(p * len(s)))], 3)
+
+
 def latency(seconds: float, gnss_hz: float = 10.0, spec: str | None = None) -> dict[str, object]:
     """Live set-point latency on ``spec`` (a ``--can`` value; a fresh virtual bus if None)."""
     job = trial_plot()
@@ -95,22 +136,10 @@ def latency(seconds: float, gnss_hz: float = 10.0, spec: str | None = None) -> d
     seen: list[tuple[float, int, int]] = []
     stop, mstop = threading.Event(), threading.Event()
 
-    def sniffer() -> None:
-        while not stop.is_set():
-            m = sniff.recv(0.05)
-            if m is None:
-                continue
-            t = time.perf_counter()
-            pgn, sa, _da, _p = decode_id(m.arbitration_id)
-            if pgn == PGN_PROCESS_DATA and sa == tc_node.address and len(m.data) == 8:
-                pd = pdm.decode(bytes(m.data))
-                if pd.command == pdm.CMD_VALUE:
-                    seen.append((t, pd.ddi, pd.value & 0xFFFFFFFF))
-
     ths = [
         threading.Thread(target=impl.run, args=(stop,), daemon=True),
         threading.Thread(target=motor.run, args=(mstop,), daemon=True),
-        threading.Thread(target=sniffer, daemon=True),
+        threading.Thread(target=_sniff_values, args=(sniff, tc_node, stop, seen), daemon=True),
     ]
     for th in ths:
         th.start()
@@ -166,25 +195,11 @@ def latency(seconds: float, gnss_hz: float = 10.0, spec: str | None = None) -> d
     mstop.set()
     for th in [*ths, eth]:
         th.join(timeout=2)
-    lat: dict[int, list[float]] = {6: [], 290: []}
-    missing = 0
-    for te, ddi, val in events:
-        hit = next((ts for ts, dd, vv in seen if dd == ddi and vv == val and ts >= te), None)
-        if hit is None:
-            missing += 1
-        else:
-            lat[ddi].append((hit - te) * 1000.0)
+    lat, missing = _latencies(events, seen)
     for b in (tc_node, ecu_node):
         b.close()
     sniff.shutdown()
     allv = lat[6] + lat[290]
-
-    def q(v: list[float], p: float) -> float | None:
-        if not v:
-            return None
-        s = sorted(v)
-        return round(s[min(len(s) - 1, int(p * len(s)))], 3)
-
     return {
         "bus": spec.split(":")[0],
         "connect_s": round(connect_s, 3),
@@ -196,7 +211,7 @@ def latency(seconds: float, gnss_hz: float = 10.0, spec: str | None = None) -> d
         "section_switches": len(lat[290]),
         "missing": missing,
         "latency_ms_p50": round(statistics.median(allv), 3) if allv else None,
-        "latency_ms_p95": q(allv, 0.95),
+        "latency_ms_p95": _quantile(allv, 0.95),
         "latency_ms_max": round(max(allv), 3) if allv else None,
         "ecu_setpoints_rx": ecu.setpoints_rx,
         "tc_values_rx": tc.values_rx,

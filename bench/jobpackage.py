@@ -12,7 +12,7 @@ import numpy as np
 import shapely
 from fieldrx.agronomy.cells import CellTable
 from fieldrx.formats.csv_table import write_table1_csv
-from fieldrx.formats.jobpackage import build_job_package, package_size
+from fieldrx.formats.jobpackage import JobPackageSpec, build_job_package, package_size
 from fieldrx_edge.metering import LinearCalibration
 
 
@@ -27,14 +27,16 @@ def main():
     pkg = build_job_package(
         cells,
         boundary,
-        job_id=1,
-        machine_id=1,
-        prescription_id=1,
-        prescription_version=1,
-        field_name="bench",
-        implement_width_m=2.3,
-        lag_s=1.52,
-        calibration=LinearCalibration(),
+        JobPackageSpec(
+            job_id=1,
+            machine_id=1,
+            prescription_id=1,
+            prescription_version=1,
+            field_name="bench",
+            implement_width_m=2.3,
+            lag_s=1.52,
+            calibration=LinearCalibration(),
+        ),
     )
     s = package_size(pkg)
     build_s = time.perf_counter() - t

@@ -44,17 +44,14 @@ def main() -> None:
 def tiles_and_rx(s, plan, fld, org_id) -> dict:
     """Tile sizes / times over the field centre at several zooms, and a prescription."""
     from fieldrx.services import tiles
-    from fieldrx.services.prescriptions import MeterSpec, create_prescription
+    from fieldrx.services.prescriptions import MeterSpec, NewPrescription, create_prescription
     from fieldrx_edge.metering import SEED001_CALIBRATION
     from geoalchemy2.shape import to_shape
 
     c = to_shape(fld.boundary).centroid
     out: dict = {}
     t = time.perf_counter()
-    rx = create_prescription(
-        s,
-        plan,
-        fld,
+    spec = NewPrescription(
         name="bench",
         product="",
         model="uniform",
@@ -64,9 +61,8 @@ def tiles_and_rx(s, plan, fld, org_id) -> dict:
         fallback_rate_kg_ha=None,
         meter=MeterSpec(SEED001_CALIBRATION.to_dict(), 2.3, 0.8, 2.5),
         machine_id=None,
-        user_id=None,
-        organisation_id=org_id,
     )
+    rx = create_prescription(s, plan, fld, spec, user_id=None, organisation_id=org_id)
     s.commit()
     out["rx_create_s"] = round(time.perf_counter() - t, 3)
     print(

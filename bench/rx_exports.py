@@ -16,7 +16,7 @@ from fieldrx.agronomy.interpolate import interpolate_to_cells
 from fieldrx.formats.csv_table import write_table1_csv
 from fieldrx.formats.geojson import write_geojson
 from fieldrx.formats.isoxml import write_isoxml_grid, write_isoxml_zones
-from fieldrx.formats.jobpackage import build_job_package
+from fieldrx.formats.jobpackage import JobPackageSpec, build_job_package
 from fieldrx.formats.shapefile import write_shapefile_zip
 from fieldrx_edge.metering import LinearCalibration
 
@@ -49,14 +49,16 @@ def main():
         "job": lambda: build_job_package(
             cells,
             boundary,
-            job_id=1,
-            machine_id=1,
-            prescription_id=1,
-            prescription_version=1,
-            field_name="bench",
-            implement_width_m=2.3,
-            lag_s=1.52,
-            calibration=LinearCalibration(),
+            JobPackageSpec(
+                job_id=1,
+                machine_id=1,
+                prescription_id=1,
+                prescription_version=1,
+                field_name="bench",
+                implement_width_m=2.3,
+                lag_s=1.52,
+                calibration=LinearCalibration(),
+            ),
         ).to_json(),
     }
     result = {"n_cells": n, "idw_s": round(interp_s, 3), "baseline_to_geojson_s": round(base, 3)}

@@ -37,7 +37,7 @@ from fieldrx_edge.jobkinds.seeding import DepthDisturbance, simulate_seeding
 from fieldrx_edge.jobkinds.settings import validate_settings
 from fieldrx_edge.jobkinds.topdress import simulate_topdress
 from fieldrx_edge.ndvi import SEED000_TABLE
-from fieldrx_edge.sim.fields import rect_job
+from fieldrx_edge.sim.fields import RectField, rect_job
 
 PAPER000 = {
     "bands": [2.0, 3.6, 3.8, 4.0],
@@ -55,7 +55,7 @@ PAPER002 = {
 def job(
     kind: str, length: float, width: float, impl: float, settings: dict[str, Any] | None = None
 ) -> Any:
-    j = rect_job(length_m=length, width_m=width, implement_width_m=impl)
+    j = rect_job(RectField(length_m=length, width_m=width, implement_width_m=impl))
     return dataclasses.replace(
         j,
         kind=kind,

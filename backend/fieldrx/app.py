@@ -93,6 +93,16 @@ def create_app() -> FastAPI:
     bounded.warm_up()
     _clean_after_crash()
 
+    _install_error_handlers(app)
+    _install_api(app)
+    _install_ui(app)
+    tune_for_ingest()  # telemetry bodies: the cyclic GC kept re-walking parsed records
+    return app
+
+
+def _install_error_handlers(app: FastAPI) -> None:
+    """Every error the API returns in its one shape (``detail``), with the right status."""
+
     @app.exception_handler(MqttCredentialError)
     async def _mqtt_error(_: Request, exc: MqttCredentialError) -> JSONResponse:
         """A device credential could not be changed on the broker: nothing was committed."""
@@ -172,6 +182,9 @@ def create_app() -> FastAPI:
             },
         )
 
+
+def _install_api(app: FastAPI) -> None:
+    """The routers under API_PREFIX, the fast device-ingest route and the API's 404."""
     for name in ROUTERS:
         try:
             module = importlib.import_module(f"fieldrx.api.{name}")
@@ -197,6 +210,9 @@ def create_app() -> FastAPI:
         one error shape, whatever the method (not the UI's index page, not a bare 405)."""
         return JSONResponse({"detail": f"not found: {API_PREFIX}/{path}"}, status_code=404)
 
+
+def _install_ui(app: FastAPI) -> None:
+    """The built browser UI: its assets, index.html and client-side routes."""
     dist = _frontend_dist()
     index = dist / "index.html"
     if (dist / "assets").is_dir():
@@ -221,6 +237,3 @@ def create_app() -> FastAPI:
         if index.is_file():
             return FileResponse(index)
         return JSONResponse({"detail": f"not found: /{path}"}, status_code=404)
-
-    tune_for_ingest()  # telemetry bodies: the cyclic GC kept re-walking parsed records
-    return app

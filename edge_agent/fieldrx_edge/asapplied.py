@@ -321,41 +321,53 @@ class RecordsApplied:
     outside_g: float  # landed in no cell, or somewhere unknown
 
 
+@dataclass(frozen=True)
+class RecordColumns:
+    """A job's telemetry records as columns, sorted by time (the agent's log).
+
+    ``own`` is each record's cell (index in path order, -1 none); ``fallback_g_s`` the
+    flow to use where there is no calibration (the applied rate over the strip).
+    ``count`` (bool per record, default all): only these records' mass is placed."""
+
+    t: np.ndarray
+    fix_period_s: np.ndarray | None
+    x: np.ndarray
+    y: np.ndarray
+    heading_deg: np.ndarray
+    rpm: np.ndarray
+    own: np.ndarray
+    fallback_g_s: np.ndarray
+    count: np.ndarray | None = None
+
+
 def records_applied(
     cells: Cells,
-    t: np.ndarray,
-    fix_period_s: np.ndarray | None,
-    x: np.ndarray,
-    y: np.ndarray,
-    heading_deg: np.ndarray,
-    rpm: np.ndarray,
-    own: np.ndarray,
+    rec: RecordColumns,
     cal: Calibration | None,
-    fallback_g_s: np.ndarray,
     lag_s: float,
     forward_m: float,
     max_gap_s: float = 2.0,
-    count: np.ndarray | None = None,
 ) -> RecordsApplied:
     """Seed 001 eq. 16-17 over telemetry records sorted by time (the agent's log).
 
-    ``own`` is each record's cell (index in path order, -1 none): preferred where
-    cells overlap, and where the record has no position its mass goes there.
+    ``rec.own`` is each record's cell: preferred where cells overlap, and where the
+    record has no position its mass goes there.
 
-    ``count`` (bool per record, default all): only these records' mass is placed
+    ``rec.count`` (bool per record, default all): only these records' mass is placed
     (``m2_g``, ``outside_g``); the others are context. The thin uplink
     (``fieldrx_edge.uplink.thin``) runs the kernel over a window of the log this
     way: a record's figures depend only on itself, the next record and the
     track up to its landing time, so a window holding those gives the counted
     records exactly what the whole log gives them.
     """
-    t = np.asarray(t, dtype=float)
-    dts = fix_periods(t, fix_period_s, max_gap_s)
-    mass = metered_mass_g(flow_g_s(cal, rpm, fallback_g_s), dts)
-    x = np.asarray(x, dtype=float)
-    y = np.asarray(y, dtype=float)
+    own, count = rec.own, rec.count
+    t = np.asarray(rec.t, dtype=float)
+    dts = fix_periods(t, rec.fix_period_s, max_gap_s)
+    mass = metered_mass_g(flow_g_s(cal, rec.rpm, rec.fallback_g_s), dts)
+    x = np.asarray(rec.x, dtype=float)
+    y = np.asarray(rec.y, dtype=float)
     have = np.isfinite(x) & np.isfinite(y)
-    hd = np.nan_to_num(np.asarray(heading_deg, dtype=float))
+    hd = np.nan_to_num(np.asarray(rec.heading_deg, dtype=float))
     p0, p1, known = landing_segments(t, dts, t[have], x[have], y[have], hd[have], lag_s, forward_m)
     counted = mass if count is None else np.where(count, mass, 0.0)
     m2, _ = landed_mass(cells, np.where(known & have, counted, 0.0), p0, p1, own)

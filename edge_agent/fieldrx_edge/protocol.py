@@ -479,6 +479,39 @@ def _finite(v: object) -> TypeGuard[float]:
     return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
 
 
+def _sanitize_floats(rec: dict[str, Any], reasons: list[str]) -> None:
+    """``sanitize_record``'s measured values: non-finite to null, out of range clamped,
+    a heading wrapped into [0, 360)."""
+    for name in _FLOAT_FIELDS:
+        v = rec.get(name)
+        if v is None:
+            continue
+        if not _finite(v):
+            reasons.append(f"{name}: {v!r} is not a finite number")
+            rec[name] = None
+            continue
+        if name == "heading_deg":
+            if not 0.0 <= v < 360.0:
+                rec[name] = float(v) % 360.0  # a direction: wrap, not an error
+            continue
+        lo, hi = _CLAMP[name]
+        if v < lo or v > hi:
+            reasons.append(f"{name}: {v!r} clamped to [{lo:g}, {hi:g}]")
+            rec[name] = min(max(float(v), lo), hi)
+
+
+def _sanitize_ids(rec: dict[str, Any], reasons: list[str]) -> None:
+    """``sanitize_record``'s ids: what does not fit the server's int4 columns becomes null."""
+    for name in ("job_id", "cell_seq"):
+        v = rec.get(name)
+        if v is not None and (type(v) is not int or not -INT4_MAX <= v <= INT4_MAX):
+            reasons.append(f"{name}: {v!r} is not an integer id")
+            rec[name] = None
+    if rec.get("job_id") is not None and rec["job_id"] <= 0:
+        reasons.append(f"job_id: {rec['job_id']!r} is not a positive id")
+        rec["job_id"] = None
+
+
 def sanitize_record(rec: dict[str, Any]) -> list[str]:
     """Make a record the agent is about to queue follow the protocol, in place.
 
@@ -499,22 +532,7 @@ def sanitize_record(rec: dict[str, Any]) -> list[str]:
         if not (_finite(lon) and _finite(lat) and -180.0 <= lon <= 180.0 and -90.0 <= lat <= 90.0):
             reasons.append(f"lon/lat: ({lon!r}, {lat!r}) is not a position")
             rec["lon"] = rec["lat"] = None
-    for name in _FLOAT_FIELDS:
-        v = rec.get(name)
-        if v is None:
-            continue
-        if not _finite(v):
-            reasons.append(f"{name}: {v!r} is not a finite number")
-            rec[name] = None
-            continue
-        if name == "heading_deg":
-            if not 0.0 <= v < 360.0:
-                rec[name] = float(v) % 360.0  # a direction: wrap, not an error
-            continue
-        lo, hi = _CLAMP[name]
-        if v < lo or v > hi:
-            reasons.append(f"{name}: {v!r} clamped to [{lo:g}, {hi:g}]")
-            rec[name] = min(max(float(v), lo), hi)
+    _sanitize_floats(rec, reasons)
     p = rec.get("fix_period_s")
     if p is not None and not (_finite(p) and 0.0 < p <= MAX_FIX_PERIOD_S):
         reasons.append(f"fix_period_s: {p!r} is not a fix period")
@@ -523,14 +541,7 @@ def sanitize_record(rec: dict[str, Any]) -> list[str]:
     if type(fq) is not int or not 0 <= fq <= 32767:
         reasons.append(f"fix_quality: {fq!r} is not a GGA quality")
         rec["fix_quality"] = 0
-    for name in ("job_id", "cell_seq"):
-        v = rec.get(name)
-        if v is not None and (type(v) is not int or not -INT4_MAX <= v <= INT4_MAX):
-            reasons.append(f"{name}: {v!r} is not an integer id")
-            rec[name] = None
-    if rec.get("job_id") is not None and rec["job_id"] <= 0:
-        reasons.append(f"job_id: {rec['job_id']!r} is not a positive id")
-        rec["job_id"] = None
+    _sanitize_ids(rec, reasons)
     b = rec.get("queue_backlog", 0)
     if type(b) is not int or not 0 <= b <= INT4_MAX:
         rec["queue_backlog"] = min(max(int(b), 0), INT4_MAX) if _finite(b) else 0

@@ -82,6 +82,20 @@ class Decision:
     alarms: list[str] = field(default_factory=list)
 
 
+@dataclass(frozen=True, slots=True)
+class Measured:
+    """What goes into a telemetry record beside the pipeline's decision: the motor's
+    reading, the implement state and the fix time the record stands for."""
+
+    actual_rpm: float
+    duty: float
+    implement_down: bool
+    t: float  # receiver time of the fix (TelemetryRecord.t), not the time of writing
+    backlog: int = 0
+    ndvi: float | None = None
+    fix_period_s: float | None = None  # the fix interval the record stands for
+
+
 class Pipeline:
     """Per-fix decisions for one job; pure computation, no I/O (the simulator reuses it)."""
 
@@ -214,6 +228,34 @@ class Pipeline:
                 "outside_field" if where == Where.OUTSIDE else "hole",
                 finish=not self._turning_in_run(self._applying, lx, ly),
             )
+        idx = self._cell_at(lx, ly)
+        d.cell = idx
+        if idx < 0:
+            early = self._early_start(d, x, y, v, implement_down)
+            if early is not None:
+                return early
+            return self._stop(d, "no_cell", finish=not self._turning_in_run(self._applying, lx, ly))
+        idx = self._kept_across_border(idx, lx, ly)
+        d.cell = idx
+        d.cell_seq = self.seqs[idx]
+        if idx != self._applying:
+            self._finish_current()
+        stop_reason = self._stop_ahead(idx, x, y, v, lx, ly)
+        if stop_reason:
+            return self._stop(d, stop_reason, finish=False)
+        if not implement_down:
+            return self._stop(d, "implement_raised", finish=False)  # lowered again: resume
+        if job.overlap_control and self.locator.finished[idx]:
+            return self._stop(d, "already_applied")
+        rate = self.rates[idx]
+        if rate <= 0.0:
+            return self._stop(d, "zero_rate")
+        self._meter(d, rate, v, "metering")
+        self._applying = idx
+        return d
+
+    def _cell_at(self, lx: float, ly: float) -> int:
+        """The cell the look-ahead point (lx, ly) lands in, -1 for none."""
         idx = self.locator.locate(lx, ly)
         if (
             idx >= 0
@@ -225,54 +267,43 @@ class Pipeline:
             # lands on the ring's path, so keep the cell being applied (never start and
             # finish an inner cell before it is driven)
             idx = self._applying
-        d.cell = idx
-        if idx < 0:
-            early = self._early_start(d, x, y, v, implement_down)
-            if early is not None:
-                return early
-            return self._stop(d, "no_cell", finish=not self._turning_in_run(self._applying, lx, ly))
+        return idx
+
+    def _kept_across_border(self, idx: int, lx: float, ly: float) -> int:
+        """Cell ``idx`` (>= 0), or the cell being applied when noise crossed back into ``idx``."""
         if (
             idx != self._applying
             and self._applying >= 0
             and self.locator.finished[idx]
-            and self.locator.distance_to_cell(self._applying, lx, ly) <= cfg.border_tolerance_m
+            and self.locator.distance_to_cell(self._applying, lx, ly) <= self.cfg.border_tolerance_m
         ):
             # GNSS noise pushed the point back over the border into the cell just
             # finished: keep applying the current cell rather than finishing it early
             idx = self._applying
-        d.cell = idx
-        d.cell_seq = self.seqs[idx]
-        if idx != self._applying:
-            self._finish_current()
-        if cfg.lag_compensation and cfg.stop_extra_s > 0:
-            # the shaft coasts down slower than it follows a small step: stop a little
-            # earlier before the field edge or a hole so the tail does not land outside
-            sx, sy = look_ahead(
-                x,
-                y,
-                self.heading_rad,
-                v,
-                self.look_ahead_time_s() + cfg.stop_extra_s,
-                job.antenna_forward_m,
-                job.antenna_lateral_m,
-            )
-            if self.boundary.where(sx, sy) != Where.INSIDE and not self._turning_in_run(
-                idx, lx, ly
-            ):
-                return self._stop(d, "edge_ahead", finish=False)
-            if job.overlap_control and self._applied_ahead(idx, sx, sy):
-                # the same before a headland ring already applied: the tail would land twice
-                return self._stop(d, "applied_ahead", finish=False)
-        if not implement_down:
-            return self._stop(d, "implement_raised", finish=False)  # lowered again: resume
-        if job.overlap_control and self.locator.finished[idx]:
-            return self._stop(d, "already_applied")
-        rate = self.rates[idx]
-        if rate <= 0.0:
-            return self._stop(d, "zero_rate")
-        self._meter(d, rate, v, "metering")
-        self._applying = idx
-        return d
+        return idx
+
+    def _stop_ahead(self, idx: int, x: float, y: float, v: float, lx: float, ly: float) -> str:
+        """Why metering stops early before the edge or applied ground ahead ("" if it does not)."""
+        cfg, job = self.cfg, self.job
+        if not (cfg.lag_compensation and cfg.stop_extra_s > 0):
+            return ""
+        # the shaft coasts down slower than it follows a small step: stop a little
+        # earlier before the field edge or a hole so the tail does not land outside
+        sx, sy = look_ahead(
+            x,
+            y,
+            self.heading_rad,
+            v,
+            self.look_ahead_time_s() + cfg.stop_extra_s,
+            job.antenna_forward_m,
+            job.antenna_lateral_m,
+        )
+        if self.boundary.where(sx, sy) != Where.INSIDE and not self._turning_in_run(idx, lx, ly):
+            return "edge_ahead"
+        if job.overlap_control and self._applied_ahead(idx, sx, sy):
+            # the same before a headland ring already applied: the tail would land twice
+            return "applied_ahead"
+        return ""
 
     def _run_continues(self, idx: int) -> bool:
         """The path goes on in the same swath after cell ``idx`` (a headland ring turning
@@ -382,24 +413,10 @@ class Pipeline:
         return rate_for_shaft_rpm(self.cal, actual_rpm, self.job.implement_width_m, d.speed_m_s)
 
 
-def make_record(
-    pipe: Pipeline,
-    d: Decision,
-    fix: Fix | None,
-    actual_rpm: float,
-    duty: float,
-    implement_down: bool,
-    t: float,
-    backlog: int = 0,
-    ndvi: float | None = None,
-    fix_period_s: float | None = None,
-) -> dict[str, Any]:
-    """Telemetry record body (seq and machine_id are set by the queue).
-
-    ``t`` is the fix time (``TelemetryRecord``: receiver time of the fix, not the
-    time the record is written) and ``fix_period_s`` the fix interval it stands for."""
+def make_record(pipe: Pipeline, d: Decision, fix: Fix | None, m: Measured) -> dict[str, Any]:
+    """Telemetry record body (seq and machine_id are set by the queue)."""
     alarms = list(d.alarms)
-    if d.metering and duty >= SATURATED_DUTY_PCT:
+    if d.metering and m.duty >= SATURATED_DUTY_PCT:
         alarms.append("motor_saturated")
     lon = lat = None
     if fix is not None and fix.lon is not None and fix.lat is not None:
@@ -413,7 +430,7 @@ def make_record(
     rec = TelemetryRecord(
         machine_id=pipe.job.machine_id,
         seq=1,
-        t=t,
+        t=m.t,
         lon=lon,
         lat=lat,
         fix_quality=fix.fix_quality if fix is not None else (1 if d.x is not None else 0),
@@ -424,15 +441,15 @@ def make_record(
         job_id=pipe.job.job_id,
         cell_seq=d.cell_seq,
         target_rate_kg_ha=d.target_rate_kg_ha * kg,
-        applied_rate_kg_ha=pipe.applied_rate(d, actual_rpm) * kg,
+        applied_rate_kg_ha=pipe.applied_rate(d, m.actual_rpm) * kg,
         target_shaft_rpm=d.target_rpm,
-        actual_shaft_rpm=actual_rpm,
-        duty=duty,
-        ndvi=ndvi,
-        implement_down=implement_down,
+        actual_shaft_rpm=m.actual_rpm,
+        duty=m.duty,
+        ndvi=m.ndvi,
+        implement_down=m.implement_down,
         alarms=alarms,
-        queue_backlog=backlog,
-        fix_period_s=fix_period_s,
+        queue_backlog=m.backlog,
+        fix_period_s=m.fix_period_s,
     )
     return rec.to_dict()
 
@@ -505,12 +522,7 @@ class Agent:
             self.pipe,
             d,
             fix,
-            self.motor.rpm,
-            self.motor.duty,
-            down,
-            t,
-            self._backlog,
-            fix_period_s=period,
+            Measured(self.motor.rpm, self.motor.duty, down, t, self._backlog, fix_period_s=period),
         )
         self.queue.put(rec)
         self.records += 1

@@ -69,22 +69,20 @@ def make_sender(opts: UplinkOptions, queue: Any, extra: tuple[Any, ...] = ()) ->
         return None  # --offline: queued only, whatever else is configured
     period = upload_period(opts.profile, opts.upload_period_s)
     if opts.mqtt:
-        from fieldrx_edge.uplink import MqttSender
+        from fieldrx_edge.uplink import MqttBroker, MqttSender
 
         # the broker knows the machine as machine-<id>, its password is the device token
         if not opts.token:
             raise SystemExit("--mqtt needs the device token (--token, or saved by pull)")
         host, _, port = opts.mqtt.partition(":")
-        return MqttSender(
-            queue,
+        broker = MqttBroker(
             host or "127.0.0.1",
             int(port or (8883 if opts.mqtt_ca else 1884)),
             username=mqtt_username(queue.machine_id),
             password=opts.token,
             tls_ca=opts.mqtt_ca,
-            extra_queues=extra,
-            upload_period_s=period,
         )
+        return MqttSender(queue, broker, extra_queues=extra, upload_period_s=period)
     if opts.server and opts.token:
         from fieldrx_edge.uplink import HttpSender
 
@@ -97,13 +95,13 @@ def make_sender(opts: UplinkOptions, queue: Any, extra: tuple[Any, ...] = ()) ->
 def load_job(spec: str, store: JobStore | None = None) -> JobPackage:
     """A job from a file path, ``demo:35x23`` / ``demo:20ha``, or a cached job id."""
     if spec.startswith("demo:"):
-        from fieldrx_edge.sim.fields import field_20ha, rect_job
+        from fieldrx_edge.sim.fields import RectField, field_20ha, rect_job
 
         what = spec[5:]
         if what == "20ha":
             return field_20ha()
         length, _, width = what.partition("x")
-        return rect_job(length_m=float(length), width_m=float(width))
+        return rect_job(RectField(length_m=float(length), width_m=float(width)))
     p = Path(spec)
     if p.exists():
         return JobPackage.from_json(p.read_bytes(), verify=True)

@@ -6,6 +6,7 @@ import shapely
 from fieldrx.agronomy.cells import FLAG_BITS, CellTable, flag_names, flag_strings
 from fieldrx.agronomy.prescription import (
     PrescriptionError,
+    RateRules,
     apply_cell_edits,
     build_prescription,
     paint_zone,
@@ -29,7 +30,9 @@ def _meter():
 
 def test_build_with_no_data_fallback_and_meter_flags():
     v = np.array([100.0, np.nan, 30.0, 500.0])
-    p = build_prescription("nutrient_balance", NB, 4, v, meter=_meter(), area_m2=np.ones(4))
+    p = build_prescription(
+        "nutrient_balance", NB, 4, v, rules=RateRules(meter=_meter()), area_m2=np.ones(4)
+    )
     # fallback = model rate at the mean of cells with data = F(210)
     assert p.fallback_rate_kg_ha == pytest.approx(float(nutrient_balance_rate(210.0, 2500, 0.25)))
     lo, hi = p.meter_range_kg_ha
@@ -47,7 +50,8 @@ def test_build_with_no_data_fallback_and_meter_flags():
 
 def test_explicit_fallback_and_errors():
     p = build_prescription(
-        "nutrient_balance", NB, 2, np.array([np.nan, np.nan]), fallback_rate_kg_ha=650
+        "nutrient_balance", NB, 2, np.array([np.nan, np.nan]),
+        rules=RateRules(fallback_rate_kg_ha=650),
     )
     np.testing.assert_allclose(p.rate_kg_ha, [650, 650])
     assert (p.flags == FLAG_BITS["no_data"]).all()
@@ -71,7 +75,7 @@ def test_prescribe_from_samples_cell_mean_and_uniform():
     assert p.rate_kg_ha[:3] == pytest.approx([700.367] * 3, abs=1e-3)
     assert (p.flags[3:] == FLAG_BITS["no_data"]).all()
     assert p.info["interpolation"]["method"] == "cell_mean"
-    u = prescribe(cells, "uniform", {"rate_kg_ha": 600}, meter=_meter())
+    u = prescribe(cells, "uniform", {"rate_kg_ha": 600}, rules=RateRules(meter=_meter()))
     assert (u.rate_kg_ha == 600).all() and (u.flags == 0).all()
     nd = prescribe(cells, "ndvi", {}, xy, np.array([0.24, 0.65, 0.445]), interpolation="idw")
     assert nd.rate_kg_ha[:3] == pytest.approx([375, 180, 277.5])

@@ -8,6 +8,7 @@ import pytest
 from fieldrx.agronomy.cells import FLAG_BITS
 from fieldrx.agronomy.prescription import (
     PrescriptionError,
+    RateRules,
     build_prescription,
     check_breaks,
     clamp_rates,
@@ -52,7 +53,8 @@ def test_clamp_reports_every_changed_cell() -> None:
 
 def test_clamp_in_build_then_meter_check_sees_the_clamped_rate() -> None:
     p = build_prescription(
-        "uniform", {"rate_kg_ha": 500}, 3, clamp_max_kg_ha=450, area_m2=AREA, seq=SEQ
+        "uniform", {"rate_kg_ha": 500}, 3,
+        rules=RateRules(clamp_max_kg_ha=450), area_m2=AREA, seq=SEQ,
     )
     assert p.rate_kg_ha.tolist() == [450.0] * 3
     assert p.summary(AREA)["clamp"]["lowered"] == 3

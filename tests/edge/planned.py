@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 from fieldrx.agronomy.cells import CellTable
-from fieldrx.formats.jobpackage import build_job_package
+from fieldrx.formats.jobpackage import JobPackageSpec, build_job_package
 from fieldrx.geo.coverage import plan_coverage
 from fieldrx.geo.grid import build_grid
 from fieldrx_edge.metering import LinearCalibration
@@ -29,16 +29,18 @@ def planned_job(
     pkg = build_job_package(
         cells,
         field,
-        job_id=1,
-        machine_id=1,
-        prescription_id=1,
-        prescription_version=1,
-        field_name=name,
-        implement_width_m=width_m,
-        lag_s=1.52,
-        calibration=LinearCalibration(),
-        controller={"name": "ladrc"},
-        speed_min_m_s=3 / 3.6,
-        speed_max_m_s=2.5,
+        JobPackageSpec(
+            job_id=1,
+            machine_id=1,
+            prescription_id=1,
+            prescription_version=1,
+            field_name=name,
+            implement_width_m=width_m,
+            lag_s=1.52,
+            calibration=LinearCalibration(),
+            controller={"name": "ladrc"},
+            speed_min_m_s=3 / 3.6,
+            speed_max_m_s=2.5,
+        ),
     )
     return JobPackage.from_json(pkg.to_json()), cells

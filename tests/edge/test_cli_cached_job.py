@@ -12,11 +12,11 @@ from pathlib import Path
 import pytest
 from fieldrx_edge import cli
 from fieldrx_edge.jobs import JobStore
-from fieldrx_edge.sim.fields import rect_job
+from fieldrx_edge.sim.fields import RectField, rect_job
 
 
 def test_simulate_runs_a_cached_job(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    job = rect_job(length_m=35.0, width_m=23.0)
+    job = rect_job(RectField(length_m=35.0, width_m=23.0))
     JobStore(tmp_path).save_package(job.to_json())
     rc = cli.main(["simulate", str(job.job_id), "--state-dir", str(tmp_path), "--json"])
     assert rc == 0

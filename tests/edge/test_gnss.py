@@ -23,7 +23,9 @@ from hypothesis import strategies as st
 T0 = 1_763_700_000.0
 
 
-def epoch(t, lat=52.1, lon=15.2, v=1.5, c=90.0, talker="GN", q=4, hdop=0.7, valid=True):
+def epoch(t, pos=(52.1, 15.2), v=1.5, c=90.0, talker="GN", q=4, hdop=0.7, valid=True):
+    """One receiver epoch (RMC, GGA, VTG) at ``pos`` (lat, lon)."""
+    lat, lon = pos
     return [
         nmea.rmc(t, lat, lon, v, c, valid=valid, talker=talker),
         nmea.gga(t, lat, lon, quality=q, hdop=hdop, talker=talker),

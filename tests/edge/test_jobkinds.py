@@ -25,7 +25,7 @@ from fieldrx_edge.jobkinds.settings import SettingsError, validate_settings
 from fieldrx_edge.jobkinds.topdress import TopdressLoop
 from fieldrx_edge.ndvi import SEED000_TABLE
 from fieldrx_edge.protocol import JobPackage, ProtocolError, TelemetryRecord
-from fieldrx_edge.sim.fields import rect_job
+from fieldrx_edge.sim.fields import RectField, rect_job
 
 from tests.support import scaled
 
@@ -34,7 +34,7 @@ ROOT = Path(__file__).resolve().parents[2]
 
 
 def kind_job(kind: str, **settings: object) -> JobPackage:
-    job = rect_job(length_m=40, width_m=3.6 * 4, implement_width_m=3.6)
+    job = rect_job(RectField(length_m=40, width_m=3.6 * 4, implement_width_m=3.6))
     return dataclasses.replace(
         job,
         kind=kind,

@@ -6,7 +6,7 @@ import uuid
 import pytest
 from fieldrx.auth.mqtt import provision_device
 from fieldrx_edge.protocol import ack_topic, mqtt_username, telemetry_topic
-from fieldrx_edge.uplink import Backoff, HttpSender, MqttSender, TelemetryQueue
+from fieldrx_edge.uplink import Backoff, HttpSender, MqttBroker, MqttSender, TelemetryQueue
 
 from tests.mqtt_broker import mqtt_port, worker_client
 from tests.support import scaled
@@ -166,14 +166,8 @@ class MqttServerPeer:
 def _sender(q, token, **kw):
     """The agent's sender logged in as its machine (user machine-<id>, the device token)."""
     host, port = mqtt_port()
-    return MqttSender(
-        q,
-        host,
-        port,
-        username=mqtt_username(q.machine_id),
-        password=token,
-        **kw,
-    )
+    broker = MqttBroker(host, port, username=mqtt_username(q.machine_id), password=token)
+    return MqttSender(q, broker, **kw)
 
 
 def test_mqtt_sender_delivers_everything_once(tmp_path):

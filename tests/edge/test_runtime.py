@@ -5,7 +5,7 @@ from fieldrx_edge.gnss import Fix
 from fieldrx_edge.metering import calibration_from_dict, shaft_rpm_for_rate
 from fieldrx_edge.motor import MotorLoop, build_controller, closed_loop_t50_s, simulated_motor
 from fieldrx_edge.protocol import ControllerSettings, TelemetryRecord
-from fieldrx_edge.runtime import Pipeline, RuntimeConfig, make_record
+from fieldrx_edge.runtime import Measured, Pipeline, RuntimeConfig, make_record
 
 from .jobfactory import holed_field, trial_plot
 
@@ -123,7 +123,7 @@ def test_record_is_a_valid_telemetry_record():
     )
     fx.x, fx.y = OX + 2.0, OY + 1.15
     d = p.on_fix(fx, 0.0)
-    r = make_record(p, d, fx, 100.0, 80.0, True, fx.t)
+    r = make_record(p, d, fx, Measured(100.0, 80.0, True, fx.t))
     r["seq"] = 1
     rec = TelemetryRecord.from_dict(r)
     assert rec.cell_seq == job.seq[0] and rec.target_rate_kg_ha == job.rate_kg_ha[0]
@@ -146,8 +146,10 @@ def test_saturated_motor_raises_alarm():
     job = trial_plot()
     p = pipe(job, lag_compensation=False)
     d = p.on_position(0.0, OX + 2.0, OY + 1.15, 2.0, EAST)
-    assert "motor_saturated" in make_record(p, d, None, 50.0, 100.0, True, 1.0)["alarms"]
-    assert "motor_saturated" not in make_record(p, d, None, 50.0, 60.0, True, 1.0)["alarms"]
+    assert "motor_saturated" in make_record(p, d, None, Measured(50.0, 100.0, True, 1.0))["alarms"]
+    assert (
+        "motor_saturated" not in make_record(p, d, None, Measured(50.0, 60.0, True, 1.0))["alarms"]
+    )
 
 
 def test_early_start_meters_before_the_landing_point_enters():

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from fieldrx_edge.asapplied import records_applied
+from fieldrx_edge.asapplied import RecordColumns, records_applied
 from fieldrx_edge.gnss.utm import UtmProjection
 from fieldrx_edge.metering import calibration_from_dict
 from fieldrx_edge.protocol import CellRecord, ProtocolError
@@ -40,12 +40,14 @@ def _whole_log(job, recs) -> tuple:  # noqa: ANN001
         return np.array([d if r.get(k) is None else r[k] for r in recs], dtype=float)
 
     v = col("speed_filtered_m_s", 0.0)
-    res = records_applied(
-        acc.cells, col("t"), col("fix_period_s"), xy[:, 0], xy[:, 1], col("heading_deg", 0.0),
-        col("actual_shaft_rpm"), own, calibration_from_dict(job.calibration),
-        col("applied_rate_kg_ha", 0.0) * job.implement_width_m * v * 6 / 60, job.lag_s,
-        job.antenna_forward_m,
+    cols = RecordColumns(
+        col("t"), col("fix_period_s"), xy[:, 0], xy[:, 1], col("heading_deg", 0.0),
+        col("actual_shaft_rpm"), own,
+        col("applied_rate_kg_ha", 0.0) * job.implement_width_m * v * 6 / 60,
     )  # fmt: skip
+    res = records_applied(
+        acc.cells, cols, calibration_from_dict(job.calibration), job.lag_s, job.antenna_forward_m
+    )
     down = np.array([r["implement_down"] for r in recs])
     return res, own, down, idx
 

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import pytest
 from fieldrx_edge.protocol import mqtt_username
-from fieldrx_edge.uplink import Backoff, HttpSender, MqttSender, TelemetryQueue
+from fieldrx_edge.uplink import Backoff, HttpSender, MqttBroker, MqttSender, TelemetryQueue
 from sqlalchemy import text
 
 from tests.fleet.helpers import JobFixture, make_job, record
@@ -99,12 +99,9 @@ def test_poison_records_over_mqtt(database_url, org, db, tmp_path: Path) -> None
     host, port = mqtt_port()
     s = MqttSender(
         q,
-        host,
-        port,
+        MqttBroker(host, port, username=mqtt_username(fx.machine_id), password=fx.device_token),
         batch_size=8,
         ack_timeout_s=3.0,
-        username=mqtt_username(fx.machine_id),
-        password=fx.device_token,
     )
     try:
         assert s.drain(30)

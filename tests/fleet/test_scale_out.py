@@ -1,4 +1,4 @@
-""" scale-out, the part that runs on one machine: two API processes and three MQTT
+"""scale-out, the part that runs on one machine: two API processes and three MQTT
 ingest workers on one database, agents over HTTP (behind a fail-over "load balancer")
 and over MQTT; one API process and one worker are SIGKILLed mid-load. Every record is
 stored exactly once: the agents resend what was not acknowledged, ingest deduplicates
@@ -16,7 +16,7 @@ from urllib.parse import urlparse
 
 from fieldrx_edge.protocol import mqtt_username
 from fieldrx_edge.uplink.http import HttpSender
-from fieldrx_edge.uplink.mqtt import MqttSender
+from fieldrx_edge.uplink.mqtt import MqttBroker, MqttSender
 from fieldrx_edge.uplink.queue import TelemetryQueue
 from sqlalchemy import text
 
@@ -86,12 +86,14 @@ def test_api_and_worker_killed_mid_load_lose_and_duplicate_nothing(
     mqtt_senders = [
         MqttSender(
             queues[fx.machine_id],
-            broker.hostname or "127.0.0.1",
-            broker.port or 1883,
+            MqttBroker(
+                broker.hostname or "127.0.0.1",
+                broker.port or 1883,
+                username=mqtt_username(fx.machine_id),
+                password=fx.device_token,
+            ),
             batch_size=50,
             ack_timeout_s=5.0,
-            username=mqtt_username(fx.machine_id),
-            password=fx.device_token,
         )
         for fx in mqtt_jobs
     ]

@@ -24,7 +24,7 @@ from typing import Any
 import httpx
 import pytest
 from fieldrx_edge.protocol import mqtt_username
-from fieldrx_edge.uplink import Backoff, HttpSender, MqttSender, TelemetryQueue
+from fieldrx_edge.uplink import Backoff, HttpSender, MqttBroker, MqttSender, TelemetryQueue
 from sqlalchemy import text
 
 from tests.fleet.helpers import JobFixture, make_job, record
@@ -101,7 +101,7 @@ def test_two_simulations_without_state_dir_store_both_jobs(
     db,
     tmp_path: Path,  # noqa: ANN001
 ) -> None:
-    """ (a): the second run's queue numbers from 1 again; it used to be
+    """(a): the second run's queue numbers from 1 again; it used to be
     acknowledged, stored nothing, and its job completed with 0 records."""
     c = httpx.Client(base_url=api_url, headers=org.headers(), timeout=scaled(60))
     token, (j1, j2) = _plan_jobs(c, 2)
@@ -134,7 +134,7 @@ def test_paced_and_unpaced_simulations_report_the_same(
     org,
     tmp_path: Path,  # noqa: ANN001
 ) -> None:
-    """ (b): paced, the simulator stamped wall-clock times 1/realtime of the
+    """(b): paced, the simulator stamped wall-clock times 1/realtime of the
     GNSS period apart and the report integrated 1/realtime of the mass."""
     c = httpx.Client(base_url=api_url, headers=org.headers(), timeout=scaled(60))
     token, (j1, j2) = _plan_jobs(c, 2)
@@ -288,12 +288,9 @@ def test_wiped_queue_and_second_agent_over_mqtt(database_url: str, org, db, tmp_
         # machine take turns on the connection (each drains, then hands over)
         return MqttSender(
             q,
-            host,
-            port,
+            MqttBroker(host, port, username=mqtt_username(fx.machine_id), password=fx.device_token),
             batch_size=25,
             ack_timeout_s=3.0,
-            username=mqtt_username(fx.machine_id),
-            password=fx.device_token,
         )
 
     try:

@@ -19,7 +19,7 @@ from fieldrx.db.session import raw_dsn
 from fieldrx.fleet.db import connect
 from fieldrx.fleet.ingest import parse_batch
 from fieldrx.fleet.multibatch import store_together, work_of
-from fieldrx.fleet.worker import IngestWorker, WorkerStats, _rounds
+from fieldrx.fleet.worker import IngestOptions, IngestWorker, WorkerStats, _rounds
 from fieldrx_edge.protocol import ack_topic, telemetry_topic
 
 from tests.fleet.helpers import JobFixture, make_job, on_citus, record
@@ -51,7 +51,9 @@ class Recorder:
 
 @pytest.fixture()
 def worker() -> IngestWorker:
-    w = IngestWorker("mqtt://127.0.0.1:1", dsn="postgresql:///unused", client_id="t")
+    w = IngestWorker(
+        "mqtt://127.0.0.1:1", dsn="postgresql:///unused", opts=IngestOptions(client_id="t")
+    )
     w.client = Recorder()  # type: ignore[assignment]
     return w
 

@@ -7,12 +7,12 @@ from __future__ import annotations
 from types import SimpleNamespace
 
 import pytest
-from fieldrx.fleet.worker import IngestWorker
+from fieldrx.fleet.worker import IngestOptions, IngestWorker
 
 
 def _worker(lanes: int) -> IngestWorker:
-    return IngestWorker("mqtt://127.0.0.1:1", dsn="postgresql:///unused", client_id="t",
-                        db_connections=lanes)  # fmt: skip
+    opts = IngestOptions(client_id="t", db_connections=lanes)
+    return IngestWorker("mqtt://127.0.0.1:1", dsn="postgresql:///unused", opts=opts)
 
 
 def test_a_machine_always_lands_on_one_lane() -> None:

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 from fieldrx.formats import FormatError
-from fieldrx.formats.jobpackage import build_job_package, package_etag, package_size
+from fieldrx.formats.jobpackage import JobPackageSpec, build_job_package, package_etag, package_size
 from fieldrx_edge.metering import LinearCalibration, calibration_from_dict
 from fieldrx_edge.protocol import JobPackage, ProtocolError
 
@@ -23,7 +23,7 @@ def _pkg(cells, field_utm, **kw):
         speed_max_m_s=2.5,
     )
     args.update(kw)
-    return build_job_package(cells, field_utm, **args)
+    return build_job_package(cells, field_utm, JobPackageSpec(**args))
 
 
 def test_job_package_roundtrip(cells, field_utm):

@@ -10,7 +10,7 @@ import shapefile as pyshp
 import shapely
 import xmlschema
 from fieldrx.agronomy.cells import CellTable
-from fieldrx.formats.export import export_prescription
+from fieldrx.formats.export import ExportOptions, export_prescription
 from fieldrx.formats.isoxml import write_isoxml_zones
 from fieldrx.formats.shapefile import PROFILES, write_shapefile_zip, write_shapefile_zones_zip
 from fieldrx.formats.zones import dissolve_zones
@@ -161,7 +161,7 @@ def test_export_reports_zone_summary():
     c = field_cells("random")
     info: dict = {}
     data, media, _ = export_prescription(
-        c, "shapefile", profile="fieldview", zone_classes=5, info=info
+        c, "shapefile", ExportOptions(profile="fieldview", zone_classes=5), info=info
     )
     assert info["zones"]["n_polygons"] <= 100 and info["zones"]["n_zones"] <= 5
     assert "rate zones" in info["note"]
@@ -333,7 +333,7 @@ def test_every_exported_polygon_valid_as_written(cells, fmt, profile, tmp_path):
     with (shapely ``is_valid`` on the file's text); GeoJSON used to round pointwise only, so
     the pinched cells (and 12-15 cells of a real field) were written self-intersecting."""
     c = pinched_cells() if cells == "pinched" else field_cells("random")
-    data, _, _ = export_prescription(c, fmt, field_name="f", profile=profile)
+    data, _, _ = export_prescription(c, fmt, ExportOptions(field_name="f", profile=profile))
     geoms = _written_polygons(fmt, profile, data, tmp_path)
     assert geoms
     bad = [i for i, g in enumerate(geoms) if not g.is_valid]

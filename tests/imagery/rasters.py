@@ -34,12 +34,12 @@ def write_tiff(
     bounds: tuple[float, float, float, float] = (X0 - 10, Y0 - 10, X0 + 210, Y0 + 110),
     res: float = 0.5,
     count: int | None = None,
-    georef: bool = True,
     skip_write: bool = False,
     tags: dict[str, str] | None = None,
     **profile: object,
 ) -> Path:
-    """A tiled GeoTIFF covering ``bounds`` (in ``crs``) at ``res`` units per pixel."""
+    """A tiled GeoTIFF covering ``bounds`` (in ``crs``) at ``res`` units per pixel;
+    ``crs`` None: not georeferenced (no CRS, no transform)."""
     w = int(round((bounds[2] - bounds[0]) / res))
     h = int(round((bounds[3] - bounds[1]) / res))
     n = count or {"orthophoto": 3, "ndvi": 1, "multispectral": 4}[kind]
@@ -55,7 +55,7 @@ def write_tiff(
         "blockysize": 256,
         "compress": "deflate",
     }
-    if georef:
+    if crs is not None:
         meta.update(crs=rasterio.crs.CRS.from_user_input(crs), transform=from_bounds(*bounds, w, h))
     meta.update(profile)
     if skip_write:  # sparse: a header and no pixel data at all

@@ -97,7 +97,7 @@ def _assert_rejected(r, text: str, imagery_dir: Path, db, org) -> None:  # noqa:
 
 
 def test_not_georeferenced(client, org, field_id, imagery_dir, tmp_path, db) -> None:
-    src = write_tiff(tmp_path / "plain.tif", georef=False)
+    src = write_tiff(tmp_path / "plain.tif", crs=None)
     r = _upload(client, org, field_id, src, "orthophoto")
     _assert_rejected(r, "not georeferenced", imagery_dir, db, org)
 

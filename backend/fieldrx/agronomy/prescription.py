@@ -79,27 +79,35 @@ def _finalise(
     return same, (base_flags | meter_flags).astype(np.uint16), rng
 
 
+@dataclass(frozen=True)
+class RateRules:
+    """How a model's rates are completed and bounded.
+
+    Cells without data get ``fallback_rate_kg_ha``, or when None the model's rate at the
+    area-weighted mean of the cells that have data. Then the agronomist's clamp
+    (``clamp_min_kg_ha`` / ``clamp_max_kg_ha``, see ``clamp_rates``) and the ``meter``
+    range check (kept as computed and flagged, see ``rates.check_meter_range``).
+    """
+
+    meter: MeterCheck | None = None
+    fallback_rate_kg_ha: float | None = None
+    clamp_min_kg_ha: float | None = None
+    clamp_max_kg_ha: float | None = None
+
+
 def build_prescription(
     model: str,
     params: Mapping[str, Any],
     n_cells: int,
     values: np.ndarray | None = None,
     no_data: np.ndarray | None = None,
-    meter: MeterCheck | None = None,
-    fallback_rate_kg_ha: float | None = None,
+    rules: RateRules = RateRules(),
     area_m2: np.ndarray | None = None,
-    clamp_min_kg_ha: float | None = None,
-    clamp_max_kg_ha: float | None = None,
     seq: np.ndarray | None = None,
 ) -> Prescription:
-    """Rates from per-cell values (NaN / ``no_data`` = no data).
-
-    Cells without data get ``fallback_rate_kg_ha``, or when None the model's
-    rate at the area-weighted mean of the cells that have data; they are
-    flagged ``no_data``. Then the agronomist's clamp (``clamp_rates``: every
-    changed cell flagged and counted) and the meter range check (kept as
-    computed and flagged, see ``rates.check_meter_range``).
-    """
+    """Rates from per-cell values (NaN / ``no_data`` = no data), completed and bounded by
+    ``rules``: cells without data get the fallback and are flagged ``no_data``; every
+    cell the clamp changes is flagged and counted; the meter range is checked."""
     params = dict(params)
     if model == "uniform":
         raw = model_rates(model, None, params, n_cells)
@@ -113,7 +121,7 @@ def build_prescription(
             raise PrescriptionError(f"{len(v)} values for {n_cells} cells")
         nd = np.isnan(v) if no_data is None else (np.asarray(no_data, dtype=bool) | np.isnan(v))
         raw = model_rates(model, v, params, n_cells)
-        fb = fallback_rate_kg_ha
+        fb = rules.fallback_rate_kg_ha
         if fb is None:
             have = ~nd
             if not have.any():
@@ -126,9 +134,10 @@ def build_prescription(
         raw = np.where(nd, fb, raw)
         flags = np.where(nd, FLAG_BITS["no_data"], 0).astype(np.uint16)
     clamp = None
-    if clamp_min_kg_ha is not None or clamp_max_kg_ha is not None:
-        raw, flags, clamp = clamp_rates(raw, flags, clamp_min_kg_ha, clamp_max_kg_ha, area_m2, seq)
-    rates, flags, rng = _finalise(raw, flags, meter)
+    lo, hi = rules.clamp_min_kg_ha, rules.clamp_max_kg_ha
+    if lo is not None or hi is not None:
+        raw, flags, clamp = clamp_rates(raw, flags, lo, hi, area_m2, seq)
+    rates, flags, rng = _finalise(raw, flags, rules.meter)
     return Prescription(rates, flags, model, params, rng, fb, clamp=clamp)
 
 
@@ -183,8 +192,7 @@ def prescribe(
     sample_values: np.ndarray | None = None,
     interpolation: str = DEFAULT_METHOD,
     interpolation_params: Mapping[str, Any] | None = None,
-    meter: MeterCheck | None = None,
-    fallback_rate_kg_ha: float | None = None,
+    rules: RateRules = RateRules(),
 ) -> Prescription:
     """Interpolate samples onto the cells, then ``build_prescription``.
 
@@ -209,8 +217,7 @@ def prescribe(
         len(cells),
         None if interp is None else interp.values,
         None if interp is None else interp.no_data,
-        meter,
-        fallback_rate_kg_ha,
+        rules,
         cells.area_m2,
     )
     if interp is not None:

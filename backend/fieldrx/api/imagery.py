@@ -326,7 +326,8 @@ def prescription_from_imagery(
     ``multispectral`` image into seed 000's NDVI rate model, stored as version 1 of a
     prescription like any other (cells without enough valid pixels get the fallback rate
     and the ``no_data`` flag)."""
-    img, plan, field, machine = _rx_inputs(session, principal, imagery_id, body)
+    inputs = _rx_inputs(session, principal, imagery_id, body)
+    img, plan = inputs[0], inputs[1]
     path = storage.path_for(img.storage_key)
     kind, bands = img.kind, dict(img.bands)
 
@@ -337,10 +338,7 @@ def prescription_from_imagery(
     return _create_rx(
         session,
         principal,
-        img,
-        plan,
-        field,
-        machine,
+        inputs,
         body,
         ndvi_of,
         body.name or f"NDVI from imagery {img.id} on plan {plan.id}",
@@ -348,9 +346,13 @@ def prescription_from_imagery(
     )
 
 
+# what an imagery prescription is made from: the image, the plan, its field, the machine
+_RxInputs = tuple[Imagery, Plan, FieldRow, Machine | None]
+
+
 def _rx_inputs(
     session: SessionDep, principal: WriterDep, imagery_id: int, body: ImageryRxIn
-) -> tuple[Imagery, Plan, FieldRow, Machine | None]:
+) -> _RxInputs:
     img = get_scoped(session, Imagery, imagery_id, principal)
     if img.kind not in ("ndvi", "multispectral"):
         raise ApiError(
@@ -374,23 +376,18 @@ def _rx_inputs(
 def _create_rx(
     session: SessionDep,
     principal: WriterDep,
-    img: Imagery,
-    plan: Plan,
-    field: FieldRow,
-    machine: Machine | None,
+    inputs: _RxInputs,
     body: ImageryRxIn,
     cell_source: Any,
     name: str,
     extra_source: dict[str, Any],
 ) -> dict[str, Any]:
+    img, plan, field, machine = inputs
     try:
         meter = rx_svc.meter_spec(
             machine, plan, body.speed_min_kmh, body.speed_max_kmh, body.width_m, body.calibration
         )
-        rx = rx_svc.create_prescription(
-            session,
-            plan,
-            field,
+        spec = rx_svc.NewPrescription(
             name=name,
             product=body.product,
             model="ndvi",
@@ -400,8 +397,6 @@ def _create_rx(
             fallback_rate_kg_ha=body.fallback_rate_kg_ha,
             meter=meter,
             machine_id=body.machine_id,
-            user_id=principal.user_id,
-            organisation_id=principal.organisation_id,
             cell_source=cell_source,
             source={
                 "imagery_id": img.id,
@@ -409,6 +404,14 @@ def _create_rx(
                 "acquired_on": img.acquired_on.isoformat() if img.acquired_on else None,
                 **extra_source,
             },
+        )
+        rx = rx_svc.create_prescription(
+            session,
+            plan,
+            field,
+            spec,
+            user_id=principal.user_id,
+            organisation_id=principal.organisation_id,
         )
     except (ImageryError, ZoneError, *BAD_INPUT) as exc:
         session.rollback()
@@ -426,7 +429,8 @@ def zones_from_imagery(
     zone's rate from seed 000's NDVI curve at the zone's area-weighted mean NDVI. Stored as
     a versioned prescription (edits, ISOXML treatment zones and Shapefile export as usual);
     the zone table is in ``summary.interpolation.zones``."""
-    img, plan, field, machine = _rx_inputs(session, principal, imagery_id, body)
+    inputs = _rx_inputs(session, principal, imagery_id, body)
+    img, plan = inputs[0], inputs[1]
     path = storage.path_for(img.storage_key)
     kind, bands = img.kind, dict(img.bands)
 
@@ -445,10 +449,7 @@ def zones_from_imagery(
     return _create_rx(
         session,
         principal,
-        img,
-        plan,
-        field,
-        machine,
+        inputs,
         body,
         zone_ndvi,
         body.name or f"{body.k} NDVI zones from imagery {img.id} on plan {plan.id}",

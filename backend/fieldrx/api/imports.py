@@ -436,7 +436,12 @@ def import_asapplied_table(
 
     from fieldrx.api.common import get_scoped
     from fieldrx.db.models import Prescription
-    from fieldrx.formats.asapplied_table import read_table, table_columns, to_timelog
+    from fieldrx.formats.asapplied_table import (
+        ColumnMap,
+        read_table,
+        table_columns,
+        to_timelog,
+    )
 
     rx = get_scoped(session, Prescription, prescription_id, principal)
     data = file.file.read(MAX_UPLOAD_BYTES + 1)
@@ -454,8 +459,7 @@ def import_asapplied_table(
             raise ApiError(422, "confirm needs rate_column (the mapping step)", where="rate_column")
         return body
     try:
-        log = to_timelog(
-            table,
+        mapping = ColumnMap(
             rate_column=rate_column,
             unit=unit,
             target_column=target_column,
@@ -466,8 +470,8 @@ def import_asapplied_table(
             lon_column=lon_column,
             lat_column=lat_column,
             interval_s=interval_s,
-            start_t=float(int(time.time())),
         )
+        log = to_timelog(table, mapping, start_t=float(int(time.time())))
     except FormatError as exc:
         raise ApiError(422, f"{fname}: {exc}", where=fname) from exc
     rates = log.series(7, 0.01)

@@ -331,18 +331,14 @@ def job_tile(
     _prescription_job(job)
     plan = job_plan(session, job)
     cells = _cached(session, job).cells  # the report's figures, not a second formula
-    data = cell_tiles.job_tile(
-        session,
-        plan.id,
-        z,
-        x,
-        y,
+    figures = cell_tiles.JobCellFigures(
         [c.seq for c in cells],
         [c.target_rate_kg_ha for c in cells],
         [c.applied_rate_kg_ha for c in cells],
         [c.accuracy_pct for c in cells],
         [c.n_records for c in cells],
     )
+    data = cell_tiles.job_tile(session, plan.id, z, x, y, figures)
     return Response(
         bytes(data or b""),
         media_type=MVT,

@@ -131,7 +131,7 @@ def build(args: argparse.Namespace) -> tuple[bytes, dict[str, Any]]:
         calibration_from_dict,
     )
 
-    from fieldrx.agronomy.prescription import prescribe
+    from fieldrx.agronomy.prescription import RateRules, prescribe
     from fieldrx.agronomy.rates import MeterCheck
     from fieldrx.agronomy.soil import read_soil_samples
     from fieldrx.formats.field_import import read_fields
@@ -215,8 +215,7 @@ def build(args: argparse.Namespace) -> tuple[bytes, dict[str, Any]]:
         vals,
         interpolation=args.interpolation,
         interpolation_params=_interp_params(args),
-        meter=meter,
-        fallback_rate_kg_ha=args.fallback_rate,
+        rules=RateRules(meter=meter, fallback_rate_kg_ha=args.fallback_rate),
     )
     cells = cells.with_rates(rx.rate_kg_ha, rx.flags)
     timings["prescription_s"] = time.perf_counter() - t
@@ -227,35 +226,36 @@ def build(args: argparse.Namespace) -> tuple[bytes, dict[str, Any]]:
     t = time.perf_counter()
     fmt = args.format
     if fmt != "job":
-        from fieldrx.formats.export import export_prescription
+        from fieldrx.formats.export import ExportOptions, export_prescription
 
-        out, _media, _name = export_prescription(
-            cells,
-            fmt,
+        opts = ExportOptions(
             field_name=field_name,
             boundary_wgs84=field_ll,
             product_name=args.product,
             grid_cell_m=args.grid_cell_m,
             properties={"field": field_name, "model": args.model},
         )
+        out, _media, _name = export_prescription(cells, fmt, opts)
     else:
-        from fieldrx.formats.jobpackage import build_job_package, package_size
+        from fieldrx.formats.jobpackage import JobPackageSpec, build_job_package, package_size
 
         pkg = build_job_package(
             cells,
             field_utm,
-            job_id=0,
-            machine_id=0,
-            prescription_id=0,
-            prescription_version=1,
-            field_name=field_name,
-            implement_width_m=args.swath_width,
-            lag_s=args.lag_s,
-            calibration=cal,
-            controller={"name": args.controller},
-            speed_min_m_s=args.speed_min_kmh / 3.6,
-            speed_max_m_s=args.speed_max_kmh / 3.6,
-            product=args.product,
+            JobPackageSpec(
+                job_id=0,
+                machine_id=0,
+                prescription_id=0,
+                prescription_version=1,
+                field_name=field_name,
+                implement_width_m=args.swath_width,
+                lag_s=args.lag_s,
+                calibration=cal,
+                controller={"name": args.controller},
+                speed_min_m_s=args.speed_min_kmh / 3.6,
+                speed_max_m_s=args.speed_max_kmh / 3.6,
+                product=args.product,
+            ),
         )
         out = pkg.to_json()
         summary["job_package"] = {**package_size(pkg), "checksum": pkg.checksum}

@@ -70,13 +70,12 @@ def register(subparsers: Any) -> None:
 
 def _run_ingest(args: argparse.Namespace, stop: threading.Event) -> None:
     from fieldrx.fleet.gc_policy import tune_for_ingest
-    from fieldrx.fleet.worker import IngestWorker
+    from fieldrx.fleet.worker import IngestOptions, IngestWorker
     from fieldrx.settings import get_settings
 
     s = get_settings()
     tune_for_ingest()  # held batches made the cyclic GC a third of the parse cost
-    worker = IngestWorker(
-        args.mqtt_url or s.mqtt_url,
+    opts = IngestOptions(
         group=args.group,
         batch_ms=args.batch_ms,
         client_id=args.client_id,
@@ -88,6 +87,7 @@ def _run_ingest(args: argparse.Namespace, stop: threading.Event) -> None:
         retention_days=s.telemetry_retention_days,
         db_connections=args.db_connections or s.worker_db_connections,
     )
+    worker = IngestWorker(args.mqtt_url or s.mqtt_url, opts=opts)
     stats = worker.run(stop)
     logging.getLogger(__name__).warning("ingest worker stopped: %s", stats)
 

@@ -49,7 +49,14 @@ from dataclasses import asdict, dataclass, field, fields
 from typing import Any
 
 import numpy as np
-from fieldrx_edge.asapplied import Cells, driven_length, m1_g, records_applied, theta_pct
+from fieldrx_edge.asapplied import (
+    Cells,
+    RecordColumns,
+    driven_length,
+    m1_g,
+    records_applied,
+    theta_pct,
+)
 from fieldrx_edge.metering import calibration_from_dict
 from geoalchemy2.shape import to_shape
 from sqlalchemy import select, text
@@ -266,9 +273,12 @@ def build_report(
         cal = (
             calibration_from_dict(machine.calibration) if machine and machine.calibration else None
         )
-        applied_ka = records_applied(
-            geo, t, period, x, y, heading, rpm, own, cal,
+        cols = RecordColumns(
+            t, period, x, y, heading, rpm, own,
             applied * width * v * 6.0 / 60.0,  # no shaft speed: the applied rate over the strip
+        )  # fmt: skip
+        applied_ka = records_applied(
+            geo, cols, cal,
             machine.lag_s if machine else 0.0, machine.antenna_forward_m if machine else 0.0,
             max_gap_s,
         )  # fmt: skip

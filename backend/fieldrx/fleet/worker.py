@@ -111,25 +111,35 @@ def _machine_of(topic: str) -> int | None:
     return None
 
 
+@dataclass(frozen=True)
+class IngestOptions:
+    """How an ingest worker runs (the FIELDRX_WORKER_* and telemetry settings; seconds).
+
+    ``client_id`` None: fieldrx-worker-GROUP-NODE-SLOT, the lowest slot free on this node
+    (``node`` default the host name, slots locked under ``slot_dir``, default the temp
+    directory). ``maintenance_s`` 0: no telemetry partition maintenance."""
+
+    group: str = "fieldrx"
+    batch_ms: float = 100.0
+    client_id: str | None = None
+    heartbeat_timeout_s: float = 30.0
+    no_data_every_s: float = 5.0
+    session_expiry_s: int = 3600
+    node: str = ""
+    slot_dir: str = ""
+    maintenance_s: float = 0.0
+    retention_days: int = 0
+    db_connections: int = 1
+
+
 class IngestWorker:
     """One worker process's MQTT client and its batching loop."""
 
     def __init__(
-        self,
-        mqtt_url: str,
-        dsn: str | None = None,
-        group: str = "fieldrx",
-        batch_ms: float = 100.0,
-        client_id: str | None = None,
-        heartbeat_timeout_s: float = 30.0,
-        no_data_every_s: float = 5.0,
-        session_expiry_s: int = 3600,
-        node: str = "",
-        slot_dir: str = "",
-        maintenance_s: float = 0.0,
-        retention_days: int = 0,
-        db_connections: int = 1,
+        self, mqtt_url: str, dsn: str | None = None, opts: IngestOptions = IngestOptions()
     ) -> None:
+        group, client_id, db_connections = opts.group, opts.client_id, opts.db_connections
+        session_expiry_s = opts.session_expiry_s
         if db_connections < 1:
             raise ValueError(f"db_connections must be at least 1, got {db_connections}")
         self.broker = Broker.from_url(mqtt_url, WORKER_USER)
@@ -137,13 +147,13 @@ class IngestWorker:
         self.port = self.broker.port
         self.dsn = dsn or raw_dsn()
         self.group = group
-        self.batch_s = batch_ms / 1000.0
-        self.heartbeat_timeout_s = heartbeat_timeout_s
-        self.no_data_every_s = no_data_every_s
+        self.batch_s = opts.batch_ms / 1000.0
+        self.heartbeat_timeout_s = opts.heartbeat_timeout_s
+        self.no_data_every_s = opts.no_data_every_s
         # telemetry partition maintenance (fleet.partitions) every maintenance_s, from start;
         # workers take turns (the first to hold the lock runs it, the others skip)
-        self.maintenance_s = maintenance_s
-        self.retention_days = retention_days
+        self.maintenance_s = opts.maintenance_s
+        self.retention_days = opts.retention_days
         # one inbox and one set of counters per lane (database connection), see the docstring
         self.inboxes: list[queue.Queue[mqtt.MQTTMessage]] = [
             queue.Queue() for _ in range(db_connections)
@@ -155,8 +165,9 @@ class IngestWorker:
         self.persistent = session_expiry_s > 0
         self._slot_lock: IO[str] | None = None
         if client_id is None:
-            node = node or socket.gethostname()
-            slot = self._take_slot(Path(slot_dir or tempfile.gettempdir()) / "fieldrx-worker-slots")
+            node = opts.node or socket.gethostname()
+            slot_dir = Path(opts.slot_dir or tempfile.gettempdir()) / "fieldrx-worker-slots"
+            slot = self._take_slot(slot_dir)
             client_id = f"fieldrx-worker-{group}-{node}-{slot}"
         self.client_id = client_id
         self.client = mqtt.Client(

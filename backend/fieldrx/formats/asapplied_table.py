@@ -165,91 +165,113 @@ def _time(v: Any, i: int, col: str) -> float:
     return (t if t.tzinfo else t.replace(tzinfo=dt.UTC)).timestamp()
 
 
-def to_timelog(
-    table: Table,
-    *,
-    rate_column: str,
-    unit: str = "kg/ha",
-    target_column: str | None = None,
-    speed_column: str | None = None,
-    speed_unit: str = "m/s",
-    time_column: str | None = None,
-    work_state_column: str | None = None,
-    lon_column: str | None = None,
-    lat_column: str | None = None,
-    interval_s: float = 1.0,
-    start_t: float = 0.0,
-) -> TimeLog:
-    """The mapped rows as a TimeLog (DDI 7/6 in mg/m^2, 397 in mm/s, 141 on when rate > 0)."""
-    if unit not in UNITS:
-        raise FormatError(f"unit {unit!r} is not one of {sorted(UNITS)}")
-    if speed_unit not in SPEED_UNITS:
-        raise FormatError(f"speed unit {speed_unit!r} is not one of {sorted(SPEED_UNITS)}")
-    if not (math.isfinite(interval_s) and interval_s > 0):
-        raise FormatError(f"interval_s must be > 0, got {interval_s}")
+@dataclass(frozen=True)
+class ColumnMap:
+    """The mapping step: which columns of the table hold what, in which units (see the
+    module docstring); the column names are checked against the table by ``to_timelog``."""
+
+    rate_column: str
+    unit: str = "kg/ha"
+    target_column: str | None = None
+    speed_column: str | None = None
+    speed_unit: str = "m/s"
+    time_column: str | None = None
+    work_state_column: str | None = None
+    lon_column: str | None = None
+    lat_column: str | None = None
+    interval_s: float = 1.0
+
+
+def _column(table: Table, c: str, what: str) -> np.ndarray:
+    """Column ``c`` as numbers; a row that is not a number is an error naming it."""
+    out = np.empty(len(table.rows))
+    for i, r in enumerate(table.rows):
+        v = _num(r.get(c))
+        if v is None:
+            raise FormatError(f"row {i}: {c}={r.get(c)!r} is not a number ({what})")
+        out[i] = v
+    return out
+
+
+def _check_mapping(table: Table, m: ColumnMap) -> None:
+    if m.unit not in UNITS:
+        raise FormatError(f"unit {m.unit!r} is not one of {sorted(UNITS)}")
+    if m.speed_unit not in SPEED_UNITS:
+        raise FormatError(f"speed unit {m.speed_unit!r} is not one of {sorted(SPEED_UNITS)}")
+    if not (math.isfinite(m.interval_s) and m.interval_s > 0):
+        raise FormatError(f"interval_s must be > 0, got {m.interval_s}")
     names = set(table.rows[0]) if table.rows else set()
     mapped = {
-        "rate_column": rate_column,
-        "target_column": target_column,
-        "speed_column": speed_column,
-        "time_column": time_column,
-        "work_state_column": work_state_column,
-        "lon_column": lon_column,
-        "lat_column": lat_column,
+        "rate_column": m.rate_column,
+        "target_column": m.target_column,
+        "speed_column": m.speed_column,
+        "time_column": m.time_column,
+        "work_state_column": m.work_state_column,
+        "lon_column": m.lon_column,
+        "lat_column": m.lat_column,
     }
     for key, name in mapped.items():
         if name is not None and name not in names:
             raise FormatError(f"{key} {name!r} is not a column ({sorted(names)})")
-    n = len(table.rows)
-    if n == 0:
+    if not table.rows:
         raise FormatError(f"{table.name}: no rows")
 
-    def col(c: str, what: str) -> np.ndarray:
-        out = np.empty(n)
-        for i, r in enumerate(table.rows):
-            v = _num(r.get(c))
-            if v is None:
-                raise FormatError(f"row {i}: {c}={r.get(c)!r} is not a number ({what})")
-            out[i] = v
-        return out
 
+def _positions(table: Table, m: ColumnMap) -> tuple[np.ndarray, np.ndarray]:
+    """Longitudes and latitudes of the rows: the Shapefile's points or the CSV's columns."""
     if table.points is not None:
-        lon = np.asarray([p[0] for p in table.points])
-        lat = np.asarray([p[1] for p in table.points])
-    else:
-        if lon_column is None or lat_column is None:
-            raise FormatError("a CSV needs lon_column and lat_column")
-        lon, lat = col(lon_column, "longitude"), col(lat_column, "latitude")
-        bad = np.flatnonzero((np.abs(lon) > 180) | (np.abs(lat) > 90))
-        if len(bad):
-            raise FormatError(f"row {int(bad[0])}: position is not lon/lat")
-    factor = UNITS[unit]
-    applied = col(rate_column, "rate") * factor
+        return (
+            np.asarray([p[0] for p in table.points]),
+            np.asarray([p[1] for p in table.points]),
+        )
+    if m.lon_column is None or m.lat_column is None:
+        raise FormatError("a CSV needs lon_column and lat_column")
+    lon, lat = _column(table, m.lon_column, "longitude"), _column(table, m.lat_column, "latitude")
+    bad = np.flatnonzero((np.abs(lon) > 180) | (np.abs(lat) > 90))
+    if len(bad):
+        raise FormatError(f"row {int(bad[0])}: position is not lon/lat")
+    return lon, lat
+
+
+def _speeds(
+    table: Table, m: ColumnMap, t: np.ndarray, lon: np.ndarray, lat: np.ndarray
+) -> np.ndarray:
+    """m/s per row: the speed column, else the distance to the next row over the time."""
+    if m.speed_column is not None:
+        return _column(table, m.speed_column, "speed") * SPEED_UNITS[m.speed_unit]
+    n = len(t)
+    _, _, d = _GEOD.inv(lon[:-1], lat[:-1], lon[1:], lat[1:]) if n > 1 else (0, 0, np.zeros(0))
+    dts = np.diff(t)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        v = np.where(dts > 0, np.asarray(d) / dts, 0.0)
+    return np.append(v, v[-1:] if len(v) else [0.0])
+
+
+def to_timelog(table: Table, mapping: ColumnMap, *, start_t: float = 0.0) -> TimeLog:
+    """The mapped rows as a TimeLog (DDI 7/6 in mg/m^2, 397 in mm/s, 141 on when rate > 0)."""
+    m = mapping
+    _check_mapping(table, m)
+    n = len(table.rows)
+    lon, lat = _positions(table, m)
+    factor = UNITS[m.unit]
+    applied = _column(table, m.rate_column, "rate") * factor
     if (applied < 0).any():
         raise FormatError(f"row {int(np.flatnonzero(applied < 0)[0])}: negative rate")
-    if time_column is not None:
-        t = np.asarray(
-            [_time(r.get(time_column), i, time_column) for i, r in enumerate(table.rows)]
-        )
+    if m.time_column is not None:
+        tc = m.time_column
+        t = np.asarray([_time(r.get(tc), i, tc) for i, r in enumerate(table.rows)])
     else:
-        t = start_t + interval_s * np.arange(n)
-    if speed_column is not None:
-        speed = col(speed_column, "speed") * SPEED_UNITS[speed_unit]
-    else:
-        _, _, d = _GEOD.inv(lon[:-1], lat[:-1], lon[1:], lat[1:]) if n > 1 else (0, 0, np.zeros(0))
-        dts = np.diff(t)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            v = np.where(dts > 0, np.asarray(d) / dts, 0.0)
-        speed = np.append(v, v[-1:] if len(v) else [0.0])
+        t = start_t + m.interval_s * np.arange(n)
+    speed = _speeds(table, m, t, lon, lat)
     values = {
         7: np.rint(applied * 100.0),
         397: np.rint(speed * 1000.0),
         141: (applied > 0).astype(float)
-        if work_state_column is None
-        else (col(work_state_column, "work state") != 0).astype(float),
+        if m.work_state_column is None
+        else (_column(table, m.work_state_column, "work state") != 0).astype(float),
     }
-    if target_column is not None:
-        values[6] = np.rint(col(target_column, "target") * factor * 100.0)
+    if m.target_column is not None:
+        values[6] = np.rint(_column(table, m.target_column, "target") * factor * 100.0)
     return TimeLog(
         name=table.name, t=t, lat=lat, lon=lon, status=np.ones(n), values=values, ignored_ddis=[]
     )

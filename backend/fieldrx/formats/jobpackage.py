@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import gzip
 import json
+from dataclasses import dataclass
 from typing import Any, TypedDict
 
 import numpy as np
@@ -153,40 +154,49 @@ def _shape_fields(cells: CellTable, decimals: int) -> _ShapeFields:
     }
 
 
+@dataclass(frozen=True)
+class JobPackageSpec:
+    """Everything in a job package beside the cells and the boundary: the job's ids, the
+    machine's part (``services.jobpackage.machine_fields``), the product and the job kind.
+    ``calibration`` is a ``fieldrx_edge.metering`` calibration or its dict form."""
+
+    job_id: int
+    machine_id: int
+    prescription_id: int
+    prescription_version: int
+    field_name: str
+    implement_width_m: float
+    lag_s: float
+    calibration: Calibration | dict[str, Any]
+    controller: ControllerSettings | dict[str, Any] | None = None
+    antenna_forward_m: float = 0.0
+    antenna_lateral_m: float = 0.0
+    speed_min_m_s: float = 0.8
+    speed_max_m_s: float = 2.5
+    product: str = ""
+    kind: str = "prescription_map"
+    kind_settings: dict[str, Any] | None = None
+    rate_unit: str = "kg/ha"
+    product_density_kg_l: float = 0.0
+
+
 def build_job_package(
     cells: CellTable,
     boundary_utm: Any,
+    spec: JobPackageSpec,
     *,
-    job_id: int,
-    machine_id: int,
-    prescription_id: int,
-    prescription_version: int,
-    field_name: str,
-    implement_width_m: float,
-    lag_s: float,
-    calibration: Calibration | dict[str, Any],
-    controller: ControllerSettings | dict[str, Any] | None = None,
-    antenna_forward_m: float = 0.0,
-    antenna_lateral_m: float = 0.0,
-    speed_min_m_s: float = 0.8,
-    speed_max_m_s: float = 2.5,
-    product: str = "",
     utm_decimals: int = 3,
     wgs84_decimals: int = 8,
     shape_decimals: int = 6,
-    kind: str = "prescription_map",
-    kind_settings: dict[str, Any] | None = None,
-    rate_unit: str = "kg/ha",
-    product_density_kg_l: float = 0.0,
 ) -> JobPackage:
     """A sealed (validated, checksummed) JobPackage; ``ProtocolError`` names a bad field.
 
-    ``boundary_utm`` is a shapely (Multi)Polygon in ``cells.epsg``;
-    ``calibration`` a ``fieldrx_edge.metering`` calibration or its dict form.
+    ``boundary_utm`` is a shapely (Multi)Polygon in ``cells.epsg``.
     Shapes keep 1 um (``shape_decimals``): neighbouring real cells share clipped edges
     whose vertices differ, and 1 mm rounding would make them overlap by ~1e-3 m^2
     slivers (1e-4 of a cell); at 1 um the overlap stays below 1e-6 of a cell.
     """
+    calibration, controller = spec.calibration, spec.controller
     cal = calibration if isinstance(calibration, dict) else calibration.to_dict()  # type: ignore[attr-defined]
     try:
         cal = calibration_from_dict(dict(cal)).to_dict()  # validated, complete
@@ -202,14 +212,14 @@ def build_job_package(
     else:
         ctl = controller
     pkg = JobPackage(
-        job_id=int(job_id),
-        machine_id=int(machine_id),
-        prescription_id=int(prescription_id),
-        prescription_version=int(prescription_version),
-        field_name=str(field_name),
+        job_id=int(spec.job_id),
+        machine_id=int(spec.machine_id),
+        prescription_id=int(spec.prescription_id),
+        prescription_version=int(spec.prescription_version),
+        field_name=str(spec.field_name),
         utm_epsg=int(cells.epsg),
-        implement_width_m=float(implement_width_m),
-        lag_s=float(lag_s),
+        implement_width_m=float(spec.implement_width_m),
+        lag_s=float(spec.lag_s),
         calibration=dict(cal),
         controller=ctl,
         boundary_utm=_geojson_coords(boundary_utm, utm_decimals),
@@ -218,16 +228,16 @@ def build_job_package(
         rate_kg_ha=_round_list(cells.rate_kg_ha, 2),
         corners_utm=_round_list(cells.corners_utm, utm_decimals),
         corners_wgs84=_round_list(cells.corners_wgs84, wgs84_decimals),
-        antenna_forward_m=float(antenna_forward_m),
-        antenna_lateral_m=float(antenna_lateral_m),
-        speed_min_m_s=float(speed_min_m_s),
-        speed_max_m_s=float(speed_max_m_s),
-        product=str(product),
+        antenna_forward_m=float(spec.antenna_forward_m),
+        antenna_lateral_m=float(spec.antenna_lateral_m),
+        speed_min_m_s=float(spec.speed_min_m_s),
+        speed_max_m_s=float(spec.speed_max_m_s),
+        product=str(spec.product),
         **_shape_fields(cells, shape_decimals),
-        kind=kind,
-        kind_settings=dict(kind_settings or {}),
-        rate_unit=str(rate_unit),
-        product_density_kg_l=float(product_density_kg_l),
+        kind=spec.kind,
+        kind_settings=dict(spec.kind_settings or {}),
+        rate_unit=str(spec.rate_unit),
+        product_density_kg_l=float(spec.product_density_kg_l),
     )
     return pkg.seal()
 

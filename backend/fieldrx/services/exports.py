@@ -56,7 +56,7 @@ def export_version(
     this adds the field, product and a file name. Zone exports report how the
     cells were dissolved in ``info`` (the API sends it as a header).
     """
-    from fieldrx.formats.export import export_prescription
+    from fieldrx.formats.export import ExportOptions, export_prescription
 
     if fmt not in FORMATS:
         raise RxError(f"unknown export format {fmt!r} (expected one of {list(FORMATS)})")
@@ -67,9 +67,7 @@ def export_version(
     props = {"prescription_id": rx.id, "version": ver.version, "model": rx.model}
     unit, density = rx_rate_unit(rx)
     stem = file_stem("" if field is None else field.name, rx, ver)
-    data, media, _ = export_prescription(
-        cells,
-        fmt,
+    opts = ExportOptions(
         field_name="" if field is None else field.name,
         boundary_wgs84=boundary,
         product_name=rx.product or "fertilizer",
@@ -77,10 +75,10 @@ def export_version(
         profile=profile,
         zone_classes=zone_classes,
         max_polygons=max_polygons,
-        info=info,
         volume_density_kg_l=density if unit == "l/ha" else None,
         layer_name=stem,
     )
+    data, media, _ = export_prescription(cells, fmt, opts, info=info)
     if fmt == "isoxml" or fmt == "isoxml-zones":
         suffix = "grid" if fmt == "isoxml" else "zones"
         return data, media, f"{stem}_TASKDATA_{suffix}.zip"

@@ -53,6 +53,7 @@ def build_package(
     job_id: int = 0,
 ) -> JobPackage:
     """Sealed JobPackage of one prescription version for one machine (version None = current)."""
+    from fieldrx.formats.jobpackage import JobPackageSpec
     from fieldrx.formats.jobpackage import build_job_package as build
 
     rx = session.get(Prescription, prescription_id)
@@ -73,16 +74,18 @@ def build_package(
     return build(
         cells,
         field_utm(field),
-        job_id=job_id,
-        machine_id=machine.id,
-        prescription_id=rx.id,
-        prescription_version=ver.version,
-        field_name=field.name,
-        **machine_fields(machine),
-        product=rx.product,
-        # the product's density travels with it (ISOBUS volume-rate implements, DDI 1)
-        rate_unit=unit,
-        product_density_kg_l=density or 0.0,
+        JobPackageSpec(
+            job_id=job_id,
+            machine_id=machine.id,
+            prescription_id=rx.id,
+            prescription_version=ver.version,
+            field_name=field.name,
+            **machine_fields(machine),
+            product=rx.product,
+            # the product's density travels with it (ISOBUS volume-rate implements, DDI 1)
+            rate_unit=unit,
+            product_density_kg_l=density or 0.0,
+        ),
     )
 
 
@@ -90,6 +93,7 @@ def build_kind_package(session: Session, job: Job, machine: Machine) -> JobPacka
     """Sealed JobPackage of a sensor-kind job: the plan's cells in path order
     (the path the tractor drives; rates 0, the sensors decide them), the field boundary,
     and the kind with its validated settings."""
+    from fieldrx.formats.jobpackage import JobPackageSpec
     from fieldrx.formats.jobpackage import build_job_package as build
 
     plan = session.get(Plan, job.plan_id)
@@ -100,14 +104,16 @@ def build_kind_package(session: Session, job: Job, machine: Machine) -> JobPacka
     return build(
         cells,
         field_utm(field),
-        job_id=job.id,
-        machine_id=machine.id,
-        prescription_id=0,
-        prescription_version=0,
-        field_name=field.name,
-        **machine_fields(machine),
-        kind=job.kind,
-        kind_settings=dict(job.settings or {}),
+        JobPackageSpec(
+            job_id=job.id,
+            machine_id=machine.id,
+            prescription_id=0,
+            prescription_version=0,
+            field_name=field.name,
+            **machine_fields(machine),
+            kind=job.kind,
+            kind_settings=dict(job.settings or {}),
+        ),
     )
 
 

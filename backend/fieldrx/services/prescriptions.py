@@ -35,6 +35,7 @@ from fieldrx.agronomy.prescription import (
     ATTENTION_MASK,
     MODEL_INPUT,
     PrescriptionError,
+    RateRules,
     apply_cell_edits,
     build_prescription,
     check_breaks,
@@ -549,12 +550,12 @@ def _new_version(
     version: int,
     note: str,
     user_id: int | None,
-    seq: np.ndarray,
-    rates: np.ndarray,
-    flags: np.ndarray,
-    source: np.ndarray | None,
+    cells: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None],
     summary: dict[str, Any],
 ) -> PrescriptionVersion:
+    """Store version ``version`` with its ``cells``: (seq, rate_kg_ha, flag bits, source
+    value), as ``store.load_rates`` returns them (source None: none stored)."""
+    seq, rates, flags, source = cells
     ver = PrescriptionVersion(
         prescription_id=rx.id, version=version, note=note, summary=summary, created_by=user_id
     )
@@ -575,47 +576,57 @@ def _json_safe(obj: Any) -> Any:
     )
 
 
-def create_prescription(
-    session: Session,
-    plan: Plan,
-    field: Field,
-    *,
-    name: str,
-    product: str,
-    model: str,
-    params: dict[str, Any],
-    interpolation: str,
-    interpolation_params: dict[str, Any],
-    fallback_rate_kg_ha: float | None,
-    meter: MeterSpec | None,
-    machine_id: int | None,
-    user_id: int | None,
-    organisation_id: int,
-    cell_source: Callable[[CellTable], tuple[np.ndarray, dict[str, Any]]] | None = None,
-    source: dict[str, Any] | None = None,
-    crop: str | None = None,
-    product_info: dict[str, Any] | None = None,
-    clamp_min_kg_ha: float | None = None,
-    clamp_max_kg_ha: float | None = None,
-    class_count: int = 6,
-    note: str = "",
-    rate_unit: str = "kg/ha",
-) -> Prescription:
-    """Interpolate, rate, clamp and store version 1 (flush only). Raises ValueError subclasses.
+@dataclass(frozen=True)
+class NewPrescription:
+    """What version 1 of a prescription is made from (``create_prescription``).
 
     ``cell_source`` replaces the soil-sample interpolation: it gets the plan's cells and
     returns the model's per-cell input (NaN = no data) and a description for the summary
     (imagery NDVI uses it); ``source`` is recorded in the prescription's params.
     """
-    model, params = canonical_model(model, params)
+
+    name: str
+    product: str
+    model: str
+    params: dict[str, Any]
+    interpolation: str
+    interpolation_params: dict[str, Any]
+    fallback_rate_kg_ha: float | None
+    meter: MeterSpec | None
+    machine_id: int | None
+    cell_source: Callable[[CellTable], tuple[np.ndarray, dict[str, Any]]] | None = None
+    source: dict[str, Any] | None = None
+    crop: str | None = None
+    product_info: dict[str, Any] | None = None
+    clamp_min_kg_ha: float | None = None
+    clamp_max_kg_ha: float | None = None
+    class_count: int = 6
+    note: str = ""
+    rate_unit: str = "kg/ha"
+
+
+def create_prescription(
+    session: Session,
+    plan: Plan,
+    field: Field,
+    spec: NewPrescription,
+    *,
+    user_id: int | None,
+    organisation_id: int,
+) -> Prescription:
+    """Interpolate, rate, clamp and store version 1 (flush only). Raises ValueError subclasses."""
+    crop = spec.crop
+    model, params = canonical_model(spec.model, spec.params)
     if model not in MODEL_INPUT:
         raise RxError(f"unknown model {model!r} (expected one of {sorted(MODEL_INPUT)})")
     crop_from = "request" if crop is not None else None
     field_crop = find_crop(field.crop) if crop is None else None
     if field_crop is not None:
         crop, crop_from = field_crop.key, "field"
-    params, crop_d, param_sources, param_origin = crop_params(model, params, crop, product_info)
-    plaus = plausibility_spec(session, organisation_id, crop, model, params, product_info)
+    params, crop_d, param_sources, param_origin = crop_params(
+        model, params, crop, spec.product_info
+    )
+    plaus = plausibility_spec(session, organisation_id, crop, model, params, spec.product_info)
     column = MODEL_INPUT[model]
     if column is None:  # uniform: no geometry needed
         seq, area = load_seq_area(session, plan.id)
@@ -625,75 +636,63 @@ def create_prescription(
         seq, area = cells.seq, cells.area_m2
     if len(seq) == 0:
         raise RxError(f"plan {plan.id} has no cells")
-    check = None if meter is None else meter.check()
+    check = None if spec.meter is None else spec.meter.check()
     values = no_data = None
     interp_info: dict[str, Any] | None = None
-    if cells is not None and column is not None and cell_source is not None:
-        values, interp_info = cell_source(cells)
+    if cells is not None and column is not None and spec.cell_source is not None:
+        values, interp_info = spec.cell_source(cells)
         values = np.asarray(values, dtype=float)
         no_data = np.isnan(values)
         if no_data.all():
             raise RxError(f"the {model!r} input source has no data for any cell of plan {plan.id}")
     elif cells is not None and column is not None:
         values, no_data, interp_info = interpolate_field_samples(
-            session, field, cells, model, interpolation, interpolation_params
+            session, field, cells, model, spec.interpolation, spec.interpolation_params
         )
-    p = build_prescription(
-        model,
-        params,
-        len(seq),
-        values,
-        no_data,
-        check,
-        fallback_rate_kg_ha,
-        area,
-        clamp_min_kg_ha,
-        clamp_max_kg_ha,
-        seq,
-    )
+    rules = RateRules(check, spec.fallback_rate_kg_ha, spec.clamp_min_kg_ha, spec.clamp_max_kg_ha)
+    p = build_prescription(model, params, len(seq), values, no_data, rules, area, seq)
     flags, plaus_report = apply_plausibility(p.rate_kg_ha, p.flags, area, seq, plaus, True)
     p.flags = flags
     summary = p.summary(area, seq=seq)
     summary["plausibility"] = plaus_report
     if interp_info is not None:
         summary["interpolation"] = interp_info
-    if meter is not None:
-        summary["meter"] = meter.describe()
-    summary.update(product_figures(p.rate_kg_ha, area, product_info))
-    summary["product"] = product_info
+    if spec.meter is not None:
+        summary["meter"] = spec.meter.describe()
+    summary.update(product_figures(p.rate_kg_ha, area, spec.product_info))
+    summary["product"] = spec.product_info
     summary["crop"] = crop_d
     summary["crop_from"] = crop_from
     summary["param_sources"] = param_sources
     summary["param_origin"] = param_origin
-    summary["classes"] = auto_classes(p.rate_kg_ha, np.asarray(area, float), class_count)
+    summary["classes"] = auto_classes(p.rate_kg_ha, np.asarray(area, float), spec.class_count)
     summary = _json_safe(summary)
     rx = Prescription(
         organisation_id=organisation_id,
         plan_id=plan.id,
-        machine_id=machine_id,
-        name=name or f"{model} on plan {plan.id}",
-        product=product or (product_info or {}).get("name", ""),
+        machine_id=spec.machine_id,
+        name=spec.name or f"{model} on plan {plan.id}",
+        product=spec.product or (spec.product_info or {}).get("name", ""),
         model=model,
         params={
             "model_params": params,
-            "interpolation": None if column is None else interpolation,
-            "interpolation_params": interpolation_params,
-            "fallback_rate_kg_ha": fallback_rate_kg_ha,
-            "meter": None if meter is None else meter.to_dict(),
-            "product_info": product_info,
-            "clamp": {"min_kg_ha": clamp_min_kg_ha, "max_kg_ha": clamp_max_kg_ha},
+            "interpolation": None if column is None else spec.interpolation,
+            "interpolation_params": spec.interpolation_params,
+            "fallback_rate_kg_ha": spec.fallback_rate_kg_ha,
+            "meter": None if spec.meter is None else spec.meter.to_dict(),
+            "product_info": spec.product_info,
+            "clamp": {"min_kg_ha": spec.clamp_min_kg_ha, "max_kg_ha": spec.clamp_max_kg_ha},
             "plausibility": plaus,
             "crop": crop,
-            **({"source": source} if source else {}),
-            **({"rate_unit": rate_unit} if rate_unit != "kg/ha" else {}),
+            **({"source": spec.source} if spec.source else {}),
+            **({"rate_unit": spec.rate_unit} if spec.rate_unit != "kg/ha" else {}),
         },
         current_version=1,
     )
     session.add(rx)
     session.flush()
-    _new_version(
-        session, rx, 1, note or "created", user_id, seq, p.rate_kg_ha, p.flags, values, summary
-    )
+    cells_rates = (seq, p.rate_kg_ha, p.flags, values)
+    _new_version(session, rx, 1, spec.note or "created", user_id, cells_rates, summary)
     return rx
 
 
@@ -749,10 +748,7 @@ def create_from_request(
             raise RxError(f"product_key {b['product_key']!r} is not in this catalogue")
     unit = str(b.get("rate_unit") or "kg/ha")
     check_rate_unit(unit, product_info)
-    return create_prescription(
-        session,
-        plan,
-        field,
+    spec = NewPrescription(
         rate_unit=unit,
         name=b.get("name", "") if name is None else name,
         product=b.get("product", ""),
@@ -763,8 +759,6 @@ def create_from_request(
         fallback_rate_kg_ha=b.get("fallback_rate_kg_ha"),
         meter=meter,
         machine_id=b.get("machine_id"),
-        user_id=user_id,
-        organisation_id=organisation_id,
         crop=b.get("crop"),
         product_info=product_info,
         clamp_min_kg_ha=b.get("clamp_min_kg_ha"),
@@ -773,6 +767,9 @@ def create_from_request(
         note=b.get("note", ""),
         **extra,
     )
+    return create_prescription(
+        session, plan, field, spec, user_id=user_id, organisation_id=organisation_id
+    )
 
 
 def _meter_of(rx: Prescription) -> MeterCheck | None:
@@ -780,15 +777,23 @@ def _meter_of(rx: Prescription) -> MeterCheck | None:
     return None if not m else MeterSpec(**m).check()
 
 
+@dataclass(frozen=True)
+class RateEdit:
+    """A user's change to a version's rates: per-cell rates ``cells`` as (seq, kg/ha), or
+    a painted ``zone`` (GeoJSON Polygon or Feature) at ``zone_rate_kg_ha``."""
+
+    cells: list[tuple[int, float]] | None = None
+    zone: dict[str, Any] | None = None
+    zone_rate_kg_ha: float | None = None
+
+
 def edit_prescription(
     session: Session,
     rx: Prescription,
     plan: Plan,
     field: Field,
+    edit: RateEdit,
     *,
-    cells: list[tuple[int, float]] | None,
-    zone: dict[str, Any] | None,
-    zone_rate_kg_ha: float | None,
     note: str,
     user_id: int | None,
     based_on: int | None = None,
@@ -796,6 +801,8 @@ def edit_prescription(
     """Make the next version from version ``based_on`` (default the current one; the
     version on the user's screen), which is left as it is."""
     from shapely.geometry import shape
+
+    cells, zone, zone_rate_kg_ha = edit.cells, edit.zone, edit.zone_rate_kg_ha
 
     base = get_version(session, rx, based_on)
     seq, rates, flags, src = load_rates(session, base.id)
@@ -860,10 +867,7 @@ def edit_prescription(
         _max_version(session, rx) + 1,
         note,
         user_id,
-        seq,
-        new_rates,
-        new_flags,
-        src,
+        (seq, new_rates, new_flags, src),
         _json_safe(summary),
     )
     return ver, int(changed)

@@ -8,6 +8,7 @@ choice. Layer ``cells``.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 from sqlalchemy import text
 from sqlalchemy.orm import Session
@@ -149,21 +150,24 @@ SELECT ST_AsMVT(q, '{LAYER}', {EXTENT}, 'geom') FROM (
 """
 
 
+@dataclass(frozen=True)
+class JobCellFigures:
+    """A job's per-cell figures as columns, one entry per cell ``seq`` (the as-applied
+    report's, so map and report show the same numbers)."""
+
+    seq: Sequence[int]
+    target_rate: Sequence[float]
+    applied_rate: Sequence[float]
+    accuracy: Sequence[float | None]
+    n_records: Sequence[int]
+
+
 def job_tile(
-    session: Session,
-    plan_id: int,
-    z: int,
-    x: int,
-    y: int,
-    seq: Sequence[int],
-    target_rate: Sequence[float],
-    applied_rate: Sequence[float],
-    accuracy: Sequence[float | None],
-    n_records: Sequence[int],
+    session: Session, plan_id: int, z: int, x: int, y: int, figures: JobCellFigures
 ) -> bytes:
-    """The plan's cells in the tile with a job's per-cell figures (given per seq:
-    the as-applied report's, so map and report show the same numbers)."""
+    """The plan's cells in the tile with a job's per-cell ``figures``."""
+    f = figures
     return _tile(
-        session, JOB_SQL, z, x, y, pid=plan_id, seqs=list(seq), target=list(target_rate),
-        applied=list(applied_rate), acc=list(accuracy), nrec=list(n_records),
+        session, JOB_SQL, z, x, y, pid=plan_id, seqs=list(f.seq), target=list(f.target_rate),
+        applied=list(f.applied_rate), acc=list(f.accuracy), nrec=list(f.n_records),
     )  # fmt: skip

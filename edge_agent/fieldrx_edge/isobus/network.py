@@ -623,25 +623,7 @@ class Node:
                 self._abort(PGN_ETP_CM, sa, ABORT_BAD_SEQUENCE, pgn)
                 self._rx.pop((sa, 0), None)
         elif mux == 0x15:  # CTS
-            tx = self._tx.get((sa, 0))
-            if tx is None or tx.kind != "etp" or tx.state in ("done", "failed"):
-                self._abort(PGN_ETP_CM, sa, ABORT_UNEXPECTED_DT, pgn)
-                return
-            n, nxt = d[1], _u24(d[2:5])
-            tx.last_t = now
-            if n == 0:
-                tx.state = "wait_cts"
-                return
-            if not 1 <= nxt <= tx.packets:
-                self._abort(PGN_ETP_CM, sa, ABORT_BAD_SEQUENCE, pgn)
-                tx.finish(False, "bad CTS")
-                return
-            last = min(tx.packets, nxt + n - 1)
-            tx.to_send = list(range(nxt, last + 1))
-            dpo = bytes((0x16, len(tx.to_send))) + (nxt - 1).to_bytes(3, "little") + _pgn3(tx.pgn)
-            self.send_frame(PGN_ETP_CM, dpo, sa, 7)
-            tx.state = "send"
-            self._pump_tx(tx, now)
+            self._on_etp_cts(sa, d, pgn, now)
         elif mux == 0x17:  # EoMA
             tx = self._tx.pop((sa, 0), None)
             if tx is not None and tx.kind == "etp":
@@ -655,6 +637,28 @@ class Node:
             self._warn("abort", "ETP abort from 0x%02X reason %d PGN 0x%04X", sa, d[1], pgn)
         else:
             self.stats.malformed += 1
+
+    def _on_etp_cts(self, sa: int, d: bytes, pgn: int, now: float) -> None:
+        """An ETP clear-to-send from ``sa``: announce the window with a DPO, then send it."""
+        tx = self._tx.get((sa, 0))
+        if tx is None or tx.kind != "etp" or tx.state in ("done", "failed"):
+            self._abort(PGN_ETP_CM, sa, ABORT_UNEXPECTED_DT, pgn)
+            return
+        n, nxt = d[1], _u24(d[2:5])
+        tx.last_t = now
+        if n == 0:
+            tx.state = "wait_cts"
+            return
+        if not 1 <= nxt <= tx.packets:
+            self._abort(PGN_ETP_CM, sa, ABORT_BAD_SEQUENCE, pgn)
+            tx.finish(False, "bad CTS")
+            return
+        last = min(tx.packets, nxt + n - 1)
+        tx.to_send = list(range(nxt, last + 1))
+        dpo = bytes((0x16, len(tx.to_send))) + (nxt - 1).to_bytes(3, "little") + _pgn3(tx.pgn)
+        self.send_frame(PGN_ETP_CM, dpo, sa, 7)
+        tx.state = "send"
+        self._pump_tx(tx, now)
 
     def _on_dt(self, kind: str, sa: int, da: int, d: bytes, now: float) -> None:
         if len(d) < 8:

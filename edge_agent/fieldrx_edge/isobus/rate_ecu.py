@@ -168,18 +168,7 @@ class RateEcu:
         d = msg.data
         cmd = d[0] & 0x0F
         if cmd == pdm.CMD_STATUS and msg.da == GLOBAL_ADDRESS:
-            if self.tc_addr is not None and msg.sa != self.tc_addr:
-                name = self.node.peers.get(msg.sa)
-                if name is None or name != self.tc_name:
-                    return  # another TC on the bus; we stay with ours
-                # our TC re-claimed another address (J1939-81 contention): follow its NAME
-                log.warning("[%s] TC moved 0x%02X -> 0x%02X", self.node.label, self.tc_addr, msg.sa)
-                self.tc_addr = msg.sa
-            if self.tc_addr is None:
-                self.tc_addr = msg.sa
-                self.tc_name = self.node.peers.get(msg.sa)
-            self.last_tc_status_t = msg.t
-            self.alarms.discard("isobus_tc_lost")
+            self._on_tc_status(msg)
             return
         if msg.sa != self.tc_addr:
             return
@@ -194,27 +183,36 @@ class RateEcu:
         if cmd == pdm.CMD_DEVICE_DESCRIPTOR:
             self._on_dd(sub, d)
             return
-        if self.state != "connected":
-            return
-        pd = pdm.decode(d)
+        if self.state == "connected":
+            self._on_process_value(cmd, pdm.decode(d))
+
+    def _on_tc_status(self, msg: Message) -> None:
+        """A task controller's status broadcast: adopt the first TC, follow it if it moves."""
+        if self.tc_addr is not None and msg.sa != self.tc_addr:
+            name = self.node.peers.get(msg.sa)
+            if name is None or name != self.tc_name:
+                return  # another TC on the bus; we stay with ours
+            # our TC re-claimed another address (J1939-81 contention): follow its NAME
+            log.warning("[%s] TC moved 0x%02X -> 0x%02X", self.node.label, self.tc_addr, msg.sa)
+            self.tc_addr = msg.sa
+        if self.tc_addr is None:
+            self.tc_addr = msg.sa
+            self.tc_name = self.node.peers.get(msg.sa)
+        self.last_tc_status_t = msg.t
+        self.alarms.discard("isobus_tc_lost")
+
+    def _on_process_value(self, cmd: int, pd: pdm.PD) -> None:
+        """A value, request or measurement command from our TC once connected."""
         if cmd in (pdm.CMD_VALUE, pdm.CMD_SET_VALUE_ACK):
             err = self._set(pd)
             if err or cmd == pdm.CMD_SET_VALUE_ACK:
                 self._pdack(pd, err)
         elif cmd == pdm.CMD_REQUEST_VALUE:
-            if pd.element != METER_ELEMENT or pd.ddi not in self.MEASURED:
-                self._pdack(
-                    pd,
-                    ERR_INVALID_ELEMENT if pd.element != METER_ELEMENT else ERR_DDI_NOT_SUPPORTED,
-                )
+            if self._refuse_unmeasured(pd):
                 return
             self._send_pd(pdm.encode(pdm.CMD_VALUE, METER_ELEMENT, pd.ddi, self._value(pd.ddi)))
         elif cmd in (pdm.CMD_MEAS_TIME, pdm.CMD_MEAS_DISTANCE, pdm.CMD_MEAS_CHANGE):
-            if pd.element != METER_ELEMENT or pd.ddi not in self.MEASURED:
-                self._pdack(
-                    pd,
-                    ERR_INVALID_ELEMENT if pd.element != METER_ELEMENT else ERR_DDI_NOT_SUPPORTED,
-                )
+            if self._refuse_unmeasured(pd):
                 return
             tr = self.triggers.setdefault(pd.ddi, _Trigger(last_t=self.clock()))
             if cmd == pdm.CMD_MEAS_TIME:
@@ -226,6 +224,16 @@ class RateEcu:
                 tr.change = max(0, pd.value)
         elif cmd != pdm.CMD_PDACK:
             self._pdack(pd, ERR_NOT_SUPPORTED)
+
+    def _refuse_unmeasured(self, pd: pdm.PD) -> bool:
+        """NACK (and return True for) a request about anything but the meter's measured DDIs."""
+        if pd.element != METER_ELEMENT or pd.ddi not in self.MEASURED:
+            self._pdack(
+                pd,
+                ERR_INVALID_ELEMENT if pd.element != METER_ELEMENT else ERR_DDI_NOT_SUPPORTED,
+            )
+            return True
+        return False
 
     def _set(self, pd: pdm.PD) -> int:
         if pd.element != METER_ELEMENT:

@@ -121,20 +121,30 @@ def validate_settings(kind: str, given: dict[str, Any] | None) -> dict[str, Any]
             )
         return {}
     s = _merge(DEFAULTS[kind], given, "")
-    ctl = s["controller"]
+    _check_controller(kind, given.get("controller", {}), s["controller"])
+    _num(s, "controller.period_s", 1e-4, 1.0, "s")
+    _num(s, "sensor_hold_s", 0.0, 10.0, "s")
+    if kind == "ndvi_topdress":
+        _check_ndvi(s)
+    else:
+        _check_depth(s)
+    return s
+
+
+def _check_controller(kind: str, given_ctl: dict[str, Any], ctl: dict[str, Any]) -> None:
+    """Check the merged ``controller`` block in place; a controller other than the kind's
+    default, named without its own params, gets that controller's defaults."""
     if ctl["name"] not in CONTROLLERS[kind]:
         raise SettingsError(
             "controller.name", f"{ctl['name']!r} is not one of {list(CONTROLLERS[kind])}"
         )
-    if "params" in given.get("controller", {}) and not isinstance(ctl["params"], dict):
+    if "params" in given_ctl and not isinstance(ctl["params"], dict):
         raise SettingsError("controller.params", "must be an object")
-    if ctl["name"] != DEFAULTS[kind]["controller"]["name"] and "params" not in given.get(
-        "controller", {}
-    ):
+    if ctl["name"] != DEFAULTS[kind]["controller"]["name"] and "params" not in given_ctl:
         ctl["params"] = dict(NDVI_LADRC_PARAMS) if ctl["name"] == "ladrc" else {}
         if ctl["name"] == "incremental_pid":
             ctl["params"] = {**NDVI_DEFAULTS["controller"]["params"], "rule": "none"}
-        if ctl["name"] == "ladrc" and "period_s" not in given.get("controller", {}):
+        if ctl["name"] == "ladrc" and "period_s" not in given_ctl:
             ctl["period_s"] = 0.02
     for k, v in ctl["params"].items():
         if k == "rule":
@@ -144,72 +154,70 @@ def validate_settings(kind: str, given: dict[str, Any] | None) -> dict[str, Any]
                 )
         elif isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
             raise SettingsError(f"controller.params.{k}", f"must be a number, got {v!r}")
-    _num(s, "controller.period_s", 1e-4, 1.0, "s")
-    _num(s, "sensor_hold_s", 0.0, 10.0, "s")
-    if kind == "ndvi_topdress":
-        lo = _num(s, "rate_curve.ndvi_lo", -1.0, 1.0, "NDVI")
-        hi = _num(s, "rate_curve.ndvi_hi", -1.0, 1.0, "NDVI")
-        if hi <= lo:
-            raise SettingsError("rate_curve.ndvi_hi", f"must be above ndvi_lo ({lo:g})")
-        _num(s, "rate_curve.rate_at_lo_kg_ha", 0.0, 2000.0, "kg/ha")
-        _num(s, "rate_curve.rate_at_hi_kg_ha", 0.0, 2000.0, "kg/ha")
-        n = _num(s, "sensors.count", 1, 16, "sensors")
-        if n != int(n):
-            raise SettingsError("sensors.count", "must be a whole number")
-        s["sensors"]["count"] = int(n)
-        if s["sensors"]["layout"] not in ("distributed", "over_row"):
-            raise SettingsError(
-                "sensors.layout", "must be distributed or over_row (seed 000 sec. 2.1)"
-            )
-        _num(s, "sensors.height_m", 0.2, 3.0, "m")
-        _num(s, "sensors.sample_hz", 1.0, 20.0, "Hz")  # ACS-430: 1-20 Hz
-        w = _num(s, "window", 1, 200, "samples")
-        if w != int(w):
-            raise SettingsError("window", "must be a whole number of samples")
-        s["window"] = int(w)
-        _num(s, "implement_width_m", 0.5, 60.0, "m")
-        if not isinstance(s["restrict_to_boundary"], bool):
-            raise SettingsError("restrict_to_boundary", "must be true or false")
-        bands = s["speed_bands_kmh"]
+
+
+def _check_ndvi(s: dict[str, Any]) -> None:
+    """The NDVI topdressing settings (seed 000), checked in place."""
+    lo = _num(s, "rate_curve.ndvi_lo", -1.0, 1.0, "NDVI")
+    hi = _num(s, "rate_curve.ndvi_hi", -1.0, 1.0, "NDVI")
+    if hi <= lo:
+        raise SettingsError("rate_curve.ndvi_hi", f"must be above ndvi_lo ({lo:g})")
+    _num(s, "rate_curve.rate_at_lo_kg_ha", 0.0, 2000.0, "kg/ha")
+    _num(s, "rate_curve.rate_at_hi_kg_ha", 0.0, 2000.0, "kg/ha")
+    n = _num(s, "sensors.count", 1, 16, "sensors")
+    if n != int(n):
+        raise SettingsError("sensors.count", "must be a whole number")
+    s["sensors"]["count"] = int(n)
+    if s["sensors"]["layout"] not in ("distributed", "over_row"):
+        raise SettingsError("sensors.layout", "must be distributed or over_row (seed 000 sec. 2.1)")
+    _num(s, "sensors.height_m", 0.2, 3.0, "m")
+    _num(s, "sensors.sample_hz", 1.0, 20.0, "Hz")  # ACS-430: 1-20 Hz
+    w = _num(s, "window", 1, 200, "samples")
+    if w != int(w):
+        raise SettingsError("window", "must be a whole number of samples")
+    s["window"] = int(w)
+    _num(s, "implement_width_m", 0.5, 60.0, "m")
+    if not isinstance(s["restrict_to_boundary"], bool):
+        raise SettingsError("restrict_to_boundary", "must be true or false")
+    bands = s["speed_bands_kmh"]
+    if (
+        not isinstance(bands, list)
+        or not 1 <= len(bands) <= 12
+        or any(
+            isinstance(b, bool) or not isinstance(b, int | float) or not 0 < b < 40 for b in bands
+        )
+        or any(b >= c for b, c in zip(bands, bands[1:], strict=False))
+    ):
+        raise SettingsError(
+            "speed_bands_kmh", "must be 1-12 increasing test speeds in km/h (0..40)"
+        )
+
+
+def _check_depth(s: dict[str, Any]) -> None:
+    """The sowing-depth settings (seed 002), checked in place."""
+    _num(s, "target_depth_mm", 5.0, 120.0, "mm")
+    _num(s, "sensor_calibration.slope_mm_per_mv", -10.0, 10.0, "mm/mV")
+    if s["sensor_calibration"]["slope_mm_per_mv"] == 0:
+        raise SettingsError("sensor_calibration.slope_mm_per_mv", "must not be 0")
+    _num(s, "sensor_calibration.intercept_mm", -10000.0, 10000.0, "mm")
+    a = _num(s, "sensor_calibration.signal_min_mv", 0.0, 20000.0, "mV")
+    b = _num(s, "sensor_calibration.signal_max_mv", 0.0, 20000.0, "mV")
+    if b <= a:
+        raise SettingsError(
+            "sensor_calibration.signal_max_mv", f"must be above signal_min_mv ({a:g})"
+        )
+    _num(s, "actuator_speed_mm_s", 1.0, 500.0, "mm/s")
+    _num(s, "alert_window_m", 1.0, 10000.0, "m")
+    _num(s, "alert_min_qualified_pct", 0.0, 100.0, "%")
+    bands = s["speed_bands_kmh"]
+    ok = isinstance(bands, list) and 1 <= len(bands) <= 12
+    for i, band in enumerate(bands if ok else []):
         if (
-            not isinstance(bands, list)
-            or not 1 <= len(bands) <= 12
-            or any(
-                isinstance(b, bool) or not isinstance(b, int | float) or not 0 < b < 40
-                for b in bands
-            )
-            or any(b >= c for b, c in zip(bands, bands[1:], strict=False))
+            not isinstance(band, list)
+            or len(band) != 2
+            or any(isinstance(x, bool) or not isinstance(x, int | float) for x in band)
+            or not 0 <= band[0] < band[1] <= 40
         ):
-            raise SettingsError(
-                "speed_bands_kmh", "must be 1-12 increasing test speeds in km/h (0..40)"
-            )
-    else:
-        _num(s, "target_depth_mm", 5.0, 120.0, "mm")
-        _num(s, "sensor_calibration.slope_mm_per_mv", -10.0, 10.0, "mm/mV")
-        if s["sensor_calibration"]["slope_mm_per_mv"] == 0:
-            raise SettingsError("sensor_calibration.slope_mm_per_mv", "must not be 0")
-        _num(s, "sensor_calibration.intercept_mm", -10000.0, 10000.0, "mm")
-        a = _num(s, "sensor_calibration.signal_min_mv", 0.0, 20000.0, "mV")
-        b = _num(s, "sensor_calibration.signal_max_mv", 0.0, 20000.0, "mV")
-        if b <= a:
-            raise SettingsError(
-                "sensor_calibration.signal_max_mv", f"must be above signal_min_mv ({a:g})"
-            )
-        _num(s, "actuator_speed_mm_s", 1.0, 500.0, "mm/s")
-        _num(s, "alert_window_m", 1.0, 10000.0, "m")
-        _num(s, "alert_min_qualified_pct", 0.0, 100.0, "%")
-        bands = s["speed_bands_kmh"]
-        ok = isinstance(bands, list) and 1 <= len(bands) <= 12
-        for i, band in enumerate(bands if ok else []):
-            if (
-                not isinstance(band, list)
-                or len(band) != 2
-                or any(isinstance(x, bool) or not isinstance(x, int | float) for x in band)
-                or not 0 <= band[0] < band[1] <= 40
-            ):
-                raise SettingsError(
-                    f"speed_bands_kmh.{i}", "must be [low, high] km/h with low < high"
-                )
-        if not ok:
-            raise SettingsError("speed_bands_kmh", "must be 1-12 [low, high] bands in km/h")
-    return s
+            raise SettingsError(f"speed_bands_kmh.{i}", "must be [low, high] km/h with low < high")
+    if not ok:
+        raise SettingsError("speed_bands_kmh", "must be 1-12 [low, high] bands in km/h")

@@ -17,9 +17,12 @@ from numpy.typing import ArrayLike
 
 from fieldrx_edge.plants.linalg import tf2ss, zoh
 
+# the continuous model's (A, B, C, D) matrices, as ``linalg.tf2ss`` returns them
+StateSpace = tuple[ArrayLike, ArrayLike, ArrayLike, ArrayLike]
+
 
 class DiscretePlant:
-    """Exact ZOH discretisation of a continuous LTI plant, stepped in pure Python.
+    """Exact ZOH discretisation of a continuous LTI plant ``abcd``, stepped in pure Python.
 
     ``delay_s`` is rounded to a whole number of samples (choose ``dt`` so that
     it divides the dead time; a ValueError is raised if it is off by more than
@@ -29,10 +32,7 @@ class DiscretePlant:
 
     def __init__(
         self,
-        a: ArrayLike,
-        b: ArrayLike,
-        c: ArrayLike,
-        d: ArrayLike,
+        abcd: StateSpace,
         dt: float,
         *,
         u_min: float = -math.inf,
@@ -42,6 +42,7 @@ class DiscretePlant:
     ) -> None:
         if u_min > u_max:
             raise ValueError("u_min must be <= u_max")
+        a, b, c, d = abcd
         am = np.atleast_2d(np.array(a, dtype=float))
         phi, gamma = zoh(am, b, dt)
         self.name = name
@@ -71,8 +72,7 @@ class DiscretePlant:
         **kw: float | str,
     ) -> DiscretePlant:
         """Build from transfer-function coefficients (descending powers of s)."""
-        a, b, c, d = tf2ss(num, den)
-        return cls(a, b, c, d, dt, **kw)  # type: ignore[arg-type]
+        return cls(tf2ss(num, den), dt, **kw)  # type: ignore[arg-type]
 
     @property
     def output(self) -> float:

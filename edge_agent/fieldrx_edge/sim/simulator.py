@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 from fieldrx_edge.asapplied import (
     Cells,
+    RecordColumns,
     driven_length,
     landed_mass,
     landing_segments,
@@ -34,7 +35,7 @@ from fieldrx_edge.locate import boundary_rings
 from fieldrx_edge.metering import calibration_from_dict, flow_g_min_many
 from fieldrx_edge.motor import build_controller, closed_loop_t50_s
 from fieldrx_edge.protocol import ControllerSettings, JobPackage
-from fieldrx_edge.runtime import Pipeline, RuntimeConfig, make_record
+from fieldrx_edge.runtime import Measured, Pipeline, RuntimeConfig, make_record
 from fieldrx_edge.sim.fastplant import FastPlant2
 
 
@@ -418,7 +419,10 @@ def simulate(
                     time.sleep(ahead)
             batch.append(
                 make_record(
-                    pipe, d, None, y, ctrl.output, down, tbase + k0 * dt, fix_period_s=period
+                    pipe,
+                    d,
+                    None,
+                    Measured(y, ctrl.output, down, tbase + k0 * dt, fix_period_s=period),
                 )
             )
             if len(batch) >= batch_n:
@@ -473,11 +477,11 @@ def simulate(
     # the same kernel over the agent's log (fix time, position, heading, shaft speed)
     t_fix_log = np.arange(0, n_steps, ratio) * dt
     lxyh = np.asarray(log_xyh, dtype=float).reshape(-1, 3)
-    logged = records_applied(
-        cells, t_fix_log, np.full(len(t_fix_log), 1.0 / cfg.gnss_hz), lxyh[:, 0], lxyh[:, 1],
-        lxyh[:, 2], np.asarray(log_rpm), own_fix, cal, np.zeros(len(t_fix_log)),
-        job.lag_s, job.antenna_forward_m,
+    log_cols = RecordColumns(
+        t_fix_log, np.full(len(t_fix_log), 1.0 / cfg.gnss_hz), lxyh[:, 0], lxyh[:, 1],
+        lxyh[:, 2], np.asarray(log_rpm), own_fix, np.zeros(len(t_fix_log)),
     )  # fmt: skip
+    logged = records_applied(cells, log_cols, cal, job.lag_s, job.antenna_forward_m)
     logged_acc = theta_pct(m1, logged.m2_g)
     s_land = np.interp(tk + job.lag_s, tg, sg) + job.antenna_forward_m
     v_land = np.interp(s_land, sg, vg)

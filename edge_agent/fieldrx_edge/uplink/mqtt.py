@@ -31,6 +31,7 @@ import json
 import logging
 import threading
 import time
+from dataclasses import dataclass
 from typing import Any
 
 import paho.mqtt.client as mqtt
@@ -61,20 +62,30 @@ class _Lane:
         self.inflight.clear()
 
 
+@dataclass(frozen=True)
+class MqttBroker:
+    """Where the sender connects and as whom: the machine's broker login is
+    ``mqtt_username(machine_id)`` with the device token as password; ``tls_ca`` turns on
+    TLS. ``client_id`` defaults to ``mqtt_client_id(machine_id)``, the one the broker binds
+    the login to."""
+
+    host: str = "127.0.0.1"
+    port: int = 1884
+    username: str | None = None
+    password: str | None = None
+    tls_ca: str | None = None
+    client_id: str | None = None
+    topic_prefix: str = ""
+
+
 class MqttSender:
     def __init__(
         self,
         queue: TelemetryQueue,
-        host: str = "127.0.0.1",
-        port: int = 1884,
+        broker: MqttBroker = MqttBroker(),
         batch_size: int = 200,
         max_inflight_batches: int = 20,
         ack_timeout_s: float = 10.0,
-        topic_prefix: str = "",
-        client_id: str | None = None,
-        username: str | None = None,
-        password: str | None = None,
-        tls_ca: str | None = None,
         extra_queues: tuple[TelemetryQueue, ...] = (),
         upload_period_s: float = 0.0,
     ) -> None:
@@ -86,27 +97,27 @@ class MqttSender:
         self.batch_size = batch_size
         self.max_inflight = max_inflight_batches
         self.ack_timeout_s = ack_timeout_s
-        self.topic = topic_prefix + telemetry_topic(queue.machine_id)
-        self.ack_topic = topic_prefix + ack_topic(queue.machine_id)
+        self.topic = broker.topic_prefix + telemetry_topic(queue.machine_id)
+        self.ack_topic = broker.topic_prefix + ack_topic(queue.machine_id)
         self.backoff = Backoff(cap_s=10.0)
         self._cv = threading.Condition()
         self._connected = False
-        cid = client_id or mqtt_client_id(queue.machine_id)
+        cid = broker.client_id or mqtt_client_id(queue.machine_id)
         self.client = mqtt.Client(
             mqtt.CallbackAPIVersion.VERSION2, client_id=cid, clean_session=False
         )
         n_lanes = len(self.lanes)
         self.client.max_inflight_messages_set(max_inflight_batches * n_lanes)
         self.client.max_queued_messages_set(max_inflight_batches * 2 * n_lanes)
-        if username is not None:
-            self.client.username_pw_set(username, password)
-        if tls_ca:
-            self.client.tls_set(ca_certs=tls_ca)
+        if broker.username is not None:
+            self.client.username_pw_set(broker.username, broker.password)
+        if broker.tls_ca:
+            self.client.tls_set(ca_certs=broker.tls_ca)
         self.client.on_connect = self._on_connect
         self.client.on_disconnect = self._on_disconnect
         self.client.on_message = self._on_message
         self.client.reconnect_delay_set(1, 10)  # paho takes whole seconds
-        self.client.connect_async(host, port, keepalive=30)
+        self.client.connect_async(broker.host, broker.port, keepalive=30)
         self.client.loop_start()
 
     def close(self) -> None:

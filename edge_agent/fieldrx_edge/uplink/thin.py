@@ -41,7 +41,13 @@ from typing import Any
 
 import numpy as np
 
-from fieldrx_edge.asapplied import Cells, driven_length, fix_periods, records_applied
+from fieldrx_edge.asapplied import (
+    Cells,
+    RecordColumns,
+    driven_length,
+    fix_periods,
+    records_applied,
+)
 from fieldrx_edge.gnss.utm import UtmProjection
 from fieldrx_edge.locate import boundary_rings
 from fieldrx_edge.metering import calibration_from_dict
@@ -175,11 +181,14 @@ class CellAccumulator:
         lo = self._placed
         count = np.zeros(len(own), dtype=bool)
         count[lo:upto] = True
-        res = records_applied(
-            self.cells, a["t"], a["p"], a["x"], a["y"], np.nan_to_num(a["h"]), a["rpm"], own,
-            self.cal, applied * self.width * v * 6.0 / 60.0,  # as the report: no shaft speed
-            self.job.lag_s, self.job.antenna_forward_m, MAX_GAP_S, count=count,
+        cols = RecordColumns(
+            a["t"], a["p"], a["x"], a["y"], np.nan_to_num(a["h"]), a["rpm"], own,
+            applied * self.width * v * 6.0 / 60.0,  # as the report: no shaft speed
+            count=count,
         )  # fmt: skip
+        res = records_applied(
+            self.cells, cols, self.cal, self.job.lag_s, self.job.antenna_forward_m, MAX_GAP_S
+        )
         t = a["t"]
         t0, t1 = float(t[lo]), float(t[upto - 1])
         for i in np.flatnonzero(res.m2_g).tolist():
