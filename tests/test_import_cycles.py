@@ -3,7 +3,7 @@
 A function-level import hides a cycle from Python but not from the design: two modules
 that need each other are one concept split in two, or a shared type living in the
 wrong home (the task kinds imported the dispatcher for their progress type). Checked
-with ast over ``backend/fieldrx``; the standard
+with ast over ``backend/fieldrx`` and ``edge_agent/fieldrx_edge``; the standard
 library's ``graphlib`` finds the cycle and names it.
 """
 
@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-PACKAGES = (ROOT / "backend" / "fieldrx",)
+PACKAGES = (ROOT / "backend" / "fieldrx", ROOT / "edge_agent" / "fieldrx_edge")
 
 
 def modules(package: Path) -> dict[str, Path]:

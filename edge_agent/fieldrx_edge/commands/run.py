@@ -10,6 +10,7 @@ import threading
 import time
 from typing import Any
 
+from fieldrx_edge.commands.sessions import open_session
 from fieldrx_edge.jobs import JobStore, pull
 from fieldrx_edge.protocol import JobPackage
 from fieldrx_edge.session import JobSession, UplinkOptions, load_job
@@ -42,16 +43,6 @@ def uplink_profile(a: argparse.Namespace, store: JobStore, progress: dict[str, A
         log.warning("job keeps uplink profile %s (it started with it), not %s", kept, asked)
         return str(kept)
     return asked
-
-
-def open_session(a: argparse.Namespace, job: JobPackage, store: JobStore, profile: str) -> Any:
-    """The job's session in the state dir, with the cab display when ``--cab`` asks."""
-    opts = dataclasses.replace(UplinkOptions.from_args(a, store), profile=profile)
-    session = JobSession(job, opts, store.queue_path())
-    from fieldrx_edge.cab.server import attach_cab
-
-    attach_cab(a, session, store)
-    return session
 
 
 def _motor(a: argparse.Namespace, job: JobPackage, settings: Any, period: float) -> Any:
@@ -111,7 +102,7 @@ def cmd_run(a: argparse.Namespace) -> int:
     if not (store.root / "jobs" / f"{job.job_id}.json").exists():
         store.save_package(job.to_json())
     if job.kind != "prescription_map":  # seed 000 / 002 jobs
-        from fieldrx_edge.jobkinds.cli import run_kind
+        from fieldrx_edge.commands.kinds import run_kind
 
         return run_kind(a, job, store)
     progress = store.load_progress(job.job_id)

@@ -6,57 +6,11 @@ import argparse
 import csv
 import dataclasses
 import json
-from pathlib import Path
 from typing import Any
 
+from fieldrx_edge.commands.sessions import finished_early, session_report, sim_session
 from fieldrx_edge.jobs import JobStore
-from fieldrx_edge.protocol import JobPackage
-from fieldrx_edge.session import JobFinished, JobSession, UplinkOptions, load_job
-
-
-def sim_session(a: argparse.Namespace, job: JobPackage, profile: str = "full") -> JobSession:
-    """The simulation's session: with ``--server`` the records go through the durable queue
-    and the HTTP uplink exactly as ``run``'s (queue in --state-dir, else a temporary dir);
-    with ``--cab`` the display watches it."""
-    if a.server and not a.token:
-        raise SystemExit("--server needs --token")
-    opts = dataclasses.replace(UplinkOptions.from_args(a), profile=profile)
-    qdir = Path(a.state_dir) if a.state_dir else None
-    session = JobSession(job, opts, qdir / "queue.sqlite" if qdir else None)
-    from fieldrx_edge.cab.server import attach_cab
-
-    attach_cab(a, session, JobStore(a.state_dir) if a.state_dir else None)
-    return session
-
-
-def session_report(session: JobSession, out: dict[str, Any]) -> None:
-    """Close the session (drain, job completed) and add its figures to ``out``."""
-    has_uplink = session.sender is not None
-    up = session.close(completed=has_uplink)
-    if has_uplink:
-        out["telemetry_drained"] = up["drained"]
-        out["telemetry"] = up["queue"]
-        out["uplink"] = up["uplink"]
-        out["job_state_reported"] = up.get("job_state_reported", False)
-
-
-def finished_early(a: argparse.Namespace, session: JobSession, pair: Any = None) -> int:
-    """The operator pressed Finish before the path's end: the job is not completed (it is
-    left running on the server); what was queued is sent, and the figures say so."""
-    if pair is not None:
-        pair.close()
-    up = session.close(completed=False)
-    out = {
-        "job_id": session.job.job_id if session.job else None,
-        "finished_early": True,
-        "records": session.records,
-        "telemetry_drained": up["drained"],
-        "telemetry": up["queue"],
-    }
-    print(json.dumps(out), flush=True)
-    if session.cab is not None:
-        session.cab.finish()
-    return 0
+from fieldrx_edge.session import JobFinished, load_job
 
 
 def cmd_simulate(a: argparse.Namespace) -> int:
@@ -65,7 +19,7 @@ def cmd_simulate(a: argparse.Namespace) -> int:
     # a cached job id works as with `run` (pulled into --state-dir or the default one)
     job = load_job(a.job, JobStore(a.state_dir) if a.job.isdigit() else None)
     if job.kind != "prescription_map":  # seed 000 / 002 jobs
-        from fieldrx_edge.jobkinds.cli import simulate_kind
+        from fieldrx_edge.commands.kinds import simulate_kind
 
         return simulate_kind(a, job)
     lo, hi = a.speed

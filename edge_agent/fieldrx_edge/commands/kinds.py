@@ -31,7 +31,7 @@ from fieldrx_edge.protocol import JobPackage
 
 
 def simulate_kind(a: argparse.Namespace, job: JobPackage) -> int:
-    from fieldrx_edge.commands.simulate import finished_early, session_report, sim_session
+    from fieldrx_edge.commands.sessions import finished_early, session_report, sim_session
     from fieldrx_edge.jobkinds.seeding import simulate_seeding
     from fieldrx_edge.jobkinds.topdress import simulate_topdress
     from fieldrx_edge.session import JobFinished
@@ -92,7 +92,7 @@ def sensor_lines(source: Any, period_s: float) -> Any:
 
 def run_kind(a: argparse.Namespace, job: JobPackage, store: Any) -> int:
     """The agent's loop for a sensor kind (see the module doc), in the job's session."""
-    from fieldrx_edge.commands.run import open_session
+    from fieldrx_edge.commands.sessions import open_session
     from fieldrx_edge.gnss.sources import open_source
     from fieldrx_edge.jobkinds.sensors import SensorError, parse_ndvi
     from fieldrx_edge.ndvi import GnssSpeed
