@@ -46,12 +46,16 @@ def unarchived_jobs_with_data(session: Session, kind: str, obj_id: int) -> list[
     """Ids of the jobs made from this machine/field/plan/prescription that hold as-applied
     data and have no archive."""
     where, params = _scope(session, kind, obj_id)
+    # A machine's subqueries name the machine itself: through ``j.machine_id`` Citus plans
+    # the correlated EXISTS on every shard, and after such a multi-shard read it refuses
+    # the machine delete's later writes to coordinator tables (tokens, prescriptions).
+    machine = ":id" if kind == "machine" else "j.machine_id"
     sql = (
         f"SELECT j.id FROM jobs j WHERE {where}"
         " AND (EXISTS (SELECT 1 FROM job_cells_applied a"
-        "              WHERE a.machine_id = j.machine_id AND a.job_id = j.id)"
+        f"              WHERE a.machine_id = {machine} AND a.job_id = j.id)"
         "      OR EXISTS (SELECT 1 FROM telemetry_job_spans t"
-        "                 WHERE t.machine_id = j.machine_id AND t.job_id = j.id))"
+        f"                 WHERE t.machine_id = {machine} AND t.job_id = j.id))"
         " ORDER BY j.id"
     )
     ids = [int(r[0]) for r in session.execute(text(sql), params)]
