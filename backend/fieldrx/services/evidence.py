@@ -33,6 +33,11 @@ def _scope(session: Session, kind: str, obj_id: int) -> tuple[str, dict[str, Any
     distributed and the coordinator's tables cannot be joined to it in one statement."""
     if kind == "machine":
         return "j.machine_id = :id", {"id": obj_id}
+    # The jobs of a field, plan or prescription are on many shards. Citus refuses a write to a
+    # coordinator table (the object itself, next) after a multi-shard statement ran on
+    # parallel connections in the same transaction; sequential mode runs it on one
+    # connection per node. On plain PostgreSQL this only sets an unused placeholder.
+    session.execute(text("SET LOCAL citus.multi_shard_modify_mode TO 'sequential'"))
     if kind == "prescription":
         plans, rxs = [], [obj_id]
     else:
