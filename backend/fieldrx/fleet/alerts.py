@@ -328,15 +328,24 @@ def open_event(
 ) -> list[dict[str, Any]]:
     """Open an ``EVENT_KINDS`` alert for the machine unless one of that kind is open.
     Returns the live messages (empty when one was already open)."""
+    # Two statements, not INSERT ... SELECT ... WHERE NOT EXISTS: past one node Citus pushes
+    # that one-shard INSERT ... SELECT down to the machine's shard, where the int id's
+    # sequence default cannot be evaluated; an INSERT ... VALUES takes its id on the
+    # coordinator. The caller (ingest) holds the machine's advisory lock: nothing opens one
+    # in between.
+    cur.execute(
+        "SELECT 1 FROM alerts WHERE machine_id = %s AND kind = %s AND ended_at IS NULL",
+        (machine_id, kind),
+    )
+    if cur.fetchone() is not None:
+        return []
     cur.execute(
         "INSERT INTO alerts (organisation_id, machine_id, job_id, kind, message, value)"
-        " SELECT %s, %s, %s, %s, %s, %s WHERE NOT EXISTS (SELECT 1 FROM alerts"
-        "  WHERE machine_id = %s AND kind = %s AND ended_at IS NULL) RETURNING id",
-        (organisation_id, machine_id, job_id, kind, message, value, machine_id, kind),
+        " VALUES (%s, %s, %s, %s, %s, %s) RETURNING id",
+        (organisation_id, machine_id, job_id, kind, message, value),
     )
     row = cur.fetchone()
-    if row is None:
-        return []
+    assert row is not None
     return [
         alert_message(organisation_id, row[0], machine_id, kind, "started", message, value, job_id)
     ]

@@ -33,6 +33,11 @@ def _scope(session: Session, kind: str, obj_id: int) -> tuple[str, dict[str, Any
     distributed and the coordinator's tables cannot be joined to it in one statement."""
     if kind == "machine":
         return "j.machine_id = :id", {"id": obj_id}
+    # The jobs of a field, plan or prescription are on many shards. Citus refuses a write to a
+    # coordinator table (the object itself, next) after a multi-shard statement ran on
+    # parallel connections in the same transaction; sequential mode runs it on one
+    # connection per node. On plain PostgreSQL this only sets an unused placeholder.
+    session.execute(text("SET LOCAL citus.multi_shard_modify_mode TO 'sequential'"))
     if kind == "prescription":
         plans, rxs = [], [obj_id]
     else:
@@ -46,12 +51,16 @@ def unarchived_jobs_with_data(session: Session, kind: str, obj_id: int) -> list[
     """Ids of the jobs made from this machine/field/plan/prescription that hold as-applied
     data and have no archive."""
     where, params = _scope(session, kind, obj_id)
+    # A machine's subqueries name the machine itself: through ``j.machine_id`` Citus plans
+    # the correlated EXISTS on every shard, and after such a multi-shard read it refuses
+    # the machine delete's later writes to coordinator tables (tokens, prescriptions).
+    machine = ":id" if kind == "machine" else "j.machine_id"
     sql = (
         f"SELECT j.id FROM jobs j WHERE {where}"
         " AND (EXISTS (SELECT 1 FROM job_cells_applied a"
-        "              WHERE a.machine_id = j.machine_id AND a.job_id = j.id)"
+        f"              WHERE a.machine_id = {machine} AND a.job_id = j.id)"
         "      OR EXISTS (SELECT 1 FROM telemetry_job_spans t"
-        "                 WHERE t.machine_id = j.machine_id AND t.job_id = j.id))"
+        f"                 WHERE t.machine_id = {machine} AND t.job_id = j.id))"
         " ORDER BY j.id"
     )
     ids = [int(r[0]) for r in session.execute(text(sql), params)]
