@@ -106,19 +106,22 @@ describe('fleet map: marker, label and coverage agree with the list and the repo
     assert.ok(j.ok, `job ${j.status} ${JSON.stringify(j.data)}`);
     job = j.data;
     assert.ok((await api(token, 'POST', `/jobs/${job.id}/state`, { state: 'sent' })).ok);
-    // Another machine parked 30 km away, seen before the screen opens: the map is fitted to
-    // it, so the driven machine is found only by following it from the list.
-    const far = await api(token, 'POST', '/machines', { name: `fleet map parked ${Date.now()}`, width_m: 3.6, lag_s: 1.52, calibration });
-    assert.ok(far.ok, `machine ${far.status}`);
-    const farToken = await api(token, 'POST', `/machines/${far.data.id}/device-token`);
-    const parked = {
-      machine_id: far.data.id, seq: 1, t: Date.now() / 1000, lon: 112.32, lat: 32.13, fix_quality: 4, hdop: 0.8,
-      speed_raw_m_s: 0, speed_filtered_m_s: 0, heading_deg: 0, job_id: null, cell_seq: null,
-      target_rate_kg_ha: 0, applied_rate_kg_ha: 0, target_shaft_rpm: 0, actual_shaft_rpm: 0, duty: 0,
-      implement_down: false, alarms: [], queue_backlog: 0,
-    };
-    const r = await api(farToken.data.token, 'POST', '/telemetry', { records: [parked] });
-    assert.ok(r.ok, `telemetry ${r.status} ${JSON.stringify(r.data)}`);
+    // Two machines parked 30 and 900 km away, seen before the screen opens: the map is fitted
+    // to them (zoomed out, where the job's cells are smaller than a pixel), so the driven
+    // machine and its coverage are seen only by following it from the list.
+    for (const [i, [lon, lat]] of [[112.32, 32.13], [116.4, 39.9]].entries()) {
+      const far = await api(token, 'POST', '/machines', { name: `fleet map parked ${i} ${Date.now()}`, width_m: 3.6, lag_s: 1.52, calibration });
+      assert.ok(far.ok, `machine ${far.status}`);
+      const farToken = await api(token, 'POST', `/machines/${far.data.id}/device-token`);
+      const parked = {
+        machine_id: far.data.id, seq: 1, t: Date.now() / 1000, lon, lat, fix_quality: 4, hdop: 0.8,
+        speed_raw_m_s: 0, speed_filtered_m_s: 0, heading_deg: 0, job_id: null, cell_seq: null,
+        target_rate_kg_ha: 0, applied_rate_kg_ha: 0, target_shaft_rpm: 0, actual_shaft_rpm: 0, duty: 0,
+        implement_down: false, alarms: [], queue_backlog: 0,
+      };
+      const r = await api(farToken.data.token, 'POST', '/telemetry', { records: [parked] });
+      assert.ok(r.ok, `telemetry ${r.status} ${JSON.stringify(r.data)}`);
+    }
     B = await launch();
     page = B.page;
     await signIn(page);
