@@ -240,3 +240,8 @@ ACTIVATION_OTHER_ERROR  # unused variable (edge_agent/fieldrx_edge/isobus/proces
 CONTROL_STATE_AUTO  # unused variable (edge_agent/fieldrx_edge/isobus/tc_server.py)
 # a standard-library setting read by tempfile.gettempdir() (services/bounded.py sets it)
 tempdir  # unused attribute (backend/fieldrx/services/bounded.py)
+JobKindRow  # unused class (backend/fieldrx/db/models.py: the job_kinds table, read by Alembic)
+sync_job_kinds  # unused function (backend/fieldrx/db/kinds.py: called by migrations/env.py)
+PrescriptionMap  # unused class (registered by its decorator: fieldrx_edge.jobkinds.registry)
+NdviTopdress  # unused class (registered by its decorator: fieldrx_edge.jobkinds.registry)
+SeedingDepth  # unused class (registered by its decorator: fieldrx_edge.jobkinds.registry)

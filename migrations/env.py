@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from alembic import context
 from fieldrx.db.bootstrap import include_object
+from fieldrx.db.kinds import sync_job_kinds
 from fieldrx.db.models import Base
 from fieldrx.settings import get_settings
 from geoalchemy2 import alembic_helpers
@@ -49,6 +50,8 @@ def run_migrations_online() -> None:
         )
         with context.begin_transaction():
             context.run_migrations()
+            # the job kinds' rows are the registry's, whatever revision added the table
+            sync_job_kinds(connection)
 
 
 if context.is_offline_mode():

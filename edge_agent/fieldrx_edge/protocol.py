@@ -37,6 +37,9 @@ import uuid
 from dataclasses import asdict, dataclass, field, fields
 from typing import Any, TypeGuard
 
+from fieldrx_edge.jobkinds.registry import DEFAULT_KIND
+from fieldrx_edge.jobkinds.registry import names as kind_names
+
 FORMAT_VERSION = 1
 # Telemetry wire format. 1: batches {"records": [...]}, deduplicated by (machine, seq).
 # 2: batches also carry "format", "stream" and "stream_start"; records may carry
@@ -139,11 +142,10 @@ class JobPackage:
     shape_ring_offsets: list[int] = field(default_factory=list)
     shape_offsets: list[int] = field(default_factory=list)
     shape_xy_utm: list[float] = field(default_factory=list)
-    # job kind: prescription_map (seed 001, the cells' rates), ndvi_topdress
-    # (seed 000, rates from canopy sensors) or seeding_depth (seed 002); kind_settings are
-    # the kind's validated settings (fieldrx_edge.jobkinds). Both are left out of the
-    # canonical JSON when default, so prescription-map packages keep their bytes and checksum.
-    kind: str = "prescription_map"
+    # job kind: one of fieldrx_edge.jobkinds.registry's; kind_settings are the kind's
+    # validated settings (fieldrx_edge.jobkinds). Both are left out of the canonical JSON
+    # when default, so prescription-map packages keep their bytes and checksum.
+    kind: str = DEFAULT_KIND
     kind_settings: dict[str, Any] = field(default_factory=dict)
     # the unit of ``rate_kg_ha`` ("kg/ha", or "l/ha" for a liquid product's volume
     # prescription) and the product's density in kg/l (0: not known). They travel with the
@@ -166,7 +168,7 @@ class JobPackage:
         if not self.shape_seq:  # optional: absent shapes keep older packages' bytes and checksum
             for name in SHAPE_FIELDS:
                 del body[name]
-        if self.kind == "prescription_map" and not self.kind_settings:
+        if self.kind == DEFAULT_KIND and not self.kind_settings:
             del body["kind"], body["kind_settings"]
         if self.rate_unit == "kg/ha" and not self.product_density_kg_l:
             del body["rate_unit"], body["product_density_kg_l"]
@@ -203,8 +205,10 @@ class JobPackage:
             if got != want:
                 raise ProtocolError(f"job package: {name} has {got} values, expected {want}")
         self._validate_shapes()
-        if self.kind not in JOB_KINDS:
-            raise ProtocolError(f"job package: kind {self.kind!r} is not one of {list(JOB_KINDS)}")
+        if self.kind not in kind_names():
+            raise ProtocolError(
+                f"job package: kind {self.kind!r} is not one of {list(kind_names())}"
+            )
         if not isinstance(self.kind_settings, dict):
             raise ProtocolError("job package: kind_settings must be an object")
         if self.implement_width_m <= 0:
@@ -282,7 +286,6 @@ class JobPackage:
         return pkg
 
 
-JOB_KINDS = ("prescription_map", "ndvi_topdress", "seeding_depth")
 SHAPE_FIELDS = ("shape_seq", "shape_ring_offsets", "shape_offsets", "shape_xy_utm")
 
 # Telemetry -----------------------------------------------------------------

@@ -5,24 +5,23 @@ from __future__ import annotations
 from typing import Any
 
 from fastapi import APIRouter, Query
+from fieldrx_edge.jobkinds.registry import kind_of, kinds
 from sqlalchemy import func, select
 
 from fieldrx.api.common import ApiError, get_scoped
-from fieldrx.api.jobkinds import CONTROLLERS, DEFAULTS, KINDS, check_machine_can, create_kind_job
+from fieldrx.api.jobkinds import check_machine_can, create_kind_job
 from fieldrx.api.schemas.errors import ERRORS
 from fieldrx.api.schemas.jobs import (
     EventOut,
     JobIn,
     JobList,
     JobOut,
-    Kind,
     KindsOut,
     State,
     StateIn,
 )
 from fieldrx.auth.deps import SessionDep, UserDep, WriterDep
 from fieldrx.db.models import (
-    JOB_KINDS,
     JOB_STATES,
     Job,
     JobEvent,
@@ -154,15 +153,15 @@ def _attention(
 
 @router.post("", response_model=JobOut, status_code=201)
 def create_job(body: JobIn, principal: WriterDep, session: SessionDep) -> JobOut:
-    if body.kind != "prescription_map":
+    if kind_of(body.kind).rates_from == "sensors":
         job = create_kind_job(session, principal, body)
         return job_out(job, _events(session, job))
     if body.prescription_id is None:
-        raise ApiError(422, "a prescription_map job needs prescription_id", where="prescription_id")
+        raise ApiError(422, f"a {body.kind} job needs prescription_id", where="prescription_id")
     if body.plan_id is not None or body.settings:
         raise ApiError(
             422,
-            "a prescription_map job takes its path and rates from the prescription: "
+            f"a {body.kind} job takes its path and rates from the prescription: "
             "leave plan_id and settings out",
             where="settings" if body.settings else "plan_id",
         )
@@ -193,7 +192,7 @@ def create_job(body: JobIn, principal: WriterDep, session: SessionDep) -> JobOut
         raise ApiError(
             404, f"prescription {rx.id} has no version {version}", where="prescription_version"
         )
-    check_machine_can("prescription_map", machine)
+    check_machine_can(body.kind, machine)
     _check_width(session, rx, machine)
     attention = _attention(session, rx, v, machine)
     if attention["count"] and not body.confirm_flagged:
@@ -259,12 +258,11 @@ def create_job(body: JobIn, principal: WriterDep, session: SessionDep) -> JobOut
 
 @router.get("/kinds", response_model=KindsOut)
 def job_kinds(principal: UserDep) -> dict[str, Any]:
-    """Each kind's default settings (the papers' values), units in the names, controllers."""
-    return {
-        "kinds": {
-            k: {"defaults": DEFAULTS[k], "controllers": list(CONTROLLERS.get(k, ()))} for k in KINDS
-        }
-    }
+    """Every job kind of the registry (``fieldrx_edge.jobkinds``), in list order: its label,
+    paper, where its rates come from, what the machine needs, its default settings (the
+    papers' values, units in the names), controllers, and the form's inputs with unit,
+    default and the default's source."""
+    return {"kinds": {k.name: k.describe() for k in kinds()}}
 
 
 @router.get("", response_model=JobList)
@@ -312,4 +310,3 @@ def set_state(job_id: int, body: StateIn, principal: WriterDep, session: Session
 
 
 assert set(JOB_STATES) == set(State.__args__)  # type: ignore[attr-defined]
-assert set(JOB_KINDS) == set(Kind.__args__) == set(KINDS)  # type: ignore[attr-defined]

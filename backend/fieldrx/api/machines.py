@@ -30,7 +30,6 @@ from fieldrx.services.imports import IMPORTED_IMPLEMENT
 
 router = APIRouter(prefix="/machines", tags=["machines"], responses=ERRORS)
 
-CONTROLLERS = ("pid", "incremental_pid", "ladrc", "fuzzy_pid")
 
 
 def _out(m: Machine) -> MachineOut:

@@ -16,6 +16,7 @@ from typing import Any, Literal
 
 from fastapi import APIRouter, Query, Request
 from fastapi.responses import FileResponse, Response
+from fieldrx_edge.jobkinds.registry import kind_of
 from sqlalchemy import select, text
 
 from fieldrx.api.common import ApiError, get_scoped, point_page
@@ -100,7 +101,7 @@ def _queue_report(session: SessionDep, principal: Any, job: Job) -> Any:
 def _prescription_job(job: Job) -> None:
     """The per-cell as-applied views are seed 001's (prescribed vs applied rate); a sensor
     job has its own report."""
-    if job.kind != "prescription_map":
+    if kind_of(job.kind).rates_from == "sensors":
         raise ApiError(
             409,
             f"job {job.id} is a {job.kind} job: its figures are in GET /jobs/{job.id}/report",
@@ -126,7 +127,7 @@ def job_report(
     ``report`` task (asking again while it runs joins it); once it succeeded, this answers
     200 from its stored snapshot, as do the job's tiles and exports."""
     job = get_scoped(session, Job, job_id, principal)
-    if job.kind != "prescription_map":
+    if kind_of(job.kind).rates_from == "sensors":
         from fieldrx.fleet.seed_reports import kind_report
 
         return kind_report(session, job, cells=cells)

@@ -11,6 +11,7 @@ from __future__ import annotations
 import datetime as dt
 from typing import Any
 
+from fieldrx_edge.jobkinds.registry import DEFAULT_KIND
 from geoalchemy2 import Geometry
 from sqlalchemy import (
     ARRAY,
@@ -37,7 +38,6 @@ from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
 
 ROLES = ("admin", "agronomist", "viewer")
 JOB_STATES = ("planned", "sent", "downloaded", "running", "paused", "completed", "aborted")
-JOB_KINDS = ("prescription_map", "ndvi_topdress", "seeding_depth")  # revision 0009
 
 
 def _now() -> Any:
@@ -341,15 +341,28 @@ def machine_routed(machine_id: Any) -> dict[str, Any]:
     return {"version_id_col": machine_id, "version_id_generator": False}
 
 
+class JobKindRow(Base):
+    """A job kind of ``fieldrx_edge.jobkinds.registry``: the rows are the registry's,
+    written by every ``fieldrx migrate`` (``db.kinds.sync_job_kinds``); a reference table
+    past one node (Citus), so the jobs' foreign key holds on every shard."""
+
+    __tablename__ = "job_kinds"
+    __table_args__ = (
+        CheckConstraint("rates_from IN ('cells', 'sensors')", name="ck_job_kinds_rates_from"),
+    )
+    name: Mapped[str] = mapped_column(String(32), primary_key=True)
+    rates_from: Mapped[str] = mapped_column(String(16))
+
+
 class Job(Base):
     __tablename__ = "jobs"
     __table_args__ = (
         CheckConstraint(f"state IN {JOB_STATES}", name="ck_job_state"),
-        CheckConstraint(f"kind IN {JOB_KINDS}", name="ck_job_kind"),
+        # which source a kind needs (prescription or plan) is the API's check: a CHECK
+        # cannot read the kind's row in job_kinds (migration 0018)
         CheckConstraint(
-            "(kind = 'prescription_map' AND prescription_id IS NOT NULL"
-            " AND prescription_version IS NOT NULL)"
-            " OR (kind <> 'prescription_map' AND plan_id IS NOT NULL)",
+            "(prescription_id IS NOT NULL AND prescription_version IS NOT NULL)"
+            " OR plan_id IS NOT NULL",
             name="ck_job_source",
         ),
         # the key is (machine_id, id) (migration 0017: Citus's keys hold the distribution
@@ -365,8 +378,12 @@ class Job(Base):
     # deletes delete the jobs (fieldrx.services.evidence.delete_jobs)
     prescription_id: Mapped[int | None] = mapped_column(Integer)
     prescription_version: Mapped[int | None] = mapped_column(Integer)
+    # one of fieldrx_edge.jobkinds.registry's kinds: job_kinds holds them (migration 0018)
     kind: Mapped[str] = mapped_column(
-        String(32), default="prescription_map", server_default="prescription_map"
+        String(32),
+        ForeignKey("job_kinds.name", name="fk_jobs_kind"),
+        default=DEFAULT_KIND,
+        server_default=DEFAULT_KIND,
     )
     settings: Mapped[dict[str, Any]] = mapped_column(
         JSONB, default=dict, server_default=text("'{}'")

@@ -53,6 +53,7 @@ from typing import Any, Protocol
 
 import orjson
 import psycopg
+from fieldrx_edge.jobkinds.registry import kinds
 from fieldrx_edge.protocol import (
     ALARMS,
     CELL_FORMAT_VERSION,
@@ -97,7 +98,7 @@ FUTURE_TOLERANCE_S = 300.0
 CONCURRENT_WINDOW_S = 60.0  # two streams both sending within this: a duplicate_stream alert
 # job kinds whose progress counts the cells the implement worked in, not the cells that got
 # a positive applied rate (seed 000 topdressing, seed 002 seeding): see ``_cells``
-PROGRESS_BY_WORK = ("ndvi_topdress", "seeding_depth")
+PROGRESS_BY_WORK = tuple(k.name for k in kinds() if k.progress == "work")
 INT4_MAX = 2**31 - 1
 INT8_MAX = 2**63 - 1
 _ALARM_SET = frozenset(ALARMS)

@@ -15,6 +15,7 @@ import datetime as dt
 import json
 from typing import Any
 
+from fieldrx_edge.jobkinds.registry import kind_of
 from sqlalchemy import select, text
 from sqlalchemy.orm import Session
 
@@ -22,6 +23,7 @@ from fieldrx.db.models import Alert, Job, JobEvent
 from fieldrx.errors import Conflict, Invalid
 from fieldrx.fleet.alerts import LIVE_CHANNEL, alert_message
 from fieldrx.fleet.reports import build_report
+from fieldrx.jobkinds.registry import hooks
 
 FINAL = ("completed", "aborted")
 TRANSITIONS: dict[str, tuple[str, ...]] = {
@@ -85,12 +87,12 @@ def change_state(
         )
     )
     notify_job(session, job)
-    if state == "completed" and job.kind != "prescription_map":
-        from fieldrx.fleet.seed_reports import alert_kind_job_end
-
-        alert_kind_job_end(session, job)
-    elif state == "completed":
+    if state == "completed" and kind_of(job.kind).rates_from == "cells":
         alert_cells_not_applied(session, job)
+    elif state == "completed":
+        end = hooks(job.kind).job_end  # a sensor kind's own end-of-job check
+        if end is not None:
+            end(session, job)
     return True
 
 

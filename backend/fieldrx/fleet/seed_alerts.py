@@ -18,6 +18,7 @@ import psycopg
 from fieldrx_edge.depth import qualified_band_mm
 
 from fieldrx.fleet.alerts import alert_message
+from fieldrx.jobkinds.registry import hooks
 
 KIND = "depth_qualified_low"
 MIN_SPEED_M_S = 0.25  # the slowest working speed the look-back must cover (0.9 km/h)
@@ -30,16 +31,29 @@ def check_depth_window(
     job_id: int | None,
     open_ids: dict[str, int],
 ) -> list[dict[str, Any]]:
-    """Open / close the job's ``depth_qualified_low`` alert; returns live messages."""
+    """The live alerts of the job's kind (its server hook, ``fieldrx.jobkinds``); returns
+    live messages."""
     if job_id is None:
         return []
     cur.execute(
         "SELECT kind, settings FROM jobs WHERE machine_id = %s AND id = %s", (machine_id, job_id)
     )
     row = cur.fetchone()
-    if row is None or row[0] != "seeding_depth":
+    live = hooks(row[0]).live_alerts if row is not None else None
+    if row is None or live is None:
         return []
-    s = row[1]
+    return live(cur, machine_id, organisation_id, job_id, row[1], open_ids)
+
+
+def depth_window(
+    cur: psycopg.Cursor[Any],
+    machine_id: int,
+    organisation_id: int,
+    job_id: int,
+    s: dict[str, Any],
+    open_ids: dict[str, int],
+) -> list[dict[str, Any]]:
+    """Open / close the seeding job's ``depth_qualified_low`` alert; returns live messages."""
     window_m = float(s["alert_window_m"])
     min_pct = float(s["alert_min_qualified_pct"])
     lo, hi = qualified_band_mm(float(s["target_depth_mm"]))

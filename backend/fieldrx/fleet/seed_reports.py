@@ -1,32 +1,32 @@
 """Reports of the sensor job kinds, from the job's stored telemetry.
 
-* ``ndvi_topdress`` (seed 000): the NDVI map (raw and window-filtered NDVI per plan cell),
+* NDVI topdressing (seed 000): the NDVI map (raw and window-filtered NDVI per plan cell),
   the applied-rate map (target and applied kg/ha per cell) and the paper's Table 3:
   theoretical vs monitored shaft speed and relative error per test speed.
-* ``seeding_depth`` (seed 002): the depth map (mean measured depth and qualified share per
-  cell), the paper's Table 3 per speed band and for the job (mean depth, qualified %, SD,
-  CV; GB/T 20865 band) and the low-qualified-share check over the trailing N metres.
+* depth-controlled seeding (seed 002): the depth map (mean measured depth and qualified
+  share per cell), the paper's Table 3 per speed band and for the job (mean depth,
+  qualified %, SD, CV; GB/T 20865 band) and the low-qualified-share check over the
+  trailing N metres.
 
-Tables come from ``fieldrx_edge.jobkinds.figures``, the definition the simulator uses, so
-a simulated job's report can be checked against the simulator's own figures. Records are
-placed in plan cells by position (PostGIS), so the maps need no cell id from the agent.
+Each kind's figures are its server hooks' (``fieldrx.jobkinds``). Tables come from
+``fieldrx_edge.jobkinds.figures``, the definition the simulator uses, so a simulated job's
+report can be checked against the simulator's own figures. Records are placed in plan
+cells by position (PostGIS), so the maps need no cell id from the agent.
 """
 
 from __future__ import annotations
 
 import datetime as dt
-from collections.abc import Sequence
 from typing import Any
 
-import numpy as np
-from fieldrx_edge.jobkinds.figures import depth_table, qualified_alert, shaft_table
+from fieldrx_edge.jobkinds.figures import qualified_alert
 from sqlalchemy import text
 from sqlalchemy.orm import Session
 
-from fieldrx.agronomy.prescription import application_outcome
 from fieldrx.db.models import Alert, Job
 from fieldrx.fleet.operator_events import operator_events
 from fieldrx.fleet.partitions import job_window
+from fieldrx.jobkinds.registry import hooks
 
 _ROWS_SQL = text(
     """
@@ -76,9 +76,9 @@ def _rows(session: Session, job: Job) -> list[dict[str, Any]]:
 
 
 def kind_report(session: Session, job: Job, cells: bool = True) -> dict[str, Any]:
-    """The report of a sensor-kind job (see the module doc)."""
-    from fieldrx_edge.depth import qualified_band_mm
-
+    """The report of a sensor-kind job (see the module doc); the kind's own figures come
+    from its server hooks (``fieldrx.jobkinds``)."""
+    h = hooks(job.kind)
     s = dict(job.settings or {})
     rows = _rows(session, job)
     out: dict[str, Any] = {
@@ -92,29 +92,7 @@ def kind_report(session: Session, job: Job, cells: bool = True) -> dict[str, Any
         },
         "operator": operator_events(session, job.machine_id, job.id),
     }
-    lo, hi = (0.0, 0.0)
-    if job.kind == "ndvi_topdress":
-        out["shaft_table"] = shaft_table(rows, list(s["speed_bands_kmh"]))
-        out["mean_relative_error_pct"] = out["shaft_table"]["mean_relative_error_pct"]
-        out["paper"] = {
-            "source": "seed 000 Table 3",
-            "relative_error_pct": [2.0, 3.6, 3.8, 4.0],
-            "mean_relative_error_pct": 3.35,
-        }
-    else:
-        target = float(s["target_depth_mm"])
-        lo, hi = qualified_band_mm(target)
-        out["depth_table"] = depth_table(rows, s["speed_bands_kmh"], target)
-        out["qualified_alert"] = qualified_alert(
-            rows, target, float(s["alert_window_m"]), float(s["alert_min_qualified_pct"])
-        )
-        out["paper"] = {
-            "source": "seed 002 Table 3 (1-3 / 3-5 / 5-7 km/h)",
-            "mean_mm": [31.49, 30.13, 31.75],
-            "qualified_pct": [92, 93, 91],
-            "sd_mm": [0.26, 0.18, 0.21],
-            "cv_pct": [3.51, 2.93, 3.26],
-        }
+    lo, hi = h.report(rows, s, out) if h.report is not None else (0.0, 0.0)
     if cells:
         res = session.execute(
             _CELLS_SQL,
@@ -127,40 +105,26 @@ def kind_report(session: Session, job: Job, cells: bool = True) -> dict[str, Any
                 **job_window(session, job.machine_id, job.id),
             },
         )
-        keep = (
-            ("ndvi", "ndvi_raw", "target_rate_kg_ha", "applied_rate_kg_ha")
-            if job.kind == "ndvi_topdress"
-            else ("depth_mm", "qualified_pct")
-        )
         rows_c = res.all()
         out["cells"] = [
-            {"seq": r.seq, "n": r.n, "area_m2": r.area_m2, **{k: getattr(r, k) for k in keep}}
+            {
+                "seq": r.seq,
+                "n": r.n,
+                "area_m2": r.area_m2,
+                **{k: getattr(r, k) for k in h.cell_columns},
+            }
             for r in rows_c
         ]
-        if job.kind == "ndvi_topdress":
-            out["outcome"] = ndvi_outcome(rows_c)
+        if h.outcome is not None:
+            out["outcome"] = h.outcome(rows_c)
     return out
 
 
-def ndvi_outcome(cells: Sequence[Any]) -> dict[str, Any]:
-    """What the NDVI job delivered against what its curve asked for, over the cells it
-    worked (``agronomy.prescription.application_outcome``): the report's headline. The
-    shaft-speed table (seed 000 Table 3) can look perfect while the meter sits at its floor
-    above the curve; this says so in kg and kg/ha."""
-    return application_outcome(
-        np.array([r.target_rate_kg_ha or 0.0 for r in cells], dtype=float),
-        np.array([r.applied_rate_kg_ha or 0.0 for r in cells], dtype=float),
-        np.array([r.area_m2 for r in cells], dtype=float),
-    )
-
-
-def alert_kind_job_end(session: Session, job: Job) -> Alert | None:
+def depth_job_end(session: Session, job: Job) -> Alert | None:
     """Seeding job ended: the live ``depth_qualified_low`` alert (fleet.seed_alerts) ends with
     the job; when none was raised live (records replayed late, or a window the live check
     never saw whole), the whole job's records are checked once and an alert says where the
     qualified share over the trailing window fell below the job's threshold."""
-    if job.kind != "seeding_depth":
-        return None
     session.flush()
     now = dt.datetime.now(dt.UTC)
     raised = session.execute(

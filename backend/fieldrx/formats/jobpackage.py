@@ -20,6 +20,7 @@ from typing import Any, TypedDict
 
 import numpy as np
 import shapely
+from fieldrx_edge.jobkinds.registry import DEFAULT_KIND
 from fieldrx_edge.metering import Calibration, calibration_from_dict
 from fieldrx_edge.protocol import ControllerSettings, JobPackage
 
@@ -174,7 +175,7 @@ class JobPackageSpec:
     speed_min_m_s: float = 0.8
     speed_max_m_s: float = 2.5
     product: str = ""
-    kind: str = "prescription_map"
+    kind: str = DEFAULT_KIND
     kind_settings: dict[str, Any] | None = None
     rate_unit: str = "kg/ha"
     product_density_kg_l: float = 0.0

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from fieldrx_edge.jobkinds.registry import kind_of
 from fieldrx_edge.protocol import JobPackage
 from sqlalchemy.orm import Session
 
@@ -123,7 +124,7 @@ def build_job_package(session: Session, job: Job) -> JobPackage:
     machine = session.get(Machine, job.machine_id)
     if machine is None:
         raise LookupError(f"job {job.id}: machine {job.machine_id} not found")
-    if job.kind != "prescription_map":
+    if kind_of(job.kind).rates_from == "sensors":
         return build_kind_package(session, job, machine)
     if job.prescription_id is None:
         raise LookupError(f"job {job.id}: a prescription-map job without a prescription")

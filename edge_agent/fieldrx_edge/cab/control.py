@@ -10,6 +10,7 @@ from typing import Any
 
 from fieldrx_edge.cab.live import LiveState
 from fieldrx_edge.cab.operator import OperatedMotor, Operator
+from fieldrx_edge.jobkinds.registry import kind_of
 
 HAND_ACTIONS = ("pause", "resume", "override", "section")
 
@@ -92,7 +93,7 @@ class Control:
         action = body.get("action")
         op = self.operator
         kind = self.session.job.kind
-        if action in HAND_ACTIONS and kind != "prescription_map":
+        if action in HAND_ACTIONS and not kind_of(kind).hand_overrides:
             # the sensor kinds' loops take no operator hand yet: a tag on their records
             # would claim an override the meter never made
             raise ControlError(f"{action}: not available on a {kind} job")
@@ -167,7 +168,7 @@ def _job_row(job: Any, state: str) -> dict[str, Any]:
         "field": job.field_name,
         "product": job.product,
         "prescription_version": job.prescription_version,
-        "planned_kg": round(planned, 1) if job.kind == "prescription_map" else None,
+        "planned_kg": round(planned, 1) if kind_of(job.kind).rates_from == "cells" else None,
         "area_ha": round(geo.total_area / 1e4, 3),
         "machine_check": check,
         "state": state,

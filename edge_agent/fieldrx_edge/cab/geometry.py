@@ -14,6 +14,7 @@ import math
 from typing import Any
 
 from fieldrx_edge.gnss.utm import UtmProjection
+from fieldrx_edge.jobkinds.registry import kind_of
 from fieldrx_edge.metering import calibration_from_dict
 from fieldrx_edge.protocol import JobPackage
 
@@ -47,7 +48,7 @@ class JobGeometry:
                 _ring_area(outer) - sum(_ring_area(r) for r in rings if r is not outer)
             )
         self.total_area = sum(a for a, r in zip(self.areas, job.rate_kg_ha, strict=True) if r > 0)
-        if job.kind != "prescription_map":
+        if kind_of(job.kind).rates_from == "sensors":  # every cell is worked, none prescribed
             self.total_area = sum(self.areas)
         cal = calibration_from_dict(job.calibration)
         self.min_rpm, self.max_rpm = float(cal.min_rpm), float(cal.max_rpm)
@@ -150,4 +151,5 @@ class JobGeometry:
             "speed_band_m_s": [job.speed_min_m_s, job.speed_max_m_s],
             "meter_rpm": [self.min_rpm, self.max_rpm],
             "kind_settings": job.kind_settings,
+            "view": kind_of(job.kind).cab_view(),
         }

@@ -25,15 +25,16 @@ import argparse
 import json
 import threading
 import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
 from typing import Any
 
 from fieldrx_edge.protocol import JobPackage
 
 
-def simulate_kind(a: argparse.Namespace, job: JobPackage) -> int:
+def simulate_kind(a: argparse.Namespace, job: JobPackage, drive: Callable[..., Any]) -> int:
+    """``simulate`` with the kind's simulator ``drive`` (its registry entry point)."""
     from fieldrx_edge.commands.sessions import finished_early, session_report, sim_session
-    from fieldrx_edge.jobkinds.seeding import simulate_seeding
-    from fieldrx_edge.jobkinds.topdress import simulate_topdress
     from fieldrx_edge.session import JobFinished
 
     session = sim_session(a, job)
@@ -45,7 +46,6 @@ def simulate_kind(a: argparse.Namespace, job: JobPackage) -> int:
 
         ctl = validate_settings(job.kind, {"controller": {"name": a.controller}})["controller"]
     fault = tuple(a.sensor_fault) if getattr(a, "sensor_fault", None) else None
-    drive = simulate_topdress if job.kind == "ndvi_topdress" else simulate_seeding
     try:
         out = drive(
             job, seed=a.seed, sink=sink, controller=ctl, fault_at_s=fault, realtime=a.realtime
@@ -90,13 +90,32 @@ def sensor_lines(source: Any, period_s: float) -> Any:
         yield item
 
 
-def run_kind(a: argparse.Namespace, job: JobPackage, store: Any) -> int:
-    """The agent's loop for a sensor kind (see the module doc), in the job's session."""
+@dataclass
+class KindRun:
+    """What a sensor kind's line loop works with: the command's arguments, the job, its
+    session's queue, the GNSS speed source and where the tractor is."""
+
+    a: argparse.Namespace
+    job: JobPackage
+    queue: Any
+    gnss: Any
+    where: Callable[[], tuple[tuple[float, float] | None, int | None]]
+    lines: Callable[[float], Iterator[Any]]
+
+
+def run_kind(
+    a: argparse.Namespace,
+    job: JobPackage,
+    store: Any,
+    loop: Callable[[KindRun], tuple[int, dict[str, int]]],
+) -> int:
+    """The agent's loop for a sensor kind (see the module doc), in the job's session;
+    ``loop`` is the kind's own (its registry entry point): records out of sensor lines."""
     from fieldrx_edge.commands.sessions import open_session
     from fieldrx_edge.gnss.sources import open_source
-    from fieldrx_edge.jobkinds.sensors import SensorError, parse_ndvi
+    from fieldrx_edge.gnss.utm import UtmProjection
+    from fieldrx_edge.locate import locator_for_job
     from fieldrx_edge.ndvi import GnssSpeed
-    from fieldrx_edge.protocol import TelemetryRecord
 
     if not a.sensor:
         raise SystemExit(f"a {job.kind} job needs --sensor (serial:DEV@BAUD or file:PATH)")
@@ -104,11 +123,6 @@ def run_kind(a: argparse.Namespace, job: JobPackage, store: Any) -> int:
     queue.start(report=False)
     gnss = GnssSpeed(open_source(a.source, a.replay_speed or None))
     speed = a.replay_speed if a.replay_speed > 0 else None
-    n = 0
-    errors: dict[str, int] = {}
-    from fieldrx_edge.gnss.utm import UtmProjection
-    from fieldrx_edge.locate import locator_for_job
-
     proj = UtmProjection(job.utm_epsg)
     loc, _ = locator_for_job(job)
 
@@ -120,98 +134,117 @@ def run_kind(a: argparse.Namespace, job: JobPackage, store: Any) -> int:
         k = loc.locate(*xy)
         return xy, (int(job.seq[k]) if k >= 0 else None)
 
-    if job.kind == "ndvi_topdress":
-        from fieldrx_edge.jobkinds.topdress import PLANT_DT, TopdressLoop, build_shaft_controller
-        from fieldrx_edge.metering import rate_for_shaft_rpm
-        from fieldrx_edge.plants import seed000_shaft
+    def lines(period: float) -> Iterator[Any]:
+        return sensor_lines(open_source(a.sensor, speed), period)
 
-        loop = TopdressLoop(job)
-        ctl = job.kind_settings["controller"]
-        shaft_ctrl, fscale = build_shaft_controller(ctl)
-        shaft = seed000_shaft(PLANT_DT)  # --motor sim: seed 000's shaft chain
-        ratio = max(1, round(float(ctl["period_s"]) / PLANT_DT))
-        u = y = 0.0
-        n_s = int(job.kind_settings["sensors"]["count"])
-        period = 1.0 / float(job.kind_settings["sensors"]["sample_hz"])
-        now = 0.0
-        mono = time.monotonic()
-        for line in sensor_lines(open_source(a.sensor, speed), period):
-            vals = None
-            wall, mono = time.monotonic() - mono, time.monotonic()
-            if line is SILENT:  # the clock moves by the time that passed without a line
-                now += wall
-                loop.guard.bad("silent")
-                errors["silent"] = errors.get("silent", 0) + 1
-            else:
-                now += period
-                try:
-                    tl, vals = parse_ndvi(line, n_s)
-                    now = tl if tl is not None else now
-                except SensorError as exc:
-                    loop.guard.bad(exc.reason)
-                    errors[exc.reason] = errors.get(exc.reason, 0) + 1
-            v = gnss.speed_m_s or 0.0
-            xy, cell = where()
-            inside = True
-            if loop.boundary is not None:  # no fix: no position to keep inside the field
-                inside = xy is not None and loop.boundary.contains(*xy)
-            d = loop.on_sample(now, vals, v, inside)
-            for k in range(max(1, round(period / PLANT_DT))):  # the shaft until the next line
-                if k % ratio == 0:
-                    u = shaft_ctrl.step(d.target_rpm * fscale, y * fscale, float(ctl["period_s"]))
-                    if d.target_rpm <= 0.0:
-                        u = 0.0
-                        shaft_ctrl.reset()
-                y = max(0.0, shaft.step(u))
-            applied = rate_for_shaft_rpm(loop.cal, y, loop.width_m, v) if v > 0.05 else 0.0
-            rec = TelemetryRecord(
-                machine_id=job.machine_id, seq=1, t=time.time(), lon=gnss.lon, lat=gnss.lat,
-                fix_quality=gnss.fix_quality, speed_filtered_m_s=v, job_id=job.job_id,
-                cell_seq=cell, target_rate_kg_ha=d.rate_kg_ha, target_shaft_rpm=d.target_rpm,
-                actual_shaft_rpm=y, applied_rate_kg_ha=applied if d.target_rpm > 0 else 0.0,
-                duty=100.0 * u / 5.0, ndvi=d.ndvi, ndvi_raw=d.ndvi_raw, implement_down=True,
-                alarms=sorted(set(d.alarms)),
-            )  # fmt: skip
-            queue.put(rec.to_dict())
-            n += 1
-    else:
-        from fieldrx_edge.jobkinds.seeding import DepthJobLoop, build_depth_controller
-        from fieldrx_edge.plants import seed002_depth
-
-        dl = DepthJobLoop(job)
-        ks = job.kind_settings
-        ctrl = build_depth_controller(ks["controller"], float(ks["actuator_speed_mm_s"]))
-        period = 0.1  # one command per sensor line here (the 1 ms loop belongs to the drive)
-        cylinder = seed002_depth(period)  # --motor sim: the adjusting mechanism's model
-        now = 0.0
-        mono = time.monotonic()
-        for line in sensor_lines(open_source(a.sensor, speed), period):
-            wall, mono = time.monotonic() - mono, time.monotonic()
-            if line is SILENT:
-                now += wall
-                dl.guard.bad("silent")
-            else:
-                now = dl.on_line(now + period, line)
-            depth, alarms = dl.depth(now)
-            # sensor lost: command 0, the cylinder holds where it is (seed 002's mechanism
-            # integrates the command); held value: the loop goes on with it
-            u = 0.0 if depth is None else ctrl.step(dl.target_mm, depth, period)
-            pos = cylinder.step(u)
-            gains = getattr(ctrl, "gains", (ctrl.kp, ctrl.ki, ctrl.kd))
-            rec = TelemetryRecord(
-                machine_id=job.machine_id, seq=1, t=time.time(), lon=gnss.lon, lat=gnss.lat,
-                fix_quality=gnss.fix_quality, speed_filtered_m_s=gnss.speed_m_s,
-                job_id=job.job_id, cell_seq=where()[1], depth_mm=depth, implement_down=True,
-                alarms=sorted(set(alarms)),
-                duty=u, actuator_mm=pos, gain_kp=float(gains[0]), gain_ki=float(gains[1]),
-                gain_kd=float(gains[2]),
-            )  # fmt: skip
-            queue.put(rec.to_dict())
-            n += 1
-        errors = dict(dl.guard.errors)
+    n, errors = loop(KindRun(a, job, queue, gnss, where, lines))
     drained = queue.close()["drained"]
     print(json.dumps({"job_id": job.job_id, "kind": job.kind, "records": n,
                       "sensor_errors": errors, "drained": drained}), flush=True)  # fmt: skip
     if queue.cab is not None:
         queue.cab.finish()
     return 0
+
+
+def topdress_lines(r: KindRun) -> tuple[int, dict[str, int]]:
+    """Seed 000: one record per canopy line, the shaft (``--motor sim``) between lines."""
+    from fieldrx_edge.jobkinds.sensors import SensorError, parse_ndvi
+    from fieldrx_edge.jobkinds.topdress import PLANT_DT, TopdressLoop, build_shaft_controller
+    from fieldrx_edge.metering import rate_for_shaft_rpm
+    from fieldrx_edge.plants import seed000_shaft
+    from fieldrx_edge.protocol import TelemetryRecord
+
+    job, gnss, queue, where = r.job, r.gnss, r.queue, r.where
+    n = 0
+    errors: dict[str, int] = {}
+    loop = TopdressLoop(job)
+    ctl = job.kind_settings["controller"]
+    shaft_ctrl, fscale = build_shaft_controller(ctl)
+    shaft = seed000_shaft(PLANT_DT)  # --motor sim: seed 000's shaft chain
+    ratio = max(1, round(float(ctl["period_s"]) / PLANT_DT))
+    u = y = 0.0
+    n_s = int(job.kind_settings["sensors"]["count"])
+    period = 1.0 / float(job.kind_settings["sensors"]["sample_hz"])
+    now = 0.0
+    mono = time.monotonic()
+    for line in r.lines(period):
+        vals = None
+        wall, mono = time.monotonic() - mono, time.monotonic()
+        if line is SILENT:  # the clock moves by the time that passed without a line
+            now += wall
+            loop.guard.bad("silent")
+            errors["silent"] = errors.get("silent", 0) + 1
+        else:
+            now += period
+            try:
+                tl, vals = parse_ndvi(line, n_s)
+                now = tl if tl is not None else now
+            except SensorError as exc:
+                loop.guard.bad(exc.reason)
+                errors[exc.reason] = errors.get(exc.reason, 0) + 1
+        v = gnss.speed_m_s or 0.0
+        xy, cell = where()
+        inside = True
+        if loop.boundary is not None:  # no fix: no position to keep inside the field
+            inside = xy is not None and loop.boundary.contains(*xy)
+        d = loop.on_sample(now, vals, v, inside)
+        for k in range(max(1, round(period / PLANT_DT))):  # the shaft until the next line
+            if k % ratio == 0:
+                u = shaft_ctrl.step(d.target_rpm * fscale, y * fscale, float(ctl["period_s"]))
+                if d.target_rpm <= 0.0:
+                    u = 0.0
+                    shaft_ctrl.reset()
+            y = max(0.0, shaft.step(u))
+        applied = rate_for_shaft_rpm(loop.cal, y, loop.width_m, v) if v > 0.05 else 0.0
+        rec = TelemetryRecord(
+            machine_id=job.machine_id, seq=1, t=time.time(), lon=gnss.lon, lat=gnss.lat,
+            fix_quality=gnss.fix_quality, speed_filtered_m_s=v, job_id=job.job_id,
+            cell_seq=cell, target_rate_kg_ha=d.rate_kg_ha, target_shaft_rpm=d.target_rpm,
+            actual_shaft_rpm=y, applied_rate_kg_ha=applied if d.target_rpm > 0 else 0.0,
+            duty=100.0 * u / 5.0, ndvi=d.ndvi, ndvi_raw=d.ndvi_raw, implement_down=True,
+            alarms=sorted(set(d.alarms)),
+        )  # fmt: skip
+        queue.put(rec.to_dict())
+        n += 1
+    return n, errors
+
+
+def depth_lines(r: KindRun) -> tuple[int, dict[str, int]]:
+    """Seed 002: one cylinder command and one record per depth line (``--motor sim``)."""
+    from fieldrx_edge.jobkinds.seeding import DepthJobLoop, build_depth_controller
+    from fieldrx_edge.plants import seed002_depth
+    from fieldrx_edge.protocol import TelemetryRecord
+
+    job, gnss, queue = r.job, r.gnss, r.queue
+    n = 0
+    dl = DepthJobLoop(job)
+    ks = job.kind_settings
+    ctrl = build_depth_controller(ks["controller"], float(ks["actuator_speed_mm_s"]))
+    period = 0.1  # one command per sensor line here (the 1 ms loop belongs to the drive)
+    cylinder = seed002_depth(period)  # --motor sim: the adjusting mechanism's model
+    now = 0.0
+    mono = time.monotonic()
+    for line in r.lines(period):
+        wall, mono = time.monotonic() - mono, time.monotonic()
+        if line is SILENT:
+            now += wall
+            dl.guard.bad("silent")
+        else:
+            now = dl.on_line(now + period, line)
+        depth, alarms = dl.depth(now)
+        # sensor lost: command 0, the cylinder holds where it is (seed 002's mechanism
+        # integrates the command); held value: the loop goes on with it
+        u = 0.0 if depth is None else ctrl.step(dl.target_mm, depth, period)
+        pos = cylinder.step(u)
+        gains = getattr(ctrl, "gains", (ctrl.kp, ctrl.ki, ctrl.kd))
+        rec = TelemetryRecord(
+            machine_id=job.machine_id, seq=1, t=time.time(), lon=gnss.lon, lat=gnss.lat,
+            fix_quality=gnss.fix_quality, speed_filtered_m_s=gnss.speed_m_s,
+            job_id=job.job_id, cell_seq=r.where()[1], depth_mm=depth, implement_down=True,
+            alarms=sorted(set(alarms)),
+            duty=u, actuator_mm=pos, gain_kp=float(gains[0]), gain_ki=float(gains[1]),
+            gain_kd=float(gains[2]),
+        )  # fmt: skip
+        queue.put(rec.to_dict())
+        n += 1
+    return n, dict(dl.guard.errors)

@@ -11,6 +11,7 @@ import time
 from typing import Any
 
 from fieldrx_edge.commands.sessions import open_session
+from fieldrx_edge.jobkinds.registry import kind_of
 from fieldrx_edge.jobs import JobStore, pull
 from fieldrx_edge.protocol import JobPackage
 from fieldrx_edge.session import JobSession, UplinkOptions, load_job
@@ -101,10 +102,9 @@ def cmd_run(a: argparse.Namespace) -> int:
     job = load_job(a.job, store)
     if not (store.root / "jobs" / f"{job.job_id}.json").exists():
         store.save_package(job.to_json())
-    if job.kind != "prescription_map":  # seed 000 / 002 jobs
-        from fieldrx_edge.commands.kinds import run_kind
-
-        return run_kind(a, job, store)
+    own = kind_of(job.kind).run(a, job, store)  # a kind with its own loop (sensor kinds)
+    if own is not None:
+        return own
     progress = store.load_progress(job.job_id)
     settings = job.controller
     if a.controller:

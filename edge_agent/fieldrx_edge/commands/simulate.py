@@ -9,6 +9,7 @@ import json
 from typing import Any
 
 from fieldrx_edge.commands.sessions import finished_early, session_report, sim_session
+from fieldrx_edge.jobkinds.registry import kind_of
 from fieldrx_edge.jobs import JobStore
 from fieldrx_edge.session import JobFinished, load_job
 
@@ -18,10 +19,9 @@ def cmd_simulate(a: argparse.Namespace) -> int:
 
     # a cached job id works as with `run` (pulled into --state-dir or the default one)
     job = load_job(a.job, JobStore(a.state_dir) if a.job.isdigit() else None)
-    if job.kind != "prescription_map":  # seed 000 / 002 jobs
-        from fieldrx_edge.commands.kinds import simulate_kind
-
-        return simulate_kind(a, job)
+    own = kind_of(job.kind).simulate(a, job)  # a kind with its own simulator (sensor kinds)
+    if own is not None:
+        return own
     lo, hi = a.speed
     cfg = SimConfig(
         speed_min_kmh=lo,

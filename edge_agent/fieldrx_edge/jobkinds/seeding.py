@@ -302,7 +302,7 @@ def simulate_seeding(
     table = depth_table(rows, bands, target)
     alert = qualified_alert(rows, target, s["alert_window_m"], s["alert_min_qualified_pct"])
     return {
-        "kind": "seeding_depth",
+        "kind": job.kind,
         "controller": ctl_cfg["name"],
         "records": len(recs),
         "cells_worked": cells_worked(recs),

@@ -241,7 +241,7 @@ def simulate_topdress(
     table = shaft_table(figure_rows(recs), list(s["speed_bands_kmh"]))
     dev = np.asarray(raw_dev)
     return {
-        "kind": "ndvi_topdress",
+        "kind": job.kind,
         "controller": ctl_cfg["name"],
         "records": len(recs),
         "cells_worked": cells_worked(recs),

@@ -3,27 +3,50 @@
 from __future__ import annotations
 
 import datetime as dt
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
-from pydantic import Field
+from fieldrx_edge.jobkinds.registry import DEFAULT_KIND, kind_of, kinds
+from fieldrx_edge.jobkinds.registry import names as kind_names
+from pydantic import AfterValidator, Field, WithJsonSchema
 
 from fieldrx.api.schemas.base import In, Open, Out
 
 State = Literal["planned", "sent", "downloaded", "running", "paused", "completed", "aborted"]
 
-Kind = Literal["prescription_map", "ndvi_topdress", "seeding_depth"]
+
+
+def _known_kind(v: str) -> str:
+    kind_of(v)  # UnknownKind (a ValueError) names the known kinds: a 422
+    return v
+
+
+# a kind of fieldrx_edge.jobkinds.registry; the OpenAPI enum is the registry's list
+Kind = Annotated[
+    str,
+    AfterValidator(_known_kind),
+    WithJsonSchema({"type": "string", "enum": list(kind_names())}),
+]
+SensorKind = Annotated[
+    str,
+    WithJsonSchema(
+        {"type": "string", "enum": [k.name for k in kinds() if k.rates_from == "sensors"]}
+    ),
+]
+KIND_DOC = "; ".join(f"{k.name} ({k.source}: {k.noun})" for k in kinds())
 
 
 class JobIn(In):
     kind: Kind = Field(
-        default="prescription_map",
-        description="prescription_map (seed 001: the prescription's cell rates), ndvi_topdress "
-        "(seed 000: canopy sensors decide the rate) or seeding_depth (seed 002: sowing-depth "
-        "control); GET /jobs/kinds lists each kind's settings, units and the papers' defaults",
+        default=DEFAULT_KIND,
+        description=f"{KIND_DOC}; GET /jobs/kinds lists each kind's settings, units and the "
+        "papers' defaults",
     )
-    prescription_id: int | None = Field(default=None, description="prescription_map jobs")
+    prescription_id: int | None = Field(
+        default=None, description="kinds whose rates are the cells': the prescription"
+    )
     prescription_version: int | None = Field(
-        default=None, description="prescription_map jobs: the version to apply; default current"
+        default=None,
+        description="kinds whose rates are the cells': the version to apply; default current",
     )
     plan_id: int | None = Field(
         default=None, description="sensor kinds: the planned path (field, swaths) to drive"
@@ -58,7 +81,7 @@ class JobOut(Out):
     id: int
     name: str
     state: str
-    kind: str = "prescription_map"
+    kind: str = DEFAULT_KIND
     prescription_id: int | None
     prescription_version: int | None
     plan_id: int | None = None
@@ -78,7 +101,7 @@ class JobOut(Out):
     field_id: int | None = Field(default=None, description="the field the job works")
     field_name: str | None = None
     product: str | None = Field(
-        default=None, description="prescription_map jobs: the prescription's product"
+        default=None, description="prescription jobs: the prescription's product"
     )
     started_at: dt.datetime | None = Field(default=None, description="first 'running' event")
     ended_at: dt.datetime | None = Field(default=None, description="last completed/aborted event")
@@ -89,9 +112,30 @@ class JobList(Out):
     total: int
 
 
+class SettingSpecOut(Out):
+    path: str = Field(description="dotted path in the settings")
+    label: str
+    unit: str
+    default: Any = Field(description="the value the job gets unless changed")
+    source: str = Field(description="where the default comes from (a paper, or FieldRx)")
+    step: float | None
+    options: list[str] = Field(description="the allowed values of a choice; empty: a number")
+
+
 class KindInfo(Out):
+    name: str
+    label: str
+    noun: str = Field(description="the kind in a sentence: 'a {noun} job'")
+    source: str = Field(description="the paper the kind comes from")
+    rates_from: Literal["cells", "sensors"] = Field(
+        description="cells: a prescription's per-cell rates (the job names a prescription); "
+        "sensors: decided on the go (the job names a plan and settings)"
+    )
+    progress: Literal["cells", "work"]
+    needs: str = Field(description="what the machine must have")
     defaults: dict[str, Any] = Field(description="the papers' settings, units in the names")
     controllers: list[str]
+    settings: list[SettingSpecOut] = Field(description="the form's inputs, in order")
 
 
 class KindsOut(Out):

@@ -8,6 +8,7 @@ from typing import Any, Literal
 from pydantic import Field
 
 from fieldrx.api.schemas.base import Geometry, Open, Out
+from fieldrx.api.schemas.jobs import SensorKind
 
 
 class CellReportOut(Out):
@@ -103,7 +104,7 @@ class AsAppliedSummary(Out):
 
 
 class AsAppliedReport(AsAppliedSummary):
-    """A prescription_map job's report; ``cells`` unless ``cells=false``."""
+    """A prescription-map job's report; ``cells`` unless ``cells=false``."""
 
     cells: list[CellReportOut] | None = None
 
@@ -113,7 +114,7 @@ class KindReport(Open):
     Table 3 beside them)."""
 
     job_id: int
-    kind: Literal["ndvi_topdress", "seeding_depth"]
+    kind: SensorKind
     state: str
     settings: dict[str, Any]
     n_records: int

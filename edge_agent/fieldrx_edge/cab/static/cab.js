@@ -46,12 +46,12 @@ async function loadJob() {
     cab.boundary.closePath();
   }
   // a seeding job meters nothing: its depth figures take the rate tiles' place
-  document.body.classList.toggle('no-rate', job.kind === 'seeding_depth');
+  document.body.classList.toggle('no-rate', !job.view.shows_rate);
   // the sensor kinds' loops take no operator hand (pause, override, sections) yet
-  document.body.classList.toggle('no-hand', job.kind !== 'prescription_map');
+  document.body.classList.toggle('no-hand', !job.view.hand_overrides);
   $('job').textContent = `Job ${job.job_id} · ${job.field} · ${job.product || job.kind}`;
-  $('legend').textContent = job.kind === 'prescription_map' ? `${fmt(cab.rmin, 0)}-${fmt(cab.rmax, 0)} kg/ha · blue: applied` : `${job.kind} · blue: worked`;
-  const n = job.kind === 'prescription_map' ? (cab.s?.operator?.sections || 1) : 0;
+  $('legend').textContent = job.view.rates_from === 'cells' ? `${fmt(cab.rmin, 0)}-${fmt(cab.rmax, 0)} kg/ha · blue: applied` : `${job.kind} · blue: worked`;
+  const n = job.view.hand_overrides ? (cab.s?.operator?.sections || 1) : 0;
   buildSections(n);
 }
 
@@ -171,8 +171,8 @@ function alarms(list) {
 
 function kindPanel(s) {
   const r = s.rec, box = $('kind');
-  if (!cab.job || cab.job.kind === 'prescription_map') { box.textContent = ''; return; }
-  if (cab.job.kind === 'ndvi_topdress') {
+  if (!cab.job || !cab.job.view.panel) { box.textContent = ''; return; }
+  if (cab.job.view.panel === 'ndvi') {
     box.innerHTML = `<div class="tile"><label>NDVI raw / filtered</label><b data-testid="cab-ndvi">${fmt(r.ndvi_raw, 3)} / ${fmt(r.ndvi, 3)}</b></div>
       <div class="tile"><label>Rate curve point</label><b data-testid="cab-curve">${fmt(r.ndvi, 2)} → ${fmt(r.target_rate_kg_ha, 0)} kg/ha</b></div>`;
   } else {
@@ -217,7 +217,7 @@ function show(s) {
   $('override').textContent = `${op.override_pct > 0 ? '+' : ''}${op.override_pct} %${op.limited ? ' (meter limit)' : ''}`;
   $('override').classList.toggle('limited', op.limited);
   $('pause').hidden = op.paused || s.state === 'ready'; $('resume').hidden = !op.paused; $('start').hidden = s.state !== 'ready';
-  if (!prev || prev.operator.sections !== op.sections) buildSections(cab.job && cab.job.kind === 'prescription_map' ? op.sections : 0);
+  if (!prev || prev.operator.sections !== op.sections) buildSections(cab.job && cab.job.view.hand_overrides ? op.sections : 0);
   [...$('sections').children].forEach((b, k) => { b.style.opacity = op.sections_off.includes(k) ? 0.4 : 1; });
   lightbar(s.guidance);
   alarms(s.alarms);

@@ -1166,7 +1166,10 @@ export interface paths {
         };
         /**
          * Job Kinds
-         * @description Each kind's default settings (the papers' values), units in the names, controllers.
+         * @description Every job kind of the registry (``fieldrx_edge.jobkinds``), in list order: its label,
+         *     paper, where its rates come from, what the machine needs, its default settings (the
+         *     papers' values, units in the names), controllers, and the form's inputs with unit,
+         *     default and the default's source.
          */
         get: operations["job_kinds_api_v1_jobs_kinds_get"];
         put?: never;
@@ -2091,7 +2094,7 @@ export interface components {
         };
         /**
          * AsAppliedReport
-         * @description A prescription_map job's report; ``cells`` unless ``cells=false``.
+         * @description A prescription-map job's report; ``cells`` unless ``cells=false``.
          */
         AsAppliedReport: {
             /**
@@ -3510,7 +3513,7 @@ export interface components {
             confirm_flagged?: boolean;
             /**
              * Kind
-             * @description prescription_map (seed 001: the prescription's cell rates), ndvi_topdress (seed 000: canopy sensors decide the rate) or seeding_depth (seed 002: sowing-depth control); GET /jobs/kinds lists each kind's settings, units and the papers' defaults
+             * @description prescription_map (seed 001: prescription-map); ndvi_topdress (seed 000: NDVI topdressing); seeding_depth (seed 002: depth-controlled seeding); GET /jobs/kinds lists each kind's settings, units and the papers' defaults
              * @default prescription_map
              * @enum {string}
              */
@@ -3529,12 +3532,12 @@ export interface components {
             plan_id?: number | null;
             /**
              * Prescription Id
-             * @description prescription_map jobs
+             * @description kinds whose rates are the cells': the prescription
              */
             prescription_id?: number | null;
             /**
              * Prescription Version
-             * @description prescription_map jobs: the version to apply; default current
+             * @description kinds whose rates are the cells': the version to apply; default current
              */
             prescription_version?: number | null;
             /**
@@ -3615,7 +3618,7 @@ export interface components {
             prescription_version: number | null;
             /**
              * Product
-             * @description prescription_map jobs: the prescription's product
+             * @description prescription jobs: the prescription's product
              */
             product?: string | null;
             /** Progress */
@@ -3710,6 +3713,41 @@ export interface components {
             defaults: {
                 [key: string]: unknown;
             };
+            /** Label */
+            label: string;
+            /** Name */
+            name: string;
+            /**
+             * Needs
+             * @description what the machine must have
+             */
+            needs: string;
+            /**
+             * Noun
+             * @description the kind in a sentence: 'a {noun} job'
+             */
+            noun: string;
+            /**
+             * Progress
+             * @enum {string}
+             */
+            progress: "cells" | "work";
+            /**
+             * Rates From
+             * @description cells: a prescription's per-cell rates (the job names a prescription); sensors: decided on the go (the job names a plan and settings)
+             * @enum {string}
+             */
+            rates_from: "cells" | "sensors";
+            /**
+             * Settings
+             * @description the form's inputs, in order
+             */
+            settings: components["schemas"]["SettingSpecOut"][];
+            /**
+             * Source
+             * @description the paper the kind comes from
+             */
+            source: string;
         };
         /**
          * KindReport
@@ -5070,6 +5108,35 @@ export interface components {
             ph: number | null;
             /** Sample Id */
             sample_id: string;
+        };
+        /** SettingSpecOut */
+        SettingSpecOut: {
+            /**
+             * Default
+             * @description the value the job gets unless changed
+             */
+            default: unknown;
+            /** Label */
+            label: string;
+            /**
+             * Options
+             * @description the allowed values of a choice; empty: a number
+             */
+            options: string[];
+            /**
+             * Path
+             * @description dotted path in the settings
+             */
+            path: string;
+            /**
+             * Source
+             * @description where the default comes from (a paper, or FieldRx)
+             */
+            source: string;
+            /** Step */
+            step: number | null;
+            /** Unit */
+            unit: string;
         };
         /** SoilImportList */
         SoilImportList: {
