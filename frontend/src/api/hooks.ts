@@ -65,6 +65,7 @@ export const qk = {
   machineTrack: (id: number, q: TrackQuery) => ['machines', id, 'track', q] as const,
   jobs: (q?: JobsQuery) => (q ? (['jobs', 'list', q] as const) : (['jobs', 'list'] as const)),
   job: (id: number) => ['jobs', id] as const,
+  jobKinds: () => ['jobs', 'kinds'] as const,
   jobReport: (id: number, q: JobReportQuery) => ['jobs', id, 'report', q] as const,
   asApplied: (id: number, q: AsAppliedQuery) => ['jobs', id, 'as-applied', q] as const,
   alertGroups: (q?: AlertGroupsQuery) => (q ? (['alerts', 'groups', q] as const) : (['alerts', 'groups'] as const)),
@@ -214,6 +215,13 @@ export const queries = {
     }),
   jobs: (q: JobsQuery = {}) =>
     queryOptions({ queryKey: qk.jobs(q), queryFn: () => call(client.GET('/api/v1/jobs', { params: { query: q } })) }),
+  // the registry's kinds change only with a deployment: read once per page load
+  jobKinds: () =>
+    queryOptions({
+      queryKey: qk.jobKinds(),
+      queryFn: () => call(client.GET('/api/v1/jobs/kinds')),
+      staleTime: Infinity,
+    }),
   job: (id: number) =>
     queryOptions({
       queryKey: qk.job(id),
@@ -315,6 +323,8 @@ export const useMachineTrack = (id: number | null | undefined, q: TrackQuery, o?
 
 export const useJobs = (q: JobsQuery = {}, o?: HookOptions<Data<typeof queries.jobs>>) => useQuery({ ...queries.jobs(q), ...poll(o) });
 
+/** The job kinds (GET /jobs/kinds): labels, sources, settings forms. */
+export const useJobKinds = () => useQuery(queries.jobKinds());
 export const useJob = (id: number | null | undefined, o?: HookOptions<Data<typeof queries.job>>) =>
   useQuery({ ...queries.job(id ?? -1), ...poll(o), enabled: has(id) && o?.enabled !== false });
 

@@ -1,5 +1,5 @@
 import { useMemo, useState } from 'react';
-import { usePlan, usePrescription, useField, useJob } from '../api/hooks';
+import { usePlan, usePrescription, useField, useJob, useJobKinds } from '../api/hooks';
 import { ExportButtons } from '../components/ExportButtons';
 import { Legend } from '../components/Legend';
 import { MapStill, PrintReport, usePrintStill } from '../components/PrintReport';
@@ -38,8 +38,9 @@ const REPORT_QUERY = { cells: false } as const;
 export function JobReport({ jobId }: { jobId: number }) {
   const jobQ = useJob(jobId);
   const j = jobQ.data;
-  if (jobQ.isPending) return <p className="muted">Loading…</p>;
-  if (j?.kind && j.kind !== 'prescription_map') return <KindReport job={j} />;
+  const kindsQ = useJobKinds();
+  if (jobQ.isPending || kindsQ.isPending) return <p className="muted">Loading…</p>;
+  if (j?.kind && kindsQ.data?.kinds[j.kind]?.rates_from === 'sensors') return <KindReport job={j} />;
   return <PrescriptionJobReport jobId={jobId} />;
 }
 

@@ -1,8 +1,8 @@
 import { useState } from 'react';
 import { call, client, type Job, type Machine, type Schemas } from '../api/client';
-import { qk, useInvalidate, useJobs, useSendableMachines } from '../api/hooks';
+import { qk, useInvalidate, useJobKinds, useJobs, useSendableMachines } from '../api/hooks';
 import { ErrorBox } from '../components/Status';
-import { jobBody, KIND_LABELS, type JobKind } from '../lib/jobkinds';
+import { jobBody, kindLabel, kindList } from '../lib/jobkinds';
 import { jobLive, withLive, type JobLive } from '../lib/livejobs';
 import { useLive } from '../live';
 import { formatPercent } from '../lib/units';
@@ -56,7 +56,12 @@ export function JobsScreen() {
   const [rxId, setRxId] = useState('');
   const [version, setVersion] = useState('');
   const [chosenMachine, setMachineId] = useState('');
-  const [kind, setKind] = useState<JobKind>('prescription_map');
+  const kindsQ = useJobKinds();
+  const kinds = kindsQ.data?.kinds;
+  const [chosenKind, setKind] = useState('');
+  // the registry's first kind until the user picks one
+  const kindInfo = kinds?.[chosenKind] ?? kindList(kinds)[0];
+  const kind = kindInfo?.name ?? '';
   const [actionError, setError] = useState<unknown>(null);
   const error = actionError ?? jobsQ.error;
   const created = hashQuery().get('created');
@@ -76,31 +81,31 @@ export function JobsScreen() {
       <ErrorBox error={error} testid="jobs-error" />
       <label>
         Kind{' '}
-        <select data-testid="job-kind" value={kind} onChange={(e) => setKind(e.target.value as JobKind)}>
-          {(Object.keys(KIND_LABELS) as JobKind[]).map((k) => (
-            <option key={k} value={k}>
-              {KIND_LABELS[k]}
+        <select data-testid="job-kind" value={kind} onChange={(e) => setKind(e.target.value)}>
+          {kindList(kinds).map((k) => (
+            <option key={k.name} value={k.name}>
+              {k.label}
             </option>
           ))}
         </select>
       </label>
-      {kind !== 'prescription_map' && (
+      {kindInfo?.rates_from === 'sensors' && (
         <SensorJobForm
           key={kind}
-          kind={kind}
+          kind={kindInfo}
           machines={machines}
           onError={setError}
           onCreated={() => void load()}
         />
       )}
-      {kind === 'prescription_map' && <form
+      {kindInfo?.rates_from === 'cells' && <form
         className="row"
         data-testid="job-form" data-write=""
         onSubmit={async (e) => {
           e.preventDefault();
           setError(null);
           try {
-            const body = jobBody('prescription_map', { prescriptionId: rxId, version, machineId });
+            const body = jobBody(kindInfo, { prescriptionId: rxId, version, machineId });
             const j = await call(client.POST('/api/v1/jobs', { body }));
             if (j.state === 'planned')
               await call(
@@ -146,8 +151,8 @@ export function JobsScreen() {
                 <a href={`#/jobs/${j.id}`}>#{j.id}</a>
               </td>
               <td data-testid={`job-source-${j.id}`}>
-                {j.kind && j.kind !== 'prescription_map' ? (
-                  <a href={`#/plans/${String(j.plan_id)}`}>{KIND_LABELS[j.kind as JobKind] ?? String(j.kind)}</a>
+                {j.kind && kinds?.[j.kind]?.rates_from === 'sensors' ? (
+                  <a href={`#/plans/${String(j.plan_id)}`}>{kindLabel(kinds, j.kind)}</a>
                 ) : (
                   <a href={`#/prescriptions/${j.prescription_id}`}>
                     #{j.prescription_id} v{j.prescription_version ?? '?'}

@@ -2,14 +2,14 @@ import { useState } from 'react';
 import { ApiError, call, client, type Machine } from '../api/client';
 import { useFieldPlans, useFields } from '../api/hooks';
 import { flaggedConfirmation } from '../lib/flags';
-import { fieldsOf, jobBody, KIND_LABELS, ndviPreview, planLabel, qualifiedBand, type JobKind } from '../lib/jobkinds';
-import { formatRate } from '../lib/units';
+import { kindUi } from '../kinds';
+import { jobBody, planLabel, type KindInfo } from '../lib/jobkinds';
 
 /**
- * The form of a sensor job kind (seed 000 / 002): the plan to drive (a field, then one of
- * its plans), the machine, and the
- * kind's settings, each with its unit and the paper's value named as such. Only changed
- * values are sent; the server fills in the rest and names any bad input.
+ * The form of a sensor job kind (its rates decided on the go): the plan to drive (a field,
+ * then one of its plans), the machine, and the kind's settings as GET /jobs/kinds lists
+ * them, each with its unit and its default's source. Only changed values are sent; the
+ * server fills in the rest and names any bad input. The kind's own note (src/kinds/) follows.
  */
 export function SensorJobForm({
   kind,
@@ -17,7 +17,7 @@ export function SensorJobForm({
   onCreated,
   onError,
 }: {
-  kind: Exclude<JobKind, 'prescription_map'>;
+  kind: KindInfo;
   machines: Machine[];
   onCreated: (id: number) => void;
   onError: (e: unknown) => void;
@@ -25,10 +25,9 @@ export function SensorJobForm({
   const [planId, setPlanId] = useState('');
   const [machineId, setMachineId] = useState(machines[0] ? String(machines[0].id) : '');
   const [values, setValues] = useState<Record<string, string>>({});
-  const fields = fieldsOf(kind);
+  const fields = kind.settings;
   const val = (p: string, paper: unknown) => values[p] ?? String(paper);
-  const target = Number(val('target_depth_mm', 30));
-  const band = qualifiedBand(Number.isFinite(target) ? target : 30);
+  const note = kindUi(kind.name).formNote;
   // a rate curve the machine cannot meter: the server's sentence, until the user confirms
   const [conflict, setConflict] = useState<string | null>(null);
   const send = async (confirmed: boolean) => {
@@ -49,14 +48,14 @@ export function SensorJobForm({
   return (
     <form
       className="stack"
-      data-testid={`job-form-${kind}`}
+      data-testid={`job-form-${kind.name}`}
       data-write=""
       onSubmit={(e) => {
         e.preventDefault();
         void send(false);
       }}
     >
-      <h3>{KIND_LABELS[kind]}</h3>
+      <h3>{kind.label}</h3>
       <div className="row">
         <PlanPicker planId={planId} onPick={setPlanId} />
         <label>
@@ -76,10 +75,10 @@ export function SensorJobForm({
             <tr key={f.path}>
               <td>{f.label}</td>
               <td>
-                {f.options ? (
+                {f.options.length ? (
                   <select
                     data-testid={`set-${f.path}`}
-                    value={val(f.path, f.paper)}
+                    value={val(f.path, f.default)}
                     onChange={(e) => setValues({ ...values, [f.path]: e.target.value })}
                   >
                     {f.options.map((o) => (
@@ -93,33 +92,20 @@ export function SensorJobForm({
                     data-testid={`set-${f.path}`}
                     type="number"
                     step={f.step ?? 'any'}
-                    value={val(f.path, f.paper)}
+                    value={val(f.path, f.default)}
                     onChange={(e) => setValues({ ...values, [f.path]: e.target.value })}
                   />
                 )}{' '}
                 {f.unit}
               </td>
               <td className="muted small">
-                paper default: {String(f.paper)} {f.unit} ({f.source})
+                paper default: {String(f.default)} {f.unit} ({f.source})
               </td>
             </tr>
           ))}
         </tbody>
       </table>
-      {kind === 'ndvi_topdress' ? (
-        <p className="muted small" data-testid="ndvi-preview">
-          Rate preview:{' '}
-          {ndviPreview(values)
-            .map((p) => `NDVI ${p.ndvi.toFixed(1)} → ${formatRate(p.rate, 0)}`)
-            .join(' · ')}
-          . Width and metering calibration are the machine&apos;s;{' '}
-          {values.restrict_to_boundary === 'false' ? 'meters wherever it drives.' : 'no fertilizer outside the field boundary.'}
-        </p>
-      ) : (
-        <p className="muted small" data-testid="depth-band">
-          Qualified (GB/T 20865): {band[0]}–{band[1]} mm.
-        </p>
-      )}
+      {note?.(values)}
       <button data-testid="job-kind-submit">Send</button>
       {conflict && (
         <div className="card warn" data-testid="job-kind-confirm-panel" role="alertdialog">
