@@ -202,7 +202,7 @@ def test_seeding_depth_job_end_to_end(database_url, org, tmp_path: Path, fault: 
         # raised (trailing 50 m below the 99.9 % asked for), ended with the job. Live by ingest
         # when a batch ends inside a low window (fleet.seed_alerts checks the window ending at
         # each batch's last record, and the sender's batch boundaries vary run to run), else
-        # once at the job's end over all its records (seed_reports.alert_kind_job_end)
+        # once at the job's end over all its records (seed_reports.depth_job_end)
         assert low and all(a["job_id"] == job["id"] and a["ended_at"] for a in low)
         msg = low[0]["message"]
         assert "over the last 50 m" in msg or ("over 50 m at record" in msg and "99.9 %" in msg)
