@@ -10,6 +10,7 @@ from alembic.autogenerate import compare_metadata
 from alembic.migration import MigrationContext
 from fieldrx.db.bootstrap import alembic_config, drop_database, ensure_database, include_object
 from fieldrx.db.models import Base
+from fieldrx_edge.jobkinds.registry import names as kind_names
 from sqlalchemy import create_engine
 
 from tests.conftest import PG
@@ -39,6 +40,9 @@ def test_upgrade_downgrade_roundtrip() -> None:
             diff = compare_metadata(ctx, Base.metadata)
         engine.dispose()
         assert diff == [], f"models and migrations disagree: {diff}"
+        with psycopg.connect(dsn) as conn:  # jobs.kind's rows are the registry's kinds
+            stored = {r[0] for r in conn.execute("SELECT name FROM job_kinds").fetchall()}
+        assert stored == set(kind_names())
         with psycopg.connect(dsn) as conn:  # 0012: procrastinate's queue schema is there
             assert conn.execute("SELECT procrastinate_cancel_job_v1(0, true, false)").fetchone()
         command.downgrade(cfg, "base")

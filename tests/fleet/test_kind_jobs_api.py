@@ -65,6 +65,17 @@ def test_kind_job_validation_and_defaults(client, org, make_org) -> None:  # noq
     kinds = client.get("/api/v1/jobs/kinds", headers=h).json()["kinds"]
     assert kinds["seeding_depth"]["defaults"]["target_depth_mm"] == 30.0
     assert kinds["seeding_depth"]["controllers"] == ["fuzzy_pid", "pid"]
+    # the registry's order and each kind's form: the UI builds its inputs from these
+    assert list(kinds)[0] == "prescription_map" and kinds["prescription_map"]["settings"] == []
+    depth = {f["path"]: f for f in kinds["seeding_depth"]["settings"]}
+    assert depth["target_depth_mm"]["default"] == 30.0 and depth["target_depth_mm"]["unit"] == "mm"
+    assert depth["controller.name"]["options"] == ["fuzzy_pid", "pid"]
+    assert kinds["ndvi_topdress"]["rates_from"] == "sensors"
+    # a kind the registry does not know is refused before any work
+    r = client.post(
+        "/api/v1/jobs", json={"kind": "no_such_kind", "plan_id": 1, "machine_id": 1}, headers=h
+    )
+    assert r.status_code == 422
     # the device lists it and downloads a package that carries the kind and its settings
     tok = client.post(f"/api/v1/machines/{machine_id}/device-token", headers=h).json()["token"]
     assert client.post(f"/api/v1/jobs/{job['id']}/state", json={"state": "sent"}, headers=h)

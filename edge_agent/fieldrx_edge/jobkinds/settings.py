@@ -62,7 +62,7 @@ def validate_settings(kind: str, given: dict[str, Any] | None) -> dict[str, Any]
         raise SettingsError("", "must be an object")
     if not k.defaults:
         if given:
-            raise SettingsError("", f"a {k.label} job takes no settings (its rates are the cells')")
+            raise SettingsError("", f"a {k.noun} job takes no settings (its rates are the cells')")
         return {}
     s = merge(k.defaults, given, "")
     if "controller" in s:
