@@ -57,7 +57,7 @@ from fieldrx.geo.crs import to_utm
 from fieldrx.geo.validate import BoundaryError, validate_boundary
 from fieldrx.services.import_checks import match_farm, match_field, placement
 from fieldrx.services.plans import PlanParams, check_plan_cost, create_plan
-from fieldrx.services.prescriptions import auto_classes
+from fieldrx.services.prescriptions.classes import auto_classes
 from fieldrx.store import load_cells, write_rates
 
 IMPORTED_MODEL = "imported"
@@ -658,7 +658,7 @@ def timelog_in_worker(req: TimelogRequest) -> dict[str, Any]:
     from fieldrx.formats.timelog import timelog_summary
     from fieldrx.services.bounded import ensure_caller_alive
     from fieldrx.services.import_checks import fmt_distance, points_placement
-    from fieldrx.services.prescriptions import field_boundary_wgs84
+    from fieldrx.services.prescriptions.versions import field_boundary_wgs84
 
     logs = _read_timelogs(req.files, req.source_name)
     engine = make_engine(req.database_url)

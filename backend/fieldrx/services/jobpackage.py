@@ -26,7 +26,8 @@ from sqlalchemy.orm import Session
 
 from fieldrx.db.models import Field, Job, Machine, Plan, Prescription
 from fieldrx.services.plans import field_utm
-from fieldrx.services.prescriptions import get_version, rx_rate_unit, version_cells
+from fieldrx.services.prescriptions.params import rx_rate_unit
+from fieldrx.services.prescriptions.versions import get_version, version_cells
 from fieldrx.store import load_cells
 
 
