@@ -72,7 +72,8 @@ from fieldrx_edge.isobus.j1939 import (
     PGN_WORKING_SET_MASTER,
     Name,
 )
-from fieldrx_edge.isobus.network import Message, Node
+from fieldrx_edge.isobus.link import Message
+from fieldrx_edge.isobus.network import Node
 from fieldrx_edge.isobus.tc_mapping import RateUnits, choose_rate, from_raw, to_raw, width_binding
 
 log = logging.getLogger(__name__)
