@@ -48,7 +48,7 @@ DEFAULT_PARAMS: dict[str, dict[str, Any]] = {
 @runtime_checkable
 class MeteringImplement(Protocol):
     """What the runtime's ``Agent`` drives: a ``MotorLoop`` here, or an implement behind
-    ISOBUS (``isobus.tc_server.IsobusImplement``). ``setpoint_rpm`` is written and
+    ISOBUS (``isobus.implement.IsobusImplement``). ``setpoint_rpm`` is written and
     ``rpm``/``duty`` read at every fix; ``run`` is the implement's own thread. An
     implement that also has ``on_decision(decision)`` receives the whole decision (rate,
     metering on/off, speed) and may add alarms to it before the record is made."""

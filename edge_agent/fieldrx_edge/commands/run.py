@@ -186,9 +186,10 @@ def open_can(a: argparse.Namespace) -> Any:
 
 def isobus_implement(a: argparse.Namespace, job: JobPackage) -> Any:
     """The TC server on ``--can`` standing where the motor loop stands."""
+    from fieldrx_edge.isobus.implement import IsobusImplement
     from fieldrx_edge.isobus.network import Node
     from fieldrx_edge.isobus.pair import tc_name
-    from fieldrx_edge.isobus.tc_server import IsobusImplement, TaskControllerServer
+    from fieldrx_edge.isobus.tc_server import TaskControllerServer
 
     if not a.can:
         raise SystemExit("--implement isobus needs --can INTERFACE:CHANNEL (e.g. socketcan:can0)")
