@@ -15,9 +15,9 @@ import time
 from typing import Any, Protocol, runtime_checkable
 
 from fieldrx_edge.control import make_controller
+from fieldrx_edge.job_package import ControllerSettings
 from fieldrx_edge.plants.motor import MotorDriver, SerialMotorDriver, SimulatedMotor
 from fieldrx_edge.plants.seeds import seed001_motor
-from fieldrx_edge.protocol import ControllerSettings
 
 __all__ = [
     "MeteringImplement",

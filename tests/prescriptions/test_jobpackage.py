@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import shapely
-from fieldrx_edge.protocol import JobPackage
+from fieldrx_edge.job_package import JobPackage
 
 from tests.plans.helpers import API
 from tests.prescriptions.helpers import all_cells, make_rx, setup_plan

@@ -11,8 +11,8 @@ import time
 from typing import Any
 
 from fieldrx_edge.commands.sessions import open_session
+from fieldrx_edge.job_package import JobPackage
 from fieldrx_edge.jobs import JobStore, pull
-from fieldrx_edge.protocol import JobPackage
 from fieldrx_edge.session import JobSession, UplinkOptions, load_job
 
 log = logging.getLogger("fieldrx_edge")
@@ -259,8 +259,8 @@ def ecu_session(a: argparse.Namespace, job: JobPackage) -> JobSession:
 
 def _ecu_config(a: argparse.Namespace) -> tuple[Any, float, Any, JobSession | None]:
     """Calibration, width, controller settings and session: the job's with ``--job``."""
+    from fieldrx_edge.job_package import ControllerSettings
     from fieldrx_edge.metering import LinearCalibration, calibration_from_dict
-    from fieldrx_edge.protocol import ControllerSettings
 
     session = None
     if a.job:

@@ -131,7 +131,7 @@ class JobCellApplied(Base):
 
 class JobCellRecord(Base):
     """Uplink profile ``thin``: one cell's as-applied figures as the tractor computed them
-    (``fieldrx_edge.protocol.CellRecord``), kept forever (migration 0011). Deduplicated by
+    (``fieldrx_edge.cell_records.CellRecord``), kept forever (migration 0011). Deduplicated by
     (machine, stream, seq) like telemetry; a thin job's report sums them per cell."""
 
     __tablename__ = "job_cell_records"
