@@ -26,7 +26,6 @@ address, bytes 5-7 the PGN; sent to global), so the requester need not wait for 
 time-out. Global requests for unknown PGNs get no answer (the standard forbids NACKing
 them).
 
-
 Multi-frame transfers (TP, BAM, ETP) are ``transfers.TransportLink``'s, the frame layer
 ``link.Link``'s; a ``Node`` is both.
 

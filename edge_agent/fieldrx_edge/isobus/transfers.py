@@ -23,7 +23,6 @@ A data frame's sequence number counts from 1 after the last DPO; packet number =
 sequence. Abort reasons used: 1 already in a session, 3 timeout, 6 unexpected data
 transfer, 7 bad sequence number, 9 size out of range (J1939-21 Table 7).
 
-
 Public descriptions used: AgIsoStack++ ``can_transport_protocol.cpp``,
 ``can_extended_transport_protocol.cpp`` (multiplexor constants 0x14-0x17, 0xFF; DPO byte
 layout) and its Concepts page; the Rust ``j1939`` crate's ``transport.rs`` (TP

@@ -11,6 +11,7 @@ from sqlalchemy.orm import DeclarativeBase, mapped_column
 
 
 def now_column() -> Any:
+    """A timestamp column the database sets to the time of the insert."""
     return mapped_column(DateTime(timezone=True), server_default=func.now(), nullable=False)
 
 

@@ -14,8 +14,6 @@ from fieldrx.agronomy.crops import CROPS, Crop, find_crop
 from fieldrx.db.models import Field, Plan, Prescription
 
 MODEL_ALIASES = {"constant": "uniform", "ndvi_linear": "ndvi"}
-
-
 PARAM_ALIASES = {
     "M": "target_yield_kg_ha",
     "target_yield": "target_yield_kg_ha",
@@ -27,11 +25,7 @@ PARAM_ALIASES = {
     "utilisation": "k_utilisation",
     "rate": "rate_kg_ha",
 }
-
-
 IGNORED_PARAMS = {"nutrient"}
-
-
 RATE_UNITS = ("kg/ha", "l/ha")
 
 
