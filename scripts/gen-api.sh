@@ -4,7 +4,7 @@
 # (openapi-typescript), generated/defaults.json (the models' defaults the forms start from)
 # and generated/import-formats.json (the import-format registry the import assistant reads).
 # Run after changing a route, a model in backend/fieldrx/api/ or an import format;
-# tests/api/test_contract.py fails while the committed files are stale.
+# tests/system/test_contract.py fails while the committed files are stale.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ROOT=$(pwd)
