@@ -1,4 +1,4 @@
-"""Export and import formats as the API accepts and lists them, read from their registries.
+"""Export formats as the API accepts and lists them, read from their registry.
 
 The query parameters' types are ``Literal``s built from ``formats.export.EXPORT_FORMATS``
 at import time, so FastAPI validates them and the OpenAPI document lists them as enums
