@@ -25,6 +25,7 @@ REPO_CHECKS = {
     "test_no_private_imports",
     "test_layout",
     "test_kind_literals",
+    "test_module_size",
 }
 
 

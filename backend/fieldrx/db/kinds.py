@@ -1,6 +1,6 @@
 """The ``job_kinds`` rows, written from ``fieldrx_edge.jobkinds.registry``.
 
-``jobs.kind`` is a foreign key to ``job_kinds`` (migration 0018), so the database accepts
+``jobs.kind`` is a foreign key to ``job_kinds`` (migration 0019), so the database accepts
 exactly the registry's kinds without a migration per kind: every ``fieldrx migrate`` (and
 every Alembic upgrade, ``migrations/env.py``) upserts the registry's rows. A kind gone from
 the registry keeps its row: jobs of it may still exist.

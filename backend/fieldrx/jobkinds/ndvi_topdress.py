@@ -46,7 +46,7 @@ def curve_meter_conflict(settings: dict[str, Any], machine: Any) -> dict[str, An
     None when the whole curve is meterable or the machine has no calibration to check."""
     # the meter's range is the prescription service's one definition; imported here, at
     # job creation, so the report and ingest paths do not load the service layer
-    from fieldrx.services.prescriptions import MeterSpec
+    from fieldrx.services.prescriptions.meter import MeterSpec
 
     if not machine.calibration:
         return None

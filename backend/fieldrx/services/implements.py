@@ -1,11 +1,11 @@
 """What a machine's implement can do, and whether it can do a job of a given kind.
 
 A job is checked against its machine when it is created and again when it is sent, against
-what its kind needs (``fieldrx_edge.jobkinds.registry.Needs``): e.g. seed 002's depth-
-controlled seeding a seeder with a depth actuator and a depth sensor, seed 000's NDVI
-topdressing an implement that applies fertiliser and canopy (NDVI) sensors. The meter
-range (seed 001 eq. 1-3) is checked on the rates themselves
-(``services.prescriptions.job_attention``). No database here: the machine's row is read by
+what its kind needs (``fieldrx_edge.jobkinds.registry.Needs``): e.g. seed 002's
+depth-controlled seeding a seeder with a depth actuator and a depth sensor, seed 000's
+NDVI topdressing an implement that applies fertiliser and canopy (NDVI) sensors. The
+meter range (seed 001 eq. 1-3) is checked on the rates themselves
+(``services.prescriptions.meter.job_attention``). No database here: the machine's row is read by
 the caller.
 """
 

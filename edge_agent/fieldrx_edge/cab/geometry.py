@@ -14,9 +14,9 @@ import math
 from typing import Any
 
 from fieldrx_edge.gnss.utm import UtmProjection
+from fieldrx_edge.job_package import JobPackage
 from fieldrx_edge.jobkinds.registry import kind_of
 from fieldrx_edge.metering import calibration_from_dict
-from fieldrx_edge.protocol import JobPackage
 
 
 def _ring_area(xy: list[float]) -> float:

@@ -29,7 +29,7 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import Any
 
-from fieldrx_edge.protocol import JobPackage
+from fieldrx_edge.job_package import JobPackage
 
 
 def simulate_kind(a: argparse.Namespace, job: JobPackage, drive: Callable[..., Any]) -> int:

@@ -7,8 +7,8 @@ the kinds of this revision's time. ``ck_job_source`` can no longer name a kind: 
 a prescription (version) or a plan, and which one its kind needs is the API's check. Past
 one node the table is a reference table (``db/citus.py``).
 
-Revision ID: 0018_job_kinds_table
-Revises: 0017_i32b_import_tasks
+Revision ID: 0019_job_kinds_table
+Revises: 0018_task_kinds
 """
 
 from __future__ import annotations
@@ -18,8 +18,8 @@ from collections.abc import Sequence
 import sqlalchemy as sa
 from alembic import op
 
-revision: str = "0018_job_kinds_table"
-down_revision: str | Sequence[str] | None = "0017_i32b_import_tasks"
+revision: str = "0019_job_kinds_table"
+down_revision: str | Sequence[str] | None = "0018_task_kinds"
 branch_labels: str | Sequence[str] | None = None
 depends_on: str | Sequence[str] | None = None
 
