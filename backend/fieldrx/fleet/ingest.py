@@ -657,18 +657,11 @@ class TrackWork:
                 )
                 for r in sorted(new, key=lambda r: r.t)
             ]
-            messages.extend(
-                alert_rules.evaluate(
-                    cur,
-                    machine_id,
-                    info.organisation_id,
-                    latest.job_id,
-                    samples,
-                    info.speed_min_m_s,
-                    info.speed_max_m_s,
-                    info.open_alerts,
-                )
-            )
+            scope = alert_rules.Scope(
+                machine_id, info.organisation_id, latest.job_id, info.speed_min_m_s,
+                info.speed_max_m_s, info.open_alerts,
+            )  # fmt: skip
+            messages.extend(alert_rules.evaluate(cur, scope, samples))
         if any(r.depth_mm is not None for r in new):  # seeding job
             from fieldrx.fleet.seed_alerts import check_depth_window
 
