@@ -17,7 +17,7 @@ from typing import Any
 
 import psycopg
 
-# events ingest opens and ends itself (not conditions on records, see fleet.ingest)
+# events ingest opens and ends itself (not conditions on records, see fleet.ingest.alerts)
 # duplicate_stream: two agent queues sending for one machine at once; far_past_records:
 # records dated more than the partitions' on-demand bound ago, kept in the default partition
 EVENT_KINDS = ("duplicate_stream", "far_past_records")
