@@ -88,7 +88,9 @@ def test_float_ranges_are_the_protocols() -> None:
         row, reason = one(rec(**{name: hi * 2 + 1.0}))
         assert row is None and reason == f"{name} {hi * 2 + 1.0!r} is out of range [{lo:g}, {hi:g}]"
     assert range_error([None] * len(FLOAT_FIELDS)) is None
+    # a NaN or an infinity fails the fast path's range comparison: the protocol says why
     assert one(rec(hdop=float("nan")))[1] == "hdop must be a finite number or null, got nan"
+    assert one(rec(duty=float("-inf")))[1] == "duty must be a finite number or null, got -inf"
 
 
 def test_protocol_errors_keep_the_protocols_words() -> None:
