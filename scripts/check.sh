@@ -44,10 +44,13 @@ mypy --no-error-summary || FAILED+=(mypy)
 
 if [[ "${1:-}" != "--static" ]]; then
   step "unit tests of the pure modules (pytest --pure, not slow)"
-  # the pure packages' quick tests (geometry, agronomy, control, docs); the slow ones
+  # the pure packages' quick tests (geometry, agronomy, control, docs, layout); the slow ones
   # (property sweeps over many fields, CLI subprocesses) and the rest are make test's
+  # (the edge's controllers and what they steer: control, plants, depth, estimate)
   pytest -q -p no:cacheprovider --pure -n 0 -m "not slow" \
-    tests/geo tests/agronomy tests/control tests/test_docs.py || FAILED+=(unit)
+    tests/geo tests/agronomy tests/edge/control tests/edge/plants tests/edge/test_plants.py \
+    tests/edge/test_depth.py tests/edge/test_estimate.py tests/edge/test_control_properties.py \
+    tests/test_docs.py tests/test_layout.py || FAILED+=(unit)
 fi
 
 if [[ ${#FAILED[@]} -gt 0 ]]; then

@@ -2,7 +2,7 @@
 # Regenerate the browser's typed API client from the server's OpenAPI document (no server
 # needed): frontend/src/api/openapi.json, then frontend/src/api/generated/schema.ts
 # (openapi-typescript) and generated/defaults.json (the models' defaults the forms start from). Run after changing a route or a model in backend/fieldrx/api/;
-# tests/api/test_contract.py fails while the committed files are stale.
+# tests/system/test_contract.py fails while the committed files are stale.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ROOT=$(pwd)

@@ -171,3 +171,12 @@ def make_org(database_url: str):  # noqa: ANN201
 @pytest.fixture()
 def org(make_org) -> Org:  # noqa: ANN001
     return make_org()
+
+
+@pytest.fixture()
+def job(org):  # noqa: ANN001, ANN201
+    """A running job of `org` (tests/fleet/helpers.py): the telemetry tests of the API and
+    of the fleet's ingest both post against one."""
+    from tests.fleet.helpers import make_job
+
+    return make_job(org.id, state="running")

@@ -145,7 +145,7 @@ def add_components(app: FastAPI, schemas: Mapping[str, dict[str, Any]]) -> None:
 
 def openapi_json(app: FastAPI) -> str:
     """``app``'s OpenAPI document as committed in ``frontend/src/api/openapi.json`` (the
-    generated TypeScript client's source; ``tests/api/test_contract.py`` fails when it is
+    generated TypeScript client's source; ``tests/system/test_contract.py`` fails when it is
     stale)."""
     import json
 
@@ -160,7 +160,7 @@ def schema_defaults_json(document: str) -> str:
     the plan form said 1 headland pass where the API said 0, the prescription form ``idw``
     where the API said ``cell_mean``). The server's model is the one home of a default; the
     OpenAPI document carries it, and this file carries it into the bundle without the
-    document's ~0.5 MB. ``tests/api/test_contract.py`` fails when the file is stale.
+    document's ~0.5 MB. ``tests/system/test_contract.py`` fails when the file is stale.
     """
     import json
 

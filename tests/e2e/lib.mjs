@@ -19,7 +19,7 @@ export const PASSWORD = process.env.FIELDRX_PASSWORD ?? 'fieldrx-demo';
 export const CHROMIUM = process.env.CHROMIUM_PATH ?? '/usr/bin/chromium';
 
 /**
- * How much longer than on a quiet machine a wait may take (tests/support.py time_scale:
+ * How much longer than on a quiet machine a wait may take (tests/support/__init__.py time_scale:
  * FIELDRX_TEST_TIME_SCALE, else 2 + the 1-minute load per core, at most 12). Waits end
  * when their condition holds, so a generous scale only delays a failure.
  */

@@ -138,7 +138,7 @@ def test_as_applied_geojson_tiles_and_exports(client, org, make_org, driven) -> 
 
 def test_job_tiles_show_the_reports_accuracy_for_every_cell(client, org, driven) -> None:  # noqa: ANN001
     """The map colours each cell by the accuracy the report (side panel) shows."""
-    from tests.plans.mvt import decode
+    from tests.support.mvt import decode
 
     h = org.headers("viewer")
     rep = client.get(f"/api/v1/jobs/{driven.job_id}/report", headers=h).json()

@@ -8,7 +8,7 @@ import zipfile
 import pytest
 
 from tests.formats.test_asapplied_export import driven  # noqa: F401  (fixture)
-from tests.plans.helpers import API
+from tests.support.plans import API
 
 
 def _points_zip(client, h, job_id) -> bytes:

@@ -9,8 +9,8 @@ import zipfile
 import numpy as np
 import pytest
 
-from tests.plans.helpers import API, make_field, make_plan
-from tests.prescriptions.helpers import FIELD, all_cells, make_rx, samples_csv
+from tests.support.plans import API, make_field, make_plan
+from tests.support.prescriptions import FIELD, all_cells, make_rx, samples_csv
 
 
 def holed_field() -> dict:

@@ -14,7 +14,7 @@ from fieldrx.formats.archive import parse_xml, read_zip
 from fieldrx.formats.isoxml import write_isoxml_grid
 from fieldrx.formats.isoxml_import import read_taskdata, read_taskdata_zip
 
-from tests.plans.helpers import API
+from tests.support.plans import API
 
 HEAD = '<?xml version="1.0" encoding="UTF-8"?>\n'
 TASKDATA = (

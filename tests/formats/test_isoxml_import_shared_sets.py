@@ -18,7 +18,7 @@ from fieldrx.formats import FormatError
 from fieldrx.formats.archive import read_zip
 from fieldrx.formats.isoxml_import import read_taskdata
 
-from tests.plans.helpers import API
+from tests.support.plans import API
 
 
 def _shared() -> Path | None:
@@ -236,8 +236,8 @@ def test_grid_elsewhere_flagged_before_anything_is_stored(client, org):
 
 
 def test_logs_elsewhere_flagged_and_refused_before_anything_is_stored(client, org):
-    from tests.plans.helpers import make_field, make_plan
-    from tests.prescriptions.helpers import make_rx
+    from tests.support.plans import make_field, make_plan
+    from tests.support.prescriptions import make_rx
 
     h = org.headers()
     fid = make_field(client, h)  # seed 001's plot in Hubei, China

@@ -10,7 +10,7 @@ import shapely
 from fieldrx.formats.isoxml_import import read_taskdata
 from pyproj import Geod
 
-from tests.plans.helpers import API
+from tests.support.plans import API
 
 FULL_TASK = Path(__file__).parent / "data" / "isoxml-py_full_task" / "TASKDATA.XML"
 

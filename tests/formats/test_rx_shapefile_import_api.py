@@ -11,8 +11,8 @@ import pytest
 import shapefile as pyshp
 
 from tests.formats.test_isoxml_import_api import rx  # noqa: F401  (fixture)
-from tests.plans.helpers import API
-from tests.prescriptions.helpers import all_cells
+from tests.support.plans import API
+from tests.support.prescriptions import all_cells
 
 
 def _post(client, h, fid, data, **q):
@@ -103,7 +103,7 @@ def test_mapping_converts_units_and_names_bad_values(client, rx):  # noqa: F811
 
 
 def test_volume_unit_takes_a_density_and_far_zones_are_refused(client, rx):  # noqa: F811
-    from tests.plans.helpers import make_field, rectangle
+    from tests.support.plans import make_field, rectangle
 
     h, fid = rx["h"], rx["field"]["id"]
     exp = client.get(f"{API}/prescriptions/{rx['id']}/export?format=shapefile", headers=h)

@@ -11,7 +11,7 @@ from fieldrx.formats import FormatError
 from fieldrx.formats.timelog import read_timelog
 
 from tests.formats.test_asapplied_export import driven  # noqa: F401  (fixture)
-from tests.plans.helpers import API
+from tests.support.plans import API
 
 
 def _export(client, h, job_id) -> dict[str, bytes]:

@@ -3,7 +3,7 @@
  * `PrescriptionIn.interpolation`, ...), generated from the OpenAPI document by
  * `scripts/gen-api.sh` into `generated/defaults.json`. Forms start from these, never from a
  * copy of their own: a copy drifted once (plan form 1 headland pass vs the API's 0,
- * interpolation `idw` vs `cell_mean`). `tests/api/test_contract.py` fails when the file is
+ * interpolation `idw` vs `cell_mean`). `tests/system/test_contract.py` fails when the file is
  * stale; `defaults.test.ts` when a form keeps its own copy.
  */
 import generated from './generated/defaults.json';

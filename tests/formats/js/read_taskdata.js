@@ -1,7 +1,7 @@
 // Reads a TASKDATA zip with isoxml-js (npm "isoxml", dev4Agriculture) and prints what it
 // found as one JSON object: the parser's warnings, the first task's type-2 grid as cell
 // centres with their value, and every treatment zone with its code, first process data
-// value and polygons as GeoJSON. Used by tests/formats/test_formats_isoxml_js.py.
+// value and polygons as GeoJSON. Used by tests/formats/test_isoxml_js.py.
 // Usage: node read_taskdata.js TASKDATA.zip
 "use strict";
 const fs = require("fs");

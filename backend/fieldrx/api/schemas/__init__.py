@@ -1,6 +1,6 @@
 """Request and response models of the REST API, one module per resource.
 
-Conventions (every route follows them; ``tests/api/test_contract.py`` checks the
+Conventions (every route follows them; ``tests/system/test_contract.py`` checks the
 OpenAPI document for them):
 
 - Request bodies subclass ``base.In`` (unknown fields are refused with a 422 naming

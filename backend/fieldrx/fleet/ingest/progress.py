@@ -92,7 +92,7 @@ CELL_PROGRESS_CTE = """
         -- looked up once per new cell; materialised, with ``gained`` reading only this:
         -- inlined into a join with the upsert (the planner estimates one row for both)
         -- it was re-run per upserted cell, n^2 index scans (a 200-cell batch of the thin
-        -- profile: 40,401, 45-170 ms; tests/fleet/test_cell_progress_plan.py)
+        -- profile: 40,401, 45-170 ms; tests/fleet/ingest/test_progress_plan.py)
         SELECT n.job_id, n.aps, c.seq IS NOT NULL AS existed,
             coalesce(c.applied_rate_sum, 0) AS before_aps
         FROM new n LEFT JOIN job_cells_applied c

@@ -50,7 +50,7 @@ def store_alone(conn: psycopg.Connection[Any], work: BatchWork) -> IngestResult:
             # the statement starts, so a read in the statement that waits for the lock
             # would see the stream as it was before the batch that held the lock committed
             # (a resend stored twice, an ack short of what is stored:
-            # tests/fleet/test_ingest_concurrency.py)
+            # tests/fleet/ingest/test_store_concurrency.py)
             cur.execute(LOCK_SQL, (work.lock_ns, work.machine_id))
             work.read(cur)
             work.opened(cur.fetchone())

@@ -123,12 +123,14 @@ def _bites(
     bisector of its edges (unit vectors u1 in, u2 out): the sampled disc (chords sag
     0.001 r) covers the vertex, and the opening's erosion by r leaves a smooth 0.02 r
     arc (not a sliver) that its dilation turns back into the bite's arc."""
-    out = []
-    for i in idx:
-        b = np.array([u1[i, 1] + u2[i, 1], -(u1[i, 0] + u2[i, 0])])
-        b /= max(float(np.hypot(*b)), 1e-12)
-        out.append(Point(c[i] + r * b).buffer(BITE_SCALE * r, quad_segs=ARC_QUAD_SEGS))
-    return out
+    if len(idx) == 0:
+        return []
+    # the outside bisector of each vertex's edges, as a unit vector; one vectorised
+    # buffer call: a sampled arc of many reflex vertices has thousands of bites
+    b = np.stack([u1[idx, 1] + u2[idx, 1], -(u1[idx, 0] + u2[idx, 0])], axis=1)
+    b /= np.maximum(np.hypot(b[:, 0], b[:, 1]), 1e-12)[:, None]
+    centres = shapely.points(c[idx] + r * b)
+    return list(shapely.buffer(centres, BITE_SCALE * r, quad_segs=ARC_QUAD_SEGS))
 
 
 def drivable_centre(poly: Polygon, r: float, convex_r: float | None = None) -> BaseGeometry:
