@@ -35,11 +35,12 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "edge_agent"))
 
 from fieldrx_edge.isobus import process_data as pdm  # noqa: E402
+from fieldrx_edge.isobus.implement import IsobusImplement  # noqa: E402
 from fieldrx_edge.isobus.j1939 import PGN_PROCESS_DATA, decode_id  # noqa: E402
 from fieldrx_edge.isobus.network import Node  # noqa: E402
 from fieldrx_edge.isobus.pair import IsobusPair, ecu_name, tc_name  # noqa: E402
 from fieldrx_edge.isobus.rate_ecu import RateEcu, run_ecu  # noqa: E402
-from fieldrx_edge.isobus.tc_server import IsobusImplement, TaskControllerServer  # noqa: E402
+from fieldrx_edge.isobus.tc_server import TaskControllerServer  # noqa: E402
 from fieldrx_edge.isobus.transport import open_bus  # noqa: E402
 from fieldrx_edge.metering import calibration_from_dict  # noqa: E402
 from fieldrx_edge.motor import (  # noqa: E402

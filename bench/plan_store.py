@@ -44,7 +44,8 @@ def main() -> None:
 def tiles_and_rx(s, plan, fld, org_id) -> dict:
     """Tile sizes / times over the field centre at several zooms, and a prescription."""
     from fieldrx.services import tiles
-    from fieldrx.services.prescriptions import MeterSpec, NewPrescription, create_prescription
+    from fieldrx.services.prescriptions.create import NewPrescription, create_prescription
+    from fieldrx.services.prescriptions.meter import MeterSpec
     from fieldrx_edge.metering import SEED001_CALIBRATION
     from geoalchemy2.shape import to_shape
 
@@ -69,7 +70,7 @@ def tiles_and_rx(s, plan, fld, org_id) -> dict:
         f"uniform prescription on {plan.n_cells} cells (load, rate, clamp, COPY rates): "
         f"{out['rx_create_s']:.2f} s"
     )
-    from fieldrx.services.prescriptions import get_version
+    from fieldrx.services.prescriptions.versions import get_version
 
     vid = get_version(s, rx, 1).id
     for z in (12, 14, 15, 16, 17, 18):

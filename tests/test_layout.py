@@ -19,7 +19,13 @@ EDGE = ROOT / "edge_agent" / "fieldrx_edge"
 # whole-system tests and shared support: not one module's, named for what they prove
 EXEMPT = ("system", "support", "e2e")
 # checks of the repository itself, at the top of tests/
-REPO_CHECKS = {"test_docs", "test_import_cycles", "test_no_private_imports", "test_layout"}
+REPO_CHECKS = {
+    "test_docs",
+    "test_import_cycles",
+    "test_no_private_imports",
+    "test_layout",
+    "test_module_size",
+}
 
 
 def _names(package: Path) -> set[str]:

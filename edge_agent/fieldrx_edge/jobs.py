@@ -22,7 +22,8 @@ from typing import Any
 
 import httpx
 
-from fieldrx_edge.protocol import JobPackage, ProtocolError
+from fieldrx_edge.job_package import JobPackage
+from fieldrx_edge.protocol import ProtocolError
 
 log = logging.getLogger(__name__)
 

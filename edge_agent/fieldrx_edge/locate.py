@@ -27,8 +27,8 @@ from enum import IntEnum
 
 import numpy as np
 
+from fieldrx_edge.job_package import JobPackage
 from fieldrx_edge.planar import GridHash, Polygons, crosses, in_flat_rings, points_in_edges
-from fieldrx_edge.protocol import JobPackage
 
 
 class Where(IntEnum):

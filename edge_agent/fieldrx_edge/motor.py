@@ -15,9 +15,9 @@ import time
 from typing import Any, Protocol, runtime_checkable
 
 from fieldrx_edge.control import make_controller
+from fieldrx_edge.job_package import ControllerSettings
 from fieldrx_edge.plants.motor import MotorDriver, SerialMotorDriver, SimulatedMotor
 from fieldrx_edge.plants.seeds import seed001_motor
-from fieldrx_edge.protocol import ControllerSettings
 
 __all__ = [
     "MeteringImplement",
@@ -48,7 +48,7 @@ DEFAULT_PARAMS: dict[str, dict[str, Any]] = {
 @runtime_checkable
 class MeteringImplement(Protocol):
     """What the runtime's ``Agent`` drives: a ``MotorLoop`` here, or an implement behind
-    ISOBUS (``isobus.tc_server.IsobusImplement``). ``setpoint_rpm`` is written and
+    ISOBUS (``isobus.implement.IsobusImplement``). ``setpoint_rpm`` is written and
     ``rpm``/``duty`` read at every fix; ``run`` is the implement's own thread. An
     implement that also has ``on_decision(decision)`` receives the whole decision (rate,
     metering on/off, speed) and may add alarms to it before the record is made."""

@@ -33,13 +33,14 @@ from typing import Any
 from fieldrx_edge.estimate import KalmanSpeedFilter, look_ahead
 from fieldrx_edge.gnss.parser import Fix, NmeaParser
 from fieldrx_edge.gnss.utm import UtmProjection
+from fieldrx_edge.job_package import JobPackage
 from fieldrx_edge.locate import CellLocator, FieldBoundary, Where
 from fieldrx_edge.metering import (
     calibration_from_dict,
     rate_for_shaft_rpm,
     shaft_rpm_for_rate,
 )
-from fieldrx_edge.protocol import JobPackage, TelemetryRecord
+from fieldrx_edge.protocol import TelemetryRecord
 
 log = logging.getLogger(__name__)
 

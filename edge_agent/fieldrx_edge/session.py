@@ -20,8 +20,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from fieldrx_edge.job_package import JobPackage
 from fieldrx_edge.jobs import JobStore, post_state
-from fieldrx_edge.protocol import JobPackage, mqtt_username
+from fieldrx_edge.protocol import mqtt_username
 from fieldrx_edge.uplink.pacing import upload_period
 
 log = logging.getLogger(__name__)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import gzip
 
 import pytest
-from fieldrx_edge.protocol import JobPackage
+from fieldrx_edge.job_package import JobPackage
 
 from tests.fleet.helpers import make_job
 from tests.support import machine_body

@@ -3,8 +3,8 @@ refusal leaves no job behind), tenancy, the device listing and the package."""
 
 from __future__ import annotations
 
+from fieldrx_edge.job_package import JobPackage
 from fieldrx_edge.ndvi import SEED000_TABLE
-from fieldrx_edge.protocol import JobPackage
 
 from tests.support import BOTH_KINDS, DEPTH_SEEDER, SMALL_PLOT, feature, machine_body
 

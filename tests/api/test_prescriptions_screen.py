@@ -325,7 +325,7 @@ def test_edit_is_based_on_the_version_on_screen(client, org) -> None:
 
 def test_edits_beyond_the_breaks_each_get_a_class_the_note_said_once() -> None:
     import numpy as np
-    from fieldrx.services.prescriptions import auto_classes, inherited_classes
+    from fieldrx.services.prescriptions.classes import auto_classes, inherited_classes
 
     area = np.full(6, 10.0)
     v1 = auto_classes(np.full(6, 300.0), area, 6)

@@ -18,10 +18,10 @@ from typing import Any
 import jsonschema_rs
 import orjson
 import pytest
+from fieldrx_edge.cell_records import CellRecord
 from fieldrx_edge.protocol import (
     MAX_BATCHES,
     STREAM_RE,
-    CellRecord,
     ProtocolError,
     TelemetryAck,
     TelemetryRecord,

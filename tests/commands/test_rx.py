@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import shapefile as pyshp
 import xmlschema
-from fieldrx_edge.protocol import JobPackage
+from fieldrx_edge.job_package import JobPackage
 from isoxml.converter.np_grid import to_numpy_array
 from isoxml.util.isoxml_io import isoxml_from_path
 from pyproj import Transformer

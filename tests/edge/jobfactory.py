@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from fieldrx_edge.protocol import JobPackage
+from fieldrx_edge.job_package import JobPackage
 from fieldrx_edge.sim.fields import RectField, field_20ha, rect_job
 
 __all__ = ["field_20ha", "rect_job", "trial_plot", "holed_field", "big_grid"]

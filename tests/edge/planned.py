@@ -7,8 +7,8 @@ from fieldrx.agronomy.cells import CellTable
 from fieldrx.formats.jobpackage import JobPackageSpec, build_job_package
 from fieldrx.geo.coverage import plan_coverage
 from fieldrx.geo.grid import build_grid
+from fieldrx_edge.job_package import JobPackage
 from fieldrx_edge.metering import LinearCalibration
-from fieldrx_edge.protocol import JobPackage
 
 X0, Y0 = 500_000.0, 5_800_000.0  # a UTM 33N origin (EPSG 32633)
 

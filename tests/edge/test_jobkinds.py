@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from fieldrx_edge.job_package import JobPackage
 from fieldrx_edge.jobkinds.sensors import (
     SensorError,
     SensorGuard,
@@ -24,7 +25,7 @@ from fieldrx_edge.jobkinds.sensors import (
 from fieldrx_edge.jobkinds.settings import SettingsError, validate_settings
 from fieldrx_edge.jobkinds.topdress import TopdressLoop
 from fieldrx_edge.ndvi import SEED000_TABLE
-from fieldrx_edge.protocol import JobPackage, ProtocolError, TelemetryRecord
+from fieldrx_edge.protocol import ProtocolError, TelemetryRecord
 from fieldrx_edge.sim.fields import RectField, rect_job
 
 from tests.support import scaled

@@ -4,10 +4,11 @@ import sys
 
 import httpx
 import pytest
+from fieldrx_edge.job_package import JobPackage
 from fieldrx_edge.jobs import JobStore, pull
 from fieldrx_edge.metering import rate_for_shaft_rpm
 from fieldrx_edge.ndvi import SEED000_TABLE, NdviMode, NdviRateMap, NdviSample, parse_line
-from fieldrx_edge.protocol import JobPackage, ProtocolError
+from fieldrx_edge.protocol import ProtocolError
 
 from .jobfactory import trial_plot
 from .peer import Peer

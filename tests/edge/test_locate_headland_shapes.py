@@ -14,8 +14,9 @@ shapely = pytest.importorskip("shapely")
 pytest.importorskip("fieldrx.geo.grid")
 
 from fieldrx.formats.jobpackage import beside_line_cells, shaped_cells  # noqa: E402
+from fieldrx_edge.job_package import JobPackage  # noqa: E402
 from fieldrx_edge.locate import CellLocator, FieldBoundary  # noqa: E402
-from fieldrx_edge.protocol import JobPackage, ProtocolError  # noqa: E402
+from fieldrx_edge.protocol import ProtocolError  # noqa: E402
 from fieldrx_edge.sim.simulator import SimConfig, simulate, summary  # noqa: E402
 
 from .planned import X0, Y0, planned_job  # noqa: E402

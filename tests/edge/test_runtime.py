@@ -2,9 +2,10 @@ import math
 
 import pytest
 from fieldrx_edge.gnss import Fix
+from fieldrx_edge.job_package import ControllerSettings
 from fieldrx_edge.metering import calibration_from_dict, shaft_rpm_for_rate
 from fieldrx_edge.motor import MotorLoop, build_controller, closed_loop_t50_s, simulated_motor
-from fieldrx_edge.protocol import ControllerSettings, TelemetryRecord
+from fieldrx_edge.protocol import TelemetryRecord
 from fieldrx_edge.runtime import Measured, Pipeline, RuntimeConfig, make_record
 
 from .jobfactory import holed_field, trial_plot

@@ -4,8 +4,9 @@ import numpy as np
 import pytest
 from fieldrx.formats import FormatError
 from fieldrx.formats.jobpackage import JobPackageSpec, build_job_package, package_etag, package_size
+from fieldrx_edge.job_package import JobPackage
 from fieldrx_edge.metering import LinearCalibration, calibration_from_dict
-from fieldrx_edge.protocol import JobPackage, ProtocolError
+from fieldrx_edge.protocol import ProtocolError
 
 
 def _pkg(cells, field_utm, **kw):

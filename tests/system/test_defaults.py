@@ -105,7 +105,7 @@ def test_background_prescriptions_use_the_same_default() -> None:
     """The queued path (``?background=true``, run by ``fieldrx worker``) builds through
     ``create_from_request``, which read the body with its own literal ``"cell_mean"``
     fallback after the API's default moved to ``idw`` (found at merge)."""
-    import fieldrx.services.prescriptions as rx_service
+    import fieldrx.services.prescriptions.create as rx_service
 
     src = inspect.getsource(rx_service.create_from_request)
     assert '"interpolation", DEFAULT_METHOD' in src

@@ -13,8 +13,8 @@ import time
 from pathlib import Path
 
 import httpx
+from fieldrx_edge.job_package import JobPackage
 from fieldrx_edge.jobs import JobStore
-from fieldrx_edge.protocol import JobPackage
 from fieldrx_edge.sim.drive import write_nmea_log
 from fieldrx_edge.sim.simulator import SimConfig
 from sqlalchemy import text

@@ -11,8 +11,8 @@ from pathlib import Path
 
 import httpx
 import pytest
+from fieldrx_edge.job_package import JobPackage
 from fieldrx_edge.ndvi import SEED000_TABLE
-from fieldrx_edge.protocol import JobPackage
 
 from tests.fleet.procs import BIN, ROOT, start_api
 from tests.support import DEPTH_SEEDER, NDVI_SPREADER, SMALL_PLOT, feature, machine_body, scaled

@@ -6,8 +6,8 @@ import pytest
 pytest.importorskip("fieldrx.geo.grid")
 shapely = pytest.importorskip("shapely")
 
+from fieldrx_edge.job_package import JobPackage  # noqa: E402
 from fieldrx_edge.locate import CellLocator, FieldBoundary  # noqa: E402
-from fieldrx_edge.protocol import JobPackage  # noqa: E402
 from fieldrx_edge.sim.simulator import SimConfig, simulate, summary  # noqa: E402
 
 from tests.edge.planned import X0, Y0, planned_job  # noqa: E402

@@ -74,7 +74,7 @@ def run_peer(ch: str, stop: threading.Event) -> PeerClient:
 def drive(tmp_path, pkg_bytes: bytes, capsys) -> tuple[dict, list[int]]:
     """The agent runs the package against the sprayer: its summary and the DDI 1 setpoints
     (element 3) the sprayer received."""
-    from fieldrx_edge.protocol import JobPackage
+    from fieldrx_edge.job_package import JobPackage
 
     job = JobPackage.from_json(pkg_bytes)
     pkg = tmp_path / "job.json"

@@ -39,8 +39,10 @@ from fieldrx.imagery import ImageryError, storage
 from fieldrx.imagery.ingest import IngestSpec, ingest
 from fieldrx.imagery.stats import cell_ndvi
 from fieldrx.imagery.tiles import render_tile
-from fieldrx.services import prescriptions as rx_svc
 from fieldrx.services.imagery import imagery_row
+from fieldrx.services.prescriptions import create as rx_create
+from fieldrx.services.prescriptions import meter as rx_meter
+from fieldrx.services.prescriptions import versions as rx_versions
 from fieldrx.settings import get_settings
 
 router = APIRouter(tags=["imagery"], responses=ERRORS)
@@ -384,10 +386,10 @@ def _create_rx(
 ) -> dict[str, Any]:
     img, plan, field, machine = inputs
     try:
-        meter = rx_svc.meter_spec(
+        meter = rx_meter.meter_spec(
             machine, plan, body.speed_min_kmh, body.speed_max_kmh, body.width_m, body.calibration
         )
-        spec = rx_svc.NewPrescription(
+        spec = rx_create.NewPrescription(
             name=name,
             product=body.product,
             model="ndvi",
@@ -405,7 +407,7 @@ def _create_rx(
                 **extra_source,
             },
         )
-        rx = rx_svc.create_prescription(
+        rx = rx_create.create_prescription(
             session,
             plan,
             field,
@@ -417,7 +419,7 @@ def _create_rx(
         session.rollback()
         raise ApiError(422, str(exc)) from exc
     session.commit()
-    return rx_svc.prescription_summary(session, rx)
+    return rx_versions.prescription_summary(session, rx)
 
 
 @router.post("/imagery/{imagery_id:int}/zones", status_code=201, response_model=PrescriptionOut)

@@ -39,6 +39,7 @@ from fieldrx.geo import PlanningError
 from fieldrx.geo.planning.kinematics import DEFAULT_HEADLAND_PASSES
 from fieldrx.services import imports as svc
 from fieldrx.services import spool
+from fieldrx.services import timelog_import as timelog_svc
 from fieldrx.services.bounded import run_bounded
 from fieldrx.services.plans import PlanParams, check_plan_cost
 from fieldrx.settings import get_settings
@@ -360,7 +361,7 @@ def import_timelog(
     session.rollback()  # no transaction of the server stays open while the worker runs
     with spool.spool_dir() as folder:
         spooled, sha, names = _spool_files(files, folder)
-        req = svc.TimelogRequest(
+        req = timelog_svc.TimelogRequest(
             database_url=session.get_bind().engine.url.render_as_string(hide_password=False),
             files=spooled,
             source_name=names,
@@ -373,7 +374,7 @@ def import_timelog(
         )
         try:
             out = run_bounded(
-                svc.timelog_in_worker,
+                timelog_svc.timelog_in_worker,
                 req,
                 time_limit_s=settings.import_time_limit_s,
                 what="the TimeLog import",
@@ -488,7 +489,7 @@ def import_asapplied_table(
     if width_m is None:
         raise ApiError(422, "give the working width width_m", where="width_m")
     try:
-        created = svc.store_timelogs(
+        created = timelog_svc.store_timelogs(
             session, [log], rx, principal.organisation_id, principal.user_id, width_m, fname
         )
     except FormatError as exc:

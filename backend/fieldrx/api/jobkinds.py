@@ -18,7 +18,7 @@ from fieldrx.api.common import ApiError
 from fieldrx.db.models import Field, Job, JobEvent, Machine, Plan
 from fieldrx.fleet.jobstate import notify_job
 from fieldrx.services.implements import job_refusal
-from fieldrx.services.prescriptions import MeterSpec
+from fieldrx.services.prescriptions.meter import MeterSpec
 
 __all__ = [
     "CONTROLLERS",

@@ -34,8 +34,8 @@ from fieldrx.db.models import (
 )
 from fieldrx.db.models import Field as FieldRow
 from fieldrx.fleet.jobstate import change_state, lock_job, notify_job
-from fieldrx.services import prescriptions as rx_svc
 from fieldrx.services.imports import IMPORTED_IMPLEMENT
+from fieldrx.services.prescriptions import meter as rx_svc
 
 router = APIRouter(prefix="/jobs", tags=["jobs"], responses=ERRORS)
 

@@ -122,7 +122,7 @@ def get_route(plan_id: int, principal: UserDep, session: SessionDep) -> dict[str
 
 @router.get("/plans/{plan_id:int}/prescriptions", response_model=PrescriptionList)
 def list_plan_prescriptions(plan_id: int, principal: UserDep, session: SessionDep) -> dict:
-    from fieldrx.services.prescriptions import prescription_summary
+    from fieldrx.services.prescriptions.versions import prescription_summary
 
     plan = get_scoped(session, Plan, plan_id, principal)
     rows = session.scalars(

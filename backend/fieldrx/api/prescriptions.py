@@ -36,15 +36,19 @@ from fieldrx.db.models import Field as FieldRow
 from fieldrx.db.models import Machine, Plan, Prescription, PrescriptionVersion
 from fieldrx.formats import FormatError
 from fieldrx.services import exports
-from fieldrx.services import prescriptions as svc
 from fieldrx.services.evidence import delete_jobs, refuse_if_evidence
+from fieldrx.services.prescriptions import create as rx_create
+from fieldrx.services.prescriptions import edits as rx_edits
+from fieldrx.services.prescriptions import params as rx_params
+from fieldrx.services.prescriptions import samples as rx_samples
+from fieldrx.services.prescriptions import versions as rx_versions
 
 router = APIRouter(tags=["prescriptions"], responses=ERRORS)
 
 MAX_PAGE = 50_000
 BAD_INPUT = (
     FormatError,
-    svc.RxError,
+    rx_params.RxError,
     PrescriptionError,
     RateModelError,
     MeterRangeError,
@@ -84,7 +88,7 @@ def _store(
     """Build and store version 1 from ``body`` (one transaction; bad input: 422, nothing
     stored); ``extra`` goes to ``create_prescription`` (a cell source, its description)."""
     try:
-        rx = svc.create_from_request(
+        rx = rx_create.create_from_request(
             session,
             plan,
             field,
@@ -99,7 +103,7 @@ def _store(
         session.rollback()
         raise ApiError(422, str(exc)) from exc
     session.commit()
-    return svc.prescription_summary(session, rx)
+    return rx_versions.prescription_summary(session, rx)
 
 
 @router.post(
@@ -150,7 +154,7 @@ def create_soil_zones(
     field = _plan_field(session, plan)
     machine = _body_machine(session, body, principal)
     try:
-        source = svc.soil_zone_source(
+        source = rx_samples.soil_zone_source(
             session,
             field,
             body.model,
@@ -190,18 +194,20 @@ def list_prescriptions(
     if plan_id is not None:
         stmt = stmt.where(Prescription.plan_id == plan_id)
     rows = session.scalars(stmt.order_by(Prescription.id)).all()
-    return {"items": [svc.prescription_summary(session, r) for r in rows], "total": len(rows)}
+    items = [rx_versions.prescription_summary(session, r) for r in rows]
+    return {"items": items, "total": len(rows)}
 
 
 @router.get("/prescriptions/{rx_id:int}", response_model=PrescriptionOut)
 def get_prescription(rx_id: int, principal: UserDep, session: SessionDep) -> dict[str, Any]:
     """Current version's summary: area, product mass, mean/min/max, histogram, flags, CV RMSE."""
-    return svc.prescription_summary(session, get_scoped(session, Prescription, rx_id, principal))
+    rx = get_scoped(session, Prescription, rx_id, principal)
+    return rx_versions.prescription_summary(session, rx)
 
 
 def _version(session: SessionDep, rx: Prescription, version: int | None) -> PrescriptionVersion:
     try:
-        return svc.get_version(session, rx, version)
+        return rx_versions.get_version(session, rx, version)
     except LookupError as exc:
         raise ApiError(404, str(exc)) from exc
 
@@ -215,7 +221,7 @@ def list_versions(rx_id: int, principal: UserDep, session: SessionDep) -> dict[s
         .order_by(PrescriptionVersion.version)
     ).all()
     return {
-        "items": [svc.version_summary(v) for v in rows],
+        "items": [rx_versions.version_summary(v) for v in rows],
         "total": len(rows),
         "current_version": rx.current_version,
     }
@@ -224,7 +230,7 @@ def list_versions(rx_id: int, principal: UserDep, session: SessionDep) -> dict[s
 @router.get("/prescriptions/{rx_id:int}/versions/{version:int}", response_model=VersionDetail)
 def get_version(rx_id: int, version: int, principal: UserDep, session: SessionDep) -> dict:
     rx = get_scoped(session, Prescription, rx_id, principal)
-    return {"prescription_id": rx.id, **svc.version_summary(_version(session, rx, version))}
+    return {"prescription_id": rx.id, **rx_versions.version_summary(_version(session, rx, version))}
 
 
 @router.patch("/prescriptions/{rx_id:int}/versions/{version:int}", response_model=VersionDetail)
@@ -236,7 +242,7 @@ def patch_version(
     rx = get_scoped(session, Prescription, rx_id, principal)
     ver = _version(session, rx, version)
     try:
-        svc.patch_version(
+        rx_edits.patch_version(
             session,
             rx,
             ver,
@@ -248,7 +254,7 @@ def patch_version(
         session.rollback()
         raise ApiError(422, str(exc), where="breaks_kg_ha") from exc
     session.commit()
-    return {"prescription_id": rx.id, **svc.version_summary(ver)}
+    return {"prescription_id": rx.id, **rx_versions.version_summary(ver)}
 
 
 @router.put("/prescriptions/{rx_id:int}/current", response_model=PrescriptionOut)
@@ -259,11 +265,11 @@ def set_current(
     from, redo forward to the edit's version. No version is changed or deleted."""
     rx = get_scoped(session, Prescription, rx_id, principal)
     try:
-        svc.set_current(session, rx, body.version)
+        rx_versions.set_current(session, rx, body.version)
     except LookupError as exc:
         raise ApiError(404, str(exc), where="version") from exc
     session.commit()
-    return svc.prescription_summary(session, rx)
+    return rx_versions.prescription_summary(session, rx)
 
 
 @router.get("/prescriptions/{rx_id:int}/diff", response_model=VersionDiff)
@@ -279,7 +285,7 @@ def diff(
     rx = get_scoped(session, Prescription, rx_id, principal)
     va, vb = _version(session, rx, from_version), _version(session, rx, to_version)
     try:
-        return svc.diff_versions(session, rx, va, vb)
+        return rx_versions.diff_versions(session, rx, va, vb)
     except BAD_INPUT as exc:
         raise ApiError(422, str(exc)) from exc
 
@@ -300,7 +306,7 @@ def get_cells(
     assert plan is not None
     return {
         "type": "FeatureCollection",
-        "features": svc.rates_page(session, plan.id, ver.id, limit, offset),
+        "features": rx_versions.rates_page(session, plan.id, ver.id, limit, offset),
         "total": plan.n_cells,
         "version": ver.version,
         "limit": limit,
@@ -316,12 +322,12 @@ def edit(rx_id: int, body: EditIn, principal: WriterDep, session: SessionDep) ->
     plan = session.get(Plan, rx.plan_id)
     assert plan is not None
     try:
-        ver, changed = svc.edit_prescription(
+        ver, changed = rx_edits.edit_prescription(
             session,
             rx,
             plan,
             _plan_field(session, plan),
-            svc.RateEdit(
+            rx_edits.RateEdit(
                 cells=None if body.cells is None else [(c.seq, c.rate_kg_ha) for c in body.cells],
                 zone=body.zone,
                 zone_rate_kg_ha=body.rate_kg_ha,
@@ -337,7 +343,7 @@ def edit(rx_id: int, body: EditIn, principal: WriterDep, session: SessionDep) ->
         session.rollback()
         raise ApiError(422, str(exc)) from exc
     session.commit()
-    out = svc.prescription_summary(session, rx)
+    out = rx_versions.prescription_summary(session, rx)
     out["edited_cells"] = changed
     out["new_version"] = ver.version
     return out

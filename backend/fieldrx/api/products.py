@@ -22,7 +22,7 @@ from fieldrx.api.schemas.products import (
 from fieldrx.auth.deps import AdminDep, SessionDep, UserDep, WriterDep
 from fieldrx.db.models import Field, Organisation, Product
 from fieldrx.services import products as svc
-from fieldrx.services.prescriptions import form_defaults
+from fieldrx.services.prescriptions.params import form_defaults
 
 router = APIRouter(tags=["products"], responses=ERRORS)
 

@@ -2,7 +2,7 @@
 
 A thin agent (``fieldrx_edge.uplink.thin``) sends its 1 Hz track as ordinary
 telemetry (``fleet.ingest``) and, on a stream of their own, one
-``protocol.CellRecord`` per cell it left, in cell batches (format 3,
+``cell_records.CellRecord`` per cell it left, in cell batches (format 3,
 ``"kind": "cells"``). They are stored here, in ``job_cell_records`` (kept
 forever, whatever the telemetry retention), with the semantics of the
 telemetry ingest (``fleet.ingest``'s stages), so nothing is lost or stored
@@ -36,7 +36,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import psycopg
-from fieldrx_edge.protocol import ALARMS, CELL_FIELDS, INT4_MAX, CellRecord
+from fieldrx_edge.cell_records import CELL_FIELDS, CellRecord
+from fieldrx_edge.protocol import ALARMS, INT4_MAX
 from sqlalchemy import text
 from sqlalchemy.orm import Session
 

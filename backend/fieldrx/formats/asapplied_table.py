@@ -6,7 +6,7 @@ rows (a zipped Shapefile through the bounded archive reader, or a CSV),
 ``table_columns`` lists the numeric columns with suggestions for the
 preview, and ``to_timelog`` turns the mapped rows into the same ``TimeLog``
 an ISO 11783-10 TimeLog becomes, so one storing path
-(``services.imports.store_timelogs``) serves both.
+(``services.timelog_import.store_timelogs``) serves both.
 
 Mapping: ``rate_column`` and its ``unit`` (kg/ha, lb/ac, g/m2, t/ha),
 optional ``target_column`` (same unit), ``work_state_column`` (non-zero =

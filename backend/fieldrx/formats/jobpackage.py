@@ -20,8 +20,8 @@ from typing import Any, TypedDict
 
 import numpy as np
 import shapely
+from fieldrx_edge.job_package import ControllerSettings, JobPackage
 from fieldrx_edge.metering import Calibration, calibration_from_dict
-from fieldrx_edge.protocol import ControllerSettings, JobPackage
 
 from fieldrx.agronomy.cells import CellTable
 from fieldrx.formats import FormatError

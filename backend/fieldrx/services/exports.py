@@ -9,7 +9,8 @@ from geoalchemy2.shape import to_shape
 from sqlalchemy.orm import Session
 
 from fieldrx.db.models import Field, Plan, Prescription, PrescriptionVersion
-from fieldrx.services.prescriptions import RxError, rx_rate_unit, version_cells
+from fieldrx.services.prescriptions.params import RxError, rx_rate_unit
+from fieldrx.services.prescriptions.versions import version_cells
 
 FORMATS = ("geojson", "csv", "shapefile", "isoxml", "isoxml-zones")
 

@@ -4,7 +4,7 @@ A job is checked against its machine when it is created and again when it is sen
 seeding-depth job (seed 002) needs a seeder with a depth actuator and a depth sensor, an
 NDVI topdressing job (seed 000) an implement that applies fertiliser and canopy (NDVI)
 sensors. The meter range (seed 001 eq. 1-3) is checked on the rates themselves
-(``services.prescriptions.job_attention``). No database here: the machine's row is read by
+(``services.prescriptions.meter.job_attention``). No database here: the machine's row is read by
 the caller.
 """
 

@@ -3,7 +3,7 @@
 
 For the fleet helper's ``/api/v1/device/jobs/{id}/package``: call
 
-    build_job_package(session, job) -> fieldrx_edge.protocol.JobPackage   (sealed)
+    build_job_package(session, job) -> fieldrx_edge.job_package.JobPackage   (sealed)
 
 or, without a job row, ``build_package(session, prescription_id, version, machine, job_id=0)``.
 Cells come from ``plan_cells`` in path order (UTM corners straight from
@@ -21,12 +21,13 @@ from __future__ import annotations
 
 from typing import Any
 
-from fieldrx_edge.protocol import JobPackage
+from fieldrx_edge.job_package import JobPackage
 from sqlalchemy.orm import Session
 
 from fieldrx.db.models import Field, Job, Machine, Plan, Prescription
 from fieldrx.services.plans import field_utm
-from fieldrx.services.prescriptions import get_version, rx_rate_unit, version_cells
+from fieldrx.services.prescriptions.params import rx_rate_unit
+from fieldrx.services.prescriptions.versions import get_version, version_cells
 from fieldrx.store import load_cells
 
 

@@ -114,7 +114,7 @@ def _export_file(
         data, media, name = export_job(session, job, rep, p["format"])
         return data, media, name, {"job_id": job.id}
     from fieldrx.services import exports
-    from fieldrx.services.prescriptions import get_version
+    from fieldrx.services.prescriptions.versions import get_version
 
     rx = session.get(Prescription, int(p.get("rx_id") or 0))
     if rx is None or rx.organisation_id != org:

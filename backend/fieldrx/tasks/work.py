@@ -72,7 +72,7 @@ def plan_child(database_url: str, task_id: int, time_limit_s: float) -> dict[str
 def _rx_work(
     session: Session, params: dict[str, Any], org: int, user: int | None, progress: Progress
 ) -> tuple[dict[str, Any], str]:
-    from fieldrx.services import prescriptions as svc
+    from fieldrx.services.prescriptions import create as svc
 
     b = params["body"]
     plan = _scoped(session, Plan, params.get("plan_id"), org, "plan")

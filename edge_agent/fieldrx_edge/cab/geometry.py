@@ -14,8 +14,8 @@ import math
 from typing import Any
 
 from fieldrx_edge.gnss.utm import UtmProjection
+from fieldrx_edge.job_package import JobPackage
 from fieldrx_edge.metering import calibration_from_dict
-from fieldrx_edge.protocol import JobPackage
 
 
 def _ring_area(xy: list[float]) -> float:

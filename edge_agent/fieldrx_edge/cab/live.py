@@ -18,7 +18,7 @@ from typing import Any
 
 from fieldrx_edge.cab.geometry import JobGeometry
 from fieldrx_edge.cab.operator import Operator
-from fieldrx_edge.protocol import JobPackage
+from fieldrx_edge.job_package import JobPackage
 
 # what the screen latches and how it names it; record alarms map to these
 ALARM_LABELS: dict[str, str] = {

@@ -27,7 +27,7 @@ import threading
 import time
 from typing import Any
 
-from fieldrx_edge.protocol import JobPackage
+from fieldrx_edge.job_package import JobPackage
 
 
 def simulate_kind(a: argparse.Namespace, job: JobPackage) -> int:

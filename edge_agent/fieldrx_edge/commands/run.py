@@ -11,8 +11,8 @@ import time
 from typing import Any
 
 from fieldrx_edge.commands.sessions import open_session
+from fieldrx_edge.job_package import JobPackage
 from fieldrx_edge.jobs import JobStore, pull
-from fieldrx_edge.protocol import JobPackage
 from fieldrx_edge.session import JobSession, UplinkOptions, load_job
 
 log = logging.getLogger("fieldrx_edge")
@@ -186,9 +186,10 @@ def open_can(a: argparse.Namespace) -> Any:
 
 def isobus_implement(a: argparse.Namespace, job: JobPackage) -> Any:
     """The TC server on ``--can`` standing where the motor loop stands."""
+    from fieldrx_edge.isobus.implement import IsobusImplement
     from fieldrx_edge.isobus.network import Node
     from fieldrx_edge.isobus.pair import tc_name
-    from fieldrx_edge.isobus.tc_server import IsobusImplement, TaskControllerServer
+    from fieldrx_edge.isobus.tc_server import TaskControllerServer
 
     if not a.can:
         raise SystemExit("--implement isobus needs --can INTERFACE:CHANNEL (e.g. socketcan:can0)")
@@ -258,8 +259,8 @@ def ecu_session(a: argparse.Namespace, job: JobPackage) -> JobSession:
 
 def _ecu_config(a: argparse.Namespace) -> tuple[Any, float, Any, JobSession | None]:
     """Calibration, width, controller settings and session: the job's with ``--job``."""
+    from fieldrx_edge.job_package import ControllerSettings
     from fieldrx_edge.metering import LinearCalibration, calibration_from_dict
-    from fieldrx_edge.protocol import ControllerSettings
 
     session = None
     if a.job:

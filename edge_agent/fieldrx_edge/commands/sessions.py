@@ -10,8 +10,8 @@ import json
 from pathlib import Path
 from typing import Any
 
+from fieldrx_edge.job_package import JobPackage
 from fieldrx_edge.jobs import JobStore
-from fieldrx_edge.protocol import JobPackage
 from fieldrx_edge.session import JobSession, UplinkOptions
 
 

@@ -127,9 +127,9 @@ def cmd_replay(a: argparse.Namespace) -> int:
 
 def cmd_ndvi(a: argparse.Namespace) -> int:
     from fieldrx_edge.gnss.sources import open_source
+    from fieldrx_edge.job_package import ControllerSettings
     from fieldrx_edge.motor import MotorLoop, build_controller, simulated_motor
     from fieldrx_edge.ndvi import GnssSpeed, NdviMode, run_ndvi
-    from fieldrx_edge.protocol import ControllerSettings
 
     mode = NdviMode(width_m=a.width)
     speed: Any = (

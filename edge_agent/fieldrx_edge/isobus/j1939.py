@@ -47,6 +47,17 @@ FUNCTION_RATE_CONTROL = 128  # "machine control" (non-specific implement ECU)
 INDUSTRY_GROUP_AGRICULTURE = 2
 
 
+def pgn3(pgn: int) -> bytes:
+    """A PGN as the 3 little-endian bytes requests, acknowledgements and transport
+    protocol messages carry."""
+    return bytes((pgn & 0xFF, (pgn >> 8) & 0xFF, (pgn >> 16) & 0xFF))
+
+
+def u24(b: bytes) -> int:
+    """The 3-byte little-endian number at the start of ``b`` (a PGN, a packet offset)."""
+    return b[0] | b[1] << 8 | b[2] << 16
+
+
 def encode_id(pgn: int, sa: int, da: int = GLOBAL_ADDRESS, priority: int = 6) -> int:
     """29-bit identifier for a PGN from ``sa`` to ``da`` (da ignored for PDU2 PGNs)."""
     pf = (pgn >> 8) & 0xFF

@@ -26,43 +26,18 @@ address, bytes 5-7 the PGN; sent to global), so the requester need not wait for 
 time-out. Global requests for unknown PGNs get no answer (the standard forbids NACKing
 them).
 
-Transport protocol (ISO 11783-3 sec. 5.10, J1939-21 sec. 5.10), 9..1785 bytes, PGN
-0xEC00 connection management, data in PGN 0xEB00 frames (byte 0 sequence 1..255, 7 data
-bytes, last frame padded with 0xFF):
+Multi-frame transfers (TP, BAM, ETP) are ``transfers.TransportLink``'s, the frame layer
+``link.Link``'s; a ``Node`` is both.
 
-    RTS   0x10 | size (2) | packets | max packets per CTS | PGN (3)
-    CTS   0x11 | packets that may be sent | next packet | 0xFF 0xFF | PGN (3)
-    EoMA  0x13 | size (2) | packets | 0xFF | PGN (3)
-    BAM   0x20 | size (2) | packets | 0xFF | PGN (3)       (to global; 50..200 ms per packet)
-    Abort 0xFF | reason | 0xFF 0xFF 0xFF | PGN (3)
-
-Extended transport protocol (ISO 11783-3 sec. 5.11), over 1785 bytes, destination
-specific, PGN 0xC800 connection management, data in PGN 0xC700 frames:
-
-    RTS   0x14 | size (4) | PGN (3)
-    CTS   0x15 | packets that may be sent | next packet number (3) | PGN (3)
-    DPO   0x16 | packets in this block | packet offset (3) | PGN (3)
-    EoMA  0x17 | size (4) | PGN (3)
-    Abort 0xFF | reason | 0xFF 0xFF 0xFF | PGN (3)
-
-A data frame's sequence number counts from 1 after the last DPO; packet number = offset +
-sequence. Abort reasons used: 1 already in a session, 3 timeout, 6 unexpected data
-transfer, 7 bad sequence number, 9 size out of range (J1939-21 Table 7).
-
-Public descriptions used: AgIsoStack++ ``can_address_claim_state_machine.cpp``,
-``can_transport_protocol.cpp``, ``can_extended_transport_protocol.cpp`` (multiplexor
-constants 0x14-0x17, 0xFF; DPO byte layout) and its Concepts page; the Rust ``j1939``
-crate's ``transport.rs`` (TP multiplexors 0x10/0x11/0x13/0x20/0xFF, 1785-byte limit).
+Public descriptions used: AgIsoStack++ ``can_address_claim_state_machine.cpp`` and its
+Concepts page.
 """
 
 from __future__ import annotations
 
 import logging
-import math
-import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
 from typing import Any
 
 from fieldrx_edge.isobus.j1939 import (
@@ -77,107 +52,18 @@ from fieldrx_edge.isobus.j1939 import (
     PGN_TP_DT,
     Name,
     decode_id,
-    encode_id,
+    pgn3,
+    u24,
 )
+from fieldrx_edge.isobus.link import Message
+from fieldrx_edge.isobus.transfers import BAM_GAP_S, OutgoingTransfer, TransportLink
 
 log = logging.getLogger(__name__)
 
-TP_MAX = 1785
-ETP_MAX = 117_440_505
 CLAIM_WAIT_S = 0.25
-T1_S = 0.75  # receiver: gap between data frames
-T2_S = 1.25  # receiver: data after CTS
-T3_S = 1.25  # sender: CTS / EoMA after the last data frame
-BAM_GAP_S = 0.05
-
-ABORT_BUSY = 1
-ABORT_TIMEOUT = 3
-ABORT_UNEXPECTED_DT = 6
-ABORT_BAD_SEQUENCE = 7
-ABORT_SIZE = 9
 
 
-@dataclass
-class Message:
-    """One complete message: a single frame or a reassembled transfer."""
-
-    pgn: int
-    data: bytes
-    sa: int
-    da: int
-    priority: int = 6
-    t: float = 0.0
-
-
-@dataclass
-class NodeStats:
-    frames_rx: int = 0
-    frames_tx: int = 0
-    messages_rx: int = 0
-    malformed: int = 0
-    tx_errors: int = 0
-    rx_errors: int = 0
-    aborts_rx: int = 0
-    aborts_tx: int = 0
-    handler_errors: int = 0
-    transfers_rx: int = 0
-    transfers_tx: int = 0
-    address_conflicts: int = 0
-    error_frames: int = 0
-
-    def to_dict(self) -> dict[str, int]:
-        return dict(self.__dict__)
-
-
-def _pgn3(pgn: int) -> bytes:
-    return bytes((pgn & 0xFF, (pgn >> 8) & 0xFF, (pgn >> 16) & 0xFF))
-
-
-def _u24(b: bytes) -> int:
-    return b[0] | b[1] << 8 | b[2] << 16
-
-
-@dataclass
-class _Rx:
-    """A transfer being received (TP CMDT, BAM or ETP)."""
-
-    kind: str  # "tp", "bam", "etp"
-    pgn: int
-    size: int
-    sa: int
-    da: int
-    buf: bytearray
-    packets: int
-    window_end: int = 0  # last packet number of the current CTS window
-    next_packet: int = 1  # packet number expected next
-    offset: int = 0  # ETP: packet offset of the current DPO block
-    last_t: float = 0.0
-
-
-@dataclass
-class _Tx:
-    """A transfer being sent."""
-
-    kind: str
-    pgn: int
-    data: bytes
-    da: int
-    priority: int
-    packets: int
-    state: str = "wait_cts"  # wait_cts, send, wait_eoma, bam, done, failed
-    to_send: list[int] = field(default_factory=list)
-    last_t: float = 0.0
-    done: threading.Event = field(default_factory=threading.Event)
-    ok: bool = False
-    error: str = ""
-
-    def finish(self, ok: bool, error: str = "") -> None:
-        self.ok, self.error = ok, error
-        self.state = "done" if ok else "failed"
-        self.done.set()
-
-
-class Node:
+class Node(TransportLink):
     """One ISO 11783 control function on a python-can bus (see module docstring)."""
 
     def __init__(
@@ -190,73 +76,16 @@ class Node:
         cts_window: int = 16,
         bam_gap_s: float = BAM_GAP_S,
     ) -> None:
-        self.bus = bus
+        super().__init__(bus, clock, label, cts_window, bam_gap_s)
         self.name = name
         self.preferred_address = preferred_address & 0xFF
-        self.clock = clock
-        self.label = label
-        self.cts_window = max(1, min(255, int(cts_window)))
-        self.bam_gap_s = bam_gap_s
-        self.address = NULL_ADDRESS
         self._claiming = NULL_ADDRESS
         self._claim_t = 0.0
         self.state = "idle"  # idle, claiming, claimed, failed
         self.peers: dict[int, Name] = {}
-        self.handlers: list[Callable[[Message], None]] = []
         # PGN -> answer a request from ``sa`` (the PGNs this node provides on request)
         self.responders: dict[int, Callable[[int], None]] = {}
         self.on_address_change: list[Callable[[int, int], None]] = []
-        self.stats = NodeStats()
-        self.alarms: set[str] = set()
-        self.bus_ok = True
-        self._consecutive_tx_errors = 0
-        self._rx: dict[tuple[int, int], _Rx] = {}
-        self._tx: dict[tuple[int, int], _Tx] = {}  # (da, 0) -> session; BAM keyed (0xFF, 1)
-        self.lock = threading.RLock()  # also taken by the roles built on this node
-        self._last_warn: dict[str, float] = {}
-
-    # -- frames ------------------------------------------------------------
-
-    def _warn(self, key: str, msg: str, *args: Any) -> None:
-        """Log at most once a second per kind: a babbling bus must not flood the log."""
-        now = time.monotonic()
-        if now - self._last_warn.get(key, -10.0) >= 1.0:
-            self._last_warn[key] = now
-            log.warning("[%s] " + msg, self.label, *args)
-
-    def send_frame(
-        self,
-        pgn: int,
-        data: bytes,
-        da: int = GLOBAL_ADDRESS,
-        priority: int = 6,
-        sa: int | None = None,
-    ) -> bool:
-        """One CAN frame; a bus error is counted and alarmed, never raised."""
-        import can
-
-        src = self.address if sa is None else sa
-        msg = can.Message(
-            arbitration_id=encode_id(pgn, src, da, priority),
-            data=bytes(data),
-            is_extended_id=True,
-        )
-        try:
-            self.bus.send(msg, timeout=0.05)
-        except (can.CanError, OSError, ValueError) as e:
-            self.stats.tx_errors += 1
-            self._consecutive_tx_errors += 1
-            if self._consecutive_tx_errors >= 3:
-                self.bus_ok = False
-                self.alarms.add("isobus_bus_off")
-            self._warn("tx", "CAN send failed (%s): %s", type(e).__name__, e)
-            return False
-        self.stats.frames_tx += 1
-        if self._consecutive_tx_errors or not self.bus_ok:  # the controller recovered
-            self._consecutive_tx_errors = 0
-            self.bus_ok = True
-            self.alarms.discard("isobus_bus_off")
-        return True
 
     # -- public API ----------------------------------------------------------
 
@@ -270,14 +99,9 @@ class Node:
     def claimed(self) -> bool:
         return self.state == "claimed"
 
-    @property
-    def open_transfers(self) -> tuple[int, int]:
-        """(being received, being sent) multi-frame transfers."""
-        return len(self._rx), len(self._tx)
-
     def send(
         self, pgn: int, data: bytes, da: int = GLOBAL_ADDRESS, priority: int = 6
-    ) -> _Tx | None:
+    ) -> OutgoingTransfer | None:
         """Send a message of any size: one frame, TP (CMDT/BAM) or ETP.
 
         Returns the transfer session for multi-frame messages (``done`` is set when the
@@ -290,46 +114,13 @@ class Node:
             if len(data) <= 8:
                 self.send_frame(pgn, data, da, priority)
                 return None
-            now = self.clock()
-            if len(data) <= TP_MAX:
-                packets = math.ceil(len(data) / 7)
-                if da == GLOBAL_ADDRESS:
-                    tx = _Tx("bam", pgn, data, da, priority, packets, state="bam", last_t=now)
-                    tx.to_send = list(range(1, packets + 1))
-                    self._tx[(GLOBAL_ADDRESS, 1)] = tx
-                    size = len(data).to_bytes(2, "little")
-                    self.send_frame(PGN_TP_CM, b"\x20" + size + bytes((packets, 0xFF)) + _pgn3(pgn))
-                    tx.last_t = now - self.bam_gap_s  # first packet one gap after the BAM
-                    return tx
-                tx = _Tx("tp", pgn, data, da, priority, packets, last_t=now)
-                old = self._tx.get((da, 0))
-                if old is not None and not old.done.is_set():
-                    old.finish(False, "replaced")
-                self._tx[(da, 0)] = tx
-                size = len(data).to_bytes(2, "little")
-                rts = b"\x10" + size + bytes((packets, 0xFF)) + _pgn3(pgn)
-                self.send_frame(PGN_TP_CM, rts, da, 7)
-                self.stats.transfers_tx += 1
-                return tx
-            if len(data) > ETP_MAX or da == GLOBAL_ADDRESS:
-                raise ValueError("ETP is destination specific and limited to 117440505 bytes")
-            packets = math.ceil(len(data) / 7)
-            tx = _Tx("etp", pgn, data, da, priority, packets, last_t=now)
-            old = self._tx.get((da, 0))
-            if old is not None and not old.done.is_set():
-                old.finish(False, "replaced")
-            self._tx[(da, 0)] = tx
-            self.send_frame(
-                PGN_ETP_CM, b"\x14" + len(data).to_bytes(4, "little") + _pgn3(pgn), da, 7
-            )
-            self.stats.transfers_tx += 1
-            return tx
+            return self._start_transfer(pgn, data, da, priority)
 
     def request(self, pgn: int, da: int = GLOBAL_ADDRESS) -> None:
         """ISO 11783-3 request (PGN 0xEA00) for ``pgn``."""
         with self.lock:
             sa = self.address if self.claimed else NULL_ADDRESS
-            self.send_frame(PGN_REQUEST, _pgn3(pgn), da, 6, sa=sa)
+            self.send_frame(PGN_REQUEST, pgn3(pgn), da, 6, sa=sa)
 
     def poll(self, timeout: float = 0.0, max_frames: int = 1000) -> int:
         """Handle waiting frames (blocking up to ``timeout`` for the first), run timers."""
@@ -355,12 +146,6 @@ class Node:
                 msg = None
         self.update()
         return n
-
-    def close(self) -> None:
-        try:
-            self.bus.shutdown()
-        except Exception:  # already closed
-            pass
 
     # -- frame handling ------------------------------------------------------
 
@@ -409,11 +194,11 @@ class Node:
             if len(data) < 3:
                 self.stats.malformed += 1
                 return
-            if _u24(data) == PGN_ADDRESS_CLAIM and da in (GLOBAL_ADDRESS, self.address):
+            if u24(data) == PGN_ADDRESS_CLAIM and da in (GLOBAL_ADDRESS, self.address):
                 self._send_claim()
                 return
             if self.claimed and da in (GLOBAL_ADDRESS, self.address) and sa != self.address:
-                self._on_request(_u24(data), sa, da)
+                self._on_request(u24(data), sa, da)
         if self.claimed and sa == self.address:
             # someone else transmits with our source address: re-assert our claim
             self.stats.address_conflicts += 1
@@ -443,17 +228,8 @@ class Node:
 
     def nack(self, pgn: int, requester: int) -> None:
         """Negative acknowledgement of ``pgn`` to ``requester`` (module docstring)."""
-        data = bytes((0x01, 0xFF, 0xFF, 0xFF, requester & 0xFF)) + _pgn3(pgn)
+        data = bytes((0x01, 0xFF, 0xFF, 0xFF, requester & 0xFF)) + pgn3(pgn)
         self.send_frame(PGN_ACKNOWLEDGE, data, GLOBAL_ADDRESS, 6)
-
-    def _deliver(self, msg: Message) -> None:
-        self.stats.messages_rx += 1
-        for h in list(self.handlers):
-            try:
-                h(msg)
-            except Exception:  # noqa: BLE001
-                self.stats.handler_errors += 1
-                log.exception("[%s] handler failed on PGN 0x%04X", self.label, msg.pgn)
 
     # -- address claim -------------------------------------------------------
 
@@ -523,196 +299,6 @@ class Node:
         for cb in self.on_address_change:
             cb(old, NULL_ADDRESS)
 
-    # -- transport protocol ----------------------------------------------------
-
-    def _abort(self, cm_pgn: int, da: int, reason: int, pgn: int) -> None:
-        self.stats.aborts_tx += 1
-        self.send_frame(cm_pgn, bytes((0xFF, reason, 0xFF, 0xFF, 0xFF)) + _pgn3(pgn), da, 7)
-
-    def _on_tp_cm(self, sa: int, da: int, d: bytes, now: float) -> None:
-        if len(d) < 8:
-            self.stats.malformed += 1
-            return
-        mux, pgn = d[0], _u24(d[5:8])
-        if mux == 0x10 and da == self.address:  # RTS
-            size = d[1] | d[2] << 8
-            packets = d[3]
-            if not (9 <= size <= TP_MAX) or packets != math.ceil(size / 7):
-                self._abort(PGN_TP_CM, sa, ABORT_SIZE, pgn)
-                return
-            if (sa, 0) in self._rx:
-                log.info("[%s] new RTS from 0x%02X replaces an open transfer", self.label, sa)
-            rx = _Rx("tp", pgn, size, sa, da, bytearray(packets * 7), packets, last_t=now)
-            self._rx[(sa, 0)] = rx
-            self._send_cts(rx, d[4] if d[4] else 255)
-        elif mux == 0x20 and da == GLOBAL_ADDRESS:  # BAM
-            size = d[1] | d[2] << 8
-            packets = d[3]
-            if not (9 <= size <= TP_MAX) or packets != math.ceil(size / 7):
-                self.stats.malformed += 1
-                return
-            self._rx[(sa, 1)] = _Rx(
-                "bam", pgn, size, sa, da, bytearray(packets * 7), packets, packets, 1, 0, now
-            )
-        elif mux == 0x11 and da == self.address:  # CTS for our transfer
-            tx = self._tx.get((sa, 0))
-            if tx is None or tx.kind != "tp" or tx.state in ("done", "failed"):
-                self._abort(PGN_TP_CM, sa, ABORT_UNEXPECTED_DT, pgn)
-                return
-            n, nxt = d[1], d[2]
-            tx.last_t = now
-            if n == 0:
-                tx.state = "wait_cts"  # hold
-                return
-            if not 1 <= nxt <= tx.packets:
-                self._abort(PGN_TP_CM, sa, ABORT_BAD_SEQUENCE, pgn)
-                tx.finish(False, "bad CTS")
-                return
-            tx.to_send = list(range(nxt, min(tx.packets, nxt + n - 1) + 1))
-            tx.state = "send"
-            self._pump_tx(tx, now)
-        elif mux == 0x13 and da == self.address:  # EoMA
-            tx = self._tx.pop((sa, 0), None)
-            if tx is not None and tx.kind == "tp":
-                tx.finish(True)
-        elif mux == 0xFF:
-            self.stats.aborts_rx += 1
-            tx = self._tx.pop((sa, 0), None)
-            if tx is not None:
-                tx.finish(False, f"aborted by receiver, reason {d[1]}")
-            self._rx.pop((sa, 0), None)
-            self._warn("abort", "TP abort from 0x%02X reason %d PGN 0x%04X", sa, d[1], pgn)
-        else:
-            self.stats.malformed += 1
-
-    def _send_cts(self, rx: _Rx, max_per_cts: int) -> None:
-        remaining = rx.packets - rx.next_packet + 1
-        n = min(remaining, self.cts_window, max_per_cts)
-        rx.window_end = rx.next_packet + n - 1
-        if rx.kind == "tp":
-            cts = bytes((0x11, n, rx.next_packet, 0xFF, 0xFF)) + _pgn3(rx.pgn)
-            self.send_frame(PGN_TP_CM, cts, rx.sa, 7)
-        else:
-            cts = bytes((0x15, n)) + rx.next_packet.to_bytes(3, "little") + _pgn3(rx.pgn)
-            self.send_frame(PGN_ETP_CM, cts, rx.sa, 7)
-
-    def _on_etp_cm(self, sa: int, da: int, d: bytes, now: float) -> None:
-        if len(d) < 8:
-            self.stats.malformed += 1
-            return
-        mux, pgn = d[0], _u24(d[5:8])
-        if da != self.address:
-            return
-        if mux == 0x14:  # RTS
-            size = int.from_bytes(d[1:5], "little")
-            if not (TP_MAX < size <= ETP_MAX):
-                self._abort(PGN_ETP_CM, sa, ABORT_SIZE, pgn)
-                return
-            packets = math.ceil(size / 7)
-            new = _Rx("etp", pgn, size, sa, da, bytearray(packets * 7), packets, last_t=now)
-            self._rx[(sa, 0)] = new
-            self._send_cts(new, 255)
-        elif mux == 0x16:  # DPO
-            rx = self._rx.get((sa, 0))
-            if rx is None or rx.kind != "etp":
-                self._abort(PGN_ETP_CM, sa, ABORT_UNEXPECTED_DT, pgn)
-                return
-            rx.offset = _u24(d[2:5])
-            rx.last_t = now
-            if rx.offset + 1 != rx.next_packet:
-                self._abort(PGN_ETP_CM, sa, ABORT_BAD_SEQUENCE, pgn)
-                self._rx.pop((sa, 0), None)
-        elif mux == 0x15:  # CTS
-            self._on_etp_cts(sa, d, pgn, now)
-        elif mux == 0x17:  # EoMA
-            tx = self._tx.pop((sa, 0), None)
-            if tx is not None and tx.kind == "etp":
-                tx.finish(True)
-        elif mux == 0xFF:
-            self.stats.aborts_rx += 1
-            tx = self._tx.pop((sa, 0), None)
-            if tx is not None:
-                tx.finish(False, f"aborted by receiver, reason {d[1]}")
-            self._rx.pop((sa, 0), None)
-            self._warn("abort", "ETP abort from 0x%02X reason %d PGN 0x%04X", sa, d[1], pgn)
-        else:
-            self.stats.malformed += 1
-
-    def _on_etp_cts(self, sa: int, d: bytes, pgn: int, now: float) -> None:
-        """An ETP clear-to-send from ``sa``: announce the window with a DPO, then send it."""
-        tx = self._tx.get((sa, 0))
-        if tx is None or tx.kind != "etp" or tx.state in ("done", "failed"):
-            self._abort(PGN_ETP_CM, sa, ABORT_UNEXPECTED_DT, pgn)
-            return
-        n, nxt = d[1], _u24(d[2:5])
-        tx.last_t = now
-        if n == 0:
-            tx.state = "wait_cts"
-            return
-        if not 1 <= nxt <= tx.packets:
-            self._abort(PGN_ETP_CM, sa, ABORT_BAD_SEQUENCE, pgn)
-            tx.finish(False, "bad CTS")
-            return
-        last = min(tx.packets, nxt + n - 1)
-        tx.to_send = list(range(nxt, last + 1))
-        dpo = bytes((0x16, len(tx.to_send))) + (nxt - 1).to_bytes(3, "little") + _pgn3(tx.pgn)
-        self.send_frame(PGN_ETP_CM, dpo, sa, 7)
-        tx.state = "send"
-        self._pump_tx(tx, now)
-
-    def _on_dt(self, kind: str, sa: int, da: int, d: bytes, now: float) -> None:
-        if len(d) < 8:
-            self.stats.malformed += 1
-            return
-        key = (sa, 1) if (kind == "tp" and da == GLOBAL_ADDRESS) else (sa, 0)
-        rx = self._rx.get(key)
-        if rx is None:
-            self.stats.malformed += 1  # data without a session (late, or a stray frame)
-            return
-        seq = d[0]
-        packet = seq if rx.kind != "etp" else rx.offset + seq
-        cm = PGN_ETP_CM if rx.kind == "etp" else PGN_TP_CM
-        if packet != rx.next_packet or packet > rx.window_end:
-            if rx.kind == "bam":
-                self._rx.pop(key, None)
-                self.stats.malformed += 1
-            else:
-                self._abort(cm, sa, ABORT_BAD_SEQUENCE, rx.pgn)
-                self._rx.pop(key, None)
-            return
-        i = (packet - 1) * 7
-        rx.buf[i : i + 7] = d[1:8]
-        rx.next_packet += 1
-        rx.last_t = now
-        if rx.next_packet > rx.packets:
-            self._rx.pop(key, None)
-            if rx.kind == "tp":
-                eoma = bytes((0x13,)) + rx.size.to_bytes(2, "little") + bytes((rx.packets, 0xFF))
-                self.send_frame(PGN_TP_CM, eoma + _pgn3(rx.pgn), sa, 7)
-            elif rx.kind == "etp":
-                eoma = b"\x17" + rx.size.to_bytes(4, "little") + _pgn3(rx.pgn)
-                self.send_frame(PGN_ETP_CM, eoma, sa, 7)
-            self.stats.transfers_rx += 1
-            self._deliver(Message(rx.pgn, bytes(rx.buf[: rx.size]), sa, da, 6, now))
-        elif rx.kind != "bam" and packet == rx.window_end:
-            self._send_cts(rx, 255)
-
-    def _pump_tx(self, tx: _Tx, now: float) -> None:
-        """Send the packets of the current CTS window back to back."""
-        dt_pgn = PGN_ETP_DT if tx.kind == "etp" else PGN_TP_DT
-        base = tx.to_send[0] - 1 if tx.to_send else 0
-        for p in tx.to_send:
-            chunk = tx.data[(p - 1) * 7 : p * 7]
-            chunk = chunk + b"\xff" * (7 - len(chunk))
-            seq = p if tx.kind == "tp" else p - base
-            if not self.send_frame(dt_pgn, bytes((seq,)) + chunk, tx.da, 7):
-                tx.finish(False, "bus error")
-                self._tx.pop((tx.da, 0), None)
-                return
-        tx.to_send = []
-        tx.state = "wait_eoma"
-        tx.last_t = now
-
     # -- timers ----------------------------------------------------------------
 
     def update(self) -> None:
@@ -725,33 +311,7 @@ class Node:
                 log.info("[%s] address 0x%02X claimed", self.label, self.address)
                 for cb in self.on_address_change:
                     cb(NULL_ADDRESS, self.address)
-            bam = self._tx.get((GLOBAL_ADDRESS, 1))
-            if bam is not None and bam.to_send and now - bam.last_t >= self.bam_gap_s:
-                p = bam.to_send.pop(0)
-                chunk = bam.data[(p - 1) * 7 : p * 7]
-                self.send_frame(PGN_TP_DT, bytes((p,)) + chunk + b"\xff" * (7 - len(chunk)))
-                bam.last_t = now
-                if not bam.to_send:
-                    self._tx.pop((GLOBAL_ADDRESS, 1), None)
-                    bam.finish(True)
-            for key, tx in list(self._tx.items()):
-                if tx.kind == "bam":
-                    continue
-                if now - tx.last_t > T3_S:  # no CTS / EoMA (J1939-21 T3; holds refresh it)
-                    cm = PGN_ETP_CM if tx.kind == "etp" else PGN_TP_CM
-                    self._abort(cm, tx.da, ABORT_TIMEOUT, tx.pgn)
-                    self._tx.pop(key, None)
-                    tx.finish(False, "timeout")
-                    self._warn("tout", "transfer to 0x%02X timed out (%s)", tx.da, tx.state)
-            for key, rx in list(self._rx.items()):
-                if now - rx.last_t > (T2_S if rx.kind != "bam" else T1_S):
-                    self._rx.pop(key, None)
-                    if rx.kind != "bam":
-                        cm = PGN_ETP_CM if rx.kind == "etp" else PGN_TP_CM
-                        self._abort(cm, rx.sa, ABORT_TIMEOUT, rx.pgn)
-                    self._warn("rtout", "transfer from 0x%02X timed out", rx.sa)
-
-    # -- helpers for tests and the bench --------------------------------------------
+            self._transfer_timers(now)
 
 
 def pump(nodes: list[Node], max_rounds: int = 10_000) -> int:

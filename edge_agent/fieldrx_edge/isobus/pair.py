@@ -14,10 +14,11 @@ import itertools
 import os
 from typing import Any
 
+from fieldrx_edge.isobus.implement import IsobusImplement
 from fieldrx_edge.isobus.j1939 import FUNCTION_RATE_CONTROL, FUNCTION_TASK_CONTROLLER, Name
 from fieldrx_edge.isobus.network import Node, pump
 from fieldrx_edge.isobus.rate_ecu import RateEcu
-from fieldrx_edge.isobus.tc_server import IsobusImplement, TaskControllerServer
+from fieldrx_edge.isobus.tc_server import TaskControllerServer
 from fieldrx_edge.isobus.transport import open_bus
 from fieldrx_edge.metering import calibration_from_dict
 

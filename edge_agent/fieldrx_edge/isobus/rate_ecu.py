@@ -37,7 +37,8 @@ from fieldrx_edge.isobus.j1939 import (
     PGN_PROCESS_DATA,
     PGN_WORKING_SET_MASTER,
 )
-from fieldrx_edge.isobus.network import Message, Node
+from fieldrx_edge.isobus.link import Message
+from fieldrx_edge.isobus.network import Node
 from fieldrx_edge.metering import rate_for_shaft_rpm, shaft_rpm_for_rate
 
 log = logging.getLogger(__name__)

@@ -50,8 +50,6 @@ server's version request, then the language command request).
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, field
-from typing import Any
 
 from fieldrx_edge.isobus import process_data as pdm
 from fieldrx_edge.isobus.ddop import (
@@ -70,9 +68,10 @@ from fieldrx_edge.isobus.j1939 import (
     PGN_MACHINE_SELECTED_SPEED,
     PGN_PROCESS_DATA,
     PGN_WORKING_SET_MASTER,
-    Name,
 )
-from fieldrx_edge.isobus.network import Message, Node
+from fieldrx_edge.isobus.link import Message
+from fieldrx_edge.isobus.network import Node
+from fieldrx_edge.isobus.tc_client import Client, first_binding
 from fieldrx_edge.isobus.tc_mapping import RateUnits, choose_rate, from_raw, to_raw, width_binding
 
 log = logging.getLogger(__name__)
@@ -82,56 +81,6 @@ CLIENT_TIMEOUT_S = 6.0
 REFRESH_S = 1.0
 CONTROL_STATE_MANUAL = 0
 CONTROL_STATE_AUTO = 1
-
-
-@dataclass
-class Client:
-    address: int
-    name: Name | None
-    last_task_t: float
-    version: int | None = None
-    pool_size: int = 0
-    pool: bytearray = field(default_factory=bytearray)
-    ddop: DeviceDescriptor | None = None
-    held: DeviceDescriptor | None = None  # the stored pool its structure label matched
-    active: bool = False
-    error: str = ""
-    kind: str = "mass"  # or "volume"
-    setpoint: Binding | None = None
-    actual: Binding | None = None
-    rpm: Binding | None = None
-    work_state: Binding | None = None
-    actual_ws: Binding | None = None
-    master: Binding | None = None  # DDI 289
-    section_state: Binding | None = None  # DDI 160
-    rx_state: Binding | None = None  # DDI 158
-    default_pd: Binding | None = None  # DDI 0xDFFF
-    width_pd: Binding | None = None  # DDI 67 as process data: its value is requested
-    speed: Binding | None = None
-    n_sections: int = 1
-    width_m: float | None = None
-    sections_auto: bool = True
-    rate_auto: bool = True
-    measurements_sent: bool = False
-    actual_rate_kg_ha: float | None = None
-    actual_rpm: float | None = None
-    actual_sections: list[bool] | None = None
-    actual_speed_m_s: float | None = None
-    values_rx: int = 0
-    sent: dict[int, int] = field(default_factory=dict)  # DDI -> last value sent
-    sent_t: float = -1e9
-
-    @property
-    def drivable(self) -> bool:
-        return self.setpoint is not None
-
-    @property
-    def sent_rate(self) -> int | None:
-        return self.sent.get(self.setpoint.ddi) if self.setpoint else None
-
-
-def _first(bs: list[Binding]) -> Binding | None:
-    return bs[0] if bs else None
 
 
 class TaskControllerServer:
@@ -541,14 +490,14 @@ class TaskControllerServer:
             )
         else:
             self.alarms.discard("isobus_cannot_drive")
-        c.rpm = _first(dd.find(pdm.DDI_ACTUAL_REVOLUTIONS))
-        c.work_state = _first(dd.find(pdm.DDI_SETPOINT_CONDENSED_WORK_STATE, settable=True))
-        c.actual_ws = _first(dd.find(pdm.DDI_ACTUAL_CONDENSED_WORK_STATE))
-        c.master = _first(dd.find(pdm.DDI_SETPOINT_WORK_STATE, settable=True))
-        c.section_state = _first(dd.find(pdm.DDI_SECTION_CONTROL_STATE))
-        c.rx_state = _first(dd.find(pdm.DDI_PRESCRIPTION_CONTROL_STATE))
-        c.default_pd = _first(dd.find(pdm.DDI_REQUEST_DEFAULT_PD))
-        c.speed = _first(dd.find(pdm.DDI_ACTUAL_SPEED))  # an implement's own ground speed
+        c.rpm = first_binding(dd.find(pdm.DDI_ACTUAL_REVOLUTIONS))
+        c.work_state = first_binding(dd.find(pdm.DDI_SETPOINT_CONDENSED_WORK_STATE, settable=True))
+        c.actual_ws = first_binding(dd.find(pdm.DDI_ACTUAL_CONDENSED_WORK_STATE))
+        c.master = first_binding(dd.find(pdm.DDI_SETPOINT_WORK_STATE, settable=True))
+        c.section_state = first_binding(dd.find(pdm.DDI_SECTION_CONTROL_STATE))
+        c.rx_state = first_binding(dd.find(pdm.DDI_PRESCRIPTION_CONTROL_STATE))
+        c.default_pd = first_binding(dd.find(pdm.DDI_REQUEST_DEFAULT_PD))
+        c.speed = first_binding(dd.find(pdm.DDI_ACTUAL_SPEED))  # an implement's own ground speed
         c.n_sections = max(1, min(16, len(dd.sections())))
         c.sections_auto = c.rate_auto = True
         anchor = c.setpoint or c.work_state
@@ -593,40 +542,3 @@ class TaskControllerServer:
             )
         else:
             self.alarms.discard("isobus_width_mismatch")
-
-
-class IsobusImplement:
-    """The TC server standing where the agent's ``motor.MotorLoop`` stands: the runtime
-    sets ``setpoint_rpm`` and reads ``rpm``/``duty`` as for a motor, and hands each
-    decision to ``on_decision`` (rate, sections, speed go on the bus; the TC's alarms go
-    into the record). ``run`` polls the bus until stopped."""
-
-    def __init__(self, tc: TaskControllerServer) -> None:
-        self.tc = tc
-        self.setpoint_rpm = 0.0
-        self.duty = 0.0  # the implement's own controller: not observable over ISOBUS
-        self.overruns = 0
-        self.decisions = 0
-
-    @property
-    def rpm(self) -> float:
-        c = self.tc.client
-        return c.actual_rpm if c is not None and c.actual_rpm is not None else 0.0
-
-    def on_decision(self, d: Any) -> None:
-        self.decisions += 1
-        self.tc.command(d.target_rate_kg_ha, d.metering, d.speed_m_s)
-        alarms = self.tc.alarm_list()
-        c = self.tc.client
-        if d.metering and (c is None or not c.drivable):
-            d.metering = False  # nothing can meter: say so in the record
-            d.target_rpm = 0.0
-            d.reason = "isobus_no_client" if c is None else "isobus_cannot_drive"
-        d.alarms.extend(a for a in alarms if a not in d.alarms)
-
-    def run(self, stop: Any) -> None:
-        node = self.tc.node
-        node.start()
-        while not stop.is_set():
-            node.poll(0.002)
-            self.tc.update()

@@ -11,8 +11,8 @@ import numpy as np
 
 from fieldrx_edge.estimate import KalmanSpeedFilter
 from fieldrx_edge.gnss.utm import UtmProjection
+from fieldrx_edge.job_package import JobPackage
 from fieldrx_edge.locate import FieldBoundary, locator_for_job
-from fieldrx_edge.protocol import JobPackage
 from fieldrx_edge.sim.simulator import SimConfig, build_path, speed_profile
 
 

@@ -97,13 +97,13 @@ import numpy as np
 
 from fieldrx_edge.control import PID, FuzzyPID
 from fieldrx_edge.depth import DEPTH_PID_GAINS, TABLE2_FACTORS, DepthSensorCalibration
+from fieldrx_edge.job_package import JobPackage
 from fieldrx_edge.jobkinds.common import Feed, cells_worked, drive, record
 from fieldrx_edge.jobkinds.figures import depth_table, qualified_alert
 from fieldrx_edge.jobkinds.sensors import SensorError, SensorGuard, parse_depth_mv
 from fieldrx_edge.jobkinds.topdress import figure_rows
 from fieldrx_edge.plants import seed002_depth
 from fieldrx_edge.plants.seeds import seed002_open_loop_gain
-from fieldrx_edge.protocol import JobPackage
 
 COMPACTION_SD_MM = 4.0
 COMPACTION_CORR_M = 8.0

@@ -40,6 +40,7 @@ from typing import Any
 import numpy as np
 
 from fieldrx_edge.control import LADRC, IncrementalPID
+from fieldrx_edge.job_package import JobPackage
 from fieldrx_edge.jobkinds.common import Feed, cells_worked, drive, record
 from fieldrx_edge.jobkinds.figures import shaft_table
 from fieldrx_edge.jobkinds.sensors import SensorGuard
@@ -48,7 +49,6 @@ from fieldrx_edge.metering import calibration_from_dict, rate_for_shaft_rpm
 from fieldrx_edge.ndvi import NdviMode, NdviRateMap, NdviSample
 from fieldrx_edge.plants import seed000_shaft
 from fieldrx_edge.plants.seeds import SEED000_FEEDBACK_SCALE
-from fieldrx_edge.protocol import JobPackage
 
 ROW_SPACING_M = 0.60
 ROW_DIP = 0.45

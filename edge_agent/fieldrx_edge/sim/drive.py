@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 from fieldrx_edge.gnss.utm import UtmProjection
-from fieldrx_edge.protocol import JobPackage
+from fieldrx_edge.job_package import JobPackage
 from fieldrx_edge.sim import nmea
 from fieldrx_edge.sim.simulator import SimConfig, build_path, interp_path, speed_profile
 

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from fieldrx_edge.gnss.utm import UtmProjection
-from fieldrx_edge.protocol import ControllerSettings, JobPackage
+from fieldrx_edge.job_package import ControllerSettings, JobPackage
 
 
 @dataclass(frozen=True)

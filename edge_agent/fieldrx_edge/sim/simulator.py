@@ -31,10 +31,10 @@ from fieldrx_edge.asapplied import (
     records_applied,
     theta_pct,
 )
+from fieldrx_edge.job_package import ControllerSettings, JobPackage
 from fieldrx_edge.locate import boundary_rings
 from fieldrx_edge.metering import calibration_from_dict, flow_g_min_many
 from fieldrx_edge.motor import build_controller, closed_loop_t50_s
-from fieldrx_edge.protocol import ControllerSettings, JobPackage
 from fieldrx_edge.runtime import Measured, Pipeline, RuntimeConfig, make_record
 from fieldrx_edge.sim.fastplant import FastPlant2
 

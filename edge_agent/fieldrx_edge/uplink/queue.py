@@ -32,13 +32,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from fieldrx_edge.protocol import (
-    cell_batch_json,
-    new_stream_id,
-    sanitize_cell_record,
-    sanitize_record,
-    telemetry_batch_json,
-)
+from fieldrx_edge.cell_records import cell_batch_json, sanitize_cell_record
+from fieldrx_edge.protocol import new_stream_id, sanitize_record, telemetry_batch_json
 
 log = logging.getLogger(__name__)
 
@@ -65,7 +60,7 @@ _KINDS: dict[str, tuple[Callable[[dict[str, Any]], list[str]], Callable[..., byt
 class TelemetryQueue:
     """Durable FIFO of telemetry records for one machine, on one stream at a time.
 
-    ``kind`` "cells" holds the thin profile's cell records (``protocol.CellRecord``,
+    ``kind`` "cells" holds the thin profile's cell records (``cell_records.CellRecord``,
     sent as cell batches) under the same numbering, acknowledgement and stream rules."""
 
     def __init__(

@@ -8,7 +8,7 @@ what the report needs instead:
   rates, alarms for the live view, the alerts and the job map's track. These
   carry no ``cell_seq`` (the cell records count the cells, exactly) and their
   ``fix_period_s`` is the time they stand for;
-* one ``protocol.CellRecord`` per cell left, computed here by the one as-applied
+* one ``cell_records.CellRecord`` per cell left, computed here by the one as-applied
   kernel (``fieldrx_edge.asapplied.records_applied``, seed 001 eq. 16-18: flow
   from the shaft speed over each fix period, landing T_lag later along the
   track, ``antenna_forward_m`` ahead, split among the cells' polygons) over the
@@ -49,14 +49,10 @@ from fieldrx_edge.asapplied import (
     records_applied,
 )
 from fieldrx_edge.gnss.utm import UtmProjection
+from fieldrx_edge.job_package import JobPackage
 from fieldrx_edge.locate import boundary_rings
 from fieldrx_edge.metering import calibration_from_dict
-from fieldrx_edge.protocol import (
-    MAX_FIX_PERIOD_S,
-    UPLINK_PROFILES,
-    JobPackage,
-    sanitize_record,
-)
+from fieldrx_edge.protocol import MAX_FIX_PERIOD_S, UPLINK_PROFILES, sanitize_record
 from fieldrx_edge.uplink.queue import TelemetryQueue
 
 log = logging.getLogger(__name__)

@@ -113,7 +113,7 @@ def test_the_product_density_and_rate_unit_travel_in_the_job_package(tmp_path):
     cab; the package now carries the product's density and the prescription's unit."""
     import dataclasses
 
-    from fieldrx_edge.protocol import JobPackage
+    from fieldrx_edge.job_package import JobPackage
 
     job = trial_plot()
     plain = job.to_json()

@@ -14,7 +14,8 @@ from fieldrx_edge.isobus.j1939 import (
     decode_id,
     encode_id,
 )
-from fieldrx_edge.isobus.network import Message, Node, pump
+from fieldrx_edge.isobus.link import Message
+from fieldrx_edge.isobus.network import Node, pump
 from fieldrx_edge.isobus.transport import CanSpecError, parse_can_spec
 
 _chan = itertools.count()

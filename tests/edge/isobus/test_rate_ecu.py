@@ -7,7 +7,8 @@ import can
 from fieldrx_edge.isobus import process_data as pdm
 from fieldrx_edge.isobus.ddop import parse
 from fieldrx_edge.isobus.j1939 import PGN_MACHINE_SELECTED_SPEED, PGN_PROCESS_DATA, Name
-from fieldrx_edge.isobus.network import Message, Node, pump
+from fieldrx_edge.isobus.link import Message
+from fieldrx_edge.isobus.network import Node, pump
 from fieldrx_edge.isobus.rate_ecu import RateEcu
 from fieldrx_edge.metering import LinearCalibration, shaft_rpm_for_rate
 

@@ -22,7 +22,8 @@ from fieldrx_edge.isobus.ddop import (
     Property,
 )
 from fieldrx_edge.isobus.j1939 import PGN_PROCESS_DATA, PGN_WORKING_SET_MASTER, Name
-from fieldrx_edge.isobus.network import Message, Node, pump
+from fieldrx_edge.isobus.link import Message
+from fieldrx_edge.isobus.network import Node, pump
 from fieldrx_edge.isobus.tc_server import TaskControllerServer
 
 from tests.edge.isobus.test_network import Clock, channel, settle

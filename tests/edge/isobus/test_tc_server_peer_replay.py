@@ -25,7 +25,8 @@ from fieldrx_edge.isobus.j1939 import (
     Name,
     decode_id,
 )
-from fieldrx_edge.isobus.network import Message, Node, pump
+from fieldrx_edge.isobus.link import Message
+from fieldrx_edge.isobus.network import Node, pump
 from fieldrx_edge.isobus.pair import tc_name
 from fieldrx_edge.isobus.tc_mapping import RateUnits
 from fieldrx_edge.isobus.tc_server import TaskControllerServer

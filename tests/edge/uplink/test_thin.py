@@ -11,9 +11,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 from fieldrx_edge.asapplied import RecordColumns, records_applied
+from fieldrx_edge.cell_records import CellRecord
 from fieldrx_edge.gnss.utm import UtmProjection
 from fieldrx_edge.metering import calibration_from_dict
-from fieldrx_edge.protocol import CellRecord, ProtocolError
+from fieldrx_edge.protocol import ProtocolError
 from fieldrx_edge.session import load_job
 from fieldrx_edge.sim.simulator import SimConfig, simulate
 from fieldrx_edge.uplink import TelemetryQueue

@@ -115,7 +115,7 @@ class DeviceTokenRotated(Out):
 
 
 class JobPackageOut(Open):
-    """``fieldrx_edge.protocol.JobPackage``: cells in path order with corners and rates, the
+    """``fieldrx_edge.job_package.JobPackage``: cells in path order with corners and rates, the
     implement, calibration and control settings (see the edge agent's protocol module)."""
 
     job_id: int

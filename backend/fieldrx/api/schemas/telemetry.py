@@ -4,7 +4,7 @@ these models: they only document the wire format) and its streams.
 The request models follow ``fleet.ingest.parse.parse_request`` / ``_batch_of`` (the rules the
 server enforces: formats, kinds, the stream pattern, ``stream_start``'s range, 1..
 ``MAX_BATCHES`` batches); the records are the protocol's own dataclasses
-(``fieldrx_edge.protocol.TelemetryRecord`` / ``CellRecord``), whose schemas pydantic
+(``fieldrx_edge.protocol.TelemetryRecord`` / ``cell_records.CellRecord``), whose schemas pydantic
 derives from their fields, so a field added to the protocol reaches the document without
 a copy here to update. Unknown batch keys are ignored by the parser (``Open``); unknown
 record fields get the record rejected (``ProtocolRecordSchema``).
@@ -15,13 +15,13 @@ from __future__ import annotations
 import datetime as dt
 from typing import Annotated, Any, Literal
 
+from fieldrx_edge.cell_records import CellRecord
 from fieldrx_edge.protocol import (
     CELL_FORMAT_VERSION,
     MAX_BATCHES,
     MULTI_KIND,
     STREAM_RE,
     TELEMETRY_FORMAT_VERSION,
-    CellRecord,
     TelemetryRecord,
 )
 from pydantic import Field

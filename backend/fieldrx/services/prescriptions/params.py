@@ -1,0 +1,154 @@
+"""What a prescription request asks for, under the names agronomy uses: model and
+parameter aliases, crop and product defaults (and where each value came from), the
+rate unit, and what the forms start from. ``RxError`` is a bad request (422).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+from fieldrx.agronomy.crops import CROPS, Crop, find_crop
+from fieldrx.db.models import Field, Plan, Prescription
+
+MODEL_ALIASES = {"constant": "uniform", "ndvi_linear": "ndvi"}
+PARAM_ALIASES = {
+    "M": "target_yield_kg_ha",
+    "target_yield": "target_yield_kg_ha",
+    "x": "n_fraction",
+    "nutrient_fraction": "n_fraction",
+    "e": "e_kg_per_100kg",
+    "uptake_kg_per_100kg": "e_kg_per_100kg",
+    "k": "k_utilisation",
+    "utilisation": "k_utilisation",
+    "rate": "rate_kg_ha",
+}
+IGNORED_PARAMS = {"nutrient"}
+RATE_UNITS = ("kg/ha", "l/ha")
+
+
+class RxError(ValueError):
+    """Bad prescription request; answered as 422 with this message."""
+
+
+def canonical_model(model: str, params: dict[str, Any]) -> tuple[str, dict[str, Any]]:
+    """Model name and parameters under the names agronomy.rates uses (aliases accepted)."""
+    m = MODEL_ALIASES.get(model, model)
+    out: dict[str, Any] = {}
+    for k, v in params.items():
+        if k in IGNORED_PARAMS:
+            continue
+        out[PARAM_ALIASES.get(k, k)] = v
+    return m, out
+
+
+def fill_from_crop(
+    model: str, out: dict[str, Any], crop: Crop, sources: dict[str, str], origin: dict[str, str]
+) -> None:
+    """The crop's defaults for every nutrient-balance parameter the request left out; a
+    given value equal to the default counts as the default, another one as an override."""
+    if model != "nutrient_balance":
+        return
+    defaults: dict[str, float] = {
+        **crop.model_defaults(),
+        "target_yield_kg_ha": crop.value("target_yield_t_ha") * 1000.0,
+    }
+    for k, v in defaults.items():
+        src_name = "target_yield_t_ha" if k == "target_yield_kg_ha" else k
+        src = f"{crop.name}: {crop.values[src_name].source}"
+        if k not in out:
+            out[k] = v
+            sources[k], origin[k] = src, "default"
+        elif abs(float(out[k]) - v) <= 1e-9 * max(1.0, abs(v)):
+            sources[k], origin[k] = src, "default"
+        else:
+            sources[k] = f"given (overrides {v:g} from {src})"
+            origin[k] = "override"
+
+
+def crop_params(
+    model: str, params: dict[str, Any], crop: str | None, product: dict[str, Any] | None
+) -> tuple[dict[str, Any], dict[str, Any] | None, dict[str, str], dict[str, str]]:
+    """Fill nutrient-balance parameters the request left out from the crop and the
+    product, and say where each came from (what the user gave is never replaced).
+
+    Every crop parameter (``agronomy.crops``: target yield, e, k, eq. 20's a and b) comes
+    from the crop, n_fraction from the product's N % / 100; a given n_fraction that
+    disagrees with the product's N % is refused rather than one of them silently winning.
+    Returns (params, crop, sources, origin) where origin says "default", "override" or
+    "given" (a value without a default) per parameter.
+    """
+    out = dict(params)
+    sources = {k: "given" for k in out}
+    origin = {k: "given" for k in out}
+    crop_d = None
+    if crop is not None:
+        found = find_crop(crop)
+        if found is None or found.key != crop:
+            raise RxError(f"unknown crop {crop!r} (expected one of {[c.key for c in CROPS]})")
+        crop_d = found.to_dict()
+        fill_from_crop(model, out, found, sources, origin)
+    if product is not None and model == "nutrient_balance":
+        x = float(product.get("n_pct") or 0.0) / 100.0
+        if x <= 0:
+            raise RxError(f"product {product['name']!r} has no N: nutrient_balance needs N")
+        if "n_fraction" not in out:
+            out["n_fraction"] = x
+            sources["n_fraction"] = f"{product['name']}: {product['source']}"
+            origin["n_fraction"] = "default"
+        elif abs(float(out["n_fraction"]) - x) > 1e-9:
+            raise RxError(
+                f"params.n_fraction {out['n_fraction']} disagrees with product "
+                f"{product['name']!r} ({product['n_pct']:g} % N = {x:g}): give one of them"
+            )
+    return out, crop_d, sources, origin
+
+
+def form_defaults(session: Session, field: Field) -> dict[str, Any]:
+    """What the prescription forms start from on this field: the field's crop (else the
+    last prescription's), the last prescription's product and target yield."""
+    last = session.scalar(
+        select(Prescription)
+        .join(Plan, Plan.id == Prescription.plan_id)
+        .where(Plan.field_id == field.id)
+        .order_by(Prescription.id.desc())
+        .limit(1)
+    )
+    p = (last.params or {}) if last is not None else {}
+    crop = find_crop(field.crop)
+    crop_from = "field" if crop is not None else None
+    if crop is None and p.get("crop"):
+        crop, crop_from = find_crop(p["crop"]), "last prescription"
+    yield_kg = (p.get("model_params") or {}).get("target_yield_kg_ha")
+    return {
+        "field_id": field.id,
+        "field_crop": field.crop,
+        "crop": None if crop is None else crop.key,
+        "crop_from": crop_from,
+        "product_key": (p.get("product_info") or {}).get("key"),
+        "target_yield_t_ha": None if yield_kg is None else float(yield_kg) / 1000.0,
+        "from_prescription_id": None if last is None else last.id,
+    }
+
+
+def check_rate_unit(unit: str, product_info: dict[str, Any] | None) -> None:
+    """An l/ha prescription needs a product with a density: the rates are worked out in
+    kg/ha (nutrient balance, meter range, product and cost figures all count mass) and
+    sent to machines as l/ha = kg/ha / density."""
+    if unit not in RATE_UNITS:
+        raise RxError(f"rate_unit {unit!r} is not one of {list(RATE_UNITS)}")
+    if unit == "l/ha" and not (product_info or {}).get("density_kg_l"):
+        what = "no product_key" if product_info is None else f"product {product_info['name']!r}"
+        raise RxError(
+            f"rate_unit l/ha needs a liquid product with a density (kg/l), got {what}: "
+            "choose one or give the product a density"
+        )
+
+
+def rx_rate_unit(rx: Prescription) -> tuple[str, float | None]:
+    """The prescription's rate unit and its product's density in kg/l (None: not known)."""
+    p = rx.params or {}
+    d = (p.get("product_info") or {}).get("density_kg_l")
+    return str(p.get("rate_unit") or "kg/ha"), float(d) if d else None
