@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # Regenerate the browser's typed API client from the server's OpenAPI document (no server
 # needed): frontend/src/api/openapi.json, then frontend/src/api/generated/schema.ts
-# (openapi-typescript) and generated/defaults.json (the models' defaults the forms start from). Run after changing a route or a model in backend/fieldrx/api/;
+# (openapi-typescript), generated/defaults.json (the models' defaults the forms start from)
+# and generated/import-formats.json (the import-format registry the import assistant reads).
+# Run after changing a route, a model in backend/fieldrx/api/ or an import format;
 # tests/system/test_contract.py fails while the committed files are stale.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -14,6 +16,9 @@ PYTHONPATH="$ROOT/backend:$ROOT/edge_agent${PYTHONPATH:+:$PYTHONPATH}" "$PY" -c 
 PYTHONPATH="$ROOT/backend${PYTHONPATH:+:$PYTHONPATH}" "$PY" -c \
   "from fieldrx.apidocs import schema_defaults_json; print(schema_defaults_json(open('frontend/src/api/openapi.json').read()), end='')" \
   >frontend/src/api/generated/defaults.json
+PYTHONPATH="$ROOT/backend${PYTHONPATH:+:$PYTHONPATH}" "$PY" -c \
+  "from fieldrx.formats.import_formats import registry_json; print(registry_json(), end='')" \
+  >frontend/src/api/generated/import-formats.json
 (cd frontend && npx --no-install openapi-typescript src/api/openapi.json \
   -o src/api/generated/schema.ts --alphabetize --default-non-nullable false >/dev/null)
-echo "frontend/src/api/openapi.json, generated/schema.ts and generated/defaults.json are current"
+echo "frontend/src/api/openapi.json, generated/schema.ts, defaults.json and import-formats.json are current"

@@ -81,6 +81,7 @@ def database_url() -> Iterator[str]:
     os.environ["DATABASE_URL"] = url
     _clear_caches()
     command.upgrade(alembic_config(url), "head")
+    _sync_task_kinds()  # what fieldrx migrate does after the migrations
     if citus_cluster.WORKERS:
         citus_cluster.distribute_db(url)
     assert get_settings().database_url == url
@@ -88,6 +89,14 @@ def database_url() -> Iterator[str]:
     _clear_caches()
     drop_database(url)
     citus_cluster.drop(url)
+
+
+def _sync_task_kinds() -> None:
+    import fieldrx.tasks.work  # noqa: F401  importing it registers every kind
+    from fieldrx.db.session import get_engine
+    from fieldrx.tasks.kinds import sync_task_kinds
+
+    sync_task_kinds(get_engine())
 
 
 def _clear_caches() -> None:

@@ -49,6 +49,7 @@ ROUTERS = (
     "archive",
     "imports",
     "tasks",
+    "formats",
 )
 
 

@@ -41,6 +41,14 @@ def _migrate(args: argparse.Namespace) -> int:
 
     cfg: Config = alembic_config()
     command.upgrade(cfg, args.revision)
+    if args.revision == "head":  # the kinds the code registers (tasks.kinds), after the schema
+        import fieldrx.tasks.work  # noqa: F401  importing it registers every kind
+        from fieldrx.db.session import get_engine
+        from fieldrx.tasks.kinds import sync_task_kinds
+
+        added = sync_task_kinds(get_engine())
+        if added:
+            print(f"task kinds added: {', '.join(added)}")
     return 0
 
 

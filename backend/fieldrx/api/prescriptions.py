@@ -16,6 +16,7 @@ from fieldrx.agronomy.zones import ZoneError
 from fieldrx.api.common import ApiError, get_scoped
 from fieldrx.api.schemas.errors import ERRORS
 from fieldrx.api.schemas.files import file_response
+from fieldrx.api.schemas.formats import RxExportFormat
 from fieldrx.api.schemas.prescriptions import (
     CurrentIn,
     EditIn,
@@ -366,7 +367,7 @@ def export(
     rx_id: int,
     principal: UserDep,
     session: SessionDep,
-    format: Literal["geojson", "csv", "shapefile", "isoxml", "isoxml-zones"] = "geojson",
+    format: RxExportFormat = "geojson",
     version: int | None = None,
     profile: Literal["cells", "deere", "fieldview", "raven", "agleader", "trimble"] = "cells",
     zone_classes: int | None = Query(default=None, ge=1, le=254),

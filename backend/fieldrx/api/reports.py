@@ -12,7 +12,7 @@ from __future__ import annotations
 import datetime as dt
 import json
 from dataclasses import asdict, fields
-from typing import Any, Literal
+from typing import Any
 
 from fastapi import APIRouter, Query, Request
 from fastapi.responses import FileResponse, Response
@@ -22,6 +22,7 @@ from fieldrx.api.common import ApiError, get_scoped, point_page
 from fieldrx.api.schemas.errors import ERRORS
 from fieldrx.api.schemas.files import MVT, file_response
 from fieldrx.api.schemas.fleet import PointPage
+from fieldrx.api.schemas.formats import JobExportFormat
 from fieldrx.api.schemas.reports import (
     AsAppliedCells,
     AsAppliedReport,
@@ -284,7 +285,7 @@ def export_report(
     job_id: int,
     principal: UserDep,
     session: SessionDep,
-    format: Literal["csv", "shapefile", "isoxml"] = "csv",  # noqa: A002
+    format: JobExportFormat = "csv",  # noqa: A002
     background: bool | None = BACKGROUND,
 ) -> Response:
     """Per-cell as-applied table as CSV; zipped Shapefile (cell polygons + record points);

@@ -27,7 +27,10 @@ from fieldrx.db.models import Task
 from fieldrx.db.session import get_engine
 from fieldrx.geo import PlanningError
 from fieldrx.services.plans import PlanParams, check_plan_cost
-from fieldrx.tasks import files, store
+
+# work: importing it registers every task kind, which the tasks' result links come from
+from fieldrx.tasks import files, store, work  # noqa: F401
+from fieldrx.tasks.kinds import stores_file
 
 router = APIRouter(tags=["tasks"], responses=ERRORS)
 
@@ -192,7 +195,7 @@ def download(task_id: int, principal: UserDep, session: SessionDep) -> Response:
         raise ApiError(409, f"task {task_id} is {row.status}: there is no file to download yet")
     meta = files.info(session, task_id)
     if meta is None:
-        if row.kind in ("export", "report"):
+        if stores_file(row.kind):
             raise ApiError(
                 410,
                 f"task {task_id}'s file was deleted after its retention; run the export again",

@@ -20,7 +20,6 @@ import numpy as np
 import shapely
 
 from fieldrx.agronomy.interpolate import DEFAULT_METHOD, METHODS
-from fieldrx.formats import EXPORT_FORMATS
 from fieldrx.geo.planning.kinematics import DEFAULT_HEADLAND_PASSES
 
 
@@ -30,6 +29,7 @@ class RxError(ValueError):
 
 def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     """Add the `rx` subcommand to an argparse subparsers object."""
+    from fieldrx.formats.export import PACKAGE, PRESCRIPTION, export_formats
     from fieldrx.geo.coverage import CORNERS, HEADINGS
 
     p = subparsers.add_parser(
@@ -86,7 +86,11 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     g.add_argument("--lag-s", type=float, default=1.52, help="job package: lag time")
     g.add_argument("--controller", default="ladrc", help="job package: controller name")
     g = p.add_argument_group("output")
-    g.add_argument("--format", choices=EXPORT_FORMATS, default="geojson")
+    g.add_argument(
+        "--format",
+        choices=export_formats(PRESCRIPTION) + export_formats(PACKAGE),
+        default="geojson",
+    )
     g.add_argument("-o", "--out", required=True, help="output file")
     g.add_argument("--product", default="fertilizer")
     g.add_argument("--grid-cell-m", type=float, default=None, help="ISO grid cell size, m")
@@ -225,9 +229,9 @@ def build(args: argparse.Namespace) -> tuple[bytes, dict[str, Any]]:
 
     t = time.perf_counter()
     fmt = args.format
-    if fmt != "job":
-        from fieldrx.formats.export import ExportOptions, export_prescription
+    from fieldrx.formats.export import PACKAGE, ExportOptions, export_formats, export_prescription
 
+    if fmt not in export_formats(PACKAGE):
         opts = ExportOptions(
             field_name=field_name,
             boundary_wgs84=field_ll,

@@ -20,8 +20,6 @@ import signal
 import threading
 from typing import Any
 
-from fieldrx.tasks import QUEUES
-
 
 def register(subparsers: Any) -> None:
     p = subparsers.add_parser(
@@ -56,7 +54,7 @@ def register(subparsers: Any) -> None:
     t.add_argument(
         "--queues",
         default="",
-        help=f"comma-separated queues to serve (default all: {','.join(QUEUES)})",
+        help="comma-separated queues to serve (default all: one per task kind, tasks.kinds)",
     )
     t.add_argument(
         "--concurrency",
@@ -94,6 +92,7 @@ def _run_ingest(args: argparse.Namespace, stop: threading.Event) -> None:
 
 async def _main(args: argparse.Namespace) -> None:
     from fieldrx.settings import get_settings
+    from fieldrx.tasks.kinds import queues as task_queues
     from fieldrx.tasks.worker import TaskWorkerOptions, run_task_worker
 
     s = get_settings()
@@ -112,9 +111,10 @@ async def _main(args: argparse.Namespace) -> None:
         roles.append(asyncio.create_task(asyncio.to_thread(_run_ingest, args, stop_thread)))
     if args.role in ("all", "tasks"):
         queues = [q.strip() for q in args.queues.split(",") if q.strip()]
-        unknown = sorted(set(queues) - set(QUEUES))
+        known = task_queues()
+        unknown = sorted(set(queues) - set(known))
         if unknown:
-            raise SystemExit(f"unknown queue(s) {unknown}; the queues are {list(QUEUES)}")
+            raise SystemExit(f"unknown queue(s) {unknown}; the queues are {list(known)}")
         roles.append(
             asyncio.create_task(
                 run_task_worker(

@@ -21,7 +21,7 @@ from typing import Any
 
 import psycopg
 
-REFERENCE = ("organisations", "users", "memberships", "api_tokens")
+REFERENCE = ("organisations", "users", "memberships", "api_tokens", "task_kinds")
 ANCHOR = ("machines", "id")  # the co-location group's first table and its column
 COLOCATED = (
     "telemetry",

@@ -4,13 +4,3 @@
 class FormatError(ValueError):
     """A file cannot be read or written; the message says where (feature index, file, field)."""
 
-
-EXPORT_FORMATS = ("geojson", "csv", "shapefile", "isoxml", "isoxml-zones", "job")
-MEDIA_TYPES = {
-    "geojson": ("application/geo+json", "prescription.geojson"),
-    "csv": ("text/csv", "prescription.csv"),
-    "shapefile": ("application/zip", "prescription_shp.zip"),
-    "isoxml": ("application/zip", "TASKDATA.zip"),
-    "isoxml-zones": ("application/zip", "TASKDATA.zip"),
-    "job": ("application/json", "job.json"),
-}

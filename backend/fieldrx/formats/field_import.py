@@ -25,6 +25,7 @@ from pyproj.exceptions import CRSError
 from shapely.geometry import MultiPolygon, Polygon, shape
 
 from fieldrx.formats import FormatError
+from fieldrx.registry import Registry
 
 MAX_FEATURES = 10_000
 MAX_INFLATED_BYTES = 256 * 1024 * 1024  # all members of one archive together, decompressed
@@ -303,23 +304,63 @@ def read_shapefile_zip_fields(data: bytes) -> list[tuple[dict[str, Any], Any]]:
     return _finish(items)
 
 
-def read_fields(filename: str, data: bytes) -> list[tuple[dict[str, Any], Any]]:
-    """Field boundaries from a .geojson/.json, .kml/.kmz or .zip (Shapefile) upload."""
-    name = (filename or "").lower()
-    if name.endswith((".geojson", ".json")):
+class FieldFile:
+    """One file format of field boundaries that ``read_fields`` takes, by name ending."""
+
+    name: str = ""
+    label: str = ""  # how the refusal of an unknown file names it
+    extensions: tuple[str, ...] = ()
+
+    def read(self, data: bytes) -> list[tuple[dict[str, Any], Any]]:
+        raise NotImplementedError
+
+
+FIELD_FILE_FORMATS: Registry[FieldFile] = Registry("field file format")
+
+
+@FIELD_FILE_FORMATS.register
+class GeoJsonFields(FieldFile):
+    name, label, extensions = "geojson", ".geojson/.json", (".geojson", ".json")
+
+    def read(self, data: bytes) -> list[tuple[dict[str, Any], Any]]:
         return read_geojson_fields(data)
-    if name.endswith(".kml"):
+
+
+@FIELD_FILE_FORMATS.register
+class KmlFields(FieldFile):
+    name, label, extensions = "kml", ".kml", (".kml",)
+
+    def read(self, data: bytes) -> list[tuple[dict[str, Any], Any]]:
         return read_kml_fields(data)
-    if name.endswith(".kmz"):
+
+
+@FIELD_FILE_FORMATS.register
+class KmzFields(FieldFile):
+    name, label, extensions = "kmz", ".kmz", (".kmz",)
+
+    def read(self, data: bytes) -> list[tuple[dict[str, Any], Any]]:
         z = _Archive(data, "the KMZ")
         kmls = [n for n in z.namelist() if n.lower().endswith(".kml")]
         if not kmls:
             raise FormatError("KMZ holds no .kml document")
         doc = "doc.kml" if "doc.kml" in kmls else kmls[0]
         return read_kml_fields(z.read(doc))
-    if name.endswith(".zip"):
+
+
+@FIELD_FILE_FORMATS.register
+class ShapefileFields(FieldFile):
+    name, label, extensions = "shapefile", "a zipped Shapefile (.zip)", (".zip",)
+
+    def read(self, data: bytes) -> list[tuple[dict[str, Any], Any]]:
         return read_shapefile_zip_fields(data)
-    raise FormatError(
-        f"unsupported file {filename!r}: expected .geojson/.json, .kml/.kmz "
-        "or a zipped Shapefile (.zip)"
-    )
+
+
+def read_fields(filename: str, data: bytes) -> list[tuple[dict[str, Any], Any]]:
+    """Field boundaries from an upload in one of ``FIELD_FILE_FORMATS``, by its name's ending."""
+    name = (filename or "").lower()
+    for fmt in FIELD_FILE_FORMATS:
+        if name.endswith(fmt.extensions):
+            return fmt.read(data)
+    labels = [f.label for f in FIELD_FILE_FORMATS]
+    expected = ", ".join(labels[:-1]) + " or " + labels[-1]
+    raise FormatError(f"unsupported file {filename!r}: expected {expected}")

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import csv
 import io
+from typing import Any
 
 import numpy as np
 from geoalchemy2.shape import to_shape
@@ -22,8 +23,6 @@ from fieldrx.formats.asapplied import (
     AsAppliedPoints,
     AsAppliedTotals,
     CellRow,
-    write_asapplied_isoxml,
-    write_asapplied_shapefile_zip,
 )
 
 POINTS_SQL = text(
@@ -88,7 +87,6 @@ CSV_COLUMNS = (
     "accuracy_pct",
     "n_records",
 )
-JOB_FORMATS = ("csv", "shapefile", "isoxml")
 
 
 def cells_csv(rep: JobReport) -> bytes:
@@ -102,36 +100,50 @@ def cells_csv(rep: JobReport) -> bytes:
     return buf.getvalue().encode()
 
 
-def export_job(session: Session, job: Job, rep: JobReport, fmt: str) -> tuple[bytes, str, str]:
-    """(bytes, media type, file name) of the as-applied ``csv`` (per-cell table),
-    ``shapefile`` (cell polygons + record points, zipped) or ``isoxml`` (TASKDATA.zip)."""
-    stem = f"job{job.id}_as_applied"
-    if fmt == "csv":
-        return cells_csv(rep), "text/csv", f"{stem}.csv"
-    points = job_points(session, job)
-    if fmt == "shapefile":
-        return (
-            write_asapplied_shapefile_zip(stem, _cells(session, rep), points),
-            ("application/zip"),
-            f"{stem}.zip",
+class _JobSource:
+    """``formats.export.AsAppliedSource`` over the database: each part read when asked."""
+
+    def __init__(self, session: Session, job: Job, rep: JobReport) -> None:
+        self.session, self.job, self.rep = session, job, rep
+
+    def cells_csv(self) -> bytes:
+        return cells_csv(self.rep)
+
+    def cell_rows(self) -> list[CellRow]:
+        return _cells(self.session, self.rep)
+
+    def points(self) -> AsAppliedPoints:
+        return job_points(self.session, self.job)
+
+    def taskdata(self) -> tuple[AsAppliedTotals, dict[str, Any]]:
+        session, job, rep = self.session, self.job, self.rep
+        plan = job_plan(session, job)
+        fld = session.get(Field, plan.field_id)
+        rx = session.get(Prescription, job.prescription_id)
+        totals = AsAppliedTotals(
+            applied_total_kg=rep.applied_total_kg,
+            area_applied_m2=rep.applied_area_m2,
+            time_worked_s=rep.time_worked_s,
+            first_t=rep.first_t,
+            last_t=rep.last_t,
+            field_area_m2=rep.field_area_m2,
         )
-    plan = job_plan(session, job)
-    fld = session.get(Field, plan.field_id)
-    rx = session.get(Prescription, job.prescription_id)
-    totals = AsAppliedTotals(
-        applied_total_kg=rep.applied_total_kg,
-        area_applied_m2=rep.applied_area_m2,
-        time_worked_s=rep.time_worked_s,
-        first_t=rep.first_t,
-        last_t=rep.last_t,
-        field_area_m2=rep.field_area_m2,
-    )
-    data = write_asapplied_isoxml(
-        points,
-        totals,
-        job_name=job.name,
-        field_name="" if fld is None else fld.name,
-        boundary_wgs84=None if fld is None else to_shape(fld.boundary),
-        product_name=(rx.product if rx is not None else "") or "fertilizer",
-    )
-    return data, "application/zip", f"{stem}_TASKDATA.zip"
+        names = {
+            "job_name": job.name,
+            "field_name": "" if fld is None else fld.name,
+            "boundary_wgs84": None if fld is None else to_shape(fld.boundary),
+            "product_name": (rx.product if rx is not None else "") or "fertilizer",
+        }
+        return totals, names
+
+
+def export_job(session: Session, job: Job, rep: JobReport, fmt: str) -> tuple[bytes, str, str]:
+    """(bytes, media type, file name) of a job's as-applied data in an export format that
+    has the ``job`` subject (``formats.export``: the per-cell CSV table, the cell polygons
+    and record points as a zipped Shapefile, a TASKDATA.zip with a TimeLog)."""
+    from fieldrx.formats.export import JOB, export_format
+
+    kind = export_format(fmt, JOB)
+    stem = f"job{job.id}_as_applied"
+    data = kind.write_job(_JobSource(session, job, rep), stem)
+    return data, kind.media_type, kind.job_filename(stem)

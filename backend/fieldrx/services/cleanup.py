@@ -26,7 +26,8 @@ def clean_after_crash(engine: Engine) -> int:
         uploads = set(
             conn.execute(
                 text(
-                    "SELECT params->>'incoming' FROM tasks WHERE kind IN ('imagery', 'import') "
+                    # any open task that holds an upload, whatever its kind (tasks.kinds)
+                    "SELECT params->>'incoming' FROM tasks WHERE params->>'incoming' IS NOT NULL "
                     "AND status IN ('queued', 'running')"
                 )
             ).scalars()

@@ -12,8 +12,6 @@ from fieldrx.db.models import Field, Plan, Prescription, PrescriptionVersion
 from fieldrx.services.prescriptions.params import RxError, rx_rate_unit
 from fieldrx.services.prescriptions.versions import version_cells
 
-FORMATS = ("geojson", "csv", "shapefile", "isoxml", "isoxml-zones")
-
 
 def _slug(text: str, limit: int) -> str:
     """ASCII letters, digits, ``-`` and ``_`` only (what every terminal's file system takes),
@@ -57,10 +55,18 @@ def export_version(
     this adds the field, product and a file name. Zone exports report how the
     cells were dissolved in ``info`` (the API sends it as a header).
     """
-    from fieldrx.formats.export import ExportOptions, export_prescription
+    from fieldrx.formats import FormatError
+    from fieldrx.formats.export import (
+        PRESCRIPTION,
+        ExportOptions,
+        export_format,
+        export_prescription,
+    )
 
-    if fmt not in FORMATS:
-        raise RxError(f"unknown export format {fmt!r} (expected one of {list(FORMATS)})")
+    try:
+        kind = export_format(fmt, PRESCRIPTION)
+    except FormatError as exc:
+        raise RxError(str(exc)) from exc
     cells = version_cells(session, rx, ver)
     plan = session.get(Plan, rx.plan_id)
     field = session.get(Field, plan.field_id) if plan is not None else None
@@ -80,11 +86,4 @@ def export_version(
         layer_name=stem,
     )
     data, media, _ = export_prescription(cells, fmt, opts, info=info)
-    if fmt == "isoxml" or fmt == "isoxml-zones":
-        suffix = "grid" if fmt == "isoxml" else "zones"
-        return data, media, f"{stem}_TASKDATA_{suffix}.zip"
-    ext = {"geojson": ".geojson", "csv": ".csv"}.get(fmt)
-    if ext is not None:
-        return data, media, f"{stem}{ext}"
-    tail = "_shp.zip" if profile == "cells" else f"_{profile}_shp.zip"
-    return data, media, f"{stem}{tail}"
+    return data, media, kind.prescription_filename(stem, opts)

@@ -14,9 +14,11 @@ Modules:
   state changes a worker makes) and their API view;
 - ``queue``: the procrastinate app and how jobs of the one queue task,
   ``fieldrx.run_task``, are made (deferred by name from the API);
-- ``work``: what each kind does, run in a child process with a time limit
-  (``services.bounded``) and finished under the task's guard (below), and the dispatch
-  by kind (``RUNNERS``);
+- ``kinds``: the task-kind registry (``TASK_KINDS``: each kind's name, queue, result
+  route and run), which the ``task_kinds`` table is filled from;
+- ``work``: what the plan, prescription and imagery kinds do, run in a child process
+  with a time limit (``services.bounded``) and finished under the task's guard (below),
+  and the dispatch by kind through the registry (importing it registers every kind);
 - ``context``: what the kinds' work runs with (progress, input errors, the one
   transaction that stores a result and completes its task);
 - ``exports``: the export and job-report kinds; ``files``: the files they produce
@@ -34,7 +36,5 @@ nothing. So a plan is stored once however often its job runs.
 
 from __future__ import annotations
 
-# one queue per kind of work
-QUEUES = ("plan", "prescription", "imagery", "export", "report", "import")
 TASK_LOCK_NS = 7003  # advisory lock namespace (fleet.ingest 7001, fleet.alerts 7002, plans 7004)
 QUOTA_LOCK_NS = 7005  # an organisation's task quota is counted under this lock (store)

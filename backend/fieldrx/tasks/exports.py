@@ -35,15 +35,17 @@ from fieldrx.fleet.reports import (
     report_digest,
     report_key,
 )
+from fieldrx.formats.export import JOB
 from fieldrx.settings import get_settings
 from fieldrx.tasks import files, store
 from fieldrx.tasks.context import Progress, TaskInputError
+from fieldrx.tasks.kinds import API, TASK_KINDS, TaskKind
 
 Stage = Callable[[float, str], None]
 
 
 def download_url(task_id: int) -> str:
-    return f"{store.API}/tasks/{int(task_id)}/download"
+    return f"{API}/tasks/{int(task_id)}/download"
 
 
 def stored_report(
@@ -105,7 +107,7 @@ def _export_file(
     session: Session, p: dict[str, Any], org: int, progress: Stage
 ) -> tuple[bytes, str, str, dict[str, Any]]:
     """(bytes, media type, file name, extra result) of the export ``p`` describes."""
-    if p.get("source") == "job":
+    if p.get("source") == JOB:
         from fieldrx.services.asapplied import export_job
 
         job = _job(session, p.get("job_id"), org)
@@ -148,6 +150,7 @@ def _stored(
     """Run ``work`` (-> bytes, media, name, result, message) in one transaction under the
     task's guard, store its file and complete the task."""
     from fieldrx.services.bounded import ensure_caller_alive
+
     progress = Progress(raw_dsn(get_settings().database_url), claimed.id)
     try:
         with Session(get_engine()) as session:
@@ -195,3 +198,58 @@ def run_report(claimed: store.Claimed, should_stop: Callable[[], bool]) -> dict[
         return dump_report(rep), "application/gzip", name, result, f"{rep.n_records:,} records"
 
     return _stored(claimed, work)
+
+
+def export_child(claimed: store.Claimed) -> dict[str, Any]:
+    """An export task in a ``services.bounded`` child (file + completion, one transaction)."""
+    return run_export(claimed, lambda: False)
+
+
+def report_child(claimed: store.Claimed) -> dict[str, Any]:
+    """A job-report task in a ``services.bounded`` child."""
+    return run_report(claimed, lambda: False)
+
+
+def _run_in_child(
+    child: Callable[[store.Claimed], dict[str, Any]],
+    what: str,
+    claimed: store.Claimed,
+    should_stop: Callable[[], bool],
+) -> dict[str, Any]:
+    """Exports and reports run in a child too: their stages (one report query, writing a
+    large file) report no progress for many seconds, and in the worker thread a
+    cancellation waited for the next stage (19 s); the child is killed within about a
+    second of the cancel, like a plan's."""
+    from fieldrx.services.bounded import run_bounded
+
+    return run_bounded(
+        child,
+        claimed,
+        time_limit_s=get_settings().export_time_limit_s,
+        what=what,
+        should_stop=should_stop,
+    )
+
+
+@TASK_KINDS.register
+class ExportKind(TaskKind):
+    """A file export; its result is the file's download."""
+
+    name = "export"
+    stores_file = True
+
+    def result_url(self, result: dict[str, Any] | None) -> str | None:
+        return None if not result else result.get("download_url")
+
+    def run(self, claimed: store.Claimed, should_stop: Callable[[], bool]) -> dict[str, Any]:
+        return _run_in_child(export_child, "the export", claimed, should_stop)
+
+
+@TASK_KINDS.register
+class ReportKind(TaskKind):
+    name = "report"
+    stores_file = True
+    result_key, result_route = "job_id", "/jobs/{}/report"
+
+    def run(self, claimed: store.Claimed, should_stop: Callable[[], bool]) -> dict[str, Any]:
+        return _run_in_child(report_child, "the job report", claimed, should_stop)

@@ -22,6 +22,7 @@ from fieldrx.services.plans import PlanParams
 from fieldrx.settings import get_settings
 from fieldrx.tasks import store
 from fieldrx.tasks.context import Progress, StopFn, TaskInputError, in_transaction, incoming_upload
+from fieldrx.tasks.kinds import TASK_KINDS, TaskKind
 
 
 def _import_work(
@@ -76,3 +77,13 @@ def run_import(claimed: store.Claimed, should_stop: StopFn) -> dict[str, Any]:
         )
     finally:
         shutil.rmtree(incoming_upload(claimed.params["incoming"]), ignore_errors=True)
+
+
+@TASK_KINDS.register
+class ImportKind(TaskKind):
+    """A confirmed ISO 11783-10 TASKDATA import (its result names what it created)."""
+
+    name = "import"
+
+    def run(self, claimed: store.Claimed, should_stop: StopFn) -> dict[str, Any]:
+        return run_import(claimed, should_stop)

@@ -10,7 +10,6 @@ engine; the success of a task is written by the work's own transaction
 from __future__ import annotations
 
 import datetime as dt
-from dataclasses import dataclass
 from typing import Any
 
 from sqlalchemy import Engine, func, select, text
@@ -21,16 +20,10 @@ from fieldrx.errors import Invalid, TooMany
 from fieldrx.settings import get_settings
 from fieldrx.store import driver_connection
 from fieldrx.tasks import QUOTA_LOCK_NS, TASK_LOCK_NS
+from fieldrx.tasks.kinds import API, Claimed, result_url
 from fieldrx.tasks.queue import make_jobs
 
 FINAL = ("succeeded", "failed", "cancelled")
-API = "/api/v1"
-RESULT_LINKS = {
-    "plan": ("plan_id", "/plans/{}"),
-    "prescription": ("prescription_id", "/prescriptions/{}"),
-    "imagery": ("imagery_id", "/imagery/{}"),
-    "report": ("job_id", "/jobs/{}/report"),
-}
 
 
 def create_tasks(
@@ -143,15 +136,6 @@ def create_batch(
     return parent, children
 
 
-def result_url(kind: str, result: dict[str, Any] | None) -> str | None:
-    if kind == "export":
-        return None if not result else result.get("download_url")
-    link = RESULT_LINKS.get(kind)
-    if link is None or not result or result.get(link[0]) is None:
-        return None
-    return API + link[1].format(int(result[link[0]]))
-
-
 def _iso(value: dt.datetime | None) -> str | None:
     return value.isoformat() if value else None
 
@@ -253,18 +237,6 @@ def request_cancel(session: Session, row: Task) -> dict[str, int]:
 
 
 # --- worker side -------------------------------------------------------------------------
-
-
-@dataclass
-class Claimed:
-    """A task a worker has started: what the work needs from its row."""
-
-    id: int
-    kind: str
-    params: dict[str, Any]
-    organisation_id: int
-    created_by: int | None
-    attempts: int
 
 
 def claim(engine: Engine, task_id: int, worker: str) -> Claimed | None:

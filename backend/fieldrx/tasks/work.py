@@ -32,7 +32,10 @@ from fieldrx.db.models import Field, Machine, Plan
 from fieldrx.db.session import get_engine, raw_dsn
 from fieldrx.errors import Cancelled
 from fieldrx.settings import get_settings
-from fieldrx.tasks import store
+
+# exports, imports: importing them registers their kinds, so importing this module (the
+# worker, the API's task routes, fieldrx migrate) fills the whole registry
+from fieldrx.tasks import exports, imports, store  # noqa: F401
 from fieldrx.tasks.context import (
     Progress,
     StopFn,
@@ -41,10 +44,10 @@ from fieldrx.tasks.context import (
     incoming_upload,
     is_user_error,
 )
-from fieldrx.tasks.exports import run_export, run_report
-from fieldrx.tasks.imports import run_import
+from fieldrx.tasks.kinds import TASK_KINDS, TaskKind
 
 log = logging.getLogger(__name__)
+
 
 def _scoped(session: Session, model: type[Any], obj_id: Any, org: int, what: str) -> Any:
     obj = session.get(model, int(obj_id)) if obj_id is not None else None
@@ -109,14 +112,6 @@ def _run_bounded_kind(
         what=what,
         should_stop=should_stop,
     )
-
-
-def _run_plan(claimed: store.Claimed, should_stop: StopFn) -> dict[str, Any]:
-    return _run_bounded_kind(plan_child, "planning", claimed.id, should_stop)
-
-
-def _run_prescription(claimed: store.Claimed, should_stop: StopFn) -> dict[str, Any]:
-    return _run_bounded_kind(prescription_child, "the prescription", claimed.id, should_stop)
 
 
 def _run_imagery(claimed: store.Claimed, should_stop: StopFn) -> dict[str, Any]:
@@ -193,57 +188,39 @@ def _run_imagery(claimed: store.Claimed, should_stop: StopFn) -> dict[str, Any]:
         incoming.unlink(missing_ok=True)
 
 
-def export_child(claimed: store.Claimed) -> dict[str, Any]:
-    """An export task in a ``services.bounded`` child (file + completion, one transaction)."""
-    return run_export(claimed, lambda: False)
+@TASK_KINDS.register
+class PlanKind(TaskKind):
+    name = "plan"
+    result_key, result_route = "plan_id", "/plans/{}"
+
+    def run(self, claimed: store.Claimed, should_stop: StopFn) -> dict[str, Any]:
+        return _run_bounded_kind(plan_child, "planning", claimed.id, should_stop)
 
 
-def report_child(claimed: store.Claimed) -> dict[str, Any]:
-    """A job-report task in a ``services.bounded`` child."""
-    return run_report(claimed, lambda: False)
+@TASK_KINDS.register
+class PlanBatchKind(TaskKind):
+    """Many fields planned at once: a parent row over one ``plan`` task per field."""
+
+    name = "plan_batch"
+    batch = True
 
 
-def _run_in_child(
-    child: Callable[[store.Claimed], dict[str, Any]],
-    what: str,
-    claimed: store.Claimed,
-    should_stop: StopFn,
-) -> dict[str, Any]:
-    """Exports and reports run in a child too: their stages (one report query, writing a
-    large file) report no progress for many seconds, and in the worker thread a
-    cancellation waited for the next stage (19 s); the child is killed within about a
-    second of the cancel, like a plan's."""
-    from fieldrx.services.bounded import run_bounded
+@TASK_KINDS.register
+class PrescriptionKind(TaskKind):
+    name = "prescription"
+    result_key, result_route = "prescription_id", "/prescriptions/{}"
 
-    return run_bounded(
-        child,
-        claimed,
-        time_limit_s=get_settings().export_time_limit_s,
-        what=what,
-        should_stop=should_stop,
-    )
+    def run(self, claimed: store.Claimed, should_stop: StopFn) -> dict[str, Any]:
+        return _run_bounded_kind(prescription_child, "the prescription", claimed.id, should_stop)
 
 
-def _run_export(claimed: store.Claimed, should_stop: StopFn) -> dict[str, Any]:
-    return _run_in_child(export_child, "the export", claimed, should_stop)
+@TASK_KINDS.register
+class ImageryKind(TaskKind):
+    name = "imagery"
+    result_key, result_route = "imagery_id", "/imagery/{}"
 
-
-def _run_report(claimed: store.Claimed, should_stop: StopFn) -> dict[str, Any]:
-    return _run_in_child(report_child, "the job report", claimed, should_stop)
-
-
-def _run_import(claimed: store.Claimed, should_stop: StopFn) -> dict[str, Any]:
-    return run_import(claimed, should_stop)
-
-
-RUNNERS: dict[str, Callable[[store.Claimed, StopFn], dict[str, Any]]] = {
-    "plan": _run_plan,
-    "prescription": _run_prescription,
-    "imagery": _run_imagery,
-    "export": _run_export,
-    "report": _run_report,
-    "import": _run_import,
-}
+    def run(self, claimed: store.Claimed, should_stop: StopFn) -> dict[str, Any]:
+        return _run_imagery(claimed, should_stop)
 
 
 def worker_name() -> str:
@@ -262,8 +239,8 @@ def execute(task_id: int, should_abort: StopFn = lambda: False) -> dict[str, Any
     claimed = store.claim(engine, task_id, worker_name())
     if claimed is None:
         return None
-    runner = RUNNERS.get(claimed.kind)
-    if runner is None:
+    kind = TASK_KINDS.get(claimed.kind) if claimed.kind in TASK_KINDS else None
+    if kind is None or kind.batch:
         store.finish_failed(engine, task_id, f"unknown task kind {claimed.kind!r}")
         return None
 
@@ -271,7 +248,7 @@ def execute(task_id: int, should_abort: StopFn = lambda: False) -> dict[str, Any
         return should_abort() or store.is_cancel_requested(engine, task_id)
 
     try:
-        return runner(claimed, should_stop)
+        return kind.run(claimed, should_stop)
     except Cancelled:
         store.finish_cancelled(engine, task_id)
         raise

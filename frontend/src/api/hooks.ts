@@ -68,6 +68,7 @@ export const qk = {
   jobReport: (id: number, q: JobReportQuery) => ['jobs', id, 'report', q] as const,
   asApplied: (id: number, q: AsAppliedQuery) => ['jobs', id, 'as-applied', q] as const,
   alertGroups: (q?: AlertGroupsQuery) => (q ? (['alerts', 'groups', q] as const) : (['alerts', 'groups'] as const)),
+  exportFormats: () => ['export-formats'] as const,
 };
 
 /**
@@ -237,12 +238,21 @@ export const queries = {
       queryKey: qk.alertGroups(q),
       queryFn: () => call(client.GET('/api/v1/alerts/groups', { params: { query: q } })),
     }),
+  exportFormats: () =>
+    queryOptions({
+      queryKey: qk.exportFormats(),
+      queryFn: () => call(client.GET('/api/v1/export-formats')),
+      staleTime: Infinity, // the server's formats change only with a new server
+    }),
 };
 
 /** The data type of a `queries.*` factory (read from its tagged query key). */
 type Data<F extends (...a: never[]) => { queryKey: QueryKey }> = InferDataFromTag<unknown, ReturnType<F>['queryKey']>;
 
 // --- one hook per resource -------------------------------------------------------------
+
+/** The export formats the server writes (its registry): the export menus are built from it. */
+export const useExportFormats = () => useQuery(queries.exportFormats());
 
 export const useFarms = (o?: HookOptions<Data<typeof queries.farms>>) => useQuery({ ...queries.farms(), ...poll(o) });
 

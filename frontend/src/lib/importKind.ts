@@ -1,3 +1,5 @@
+import registry from '../api/generated/import-formats.json';
+
 /**
  * What a dropped file is, so one "Import…" takes every format FieldRx reads: field
  * boundaries (GeoJSON, KML, zipped Shapefile), ISO 11783-10 TASKDATA (zip or the XML with
@@ -8,13 +10,23 @@
  */
 export type ImportKind = 'fields' | 'isoxml' | 'rx-shapefile' | 'timelog' | 'as-applied';
 
-export const KIND_LABELS: Record<ImportKind, string> = {
-  fields: 'Field boundaries (GeoJSON, KML, Shapefile)',
-  isoxml: 'ISO 11783-10 TASKDATA (farms, fields, prescriptions, TimeLogs)',
-  'rx-shapefile': 'Prescription Shapefile (rates per zone)',
-  timelog: 'ISO 11783-10 TimeLogs (as-applied records)',
-  'as-applied': 'As-applied table (CSV or Shapefile records)',
-};
+interface Rule {
+  priority: number;
+  pattern: string;
+  why: string;
+  scope: string;
+  file_name: string;
+}
+
+/** The server's import-format registry (`formats/import_formats.py`), as `scripts/gen-api.sh` wrote it. */
+const FORMATS = (registry as { import_formats: { name: string; label: string; route: string; rules: Rule[] }[] }).import_formats;
+
+export const KIND_LABELS = Object.fromEntries(FORMATS.map((f) => [f.name, f.label])) as Record<ImportKind, string>;
+
+/** Every format's rules, lowest priority first: the order they are tried in (as on the server). */
+const RULES = FORMATS.flatMap((f) => f.rules.map((r) => ({ ...r, kind: f.name as ImportKind, re: new RegExp(r.pattern), name: r.file_name ? new RegExp(r.file_name) : null }))).sort(
+  (a, b) => a.priority - b.priority,
+);
 
 /** Names of the members of a zip archive, from its end-of-central-directory record. */
 export function zipNames(buf: ArrayBuffer): string[] {
@@ -46,28 +58,20 @@ export function zipNames(buf: ArrayBuffer): string[] {
 
 const base = (name: string) => name.split(/[\\/]/).pop()!.toUpperCase();
 
-/** A zipped Shapefile's likely meaning from its file name (the user can change it). */
-function shapefileGuess(fileName: string): ImportKind {
-  const n = fileName.toLowerCase();
-  if (/applied|asapplied|as_applied|coverage|log/.test(n)) return 'as-applied';
-  if (/(^|[^a-z])rx([^a-z]|$)|rate|presc|vra|zones?/.test(n)) return 'rx-shapefile';
-  return 'fields';
-}
-
 /**
- * The kind of an upload: the chosen files' names, and for a zip the names inside it.
- * Returns null with a reason when it is none of the formats.
+ * The kind of an upload: the chosen files' names, and for a zip the names inside it, tried
+ * against the registry's rules in their order (a zipped Shapefile's kind is guessed from
+ * the file's name; the user can change it). Returns null with a reason when it is none of
+ * the formats.
  */
 export function recognise(files: { name: string; members?: string[] }[]): { kind: ImportKind | null; why: string } {
   const names = files.flatMap((f) => [base(f.name), ...(f.members ?? []).map(base)]);
-  if (names.includes('TASKDATA.XML')) return { kind: 'isoxml', why: 'holds TASKDATA.XML' };
-  if (names.some((n) => /^TLG\d+\.XML$/.test(n))) return { kind: 'timelog', why: 'holds TLGxxxxx.XML TimeLogs' };
-  if (names.some((n) => n.endsWith('.SHP'))) {
-    const kind = shapefileGuess(files[0].name);
-    return { kind, why: 'holds a Shapefile: say what it is' };
+  const first = files[0]?.name ?? '';
+  for (const r of RULES) {
+    const pool = r.scope === 'first' ? [base(first)] : names;
+    if (!pool.some((n) => r.re.test(n))) continue;
+    if (r.name && !r.name.test(first.toLowerCase())) continue;
+    return { kind: r.kind, why: r.why };
   }
-  const one = base(files[0]?.name ?? '');
-  if (one.endsWith('.CSV') || one.endsWith('.TXT')) return { kind: 'as-applied', why: 'a table of records' };
-  if (/\.(GEOJSON|JSON|KML)$/.test(one)) return { kind: 'fields', why: 'field boundaries' };
   return { kind: null, why: `${files.map((f) => f.name).join(', ') || 'nothing'}: not a format FieldRx reads` };
 }

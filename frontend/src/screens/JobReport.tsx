@@ -1,5 +1,5 @@
 import { useMemo, useState } from 'react';
-import { usePlan, usePrescription, useField, useJob } from '../api/hooks';
+import { useExportFormats, usePlan, usePrescription, useField, useJob } from '../api/hooks';
 import { ExportButtons } from '../components/ExportButtons';
 import { Legend } from '../components/Legend';
 import { MapStill, PrintReport, usePrintStill } from '../components/PrintReport';
@@ -8,6 +8,7 @@ import { ReportLoading, useLiveReport, type AsAppliedReport } from '../component
 import { ErrorBox, Kv } from '../components/Status';
 import { ReplayTrail, TrackReplay, useTrackReplay } from '../components/TrackReplay';
 import { ACCURACY_BREAKS, RED_GREEN, classColors, legendEntries, niceBreaks, stepExpression } from '../lib/colors';
+import { exportMenu } from '../lib/exportMenu';
 import { bboxOf } from '../lib/geo';
 import { AREA_BASIS_NOTE, outcomeRows, utcMinute } from '../lib/outcome';
 import { formatArea, formatDuration, formatMass, formatPercent } from '../lib/units';
@@ -59,6 +60,7 @@ function PrescriptionJobReport({ jobId }: { jobId: number }) {
   const field = fieldQ.data ?? null;
   const replay = useTrackReplay(jobId, tick);
   const printing = usePrintStill();
+  const formatsQ = useExportFormats();
 
   const lo = rx?.summary.rate_min_kg_ha ?? 0;
   const hi = rx?.summary.rate_max_kg_ha ?? 1000;
@@ -150,11 +152,11 @@ function PrescriptionJobReport({ jobId }: { jobId: number }) {
         </div>
         <ExportButtons
           path={`/jobs/${jobId}/export`}
-          formats={[
-            { format: 'csv', label: 'CSV', fallback: `job${jobId}_as_applied.csv` },
-            { format: 'shapefile', label: 'Shapefile', fallback: `job${jobId}_as_applied.zip` },
-            { format: 'isoxml', label: 'ISOXML', fallback: `job${jobId}_TASKDATA.zip` },
-          ]}
+          formats={exportMenu(formatsQ.data?.items ?? [], 'job').map((e) => ({
+            format: e.query,
+            label: e.label,
+            fallback: `job${jobId}_as_applied${e.extension}`,
+          }))}
         />
         <Legend entries={legend} title={legendTitle} testid="report-legend" />
         <TrackReplay replay={replay} />

@@ -1,7 +1,7 @@
 import { useCallback, useMemo, useRef, useState } from 'react';
 import type { TerraDraw } from 'terra-draw';
 import { call, client, download, type Schemas } from '../api/client';
-import { qk, useField, useInvalidate, usePlan, usePrescription, usePrescriptionVersion } from '../api/hooks';
+import { qk, useExportFormats, useField, useInvalidate, usePlan, usePrescription, usePrescriptionVersion } from '../api/hooks';
 import { CellEditPanel, type CellInfo } from '../components/CellEditPanel';
 import { Histogram, Legend } from '../components/Legend';
 import { RxSummaryPanel } from '../components/RxSummaryPanel';
@@ -13,6 +13,7 @@ import { VersionNote } from '../components/VersionNote';
 import { ZonePaintPanel } from '../components/ZonePaintPanel';
 import { ZonesTable } from '../components/ZonesTable';
 import { classColors, classify, legendEntries, niceBreaks, stepExpression, type LegendEntry } from '../lib/colors';
+import { exportMenu, fileType } from '../lib/exportMenu';
 import { attentionLines, attentionOf, attentionSummary } from '../lib/flags';
 import { bboxOf, type PolygonGeom } from '../lib/geo';
 import { rateUnitText } from '../lib/rxform';
@@ -22,18 +23,6 @@ import { MapView } from '../map/MapView';
 import { rxTilesUrl } from '../map/grid';
 import { EDITED_COLOR } from '../map/layers';
 import { CellGrid, FieldBoundary, FitBounds, ZoneDraw } from '../map/overlays';
-
-const EXPORTS: [string, string, string][] = [
-  ['geojson', 'GeoJSON', 'geojson'],
-  ['csv', 'CSV', 'csv'],
-  ['shapefile', 'Shapefile', 'zip'],
-  ['isoxml', 'ISOXML', 'zip'],
-  // terminal layouts: rate zones within the terminal's polygon limit (the server says what it merged)
-  ['isoxml-zones', 'ISOXML zones', 'zip'],
-  ['shapefile&profile=deere', 'John Deere (Rx/)', 'zip'],
-  ['shapefile&profile=fieldview', 'FieldView', 'zip'],
-  ['shapefile&profile=raven', 'Raven / Ag Leader / Trimble', 'zip'],
-];
 
 /**
  * Versioned rate map: whole-field figures, legend classes and zones table of the version on
@@ -56,6 +45,8 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
   const [error, setError] = useState<unknown>(null);
   const drawRef = useRef<TerraDraw | null>(null);
   const refresh = useInvalidate();
+  const formatsQ = useExportFormats();
+  const exports = useMemo(() => exportMenu(formatsQ.data?.items ?? [], 'prescription'), [formatsQ.data]);
 
   /** Make `v` current (undo / redo) and show it. */
   const goTo = useCallback(
@@ -223,7 +214,7 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
 
         <h3>Export</h3>
         <div className="row wrap">
-          {EXPORTS.map(([fmt, label, ext]) => (
+          {exports.map(({ query: fmt, label, extension }) => (
             <button
               key={fmt}
               data-testid={`export-${fmt.replace('&profile=', '-')}`}
@@ -231,7 +222,7 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
                 try {
                   const name = await download(
                     `/prescriptions/${rxId}/export?format=${fmt}${version ? `&version=${version}` : ''}`,
-                    `prescription-${rxId}-v${version ?? 1}.${ext}`,
+                    `prescription-${rxId}-v${version ?? 1}.${fileType(extension)}`,
                   );
                   setMsg(`Downloaded ${name}`);
                 } catch (e) {

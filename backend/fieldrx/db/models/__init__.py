@@ -23,7 +23,7 @@ from fieldrx.db.models.jobs import (
     JobCellRecord,
     JobEvent,
 )
-from fieldrx.db.models.kinds import JOB_KINDS, TASK_KINDS
+from fieldrx.db.models.kinds import JOB_KINDS
 from fieldrx.db.models.prescriptions import (
     Prescription,
     PrescriptionRate,
@@ -42,7 +42,6 @@ from fieldrx.db.models.telemetry import (
 __all__ = [
     "Base",
     "JOB_KINDS",
-    "TASK_KINDS",
     "ROLES",
     "Organisation",
     "User",

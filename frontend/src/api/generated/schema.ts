@@ -344,6 +344,29 @@ export interface paths {
         patch?: never;
         trace?: never;
     };
+    "/api/v1/export-formats": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        /**
+         * Export Formats
+         * @description Every export format in menu order: name (the ``format=`` value), label, media type,
+         *     the subjects it exports (``prescription``: ``/prescriptions/{id}/export``; ``job``:
+         *     ``/jobs/{id}/export``; ``package``: the job package), file name endings and the extra
+         *     menu entries (a terminal's Shapefile layout: ``profile=``).
+         */
+        get: operations["export_formats_api_v1_export_formats_get"];
+        put?: never;
+        post?: never;
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
     "/api/v1/farms": {
         parameters: {
             query?: never;
@@ -3009,6 +3032,45 @@ export interface components {
             note: string;
             /** State */
             state: string;
+        };
+        /**
+         * ExportFormatOut
+         * @description One export format of ``formats.export``'s registry.
+         */
+        ExportFormatOut: {
+            /** Default Name */
+            default_name: string;
+            /** Extension */
+            extension: string;
+            /** Job Extension */
+            job_extension: string;
+            /** Label */
+            label: string;
+            /** Media Type */
+            media_type: string;
+            /** Name */
+            name: string;
+            /** Subjects */
+            subjects: string[];
+            /** Variants */
+            variants: components["schemas"]["ExportVariantOut"][];
+        };
+        /** ExportFormatsOut */
+        ExportFormatsOut: {
+            /** Items */
+            items: components["schemas"]["ExportFormatOut"][];
+        };
+        /**
+         * ExportVariantOut
+         * @description A further menu entry: the format with these query parameters.
+         */
+        ExportVariantOut: {
+            /** Label */
+            label: string;
+            /** Params */
+            params: {
+                [key: string]: string;
+            };
         };
         /** FarmIn */
         FarmIn: {
@@ -7707,6 +7769,89 @@ export interface operations {
                 };
                 content: {
                     "application/json": components["schemas"]["DeviceTokenRotated"];
+                };
+            };
+            /** @description missing, invalid, expired or revoked bearer token */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description the token may not do this (a viewer writing, a device token on a user endpoint); the message names the role needed */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description no such resource in the caller's organisation */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description conflicts with stored state (a job state transition, evidence that must be kept) */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description request body or upload too large */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description invalid input: the message names the field, row or vertex */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description the database or the worker pool is busy or unreachable: retry (Retry-After) */
+            503: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+        };
+    };
+    export_formats_api_v1_export_formats_get: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ExportFormatsOut"];
                 };
             };
             /** @description missing, invalid, expired or revoked bearer token */
