@@ -246,14 +246,15 @@ def raw_copy_baseline(url: str, fleet: Fleet) -> float:
     (same columns and indexes; 10,000 rows per COPY, one connection): median of thirds."""
     import psycopg
     from fieldrx.db.session import raw_dsn
-    from fieldrx.fleet.ingest import COLUMNS, COPY_TYPES, validate
+    from fieldrx.fleet.ingest.validate import validate
+    from fieldrx.fleet.telemetry_row import TELEMETRY_COPY
 
     rows: list[tuple[Any, ...]] = []
     t_now = time.time()
     for k in range(len(fleet.machines)):
         valid, *_ = validate(fleet.records(k, 1, fleet.n, t_now), fleet.machines[k][0])
         rows.extend(valid.values())
-    cols = ", ".join(COLUMNS)
+    cols = ", ".join(TELEMETRY_COPY.columns)
     with psycopg.connect(raw_dsn(url), options="-c jit=off", autocommit=True) as conn:
         conn.execute("CREATE TABLE telemetry_baseline (LIKE telemetry INCLUDING ALL)")
         if citus(conn):  # on a cluster: sharded like telemetry, so both pay the routing
@@ -277,7 +278,7 @@ def raw_copy_baseline(url: str, fleet: Fleet) -> float:
                     with cur.copy(
                         f"COPY telemetry_baseline ({cols}) FROM STDIN (FORMAT BINARY)"
                     ) as cp:
-                        cp.set_types(COPY_TYPES)
+                        cp.set_types(TELEMETRY_COPY.types)
                         for r in chunk_rows[i : i + 10_000]:
                             cp.write_row(r)
             rates.append(len(chunk_rows) / (time.perf_counter() - t0))

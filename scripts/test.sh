@@ -12,6 +12,19 @@ step() { printf '\n\033[1;34m== %s ==\033[0m\n' "$1"; }
 
 scripts/check.sh --static || FAILED+=(check)
 
+# The browser tests spend most of their time waiting on a simulated job driven in real time
+# (measured: 64 s of CPU in 7 min 53 s of wall time), so they run beside pytest, each on its
+# own database, server and port; their output is shown when they end.
+E2E_PID=""
+E2E_LOG=.run/e2e-tests.log
+if compgen -G "tests/e2e/*.test.mjs" >/dev/null; then
+  mkdir -p .run
+  scripts/e2e.sh >"$E2E_LOG" 2>&1 &
+  E2E_PID=$!
+  # an interrupted run takes its browser tests (and their server) with it
+  trap '[[ -n "$E2E_PID" ]] && kill "$E2E_PID" 2>/dev/null' EXIT
+fi
+
 step "pytest"
 # Parallel workers (pytest-xdist), each with its own throw-away database and broker
 # (tests/conftest.py); "auto" is one per core, measured the fastest on 2 cores (3 was slower).
@@ -22,9 +35,10 @@ if [[ -f frontend/package.json ]]; then
   (cd frontend && npm test --silent) || FAILED+=(vitest)
 fi
 
-if compgen -G "tests/e2e/*.test.mjs" >/dev/null; then
-  step "browser end-to-end tests (playwright-core + chromium)"
-  scripts/e2e.sh || FAILED+=(e2e)
+if [[ -n "$E2E_PID" ]]; then
+  step "browser end-to-end tests (playwright-core + chromium; ran beside pytest)"
+  wait "$E2E_PID" || FAILED+=(e2e)
+  cat "$E2E_LOG"
 fi
 
 if [[ ${#FAILED[@]} -gt 0 ]]; then

@@ -15,11 +15,8 @@ PACKAGES = ("backend/fieldrx", "edge_agent/fieldrx_edge")
 LIMIT = 600
 # written by a tool, not by hand: their length is the tool's business
 GENERATED: frozenset[str] = frozenset()
-EXEMPT = frozenset(
-    {
-        "backend/fieldrx/fleet/ingest.py",  # exempt until the ingest stages land
-    }
-)
+# over the limit for now, each with its reason (none today)
+EXEMPT: frozenset[str] = frozenset()
 
 
 def _lines(path: Path) -> int:

@@ -342,7 +342,7 @@ def test_ack_json_is_the_protocol_ack(streamed: bool) -> None:
     from dataclasses import asdict
 
     import orjson
-    from fieldrx.fleet.ingest import IngestResult
+    from fieldrx.fleet.ingest.model import IngestResult
 
     r = IngestResult(
         7, 41, stored=3, duplicates=2, rejected=[{"seq": 5, "reason": "bad é"}],

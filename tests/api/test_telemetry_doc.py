@@ -1,6 +1,6 @@
 """The OpenAPI description of ``POST /api/v1/telemetry`` is the endpoint's real contract.
 
-The route reads its body itself (``fleet.ingest.parse_request``), so nothing checks the
+The route reads its body itself (``fleet.ingest.parse.parse_request``), so nothing checks the
 document against it but these tests: every request form the parser takes (telemetry
 batch, cell batch, several batches) is offered, with the parser's rules; the records'
 required fields are the protocol's; the 200 answer offers the single ack and
@@ -165,7 +165,7 @@ def test_real_answers_validate_against_the_documented_schemas(
     """Every request form, as agents send it, is valid under the documented body schema,
     and the endpoint's answers (one ack of each kind, several acks, an error ack) are
     valid under the documented 200 schema; the validator does refuse a wrong answer."""
-    from fieldrx.fleet.ingest import Batch
+    from fieldrx.fleet.ingest.model import Batch
     from fieldrx.fleet.multibatch import error_ack
 
     op = _operation(document)

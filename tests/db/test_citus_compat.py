@@ -68,15 +68,16 @@ def test_check_finds_what_citus_refused_in_the_old_schema() -> None:
 
 
 def _fleet_sql() -> list[tuple[str, str]]:
-    """Every SQL string of the fleet modules (the ingest path): module-level strings and
-    string literals inside functions."""
+    """Every SQL string of the fleet modules and their sub-packages (the ingest path, its
+    stages in ``fleet.ingest``): module-level strings and string literals inside functions."""
     out: list[tuple[str, str]] = []
-    for info in pkgutil.iter_modules(fieldrx.fleet.__path__):
-        mod = importlib.import_module(f"fieldrx.fleet.{info.name}")
-        out += [(f"{info.name}.{k}", v) for k, v in vars(mod).items() if isinstance(v, str)]
+    for info in pkgutil.walk_packages(fieldrx.fleet.__path__, prefix="fieldrx.fleet."):
+        mod = importlib.import_module(info.name)
+        name = info.name.removeprefix("fieldrx.fleet.")
+        out += [(f"{name}.{k}", v) for k, v in vars(mod).items() if isinstance(v, str)]
         tree = ast.parse(inspect.getsource(mod))
         out += [
-            (f"{info.name}:{n.lineno}", n.value)
+            (f"{name}:{n.lineno}", n.value)
             for n in ast.walk(tree)
             if isinstance(n, ast.Constant) and isinstance(n.value, str)
         ]

@@ -21,7 +21,7 @@ from fieldrx.db.citus import DISTRIBUTED
 from fieldrx.db.models import Job
 from fieldrx.db.session import make_engine, raw_dsn
 from fieldrx.fleet.cellrecords import ingest_cells
-from fieldrx.fleet.ingest import ingest
+from fieldrx.fleet.ingest.pipeline import ingest
 from fieldrx.fleet.jobstate import change_state, lock_job
 from sqlalchemy import event
 from sqlalchemy.orm import Session

@@ -13,7 +13,7 @@ from typing import Any
 import psycopg
 import pytest
 from fieldrx.db.session import raw_dsn
-from fieldrx.fleet.ingest import ingest
+from fieldrx.fleet.ingest.pipeline import ingest
 from fieldrx.fleet.partitions import maintain
 from sqlalchemy import text
 

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from fieldrx.fleet.ingest import validate
+from fieldrx.fleet.ingest.validate import validate
 from fieldrx.fleet.telemetry_row import TELEMETRY_COPY, TelemetryRow
 from fieldrx_edge.protocol import EXTRA_FIELDS, TELEMETRY_FIELDS
 from sqlalchemy import text

@@ -17,7 +17,7 @@ import psycopg
 import pytest
 from fieldrx.db.session import raw_dsn
 from fieldrx.fleet.db import connect
-from fieldrx.fleet.ingest import parse_batch
+from fieldrx.fleet.ingest.parse import parse_batch
 from fieldrx.fleet.multibatch import store_together, work_of
 from fieldrx.fleet.worker import IngestOptions, IngestWorker, WorkerStats, _rounds
 from fieldrx_edge.protocol import ack_topic, telemetry_topic
@@ -198,7 +198,7 @@ def test_a_busy_machine_is_left_for_later_not_waited_for(conn, org, database_url
     """``store_free`` stores the machines no other transaction holds and leaves the others
     (None): a many-machine transaction that waited for one lock would hold all its other
     machines for as long (two workers took turns instead of working at once)."""
-    from fieldrx.fleet.ingest import LOCK_NS
+    from fieldrx.fleet.ingest.pipeline import LOCK_NS
     from fieldrx.fleet.multibatch import store_free
 
     a, b = make_job(org.id, state="running"), make_job(org.id, state="running")
@@ -222,7 +222,7 @@ def test_a_busy_machines_batch_is_held_over_once(worker, conn, org, database_url
     """In the lane, a batch whose machine another transaction holds waits for the next
     round (unacked, nothing stored), the others are stored and acked at once; held over
     again, it is waited for."""
-    from fieldrx.fleet.ingest import LOCK_NS
+    from fieldrx.fleet.ingest.pipeline import LOCK_NS
 
     a, b = make_job(org.id, state="running"), make_job(org.id, state="running")
     t0 = time.time() - 100

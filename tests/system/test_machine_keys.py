@@ -24,7 +24,7 @@ from alembic import command
 from fieldrx.api.fleet import CHART_WHERE, TRACK_WHERE
 from fieldrx.db.bootstrap import alembic_config, drop_database, ensure_database
 from fieldrx.db.session import make_engine, raw_dsn
-from fieldrx.fleet.ingest import ingest
+from fieldrx.fleet.ingest.pipeline import ingest
 from fieldrx.fleet.partitions import machine_window
 from sqlalchemy.orm import Session
 

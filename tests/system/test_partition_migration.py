@@ -9,7 +9,7 @@ import uuid
 import psycopg
 from alembic import command
 from fieldrx.db.bootstrap import alembic_config, drop_database, ensure_database
-from fieldrx.fleet.ingest import ingest
+from fieldrx.fleet.ingest.pipeline import ingest
 
 from tests.conftest import PG
 

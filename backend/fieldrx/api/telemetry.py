@@ -51,7 +51,8 @@ from fieldrx.auth.deps import SessionDep, UserDep, bearer_token, bearer_token_of
 from fieldrx.db.models import Machine, TelemetryStream
 from fieldrx.fleet.auth import device_of
 from fieldrx.fleet.db import raw_connection
-from fieldrx.fleet.ingest import IngestError, parse_request
+from fieldrx.fleet.ingest.model import IngestError
+from fieldrx.fleet.ingest.parse import parse_request
 from fieldrx.fleet.multibatch import ingest_batches, store
 
 router = APIRouter(tags=["telemetry"], responses=ERRORS)

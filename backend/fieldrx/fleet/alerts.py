@@ -17,7 +17,7 @@ from typing import Any
 
 import psycopg
 
-# events ingest opens and ends itself (not conditions on records, see fleet.ingest)
+# events ingest opens and ends itself (not conditions on records, see fleet.ingest.alerts)
 # duplicate_stream: two agent queues sending for one machine at once; far_past_records:
 # records dated more than the partitions' on-demand bound ago, kept in the default partition
 EVENT_KINDS = ("duplicate_stream", "far_past_records")
@@ -118,26 +118,30 @@ def _ts(t: float) -> dt.datetime:
     return dt.datetime.fromtimestamp(t, dt.UTC)
 
 
-def evaluate(
-    cur: psycopg.Cursor[Any],
-    machine_id: int,
-    organisation_id: int,
-    job_id: int | None,
-    samples: list[Sample],
-    speed_min_m_s: float,
-    speed_max_m_s: float,
-    open_ids: dict[str, int],
-    rules: AlertRules = RULES,
-) -> list[dict[str, Any]]:
-    """Open/close alerts for a batch of new samples (time-ordered). Returns live messages.
+@dataclass(frozen=True)
+class Scope:
+    """Whose samples ``evaluate`` looks at: the machine, its organisation, the job its
+    latest record names (a new alert's job), the job's planned speed range, and the
+    machine's alerts not ended yet (kind -> id, read with the machine row under the ingest
+    lock)."""
 
-    ``open_ids``: kind -> id of the machine's alerts not ended yet (read with
-    the machine row under the ingest lock).
-    """
+    machine_id: int
+    organisation_id: int
+    job_id: int | None
+    speed_min_m_s: float
+    speed_max_m_s: float
+    open_ids: dict[str, int]
+
+
+def evaluate(
+    cur: psycopg.Cursor[Any], scope: Scope, samples: list[Sample], rules: AlertRules = RULES
+) -> list[dict[str, Any]]:
+    """Open/close alerts for a batch of new samples (time-ordered). Returns live messages."""
     if not samples:
         return []
-    open_ids = dict(open_ids)
-    conds = conditions(speed_min_m_s, speed_max_m_s, rules)
+    machine_id, organisation_id, job_id = scope.machine_id, scope.organisation_id, scope.job_id
+    open_ids = dict(scope.open_ids)
+    conds = conditions(scope.speed_min_m_s, scope.speed_max_m_s, rules)
     messages: list[dict[str, Any]] = []
     # data arrived: a no_data alert is over
     if "no_data" in open_ids:

@@ -5,7 +5,7 @@ telemetry (``fleet.ingest``) and, on a stream of their own, one
 ``cell_records.CellRecord`` per cell it left, in cell batches (format 3,
 ``"kind": "cells"``). They are stored here, in ``job_cell_records`` (kept
 forever, whatever the telemetry retention), with the semantics of the
-telemetry ingest (``fleet.ingest``'s docstring), so nothing is lost or stored
+telemetry ingest (``fleet.ingest``'s stages), so nothing is lost or stored
 twice:
 
 1. each record is validated on its own (``CellRecord`` rules, its machine, a
@@ -21,8 +21,8 @@ twice:
    or rejected-for-good seqs and stops at the first gap (``ACK_WALK_SQL``: one
    statement, before the stream row's upsert ``STREAM_ROW_SQL``);
 5. per-cell aggregates and job progress move as for telemetry records
-   (``ingest.cell_progress``). A thin request's track batch and cell batch share one
-   transaction (``fleet.multibatch``).
+   (``ingest.progress.cell_progress``). A thin request's track batch and cell batch
+   share one transaction (``fleet.multibatch``).
 """
 
 from __future__ import annotations
@@ -41,15 +41,11 @@ from fieldrx_edge.protocol import ALARMS, INT4_MAX
 from sqlalchemy import text
 from sqlalchemy.orm import Session
 
-from fieldrx.fleet.ingest import (
-    FUTURE_TOLERANCE_S,
-    INT8_MAX,
-    PG_EPOCH,
-    IngestError,
-    IngestResult,
-    cell_progress,
-    store_alone,
-)
+from fieldrx.fleet.ingest.model import INT8_MAX, IngestError, IngestResult
+from fieldrx.fleet.ingest.progress import cell_progress
+from fieldrx.fleet.ingest.store import store_alone
+from fieldrx.fleet.ingest.validate import FUTURE_TOLERANCE_S
+from fieldrx.fleet.telemetry_row import PG_EPOCH
 
 COLUMNS = (
     "machine_id", "stream", "seq", "job_id", "cell_seq", "t_entry", "t_exit", "n_fixes",
@@ -69,7 +65,7 @@ def _ts(t: float) -> dt.datetime:
 
 
 def _us(t: float) -> int:
-    """Unix seconds -> microseconds since 2000-01-01 (``ingest.cell_progress``'s times)."""
+    """Unix seconds -> microseconds since 2000-01-01 (``ingest.progress.cell_progress``'s times)."""
     return int(round((t - PG_EPOCH) * 1e6))
 
 
@@ -187,7 +183,7 @@ def ingest_cells(
 
 @dataclass
 class CellWork:
-    """One cell batch's part of a transaction, in the order ``ingest.TrackWork`` documents
+    """One cell batch's part of a transaction, in the order ``ingest.pipeline.TrackWork`` documents
     (``prepare``, the caller's BEGIN and lock on ``lock_ns``, ``read`` / ``opened``,
     ``store``, ``finish``, the caller's NOTIFY and COMMIT); ``result`` is the ack, true
     once the caller committed."""
@@ -256,7 +252,7 @@ class CellWork:
 
     @staticmethod
     def copy_all(cur: psycopg.Cursor[Any], works: Sequence[CellWork]) -> None:
-        """One COPY of the sorted works' new rows (``ingest.TrackWork.copy_all``)."""
+        """One COPY of the sorted works' new rows (``ingest.pipeline.TrackWork.copy_all``)."""
         if any(w.new for w in works):
             with cur.copy(COPY_SQL) as copy:
                 copy.set_types(COPY_TYPES)
@@ -298,7 +294,7 @@ class CellWork:
 
     def finish(self, cur: psycopg.Cursor[Any]) -> list[dict[str, Any]]:
         """The stream's row with its ack walk (``ACK_WALK_SQL``), then the per-cell sums and
-        job progress (``ingest.cell_progress``); the live messages. Each statement is a
+        job progress (``ingest.progress.cell_progress``); the live messages. Each statement is a
         single-shard router plan on Citus, which refuses a subquery inside INSERT ...
         VALUES and router-plans no INSERT inside a common table expression."""
         done = _int_array(set(self.rows) | self.dead)
@@ -319,8 +315,8 @@ def _int_array(values: set[int]) -> str:
 
 
 def _per_cell(new: list[tuple[Any, ...]]) -> dict[tuple[int, int], list[Any]]:
-    """New cell records summed per (job, cell) as ``ingest.cell_progress`` takes them: fixes,
-    target and applied rate sums over the fixes, first and last time (COPY us)."""
+    """New cell records summed per (job, cell) as ``ingest.progress.cell_progress`` takes
+    them: fixes, target and applied rate sums over the fixes, first and last time (COPY us)."""
     agg: dict[tuple[int, int], list[Any]] = {}
     for r in new:
         n = r[7]
@@ -339,7 +335,7 @@ def _per_cell(new: list[tuple[Any, ...]]) -> dict[tuple[int, int], list[Any]]:
     return agg
 
 
-# The ack walk in one statement (``ingest.advance_over_stored``'s rule): from the stored
+# The ack walk in one statement (``ingest.stream.advance_over_stored``'s rule): from the stored
 # ack, over the contiguous seqs that are stored on the stream or done in this batch (stored
 # or rejected for good), to the first gap. Numbered in seq order, a seq is in the run from
 # ack + 1 exactly when it equals ack + its rank; the run is the count of those. At most

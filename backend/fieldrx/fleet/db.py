@@ -9,7 +9,7 @@ A connection that raised is closed, not reused.
 The connections are in autocommit mode: a single statement (the device-token check)
 is its own transaction in one round trip instead of three (BEGIN, statement,
 COMMIT), and ingest sends its own BEGIN and COMMIT inside pipelines
-(``fleet.ingest.pipelined``). Every multi-statement use opens ``conn.transaction()``.
+(``fleet.ingest.store.pipelined``). Every multi-statement use opens ``conn.transaction()``.
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """Several batches of one machine in one request (``protocol.MULTI_KIND``), in one transaction.
 
 A thin agent (uplink profile ``thin``) sends its 1 Hz track batch and its cell batch in
-one HTTP request. Stored one transaction each (``ingest.ingest``, then
+one HTTP request. Stored one transaction each (``ingest.pipeline.ingest``, then
 ``cellrecords.ingest_cells``) that is two BEGIN / lock / read / NOTIFY / COMMIT rounds per
 request; here a track batch and a cell batch share one transaction: both locks in one
 statement, both reads in one round trip, one NOTIFY, one COMMIT (the thin
@@ -29,16 +29,9 @@ import psycopg
 
 from fieldrx.fleet import alerts as alert_rules
 from fieldrx.fleet.cellrecords import CellWork, ingest_cells
-from fieldrx.fleet.ingest import (
-    Batch,
-    IngestError,
-    IngestResult,
-    TrackWork,
-    begin,
-    commit,
-    ingest,
-    pipelined,
-)
+from fieldrx.fleet.ingest.model import Batch, IngestError, IngestResult
+from fieldrx.fleet.ingest.pipeline import TrackWork, ingest
+from fieldrx.fleet.ingest.store import begin, commit, pipelined
 
 log = logging.getLogger(__name__)
 

@@ -68,7 +68,8 @@ from fieldrx.auth.mqtt import WORKER_USER, Broker
 from fieldrx.db.session import raw_dsn
 from fieldrx.fleet.alerts import check_no_data
 from fieldrx.fleet.db import connect
-from fieldrx.fleet.ingest import Batch, IngestError, IngestResult, parse_batch
+from fieldrx.fleet.ingest.model import Batch, IngestError, IngestResult
+from fieldrx.fleet.ingest.parse import parse_batch
 from fieldrx.fleet.multibatch import (
     error_ack,
     reason_of,

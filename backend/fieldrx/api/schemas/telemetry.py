@@ -1,7 +1,7 @@
 """Telemetry: a device's batches (parsed record by record by ``fleet.ingest``, not through
 these models: they only document the wire format) and its streams.
 
-The request models follow ``fleet.ingest.parse_request`` / ``_batch_of`` (the rules the
+The request models follow ``fleet.ingest.parse.parse_request`` / ``_batch_of`` (the rules the
 server enforces: formats, kinds, the stream pattern, ``stream_start``'s range, 1..
 ``MAX_BATCHES`` batches); the records are the protocol's own dataclasses
 (``fieldrx_edge.protocol.TelemetryRecord`` / ``cell_records.CellRecord``), whose schemas pydantic
@@ -29,7 +29,7 @@ from pydantic.json_schema import GenerateJsonSchema, JsonSchemaValue, SkipJsonSc
 from pydantic_core import core_schema
 
 from fieldrx.api.schemas.base import Open, Out
-from fieldrx.fleet.ingest import INT8_MAX
+from fieldrx.fleet.ingest.model import INT8_MAX
 
 MAX_RECORDS = 20_000  # per request, all batches together: more is a 413
 
@@ -86,7 +86,7 @@ TelemetryRequestIn = Annotated[
         f"{MAX_RECORDS} records in all (413)"
     ),
 ]
-"""The body of ``POST /telemetry`` (``fleet.ingest.parse_request``)."""
+"""The body of ``POST /telemetry`` (``fleet.ingest.parse.parse_request``)."""
 
 
 class ProtocolRecordSchema(GenerateJsonSchema):

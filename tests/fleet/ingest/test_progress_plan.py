@@ -1,4 +1,4 @@
-"""Per-cell progress (``ingest.CELL_PROGRESS_CTE``) costs one lookup per cell of a batch.
+"""Per-cell progress (``ingest.progress.CELL_PROGRESS_CTE``) costs one lookup per cell of a batch.
 
 The statement read each new cell's row before its upsert (``old``) and joined that with
 the upsert's result. PostgreSQL inlined ``old`` (referenced once) and, estimating one row
@@ -17,7 +17,11 @@ from typing import Any
 
 import psycopg
 from fieldrx.db.session import raw_dsn
-from fieldrx.fleet.ingest import CELL_PROGRESS_CTE, CELL_UPSERT_SQL, cell_progress_params
+from fieldrx.fleet.ingest.progress import (
+    CELL_PROGRESS_CTE,
+    CELL_UPSERT_SQL,
+    cell_progress_params,
+)
 
 from tests.fleet.helpers import JobFixture, on_citus
 
@@ -48,7 +52,7 @@ def _run(conn: psycopg.Connection[Any], machine_id: int, agg: dict, explain: boo
         sql = "EXPLAIN (ANALYZE, FORMAT JSON) " + sql
     params = cell_progress_params(machine_id, agg)
     out = conn.execute(sql, params).fetchall()
-    if not explain:  # then the sums, as ``ingest.cell_progress`` does
+    if not explain:  # then the sums, as ``ingest.progress.cell_progress`` does
         conn.execute(CELL_UPSERT_SQL, params)
     return out
 

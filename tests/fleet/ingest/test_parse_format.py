@@ -6,7 +6,8 @@ wrong fix."""
 from __future__ import annotations
 
 import pytest
-from fieldrx.fleet.ingest import IngestError, parse_batch
+from fieldrx.fleet.ingest.model import IngestError
+from fieldrx.fleet.ingest.parse import parse_batch
 from fieldrx_edge.protocol import TELEMETRY_FORMAT_VERSION
 
 

@@ -19,7 +19,8 @@ import psycopg
 import pytest
 from fieldrx.db.session import raw_dsn
 from fieldrx.fleet.db import connect
-from fieldrx.fleet.ingest import LOCK_NS, IngestResult, ingest
+from fieldrx.fleet.ingest.model import IngestResult
+from fieldrx.fleet.ingest.pipeline import LOCK_NS, ingest
 
 from tests.fleet.helpers import JobFixture, record
 from tests.support import scaled
