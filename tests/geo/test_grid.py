@@ -142,10 +142,12 @@ def test_dense_noisy_boundary_is_planned_quickly_and_cells_fit_it():
     ang = np.linspace(0, 2 * math.pi, 600, endpoint=False)
     r = 120 * (1 + 0.05 * np.sin(5 * ang)) + rng.normal(0, 0.3, 600)
     f = Polygon(np.stack([X0 + 1.5 * r * np.cos(ang), Y0 + r * np.sin(ang)], 1))
-    t = time.perf_counter()
+    # CPU seconds of this process, not wall time: the bound is the algorithms' cost, which
+    # a busy machine does not change (wall time took 28 s beside 6 busy processes)
+    t = time.process_time()
     plan = plan_coverage(f, 2.3, "optimal", headland_passes=1)
     grid = build_grid(plan, f, 5.0)
-    assert time.perf_counter() - t < 20.0
+    assert time.process_time() - t < 20.0
     # noise does not multiply the swaths: close to the strip count of the clean shape
     assert plan.n_swaths <= 1.15 * (2 * 120 * 1.05 / 2.3)
     check_grid(grid, f, unworked_m2=plan.corner_loss_m2)
