@@ -346,14 +346,15 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
     await page.setInputFiles('[data-testid=soil-file]', extraFile);
     await page.click('[data-testid=soil-confirm]:not([disabled])');
     await page.waitForFunction(() => document.querySelectorAll('[data-testid=soil-imports] tbody tr').length === 2);
-    const before = Number((await page.textContent('[data-testid=soil-count]')).replace(/\D/g, ''));
+    // the sample count comes by its own request and may lag the list on a busy machine:
+    // wait for the extra sample in it rather than reading a stale count as "before"
+    const count = (n) => Number((document.querySelector('[data-testid=soil-count]')?.textContent ?? '').replace(/\D/g, '')) === n;
+    await page.waitForFunction(count, rows.length + 1);
+    const before = rows.length + 1;
     page.once('dialog', (d) => d.accept());
     await page.click('[data-testid=soil-imports] tbody tr:first-child button');
     await page.waitForFunction(() => document.querySelectorAll('[data-testid=soil-imports] tbody tr').length === 1);
-    await page.waitForFunction(
-      (n) => Number((document.querySelector('[data-testid=soil-count]')?.textContent ?? '').replace(/\D/g, '')) === n,
-      before - 1,
-    );
+    await page.waitForFunction(count, before - 1);
     await shot(page, 'soil-imports');
   });
 
@@ -592,7 +593,8 @@ describe('FieldRx in the browser', { skip: SKIP_ALL }, () => {
       const onMap = await page.evaluate(() => window.__fieldrxMaps.fleet.queryRenderedFeatures({ layers: ['machines-dot'] }).length);
       assert.ok(onMap > 0, 'machine drawn on the fleet map');
       S.moved = true;
-      const ended = await waitExit(sim, Number(process.env.FIELDRX_SIM_TIMEOUT_MS ?? 150_000));
+      // a wait on another process stretches with the load, as every other wait here
+      const ended = await waitExit(sim, Number(process.env.FIELDRX_SIM_TIMEOUT_MS ?? scaled(150_000)));
       assert.ok(ended, 'simulator finished');
       assert.equal(sim.exitCode, 0, `simulator exit code (see artifacts/edge-simulate.log)`);
     } finally {
