@@ -245,4 +245,6 @@ JobKindRow  # unused class (backend/fieldrx/db/models.py: the job_kinds table, r
 sync_job_kinds  # unused function (backend/fieldrx/db/kinds.py: called by migrations/env.py)
 PrescriptionMap  # unused class (registered by its decorator: fieldrx_edge.jobkinds.registry)
 NdviTopdress  # unused class (registered by its decorator: fieldrx_edge.jobkinds.registry)
+KgPerHa  # unused class (registered by its decorator: fieldrx_edge.rateunits.registry)
+LitresPerHa  # unused class (registered by its decorator: fieldrx_edge.rateunits.registry)
 SeedingDepth  # unused class (registered by its decorator: fieldrx_edge.jobkinds.registry)

@@ -16,6 +16,7 @@ from typing import Any
 from fieldrx_edge.jobkinds.registry import DEFAULT_KIND
 from fieldrx_edge.jobkinds.registry import names as kind_names
 from fieldrx_edge.protocol import FORMAT_VERSION, ProtocolError
+from fieldrx_edge.rateunits.registry import DEFAULT_UNIT, RateUnit, RateUnitError, unit_of
 
 
 def _canonical(obj: Any) -> bytes:
@@ -93,12 +94,15 @@ class JobPackage:
     # canonical JSON when default, so prescription-map packages keep their bytes and checksum.
     kind: str = DEFAULT_KIND
     kind_settings: dict[str, Any] = field(default_factory=dict)
-    # the unit of ``rate_kg_ha`` ("kg/ha", or "l/ha" for a liquid product's volume
-    # prescription) and the product's density in kg/l (0: not known). They travel with the
-    # product so an ISOBUS TC converts between mass (DDI 6) and volume (DDI 1) implements
-    # without a number typed in the cab; left out of the canonical JSON when default.
-    rate_unit: str = "kg/ha"
+    # the unit of ``rate_kg_ha`` (one of ``fieldrx_edge.rateunits``: "kg/ha", or "l/ha"
+    # for a liquid product's volume prescription) and the product's density in kg/l (0:
+    # not known). They travel with the product so an ISOBUS TC converts between mass
+    # (DDI 6) and volume (DDI 1) implements without a number typed in the cab; left out of
+    # the canonical JSON when default. ``unit_lot`` holds the other lot values a unit
+    # converts through (``RateUnit.lot``), left out when empty.
+    rate_unit: str = DEFAULT_UNIT
     product_density_kg_l: float = 0.0
+    unit_lot: dict[str, float] = field(default_factory=dict)
     format_version: int = FORMAT_VERSION
     checksum: str = ""
 
@@ -116,9 +120,26 @@ class JobPackage:
                 del body[name]
         if self.kind == DEFAULT_KIND and not self.kind_settings:
             del body["kind"], body["kind_settings"]
-        if self.rate_unit == "kg/ha" and not self.product_density_kg_l:
+        if self.rate_unit == DEFAULT_UNIT and not self.product_density_kg_l:
             del body["rate_unit"], body["product_density_kg_l"]
+        if not self.unit_lot:
+            del body["unit_lot"]
         return body
+
+    def unit(self) -> RateUnit:
+        return unit_of(self.rate_unit)
+
+    def lot(self) -> dict[str, float]:
+        """The product lot's values the rate units convert through (density included)."""
+        out = dict(self.unit_lot)
+        if self.product_density_kg_l:
+            out["density_kg_l"] = self.product_density_kg_l
+        return out
+
+    def kg_per_unit(self) -> float:
+        """kg/ha in 1 of the package's rate unit/ha (the records and maps count mass)."""
+        u = self.unit()
+        return u.kg_per_unit(u.check_lot(self.lot(), "the job's product"))
 
     def cell_shapes(self) -> dict[int, list[list[float]]]:
         """Shaped cells: path index -> rings, each a flat x y list in UTM (see class doc)."""
@@ -159,8 +180,17 @@ class JobPackage:
             raise ProtocolError("job package: kind_settings must be an object")
         if self.implement_width_m <= 0:
             raise ProtocolError("job package: implement_width_m must be positive")
-        if self.rate_unit not in ("kg/ha", "l/ha"):
-            raise ProtocolError(f"job package: rate_unit {self.rate_unit!r} is not kg/ha or l/ha")
+        try:
+            u = self.unit()
+        except RateUnitError as exc:
+            raise ProtocolError(f"job package: rate_unit: {exc}") from None
+        if not isinstance(self.unit_lot, dict):
+            raise ProtocolError("job package: unit_lot must be an object")
+        lot = self.lot()
+        try:  # a value the unit converts through is checked when given (0 / absent: unknown)
+            u.check_lot(lot, "the job's product", only_given=True)
+        except RateUnitError as exc:
+            raise ProtocolError(f"job package: {exc}") from None
         d = self.product_density_kg_l
         if not math.isfinite(d) or (d and not 0.05 <= d <= 5.0):
             raise ProtocolError(

@@ -117,6 +117,10 @@ class Pipeline:
         self.cal = calibration_from_dict(job.calibration)
         self.kf = KalmanSpeedFilter()
         self.rates = list(job.rate_kg_ha)
+        # kg/ha in one of the job's rate unit, for the records; a lot the package does not
+        # state (an l/ha job without a density, metered by volume only) leaves them as is
+        u = job.unit()
+        self.kg_per_unit = job.kg_per_unit() if u.known(job.lot()) else 1.0
         self.seqs = list(job.seq)
         self.swaths = list(job.swath)
         cxy = [job.corners_utm[8 * i : 8 * i + 8] for i in range(job.n_cells)]
@@ -424,10 +428,9 @@ def make_record(pipe: Pipeline, d: Decision, fix: Fix | None, m: Measured) -> di
         lon, lat = fix.lon, fix.lat
     elif d.x is not None and d.y is not None:
         lon, lat = pipe.proj.inverse(d.x, d.y)
-    # records are kg/ha (the server's as-applied maps): an l/ha job's rates back to mass
-    # through the product's density its package carries
-    job = pipe.job
-    kg = job.product_density_kg_l if job.rate_unit == "l/ha" and job.product_density_kg_l else 1.0
+    # records are kg/ha (the server's as-applied maps): a job in another unit (l/ha) back
+    # to mass through the product lot its package carries (a liquid's density)
+    kg = pipe.kg_per_unit
     rec = TelemetryRecord(
         machine_id=pipe.job.machine_id,
         seq=1,

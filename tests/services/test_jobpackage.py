@@ -172,8 +172,37 @@ def test_an_l_ha_prescription_goes_out_by_volume(client, org, db, tmp_path) -> N
         r = client.post(
             f"{API}/plans/{plan['id']}/prescriptions", headers=h, json={**bad, "rate_unit": "l/ha"}
         )
-        assert r.status_code == 422 and "l/ha needs a liquid product" in r.text, r.text
+        assert r.status_code == 422 and "l/ha needs the density of" in r.text, r.text
     r = client.post(
         f"{API}/plans/{plan['id']}/prescriptions", headers=h, json={**body, "rate_unit": "gal/ac"}
     )
     assert r.status_code == 422 and "rate_unit" in r.text
+
+
+def test_a_lot_given_with_the_prescription_converts_and_travels(client, org) -> None:
+    """A product not in the catalogue (or one without the value) gets the lot values its
+    unit converts through with the request; one that contradicts the catalogue's is refused
+    rather than one of them silently winning. The units and their lot values are listed by
+    GET /rate-units."""
+    h = org.headers()
+    units = client.get(f"{API}/rate-units", headers=h).json()["items"]
+    lha = next(u for u in units if u["name"] == "l/ha")
+    assert units[0]["name"] == "kg/ha" and units[0]["lot"] == []
+    assert lha["lot"][0]["key"] == "density_kg_l" and lha["ddi_setpoint"] == 1
+    plan = setup_plan(client, h)
+    body = {"model": "uniform", "params": {"rate_kg_ha": 120}, "rate_unit": "l/ha"}
+    rx = make_rx(client, h, plan["id"], product="Own liquid", lot={"density_kg_l": 1.2}, **body)
+    assert rx["rate_unit"] == "l/ha" and rx["density_kg_l"] == 1.2
+    assert rx["lot"] == {"density_kg_l": 1.2} and rx["kg_per_unit"] == 1.2
+    r = client.post(
+        f"{API}/plans/{plan['id']}/prescriptions",
+        headers=h,
+        json={**body, "product_key": "default:uan28", "lot": {"density_kg_l": 1.3}},
+    )
+    assert r.status_code == 422 and "lot.density_kg_l 1.3 disagrees" in r.text, r.text
+    r = client.post(
+        f"{API}/plans/{plan['id']}/prescriptions",
+        headers=h,
+        json={**body, "lot": {"density_kg_l": 9}},
+    )
+    assert r.status_code == 422 and "9 kg/l is outside 0.05-5" in r.text, r.text

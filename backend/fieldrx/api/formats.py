@@ -1,12 +1,20 @@
-"""The export formats the server writes, from their registry: the UI builds its export
-menus from this list instead of repeating it."""
+"""The export formats the server writes and the rate units it prescribes in, from their
+registries: the UI builds its export menus and unit choices from these lists instead of
+repeating them."""
 
 from __future__ import annotations
 
 from fastapi import APIRouter
+from fieldrx_edge.rateunits.registry import units
 
 from fieldrx.api.schemas.errors import ERRORS
-from fieldrx.api.schemas.formats import ExportFormatOut, ExportFormatsOut, ExportVariantOut
+from fieldrx.api.schemas.formats import (
+    ExportFormatOut,
+    ExportFormatsOut,
+    ExportVariantOut,
+    RateUnitOut,
+    RateUnitsOut,
+)
 from fieldrx.auth.deps import UserDep
 from fieldrx.formats.export import EXPORT_FORMATS, SUBJECTS
 
@@ -34,3 +42,11 @@ def export_formats(principal: UserDep) -> ExportFormatsOut:
             for f in EXPORT_FORMATS
         ]
     )
+
+
+@router.get("/rate-units", response_model=RateUnitsOut)
+def rate_units(principal: UserDep) -> RateUnitsOut:
+    """Every rate unit a prescription may be given in (``rate_unit``), kg/ha first, with the
+    product lot values it converts through (``lot`` of a prescription request) and its
+    ISO 11783 setpoint and actual DDIs."""
+    return RateUnitsOut(items=[RateUnitOut.model_validate(u.describe()) for u in units()])

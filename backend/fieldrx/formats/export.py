@@ -34,9 +34,10 @@ class ExportOptions:
 
     ``profile`` picks the Shapefile layout (``formats.shapefile.PROFILES``); zone exports
     (``isoxml-zones`` and the terminal profiles) take the rate class count
-    ``zone_classes`` and the polygon limit ``max_polygons``. ``volume_density_kg_l`` (an
-    l/ha prescription's product density): the ISOXML task carries volume setpoints (DDI
-    0001) instead of mass ones; the other formats stay kg/ha. ``layer_name`` names the
+    ``zone_classes`` and the polygon limit ``max_polygons``. ``rate_unit`` and ``unit_lot``
+    (the prescription's unit and the product lot values it converts through): the ISOXML
+    task carries that unit's setpoints (DDI 0001 for l/ha) instead of mass ones; the other
+    formats stay kg/ha. ``layer_name`` names the
     Shapefile's files inside the zip.
     """
 
@@ -48,7 +49,8 @@ class ExportOptions:
     profile: str = "cells"
     zone_classes: int | None = None
     max_polygons: int | None = None
-    volume_density_kg_l: float | None = None
+    rate_unit: str = "kg/ha"
+    unit_lot: dict[str, float] | None = None
     layer_name: str = "prescription"
 
 
@@ -113,10 +115,10 @@ def _n_classes(opts: ExportOptions) -> int:
     return DEFAULT_ZONE_CLASSES if opts.zone_classes is None else int(opts.zone_classes)
 
 
-def _setpoint(volume_density_kg_l: float | None) -> Any:
-    from fieldrx.formats.isoxml import MASS, volume_setpoint
+def _setpoint(opts: ExportOptions) -> Any:
+    from fieldrx.formats.isoxml import unit_setpoint
 
-    return MASS if volume_density_kg_l is None else volume_setpoint(volume_density_kg_l)
+    return unit_setpoint(opts.rate_unit, opts.unit_lot)
 
 
 @EXPORT_FORMATS.register
@@ -226,7 +228,7 @@ class IsoxmlExport(ExportFormat):
             opts.boundary_wgs84,
             opts.product_name,
             opts.grid_cell_m,
-            _setpoint(opts.volume_density_kg_l),
+            _setpoint(opts),
         )
         return data, None
 
@@ -262,7 +264,7 @@ class IsoxmlZonesExport(ExportFormat):
             opts.product_name,
             _n_classes(opts),
             DEFAULT_MAX_POLYGONS if opts.max_polygons is None else int(opts.max_polygons),
-            setpoint=_setpoint(opts.volume_density_kg_l),
+            setpoint=_setpoint(opts),
         )
 
 

@@ -35,6 +35,7 @@ from typing import Any
 
 import numpy as np
 import shapely
+from fieldrx_edge.rateunits.registry import RateUnitError, unit_of
 from pyproj import Geod
 
 from fieldrx.agronomy.cells import CellTable
@@ -50,11 +51,7 @@ from fieldrx.formats.zones import (
 from fieldrx.geo.crs import lonlat_to_utm_xy, plane_area_m2
 
 DDI_SETPOINT_MASS_PER_AREA = 0x0006  # mg/m^2
-DDI_SETPOINT_VOLUME_PER_AREA = 0x0001  # 0.01 mm^3/m^2
 MG_M2_PER_KG_HA = 100.0
-# 1 l/ha = 1e6 mm^3 / 1e4 m^2 = 100 mm^3/m^2 = 10 000 bits of DDI 1 (resolution 0.01 mm^3/m^2,
-# ISO 11783-11 data dictionary)
-DDI1_BITS_PER_L_HA = 10_000.0
 MAX_GRID_CELLS = 25_000_000
 SOFTWARE = ("FieldRx", "0.1.0")
 _GEOD = Geod(ellps="WGS84")
@@ -69,36 +66,38 @@ def rate_to_mg_m2(rate_kg_ha: np.ndarray) -> np.ndarray:
 class Setpoint:
     """Which setpoint DDI a task carries and how a kg/ha rate becomes its integer value.
 
-    A solid (no density) goes out as mass per area (DDI 0006, mg/m^2); a liquid prescribed
-    in l/ha as volume per area (DDI 0001, 0.01 mm^3/m^2) with l/ha = kg/ha / density, so a
-    sprayer's volume-rate controller takes it without a conversion at the terminal.
+    The prescription's rate unit (``fieldrx_edge.rateunits``) decides: kg/ha goes out as
+    mass per area (DDI 0006, mg/m^2); a liquid prescribed in l/ha as volume per area (DDI
+    0001, 0.01 mm^3/m^2) with l/ha = kg/ha / density, so a sprayer's volume-rate controller
+    takes it without a conversion at the terminal. ``kg_per_unit``: kg/ha in 1 unit/ha
+    (from the product lot: a liquid's density).
     """
 
-    ddi: int = DDI_SETPOINT_MASS_PER_AREA
-    density_kg_l: float | None = None
+    unit: str = "kg/ha"
+    kg_per_unit: float = 1.0
 
     @property
-    def unit(self) -> str:
-        return "kg/ha" if self.density_kg_l is None else "l/ha"
+    def ddi(self) -> int:
+        return unit_of(self.unit).ddi_setpoint
 
     def shown(self, rate_kg_ha: float) -> float:
-        return rate_kg_ha if self.density_kg_l is None else rate_kg_ha / self.density_kg_l
+        return rate_kg_ha / self.kg_per_unit
 
     def values(self, rate_kg_ha: np.ndarray) -> np.ndarray:
-        if self.density_kg_l is None:
-            return rate_to_mg_m2(rate_kg_ha)
-        l_ha = np.asarray(rate_kg_ha, dtype=float) / self.density_kg_l
-        return np.rint(l_ha * DDI1_BITS_PER_L_HA).astype(np.int64)
+        per_unit = np.asarray(rate_kg_ha, dtype=float) / self.kg_per_unit
+        return np.rint(per_unit * unit_of(self.unit).bits_per_unit).astype(np.int64)
 
 
 MASS = Setpoint()
 
 
-def volume_setpoint(density_kg_l: float) -> Setpoint:
-    """DDI 0001 setpoints of a liquid of ``density_kg_l`` (kg/l)."""
-    if not density_kg_l > 0:
-        raise FormatError(f"a volume setpoint needs a positive density, got {density_kg_l!r}")
-    return Setpoint(DDI_SETPOINT_VOLUME_PER_AREA, float(density_kg_l))
+def unit_setpoint(unit: str, lot: dict[str, float] | None) -> Setpoint:
+    """The setpoints of a prescription in ``unit`` whose product lot is ``lot``."""
+    u = unit_of(unit)
+    try:
+        return Setpoint(u.name, u.kg_per_unit(u.check_lot(lot)))
+    except RateUnitError as exc:
+        raise FormatError(str(exc)) from None
 
 
 def deg(v: float) -> str:
@@ -290,7 +289,7 @@ def write_isoxml_grid(
     setpoint: Setpoint = MASS,
 ) -> bytes:
     """TASKDATA.zip with a type-2 grid of DDI 0006 setpoints (see module docstring), or
-    DDI 0001 ones with a volume ``setpoint``."""
+    another unit's (``setpoint``: DDI 0001 for l/ha)."""
     if len(cells) == 0:
         raise FormatError("prescription has no cells")
     cell_m = default_grid_cell_m(cells) if grid_cell_m is None else float(grid_cell_m)

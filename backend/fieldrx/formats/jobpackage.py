@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import gzip
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, TypedDict
 
 import numpy as np
@@ -179,6 +179,7 @@ class JobPackageSpec:
     kind_settings: dict[str, Any] | None = None
     rate_unit: str = "kg/ha"
     product_density_kg_l: float = 0.0
+    unit_lot: dict[str, float] = field(default_factory=dict)
 
 
 def build_job_package(
@@ -239,6 +240,7 @@ def build_job_package(
         kind_settings=dict(spec.kind_settings or {}),
         rate_unit=str(spec.rate_unit),
         product_density_kg_l=float(spec.product_density_kg_l),
+        unit_lot=dict(spec.unit_lot),
     )
     return pkg.seal()
 

@@ -9,7 +9,7 @@ from geoalchemy2.shape import to_shape
 from sqlalchemy.orm import Session
 
 from fieldrx.db.models import Field, Plan, Prescription, PrescriptionVersion
-from fieldrx.services.prescriptions.params import RxError, rx_rate_unit
+from fieldrx.services.prescriptions.params import RxError, rx_unit_lot
 from fieldrx.services.prescriptions.versions import version_cells
 
 
@@ -72,7 +72,7 @@ def export_version(
     field = session.get(Field, plan.field_id) if plan is not None else None
     boundary = None if field is None else to_shape(field.boundary)
     props = {"prescription_id": rx.id, "version": ver.version, "model": rx.model}
-    unit, density = rx_rate_unit(rx)
+    unit, lot = rx_unit_lot(rx)
     stem = file_stem("" if field is None else field.name, rx, ver)
     opts = ExportOptions(
         field_name="" if field is None else field.name,
@@ -82,7 +82,8 @@ def export_version(
         profile=profile,
         zone_classes=zone_classes,
         max_polygons=max_polygons,
-        volume_density_kg_l=density if unit == "l/ha" else None,
+        rate_unit=unit.name,
+        unit_lot=lot,
         layer_name=stem,
     )
     data, media, _ = export_prescription(cells, fmt, opts, info=info)

@@ -27,7 +27,7 @@ from sqlalchemy.orm import Session
 
 from fieldrx.db.models import Field, Job, Machine, Plan, Prescription
 from fieldrx.services.plans import field_utm
-from fieldrx.services.prescriptions.params import rx_rate_unit
+from fieldrx.services.prescriptions.params import rx_unit_lot
 from fieldrx.services.prescriptions.versions import get_version, version_cells
 from fieldrx.store import load_cells
 
@@ -67,12 +67,13 @@ def build_package(
     if plan is None or field is None:
         raise LookupError(f"prescription {prescription_id}: plan or field is gone")
     cells = version_cells(session, rx, ver)
-    unit, density = rx_rate_unit(rx)
-    if unit == "l/ha":
-        # stored in kg/ha (the agronomy counts mass); a liquid goes out by volume, so an
-        # ISOBUS volume-rate implement (DDI 1) takes the rates as they are
-        assert density, "an l/ha prescription has a product density (check_rate_unit)"
-        cells = cells.with_rates(cells.rate_kg_ha / density)
+    unit, lot = rx_unit_lot(rx)
+    if unit.lot:
+        # stored in kg/ha (the agronomy counts mass); the package carries the prescription's
+        # unit (a liquid by volume), so an ISOBUS implement metering in it (DDI 1 for l/ha)
+        # takes the rates as they are; check_rate_unit made sure the lot converts
+        cells = cells.with_rates(cells.rate_kg_ha / unit.kg_per_unit(unit.check_lot(lot)))
+    density = lot.pop("density_kg_l", None)
     return build(
         cells,
         field_utm(field),
@@ -84,9 +85,10 @@ def build_package(
             field_name=field.name,
             **machine_fields(machine),
             product=rx.product,
-            # the product's density travels with it (ISOBUS volume-rate implements, DDI 1)
-            rate_unit=unit,
+            # the product's lot travels with it (ISOBUS volume-rate implements, DDI 1)
+            rate_unit=unit.name,
             product_density_kg_l=density or 0.0,
+            unit_lot=lot,
         ),
     )
 

@@ -200,12 +200,13 @@ def isobus_implement(a: argparse.Namespace, job: JobPackage) -> Any:
 
 
 def check_motor_units(job: JobPackage) -> None:
-    """The meter's calibration is in kg per revolution: an l/ha job is refused for it
-    rather than metered as if its litres were kilograms."""
-    if job.rate_unit != "kg/ha":
+    """The meter's calibration is in kg per revolution: a job in another quantity (an
+    l/ha job) is refused for it rather than metered as if its litres were kilograms."""
+    unit = job.unit()
+    if unit.quantity != "mass":
         raise SystemExit(
-            f"job {job.job_id} is in {job.rate_unit}: the meter's calibration is in kg per"
-            " revolution; run it with --implement isobus on a volume-rate implement"
+            f"job {job.job_id} is in {unit.name}: the meter's calibration is in kg per"
+            f" revolution; run it with --implement isobus on a {unit.quantity}-rate implement"
         )
 
 
@@ -222,7 +223,7 @@ def job_rate_units(job: JobPackage, density_kg_l: float | None = None) -> Any:
             f"{d} kg/l ({job.product or 'product'}): leave --density out"
         )
     try:
-        return RateUnits(job.rate_unit, d if d is not None else density_kg_l)
+        return RateUnits(job.rate_unit, d if d is not None else density_kg_l, job.unit_lot)
     except ValueError as e:
         raise SystemExit(f"job {job.job_id}: {e}") from None
 

@@ -106,10 +106,9 @@ DDI_SETPOINT_CONDENSED_WORK_STATE = 290  # sections 1-16, 2 bits each
 DDI_ACTUAL_REVOLUTIONS = 390  # 0.0001 r/min
 DDI_ACTUAL_SPEED = 397  # mm/s
 
-# 1 kg/ha = 1e6 mg / 1e4 m^2 = 100 mg/m^2; 1 l/ha = 1e6 mm^3 / 1e4 m^2 = 100 mm^3/m^2,
-# i.e. 10 000 bits of 0.01 mm^3/m^2
+# 1 kg/ha = 1e6 mg / 1e4 m^2 = 100 mg/m^2 (the rate ECU's mass setpoint; every rate
+# unit's DDIs and resolution are in fieldrx_edge.rateunits)
 MG_M2_PER_KG_HA = 100.0
-DDI1_BITS_PER_L_HA = 10_000.0
 RPM_BITS = 10_000.0
 
 TC_VERSION = 4  # ISO 11783-10 version 4 (second edition, final draft)

@@ -1,16 +1,15 @@
 """How the Task Controller maps a client's pool to the job: which setpoint drives the rate
 and in which unit, and where the implement states its working width.
 
-The job's rates are in its unit, kg/ha or l/ha (``RateUnits``); the product's density
-(kg/l), carried by the job package with the product, converts between them. An implement
-offers a settable setpoint mass per area (DDI 6, 1 mg/m^2) or volume per area (DDI 1,
-0.01 mm^3/m^2): the one that needs no conversion is preferred, the other is used when the
-density is known, and a pool that can be driven by neither is named with the reason (the
-TC then activates it and alarms; ISO 11783-10 has no activation error for "valid but this
-TC has no conversion", and refusing a valid pool makes some clients give up for good).
-
-1 kg/ha = 1e6 mg / 1e4 m^2 = 100 mg/m^2; 1 l/ha = 1e6 mm^3 / 1e4 m^2 = 100 mm^3/m^2,
-i.e. 10 000 bits of DDI 1 (resolutions from the isobus.net data dictionary, DDIs 1 and 6).
+The job's rates are in its unit (``fieldrx_edge.rateunits``: kg/ha, l/ha, ...); the
+product lot's values carried by the job package (a liquid's density, ...) convert between
+units through kg/ha. An implement offers a settable setpoint per area in one quantity:
+mass (DDI 6, 1 mg/m^2), volume (DDI 1, 0.01 mm^3/m^2), ... (each unit's DDIs and
+resolution are in its class). The one that needs no conversion is preferred, another is
+used when the lot converts to it, and a pool that can be driven by none is named with the
+reason (the TC then activates it and alarms; ISO 11783-10 has no activation error for
+"valid but this TC has no conversion", and refusing a valid pool makes some clients give
+up for good).
 
 Working width (DDI 67, mm) is looked for on the setpoint's element and then on its parents
 (most pools put the rate on a bin and the width on the boom); it may be a property (a
@@ -20,36 +19,60 @@ activation), ISO 11783-10 Annex A.4 / A.5.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 
 from fieldrx_edge.isobus import process_data as pdm
 from fieldrx_edge.isobus.ddop import ELEMENT_DEVICE, Binding, DeviceDescriptor, Element
-
-RATE_UNITS = ("kg/ha", "l/ha")
+from fieldrx_edge.rateunits.registry import (
+    DEFAULT_UNIT,
+    RateUnit,
+    RateUnitError,
+    convert,
+    converts,
+    unit_of,
+    units,
+)
 
 
 @dataclass(frozen=True)
 class RateUnits:
-    """The job's rate unit and the product's density (None: unknown)."""
+    """The job's rate unit and its product lot: the density (None: unknown) and any other
+    values a unit converts through."""
 
-    unit: str = "kg/ha"
+    unit: str = DEFAULT_UNIT
     density_kg_l: float | None = None
+    values: Mapping[str, float] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        if self.unit not in RATE_UNITS:
-            raise ValueError(f"rate unit {self.unit!r} is not one of {list(RATE_UNITS)}")
+        unit_of(self.unit)  # RateUnitError (a ValueError) naming the known units
         if self.density_kg_l is not None and not 0.05 <= self.density_kg_l <= 5.0:
             raise ValueError(f"product density {self.density_kg_l} kg/l is outside 0.05-5")
 
+    def lot(self) -> dict[str, float]:
+        out = dict(self.values)
+        if self.density_kg_l is not None:
+            out["density_kg_l"] = self.density_kg_l
+        return out
+
+    def job_unit(self) -> RateUnit:
+        return unit_of(self.unit)
+
+    def implement_unit(self, kind: str) -> RateUnit:
+        """The unit of a ``kind`` (quantity: "mass", "volume", ...) implement's setpoint."""
+        found = next((u for u in units() if u.quantity == kind), None)
+        if found is None:
+            raise RateUnitError(f"no rate unit meters {kind}")
+        return found
+
     def converts(self, kind: str) -> bool:
-        """Whether a ``kind`` ("mass"/"volume") implement can take the job's rates."""
-        native = "mass" if self.unit == "kg/ha" else "volume"
-        return kind == native or self.density_kg_l is not None
+        """Whether a ``kind`` implement can take the job's rates."""
+        return converts(self.job_unit(), self.implement_unit(kind), self.lot())
 
 
 @dataclass
 class RateMap:
-    kind: str
+    kind: str  # the setpoint's quantity ("mass", "volume", ...)
     setpoint: Binding | None
     actual: Binding | None
     error: str = ""
@@ -59,43 +82,44 @@ def _first(bs: list[Binding]) -> Binding | None:
     return bs[0] if bs else None
 
 
-def choose_rate(dd: DeviceDescriptor, units: RateUnits) -> RateMap:
+def _article(word: str) -> str:
+    # units are read letter by letter ("an l/ha job", "a kg/ha job")
+    return "an" if word[:1].lower() in "aefhilmnorsx" else "a"
+
+
+def choose_rate(dd: DeviceDescriptor, units_: RateUnits) -> RateMap:
     """The setpoint the job's rates drive (see module docstring)."""
-    mass = _first(dd.find(pdm.DDI_SETPOINT_MASS_PER_AREA, settable=True))
-    vol = _first(dd.find(pdm.DDI_SETPOINT_VOLUME_PER_AREA, settable=True))
-    order = [("volume", vol), ("mass", mass)] if units.unit == "l/ha" else []
-    order += [("mass", mass), ("volume", vol)]
-    for kind, b in order:
-        if b is not None and units.converts(kind):
-            ddi = pdm.DDI_ACTUAL_MASS_PER_AREA if kind == "mass" else pdm.DDI_ACTUAL_VOLUME_PER_AREA
-            return RateMap(kind, b, _first(dd.find(ddi)))
-    if vol is not None:
-        why = "volume-rate implement (DDI 1) and a kg/ha job without a product density"
-        return RateMap("volume", None, None, why)
-    if mass is not None:
-        why = "mass-rate implement (DDI 6) and an l/ha job without a product density"
-        return RateMap("mass", None, None, why)
-    return RateMap("mass", None, None, "no settable setpoint mass or volume per area (DDI 6 / 1)")
+    job = units_.job_unit()
+    offered = [(u, _first(dd.find(u.ddi_setpoint, settable=True))) for u in units()]
+    offered = [(u, b) for u, b in offered if b is not None]
+    offered.sort(key=lambda ub: ub[0] is not job)  # the job's own unit first
+    lot = units_.lot()
+    for u, b in offered:
+        if converts(job, u, lot):
+            return RateMap(u.quantity, b, _first(dd.find(u.ddi_actual)))
+    if offered:
+        u = offered[0][0]
+        missing = [v.label for w in (job, u) for v in w.lot if v.key not in lot]
+        why = (
+            f"{u.quantity}-rate implement (DDI {u.ddi_setpoint}) and {_article(job.name)} "
+            f"{job.name} job without a product {' or '.join(dict.fromkeys(missing))}"
+        )
+        return RateMap(u.quantity, None, None, why)
+    ddis = " / ".join(str(u.ddi_setpoint) for u in units())
+    names = " or ".join(u.quantity for u in units())
+    return RateMap("mass", None, None, f"no settable setpoint {names} per area (DDI {ddis})")
 
 
-def to_raw(kind: str, rate: float, units: RateUnits) -> int:
+def to_raw(kind: str, rate: float, units_: RateUnits) -> int:
     """A job rate in the setpoint DDI's resolution."""
-    d = units.density_kg_l or 1.0
-    if kind == "mass":
-        kg_ha = rate if units.unit == "kg/ha" else rate * d
-        return int(round(kg_ha * pdm.MG_M2_PER_KG_HA))
-    l_ha = rate if units.unit == "l/ha" else rate / d
-    return int(round(l_ha * pdm.DDI1_BITS_PER_L_HA))
+    u = units_.implement_unit(kind)
+    return int(round(convert(rate, units_.job_unit(), u, units_.lot()) * u.bits_per_unit))
 
 
-def from_raw(kind: str, raw: int, units: RateUnits) -> float:
-    """A DDI 6 / DDI 2 value in the job's unit (inverse of ``to_raw``)."""
-    d = units.density_kg_l or 1.0
-    if kind == "mass":
-        kg_ha = raw / pdm.MG_M2_PER_KG_HA
-        return kg_ha if units.unit == "kg/ha" else kg_ha / d
-    l_ha = raw / pdm.DDI1_BITS_PER_L_HA
-    return l_ha if units.unit == "l/ha" else l_ha * d
+def from_raw(kind: str, raw: int, units_: RateUnits) -> float:
+    """An actual-rate DDI value in the job's unit (inverse of ``to_raw``)."""
+    u = units_.implement_unit(kind)
+    return convert(raw / u.bits_per_unit, u, units_.job_unit(), units_.lot())
 
 
 def width_binding(dd: DeviceDescriptor, element_id: int) -> Binding | None:

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Literal
 
+from pydantic import Field
+
 from fieldrx.api.schemas.base import Out
 from fieldrx.formats.export import JOB, PRESCRIPTION, export_formats
 
@@ -43,3 +45,26 @@ class ExportFormatOut(Out):
 
 class ExportFormatsOut(Out):
     items: list[ExportFormatOut]
+
+
+class LotValueOut(Out):
+    key: str = Field(description="the product's field (and the prescription's lot key)")
+    label: str
+    unit: str
+    min: float
+    max: float
+
+
+class RateUnitOut(Out):
+    name: str = Field(description="the rate_unit value: kg/ha, l/ha, ...")
+    label: str
+    quantity: str = Field(description="mass | volume | count: what the unit meters")
+    lot: list[LotValueOut] = Field(
+        description="the product lot values the unit converts to kg/ha through"
+    )
+    ddi_setpoint: int = Field(description="ISO 11783-11 setpoint DDI of the unit")
+    ddi_actual: int = Field(description="ISO 11783-11 actual-value DDI of the unit")
+
+
+class RateUnitsOut(Out):
+    items: list[RateUnitOut]

@@ -3,12 +3,25 @@
 from __future__ import annotations
 
 import datetime as dt
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
-from pydantic import Field, model_validator
+from fieldrx_edge.rateunits.registry import names as unit_names
+from fieldrx_edge.rateunits.registry import unit_of
+from pydantic import AfterValidator, Field, WithJsonSchema, model_validator
 
 from fieldrx.agronomy.interpolate import DEFAULT_METHOD
 from fieldrx.api.schemas.base import Geometry, In, Open, Out
+
+
+def _known_unit(v: str) -> str:
+    unit_of(v)  # RateUnitError (a ValueError) names the known units: a 422
+    return v
+
+
+# a unit of fieldrx_edge.rateunits; the OpenAPI enum is the registry's list
+RateUnitName = Annotated[
+    str, AfterValidator(_known_unit), WithJsonSchema({"type": "string", "enum": list(unit_names())})
+]
 
 
 class PrescriptionIn(In):
@@ -57,11 +70,18 @@ class PrescriptionIn(In):
     )
     class_count: int = Field(default=6, ge=1, le=20, description="legend classes of version 1")
     note: str = Field(default="", max_length=2000, description="note of version 1")
-    rate_unit: Literal["kg/ha", "l/ha"] = Field(
+    rate_unit: RateUnitName = Field(
         default="kg/ha",
-        description="l/ha: a liquid product (one with a density, product_key) applied by "
-        "volume; the rates are worked out in kg/ha and its job packages and ISOXML carry "
-        "l/ha (DDI 1)",
+        description="the unit the prescription is given and sent in (GET /rate-units): "
+        "l/ha: a liquid product (one with a density, product_key or lot) applied by volume; "
+        "the rates are worked out in kg/ha and its job packages and ISOXML carry the unit "
+        "(l/ha: DDI 1)",
+    )
+    lot: dict[str, float] | None = Field(
+        default=None,
+        description="values of the product lot the rate unit converts through (GET "
+        "/rate-units: e.g. density_kg_l); they fill in for the catalogue product's, and one "
+        "that contradicts it is refused",
     )
 
     @model_validator(mode="after")
@@ -225,6 +245,14 @@ class PrescriptionOut(Out):
     )
     density_kg_l: float | None = Field(
         default=None, description="the product's density: l/ha = kg/ha / density"
+    )
+    lot: dict[str, float] = Field(
+        default_factory=dict, description="the product lot values the rate unit converts through"
+    )
+    kg_per_unit: float | None = Field(
+        default=None,
+        description="kg/ha in 1 rate_unit/ha (rates shown in the unit are kg/ha / this); "
+        "null: the lot does not say",
     )
     current_version: int
     versions: list[VersionRef]

@@ -24,6 +24,7 @@ from fieldrx.services.prescriptions.params import (
     canonical_model,
     check_rate_unit,
     crop_params,
+    product_lot,
 )
 from fieldrx.services.prescriptions.plausibility import apply_plausibility, plausibility_spec
 from fieldrx.services.prescriptions.samples import interpolate_field_samples
@@ -180,6 +181,7 @@ def create_from_request(
         product_info = resolve_product(session, organisation_id, b["product_key"])
         if product_info is None:
             raise RxError(f"product_key {b['product_key']!r} is not in this catalogue")
+    product_info = product_lot(product_info, b.get("lot"), b.get("product", ""))
     unit = str(b.get("rate_unit") or "kg/ha")
     check_rate_unit(unit, product_info)
     spec = NewPrescription(

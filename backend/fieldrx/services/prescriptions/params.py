@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from fieldrx_edge.rateunits.registry import RateUnit, RateUnitError, unit_of, units
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
@@ -26,7 +27,6 @@ PARAM_ALIASES = {
     "rate": "rate_kg_ha",
 }
 IGNORED_PARAMS = {"nutrient"}
-RATE_UNITS = ("kg/ha", "l/ha")
 
 
 class RxError(ValueError):
@@ -133,18 +133,44 @@ def form_defaults(session: Session, field: Field) -> dict[str, Any]:
     }
 
 
-def check_rate_unit(unit: str, product_info: dict[str, Any] | None) -> None:
-    """An l/ha prescription needs a product with a density: the rates are worked out in
-    kg/ha (nutrient balance, meter range, product and cost figures all count mass) and
-    sent to machines as l/ha = kg/ha / density."""
-    if unit not in RATE_UNITS:
-        raise RxError(f"rate_unit {unit!r} is not one of {list(RATE_UNITS)}")
-    if unit == "l/ha" and not (product_info or {}).get("density_kg_l"):
-        what = "no product_key" if product_info is None else f"product {product_info['name']!r}"
-        raise RxError(
-            f"rate_unit l/ha needs a liquid product with a density (kg/l), got {what}: "
-            "choose one or give the product a density"
-        )
+def product_lot(
+    product_info: dict[str, Any] | None, lot: dict[str, Any] | None, product: str = ""
+) -> dict[str, Any] | None:
+    """The product as the prescription keeps it: the catalogue's entry with the lot values
+    given with the request (a seed lot's germination, ...) on top; a value given for a
+    catalogue product that states another is refused rather than one silently winning."""
+    if not lot:
+        return product_info
+    out = dict(product_info or {"name": product or "product", "source": "given"})
+    for k, v in lot.items():
+        had = (product_info or {}).get(k)
+        if had is not None and abs(float(had) - float(v)) > 1e-9 * max(1.0, abs(float(had))):
+            raise RxError(
+                f"lot.{k} {v} disagrees with product {out['name']!r} ({k} {had:g}): give one"
+                " of them"
+            )
+        out[k] = float(v)
+    return out
+
+
+def check_rate_unit(unit: str, product_info: dict[str, Any] | None) -> RateUnit:
+    """The prescription's unit, with the product lot values it converts through: the rates
+    are worked out in kg/ha (nutrient balance, meter range, product and cost figures all
+    count mass) and sent to machines in the unit (l/ha = kg/ha / density, ...)."""
+    try:
+        u = unit_of(unit)
+    except RateUnitError as exc:
+        raise RxError(f"rate_unit: {exc}") from None
+    what = (
+        "no product (product_key or lot)"
+        if product_info is None
+        else (f"product {product_info.get('name', '')!r}")
+    )
+    try:
+        u.check_lot(product_info, what)
+    except RateUnitError as exc:
+        raise RxError(f"{exc}: choose a product that states it, or give it in lot") from None
+    return u
 
 
 def rx_rate_unit(rx: Prescription) -> tuple[str, float | None]:
@@ -152,3 +178,15 @@ def rx_rate_unit(rx: Prescription) -> tuple[str, float | None]:
     p = rx.params or {}
     d = (p.get("product_info") or {}).get("density_kg_l")
     return str(p.get("rate_unit") or "kg/ha"), float(d) if d else None
+
+
+def rx_unit_lot(rx: Prescription) -> tuple[RateUnit, dict[str, float]]:
+    """The prescription's rate unit and the product lot values units convert through."""
+    p = rx.params or {}
+    info = p.get("product_info") or {}
+    # every unit's values the product states, not only this unit's: a kg/ha prescription
+    # of a liquid still carries its density, so a volume-rate implement can take it
+    keys = {v.key for u in units() for v in u.lot}
+    return unit_of(p.get("rate_unit")), {
+        k: float(info[k]) for k in sorted(keys) if info.get(k) is not None
+    }

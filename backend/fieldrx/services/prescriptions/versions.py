@@ -16,8 +16,15 @@ from sqlalchemy.orm import Session
 from fieldrx.agronomy.cells import FLAG_BITS, CellTable, flag_names
 from fieldrx.agronomy.prescription import diff_rates
 from fieldrx.db.models import Field, Plan, Prescription, PrescriptionVersion
-from fieldrx.services.prescriptions.params import RxError, rx_rate_unit
+from fieldrx.services.prescriptions.params import RxError, rx_rate_unit, rx_unit_lot
 from fieldrx.store import load_cells, load_rates, load_seq_area, write_rates
+
+
+def unit_figures(rx: Prescription) -> dict[str, Any]:
+    """The unit's lot values and kg/ha in 1 unit/ha (None: the lot does not say), so a
+    client shows the kg/ha rates in the prescription's unit without its own arithmetic."""
+    unit, lot = rx_unit_lot(rx)
+    return {"lot": lot, "kg_per_unit": unit.kg_per_unit(lot) if unit.known(lot) else None}
 
 
 def get_version(session: Session, rx: Prescription, version: int | None) -> PrescriptionVersion:
@@ -82,6 +89,7 @@ def prescription_summary(session: Session, rx: Prescription) -> dict[str, Any]:
         "meter": p.get("meter"),
         "rate_unit": rx_rate_unit(rx)[0],
         "density_kg_l": rx_rate_unit(rx)[1],
+        **unit_figures(rx),
         "current_version": rx.current_version,
         "versions": [
             {

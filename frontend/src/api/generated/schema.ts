@@ -1742,6 +1742,28 @@ export interface paths {
         patch?: never;
         trace?: never;
     };
+    "/api/v1/rate-units": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        /**
+         * Rate Units
+         * @description Every rate unit a prescription may be given in (``rate_unit``), kg/ha first, with the
+         *     product lot values it converts through (``lot`` of a prescription request) and its
+         *     ISO 11783 setpoint and actual DDIs.
+         */
+        get: operations["rate_units_api_v1_rate_units_get"];
+        put?: never;
+        post?: never;
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
     "/api/v1/tasks": {
         parameters: {
             query?: never;
@@ -2957,6 +2979,18 @@ export interface components {
             interpolation_params: {
                 [key: string]: unknown;
             };
+            /**
+             * Kg Per Unit
+             * @description kg/ha in 1 rate_unit/ha (rates shown in the unit are kg/ha / this); null: the lot does not say
+             */
+            kg_per_unit?: number | null;
+            /**
+             * Lot
+             * @description the product lot values the rate unit converts through
+             */
+            lot?: {
+                [key: string]: number;
+            };
             /** Machine Id */
             machine_id: number | null;
             /**
@@ -3977,6 +4011,22 @@ export interface components {
             token_type?: "bearer";
             user: components["schemas"]["UserOut"];
         };
+        /** LotValueOut */
+        LotValueOut: {
+            /**
+             * Key
+             * @description the product's field (and the prescription's lot key)
+             */
+            key: string;
+            /** Label */
+            label: string;
+            /** Max */
+            max: number;
+            /** Min */
+            min: number;
+            /** Unit */
+            unit: string;
+        };
         /** MachineIn */
         MachineIn: {
             /**
@@ -4572,6 +4622,13 @@ export interface components {
             interpolation_params?: {
                 [key: string]: unknown;
             };
+            /**
+             * Lot
+             * @description values of the product lot the rate unit converts through (GET /rate-units: e.g. density_kg_l); they fill in for the catalogue product's, and one that contradicts it is refused
+             */
+            lot?: {
+                [key: string]: number;
+            } | null;
             /** Machine Id */
             machine_id?: number | null;
             /**
@@ -4610,7 +4667,7 @@ export interface components {
             product_key?: string | null;
             /**
              * Rate Unit
-             * @description l/ha: a liquid product (one with a density, product_key) applied by volume; the rates are worked out in kg/ha and its job packages and ISOXML carry l/ha (DDI 1)
+             * @description the unit the prescription is given and sent in (GET /rate-units): l/ha: a liquid product (one with a density, product_key or lot) applied by volume; the rates are worked out in kg/ha and its job packages and ISOXML carry the unit (l/ha: DDI 1)
              * @default kg/ha
              * @enum {string}
              */
@@ -4649,6 +4706,18 @@ export interface components {
             /** Interpolation Params */
             interpolation_params: {
                 [key: string]: unknown;
+            };
+            /**
+             * Kg Per Unit
+             * @description kg/ha in 1 rate_unit/ha (rates shown in the unit are kg/ha / this); null: the lot does not say
+             */
+            kg_per_unit?: number | null;
+            /**
+             * Lot
+             * @description the product lot values the rate unit converts through
+             */
+            lot?: {
+                [key: string]: number;
             };
             /** Machine Id */
             machine_id: number | null;
@@ -4752,6 +4821,41 @@ export interface components {
              * @description where the figures come from
              */
             source: string;
+        };
+        /** RateUnitOut */
+        RateUnitOut: {
+            /**
+             * Ddi Actual
+             * @description ISO 11783-11 actual-value DDI of the unit
+             */
+            ddi_actual: number;
+            /**
+             * Ddi Setpoint
+             * @description ISO 11783-11 setpoint DDI of the unit
+             */
+            ddi_setpoint: number;
+            /** Label */
+            label: string;
+            /**
+             * Lot
+             * @description the product lot values the unit converts to kg/ha through
+             */
+            lot: components["schemas"]["LotValueOut"][];
+            /**
+             * Name
+             * @description the rate_unit value: kg/ha, l/ha, ...
+             */
+            name: string;
+            /**
+             * Quantity
+             * @description mass | volume | count: what the unit meters
+             */
+            quantity: string;
+        };
+        /** RateUnitsOut */
+        RateUnitsOut: {
+            /** Items */
+            items: components["schemas"]["RateUnitOut"][];
         };
         /**
          * RawLogsRequested
@@ -5424,6 +5528,13 @@ export interface components {
              * @default 4
              */
             k?: number;
+            /**
+             * Lot
+             * @description values of the product lot the rate unit converts through (GET /rate-units: e.g. density_kg_l); they fill in for the catalogue product's, and one that contradicts it is refused
+             */
+            lot?: {
+                [key: string]: number;
+            } | null;
             /** Machine Id */
             machine_id?: number | null;
             /**
@@ -5468,7 +5579,7 @@ export interface components {
             product_key?: string | null;
             /**
              * Rate Unit
-             * @description l/ha: a liquid product (one with a density, product_key) applied by volume; the rates are worked out in kg/ha and its job packages and ISOXML carry l/ha (DDI 1)
+             * @description the unit the prescription is given and sent in (GET /rate-units): l/ha: a liquid product (one with a density, product_key or lot) applied by volume; the rates are worked out in kg/ha and its job packages and ISOXML carry the unit (l/ha: DDI 1)
              * @default kg/ha
              * @enum {string}
              */
@@ -15317,6 +15428,89 @@ export interface operations {
                     [name: string]: unknown;
                 };
                 content?: never;
+            };
+            /** @description missing, invalid, expired or revoked bearer token */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description the token may not do this (a viewer writing, a device token on a user endpoint); the message names the role needed */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description no such resource in the caller's organisation */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description conflicts with stored state (a job state transition, evidence that must be kept) */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description request body or upload too large */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description invalid input: the message names the field, row or vertex */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description the database or the worker pool is busy or unreachable: retry (Retry-After) */
+            503: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+        };
+    };
+    rate_units_api_v1_rate_units_get: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["RateUnitsOut"];
+                };
             };
             /** @description missing, invalid, expired or revoked bearer token */
             401: {

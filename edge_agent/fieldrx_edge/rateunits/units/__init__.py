@@ -1,0 +1,1 @@
+"""The registered rate units, one module each (found by ``rateunits.registry``)."""
