@@ -7,6 +7,7 @@ Only the standard library is used here, so the server and the agent share it.
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 import math
@@ -140,6 +141,17 @@ class JobPackage:
         """kg/ha in 1 of the package's rate unit/ha (the records and maps count mass)."""
         u = self.unit()
         return u.kg_per_unit(u.check_lot(self.lot(), "the job's product"))
+
+    def in_mass(self) -> JobPackage:
+        """The job as a mass meter takes it (a motor whose calibration is in g per
+        revolution): its rates in kg/ha through the product lot (l/ha x density, ...), the
+        package's own lot kept; ``RateUnitError`` when the lot does not say."""
+        if self.unit().quantity == "mass":
+            return self
+        k = self.kg_per_unit()
+        return dataclasses.replace(
+            self, rate_kg_ha=[r * k for r in self.rate_kg_ha], rate_unit=DEFAULT_UNIT, checksum=""
+        )
 
     def cell_shapes(self) -> dict[int, list[list[float]]]:
         """Shaped cells: path index -> rings, each a flat x y list in UTM (see class doc)."""

@@ -35,6 +35,7 @@ from fieldrx.db.models import Field as FieldRow
 from fieldrx.fleet.jobstate import change_state, lock_job, notify_job
 from fieldrx.services.imports import IMPORTED_IMPLEMENT
 from fieldrx.services.prescriptions import meter as rx_svc
+from fieldrx.services.prescriptions.params import rx_rate_unit
 
 router = APIRouter(prefix="/jobs", tags=["jobs"], responses=ERRORS)
 
@@ -169,6 +170,15 @@ def create_job(body: JobIn, principal: WriterDep, session: SessionDep) -> JobOut
     if rx is None or rx.organisation_id != principal.organisation_id:
         raise ApiError(
             404, f"prescription {body.prescription_id} not found", where="prescription_id"
+        )
+    unit = rx_rate_unit(rx)[0]
+    taken = kind_of(body.kind).rate_units
+    if unit not in taken:
+        raise ApiError(
+            422,
+            f"prescription {rx.id} is in {unit}: a {body.kind} job takes prescriptions in "
+            f"{' or '.join(taken)}",
+            where="prescription_id",
         )
     machine = session.get(Machine, body.machine_id)
     if machine is None or machine.organisation_id != principal.organisation_id:

@@ -46,6 +46,7 @@ from fieldrx.fleet.reports import (
     report_digest,
     report_key,
 )
+from fieldrx.services.prescriptions.versions import report_unit
 from fieldrx.settings import get_settings
 from fieldrx.store import load_cells
 from fieldrx.store import tiles as cell_tiles
@@ -136,6 +137,9 @@ def job_report(
         return _queue_report(session, principal, job)
     _, rep = _report(session, job_id, principal)
     out = rep.summary()
+    rx = session.get(Prescription, job.prescription_id) if job.prescription_id else None
+    if rx is not None:
+        out["unit"] = report_unit(rx, rep.planned_total_kg, rep.applied_total_kg)
     if cells:
         out["cells"] = [asdict(c) for c in rep.cells]
     return out

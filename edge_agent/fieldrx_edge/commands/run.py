@@ -14,6 +14,7 @@ from fieldrx_edge.commands.sessions import open_session
 from fieldrx_edge.job_package import JobPackage
 from fieldrx_edge.jobkinds.registry import kind_of
 from fieldrx_edge.jobs import JobStore, pull
+from fieldrx_edge.rateunits.registry import RateUnitError
 from fieldrx_edge.session import JobSession, UplinkOptions, load_job
 
 log = logging.getLogger("fieldrx_edge")
@@ -51,7 +52,6 @@ def _motor(a: argparse.Namespace, job: JobPackage, settings: Any, period: float)
 
     if a.implement == "isobus":
         return isobus_implement(a, job)
-    check_motor_units(job)
     if a.motor == "sim":
         driver: Any = simulated_motor(period)
     else:
@@ -105,6 +105,8 @@ def cmd_run(a: argparse.Namespace) -> int:
     own = kind_of(job.kind).run(a, job, store)  # a kind with its own loop (sensor kinds)
     if own is not None:
         return own
+    if a.implement != "isobus":  # the TC converts for an ISOBUS implement itself
+        job = motor_job(job)
     progress = store.load_progress(job.job_id)
     settings = job.controller
     if a.controller:
@@ -199,15 +201,19 @@ def isobus_implement(a: argparse.Namespace, job: JobPackage) -> Any:
     return IsobusImplement(tc)
 
 
-def check_motor_units(job: JobPackage) -> None:
-    """The meter's calibration is in kg per revolution: a job in another quantity (an
-    l/ha job) is refused for it rather than metered as if its litres were kilograms."""
-    unit = job.unit()
-    if unit.quantity != "mass":
+def motor_job(job: JobPackage) -> JobPackage:
+    """The meter's calibration is in g per revolution: a job in another unit is metered by
+    mass through its product lot (l/ha x density, ...), and refused when the lot does not
+    say rather than metered as if its litres were kilograms."""
+    try:
+        return job.in_mass()
+    except RateUnitError as e:
+        unit = job.unit()
         raise SystemExit(
-            f"job {job.job_id} is in {unit.name}: the meter's calibration is in kg per"
-            f" revolution; run it with --implement isobus on a {unit.quantity}-rate implement"
-        )
+            f"job {job.job_id} is in {unit.name}: the meter's calibration is in g per"
+            f" revolution and {e}; run it with --implement isobus on a {unit.quantity}-rate"
+            " implement"
+        ) from None
 
 
 def job_rate_units(job: JobPackage, density_kg_l: float | None = None) -> Any:

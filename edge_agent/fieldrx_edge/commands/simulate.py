@@ -8,6 +8,7 @@ import dataclasses
 import json
 from typing import Any
 
+from fieldrx_edge.commands.run import motor_job
 from fieldrx_edge.commands.sessions import finished_early, session_report, sim_session
 from fieldrx_edge.jobkinds.registry import kind_of
 from fieldrx_edge.jobs import JobStore
@@ -35,6 +36,8 @@ def cmd_simulate(a: argparse.Namespace) -> int:
         realtime=a.realtime,
     )
     pair = None
+    if a.implement != "isobus":
+        job = motor_job(job)
     if a.implement == "isobus":
         from fieldrx_edge.isobus.pair import IsobusPair
 

@@ -64,6 +64,8 @@ class JobKind:
     progress: ClassVar[Literal["cells", "work"]] = "cells"
     order: ClassVar[int] = 100  # place in lists (forms, the API's enum)
     defaults: ClassVar[dict[str, Any]] = {}
+    # a cells kind: the prescription rate units (fieldrx_edge.rateunits) its job takes
+    rate_units: ClassVar[tuple[str, ...]] = ()
     controllers: ClassVar[tuple[str, ...]] = ()
     specs: ClassVar[tuple[SettingSpec, ...]] = ()
     needs: ClassVar[Needs]
@@ -110,6 +112,7 @@ class JobKind:
             "noun": self.noun,
             "source": self.source,
             "rates_from": self.rates_from,
+            "rate_units": list(self.rate_units),
             "progress": self.progress,
             "defaults": self.defaults,
             "controllers": list(self.controllers),

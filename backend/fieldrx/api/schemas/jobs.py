@@ -131,6 +131,9 @@ class KindInfo(Out):
         description="cells: a prescription's per-cell rates (the job names a prescription); "
         "sensors: decided on the go (the job names a plan and settings)"
     )
+    rate_units: list[str] = Field(
+        description="cells kinds: the prescription rate units its job takes (GET /rate-units)"
+    )
     progress: Literal["cells", "work"]
     needs: str = Field(description="what the machine must have")
     defaults: dict[str, Any] = Field(description="the papers' settings, units in the names")

@@ -54,6 +54,20 @@ class OperatorEventsOut(Out):
     alarm_acks: list[AlarmAckOut] = Field(default_factory=list)
 
 
+class ReportUnit(Out):
+    """The job's figures in its prescription's rate unit (the report's own are kg)."""
+
+    rate_unit: str = Field(description="the prescription's unit (GET /rate-units)")
+    kg_per_unit: float | None = Field(
+        description="kg/ha in 1 rate_unit/ha: a rate in the unit is kg/ha / this; null: the "
+        "product lot does not say, so the figures stay in kg"
+    )
+    lot: dict[str, float] = Field(description="the product lot values the unit converts through")
+    total_unit: str = Field(description="what the totals count: the unit without /ha")
+    planned_total: float | None
+    applied_total: float | None
+
+
 class AsAppliedSummary(Out):
     job_id: int
     name: str
@@ -107,6 +121,7 @@ class AsAppliedReport(AsAppliedSummary):
     """A prescription-map job's report; ``cells`` unless ``cells=false``."""
 
     cells: list[CellReportOut] | None = None
+    unit: ReportUnit | None = None
 
 
 class KindReport(Open):

@@ -20,6 +20,20 @@ from fieldrx.services.prescriptions.params import RxError, rx_rate_unit, rx_unit
 from fieldrx.store import load_cells, load_rates, load_seq_area, write_rates
 
 
+def report_unit(rx: Prescription, planned_kg: float, applied_kg: float) -> dict[str, Any]:
+    """A job's totals in its prescription's unit (seeds, litres, ...), beside its kg."""
+    u = unit_figures(rx)
+    k = u["kg_per_unit"]
+    name = rx_rate_unit(rx)[0]
+    return {
+        "rate_unit": name,
+        **u,
+        "total_unit": name.removesuffix("/ha"),
+        "planned_total": None if k is None else planned_kg / k,
+        "applied_total": None if k is None else applied_kg / k,
+    }
+
+
 def unit_figures(rx: Prescription) -> dict[str, Any]:
     """The unit's lot values and kg/ha in 1 unit/ha (None: the lot does not say), so a
     client shows the kg/ha rates in the prescription's unit without its own arithmetic."""

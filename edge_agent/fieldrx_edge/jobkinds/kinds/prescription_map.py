@@ -21,6 +21,7 @@ class PrescriptionMap(JobKind):
     rates_from: ClassVar[Literal["cells", "sensors"]] = "cells"
     progress: ClassVar[Literal["cells", "work"]] = "cells"
     order: ClassVar[int] = 0
+    rate_units: ClassVar[tuple[str, ...]] = ("kg/ha", "l/ha")  # fertiliser: solid or liquid
     defaults: ClassVar[dict[str, Any]] = {}
     needs: ClassVar[Needs] = Needs(applies="fertiliser", text="an implement that meters fertiliser")
     hand_overrides: ClassVar[bool] = True

@@ -2229,6 +2229,7 @@ export interface components {
             state: string;
             /** Time Worked S */
             time_worked_s: number;
+            unit?: components["schemas"]["ReportUnit"] | null;
             /**
              * Uplink
              * @description where the figures came from: every 10 Hz record (full) or the thin profile's per-cell records (1 Hz track + one record per cell left)
@@ -3829,6 +3830,11 @@ export interface components {
              */
             progress: "cells" | "work";
             /**
+             * Rate Units
+             * @description cells kinds: the prescription rate units its job takes (GET /rate-units)
+             */
+            rate_units: string[];
+            /**
              * Rates From
              * @description cells: a prescription's per-cell rates (the job names a prescription); sensors: decided on the go (the job names a plan and settings)
              * @enum {string}
@@ -4909,6 +4915,38 @@ export interface components {
              * @description the record's seq; null when it has no usable one
              */
             seq: number | null;
+        };
+        /**
+         * ReportUnit
+         * @description The job's figures in its prescription's rate unit (the report's own are kg).
+         */
+        ReportUnit: {
+            /** Applied Total */
+            applied_total: number | null;
+            /**
+             * Kg Per Unit
+             * @description kg/ha in 1 rate_unit/ha: a rate in the unit is kg/ha / this; null: the product lot does not say, so the figures stay in kg
+             */
+            kg_per_unit: number | null;
+            /**
+             * Lot
+             * @description the product lot values the unit converts through
+             */
+            lot: {
+                [key: string]: number;
+            };
+            /** Planned Total */
+            planned_total: number | null;
+            /**
+             * Rate Unit
+             * @description the prescription's unit (GET /rate-units)
+             */
+            rate_unit: string;
+            /**
+             * Total Unit
+             * @description what the totals count: the unit without /ha
+             */
+            total_unit: string;
         };
         /** RouteOut */
         RouteOut: {
