@@ -127,29 +127,33 @@ class RateModel:
 
 
 RATE_MODELS: Registry[RateModel] = Registry("rate model")
-_discovered: list[bool] = []
-
-
-def rate_models() -> Registry[RateModel]:
-    """The registry with every model of this package imported (and so registered)."""
-    if not _discovered:
-        package = importlib.import_module(PACKAGE)
-        for info in sorted(pkgutil.iter_modules(package.__path__), key=_order):
-            if info.name != "registry":
-                importlib.import_module(f"{PACKAGE}.{info.name}")
-        _discovered.append(True)
-    return RATE_MODELS
-
+_listed: list[Registry[RateModel]] = []
 
 # the model a request without one gets (the API's default, the CLI's)
 DEFAULT_MODEL = "nutrient_balance"
 # the order the models are listed in (forms, enums, messages): the default model first,
-# then as they were listed before they were classes; a new module goes after them
-ORDER = ("nutrient_balance", "ndvi", "uniform")
+# then as they were listed before they were classes; a new model goes after them, by name.
+# Registration order depends on which module some caller imported first, so the list is
+# sorted rather than taken as registered: the OpenAPI document must not change with it.
+ORDER = (DEFAULT_MODEL, "ndvi", "uniform")
 
 
-def _order(info: pkgutil.ModuleInfo) -> tuple[int, str]:
-    return (ORDER.index(info.name) if info.name in ORDER else len(ORDER), info.name)
+def _rank(m: RateModel) -> tuple[int, str]:
+    return (ORDER.index(m.name) if m.name in ORDER else len(ORDER), m.name)
+
+
+def rate_models() -> Registry[RateModel]:
+    """Every model of this package (each module imported, so registered), in ``ORDER``."""
+    if not _listed:
+        package = importlib.import_module(PACKAGE)
+        for info in pkgutil.iter_modules(package.__path__):
+            if info.name != "registry":
+                importlib.import_module(f"{PACKAGE}.{info.name}")
+        listed: Registry[RateModel] = Registry(RATE_MODELS.what)
+        for m in sorted(RATE_MODELS, key=_rank):
+            listed.add(m)
+        _listed.append(listed)
+    return _listed[0]
 
 
 def names(where: Callable[[RateModel], bool] | None = None) -> tuple[str, ...]:
