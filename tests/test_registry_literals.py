@@ -1,9 +1,11 @@
-"""No dispatch on an export format's or a task kind's name outside its own module.
+"""No dispatch on an export format's, a task kind's or a rate model's name outside its
+own module.
 
-Formats and task kinds each have one registry (``formats.export.EXPORT_FORMATS``,
-``formats.import_formats.IMPORT_FORMATS``, ``formats.field_import.FIELD_FILE_FORMATS``,
-``tasks.kinds.TASK_KINDS``) whose entries are classes in their own modules; everything
-else asks the registry or the entry. A comparison with one of their names
+Formats, task kinds and rate models each have one registry
+(``formats.export.EXPORT_FORMATS``, ``formats.import_formats.IMPORT_FORMATS``,
+``formats.field_import.FIELD_FILE_FORMATS``, ``tasks.kinds.TASK_KINDS``,
+``agronomy.ratemodels.registry.RATE_MODELS``) whose entries are classes in their own
+modules; everything else asks the registry or the entry. A comparison with one of their names
 (``fmt == "shapefile"``, ``kind in ("export", "report")``, ``match`` cases) or a dict
 literal keyed by two or more of them (a second list of the names) elsewhere is a second
 place to change when a format or a kind is added, which is what the registries replaced.
@@ -27,12 +29,21 @@ PACKAGE = ROOT / "backend" / "fieldrx"
 OTHER_MEANINGS = {
     # the object whose jobs hold evidence (field, plan, prescription), not the task kind
     ("backend/fieldrx/services/evidence.py", "prescription"),
+    # an imagery kind (a single-band NDVI raster), not the NDVI rate model
+    ("backend/fieldrx/api/imagery.py", "ndvi"),
+    ("backend/fieldrx/imagery/ingest.py", "ndvi"),
+    ("backend/fieldrx/imagery/stats.py", "ndvi"),
+    ("backend/fieldrx/imagery/tiles.py", "ndvi"),
+    # a column of a soil-sample file or of a machine's cell records, not the rate model
+    ("backend/fieldrx/services/soil.py", "ndvi"),
+    ("backend/fieldrx/fleet/ingest/validate.py", "ndvi"),
 }
 
 
 def registries() -> dict[str, dict[str, set[Path]]]:
     """Registry -> entry name -> the files allowed to name it (its own, the registry's)."""
     import fieldrx.tasks.work  # noqa: F401  importing it registers every task kind
+    from fieldrx.agronomy.ratemodels import registry as rate_models
     from fieldrx.formats import export, field_import, import_formats
     from fieldrx.registry import Registry
     from fieldrx.tasks import kinds
@@ -43,6 +54,7 @@ def registries() -> dict[str, dict[str, set[Path]]]:
         (import_formats, import_formats.IMPORT_FORMATS),
         (field_import, field_import.FIELD_FILE_FORMATS),
         (kinds, kinds.TASK_KINDS),
+        (rate_models, rate_models.rate_models()),
     ):
         assert isinstance(reg, Registry)
         home = Path(inspect.getfile(module)).resolve()
@@ -110,6 +122,8 @@ def test_no_name_dispatch_outside_the_registries() -> None:
         'ok = kind in ("export", "report")\n',
         'ext = {"geojson": ".geojson", "csv": ".csv"}\n',
         'match kind:\n    case "import":\n        pass\n',
+        'if model == "uniform":\n    pass\n',
+        'fill = {"nutrient_balance": True, "ndvi": False}\n',
     ],
 )
 def test_the_check_sees_each_form(source: str, tmp_path: Path) -> None:

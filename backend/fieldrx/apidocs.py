@@ -45,7 +45,7 @@ Every request carries `Authorization: Bearer <token>` (the **Authorize** button 
    `POST /api/v1/fields/{field_id}/soil-samples` with a CSV file (`lon,lat,n_mg_kg`).
 5. **A prescription**: `POST /api/v1/plans/{plan_id}/prescriptions`
    `{"model": "uniform", "params": {"rate_kg_ha": 150}}` (or `nutrient_balance` with
-   `"interpolation": "idw"`).
+   `"interpolation": "idw"`; `model` lists every rate model, `params` their parameters).
 6. **ISOXML for the terminal**:
    `GET /api/v1/prescriptions/{rx_id}/export?format=isoxml` answers `TASKDATA.zip`.
 

@@ -13,7 +13,8 @@ from fieldrx.agronomy.prescription import (
     prescribe,
     summarize,
 )
-from fieldrx.agronomy.rates import MeterCheck, MeterRangeError, nutrient_balance_rate
+from fieldrx.agronomy.ratemodels.nutrient_balance import nutrient_balance_rate
+from fieldrx.agronomy.rates import MeterCheck, MeterRangeError
 from fieldrx_edge.metering import LinearCalibration
 
 EPSG = 32649

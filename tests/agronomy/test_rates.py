@@ -3,17 +3,19 @@
 import numpy as np
 import pytest
 from fieldrx.agronomy.cells import FLAG_BITS, flag_names
-from fieldrx.agronomy.rates import (
-    MeterCheck,
-    MeterRangeError,
-    RateModelError,
-    check_meter_range,
-    model_rates,
-    ndvi_linear_rate,
+from fieldrx.agronomy.ratemodels.ndvi import ndvi_linear_rate
+from fieldrx.agronomy.ratemodels.nutrient_balance import (
     nutrient_balance_rate,
     nutrient_balance_raw,
     soil_correction_coefficient,
-    uniform_rate,
+)
+from fieldrx.agronomy.ratemodels.registry import RateModelError
+from fieldrx.agronomy.ratemodels.uniform import uniform_rate
+from fieldrx.agronomy.rates import (
+    MeterCheck,
+    MeterRangeError,
+    check_meter_range,
+    model_rates,
 )
 from fieldrx_edge.metering import LinearCalibration
 

@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 from fieldrx.agronomy.interpolate import idw
-from fieldrx.agronomy.rates import MeterCheck, check_meter_range, nutrient_balance_rate
+from fieldrx.agronomy.ratemodels.nutrient_balance import nutrient_balance_rate
+from fieldrx.agronomy.rates import MeterCheck, check_meter_range
 from fieldrx_edge.metering import LinearCalibration
 from hypothesis import given, settings
 from hypothesis import strategies as st

@@ -7,7 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import shapely
-from fieldrx.agronomy.rates import ndvi_linear_rate, nutrient_balance_rate
+from fieldrx.agronomy.ratemodels.ndvi import ndvi_linear_rate
+from fieldrx.agronomy.ratemodels.nutrient_balance import nutrient_balance_rate
 from fieldrx.db.models import Prescription
 from pyproj import Transformer
 from shapely.geometry import shape

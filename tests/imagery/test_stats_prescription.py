@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import shapely
-from fieldrx.agronomy.rates import ndvi_linear_rate
+from fieldrx.agronomy.ratemodels.ndvi import ndvi_linear_rate
 from pyproj import Transformer
 from shapely.geometry import shape
 

@@ -31,7 +31,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from fieldrx.agronomy.rates import (
+from fieldrx.agronomy.ratemodels.nutrient_balance import (
     D_INTERCEPT_PCT,
     D_SLOPE_PCT_MG_KG,
     DEFAULT_E_KG_PER_100KG,
@@ -147,7 +147,7 @@ class Crop:
         }
 
 
-# model parameters a crop fills in (rates.model_rates names)
+# model parameters a crop fills in (ratemodels.nutrient_balance names)
 MODEL_PARAMS = ("e_kg_per_100kg", "k_utilisation", "d_intercept_pct", "d_slope_pct_mg_kg")
 
 

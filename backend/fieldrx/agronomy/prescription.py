@@ -16,15 +16,13 @@ import shapely
 
 from fieldrx.agronomy.cells import FLAG_BITS, CellTable
 from fieldrx.agronomy.interpolate import DEFAULT_METHOD, InterpolationResult, interpolate_to_cells
+from fieldrx.agronomy.ratemodels.registry import needs_input
 from fieldrx.agronomy.rates import (
     MeterCheck,
     check_meter_range,
     model_rates,
     require_meterable,
 )
-
-# Which sample column feeds which model.
-MODEL_INPUT = {"nutrient_balance": "n_mg_kg", "ndvi": "ndvi", "uniform": None}
 
 
 class PrescriptionError(ValueError):
@@ -109,7 +107,7 @@ def build_prescription(
     ``rules``: cells without data get the fallback and are flagged ``no_data``; every
     cell the clamp changes is flagged and counted; the meter range is checked."""
     params = dict(params)
-    if model == "uniform":
+    if not needs_input(model):
         raw = model_rates(model, None, params, n_cells)
         flags = np.zeros(n_cells, dtype=np.uint16)
         fb = None
@@ -200,7 +198,7 @@ def prescribe(
     the interpolation report (method, LOO-CV RMSE for kriging, no-data count).
     """
     interp: InterpolationResult | None = None
-    if model != "uniform":
+    if needs_input(model):
         if sample_xy_utm is None or sample_values is None or len(sample_values) == 0:
             raise PrescriptionError(f"model {model!r} needs samples")
         interp = interpolate_to_cells(

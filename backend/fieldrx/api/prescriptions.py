@@ -11,7 +11,8 @@ from sqlalchemy import select
 
 from fieldrx.agronomy.interpolate import InterpolationError
 from fieldrx.agronomy.prescription import PrescriptionError
-from fieldrx.agronomy.rates import MeterRangeError, RateModelError
+from fieldrx.agronomy.ratemodels.registry import RateModelError
+from fieldrx.agronomy.rates import MeterRangeError
 from fieldrx.agronomy.zones import ZoneError
 from fieldrx.api.common import ApiError, get_scoped
 from fieldrx.api.schemas.errors import ERRORS

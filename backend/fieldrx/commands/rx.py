@@ -20,6 +20,7 @@ import numpy as np
 import shapely
 
 from fieldrx.agronomy.interpolate import DEFAULT_METHOD, METHODS
+from fieldrx.agronomy.ratemodels.registry import DEFAULT_MODEL, names, needs_input, rate_model
 from fieldrx.geo.planning.kinematics import DEFAULT_HEADLAND_PASSES
 
 
@@ -50,9 +51,7 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     g.add_argument("--headland-passes", type=int, default=DEFAULT_HEADLAND_PASSES)
     g.add_argument("--start-corner", choices=CORNERS, default="sw")
     g = p.add_argument_group("rate model")
-    g.add_argument(
-        "--model", choices=("nutrient_balance", "ndvi", "uniform"), default="nutrient_balance"
-    )
+    g.add_argument("--model", choices=names(), default=DEFAULT_MODEL)
     g.add_argument("--target-yield", type=float, default=2500.0, help="M, kg/ha")
     g.add_argument("--n-fraction", type=float, default=0.25, help="x, N mass fraction of product")
     g.add_argument("--e-kg-per-100kg", type=float, default=5.8, help="e, kg N per 100 kg yield")
@@ -98,24 +97,34 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     return p
 
 
+# the option (argparse dest) that gives each model parameter; a parameter without one
+# keeps its model's default (agronomy.ratemodels)
+PARAM_OPTIONS = {
+    "target_yield_kg_ha": "target_yield",
+    "n_fraction": "n_fraction",
+    "e_kg_per_100kg": "e_kg_per_100kg",
+    "k_utilisation": "k_utilisation",
+    "rate_kg_ha": "uniform_rate",
+    "ndvi_low": "ndvi_low",
+    "rate_at_low_kg_ha": "rate_at_ndvi_low",
+    "ndvi_high": "ndvi_high",
+    "rate_at_high_kg_ha": "rate_at_ndvi_high",
+}
+
+
 def _model_params(args: argparse.Namespace) -> dict[str, Any]:
-    if args.model == "uniform":
-        if args.uniform_rate is None:
-            raise RxError("--model uniform needs --uniform-rate")
-        return {"rate_kg_ha": args.uniform_rate}
-    if args.model == "ndvi":
-        return {
-            "ndvi_low": args.ndvi_low,
-            "rate_at_low_kg_ha": args.rate_at_ndvi_low,
-            "ndvi_high": args.ndvi_high,
-            "rate_at_high_kg_ha": args.rate_at_ndvi_high,
-        }
-    return {
-        "target_yield_kg_ha": args.target_yield,
-        "n_fraction": args.n_fraction,
-        "e_kg_per_100kg": args.e_kg_per_100kg,
-        "k_utilisation": args.k_utilisation,
-    }
+    """The chosen model's parameters from their options."""
+    model = rate_model(args.model)
+    out: dict[str, Any] = {}
+    for param in model.params:
+        dest = PARAM_OPTIONS.get(param.name)
+        if dest is None:
+            continue
+        value = getattr(args, dest)
+        if value is None:
+            raise RxError(f"--model {model.name} needs --{dest.replace('_', '-')}")
+        out[param.name] = value
+    return out
 
 
 def _interp_params(args: argparse.Namespace) -> dict[str, Any]:
@@ -179,7 +188,7 @@ def build(args: argparse.Namespace) -> tuple[bytes, dict[str, Any]]:
 
     t = time.perf_counter()
     xy = vals = None
-    if args.model != "uniform":
+    if needs_input(args.model):
         if not args.samples:
             raise RxError(f"--model {args.model} needs --samples")
         spath = Path(args.samples)
@@ -187,7 +196,9 @@ def build(args: argparse.Namespace) -> tuple[bytes, dict[str, Any]]:
             sdata = spath.read_bytes()
         except OSError as exc:
             raise RxError(f"cannot read {spath}: {exc}") from exc
-        column = "ndvi" if args.model == "ndvi" else "n_mg_kg"
+        model_input = rate_model(args.model).input
+        assert model_input is not None
+        column = model_input.column
         imp = read_soil_samples(
             spath.name, sdata, args.samples_epsg, args.skip_bad_rows, field_ll, column
         )
@@ -274,7 +285,8 @@ def build(args: argparse.Namespace) -> tuple[bytes, dict[str, Any]]:
 def run(args: argparse.Namespace) -> int:
     from fieldrx.agronomy.interpolate import InterpolationError
     from fieldrx.agronomy.prescription import PrescriptionError
-    from fieldrx.agronomy.rates import MeterRangeError, RateModelError
+    from fieldrx.agronomy.ratemodels.registry import RateModelError
+    from fieldrx.agronomy.rates import MeterRangeError
     from fieldrx.agronomy.soil import SoilFormatError
     from fieldrx.formats import FormatError
     from fieldrx.geo import PlanningError

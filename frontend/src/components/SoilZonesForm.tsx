@@ -1,5 +1,6 @@
 import { useEffect, useState } from 'react';
 import { call, client, type Prescription, type Schemas } from '../api/client';
+import { ZONE_MODELS } from '../lib/rateModels';
 import { defaultFields, rxBody, type FieldErrors, type RxFields } from '../lib/rxform';
 import { useCatalogue, usePlanFormDefaults } from '../lib/useCatalogue';
 import { RxModelFields } from './RxModelFields';
@@ -69,8 +70,11 @@ export function SoilZonesForm(props: { planId: number; onCreated: (r: Prescripti
           value={model}
           onChange={(e) => setModel(e.target.value as 'nutrient_balance' | 'ndvi')}
         >
-          <option value="nutrient_balance">Soil N (nutrient balance rate)</option>
-          <option value="ndvi">Sample NDVI (NDVI rate)</option>
+          {ZONE_MODELS.map((m) => (
+            <option key={m.name} value={m.name}>
+              {m.zone_label}
+            </option>
+          ))}
         </select>
       </label>
       <label>

@@ -4,6 +4,7 @@
  * the agronomist's min / max clamp. Pure: turns the fields into a PrescriptionIn body.
  */
 import type { Schemas } from '../api/client';
+import { paramDefault, rateModel } from './rateModels';
 import { formatRate, formatVolumeRate } from './units';
 
 export type Crop = Schemas['CropOut'];
@@ -30,9 +31,15 @@ export interface RxFields {
   rateUnit: string;
 }
 
-/** Seed 000 NDVI curve (0.24 -> 375 kg/ha, 0.65 -> 180 kg/ha, docs/science.md). */
-export const NDVI_DEFAULTS = { ndviLow: '0.24', rateAtLow: '375', ndviHigh: '0.65', rateAtHigh: '180' };
-export const NDVI_SOURCE = 'seed 000 NDVI curve';
+/** Seed 000 NDVI curve (0.24 -> 375 kg/ha, 0.65 -> 180 kg/ha, docs/science.md), as the
+ * server's ndvi model declares it (generated/rate-models.json). */
+export const NDVI_DEFAULTS = {
+  ndviLow: paramDefault('ndvi', 'ndvi_low'),
+  rateAtLow: paramDefault('ndvi', 'rate_at_low_kg_ha'),
+  ndviHigh: paramDefault('ndvi', 'ndvi_high'),
+  rateAtHigh: paramDefault('ndvi', 'rate_at_high_kg_ha'),
+};
+export const NDVI_SOURCE = rateModel('ndvi')?.paper ?? '';
 
 /** What the form starts from on a field (GET /fields/{id}/rx-defaults). */
 export type FormDefaults = Schemas['FormDefaultsOut'];

@@ -1,14 +1,15 @@
+import { RATE_MODELS } from './rateModels';
+
 /**
  * Plain words for the API's names where a screen shows them: a model or heading rule the
  * server stores as an identifier, a request field a validation error points at. The
  * person reading the screen never sees snake_case.
  */
 
-/** Prescription models, as the prescription form names them. */
+/** Prescription models in words: the server's rate models (generated/rate-models.json)
+ * and the model name of an imported prescription. */
 const MODELS: Record<string, string> = {
-  nutrient_balance: 'Nutrient balance (soil N)',
-  uniform: 'Uniform rate',
-  ndvi: 'NDVI curve',
+  ...Object.fromEntries(RATE_MODELS.map((m) => [m.name, m.short_label])),
   imported: 'Imported',
 };
 

@@ -2,6 +2,7 @@ import { useEffect, useRef, useState } from 'react';
 import { call, client, type Machine, type Prescription, type Schemas, inline } from '../api/client';
 import { RxModelFields } from '../components/RxModelFields';
 import { ErrorBox } from '../components/Status';
+import { RATE_MODELS } from '../lib/rateModels';
 import { defaultFields, rxBody, type FieldErrors, type RxFields, type RxModel } from '../lib/rxform';
 import { useCatalogue, usePlanFormDefaults } from '../lib/useCatalogue';
 import { serverDefault } from '../api/defaults';
@@ -76,9 +77,11 @@ export function RxForm({ planId, onCreated }: { planId: number; onCreated: (r: P
       <label>
         Model
         <select data-testid="rx-model" value={model} onChange={(e) => setModel(e.target.value as RxModel)}>
-          <option value="nutrient_balance">Nutrient balance (soil N, seed 001)</option>
-          <option value="uniform">Uniform rate</option>
-          <option value="ndvi">NDVI (linear, seed 000)</option>
+          {RATE_MODELS.map((m) => (
+            <option key={m.name} value={m.name}>
+              {m.label}
+            </option>
+          ))}
         </select>
       </label>
       {fields ? (

@@ -10,7 +10,17 @@ from fieldrx_edge.rateunits.registry import unit_of
 from pydantic import AfterValidator, Field, WithJsonSchema, model_validator
 
 from fieldrx.agronomy.interpolate import DEFAULT_METHOD
+from fieldrx.agronomy.ratemodels.registry import DEFAULT_MODEL, accepted_names, rate_models
 from fieldrx.api.schemas.base import Geometry, In, Open, Out
+
+# a model of agronomy.ratemodels (or an alias); the OpenAPI enum is the registry's list.
+# Not validated here: an unknown model is answered by the prescription service, whose
+# message names the known ones.
+RateModelName = Annotated[str, WithJsonSchema({"type": "string", "enum": accepted_names()})]
+MODEL_DOC = " | ".join(rate_models().names()) + (
+    f" (aliases: {', '.join(a for m in rate_models() for a in m.aliases)})"
+)
+PARAMS_DOC = "; ".join(f"{m.name}: {', '.join(p.name for p in m.params)}" for m in rate_models())
 
 
 def _known_unit(v: str) -> str:
@@ -27,16 +37,8 @@ RateUnitName = Annotated[
 class PrescriptionIn(In):
     name: str = Field(default="", max_length=200)
     product: str = Field(default="", max_length=200)
-    model: str = Field(
-        default="nutrient_balance",
-        description="nutrient_balance | ndvi | uniform (aliases: ndvi_linear, constant)",
-    )
-    params: dict[str, Any] = Field(
-        default_factory=dict,
-        description="nutrient_balance: target_yield_kg_ha, n_fraction, e_kg_per_100kg, "
-        "k_utilisation; ndvi: ndvi_low, rate_at_low_kg_ha, ndvi_high, rate_at_high_kg_ha; "
-        "uniform: rate_kg_ha",
-    )
+    model: RateModelName = Field(default=DEFAULT_MODEL, description=MODEL_DOC)
+    params: dict[str, Any] = Field(default_factory=dict, description=PARAMS_DOC)
     interpolation: Literal["cell_mean", "idw", "kriging"] = Field(
         default=DEFAULT_METHOD, description="cell values from the samples (idw: inverse distance)"
     )
@@ -60,7 +62,7 @@ class PrescriptionIn(In):
     product_key: str | None = Field(
         default=None,
         description="a product key of GET /products: names the product, gives n_fraction "
-        "(nutrient_balance) and the version's nutrient and cost figures",
+        "(models that take the crop's defaults) and the version's nutrient and cost figures",
     )
     clamp_min_kg_ha: float | None = Field(
         default=None, ge=0, description="raise model rates below this (cells flagged, counted)"

@@ -14,8 +14,9 @@ from sqlalchemy.orm import Session
 from fieldrx.agronomy.cells import CellTable
 from fieldrx.agronomy.crops import find_crop
 from fieldrx.agronomy.interpolate import DEFAULT_METHOD
-from fieldrx.agronomy.prescription import MODEL_INPUT, RateRules, build_prescription
+from fieldrx.agronomy.prescription import RateRules, build_prescription
 from fieldrx.agronomy.products import product_figures
+from fieldrx.agronomy.ratemodels.registry import DEFAULT_MODEL, rate_models
 from fieldrx.db.models import Field, Machine, Plan, Prescription
 from fieldrx.services.prescriptions.classes import auto_classes
 from fieldrx.services.prescriptions.meter import MeterSpec, meter_spec
@@ -73,8 +74,9 @@ def create_prescription(
     """Interpolate, rate, clamp and store version 1 (flush only). Raises ValueError subclasses."""
     crop = spec.crop
     model, params = canonical_model(spec.model, spec.params)
-    if model not in MODEL_INPUT:
-        raise RxError(f"unknown model {model!r} (expected one of {sorted(MODEL_INPUT)})")
+    models = rate_models()
+    if model not in models:
+        raise RxError(f"unknown model {model!r} (expected one of {sorted(models.names())})")
     crop_from = "request" if crop is not None else None
     field_crop = find_crop(field.crop) if crop is None else None
     if field_crop is not None:
@@ -83,8 +85,8 @@ def create_prescription(
         model, params, crop, spec.product_info
     )
     plaus = plausibility_spec(session, organisation_id, crop, model, params, spec.product_info)
-    column = MODEL_INPUT[model]
-    if column is None:  # uniform: no geometry needed
+    column = models.get(model).input
+    if column is None:  # a uniform rate: no geometry needed
         seq, area = load_seq_area(session, plan.id)
         cells = None
     else:
@@ -188,7 +190,7 @@ def create_from_request(
         rate_unit=unit,
         name=b.get("name", "") if name is None else name,
         product=b.get("product", ""),
-        model=b.get("model", "nutrient_balance"),
+        model=b.get("model", DEFAULT_MODEL),
         params=b.get("params") or {},
         interpolation=b.get("interpolation", DEFAULT_METHOD),
         interpolation_params=b.get("interpolation_params") or {},

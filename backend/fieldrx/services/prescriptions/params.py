@@ -12,20 +12,9 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from fieldrx.agronomy.crops import CROPS, Crop, find_crop
+from fieldrx.agronomy.ratemodels.registry import model_aliases, param_aliases, rate_models
 from fieldrx.db.models import Field, Plan, Prescription
 
-MODEL_ALIASES = {"constant": "uniform", "ndvi_linear": "ndvi"}
-PARAM_ALIASES = {
-    "M": "target_yield_kg_ha",
-    "target_yield": "target_yield_kg_ha",
-    "x": "n_fraction",
-    "nutrient_fraction": "n_fraction",
-    "e": "e_kg_per_100kg",
-    "uptake_kg_per_100kg": "e_kg_per_100kg",
-    "k": "k_utilisation",
-    "utilisation": "k_utilisation",
-    "rate": "rate_kg_ha",
-}
 IGNORED_PARAMS = {"nutrient"}
 
 
@@ -34,14 +23,22 @@ class RxError(ValueError):
 
 
 def canonical_model(model: str, params: dict[str, Any]) -> tuple[str, dict[str, Any]]:
-    """Model name and parameters under the names agronomy.rates uses (aliases accepted)."""
-    m = MODEL_ALIASES.get(model, model)
+    """Model name and parameters under the names agronomy.ratemodels uses (each model's
+    aliases accepted)."""
+    m = model_aliases().get(model, model)
+    aliases = param_aliases()
     out: dict[str, Any] = {}
     for k, v in params.items():
         if k in IGNORED_PARAMS:
             continue
-        out[PARAM_ALIASES.get(k, k)] = v
+        out[aliases.get(k, k)] = v
     return m, out
+
+
+def fills_from_crop(model: str) -> bool:
+    """Whether the crop's and the product's defaults fill model ``model``'s parameters."""
+    reg = rate_models()
+    return model in reg and reg.get(model).crop_defaults
 
 
 def fill_from_crop(
@@ -49,7 +46,7 @@ def fill_from_crop(
 ) -> None:
     """The crop's defaults for every nutrient-balance parameter the request left out; a
     given value equal to the default counts as the default, another one as an override."""
-    if model != "nutrient_balance":
+    if not fills_from_crop(model):
         return
     defaults: dict[str, float] = {
         **crop.model_defaults(),
@@ -90,10 +87,10 @@ def crop_params(
             raise RxError(f"unknown crop {crop!r} (expected one of {[c.key for c in CROPS]})")
         crop_d = found.to_dict()
         fill_from_crop(model, out, found, sources, origin)
-    if product is not None and model == "nutrient_balance":
+    if product is not None and fills_from_crop(model):
         x = float(product.get("n_pct") or 0.0) / 100.0
         if x <= 0:
-            raise RxError(f"product {product['name']!r} has no N: nutrient_balance needs N")
+            raise RxError(f"product {product['name']!r} has no N: {model} needs N")
         if "n_fraction" not in out:
             out["n_fraction"] = x
             sources["n_fraction"] = f"{product['name']}: {product['source']}"

@@ -18,7 +18,7 @@ from fieldrx.agronomy.plausibility import (
     product_fractions,
     resolve_ceilings,
 )
-from fieldrx.agronomy.rates import RATE_AT_NDVI_HIGH, RATE_AT_NDVI_LOW
+from fieldrx.agronomy.ratemodels.registry import find_model
 from fieldrx.db.models import Organisation
 
 
@@ -39,11 +39,10 @@ def plausibility_spec(
         "fractions": product_fractions(product, params),
         "ceilings": resolve_ceilings(find_crop(crop), settings.get("ceilings_kg_ha")),
     }
-    if model == "ndvi":
-        spec["curve_kg_ha"] = [
-            float(params.get("rate_at_low_kg_ha", RATE_AT_NDVI_LOW)),
-            float(params.get("rate_at_high_kg_ha", RATE_AT_NDVI_HIGH)),
-        ]
+    rate_model = find_model(model)
+    curve = None if rate_model is None else rate_model.curve_kg_ha(params)
+    if curve is not None:
+        spec["curve_kg_ha"] = [float(curve[0]), float(curve[1])]
         spec["curve_share_max"] = float(settings.get("curve_share_max", DEFAULT_CURVE_SHARE_MAX))
     return spec
 

@@ -13,7 +13,7 @@ from sqlalchemy.orm import Session
 
 from fieldrx.agronomy.cells import CellTable
 from fieldrx.agronomy.interpolate import interpolate_to_cells
-from fieldrx.agronomy.prescription import MODEL_INPUT
+from fieldrx.agronomy.ratemodels.registry import rate_model, rate_models
 from fieldrx.agronomy.zones import zone_cell_values
 from fieldrx.db.models import Field, SoilSample
 from fieldrx.geo.crs import lonlat_to_utm_xy
@@ -48,8 +48,9 @@ def interpolate_field_samples(
 ) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
     """The field's samples of the model's input column interpolated onto the cells:
     (values, no_data, description). A cell without data is NaN in ``values``."""
-    column = MODEL_INPUT[model]
-    assert column is not None
+    inp = rate_model(model).input
+    assert inp is not None
+    column = inp.column
     xy, z = field_samples(session, field.id, column, field.utm_epsg)
     if len(z) == 0:
         what = "soil samples with n_mg_kg" if column == "n_mg_kg" else "samples with ndvi"
@@ -90,17 +91,17 @@ def soil_zone_source(
     min_area_m2: float,
 ) -> Callable[[CellTable], tuple[np.ndarray, dict[str, Any]]]:
     """``cell_source`` of a zone prescription from soil samples: the model's input property
-    (n_mg_kg for nutrient_balance, sample NDVI for ndvi) interpolated onto the plan's cells,
+    (``agronomy.ratemodels``: soil n_mg_kg, sample NDVI) interpolated onto the plan's cells,
     classified into ``k`` zones and smoothed to ``min_area_m2`` (``agronomy.zones``, the
     same zoning as imagery NDVI zones); each zone's cells get the zone's mean, so the model
     gives one rate per zone."""
     canonical, _ = canonical_model(model, {})
-    column = MODEL_INPUT.get(canonical)
-    if column is None:
-        raise RxError(
-            f"zones need a model with a per-cell input (nutrient_balance: soil n_mg_kg, "
-            f"ndvi: sample NDVI), got {model!r}"
-        )
+    reg = rate_models()
+    inp = reg.get(canonical).input if canonical in reg else None
+    if inp is None:
+        which = ", ".join(f"{m.name}: {m.input.label}" for m in reg if m.input is not None)
+        raise RxError(f"zones need a model with a per-cell input ({which}), got {model!r}")
+    column = inp.column
 
     def source(cells: CellTable) -> tuple[np.ndarray, dict[str, Any]]:
         values, _, info = interpolate_field_samples(

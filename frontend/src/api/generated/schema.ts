@@ -4641,8 +4641,9 @@ export interface components {
              * Model
              * @description nutrient_balance | ndvi | uniform (aliases: ndvi_linear, constant)
              * @default nutrient_balance
+             * @enum {string}
              */
-            model?: string;
+            model?: "nutrient_balance" | "ndvi" | "uniform" | "ndvi_linear" | "constant";
             /**
              * Name
              * @default
@@ -4656,7 +4657,7 @@ export interface components {
             note?: string;
             /**
              * Params
-             * @description nutrient_balance: target_yield_kg_ha, n_fraction, e_kg_per_100kg, k_utilisation; ndvi: ndvi_low, rate_at_low_kg_ha, ndvi_high, rate_at_high_kg_ha; uniform: rate_kg_ha
+             * @description nutrient_balance: target_yield_kg_ha, n_fraction, e_kg_per_100kg, k_utilisation, d_intercept_pct, d_slope_pct_mg_kg; ndvi: ndvi_low, rate_at_low_kg_ha, ndvi_high, rate_at_high_kg_ha; uniform: rate_kg_ha
              */
             params?: {
                 [key: string]: unknown;
@@ -4668,7 +4669,7 @@ export interface components {
             product?: string;
             /**
              * Product Key
-             * @description a product key of GET /products: names the product, gives n_fraction (nutrient_balance) and the version's nutrient and cost figures
+             * @description a product key of GET /products: names the product, gives n_fraction (models that take the crop's defaults) and the version's nutrient and cost figures
              */
             product_key?: string | null;
             /**
@@ -5585,8 +5586,9 @@ export interface components {
              * Model
              * @description nutrient_balance | ndvi | uniform (aliases: ndvi_linear, constant)
              * @default nutrient_balance
+             * @enum {string}
              */
-            model?: string;
+            model?: "nutrient_balance" | "ndvi" | "uniform" | "ndvi_linear" | "constant";
             /**
              * Name
              * @default
@@ -5600,7 +5602,7 @@ export interface components {
             note?: string;
             /**
              * Params
-             * @description nutrient_balance: target_yield_kg_ha, n_fraction, e_kg_per_100kg, k_utilisation; ndvi: ndvi_low, rate_at_low_kg_ha, ndvi_high, rate_at_high_kg_ha; uniform: rate_kg_ha
+             * @description nutrient_balance: target_yield_kg_ha, n_fraction, e_kg_per_100kg, k_utilisation, d_intercept_pct, d_slope_pct_mg_kg; ndvi: ndvi_low, rate_at_low_kg_ha, ndvi_high, rate_at_high_kg_ha; uniform: rate_kg_ha
              */
             params?: {
                 [key: string]: unknown;
@@ -5612,7 +5614,7 @@ export interface components {
             product?: string;
             /**
              * Product Key
-             * @description a product key of GET /products: names the product, gives n_fraction (nutrient_balance) and the version's nutrient and cost figures
+             * @description a product key of GET /products: names the product, gives n_fraction (models that take the crop's defaults) and the version's nutrient and cost figures
              */
             product_key?: string | null;
             /**

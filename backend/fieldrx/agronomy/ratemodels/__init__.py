@@ -1,0 +1,1 @@
+"""Rate models, one class per module, listed by ``registry.RATE_MODELS``."""
