@@ -85,12 +85,16 @@ class RateRules:
     area-weighted mean of the cells that have data. Then the agronomist's clamp
     (``clamp_min_kg_ha`` / ``clamp_max_kg_ha``, see ``clamp_rates``) and the ``meter``
     range check (kept as computed and flagged, see ``rates.check_meter_range``).
+    ``model_kg_per_unit``: kg/ha in one of the model's rates, for a model whose rates are in
+    the prescription's unit (``RateModel.rates_in_unit``: seeds/ha through a seed lot); 1
+    for a model that gives kg/ha of product.
     """
 
     meter: MeterCheck | None = None
     fallback_rate_kg_ha: float | None = None
     clamp_min_kg_ha: float | None = None
     clamp_max_kg_ha: float | None = None
+    model_kg_per_unit: float = 1.0
 
 
 def build_prescription(
@@ -108,7 +112,7 @@ def build_prescription(
     cell the clamp changes is flagged and counted; the meter range is checked."""
     params = dict(params)
     if not needs_input(model):
-        raw = model_rates(model, None, params, n_cells)
+        raw = model_rates(model, None, params, n_cells) * rules.model_kg_per_unit
         flags = np.zeros(n_cells, dtype=np.uint16)
         fb = None
     else:
@@ -118,7 +122,7 @@ def build_prescription(
         if len(v) != n_cells:
             raise PrescriptionError(f"{len(v)} values for {n_cells} cells")
         nd = np.isnan(v) if no_data is None else (np.asarray(no_data, dtype=bool) | np.isnan(v))
-        raw = model_rates(model, v, params, n_cells)
+        raw = model_rates(model, v, params, n_cells) * rules.model_kg_per_unit
         fb = rules.fallback_rate_kg_ha
         if fb is None:
             have = ~nd
@@ -127,6 +131,7 @@ def build_prescription(
             w = np.ones(n_cells) if area_m2 is None else np.asarray(area_m2, dtype=float)
             mean_v = float(np.average(v[have], weights=w[have]))
             fb = float(model_rates(model, np.array([mean_v]), params, 1)[0])
+            fb *= rules.model_kg_per_unit
         elif not (np.isfinite(fb) and fb >= 0):
             raise PrescriptionError(f"fallback_rate_kg_ha must be >= 0, got {fb!r}")
         raw = np.where(nd, fb, raw)

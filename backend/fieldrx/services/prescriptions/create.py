@@ -9,6 +9,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from fieldrx_edge.rateunits.registry import unit_of
 from sqlalchemy.orm import Session
 
 from fieldrx.agronomy.cells import CellTable
@@ -107,7 +108,17 @@ def create_prescription(
         values, no_data, interp_info = interpolate_field_samples(
             session, field, cells, model, spec.interpolation, spec.interpolation_params
         )
-    rules = RateRules(check, spec.fallback_rate_kg_ha, spec.clamp_min_kg_ha, spec.clamp_max_kg_ha)
+    unit = unit_of(spec.rate_unit)
+    # a model that prescribes in the prescription's unit (seeds/ha): its rates to kg/ha
+    # through the product lot check_rate_unit accepted
+    per_unit = (
+        unit.kg_per_unit(unit.check_lot(spec.product_info))
+        if models.get(model).rates_in_unit
+        else 1.0
+    )
+    rules = RateRules(
+        check, spec.fallback_rate_kg_ha, spec.clamp_min_kg_ha, spec.clamp_max_kg_ha, per_unit
+    )
     p = build_prescription(model, params, len(seq), values, no_data, rules, area, seq)
     flags, plaus_report = apply_plausibility(p.rate_kg_ha, p.flags, area, seq, plaus, True)
     p.flags = flags
