@@ -66,8 +66,8 @@ class RateModel:
     # N fraction fill the parameters the request leaves out (``services.prescriptions``)
     crop_defaults: bool = False
     # False: the model's rates are kg/ha of product; True: they are in the prescription's
-    # rate unit (a model that computes, say, l/ha directly). Read by whoever converts the
-    # rates to the prescription's unit; every model here works in kg/ha.
+    # rate unit (seeds/ha), turned into kg/ha through the product lot when the
+    # prescription is built (``agronomy.prescription.RateRules.model_kg_per_unit``)
     rates_in_unit: ClassVar[bool] = False
 
     def param(self, name: str) -> Param:
