@@ -228,6 +228,7 @@ def create_job(body: JobIn, principal: WriterDep, session: SessionDep) -> JobOut
     )
     job = Job(
         organisation_id=principal.organisation_id,
+        kind=body.kind,
         prescription_id=rx.id,
         prescription_version=version,
         machine_id=machine.id,

@@ -22,7 +22,7 @@ from __future__ import annotations
 from typing import Any
 
 from fieldrx_edge.job_package import JobPackage
-from fieldrx_edge.jobkinds.registry import kind_of
+from fieldrx_edge.jobkinds.registry import DEFAULT_KIND, kind_of
 from sqlalchemy.orm import Session
 
 from fieldrx.db.models import Field, Job, Machine, Plan, Prescription
@@ -53,6 +53,7 @@ def build_package(
     version: int | None,
     machine: Machine,
     job_id: int = 0,
+    kind: str = DEFAULT_KIND,
 ) -> JobPackage:
     """Sealed JobPackage of one prescription version for one machine (version None = current)."""
     from fieldrx.formats.jobpackage import JobPackageSpec
@@ -85,6 +86,7 @@ def build_package(
             field_name=field.name,
             **machine_fields(machine),
             product=rx.product,
+            kind=kind,
             # the product's lot travels with it (ISOBUS volume-rate implements, DDI 1)
             rate_unit=unit.name,
             product_density_kg_l=density or 0.0,
@@ -132,5 +134,5 @@ def build_job_package(session: Session, job: Job) -> JobPackage:
     if job.prescription_id is None:
         raise LookupError(f"job {job.id}: a prescription-map job without a prescription")
     return build_package(
-        session, job.prescription_id, job.prescription_version, machine, job_id=job.id
+        session, job.prescription_id, job.prescription_version, machine, job.id, job.kind
     )
