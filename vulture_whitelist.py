@@ -248,3 +248,6 @@ NdviTopdress  # unused class (registered by its decorator: fieldrx_edge.jobkinds
 KgPerHa  # unused class (registered by its decorator: fieldrx_edge.rateunits.registry)
 LitresPerHa  # unused class (registered by its decorator: fieldrx_edge.rateunits.registry)
 SeedingDepth  # unused class (registered by its decorator: fieldrx_edge.jobkinds.registry)
+total_unit  # unused variable (an API field: ReportUnit)
+planned_total  # unused variable (an API field: ReportUnit)
+applied_total  # unused variable (an API field: ReportUnit)
