@@ -247,6 +247,8 @@ PrescriptionMap  # unused class (registered by its decorator: fieldrx_edge.jobki
 NdviTopdress  # unused class (registered by its decorator: fieldrx_edge.jobkinds.registry)
 KgPerHa  # unused class (registered by its decorator: fieldrx_edge.rateunits.registry)
 LitresPerHa  # unused class (registered by its decorator: fieldrx_edge.rateunits.registry)
+SeedsPerHa  # unused class (registered by its decorator: fieldrx_edge.rateunits.registry)
+SeedingRate  # unused class (registered by its decorator: fieldrx_edge.jobkinds.registry)
 SeedingDepth  # unused class (registered by its decorator: fieldrx_edge.jobkinds.registry)
 total_unit  # unused variable (an API field: ReportUnit)
 planned_total  # unused variable (an API field: ReportUnit)

@@ -3610,11 +3610,11 @@ export interface components {
             confirm_flagged?: boolean;
             /**
              * Kind
-             * @description prescription_map (seed 001: prescription-map); ndvi_topdress (seed 000: NDVI topdressing); seeding_depth (seed 002: depth-controlled seeding); GET /jobs/kinds lists each kind's settings, units and the papers' defaults
+             * @description prescription_map (seed 001: prescription-map); seeding_rate (prescription in seeds/ha (seed 001's cell pipeline): variable-rate seeding); ndvi_topdress (seed 000: NDVI topdressing); seeding_depth (seed 002: depth-controlled seeding); GET /jobs/kinds lists each kind's settings, units and the papers' defaults
              * @default prescription_map
              * @enum {string}
              */
-            kind?: "prescription_map" | "ndvi_topdress" | "seeding_depth";
+            kind?: "prescription_map" | "seeding_rate" | "ndvi_topdress" | "seeding_depth";
             /** Machine Id */
             machine_id: number;
             /**
@@ -4639,11 +4639,11 @@ export interface components {
             machine_id?: number | null;
             /**
              * Model
-             * @description nutrient_balance | ndvi | uniform (aliases: ndvi_linear, constant)
+             * @description nutrient_balance | ndvi | uniform | seeding_ndvi (aliases: ndvi_linear, constant)
              * @default nutrient_balance
              * @enum {string}
              */
-            model?: "nutrient_balance" | "ndvi" | "uniform" | "ndvi_linear" | "constant";
+            model?: "nutrient_balance" | "ndvi" | "uniform" | "seeding_ndvi" | "ndvi_linear" | "constant";
             /**
              * Name
              * @default
@@ -4657,7 +4657,7 @@ export interface components {
             note?: string;
             /**
              * Params
-             * @description nutrient_balance: target_yield_kg_ha, n_fraction, e_kg_per_100kg, k_utilisation, d_intercept_pct, d_slope_pct_mg_kg; ndvi: ndvi_low, rate_at_low_kg_ha, ndvi_high, rate_at_high_kg_ha; uniform: rate_kg_ha
+             * @description nutrient_balance: target_yield_kg_ha, n_fraction, e_kg_per_100kg, k_utilisation, d_intercept_pct, d_slope_pct_mg_kg; ndvi: ndvi_low, rate_at_low_kg_ha, ndvi_high, rate_at_high_kg_ha; uniform: rate_kg_ha; seeding_ndvi: ndvi_low, seeds_at_low, ndvi_high, seeds_at_high
              */
             params?: {
                 [key: string]: unknown;
@@ -4678,7 +4678,7 @@ export interface components {
              * @default kg/ha
              * @enum {string}
              */
-            rate_unit?: "kg/ha" | "l/ha";
+            rate_unit?: "kg/ha" | "l/ha" | "seeds/ha";
             /** Speed Max Kmh */
             speed_max_kmh?: number | null;
             /** Speed Min Kmh */
@@ -5584,11 +5584,11 @@ export interface components {
             min_area_m2?: number;
             /**
              * Model
-             * @description nutrient_balance | ndvi | uniform (aliases: ndvi_linear, constant)
+             * @description nutrient_balance | ndvi | uniform | seeding_ndvi (aliases: ndvi_linear, constant)
              * @default nutrient_balance
              * @enum {string}
              */
-            model?: "nutrient_balance" | "ndvi" | "uniform" | "ndvi_linear" | "constant";
+            model?: "nutrient_balance" | "ndvi" | "uniform" | "seeding_ndvi" | "ndvi_linear" | "constant";
             /**
              * Name
              * @default
@@ -5602,7 +5602,7 @@ export interface components {
             note?: string;
             /**
              * Params
-             * @description nutrient_balance: target_yield_kg_ha, n_fraction, e_kg_per_100kg, k_utilisation, d_intercept_pct, d_slope_pct_mg_kg; ndvi: ndvi_low, rate_at_low_kg_ha, ndvi_high, rate_at_high_kg_ha; uniform: rate_kg_ha
+             * @description nutrient_balance: target_yield_kg_ha, n_fraction, e_kg_per_100kg, k_utilisation, d_intercept_pct, d_slope_pct_mg_kg; ndvi: ndvi_low, rate_at_low_kg_ha, ndvi_high, rate_at_high_kg_ha; uniform: rate_kg_ha; seeding_ndvi: ndvi_low, seeds_at_low, ndvi_high, seeds_at_high
              */
             params?: {
                 [key: string]: unknown;
@@ -5623,7 +5623,7 @@ export interface components {
              * @default kg/ha
              * @enum {string}
              */
-            rate_unit?: "kg/ha" | "l/ha";
+            rate_unit?: "kg/ha" | "l/ha" | "seeds/ha";
             /** Speed Max Kmh */
             speed_max_kmh?: number | null;
             /** Speed Min Kmh */
