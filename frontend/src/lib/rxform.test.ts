@@ -2,7 +2,7 @@
 // (The screens' state and map-layer rules are checked for every screen and component in
 // screens.test.ts.)
 import { describe, expect, it } from 'vitest';
-import { defaultFields, nutrientRateText, outsideMeter, rateUnitText, rxBody, withProduct, withProductLot, type Crop, type Product } from '../lib/rxform';
+import { defaultFields, nutrientRateText, outsideMeter, rateUnitText, rxBody, unitTotalsText, withProduct, withProductLot, type Crop, type Product } from '../lib/rxform';
 
 describe('outsideMeter', () => {
   it('names the rates a machine cannot meter; 0 (off) is fine', () => {
@@ -61,6 +61,17 @@ describe('liquid products in l/ha', () => {
     expect(rateUnitText({ rate_unit: 'kg/ha', lot: { density_kg_l: 1.28 }, kg_per_unit: 1 }, 192)).toBe('kg/ha');
     expect(rateUnitText({ rate_unit: 'l/ha', lot: {}, kg_per_unit: null }, 192)).toBe('l/ha · the product lot does not say how much one l/ha is');
     expect(rateUnitText(undefined, 192)).toBe('–');
+  });
+});
+
+describe('unitTotalsText', () => {
+  it("gives a job's totals in the prescription's unit, only when it is not kg/ha and converts", () => {
+    const u = { rate_unit: 'l/ha', kg_per_unit: 1.28, lot: { density_kg_l: 1.28 }, total_unit: 'l', planned_total: 1234.56, applied_total: 150.26 };
+    expect(unitTotalsText(u)).toBe('planned 1,235 l · applied 150.3 l');
+    expect(unitTotalsText({ ...u, applied_total: null })).toBe('planned 1,235 l · applied –');
+    expect(unitTotalsText({ ...u, kg_per_unit: null })).toBeNull();
+    expect(unitTotalsText({ ...u, rate_unit: 'kg/ha', total_unit: 'kg' })).toBeNull();
+    expect(unitTotalsText(null)).toBeNull();
   });
 });
 

@@ -6,7 +6,7 @@
 import type { Schemas } from '../api/client';
 import { paramDefault, rateModel, type RateModelInfo, type RateModelParam } from './rateModels';
 import { BASE_UNIT, LOT_VALUES, RATE_UNITS, rateUnit, type LotValueInfo } from './rateUnits';
-import { formatRate, formatUnitRate } from './units';
+import { formatRate, formatUnitRate, formatUnitTotal } from './units';
 import { plainName } from './words';
 
 export type Crop = Schemas['CropOut'];
@@ -257,6 +257,16 @@ export function rateUnitText(
     .map((v) => `${rx.lot?.[v.key]} ${v.unit}`);
   if (rx.kg_per_unit == null) return `${unit} · the product lot does not say how much one ${unit} is`;
   return `${unit}${through.length ? ` through ${through.join(', ')}` : ''} · mean ${formatUnitRate(meanKgHa, rx.kg_per_unit, unit)}`;
+}
+
+/** A job report's totals in its prescription's unit ("planned 1,234,567 seeds · applied
+ * 1,100,000 seeds"), as the server counted them; null for the base unit (the report's kg say
+ * it) or when the product lot does not say how much one unit is. */
+export function unitTotalsText(
+  u: { rate_unit: string; kg_per_unit: number | null; total_unit: string; planned_total: number | null; applied_total: number | null } | null | undefined,
+): string | null {
+  if (!u || u.rate_unit === BASE_UNIT || u.kg_per_unit == null) return null;
+  return `planned ${formatUnitTotal(u.planned_total, u.total_unit)} · applied ${formatUnitTotal(u.applied_total, u.total_unit)}`;
 }
 
 /** "46 % N, 0 % P2O5, 0 % K2O · 420 /t" */

@@ -30,6 +30,12 @@ export function formatUnitRate(kgHa: number | null | undefined, kgPerUnit: numbe
   return `${amount(kgHa / kgPerUnit)} ${unit}`;
 }
 
+/** A total the server gave in a unit's own count or volume: "1,234,567 seeds", "150.3 l". */
+export function formatUnitTotal(total: number | null | undefined, unit: string): string {
+  if (total == null || !Number.isFinite(total)) return '–';
+  return `${amount(total)} ${unit}`;
+}
+
 export function msToKmh(ms: number): number {
   return ms * 3.6;
 }
