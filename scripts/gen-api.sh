@@ -3,9 +3,10 @@
 # needed): frontend/src/api/openapi.json, then frontend/src/api/generated/schema.ts
 # (openapi-typescript), generated/defaults.json (the models' defaults the forms start from),
 # generated/import-formats.json (the import-format registry the import assistant reads) and
-# generated/rate-models.json (the rate-model registry the prescription forms read).
-# Run after changing a route, a model in backend/fieldrx/api/, an import format or a rate
-# model;
+# generated/rate-models.json and generated/rate-units.json (the rate-model and rate-unit
+# registries the prescription forms read).
+# Run after changing a route, a model in backend/fieldrx/api/, an import format, a rate
+# model or a rate unit;
 # tests/system/test_contract.py fails while the committed files are stale.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -24,6 +25,9 @@ PYTHONPATH="$ROOT/backend${PYTHONPATH:+:$PYTHONPATH}" "$PY" -c \
 PYTHONPATH="$ROOT/backend:$ROOT/edge_agent${PYTHONPATH:+:$PYTHONPATH}" "$PY" -c \
   "from fieldrx.agronomy.ratemodels.registry import registry_json; print(registry_json(), end='')" \
   >frontend/src/api/generated/rate-models.json
+PYTHONPATH="$ROOT/edge_agent${PYTHONPATH:+:$PYTHONPATH}" "$PY" -c \
+  "from fieldrx_edge.rateunits.registry import registry_json; print(registry_json(), end='')" \
+  >frontend/src/api/generated/rate-units.json
 (cd frontend && npx --no-install openapi-typescript src/api/openapi.json \
   -o src/api/generated/schema.ts --alphabetize --default-non-nullable false >/dev/null)
-echo "frontend/src/api/openapi.json, generated/schema.ts, defaults.json, import-formats.json and rate-models.json are current"
+echo "frontend/src/api/openapi.json, generated/schema.ts, defaults.json, import-formats.json, rate-models.json and rate-units.json are current"

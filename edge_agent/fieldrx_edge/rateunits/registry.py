@@ -11,8 +11,10 @@ process-data DDIs (setpoint and actual, ISO 11783-11), at its own resolution
 (``bits_per_unit``: DDI value per 1 unit/ha).
 
 Everything that lists or converts units asks this module: the API's accepted values and
-the prescription form (``describe``), the job package's check, the ISOXML writer and
-reader, the Task Controller's choice of setpoint, the agent's records. Adding a unit is
+the prescription form (``describe``; ``registry_json`` is the browser's copy, which
+``scripts/gen-api.sh`` writes to ``frontend/src/api/generated/rate-units.json``), the job
+package's check, the ISOXML writer and reader, the Task Controller's choice of setpoint,
+the agent's records. Adding a unit is
 adding a module to ``rateunits/units/``.
 
 Standard library only: the server and the agent share it.
@@ -21,6 +23,7 @@ Standard library only: the server and the agent share it.
 from __future__ import annotations
 
 import importlib
+import json
 import math
 import pkgutil
 from collections.abc import Mapping
@@ -187,3 +190,9 @@ def convert(rate: float, src: RateUnit, dst: RateUnit, lot: Mapping[str, Any] | 
 
 def converts(src: RateUnit, dst: RateUnit, lot: Mapping[str, Any] | None) -> bool:
     return src is dst or (src.known(lot) and dst.known(lot))
+
+
+def registry_json() -> str:
+    """Every unit as the browser's forms read it (``scripts/gen-api.sh`` writes it): the
+    prescription form's unit menu and lot inputs come from here, not a hand-written list."""
+    return json.dumps({"rate_units": [u.describe() for u in units()]}, indent=2) + "\n"

@@ -1,5 +1,5 @@
 import { useEffect, useRef, useState, type MutableRefObject } from 'react';
-import { nutrientRateText, summaryFractions } from '../lib/rxform';
+import { nutrientRateText, summaryFractions, unitTotalsText } from '../lib/rxform';
 import { flushSync } from 'react-dom';
 import type * as maplibregl from 'maplibre-gl';
 import type { FieldFeature, Job, Prescription } from '../api/client';
@@ -97,6 +97,7 @@ export function PrintReport(props: {
     ? [
         ['Planned', `${formatMass(r.planned_total_kg)} over ${formatArea(r.planned_area_m2)}`],
         ['Applied', `${formatMass(r.applied_total_kg)} over ${formatArea(r.applied_area_m2)}`],
+        ...(r.unit && unitTotalsText(r.unit) ? ([[`Totals in ${r.unit.total_unit}`, unitTotalsText(r.unit) ?? '']] as [string, string][]) : []),
         ['Never applied', formatMass(r.never_applied_kg)],
         ['Outside cells', formatMass(r.applied_outside_cells_kg)],
         ['Cells applied', `${r.cells_applied} / ${r.cells_planned}`],

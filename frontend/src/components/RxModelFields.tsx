@@ -1,8 +1,68 @@
-import type { ReactNode } from 'react';
-import { NDVI_SOURCE, cropValue, withCrop, withProduct, type Crop, type FieldErrors, type Product, type RxFields, type RxModel } from '../lib/rxform';
+import { useEffect, useRef, type ReactNode } from 'react';
+import { rateModel } from '../lib/rateModels';
+import { RATE_UNITS } from '../lib/rateUnits';
+import {
+  NDVI_SOURCE,
+  cropValue,
+  genericParams,
+  paramLabel,
+  paramText,
+  paramUnit,
+  productLotValue,
+  unitLot,
+  withCrop,
+  withProduct,
+  withProductLot,
+  type Crop,
+  type FieldErrors,
+  type Product,
+  type RxFields,
+  type RxModel,
+} from '../lib/rxform';
 import { ProductPicker } from './ProductPicker';
 
-/** A number input with its unit and, under it, where its default comes from or what is wrong. */
+/** A number input with its unit and, under it, where its value comes from or what is wrong. */
+function NumInput(props: {
+  label: string;
+  unit: string;
+  value: string;
+  onChange: (v: string) => void;
+  error?: string;
+  source?: ReactNode;
+  testid: string;
+  min?: number;
+  max?: number;
+  step?: string;
+}) {
+  const { label, unit, value, onChange, error, source, testid, min, max, step = 'any' } = props;
+  return (
+    <label className="num-field">
+      {label}
+      <span className="with-unit">
+        <input
+          data-testid={testid}
+          type="number"
+          step={step}
+          min={min}
+          max={max}
+          value={value}
+          aria-invalid={!!error}
+          onChange={(e) => onChange(e.target.value)}
+        />
+        <span className="unit">{unit}</span>
+      </span>
+      {error ? (
+        <span className="field-error" data-testid={`${testid}-error`}>
+          {error}
+        </span>
+      ) : source ? (
+        <span className="small muted source">{source}</span>
+      ) : null}
+    </label>
+  );
+}
+
+/** A number field of RxFields (testid `${tid}-${k}`). */
 function Num(props: {
   label: string;
   unit: string;
@@ -14,29 +74,18 @@ function Num(props: {
   tid: string;
   step?: string;
 }) {
-  const { label, unit, k, f, set, errors, source, tid, step = 'any' } = props;
+  const { label, unit, k, f, set, errors, source, tid, step } = props;
   return (
-    <label className="num-field">
-      {label}
-      <span className="with-unit">
-        <input
-          data-testid={`${tid}-${k}`}
-          type="number"
-          step={step}
-          value={f[k]}
-          aria-invalid={!!errors[k]}
-          onChange={(e) => set({ ...f, [k]: e.target.value })}
-        />
-        <span className="unit">{unit}</span>
-      </span>
-      {errors[k] ? (
-        <span className="field-error" data-testid={`${tid}-${k}-error`}>
-          {errors[k]}
-        </span>
-      ) : source ? (
-        <span className="small muted source">{source}</span>
-      ) : null}
-    </label>
+    <NumInput
+      label={label}
+      unit={unit}
+      value={f[k] as string}
+      onChange={(v) => set({ ...f, [k]: v })}
+      error={errors[k]}
+      source={source}
+      testid={`${tid}-${k}`}
+      step={step}
+    />
   );
 }
 
@@ -64,8 +113,10 @@ function CropTable({ crop, tid }: { crop: Crop; tid: string }) {
 
 /**
  * The rate model's inputs as typed fields with units (crop, target yield t/ha, product,
- * N uptake, utilisation; or a uniform rate; or the NDVI curve) and the agronomist's
- * min / max clamp. Each default says where it comes from.
+ * N uptake, utilisation; or a uniform rate; or the NDVI curve; for any other model one input
+ * per parameter the server's registry declares), the unit the rates go to machines in with
+ * the product lot values it converts through, and the agronomist's min / max clamp. Each
+ * default says where it comes from.
  */
 export function RxModelFields(props: {
   model: RxModel;
@@ -93,6 +144,25 @@ export function RxModelFields(props: {
     return cropValue(crop, k) === f[FIELD_OF[k]] ? `default: ${crop.name}, ${v.source}` : `set by you (default ${v.value}: ${v.source})`;
   };
   const common = { f, set, errors, tid };
+  const product = products.find((p) => p.key === f.productKey);
+  // a product just added is in the catalogue only once it is read again: its lot values
+  // (density, ...) fill in then
+  // (when the catalogue or the product changes only: a value the user clears stays cleared)
+  const latest = useRef({ f, set });
+  useEffect(() => {
+    latest.current = { f, set };
+  });
+  useEffect(() => {
+    const { f: now, set: update } = latest.current;
+    const next = withProductLot(now, products);
+    if (next !== now) update(next);
+  }, [products, f.productKey]);
+  const info = rateModel(model);
+  const lotSource = (key: string) => {
+    const had = productLotValue(product, key);
+    if (!had) return 'this lot (the product does not state it)';
+    return had === f.lot?.[key] ? `from ${product?.name}` : `the product states ${had}: give one of them`;
+  };
   return (
     <fieldset className="rx-fields">
       {model === 'nutrient_balance' && (
@@ -142,6 +212,22 @@ export function RxModelFields(props: {
           <Num label="Rate at NDVI high" unit="kg/ha" k="rateAtHigh" source={NDVI_SOURCE} {...common} />
         </div>
       )}
+      {info && genericParams(model).length > 0 && (
+        <div className="row wrap">
+          {genericParams(model).map((p) => (
+            <NumInput
+              key={p.name}
+              label={paramLabel(p.name)}
+              unit={paramUnit(info, p, f.rateUnit)}
+              value={paramText(f, model, p)}
+              onChange={(v) => set({ ...f, modelParams: { ...f.modelParams, [model]: { ...f.modelParams?.[model], [p.name]: v } } })}
+              error={errors[`param.${p.name}`]}
+              source={p.default != null ? `default: ${p.source}` : p.source}
+              testid={`${tid}-param-${p.name}`}
+            />
+          ))}
+        </div>
+      )}
       {model !== 'nutrient_balance' && (
         <ProductPicker
           products={products}
@@ -151,16 +237,36 @@ export function RxModelFields(props: {
           testid={`${tid}-product`}
         />
       )}
-      {products.find((p) => p.key === f.productKey)?.density_kg_l ? (
-        <label>
-          Send to machines in
-          <select data-testid={`${tid}-rate-unit`} value={f.rateUnit} onChange={(e) => set({ ...f, rateUnit: e.target.value })}>
-            <option value="kg/ha">kg/ha (mass-rate implements)</option>
-            <option value="l/ha">l/ha (volume-rate sprayers, through the product's density)</option>
-          </select>
-          <span className="small muted source">rates are worked out in kg/ha either way</span>
-        </label>
-      ) : null}
+      <label>
+        Send to machines in
+        <select data-testid={`${tid}-rate-unit`} value={f.rateUnit} onChange={(e) => set(withProductLot({ ...f, rateUnit: e.target.value }, products))}>
+          {RATE_UNITS.map((u) => (
+            <option key={u.name} value={u.name}>
+              {u.label}
+              {u.lot.length ? ` (through the lot's ${u.lot.map((v) => v.label).join(', ')})` : ''}
+            </option>
+          ))}
+        </select>
+        <span className="small muted source">rates are worked out in {RATE_UNITS[0]?.name} either way</span>
+      </label>
+      {unitLot(f.rateUnit).length > 0 && (
+        <div className="row wrap" data-testid={`${tid}-lot`}>
+          {unitLot(f.rateUnit).map((v) => (
+            <NumInput
+              key={v.key}
+              label={`Product ${v.label}`}
+              unit={v.unit}
+              value={f.lot?.[v.key] ?? ''}
+              onChange={(x) => set({ ...f, lot: { ...f.lot, [v.key]: x } })}
+              error={errors[`lot.${v.key}`]}
+              source={`${lotSource(v.key)} · ${v.min}-${v.max} ${v.unit}`}
+              testid={`${tid}-lot-${v.key}`}
+              min={v.min}
+              max={v.max}
+            />
+          ))}
+        </div>
+      )}
       <div className="row wrap">
         <Num label="Min rate (clamp)" unit="kg/ha" k="clampMin" source="empty: no minimum" {...common} />
         <Num label="Max rate (clamp)" unit="kg/ha" k="clampMax" source="empty: no maximum" {...common} />

@@ -1,8 +1,9 @@
 import { useEffect, useState } from 'react';
 import { ApiError, call, client, type Schemas } from '../api/client';
-import { useSendableMachines } from '../api/hooks';
+import { useJobKinds, useSendableMachines } from '../api/hooks';
 import { meterableRange, type LinearCalibration } from '../lib/calibration';
 import { flaggedConfirmation } from '../lib/flags';
+import { kindList, kindsTaking } from '../lib/jobkinds';
 import { outsideMeter } from '../lib/rxform';
 import { formatRate } from '../lib/units';
 import { navigate } from '../router';
@@ -11,10 +12,17 @@ import { ErrorBox } from './Status';
 /**
  * Send the version on screen to a machine: the chosen machine's meterable range at its
  * speed range (seed 001 eq. 1-3) beside the version's rate range, with a warning when rates
- * fall outside; a 409 naming flagged cells asks for confirmation, then resends.
+ * fall outside; a 409 naming flagged cells asks for confirmation, then resends. Only the
+ * job kinds that take the prescription's rate unit are offered (GET /jobs/kinds).
  */
-export function SendJobPanel(props: { rxId: number; version: number | null; summary: Schemas['RxSummary'] | null | undefined }) {
-  const { rxId, version, summary } = props;
+export function SendJobPanel(props: { rxId: number; version: number | null; summary: Schemas['RxSummary'] | null | undefined; rateUnit?: string }) {
+  const { rxId, version, summary, rateUnit } = props;
+  const kinds = useJobKinds().data?.kinds;
+  // while the kinds or the unit are not known, the server's default kind
+  const taking = kinds && rateUnit ? kindsTaking(kinds, rateUnit) : null;
+  const [chosenKind, setKind] = useState('');
+  const kind = taking?.find((k) => k.name === chosenKind)?.name ?? taking?.[0]?.name;
+  const cellsKinds = kindList(kinds).filter((k) => k.rates_from === 'cells');
   const machines = useSendableMachines();
   const items = machines.data?.items ?? [];
   const [machineId, setMachineId] = useState('');
@@ -35,7 +43,13 @@ export function SendJobPanel(props: { rxId: number; version: number | null; summ
     try {
       const j = await call(
         client.POST('/api/v1/jobs', {
-          body: { prescription_id: rxId, prescription_version: version ?? undefined, machine_id: Number(machineId), confirm_flagged: confirmFlagged },
+          body: {
+            kind: kind as Schemas['JobIn']['kind'],
+            prescription_id: rxId,
+            prescription_version: version ?? undefined,
+            machine_id: Number(machineId),
+            confirm_flagged: confirmFlagged,
+          },
         }),
       );
       setConfirm(null);
@@ -50,6 +64,23 @@ export function SendJobPanel(props: { rxId: number; version: number | null; summ
   };
   return (
     <div data-testid="send-job-panel">
+      {taking && taking.length > 1 && (
+        <label>
+          Job kind{' '}
+          <select data-testid="send-job-kind" value={kind} onChange={(e) => setKind(e.target.value)}>
+            {taking.map((k) => (
+              <option key={k.name} value={k.name}>
+                {k.label}
+              </option>
+            ))}
+          </select>
+        </label>
+      )}
+      {taking && taking.length === 0 && (
+        <p className="warn" data-testid="send-job-unit">
+          No job kind takes a prescription in {rateUnit}: {cellsKinds.map((k) => `${k.label} takes ${k.rate_units.join(', ') || 'none'}`).join('; ')}.
+        </p>
+      )}
       <div className="row">
         <select data-testid="job-machine" value={machineId} onChange={(e) => setMachineId(e.target.value)}>
           {items.map((x) => (
@@ -58,7 +89,7 @@ export function SendJobPanel(props: { rxId: number; version: number | null; summ
             </option>
           ))}
         </select>
-        <button data-testid="send-job" data-write="" disabled={!machineId} onClick={() => void send(false)}>
+        <button data-testid="send-job" data-write="" disabled={!machineId || taking?.length === 0} onClick={() => void send(false)}>
           Send job (v{version ?? '–'})
         </button>
       </div>

@@ -2,7 +2,7 @@ import { describe, expect, it } from 'vitest';
 import { cellValue, kindUi } from '../kinds';
 import { ndviPreview, ndviRate } from '../kinds/ndvi_topdress';
 import { qualifiedBand } from '../kinds/seeding_depth';
-import { jobBody, kindLabel, kindList, planLabel, settingsBody, type KindInfo, type SettingField } from './jobkinds';
+import { jobBody, kindLabel, kindList, kindsTaking, planLabel, settingsBody, unitRefusal, type KindInfo, type SettingField } from './jobkinds';
 
 /** What GET /jobs/kinds says of a field (the server's registry is the one list). */
 const field = (path: string, dflt: unknown, options: string[] = []): SettingField => ({
@@ -27,6 +27,7 @@ const kind = (name: string, rates_from: 'cells' | 'sensors', settings: SettingFi
   noun: name,
   source: 'seed',
   rates_from,
+  rate_units: rates_from === 'cells' ? ['kg/ha', 'l/ha'] : [],
   progress: rates_from === 'cells' ? 'cells' : 'work',
   needs: '',
   defaults: {},
@@ -101,5 +102,18 @@ describe('job kinds', () => {
     const p = { id: 12, params: { swath_width_m: 3.6, cell_length_m: 5 }, n_cells: 84, created_at: '2026-11-28T10:11:12Z' };
     expect(planLabel(p)).toBe('Plan 12 · 3.6 m swath, 5 m cells · 84 cells · 2026-11-28');
     expect(planLabel({ ...p, created_at: null })).toBe('Plan 12 · 3.6 m swath, 5 m cells · 84 cells');
+  });
+});
+
+describe("a prescription's unit and the job kinds", () => {
+  const kinds = { prescription_map: kind('prescription_map', 'cells'), ndvi_topdress: kind('ndvi_topdress', 'sensors') };
+  it('offers only the cells kinds that take the unit', () => {
+    expect(kindsTaking(kinds, 'l/ha').map((k) => k.name)).toEqual(['prescription_map']);
+    expect(kindsTaking(kinds, 'seeds/ha')).toEqual([]);
+  });
+  it('says why a kind cannot take it, as the server does', () => {
+    expect(unitRefusal(kinds.prescription_map, 7, 'seeds/ha')).toBe('prescription 7 is in seeds/ha: a prescription_map job takes prescriptions in kg/ha or l/ha');
+    expect(unitRefusal(kinds.prescription_map, 7, 'kg/ha')).toBeNull();
+    expect(unitRefusal(kinds.ndvi_topdress, 7, 'seeds/ha')).toBeNull();
   });
 });

@@ -38,6 +38,19 @@ export function settingsBody(fields: SettingField[], values: Record<string, stri
   return out;
 }
 
+/** The kinds whose job takes a prescription in this rate unit (GET /jobs/kinds: rate_units). */
+export function kindsTaking(kinds: Record<string, KindInfo> | undefined, unit: string): KindInfo[] {
+  return kindList(kinds).filter((k) => k.rates_from === 'cells' && k.rate_units.includes(unit));
+}
+
+/** Why a kind's job cannot take the prescription (its unit), as the server would refuse it;
+ * null when it can (or the kind's rates come from sensors). */
+export function unitRefusal(kind: Pick<KindInfo, 'name' | 'rates_from' | 'rate_units'>, rxId: number | string, unit: string): string | null {
+  if (kind.rates_from !== 'cells' || kind.rate_units.includes(unit)) return null;
+  const taken = kind.rate_units.length ? kind.rate_units.join(' or ') : 'no unit';
+  return `prescription ${rxId} is in ${unit}: a ${kind.name} job takes prescriptions in ${taken}`;
+}
+
 /** POST /jobs body for any kind: a prescription for a kind whose rates are the cells', a
  * plan and the changed settings for one whose rates come from sensors. */
 export function jobBody(

@@ -2,7 +2,7 @@
 // (The screens' state and map-layer rules are checked for every screen and component in
 // screens.test.ts.)
 import { describe, expect, it } from 'vitest';
-import { defaultFields, nutrientRateText, outsideMeter, rateUnitText, rxBody, withProduct, type Crop, type Product } from '../lib/rxform';
+import { defaultFields, nutrientRateText, outsideMeter, rateUnitText, rxBody, unitTotalsText, withProduct, withProductLot, type Crop, type Product } from '../lib/rxform';
 
 describe('outsideMeter', () => {
   it('names the rates a machine cannot meter; 0 (off) is fine', () => {
@@ -16,20 +16,62 @@ describe('outsideMeter', () => {
 describe('liquid products in l/ha', () => {
   const prod = (key: string, density: number | null): Product =>
     ({ key, name: key, n_pct: 28, p2o5_pct: 0, k2o_pct: 0, price_per_t: null, density_kg_l: density, source: 's' }) as Product;
-  const products = [prod('uan', 1.28), prod('urea', null)];
+  const products = [prod('uan', 1.28), prod('urea', null), prod('uan32', 1.32), prod('can', null)];
 
-  it('sends rate_unit l/ha only while the product has a density', () => {
+  it("sends rate_unit l/ha with the product's density as the lot", () => {
     const f = { ...withProduct(defaultFields([], products), products, 'uan'), rateUnit: 'l/ha' };
-    expect(rxBody('uniform', f).body?.rate_unit).toBe('l/ha');
+    expect(f.lot.density_kg_l).toBe('1.28');
+    expect(rxBody('uniform', f).body).toMatchObject({ rate_unit: 'l/ha', lot: { density_kg_l: 1.28 } });
+    // another liquid: its density replaces the old product's
+    expect(withProduct(f, products, 'uan32').lot.density_kg_l).toBe('1.32');
+    // a solid: the unit stays, the density is typed in (nothing is sent until it is)
     const solid = withProduct(f, products, 'urea');
-    expect(solid.rateUnit).toBe('kg/ha');
-    expect(rxBody('uniform', solid).body?.rate_unit).toBeUndefined();
+    expect([solid.rateUnit, solid.lot.density_kg_l]).toEqual(['l/ha', undefined]);
+    expect(rxBody('uniform', solid)).toEqual({ body: null, errors: { 'lot.density_kg_l': 'Density (kg/l) is required' } });
+    expect(rxBody('uniform', { ...solid, lot: { density_kg_l: '1.1' } }).body?.lot).toEqual({ density_kg_l: 1.1 });
+    // a value the user typed stays for a product that does not state it, one that does wins
+    expect(withProduct({ ...solid, lot: { density_kg_l: '1.1' } }, products, 'can').lot.density_kg_l).toBe('1.1');
+    expect(withProduct({ ...solid, lot: { density_kg_l: '1.1' } }, products, 'uan').lot.density_kg_l).toBe('1.28');
+  });
+
+  it('checks a lot value against its range and sends nothing when it is wrong', () => {
+    const f = { ...defaultFields([], products), rateUnit: 'l/ha', lot: { density_kg_l: '40' } };
+    const { body, errors } = rxBody('uniform', f);
+    expect(body).toBeNull();
+    expect(errors['lot.density_kg_l']).toBe('Density (kg/l): 40 is out of range 0.05-5 kg/l');
+    expect(rxBody('uniform', { ...f, lot: { density_kg_l: 'x' } }).body).toBeNull();
+  });
+
+  it('sends neither unit nor lot in kg/ha', () => {
+    const body = rxBody('uniform', withProduct(defaultFields([], products), products, 'uan')).body;
+    expect(body?.rate_unit).toBeUndefined();
+    expect(body?.lot).toBeUndefined();
+  });
+
+  it("fills a product's lot values in once the catalogue has the product", () => {
+    const f = { ...defaultFields([], []), productKey: 'uan', rateUnit: 'l/ha' };
+    expect(f.lot.density_kg_l).toBeUndefined();
+    expect(withProductLot(f, products).lot.density_kg_l).toBe('1.28');
+    const typed = { ...f, lot: { density_kg_l: '1.3' } };
+    expect(withProductLot(typed, products)).toBe(typed);
   });
 
   it('shows how the prescription goes to machines', () => {
-    expect(rateUnitText({ rate_unit: 'l/ha', density_kg_l: 1.28 }, 192)).toBe('l/ha through 1.28 kg/l · mean 150.0 l/ha');
-    expect(rateUnitText({ rate_unit: 'kg/ha', density_kg_l: 1.28 }, 192)).toBe('kg/ha');
+    expect(rateUnitText({ rate_unit: 'l/ha', lot: { density_kg_l: 1.28 }, kg_per_unit: 1.28 }, 192)).toBe('l/ha through 1.28 kg/l · mean 150.0 l/ha');
+    expect(rateUnitText({ rate_unit: 'kg/ha', lot: { density_kg_l: 1.28 }, kg_per_unit: 1 }, 192)).toBe('kg/ha');
+    expect(rateUnitText({ rate_unit: 'l/ha', lot: {}, kg_per_unit: null }, 192)).toBe('l/ha · the product lot does not say how much one l/ha is');
     expect(rateUnitText(undefined, 192)).toBe('–');
+  });
+});
+
+describe('unitTotalsText', () => {
+  it("gives a job's totals in the prescription's unit, only when it is not kg/ha and converts", () => {
+    const u = { rate_unit: 'l/ha', kg_per_unit: 1.28, lot: { density_kg_l: 1.28 }, total_unit: 'l', planned_total: 1234.56, applied_total: 150.26 };
+    expect(unitTotalsText(u)).toBe('planned 1,235 l · applied 150.3 l');
+    expect(unitTotalsText({ ...u, applied_total: null })).toBe('planned 1,235 l · applied –');
+    expect(unitTotalsText({ ...u, kg_per_unit: null })).toBeNull();
+    expect(unitTotalsText({ ...u, rate_unit: 'kg/ha', total_unit: 'kg' })).toBeNull();
+    expect(unitTotalsText(null)).toBeNull();
   });
 });
 

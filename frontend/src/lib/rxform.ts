@@ -4,12 +4,18 @@
  * the agronomist's min / max clamp. Pure: turns the fields into a PrescriptionIn body.
  */
 import type { Schemas } from '../api/client';
-import { paramDefault, rateModel } from './rateModels';
-import { formatRate, formatVolumeRate } from './units';
+import { paramDefault, rateModel, type RateModelInfo, type RateModelParam } from './rateModels';
+import { BASE_UNIT, LOT_VALUES, RATE_UNITS, rateUnit, type LotValueInfo } from './rateUnits';
+import { formatRate, formatUnitRate, formatUnitTotal } from './units';
+import { plainName } from './words';
 
 export type Crop = Schemas['CropOut'];
 export type Product = Schemas['ProductOut'];
-export type RxModel = 'nutrient_balance' | 'uniform' | 'ndvi';
+/** A rate model's name (generated/rate-models.json). */
+export type RxModel = string;
+/** The models RxModelFields has hand-written fields for; every other model gets one
+ * numeric input per parameter the registry declares (genericParams). */
+export const HAND_WRITTEN_MODELS: readonly string[] = ['nutrient_balance', 'uniform', 'ndvi'];
 
 /** Every field is the text the user typed ('' = not given). */
 export interface RxFields {
@@ -27,8 +33,12 @@ export interface RxFields {
   rateAtHigh: string;
   clampMin: string;
   clampMax: string;
-  /** 'l/ha': a liquid (a product with a density) goes to machines by volume. */
+  /** The unit the prescription goes to machines in (generated/rate-units.json). */
   rateUnit: string;
+  /** Product lot values by key (density_kg_l, ...): from the product when it states them. */
+  lot: Record<string, string>;
+  /** A generic model's parameters by model, then name; a missing one shows its default. */
+  modelParams: Record<string, Record<string, string>>;
 }
 
 /** Seed 000 NDVI curve (0.24 -> 375 kg/ha, 0.65 -> 180 kg/ha, docs/science.md), as the
@@ -70,14 +80,76 @@ export function defaultFields(crops: Crop[], products: Product[], from?: Partial
     ...NDVI_DEFAULTS,
     clampMin: '',
     clampMax: '',
-    rateUnit: 'kg/ha',
+    rateUnit: BASE_UNIT,
+    lot: productLot(product, {}),
+    modelParams: {},
   };
 }
 
-/** Another product: a rate unit of l/ha stays only while the product has a density. */
+/** A lot value the product states ('' when it does not). */
+export function productLotValue(p: Product | undefined, key: string): string {
+  const v = (p as Record<string, unknown> | undefined)?.[key];
+  return typeof v === 'number' && Number.isFinite(v) ? String(v) : '';
+}
+
+/** Lot values filled in from the product where it states them; the others kept. */
+function productLot(p: Product | undefined, lot: Record<string, string>): Record<string, string> {
+  const out = { ...lot };
+  for (const v of LOT_VALUES) {
+    const x = productLotValue(p, v.key);
+    if (x) out[v.key] = x;
+  }
+  return out;
+}
+
+/**
+ * Another product: its lot values replace the old product's (a value the user typed
+ * stays); the unit stays, and a lot value the new product does not state is typed in.
+ */
 export function withProduct(f: RxFields, products: Product[], key: string): RxFields {
+  const old = products.find((x) => x.key === f.productKey);
   const p = products.find((x) => x.key === key);
-  return { ...f, productKey: key, rateUnit: p?.density_kg_l ? f.rateUnit : 'kg/ha' };
+  const lot: Record<string, string> = {};
+  for (const [k, v] of Object.entries(f.lot ?? {})) if (!old || v !== productLotValue(old, k)) lot[k] = v;
+  return { ...f, productKey: key, lot: productLot(p, lot) };
+}
+
+/** The product's lot values in the fields that are still empty (a product just added to the
+ * catalogue, found only once the catalogue is read again); the same fields when none is. */
+export function withProductLot(f: RxFields, products: Product[]): RxFields {
+  const p = products.find((x) => x.key === f.productKey);
+  const missing = LOT_VALUES.filter((v) => !f.lot?.[v.key] && productLotValue(p, v.key));
+  if (!missing.length) return f;
+  const lot = { ...f.lot };
+  for (const v of missing) lot[v.key] = productLotValue(p, v.key);
+  return { ...f, lot };
+}
+
+/** A generic model's parameter as its input shows it: what was typed, else its default. */
+export function paramText(f: RxFields, model: string, p: RateModelParam): string {
+  return f.modelParams?.[model]?.[p.name] ?? (p.default == null ? '' : String(p.default));
+}
+
+/** A parameter's unit in the form: a rate of a model that prescribes in the prescription's
+ * unit is in that unit, not kg/ha. */
+export function paramUnit(m: RateModelInfo, p: RateModelParam, unit: string): string {
+  return m.rates_in_unit && RATE_UNITS.some((u) => u.name === p.unit) ? unit : p.unit;
+}
+
+/** "seeds_at_low" -> "Seeds at low" (the unit is shown beside the input). */
+export function paramLabel(name: string): string {
+  const words = plainName(name).replace(/ \([^)]*\)$/, '');
+  return words.charAt(0).toUpperCase() + words.slice(1);
+}
+
+/** The parameters of a model without hand-written fields (none for the others). */
+export function genericParams(model: string): RateModelParam[] {
+  return HAND_WRITTEN_MODELS.includes(model) ? [] : (rateModel(model)?.params ?? []);
+}
+
+/** The lot values the unit converts through. */
+export function unitLot(unit: string): LotValueInfo[] {
+  return rateUnit(unit)?.lot ?? [];
 }
 
 /** A new crop's defaults replace the crop-dependent fields only (yield, e, k, eq. 20's a and b). */
@@ -93,7 +165,8 @@ export function withCrop(f: RxFields, crop: Crop): RxFields {
   };
 }
 
-export type FieldErrors = Partial<Record<keyof RxFields, string>>;
+/** Errors by field: an RxFields key, `lot.${key}` or `param.${name}`. */
+export type FieldErrors = Partial<Record<keyof RxFields | `lot.${string}` | `param.${string}`, string>>;
 
 function num(v: string): number | null {
   if (v.trim() === '') return null;
@@ -107,18 +180,21 @@ export interface RxBody {
   product_key?: string;
   clamp_min_kg_ha?: number;
   clamp_max_kg_ha?: number;
-  rate_unit?: 'l/ha';
+  /** the registry's unit names (generated/rate-units.json, the same as the schema's) */
+  rate_unit?: Schemas['PrescriptionIn']['rate_unit'];
+  lot?: Record<string, number>;
 }
 
 /** The request body parts from the fields, or the errors per field (nothing is sent then). */
 export function rxBody(model: RxModel, f: RxFields): { body: RxBody | null; errors: FieldErrors } {
   const errors: FieldErrors = {};
-  const need = (k: keyof RxFields, what: string, ok: (x: number) => boolean): number => {
-    const x = num(f[k]);
+  const check = (k: keyof FieldErrors, text: string, what: string, ok: (x: number) => boolean): number => {
+    const x = num(text ?? '');
     if (x == null) errors[k] = `${what} is required`;
-    else if (Number.isNaN(x) || !ok(x)) errors[k] = `${what}: ${f[k]} is out of range`;
+    else if (Number.isNaN(x) || !ok(x)) errors[k] = `${what}: ${text} is out of range`;
     return x ?? NaN;
   };
+  const need = (k: keyof RxFields, what: string, ok: (x: number) => boolean): number => check(k, f[k] as string, what, ok);
   const params: Record<string, number> = {};
   if (model === 'nutrient_balance') {
     params.target_yield_kg_ha = need('targetYieldTHa', 'Target yield (t/ha)', (x) => x > 0) * 1000;
@@ -129,6 +205,13 @@ export function rxBody(model: RxModel, f: RxFields): { body: RxBody | null; erro
     if (!f.productKey) errors.productKey = 'choose a product (its N % gives the rate)';
   } else if (model === 'uniform') {
     params.rate_kg_ha = need('uniformRate', 'Rate (kg/ha)', (x) => x >= 0);
+  } else if (model !== 'ndvi') {
+    for (const p of genericParams(model)) {
+      const text = paramText(f, model, p);
+      // a parameter without a default left empty: the server fills it in or names it
+      if (p.default == null && !text.trim()) continue;
+      params[p.name] = check(`param.${p.name}`, text, paramLabel(p.name), Number.isFinite);
+    }
   } else {
     params.ndvi_low = need('ndviLow', 'NDVI low', (x) => x >= -1 && x <= 1);
     params.rate_at_low_kg_ha = need('rateAtLow', 'Rate at NDVI low', (x) => x >= 0);
@@ -142,22 +225,48 @@ export function rxBody(model: RxModel, f: RxFields): { body: RxBody | null; erro
   if (lo != null && (Number.isNaN(lo) || lo < 0)) errors.clampMin = 'Minimum rate must be >= 0 kg/ha';
   if (hi != null && (Number.isNaN(hi) || hi < 0)) errors.clampMax = 'Maximum rate must be >= 0 kg/ha';
   if (lo != null && hi != null && lo > hi) errors.clampMax = `Maximum ${hi} is below the minimum ${lo} kg/ha`;
+  const lot: Record<string, number> = {};
+  for (const v of unitLot(f.rateUnit)) {
+    const what = `${v.label[0].toUpperCase()}${v.label.slice(1)} (${v.unit})`;
+    lot[v.key] = check(`lot.${v.key}`, f.lot?.[v.key] ?? '', what, (x) => x >= v.min && x <= v.max);
+    if (errors[`lot.${v.key}`]?.endsWith('out of range')) errors[`lot.${v.key}`] += ` ${v.min}-${v.max} ${v.unit}`;
+  }
   if (Object.keys(errors).length) return { body: null, errors };
   const body: RxBody = { params };
   if (model === 'nutrient_balance' && f.crop) body.crop = f.crop;
   if (f.productKey) body.product_key = f.productKey;
   if (lo != null) body.clamp_min_kg_ha = lo;
   if (hi != null) body.clamp_max_kg_ha = hi;
-  if (f.rateUnit === 'l/ha') body.rate_unit = 'l/ha';
+  if (f.rateUnit && f.rateUnit !== BASE_UNIT) body.rate_unit = f.rateUnit as RxBody['rate_unit'];
+  if (Object.keys(lot).length) body.lot = lot;
   return { body, errors };
 }
 
 /** How a prescription goes to machines: "kg/ha", or "l/ha through 1.28 kg/l · mean 150.0 l/ha"
- * (the server works its rates out in kg/ha; job packages and ISOXML carry l/ha). */
-export function rateUnitText(rx: { rate_unit?: string; density_kg_l?: number | null } | undefined, meanKgHa?: number | null): string {
+ * (the server works its rates out in kg/ha and says how many kg/ha one unit is, kg_per_unit;
+ * job packages and ISOXML carry the unit). */
+export function rateUnitText(
+  rx: { rate_unit?: string; lot?: Record<string, number> | null; kg_per_unit?: number | null } | undefined,
+  meanKgHa?: number | null,
+): string {
   if (!rx) return '–';
-  if (rx.rate_unit !== 'l/ha' || !rx.density_kg_l) return 'kg/ha';
-  return `l/ha through ${rx.density_kg_l} kg/l · mean ${formatVolumeRate(meanKgHa, rx.density_kg_l)}`;
+  const unit = rx.rate_unit || BASE_UNIT;
+  if (unit === BASE_UNIT) return unit;
+  const through = unitLot(unit)
+    .filter((v) => rx.lot?.[v.key] != null)
+    .map((v) => `${rx.lot?.[v.key]} ${v.unit}`);
+  if (rx.kg_per_unit == null) return `${unit} · the product lot does not say how much one ${unit} is`;
+  return `${unit}${through.length ? ` through ${through.join(', ')}` : ''} · mean ${formatUnitRate(meanKgHa, rx.kg_per_unit, unit)}`;
+}
+
+/** A job report's totals in its prescription's unit ("planned 1,234,567 seeds · applied
+ * 1,100,000 seeds"), as the server counted them; null for the base unit (the report's kg say
+ * it) or when the product lot does not say how much one unit is. */
+export function unitTotalsText(
+  u: { rate_unit: string; kg_per_unit: number | null; total_unit: string; planned_total: number | null; applied_total: number | null } | null | undefined,
+): string | null {
+  if (!u || u.rate_unit === BASE_UNIT || u.kg_per_unit == null) return null;
+  return `planned ${formatUnitTotal(u.planned_total, u.total_unit)} · applied ${formatUnitTotal(u.applied_total, u.total_unit)}`;
 }
 
 /** "46 % N, 0 % P2O5, 0 % K2O · 420 /t" */

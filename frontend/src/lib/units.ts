@@ -18,10 +18,22 @@ export function formatRate(kgHa: number | null | undefined, digits = 1): string 
   return `${num(kgHa, digits)} kg/ha`;
 }
 
-/** A liquid's kg/ha as l/ha through its density (kg/l): "150.0 l/ha". */
-export function formatVolumeRate(kgHa: number | null | undefined, densityKgL: number, digits = 1): string {
-  if (kgHa == null || !Number.isFinite(kgHa) || !(densityKgL > 0)) return '–';
-  return `${num(kgHa / densityKgL, digits)} l/ha`;
+/** One decimal below 1000, none above: "150.0", "650,000". */
+function amount(v: number): string {
+  return num(v, Math.abs(v) >= 1000 ? 0 : 1);
+}
+
+/** A kg/ha rate in a prescription's unit, through the server's kg_per_unit (kg/ha in 1
+ * unit/ha): "150.0 l/ha". */
+export function formatUnitRate(kgHa: number | null | undefined, kgPerUnit: number | null | undefined, unit: string): string {
+  if (kgHa == null || !Number.isFinite(kgHa) || kgPerUnit == null || !(kgPerUnit > 0)) return '–';
+  return `${amount(kgHa / kgPerUnit)} ${unit}`;
+}
+
+/** A total the server gave in a unit's own count or volume: "1,234,567 seeds", "150.3 l". */
+export function formatUnitTotal(total: number | null | undefined, unit: string): string {
+  if (total == null || !Number.isFinite(total)) return '–';
+  return `${amount(total)} ${unit}`;
 }
 
 export function msToKmh(ms: number): number {

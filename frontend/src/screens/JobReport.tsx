@@ -3,7 +3,7 @@ import { useExportFormats, usePlan, usePrescription, useField, useJob, useJobKin
 import { ExportButtons } from '../components/ExportButtons';
 import { Legend } from '../components/Legend';
 import { MapStill, PrintReport, usePrintStill } from '../components/PrintReport';
-import { nutrientRateText, summaryFractions } from '../lib/rxform';
+import { nutrientRateText, summaryFractions, unitTotalsText } from '../lib/rxform';
 import { ReportLoading, useLiveReport, type AsAppliedReport } from '../components/ReportLoader';
 import { ErrorBox, Kv } from '../components/Status';
 import { ReplayTrail, TrackReplay, useTrackReplay } from '../components/TrackReplay';
@@ -83,6 +83,8 @@ function PrescriptionJobReport({ jobId }: { jobId: number }) {
   const showTiles = report != null && (field != null || fieldQ.isError || planQ.isError || rxQ.isError);
 
   const r: Partial<AsAppliedReport> = report ?? {};
+  // a prescription in another unit than kg/ha: its totals in that unit's count or volume too
+  const unitTotals = unitTotalsText(r.unit);
   /** Before the first report: "…" (loading), not "–" or 0 that read as "nothing there". */
   const v = (x: React.ReactNode | undefined | null): React.ReactNode => (report ? (x ?? '–') : '…');
   /** Prescribed cells nothing landed in (the job-end alert lists them too). */
@@ -125,6 +127,7 @@ function PrescriptionJobReport({ jobId }: { jobId: number }) {
               ['Coverage', v(cov != null ? formatPercent(cov / 100) : null), 'report-coverage'],
               ['Planned', v(report ? `${formatMass(r.planned_total_kg)} over ${formatArea(r.planned_area_m2)}` : null), 'report-planned'],
               ['Applied', v(formatMass(r.applied_total_kg)), 'report-applied-kg'],
+              ...(unitTotals && r.unit ? [[`Totals in ${r.unit.total_unit}`, unitTotals, 'report-unit-totals'] as [string, string, string]] : []),
               ['Applied area', v(formatArea(r.applied_area_m2)), 'report-applied-area'],
               ['Outside cells', v(formatMass(r.applied_outside_cells_kg))],
               ['Mean accuracy', v(acc != null ? `${acc.toFixed(1)} %` : null), 'report-accuracy'],

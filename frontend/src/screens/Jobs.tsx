@@ -1,8 +1,8 @@
 import { useState } from 'react';
 import { call, client, type Job, type Machine, type Schemas } from '../api/client';
-import { qk, useInvalidate, useJobKinds, useJobs, useSendableMachines } from '../api/hooks';
+import { qk, useInvalidate, useJobKinds, useJobs, usePrescription, useSendableMachines } from '../api/hooks';
 import { ErrorBox } from '../components/Status';
-import { jobBody, kindLabel, kindList } from '../lib/jobkinds';
+import { jobBody, kindLabel, kindList, kindsTaking, unitRefusal } from '../lib/jobkinds';
 import { jobLive, withLive, type JobLive } from '../lib/livejobs';
 import { useLive } from '../live';
 import { formatPercent } from '../lib/units';
@@ -67,6 +67,11 @@ export function JobsScreen() {
   const created = hashQuery().get('created');
   // the first machine until the user picks one
   const machineId = chosenMachine || (machines[0] ? String(machines[0].id) : '');
+  // the prescription typed in: a kind whose job does not take its rate unit is refused here
+  const rxNum = /^\d+$/.test(rxId.trim()) ? Number(rxId) : null;
+  const rxUnit = usePrescription(rxNum, { enabled: kindInfo?.rates_from === 'cells' }).data?.rate_unit;
+  const refusal = kindInfo && rxUnit && rxNum != null ? unitRefusal(kindInfo, rxNum, rxUnit) : null;
+  const taking = rxUnit ? kindsTaking(kinds, rxUnit) : [];
   const load = () => refresh(qk.jobs());
 
   const mName = (id: number) => machines.find((m) => m.id === id)?.name ?? `#${id}`;
@@ -126,7 +131,15 @@ export function JobsScreen() {
             </option>
           ))}
         </select>
-        <button data-testid="job-form-submit">Send</button>
+        <button data-testid="job-form-submit" disabled={!!refusal}>
+          Send
+        </button>
+        {refusal && (
+          <p className="warn" data-testid="job-kind-unit">
+            {refusal}
+            {taking.length ? ` (choose ${taking.map((k) => k.label).join(' or ')})` : ' (no job kind takes it)'}
+          </p>
+        )}
       </form>}
       <table className="table" data-testid="job-table">
         <thead>

@@ -236,7 +236,7 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
         </div>
 
         <h3>Send to machine</h3>
-        <SendJobPanel rxId={rxId} version={version} summary={shown} />
+        <SendJobPanel rxId={rxId} version={version} summary={shown} rateUnit={rx?.rate_unit} />
       </aside>
       <MapView name="rx" fieldId={field?.id}>
         <FitBounds bbox={field ? bboxOf(field) : null} />

@@ -56,7 +56,7 @@ export function RxForm({ planId, onCreated }: { planId: number; onCreated: (r: P
                 client.POST('/api/v1/plans/{plan_id}/prescriptions', {
                   params: { path: { plan_id: planId } },
                   body: {
-                    model,
+                    model: model as Schemas['PrescriptionIn']['model'],
                     ...body,
                     note,
                     interpolation: interp as Schemas['PrescriptionIn']['interpolation'],

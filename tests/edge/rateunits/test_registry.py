@@ -4,6 +4,8 @@ from isobus.net)."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 from fieldrx_edge.rateunits.registry import (
     RateUnitError,
@@ -11,10 +13,13 @@ from fieldrx_edge.rateunits.registry import (
     convert,
     converts,
     names,
+    registry_json,
     unit_of,
     units,
 )
 from isoxml.models.ddi_entities import DDEntity
+
+ROOT = Path(__file__).resolve().parents[3]
 
 # what one unit of each quantity per ha is in the data dictionary's unit per m^2
 PER_HA_IN_DD_UNIT = {
@@ -65,3 +70,11 @@ def test_conversions_go_through_kg_ha_and_need_the_lot() -> None:
     assert converts(kg, kg, None) and not converts(kg, lha, {}) and converts(kg, lha, lot)
     with pytest.raises(RateUnitError):
         convert(1.0, kg, lha, {})
+
+
+def test_committed_registry_json_is_current() -> None:
+    """The browser's copy (the prescription form's units and lot inputs) is current."""
+    committed = (ROOT / "frontend/src/api/generated/rate-units.json").read_text()
+    assert committed == registry_json(), (
+        "frontend/src/api/generated/rate-units.json is stale: run scripts/gen-api.sh"
+    )
