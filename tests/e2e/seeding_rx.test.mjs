@@ -5,7 +5,11 @@
 // checked against the API's figures.
 import { after, before, describe, it } from 'node:test';
 import assert from 'node:assert/strict';
-import { BASE_URL, api, apiLogin, launch, scaled, serverUp, shot, signIn, uiServed } from './lib.mjs';
+import { writeFileSync } from 'node:fs';
+import { join } from 'node:path';
+import { ARTIFACTS, BASE_URL, ROOT, api, apiLogin, launch, run, scaled, serverUp, shot, signIn, uiServed } from './lib.mjs';
+
+const EDGE = join(ROOT, '.venv', 'bin', 'fieldrx-edge');
 
 const up = await serverUp();
 const ui = up && (await uiServed());
@@ -104,5 +108,27 @@ describe('variable-rate seeding', { skip: SKIP }, () => {
     }
     assert.ok(job, 'the job was created');
     assert.equal(job.kind, 'seeding_rate');
+
+    // the drill sows it (the agent's simulator, by mass through the lot) and the report
+    // gives its totals in seeds beside the kilograms
+    assert.ok((await api(token, 'POST', `/jobs/${job.id}/state`, { state: 'sent' })).ok);
+    const dt = await api(token, 'POST', `/machines/${drill.id}/device-token`);
+    const res = await fetch(`${BASE_URL}/api/v1/device/jobs/${job.id}/package`, { headers: { Authorization: `Bearer ${dt.data.token}` } });
+    assert.ok(res.ok, `package ${res.status}`);
+    const file = join(ARTIFACTS, `seeding-job-${job.id}.json`);
+    writeFileSync(file, Buffer.from(await res.arrayBuffer()));
+    const r = await run(EDGE, ['simulate', file, '--server', BASE_URL, '--token', dt.data.token, '--json'], scaled(300_000));
+    writeFileSync(join(ARTIFACTS, `seeding-simulate-${job.id}.log`), r.out + r.err);
+    assert.equal(r.code, 0, 'simulator exit code');
+    const rep = (await api(token, 'GET', `/jobs/${job.id}/report?cells=false`)).data;
+    assert.equal(rep.unit.total_unit, 'seeds');
+    await page.goto(`${BASE_URL}/#/jobs/${job.id}`);
+    await page.waitForSelector('[data-testid=report-unit-totals]', { timeout: scaled(30_000) });
+    const totals = await page.textContent('[data-testid=report-unit-totals]');
+    const shown = (totals.match(/[\d,]+ seeds/g) ?? []).map((t) => Number(t.replace(/[^\d]/g, '')));
+    assert.equal(shown.length, 2, totals);
+    assert.ok(Math.abs(shown[0] - rep.unit.planned_total) <= 1, `${totals} vs ${rep.unit.planned_total}`);
+    assert.ok(Math.abs(shown[1] - rep.unit.applied_total) <= 1, `${totals} vs ${rep.unit.applied_total}`);
+    await shot(page, 'report-seeding-seeds');
   });
 });

@@ -87,3 +87,22 @@ def test_grid_taskdata_read_by_isoxml_js(tmp_path):
     assert len(pi) > 0.9 * len(cells)
     want = rate_to_mg_m2(c.rate_kg_ha[ci])
     assert np.array_equal(cells[pi, 2].astype(np.int64), np.asarray(want, dtype=np.int64))
+
+
+def test_seeds_per_ha_zones_read_by_isoxml_js(tmp_path):
+    """A seeding prescription's zones carry count-per-area setpoints (DDI 11, 0.001 /m^2):
+    isoxml-js reads DDI 000B with seeds/ha / 10 (a maize lot: TKW 320 g, 95 %)."""
+    from fieldrx.formats.isoxml import unit_setpoint
+
+    lot = {"tkw_g": 320.0, "germination_pct": 95.0}
+    setpoint = unit_setpoint("seeds/ha", lot)
+    c = field_cells("smooth")
+    seeds = 60_000 + 30_000 * (c.rate_kg_ha - c.rate_kg_ha.min()) / np.ptp(c.rate_kg_ha)
+    c = c.with_rates(seeds * setpoint.kg_per_unit)
+    data, summary = write_isoxml_zones(c, "wavy", None, "maize", setpoint=setpoint)
+    got = read_with_isoxml_js(data, tmp_path)
+    assert got["warnings"] == []
+    zones = [z for z in got["zones"] if z["geometry"] is not None]
+    assert len(zones) == summary.n_zones and all(z["ddi"] == "000B" for z in zones)
+    values = np.array([z["value"] for z in zones])
+    assert 6_000 - 1 <= values.min() and values.max() <= 9_000 + 1
