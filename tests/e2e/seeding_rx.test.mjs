@@ -76,6 +76,10 @@ describe('variable-rate seeding', { skip: SKIP }, () => {
     await page.waitForSelector('[data-testid=rx-param-seeds_at_low]');
     await page.selectOption('[data-testid=rx-rate-unit]', 'seeds/ha');
     await page.waitForSelector('[data-testid=rx-lot-tkw_g]');
+    // a seed lot, named here: no fertiliser from the catalogue is offered for it
+    await page.waitForSelector('[data-testid=rx-seed-name]');
+    assert.equal(await page.$('[data-testid=rx-form] [data-testid=rx-product]'), null);
+    await page.fill('[data-testid=rx-seed-name]', 'Maize P9234, lot 17');
     await page.fill('[data-testid=rx-lot-tkw_g]', '320');
     // a germination no seed lot has is refused where it was typed, and nothing is sent
     await page.fill('[data-testid=rx-lot-germination_pct]', '140');
@@ -90,6 +94,8 @@ describe('variable-rate seeding', { skip: SKIP }, () => {
     const rx = (await api(token, 'GET', `/prescriptions/${rxId}`)).data;
     assert.equal(rx.rate_unit, 'seeds/ha');
     assert.deepEqual(rx.lot, { tkw_g: 320, germination_pct: 95 });
+    assert.equal(rx.product, 'Maize P9234, lot 17');
+    assert.equal(rx.summary.nutrients_kg ?? null, null);
     await page.waitForFunction(() => /seeds\/ha/.test(document.querySelector('[data-testid=rx-rate-unit]')?.textContent ?? ''));
     const text = await page.textContent('[data-testid=rx-rate-unit]');
     assert.match(text, /^seeds\/ha through .*320.*95.* · mean [\d,]+(\.\d)? seeds\/ha$/);

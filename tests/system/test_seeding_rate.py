@@ -77,6 +77,14 @@ def test_variable_rate_seeding_end_to_end(database_url, org, tmp_path: Path) -> 
             json={**body, "lot": {"tkw_g": 320.0}},
         )
         assert r.status_code == 422 and "germination" in r.text and "50-100 %" in r.text, r.text
+        # a fertiliser is not a seed lot: refused, not sown with nutrient figures beside it
+        r = c.post(
+            f"/api/v1/plans/{plan['id']}/prescriptions",
+            json={**body, "product_key": "default:urea"},
+        )
+        assert r.status_code == 422 and "is a fertiliser (46 n_pct)" in r.text, r.text
+        summary = rx["summary"]
+        assert summary["product"]["name"] == "Maize hybrid" and summary.get("nutrients_kg") is None
 
         # ISOXML: count-per-area setpoints (DDI 11, 0.001 /m^2 = 10 seeds/ha), read back
         g = c.get(f"/api/v1/prescriptions/{rx['id']}/export?format=isoxml")

@@ -58,7 +58,8 @@ def product_figures(
 
     product_kg = sum(rate * area_m2) / 10 000; nutrient kg = product_kg * pct / 100 and
     kg/ha = that / area_ha (the area-weighted mean rate times the fraction); cost =
-    product_kg / 1000 * price_per_t (None without a price).
+    product_kg / 1000 * price_per_t (None without a price). A product that states no
+    nutrient at all (a seed lot) gets no nutrient figures rather than zeros.
     """
     r = np.asarray(rate_kg_ha, dtype=float)
     a = np.asarray(area_m2, dtype=float)
@@ -67,11 +68,14 @@ def product_figures(
     out: dict[str, Any] = {"product_t": round(kg / 1000.0, 6)}
     if product is None:
         return out
+    price = product.get("price_per_t")
+    if not any(col in product for _, col in NUTRIENTS):  # a seed lot: no nutrient figures
+        out["cost"] = None if price is None else round(kg / 1000.0 * float(price), 2)
+        return out
     nut_kg = {n: kg * float(product.get(col) or 0.0) / 100.0 for n, col in NUTRIENTS}
     out["nutrients_kg"] = {n: round(v, 3) for n, v in nut_kg.items()}
     out["nutrients_kg_ha"] = {
         n: round(v / area_ha, 3) if area_ha > 0 else 0.0 for n, v in nut_kg.items()
     }
-    price = product.get("price_per_t")
     out["cost"] = None if price is None else round(kg / 1000.0 * float(price), 2)
     return out

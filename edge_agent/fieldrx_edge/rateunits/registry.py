@@ -68,6 +68,9 @@ class RateUnit:
     quantity: ClassVar[Quantity]
     order: ClassVar[int] = 100
     lot: ClassVar[tuple[LotValue, ...]] = ()
+    # True: the unit counts seeds, so its product is a seed lot, never a fertiliser (a
+    # product with nutrients is refused, and no nutrient figures are worked out)
+    seed_lot: ClassVar[bool] = False
     # ISO 11783-11 process data of the quantity: setpoint and actual per-area DDIs, and the
     # DDI value of 1 unit/ha (its resolution turned around)
     ddi_setpoint: ClassVar[int]
@@ -131,6 +134,7 @@ class RateUnit:
             "label": self.label,
             "quantity": self.quantity,
             "lot": [v.describe() for v in self.lot],
+            "seed_lot": self.seed_lot,
             "ddi_setpoint": self.ddi_setpoint,
             "ddi_actual": self.ddi_actual,
         }

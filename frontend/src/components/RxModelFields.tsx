@@ -1,6 +1,6 @@
 import { useEffect, useRef, type ReactNode } from 'react';
 import { rateModel } from '../lib/rateModels';
-import { RATE_UNITS } from '../lib/rateUnits';
+import { RATE_UNITS, rateUnit } from '../lib/rateUnits';
 import {
   NDVI_SOURCE,
   cropValue,
@@ -158,6 +158,8 @@ export function RxModelFields(props: {
     if (next !== now) update(next);
   }, [products, f.productKey]);
   const info = rateModel(model);
+  // a unit that sows a seed lot: no fertiliser from the catalogue, the seed is named here
+  const seedLot = rateUnit(f.rateUnit)?.seed_lot === true;
   const lotSource = (key: string) => {
     const had = productLotValue(product, key);
     if (!had) return 'this lot (the product does not state it)';
@@ -228,7 +230,14 @@ export function RxModelFields(props: {
           ))}
         </div>
       )}
-      {model !== 'nutrient_balance' && (
+      {model !== 'nutrient_balance' && seedLot && (
+        <label>
+          Seed (variety, lot)
+          <input data-testid={`${tid}-seed-name`} value={f.seedName ?? ''} onChange={(e) => set({ ...f, seedName: e.target.value })} />
+          <span className="small muted source">a seed lot, not a catalogue fertiliser: its values are given below</span>
+        </label>
+      )}
+      {model !== 'nutrient_balance' && !seedLot && (
         <ProductPicker
           products={products}
           value={f.productKey}
@@ -254,7 +263,7 @@ export function RxModelFields(props: {
           {unitLot(f.rateUnit).map((v) => (
             <NumInput
               key={v.key}
-              label={`Product ${v.label}`}
+              label={`${seedLot ? 'Seed lot' : 'Product'} ${v.label}`}
               unit={v.unit}
               value={f.lot?.[v.key] ?? ''}
               onChange={(x) => set({ ...f, lot: { ...f.lot, [v.key]: x } })}

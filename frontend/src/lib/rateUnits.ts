@@ -23,6 +23,8 @@ export interface RateUnitInfo {
   label: string;
   quantity: string;
   lot: LotValueInfo[];
+  /** the unit counts seeds: its product is a seed lot named by the user, not a fertiliser */
+  seed_lot?: boolean;
 }
 
 export const RATE_UNITS: RateUnitInfo[] = registry.rate_units;

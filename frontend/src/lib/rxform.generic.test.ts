@@ -12,6 +12,7 @@ vi.mock('../api/generated/rate-units.json', async (importOriginal) => {
       { key: 'tgw_g', label: 'thousand-grain weight', unit: 'g', min: 1, max: 100 },
       { key: 'viable_pct', label: 'viability', unit: '%', min: 10, max: 100 },
     ],
+    seed_lot: true,
     ddi_setpoint: 0,
     ddi_actual: 0,
   };
@@ -51,6 +52,14 @@ describe('a rate unit from the registry', () => {
     expect(rxBody('uniform', { ...f, lot: { tgw_g: '48', viable_pct: '120' } }).errors).toEqual({
       'lot.viable_pct': 'Viability (%): 120 is out of range 10-100 %',
     });
+  });
+
+  it('names a seed lot instead of sending a catalogue fertiliser', () => {
+    const lot = { tgw_g: '48', viable_pct: '95' };
+    const body = rxBody('uniform', { ...f, productKey: 'default:urea', seedName: ' Wheat Bussard ', lot }).body;
+    expect(body?.product_key).toBeUndefined();
+    expect(body?.product).toBe('Wheat Bussard');
+    expect(rxBody('uniform', { ...f, productKey: 'default:urea', rateUnit: 'kg/ha', lot }).body?.product_key).toBe('default:urea');
   });
 
   it('sends the unit and its lot', () => {

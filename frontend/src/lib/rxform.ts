@@ -37,6 +37,8 @@ export interface RxFields {
   rateUnit: string;
   /** Product lot values by key (density_kg_l, ...): from the product when it states them. */
   lot: Record<string, string>;
+  /** A unit that sows a seed lot: the seed's name (variety, lot), sent as the product. */
+  seedName?: string;
   /** A generic model's parameters by model, then name; a missing one shows its default. */
   modelParams: Record<string, Record<string, string>>;
 }
@@ -178,6 +180,8 @@ export interface RxBody {
   params: Record<string, number>;
   crop?: string;
   product_key?: string;
+  /** the product's name where no catalogue product is meant (a seed lot) */
+  product?: string;
   clamp_min_kg_ha?: number;
   clamp_max_kg_ha?: number;
   /** the registry's unit names (generated/rate-units.json, the same as the schema's) */
@@ -234,7 +238,10 @@ export function rxBody(model: RxModel, f: RxFields): { body: RxBody | null; erro
   if (Object.keys(errors).length) return { body: null, errors };
   const body: RxBody = { params };
   if (model === 'nutrient_balance' && f.crop) body.crop = f.crop;
-  if (f.productKey) body.product_key = f.productKey;
+  // a seed lot is not a catalogue fertiliser: its name and lot values go with the request
+  if (rateUnit(f.rateUnit)?.seed_lot) {
+    if (f.seedName?.trim()) body.product = f.seedName.trim();
+  } else if (f.productKey) body.product_key = f.productKey;
   if (lo != null) body.clamp_min_kg_ha = lo;
   if (hi != null) body.clamp_max_kg_ha = hi;
   if (f.rateUnit && f.rateUnit !== BASE_UNIT) body.rate_unit = f.rateUnit as RxBody['rate_unit'];

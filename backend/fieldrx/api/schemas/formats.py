@@ -62,6 +62,9 @@ class RateUnitOut(Out):
     lot: list[LotValueOut] = Field(
         description="the product lot values the unit converts to kg/ha through"
     )
+    seed_lot: bool = Field(
+        description="the unit counts seeds: its product is a seed lot, never a fertiliser"
+    )
     ddi_setpoint: int = Field(description="ISO 11783-11 setpoint DDI of the unit")
     ddi_actual: int = Field(description="ISO 11783-11 actual-value DDI of the unit")
 

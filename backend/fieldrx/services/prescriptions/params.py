@@ -12,10 +12,12 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from fieldrx.agronomy.crops import CROPS, Crop, find_crop
+from fieldrx.agronomy.products import NUTRIENTS
 from fieldrx.agronomy.ratemodels.registry import model_aliases, param_aliases, rate_models
 from fieldrx.db.models import Field, Plan, Prescription
 
 IGNORED_PARAMS = {"nutrient"}
+NUTRIENT_KEYS = tuple(col for _, col in NUTRIENTS)
 
 
 class RxError(ValueError):
@@ -138,7 +140,8 @@ def product_lot(
     catalogue product that states another is refused rather than one silently winning."""
     if not lot:
         return product_info
-    out = dict(product_info or {"name": product or "product", "source": "given"})
+    given = {"name": product or "lot given with the prescription", "source": "given"}
+    out = dict(product_info or given)
     for k, v in lot.items():
         had = (product_info or {}).get(k)
         if had is not None and abs(float(had) - float(v)) > 1e-9 * max(1.0, abs(float(had))):
@@ -163,6 +166,14 @@ def check_rate_unit(unit: str, product_info: dict[str, Any] | None) -> RateUnit:
         if product_info is None
         else (f"product {product_info.get('name', '')!r}")
     )
+    info = product_info or {}
+    nutrients = [k for k in NUTRIENT_KEYS if float(info.get(k) or 0.0) > 0]
+    if u.seed_lot and nutrients:
+        raise RxError(
+            f"rate unit {u.name} sows a seed lot, and {what} is a fertiliser "
+            f"({', '.join(f'{info[k]:g} {k}' for k in nutrients)}): leave product_key out, "
+            "name the seed in product and give its lot values in lot"
+        )
     try:
         u.check_lot(product_info, what)
     except RateUnitError as exc:

@@ -27,6 +27,7 @@ class SeedsPerHa(RateUnit):
         # a lot below 50 % would not be sown; the certificate states it
         LotValue("germination_pct", "germination", "%", 50.0, 100.0),
     )
+    seed_lot: ClassVar[bool] = True
     # ISO 11783-11 DDI 11 / 12, 0.001 /m^2: 1 seed/ha = 1e-4 /m^2 = 0.1 of the value
     ddi_setpoint: ClassVar[int] = 11
     ddi_actual: ClassVar[int] = 12

@@ -4858,6 +4858,11 @@ export interface components {
              * @description mass | volume | count: what the unit meters
              */
             quantity: string;
+            /**
+             * Seed Lot
+             * @description the unit counts seeds: its product is a seed lot, never a fertiliser
+             */
+            seed_lot: boolean;
         };
         /** RateUnitsOut */
         RateUnitsOut: {
