@@ -101,6 +101,10 @@ describe('variable-rate seeding', { skip: SKIP }, () => {
     assert.match(text, /^seeds\/ha through .*320.*95.* · mean [\d,]+(\.\d)? seeds\/ha$/);
     const mean = Number(text.match(/mean ([\d,.]+) seeds/)[1].replace(/,/g, ''));
     assert.ok(mean >= 60_000 && mean <= 90_000, `mean ${mean}`);
+    // the map's classes and the figures in seeds/ha beside the seed's kg/ha
+    assert.match(await page.textContent('[data-testid=rx-legend]'), /Rate \(seeds\/ha\)/);
+    assert.match(await page.textContent('[data-testid=rx-sum-mean]'), /kg\/ha · [\d,]+ seeds\/ha$/);
+    assert.equal(await page.$('[data-testid=rx-sum-n]'), null, 'a seed lot carries no nutrients to show');
     await shot(page, 'rx-seeding-seeds-ha');
 
     await page.selectOption('[data-testid=job-machine]', String(drill.id));

@@ -1,5 +1,5 @@
 import type { Schemas } from '../api/client';
-import { formatProduct, nutrientRateText, outsideMeter, summaryFractions } from '../lib/rxform';
+import { alsoInUnit, formatProduct, nutrientRateText, outsideMeter, summaryFractions, type ShownUnit } from '../lib/rxform';
 import { formatRate } from '../lib/units';
 import { Kv } from './Status';
 
@@ -37,7 +37,16 @@ function CeilingLines({ plaus }: { plaus: Plausibility }) {
  * changed, the meter range the rates were checked against beside the rate range, and where
  * each model parameter came from.
  */
-export function RxSummaryPanel({ summary: s, version }: { summary: Summary | null | undefined; version: number | null }) {
+export function RxSummaryPanel({
+  summary: s,
+  version,
+  unit = null,
+}: {
+  summary: Summary | null | undefined;
+  version: number | null;
+  /** the prescription's unit, when its rates are also shown in it (seeds/ha, ...) */
+  unit?: ShownUnit | null;
+}) {
   if (!s) return <p className="muted">Loading the version's figures…</p>;
   const nut = s.nutrients_kg_ha ?? null;
   const meter = s.meter as { rate_min_kg_ha?: number; rate_max_kg_ha?: number; speed_min_kmh?: number; speed_max_kmh?: number } | null;
@@ -49,6 +58,7 @@ export function RxSummaryPanel({ summary: s, version }: { summary: Summary | nul
   const clamp = s.clamp;
   const product = s.product as { name?: string; price_per_t?: number | null } | null;
   const fr = summaryFractions(s);
+  const seedLot = product != null && !['n_pct', 'p2o5_pct', 'k2o_pct'].some((k) => k in product);
   const plaus = (s.plausibility ?? {}) as Plausibility;
   const above = plaus.above_ceiling;
   const origin = (s.param_origin ?? {}) as Record<string, string>;
@@ -59,11 +69,17 @@ export function RxSummaryPanel({ summary: s, version }: { summary: Summary | nul
           ['Area', `${(s.area_ha ?? 0).toFixed(3)} ha`, 'rx-sum-area'],
           ['Product', product?.name ?? '–', 'rx-sum-product-name'],
           ['Total product', formatProduct(s.product_kg), 'rx-sum-product'],
-          ['Mean rate', nutrientRateText(s.rate_mean_kg_ha, fr), 'rx-sum-mean'],
+          ['Mean rate', nutrientRateText(s.rate_mean_kg_ha, fr) + alsoInUnit(s.rate_mean_kg_ha, unit), 'rx-sum-mean'],
           [
             'Rate range',
             <>
               {formatRate(s.rate_min_kg_ha)} – {formatRate(s.rate_max_kg_ha)}
+              {unit && (
+                <span data-testid="rx-range-unit">
+                  {' '}
+                  ({alsoInUnit(s.rate_min_kg_ha, unit).slice(3)} – {alsoInUnit(s.rate_max_kg_ha, unit).slice(3)})
+                </span>
+              )}
               {fr.N ? (
                 <span data-testid="rx-range-n">
                   {' '}
@@ -80,16 +96,21 @@ export function RxSummaryPanel({ summary: s, version }: { summary: Summary | nul
             </>,
             'rx-range',
           ],
-          [
-            'Nutrients',
-            nut
-              ? Object.entries(nut)
-                  .filter(([, v]) => v > 0)
-                  .map(([k, v]) => `${v.toFixed(1)} kg ${k}/ha`)
-                  .join(', ') || '0'
-              : 'choose a product to see kg N/ha',
-            'rx-sum-n',
-          ],
+          // a seed lot (a product that states no nutrient) carries none to show
+          ...(seedLot
+            ? []
+            : [
+                [
+                  'Nutrients',
+                  nut
+                    ? Object.entries(nut)
+                        .filter(([, v]) => v > 0)
+                        .map(([k, v]) => `${v.toFixed(1)} kg ${k}/ha`)
+                        .join(', ') || '0'
+                    : 'choose a product to see kg N/ha',
+                  'rx-sum-n',
+                ] as [string, string, string],
+              ]),
           [
             'Cost',
             s.cost != null ? s.cost.toLocaleString('en-US', { maximumFractionDigits: 2 }) : product ? 'no price set for the product' : '–',

@@ -109,3 +109,15 @@ describe('nutrientRateText', () => {
     expect(nutrientRateText(null, { N: 0.27 })).toBe('–');
   });
 });
+
+describe('rates also in the prescription unit', () => {
+  it('shows a kg/ha figure in the unit only when the server gave kg per unit', async () => {
+    const { alsoInUnit, shownUnit } = await import('./rxform');
+    expect(shownUnit({ rate_unit: 'kg/ha', kg_per_unit: 1 })).toBeNull();
+    expect(shownUnit({ rate_unit: 'l/ha', kg_per_unit: null })).toBeNull();
+    const u = shownUnit({ rate_unit: 'l/ha', kg_per_unit: 1.28 });
+    expect(alsoInUnit(192, u)).toBe(' · 150.0 l/ha');
+    expect(alsoInUnit(null, u)).toBe('');
+    expect(alsoInUnit(192, null)).toBe('');
+  });
+});

@@ -318,3 +318,20 @@ export function summaryFractions(s: unknown): Record<string, number> {
   const p = o.product;
   return p ? { N: (p.n_pct ?? 0) / 100, P2O5: (p.p2o5_pct ?? 0) / 100, K2O: (p.k2o_pct ?? 0) / 100 } : {};
 }
+
+/** The prescription's unit when its rates are also shown in it (not the base unit, and the
+ * server said how many kg/ha one unit is); null: kg/ha only. */
+export interface ShownUnit {
+  name: string;
+  kgPerUnit: number;
+}
+
+export function shownUnit(rx: { rate_unit?: string | null; kg_per_unit?: number | null } | null | undefined): ShownUnit | null {
+  if (!rx?.rate_unit || rx.rate_unit === BASE_UNIT || !(rx.kg_per_unit && rx.kg_per_unit > 0)) return null;
+  return { name: rx.rate_unit, kgPerUnit: rx.kg_per_unit };
+}
+
+/** " · 72,000 seeds/ha": a kg/ha figure in the prescription's unit ('' in kg/ha only). */
+export function alsoInUnit(kgHa: number | null | undefined, u: ShownUnit | null): string {
+  return u && kgHa != null && Number.isFinite(kgHa) ? ` · ${formatUnitRate(kgHa, u.kgPerUnit, u.name)}` : '';
+}

@@ -3,7 +3,7 @@ import { useExportFormats, usePlan, usePrescription, useField, useJob, useJobKin
 import { ExportButtons } from '../components/ExportButtons';
 import { Legend } from '../components/Legend';
 import { MapStill, PrintReport, usePrintStill } from '../components/PrintReport';
-import { nutrientRateText, summaryFractions, unitTotalsText } from '../lib/rxform';
+import { alsoInUnit, nutrientRateText, shownUnit, summaryFractions, unitTotalsText } from '../lib/rxform';
 import { ReportLoading, useLiveReport, type AsAppliedReport } from '../components/ReportLoader';
 import { ErrorBox, Kv } from '../components/Status';
 import { ReplayTrail, TrackReplay, useTrackReplay } from '../components/TrackReplay';
@@ -117,7 +117,11 @@ function PrescriptionJobReport({ jobId }: { jobId: number }) {
                 job ? <a href={`#/prescriptions/${job.prescription_id}`}>#{job.prescription_id} v{job.prescription_version}</a> : '–',
               ],
               ['Product', rx?.product || job?.product || '–', 'report-product'],
-              ['Mean prescribed rate', rx ? nutrientRateText(rx.summary.rate_mean_kg_ha, summaryFractions(rx.summary)) : '–', 'report-rate-nutrients'],
+              [
+                'Mean prescribed rate',
+                rx ? nutrientRateText(rx.summary.rate_mean_kg_ha, summaryFractions(rx.summary)) + alsoInUnit(rx.summary.rate_mean_kg_ha, shownUnit(rx)) : '–',
+                'report-rate-nutrients',
+              ],
               [
                 'Flagged cells',
                 job?.flagged_cells ? `${String(job.flagged_cells)}${job.flagged_confirmed ? ' (sent on confirmation)' : ''}` : '–',

@@ -16,8 +16,8 @@ import { classColors, classify, legendEntries, niceBreaks, stepExpression, type 
 import { exportMenu, fileType } from '../lib/exportMenu';
 import { attentionLines, attentionOf, attentionSummary } from '../lib/flags';
 import { bboxOf, type PolygonGeom } from '../lib/geo';
-import { rateUnitText } from '../lib/rxform';
-import { formatRate } from '../lib/units';
+import { rateUnitText, shownUnit } from '../lib/rxform';
+import { formatRate, formatUnitRate } from '../lib/units';
 import { modelName } from '../lib/words';
 import { MapView } from '../map/MapView';
 import { rxTilesUrl } from '../map/grid';
@@ -69,6 +69,8 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
   // The summary of the version on screen: figures, flags, classes and histogram all follow it.
   const shown = verQ.data?.summary ?? (version === rx?.current_version ? rx?.summary : undefined);
   const attention = attentionOf(shown ? { ...rx, summary: shown } : rx);
+  // a prescription in another unit (seeds/ha, ...): its classes and figures in that unit too
+  const unit = shownUnit(rx);
   const lo = shown?.rate_min_kg_ha;
   const hi = shown?.rate_max_kg_ha;
   // Legend classes are stored with the version (fixed per version, editable below).
@@ -81,7 +83,7 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
   const classRows =
     lo != null && lo === hi
       ? [{ color: colors[0], from: lo, to: lo, label: `${lo.toFixed(1)} (uniform)` }]
-      : legendEntries(breaks, colors, (v) => v.toFixed(0));
+      : legendEntries(breaks, colors, (v) => (unit ? formatUnitRate(v, unit.kgPerUnit, '').trim() : v.toFixed(0)));
   const legend: LegendEntry[] = editedCells
     ? [...classRows, { color: EDITED_COLOR, from: 0, to: 0, label: `Edited by hand: ${editedCells} cell${editedCells === 1 ? "" : "s"} (dashed outline)`, outline: true }]
     : classRows;
@@ -165,7 +167,7 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
             ['Sent to machines in', rateUnitText(rx, shown?.rate_mean_kg_ha), 'rx-rate-unit'],
           ]}
         />
-        <RxSummaryPanel summary={shown} version={version} />
+        <RxSummaryPanel summary={shown} version={version} unit={unit} />
         {attention.count > 0 && (
           <div className="card warn" data-testid="rx-flagged-detail">
             <div>
@@ -185,7 +187,7 @@ export function PrescriptionScreen({ rxId }: { rxId: number }) {
             </div>
           </div>
         )}
-        <Legend entries={legend} title="Rate (kg/ha)" testid="rx-legend" />
+        <Legend entries={legend} title={unit ? `Rate (${unit.name})` : 'Rate (kg/ha)'} testid="rx-legend" />
         {hist && <Histogram counts={hist.counts} colors={hist.colors} unit="ha" labels={hist.labels} testid="rx-histogram" />}
         <h3>Zones</h3>
         {version != null && (
