@@ -13,13 +13,8 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from fieldrx.agronomy.ratemodels.registry import (
-    RATE_MODELS,
-    Input,
-    Param,
-    RateModel,
-    RateModelError,
-)
+from fieldrx.agronomy.ratemodels.ndvi import ndvi_linear_rate
+from fieldrx.agronomy.ratemodels.registry import RATE_MODELS, Input, Param, RateModel
 
 MAIZE_RANGE = "a maize population range (agronomist's to set)"
 NDVI_LOW, SEEDS_AT_LOW = 0.3, 60_000.0
@@ -29,14 +24,9 @@ NDVI_HIGH, SEEDS_AT_HIGH = 0.8, 90_000.0
 def seeds_by_ndvi(
     ndvi: np.ndarray, ndvi_low: float, seeds_low: float, ndvi_high: float, seeds_high: float
 ) -> np.ndarray:
-    """seeds/ha = seeds_low + (clamp(ndvi) - low) / (high - low) * (seeds_high - seeds_low)."""
-    if not ndvi_high > ndvi_low:
-        raise RateModelError(f"ndvi_high ({ndvi_high}) must exceed ndvi_low ({ndvi_low})")
-    if seeds_low < 0 or seeds_high < 0:
-        raise RateModelError("seeds_at_low / seeds_at_high must not be negative")
-    v = np.clip(np.asarray(ndvi, dtype=float), ndvi_low, ndvi_high)
-    t = (v - ndvi_low) / (ndvi_high - ndvi_low)
-    return np.asarray(seeds_low + t * (seeds_high - seeds_low))
+    """seeds/ha = seeds_low + (clamp(ndvi) - low) / (high - low) * (seeds_high - seeds_low):
+    the NDVI line seed 000 uses for kg/ha, here in seeds/ha (one home for the line)."""
+    return ndvi_linear_rate(ndvi, ndvi_low, seeds_low, ndvi_high, seeds_high)
 
 
 @RATE_MODELS.register
